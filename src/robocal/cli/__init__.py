@@ -1,0 +1,1 @@
+"""The ``robocal`` command line: a thin typer layer over :mod:`robocal.workflows`."""

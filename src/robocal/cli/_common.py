@@ -1,0 +1,61 @@
+"""Helpers shared by the CLI modules: consoles, exit codes, small argument parsers."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+from rich.console import Console
+
+from ..errors import UsageError
+
+EXIT_OK = 0
+EXIT_WARNINGS = 1
+EXIT_BAD_INPUT = 2
+EXIT_DEVICE = 3
+
+console = Console(highlight=False, soft_wrap=True)
+"""Standard output console for results."""
+err_console = Console(stderr=True, highlight=False, soft_wrap=True)
+"""Standard error console for warnings and progress."""
+
+
+def print_error(message: str) -> None:
+    """Print one ``error:`` line (no markup, no traceback) to standard error."""
+    line = " ".join(str(message).split("\n")[0:1]) if "\n" not in str(message) else str(message).replace("\n", "; ")
+    sys.stderr.write(f"error: {line}\n")
+    sys.stderr.flush()
+
+
+def print_warning(message: str) -> None:
+    """Print one ``warning:`` line to standard error."""
+    sys.stderr.write(f"warning: {message}\n")
+    sys.stderr.flush()
+
+
+def parse_csv_list(value: str | None, what: str = "list") -> list[str] | None:
+    """Split ``"a,b,c"`` into names; ``None`` stays ``None``. Empty items are an error."""
+    if value is None:
+        return None
+    items = [v.strip() for v in value.split(",")]
+    if not items or any(not v for v in items):
+        raise UsageError(f"{what} {value!r}: expected comma-separated names with no empty entries")
+    return items
+
+
+def parse_assignments(value: str | None, what: str) -> dict[str, str]:
+    """Parse ``"a=x,b=y"`` into ``{"a": "x", "b": "y"}``."""
+    if not value:
+        return {}
+    out: dict[str, str] = {}
+    for item in value.split(","):
+        key, sep, val = item.partition("=")
+        if not sep or not key.strip() or not val.strip():
+            raise UsageError(f"{what} {value!r}: expected name=value pairs separated by commas")
+        out[key.strip()] = val.strip()
+    return out
+
+
+def exit_code_for(warnings: Sequence[object]) -> int:
+    """0 when there were no warnings, else 1."""
+    return EXIT_WARNINGS if warnings else EXIT_OK

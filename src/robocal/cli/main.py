@@ -1,0 +1,94 @@
+"""Entry point of the ``robocal`` command.
+
+Exit codes: 0 success, 1 finished with warnings, 2 bad input or usage (one ``error:`` line, nothing
+written), 3 device or communication failure, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+import typer
+
+from .. import __version__
+from ..errors import CalibError
+from . import _common
+
+app = typer.Typer(
+    name="robocal",
+    help="Calibrate robots: Robstride joints, LeRobot arms, Universal Robots kinematics.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        _common.console.print(f"robocal {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_version_callback, is_eager=True, help="Print the version and exit."
+    ),
+) -> None:
+    """Calibrate robots: Robstride joints, LeRobot arms, Universal Robots kinematics."""
+
+
+def _register() -> None:
+    from . import dataset, demo, files, lerobot, sweep, ur
+
+    files.register(app)
+    sweep.register(app)
+    demo.register(app)
+    app.add_typer(lerobot.app, name="lerobot")
+    app.add_typer(ur.app, name="ur")
+    app.add_typer(dataset.app, name="dataset")
+
+
+_register()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI and return its exit code (also used as the console-script entry point).
+
+    Args:
+        argv: Arguments without the program name; ``None`` reads ``sys.argv``.
+
+    Returns:
+        The process exit code.
+    """
+    command = typer.main.get_command(app)
+    args = list(sys.argv[1:] if argv is None else argv)
+    try:
+        rv = command.main(args=args, prog_name="robocal", standalone_mode=False)
+    except CalibError as exc:
+        _common.print_error(str(exc))
+        return exc.exit_code
+    except KeyboardInterrupt:
+        _common.print_error("interrupted")
+        return 130
+    except Exception as exc:  # click usage errors carry format_message/exit_code; anything else is a bug
+        fmt = getattr(exc, "format_message", None)
+        if type(exc).__name__ == "NoArgsIsHelpError":  # help was shown for a bare group
+            return 0
+        if callable(fmt):
+            _common.print_error(str(fmt()))
+            code = getattr(exc, "exit_code", 2)
+            return code if isinstance(code, int) and code != 1 else 2
+        if type(exc).__name__ == "Abort":
+            _common.print_error("aborted")
+            return 130
+        raise
+    if isinstance(rv, int):
+        return rv
+    return 0
+
+
+def run() -> None:
+    """Console-script wrapper: ``sys.exit(main())``."""
+    sys.exit(main())

@@ -1,0 +1,79 @@
+"""The robocal exception hierarchy.
+
+Every error robocal raises on purpose derives from :class:`CalibError`. Subclasses also derive from the
+matching builtin (``ValueError``, ``LookupError``, ``OSError``, ``TimeoutError``, ``ImportError``) so code
+that already catches those keeps working. Each class carries the CLI exit code it maps to:
+
+* 2 — bad input or usage (a malformed file, a NaN, a missing joint, a wrong type). Nothing was written.
+* 3 — device or communication failure (no reply, a truncated or garbage packet, a timeout).
+
+Messages name the file, joint or field and say what was expected, so the CLI can print them as one
+``error:`` line.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "BackendNotAvailableError",
+    "CalibError",
+    "CalibTimeoutError",
+    "DeviceError",
+    "FileFormatError",
+    "InvalidCalibrationError",
+    "JointMismatchError",
+    "JointOutOfRangeError",
+    "ProtocolError",
+    "ShapeMismatchError",
+    "UsageError",
+]
+
+
+class CalibError(Exception):
+    """Root of every robocal error. ``exit_code`` is what the CLI exits with."""
+
+    exit_code: int = 2
+
+
+class UsageError(CalibError, ValueError):
+    """A command, flag or argument combination that cannot work; fix the invocation."""
+
+
+class InvalidCalibrationError(CalibError, ValueError):
+    """A calibration value is impossible (direction not ±1, NaN or inf, scale 0); fix the value."""
+
+
+class ShapeMismatchError(InvalidCalibrationError):
+    """An array does not have the shape the calibration expects (e.g. ``(N,)`` or ``(T, N)``)."""
+
+
+class JointMismatchError(CalibError, LookupError):
+    """Joint names do not line up: a joint is missing, unknown or duplicated. The message lists them."""
+
+    def __str__(self) -> str:  # LookupError would otherwise quote the message like KeyError does
+        return str(self.args[0]) if self.args else ""
+
+
+class JointOutOfRangeError(CalibError, ValueError):
+    """A joint value is outside the range the calibration allows (e.g. LeRobot legacy ±270°)."""
+
+
+class FileFormatError(CalibError, ValueError):
+    """A file cannot be parsed or does not follow its format; the message names the file and field."""
+
+
+class BackendNotAvailableError(CalibError, ImportError):
+    """An optional dependency is missing; the message names the extra to install."""
+
+
+class DeviceError(CalibError, OSError):
+    """A device or bus failed: no reply, an error status, a port that cannot be opened."""
+
+    exit_code = 3
+
+
+class ProtocolError(DeviceError):
+    """A packet on the wire is truncated, garbled, oversized or of an unexpected type."""
+
+
+class CalibTimeoutError(DeviceError, TimeoutError):
+    """A device did not answer within the timeout; the message names the device."""
