@@ -1,0 +1,92 @@
+"""Hardware, recordings and simulators, behind small protocols.
+
+Backends are looked up by name through :data:`BACKENDS`, a registry of lazy imports (module path, attribute),
+extended by the ``robocal.backends`` entry-point group, so an optional dependency that is not installed gives a
+clear :class:`~robocal.errors.BackendNotAvailableError` naming the extra to install instead of an ImportError at
+start-up.
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib.metadata import entry_points
+from typing import Any
+
+from ..errors import BackendNotAvailableError, UsageError
+
+__all__ = ["BACKENDS", "EXTRAS", "list_backends", "load_backend", "require"]
+
+BACKENDS: dict[str, tuple[str, str]] = {
+    "robstride": ("robocal.backends.robstride", "RobstrideBus"),
+    "feetech": ("robocal.backends.feetech", "FeetechBus"),
+    "dynamixel": ("robocal.backends.dynamixel", "DynamixelBus"),
+    "ur_primary": ("robocal.backends.ur_primary", "PrimaryClient"),
+}
+"""Backend name → (module, attribute). Extended by the ``robocal.backends`` entry points."""
+
+EXTRAS: dict[str, str] = {
+    "can": "robstride",
+    "scservo_sdk": "feetech",
+    "dynamixel_sdk": "dynamixel",
+    "serial": "feetech",
+    "rosbags": "ros",
+    "matplotlib": "plot",
+    "pyarrow": "dataset",
+}
+"""Top-level module of an optional dependency → the robocal extra that installs it."""
+
+
+def require(module: str, purpose: str) -> Any:
+    """Import an optional dependency or raise :class:`BackendNotAvailableError` naming the extra.
+
+    Args:
+        module: Module to import, e.g. ``"can"``.
+        purpose: What it is needed for, used in the message (e.g. ``"the Robstride CAN backend"``).
+
+    Returns:
+        The imported module.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        extra = EXTRAS.get(module.split(".")[0], "all")
+        raise BackendNotAvailableError(
+            f"{purpose} needs the Python package {module!r}: pip install 'robocal[{extra}]'"
+        ) from None
+
+
+def _registry() -> dict[str, tuple[str, str]]:
+    reg = dict(BACKENDS)
+    for ep in entry_points(group="robocal.backends"):
+        module, _, attr = ep.value.partition(":")
+        reg.setdefault(ep.name, (module, attr))
+    return reg
+
+
+def list_backends() -> list[str]:
+    """Names of every registered backend (built-in and entry points), sorted."""
+    return sorted(_registry())
+
+
+def load_backend(name: str) -> Any:
+    """Import and return the backend class registered as ``name``.
+
+    Raises:
+        UsageError: No backend has that name (the message lists the valid names).
+        BackendNotAvailableError: The backend's optional dependency is missing.
+    """
+    reg = _registry()
+    if name not in reg:
+        raise UsageError(f"unknown backend {name!r}; valid: {', '.join(sorted(reg))}")
+    module, attr = reg[name]
+    try:
+        mod = importlib.import_module(module)
+    except ImportError as exc:
+        missing = (exc.name or "").split(".")[0]
+        if missing.startswith("robocal"):
+            raise
+        extra = EXTRAS.get(missing, "all")
+        raise BackendNotAvailableError(
+            f"backend {name!r} needs the Python package {missing!r}: pip install 'robocal[{extra}]'"
+        ) from None
+    return getattr(mod, attr)

@@ -1,0 +1,1 @@
+"""Simulated robots that speak the real wire protocols (CAN frames, servo packets, TCP)."""
