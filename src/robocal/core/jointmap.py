@@ -1,0 +1,332 @@
+"""The canonical joint map.
+
+Every joint calibration robocal handles is stored in this one form::
+
+    q_joint = direction · scale · (raw − homing_offset)        position
+    v_joint = direction · scale · v_raw                        velocity and effort (no offset)
+    raw     = direction · q_joint / scale + homing_offset      inverse
+
+``direction`` is ±1 (wiring sign), ``homing_offset`` is in the motor's raw unit (rad for Robstride, ticks for
+servos) and ``scale`` converts raw units to joint units (1 for Robstride; 2π/4096 rad per tick for a 4096-tick
+servo). Because ``direction`` is ±1, ``direction == 1/direction`` and the inverse is exact up to one rounding
+of the scale.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, SupportsFloat
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import InvalidCalibrationError, JointMismatchError, ShapeMismatchError
+
+__all__ = ["TWO_PI", "FloatArray", "JointMap", "RobotCalibration"]
+
+FloatArray = NDArray[np.float64]
+TWO_PI = 2.0 * math.pi
+
+
+def _check_direction(direction: Any, where: str) -> int:
+    try:
+        d = float(direction)
+    except (TypeError, ValueError):
+        raise InvalidCalibrationError(f"{where}: direction {direction!r} is not a number; expected -1 or +1") from None
+    if isinstance(direction, bool) or d not in (-1.0, 1.0):
+        raise InvalidCalibrationError(f"{where}: direction {direction!r} is invalid; expected -1 or +1")
+    return int(d)
+
+
+def _check_finite(value: Any, field: str, where: str) -> float:
+    if isinstance(value, bool):
+        raise InvalidCalibrationError(f"{where}: {field} {value!r} is a boolean; expected a number")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InvalidCalibrationError(f"{where}: {field} {value!r} is not a number") from None
+    if not math.isfinite(v):
+        raise InvalidCalibrationError(f"{where}: {field} is {v}; expected a finite number")
+    return v
+
+
+@dataclass(frozen=True, slots=True)
+class JointMap:
+    """Calibration of one joint: ``q = direction · scale · (raw − homing_offset)``.
+
+    Attributes:
+        direction: Wiring sign, −1 or +1.
+        homing_offset: Raw reading (motor frame, raw units) at which the joint is at zero.
+        scale: Joint units per raw unit (> 0). 1.0 when raw is already in rad.
+    """
+
+    direction: int = 1
+    homing_offset: float = 0.0
+    scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "direction", _check_direction(self.direction, "joint map"))
+        object.__setattr__(self, "homing_offset", _check_finite(self.homing_offset, "homing_offset", "joint map"))
+        scale = _check_finite(self.scale, "scale", "joint map")
+        if scale <= 0.0:
+            raise InvalidCalibrationError(f"joint map: scale {scale} must be > 0")
+        object.__setattr__(self, "scale", scale)
+
+    def to_joint(self, raw: ArrayLike) -> Any:
+        """Map raw position(s) to joint position(s): ``direction·scale·(raw − homing_offset)``."""
+        return self.direction * self.scale * (np.asarray(raw, dtype=np.float64) - self.homing_offset)
+
+    def to_raw(self, q: ArrayLike) -> Any:
+        """Map joint position(s) to raw position(s): ``direction·q/scale + homing_offset``."""
+        return self.direction * np.asarray(q, dtype=np.float64) / self.scale + self.homing_offset
+
+
+def _vector(values: ArrayLike, n: int, field: str) -> FloatArray:
+    arr = np.array(values, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ShapeMismatchError(f"{field} has shape {arr.shape}; expected ({n},) for {n} joints")
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class RobotCalibration:
+    """Calibration of a whole robot: joint names in order plus per-joint arrays.
+
+    One numpy expression maps a whole robot per tick (shape ``(N,)``) or a whole recording (shape ``(T, N)``);
+    the last axis is always the joint axis, in ``joint_names`` order.
+
+    Attributes:
+        joint_names: Joint names, unique, in array order.
+        direction: Shape ``(N,)``, each −1.0 or +1.0.
+        homing_offset: Shape ``(N,)``, raw units (motor frame).
+        scale: Shape ``(N,)``, joint units per raw unit, > 0.
+    """
+
+    joint_names: tuple[str, ...]
+    direction: FloatArray
+    homing_offset: FloatArray
+    scale: FloatArray
+
+    def __init__(
+        self,
+        joint_names: Sequence[str],
+        direction: ArrayLike,
+        homing_offset: ArrayLike,
+        scale: ArrayLike = 1.0,
+    ) -> None:
+        names = tuple(joint_names)
+        for name in names:
+            if not isinstance(name, str) or not name:
+                raise InvalidCalibrationError(f"joint name {name!r} is not a non-empty string")
+        dupes = sorted({n for n in names if names.count(n) > 1})
+        if dupes:
+            raise JointMismatchError(f"duplicate joint names: {', '.join(dupes)}")
+        n = len(names)
+        try:
+            d = _vector(direction, n, "direction")
+            h = _vector(homing_offset, n, "homing_offset")
+            s = _vector(scale, n, "scale")
+        except (TypeError, ValueError) as exc:
+            if isinstance(exc, InvalidCalibrationError):
+                raise
+            raise InvalidCalibrationError(f"calibration arrays are not numeric: {exc}") from None
+        for i, name in enumerate(names):
+            if d[i] not in (-1.0, 1.0):
+                raise InvalidCalibrationError(f"joint {name!r}: direction {d[i]:g} is invalid; expected -1 or +1")
+            if not math.isfinite(h[i]):
+                raise InvalidCalibrationError(f"joint {name!r}: homing_offset is {h[i]}; expected a finite number")
+            if not (math.isfinite(s[i]) and s[i] > 0.0):
+                raise InvalidCalibrationError(f"joint {name!r}: scale {s[i]} must be finite and > 0")
+        object.__setattr__(self, "joint_names", names)
+        object.__setattr__(self, "direction", d)
+        object.__setattr__(self, "homing_offset", h)
+        object.__setattr__(self, "scale", s)
+        gain = d * s
+        gain.flags.writeable = False
+        inv_gain = d / s
+        inv_gain.flags.writeable = False
+        object.__setattr__(self, "_gain", gain)
+        object.__setattr__(self, "_inv_gain", inv_gain)
+
+    # ----------------------------------------------------------------------------------------- constructors
+    @classmethod
+    def identity(cls, joint_names: Sequence[str], direction: ArrayLike = 1.0) -> RobotCalibration:
+        """Calibration with zero offsets and unit scale (optionally with directions): ``q = direction·raw``."""
+        return cls(joint_names, direction, 0.0, 1.0)
+
+    @classmethod
+    def from_joint_maps(cls, maps: Mapping[str, JointMap]) -> RobotCalibration:
+        """Build from ``{name: JointMap}`` in the mapping's order."""
+        names = list(maps)
+        return cls(
+            names,
+            [maps[n].direction for n in names],
+            [maps[n].homing_offset for n in names],
+            [maps[n].scale for n in names],
+        )
+
+    # ---------------------------------------------------------------------------------------------- access
+    @property
+    def n_joints(self) -> int:
+        """Number of joints N."""
+        return len(self.joint_names)
+
+    def __len__(self) -> int:
+        return len(self.joint_names)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.joint_names
+
+    def index(self, name: str) -> int:
+        """Position of joint ``name``; :class:`JointMismatchError` naming the valid joints if unknown."""
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise JointMismatchError(
+                f"unknown joint {name!r}; known joints: {', '.join(self.joint_names) or '(none)'}"
+            ) from None
+
+    def joint_map(self, name: str) -> JointMap:
+        """The :class:`JointMap` of one joint."""
+        i = self.index(name)
+        return JointMap(int(self.direction[i]), float(self.homing_offset[i]), float(self.scale[i]))
+
+    def joint_maps(self) -> dict[str, JointMap]:
+        """All joints as ``{name: JointMap}`` in order."""
+        return {n: self.joint_map(n) for n in self.joint_names}
+
+    def select(self, joint_names: Iterable[str]) -> RobotCalibration:
+        """Reorder or subset the joints. Unknown names raise :class:`JointMismatchError` listing them."""
+        names = list(joint_names)
+        missing = [n for n in names if n not in self.joint_names]
+        if missing:
+            raise JointMismatchError(
+                f"joints not in the calibration: {', '.join(missing)}; known: {', '.join(self.joint_names)}"
+            )
+        idx = [self.joint_names.index(n) for n in names]
+        return RobotCalibration(names, self.direction[idx], self.homing_offset[idx], self.scale[idx])
+
+    def with_offsets(self, offsets: Mapping[str, SupportsFloat]) -> RobotCalibration:
+        """Copy with the homing offsets of some joints replaced (raw units)."""
+        h = self.homing_offset.copy()
+        for name, value in offsets.items():
+            h[self.index(name)] = _check_finite(value, "homing_offset", f"joint {name!r}")
+        return RobotCalibration(self.joint_names, self.direction, h, self.scale)
+
+    def with_directions(self, directions: Mapping[str, int]) -> RobotCalibration:
+        """Copy with the directions of some joints replaced."""
+        d = self.direction.copy()
+        for name, value in directions.items():
+            d[self.index(name)] = _check_direction(value, f"joint {name!r}")
+        return RobotCalibration(self.joint_names, d, self.homing_offset, self.scale)
+
+    def is_close(self, other: RobotCalibration, atol: float = 1e-12) -> bool:
+        """Same joints in the same order, same directions, offsets and scales within ``atol``."""
+        return (
+            self.joint_names == other.joint_names
+            and bool(np.array_equal(self.direction, other.direction))
+            and bool(np.allclose(self.homing_offset, other.homing_offset, rtol=0.0, atol=atol))
+            and bool(np.allclose(self.scale, other.scale, rtol=0.0, atol=atol))
+        )
+
+    def __repr__(self) -> str:
+        rows = ", ".join(
+            f"{n}: d={int(d):+d} h={h:.6g} s={s:.6g}"
+            for n, d, h, s in zip(self.joint_names, self.direction, self.homing_offset, self.scale)
+        )
+        return f"RobotCalibration({rows})"
+
+    # --------------------------------------------------------------------------------------------- mapping
+    def _check(self, x: ArrayLike, what: str) -> FloatArray:
+        arr = np.asarray(x, dtype=np.float64)
+        if arr.ndim == 0:
+            if self.n_joints != 1:
+                raise ShapeMismatchError(f"{what} is a scalar; expected shape (..., {self.n_joints})")
+            return arr
+        if arr.shape[-1] != self.n_joints:
+            raise ShapeMismatchError(
+                f"{what} has shape {arr.shape}; the last axis must have {self.n_joints} joints "
+                f"({', '.join(self.joint_names)})"
+            )
+        return arr
+
+    def to_joint(self, raw: ArrayLike) -> FloatArray:
+        """Raw motor positions → joint positions.
+
+        Args:
+            raw: Shape ``(N,)``, ``(T, N)`` or ``(..., N)`` in raw units (a scalar when N = 1).
+
+        Returns:
+            Joint positions, same shape, joint units (rad).
+        """
+        r = self._check(raw, "raw position")
+        out: FloatArray = self._gain * (r - self.homing_offset)
+        return out
+
+    def to_raw(self, q: ArrayLike) -> FloatArray:
+        """Joint positions → raw motor positions (inverse of :meth:`to_joint`), shape ``(..., N)``."""
+        qq = self._check(q, "joint position")
+        out: FloatArray = self._inv_gain * qq + self.homing_offset
+        return out
+
+    def velocity_to_joint(self, v_raw: ArrayLike) -> FloatArray:
+        """Raw velocities → joint velocities: ``direction·scale·v`` (no offset), shape ``(..., N)``."""
+        out: FloatArray = self._gain * self._check(v_raw, "raw velocity")
+        return out
+
+    def velocity_to_raw(self, v_joint: ArrayLike) -> FloatArray:
+        """Joint velocities → raw velocities: ``direction·v/scale``, shape ``(..., N)``."""
+        out: FloatArray = self._inv_gain * self._check(v_joint, "joint velocity")
+        return out
+
+    def effort_to_joint(self, e_raw: ArrayLike) -> FloatArray:
+        """Raw efforts → joint efforts: ``direction·scale·e`` (no offset), shape ``(..., N)``."""
+        out: FloatArray = self._gain * self._check(e_raw, "raw effort")
+        return out
+
+    def effort_to_raw(self, e_joint: ArrayLike) -> FloatArray:
+        """Joint efforts → raw efforts: ``direction·e/scale``, shape ``(..., N)``."""
+        out: FloatArray = self._inv_gain * self._check(e_joint, "joint effort")
+        return out
+
+    def unwrap_to_limits(
+        self,
+        raw: ArrayLike,
+        lower: ArrayLike,
+        upper: ArrayLike,
+        period_raw: ArrayLike = TWO_PI,
+    ) -> FloatArray:
+        """Choose, per joint, the raw branch ``raw + k·period`` that puts the joint inside its limits.
+
+        After a power cycle an absolute single-turn encoder reports its position modulo one turn. When the
+        turn's wrap point lies inside a joint's travel, the reading can be off by one period. This picks the
+        integer ``k`` whose joint position lies inside ``[lower, upper]``, or, when none does, the one closest
+        to the middle of the range (the moteus "set output nearest" rule).
+
+        Args:
+            raw: Raw positions, shape ``(N,)`` (first reading after power-on), raw units.
+            lower: Lower joint limits, shape ``(N,)`` or scalar, joint units.
+            upper: Upper joint limits, shape ``(N,)`` or scalar, joint units.
+            period_raw: Encoder period in raw units (2π for Robstride, 4096 for a 4096-tick servo).
+
+        Returns:
+            Raw positions, shape ``(N,)``, shifted by whole periods.
+        """
+        r = self._check(raw, "raw position")
+        lo = np.broadcast_to(np.asarray(lower, dtype=np.float64), r.shape)
+        up = np.broadcast_to(np.asarray(upper, dtype=np.float64), r.shape)
+        period = np.broadcast_to(np.asarray(period_raw, dtype=np.float64), r.shape)
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(lo)) and np.all(np.isfinite(up))):
+            raise InvalidCalibrationError("unwrap_to_limits: raw positions and limits must be finite")
+        if np.any(period <= 0):
+            raise InvalidCalibrationError("unwrap_to_limits: the encoder period must be > 0")
+        mid_joint = 0.5 * (lo + up)
+        mid_raw = self._inv_gain * mid_joint + self.homing_offset
+        k = np.round((mid_raw - r) / period)
+        out: FloatArray = r + k * period
+        return out
