@@ -1,0 +1,67 @@
+"""Number parsing and formatting shared by the file formats."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from ..errors import FileFormatError
+
+__all__ = ["format_float", "parse_direction", "parse_finite", "parse_int"]
+
+
+def format_float(x: float) -> str:
+    """Shortest string that reads back as the same float; never ``-0`` (written as ``0.0``)."""
+    v = float(x)
+    if v == 0.0:
+        return "0.0"
+    return repr(v)
+
+
+def parse_finite(value: Any, where: str, field: str) -> float:
+    """A finite float from a number or numeric string, else :class:`FileFormatError` naming ``where.field``."""
+    if isinstance(value, bool) or value is None:
+        raise FileFormatError(f"{where}: {field} is {value!r}; expected a number")
+    if isinstance(value, str):
+        try:
+            v = float(value.strip())
+        except ValueError:
+            raise FileFormatError(f"{where}: {field} {value!r} is not a number") from None
+    elif isinstance(value, (int, float)):
+        v = float(value)
+    else:
+        raise FileFormatError(f"{where}: {field} has type {type(value).__name__}; expected a number")
+    if not math.isfinite(v):
+        raise FileFormatError(f"{where}: {field} is {v}; expected a finite number")
+    return v
+
+
+def parse_int(value: Any, where: str, field: str) -> int:
+    """An integer from an int, an integral float or an integer string."""
+    if isinstance(value, bool) or value is None:
+        raise FileFormatError(f"{where}: {field} is {value!r}; expected an integer")
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        if value.is_integer():
+            return int(value)
+        raise FileFormatError(f"{where}: {field} {value!r} is not an integer")
+    if isinstance(value, str):
+        try:
+            return int(value.strip(), 0)
+        except ValueError:
+            raise FileFormatError(f"{where}: {field} {value!r} is not an integer") from None
+    raise FileFormatError(f"{where}: {field} has type {type(value).__name__}; expected an integer")
+
+
+def parse_direction(value: Any, where: str) -> int:
+    """A direction, −1 or +1 (ints, integral floats or strings), else :class:`FileFormatError`."""
+    if isinstance(value, bool) or value is None:
+        raise FileFormatError(f"{where}: direction is {value!r}; expected -1 or 1")
+    try:
+        v = float(value.strip()) if isinstance(value, str) else float(value)
+    except (TypeError, ValueError):
+        raise FileFormatError(f"{where}: direction {value!r} is not a number; expected -1 or 1") from None
+    if v not in (-1.0, 1.0):
+        raise FileFormatError(f"{where}: direction {value!r} is invalid; expected -1 or 1")
+    return int(v)

@@ -1,0 +1,423 @@
+"""URDF reading and in-place editing with lxml.
+
+Robot joints are the ``<joint>`` elements that are **direct children** of ``<robot>``; ``<ros2_control>`` reuses
+the tag ``joint`` for its own entries, which are read separately as string parameters. Parsing never expands
+entities and never touches the network; a document that declares entities is refused. Editing changes
+attribute values in place, so comments, element order, ``<ros2_control>``, ``<gazebo>`` and formatting survive.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from lxml import etree
+
+from ..errors import FileFormatError, JointMismatchError, UsageError
+from ..fileio import atomic_write_bytes, read_bytes
+from ._numbers import format_float, parse_finite
+
+__all__ = [
+    "JointLimits",
+    "UrdfDocument",
+    "UrdfJoint",
+    "UrdfModel",
+    "parse_urdf",
+    "read_urdf",
+]
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """A joint's ``<limit>``: positions in rad (or m), velocity in rad/s, effort in N·m. Missing → None."""
+
+    lower: float | None
+    upper: float | None
+    velocity: float | None = None
+    effort: float | None = None
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    """One robot joint (a direct ``<robot>/<joint>`` child).
+
+    Attributes:
+        name: Joint name.
+        type: ``revolute``, ``continuous``, ``prismatic``, ``fixed``, ``floating`` or ``planar``.
+        parent: Parent link name.
+        child: Child link name.
+        origin_xyz: ``<origin xyz>`` in m, parent frame.
+        origin_rpy: ``<origin rpy>`` in rad, URDF convention ``R = Rz(yaw)·Ry(pitch)·Rx(roll)``.
+        axis: ``<axis xyz>``, unit vector in the joint frame (default ``(1, 0, 0)``).
+        limit: The ``<limit>`` element, or None.
+        mimic: Name of the mimicked joint, or None.
+    """
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin_xyz: Vec3 = (0.0, 0.0, 0.0)
+    origin_rpy: Vec3 = (0.0, 0.0, 0.0)
+    axis: Vec3 = (1.0, 0.0, 0.0)
+    limit: JointLimits | None = None
+    mimic: str | None = None
+
+    @property
+    def is_movable(self) -> bool:
+        """True for joints with a degree of freedom (not fixed)."""
+        return self.type != "fixed"
+
+
+@dataclass(frozen=True)
+class UrdfModel:
+    """The parts of a URDF robocal uses.
+
+    Attributes:
+        name: ``<robot name>``.
+        joints: Robot joints in document order.
+        joint_params: ``<ros2_control>/<joint>`` parameters, ``{joint: {param: text}}`` (strings, stripped),
+            merged over every ``<ros2_control>`` system in document order.
+        hardware_params: ``<ros2_control>/<hardware>/<param>`` per system name.
+        source: Where the URDF was read from.
+    """
+
+    name: str
+    joints: tuple[UrdfJoint, ...]
+    joint_params: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
+    hardware_params: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
+    source: str = "<string>"
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of all robot joints in document order."""
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def movable_joint_names(self) -> tuple[str, ...]:
+        """Names of the non-fixed joints in document order."""
+        return tuple(j.name for j in self.joints if j.is_movable)
+
+    @property
+    def ros2_control_joint_names(self) -> tuple[str, ...]:
+        """Joints listed in ``<ros2_control>`` blocks, in document order."""
+        return tuple(self.joint_params)
+
+    def joint(self, name: str) -> UrdfJoint:
+        """The joint called ``name``; :class:`JointMismatchError` listing the valid names if absent."""
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise JointMismatchError(f"URDF {self.source}: no joint {name!r}; joints: {', '.join(self.joint_names)}")
+
+    def param(self, joint: str, name: str) -> str | None:
+        """A ``<ros2_control>`` joint parameter as text, or None."""
+        return self.joint_params.get(joint, {}).get(name)
+
+    def calibration_joint_names(self) -> tuple[str, ...]:
+        """The joint order for calibration files: ``<ros2_control>`` joints if any, else movable joints."""
+        return self.ros2_control_joint_names or self.movable_joint_names
+
+    def direction(self, joint: str) -> int | None:
+        """The ``direction`` parameter of a joint (±1), None when absent; bad values raise FileFormatError."""
+        from ._numbers import parse_direction
+
+        text = self.param(joint, "direction")
+        if text is None:
+            return None
+        return parse_direction(text, f"URDF {self.source}: joint {joint!r} <param name='direction'>")
+
+    def motor_id(self, joint: str) -> int | None:
+        """The motor id of a joint from its ``id`` or ``can_id`` parameter, None when absent."""
+        from ._numbers import parse_int
+
+        for key in ("id", "can_id", "motor_id"):
+            text = self.param(joint, key)
+            if text is not None:
+                return parse_int(text, f"URDF {self.source}: joint {joint!r}", f"<param name='{key}'>")
+        return None
+
+    def limits(self, joint: str) -> tuple[float, float]:
+        """``(lower, upper)`` of a joint, from ``<limit>`` or the ``lower_limit``/``upper_limit`` params."""
+        j = self.joint(joint)
+        lo = j.limit.lower if j.limit else None
+        up = j.limit.upper if j.limit else None
+        where = f"URDF {self.source}: joint {joint!r}"
+        if lo is None and self.param(joint, "lower_limit") is not None:
+            lo = parse_finite(self.param(joint, "lower_limit"), where, "<param name='lower_limit'>")
+        if up is None and self.param(joint, "upper_limit") is not None:
+            up = parse_finite(self.param(joint, "upper_limit"), where, "<param name='upper_limit'>")
+        if lo is None or up is None:
+            raise FileFormatError(f"{where}: has no lower/upper limit")
+        if lo > up:
+            raise FileFormatError(f"{where}: lower limit {lo} is above upper limit {up}")
+        return lo, up
+
+
+def _parser() -> etree.XMLParser:
+    return etree.XMLParser(
+        resolve_entities=False,
+        no_network=True,
+        load_dtd=False,
+        dtd_validation=False,
+        huge_tree=False,
+        remove_blank_text=False,
+        remove_comments=False,
+    )
+
+
+def _parse_tree(data: bytes, source: str) -> Any:
+    try:
+        root = etree.fromstring(data, _parser())
+    except etree.XMLSyntaxError as exc:
+        line = getattr(exc, "lineno", None)
+        where = f" (line {line})" if line else ""
+        raise FileFormatError(f"URDF {source}: not well-formed XML{where}: {exc.msg}") from None
+    tree = root.getroottree()
+    dtd = tree.docinfo.internalDTD
+    if dtd is not None and any(True for _ in dtd.iterentities()):
+        raise FileFormatError(f"URDF {source}: entity declarations are not allowed (possible XXE); expand it first")
+    for el in root.iter():
+        if isinstance(el, etree._Entity):
+            raise FileFormatError(f"URDF {source}: unresolved entity reference &{el.name}; is not allowed")
+    if root.tag != "robot":
+        raise FileFormatError(f"URDF {source}: root element is <{root.tag}>, expected <robot>")
+    return tree
+
+
+def _vec3(text: str | None, default: Vec3, where: str, attr: str) -> Vec3:
+    if text is None:
+        return default
+    parts = text.split()
+    if len(parts) != 3:
+        raise FileFormatError(f"{where}: {attr}={text!r} must have 3 numbers")
+    x, y, z = (parse_finite(p, where, attr) for p in parts)
+    return (x, y, z)
+
+
+def _opt_float(el: Any, attr: str, where: str) -> float | None:
+    text = el.get(attr)
+    return None if text is None else parse_finite(text, where, f"<limit {attr}>")
+
+
+def _model_from_tree(tree: Any, source: str) -> UrdfModel:
+    root = tree.getroot()
+    joints: list[UrdfJoint] = []
+    seen: set[str] = set()
+    for el in root.findall("joint"):
+        name = el.get("name")
+        where = f"URDF {source}: joint {name!r}" if name else f"URDF {source}: <joint> on line {el.sourceline}"
+        if not name:
+            raise FileFormatError(f"{where}: missing name attribute")
+        if name in seen:
+            raise FileFormatError(f"URDF {source}: duplicate joint {name!r}")
+        seen.add(name)
+        jtype = el.get("type")
+        if jtype not in ("revolute", "continuous", "prismatic", "fixed", "floating", "planar"):
+            raise FileFormatError(f"{where}: type {jtype!r} is not a URDF joint type")
+        parent, child = el.find("parent"), el.find("child")
+        if parent is None or child is None or not parent.get("link") or not child.get("link"):
+            raise FileFormatError(f"{where}: needs <parent link=...> and <child link=...>")
+        origin = el.find("origin")
+        xyz = _vec3(origin.get("xyz") if origin is not None else None, (0.0, 0.0, 0.0), where, "origin xyz")
+        rpy = _vec3(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0), where, "origin rpy")
+        axis_el = el.find("axis")
+        axis = _vec3(axis_el.get("xyz") if axis_el is not None else None, (1.0, 0.0, 0.0), where, "axis xyz")
+        lim_el = el.find("limit")
+        limit = None
+        if lim_el is not None:
+            limit = JointLimits(
+                _opt_float(lim_el, "lower", where),
+                _opt_float(lim_el, "upper", where),
+                _opt_float(lim_el, "velocity", where),
+                _opt_float(lim_el, "effort", where),
+            )
+            if limit.lower is not None and limit.upper is not None and limit.lower > limit.upper:
+                raise FileFormatError(f"{where}: limit lower {limit.lower} is above upper {limit.upper}")
+        mimic_el = el.find("mimic")
+        joints.append(
+            UrdfJoint(
+                name=name,
+                type=jtype,
+                parent=parent.get("link"),
+                child=child.get("link"),
+                origin_xyz=xyz,
+                origin_rpy=rpy,
+                axis=axis,
+                limit=limit,
+                mimic=mimic_el.get("joint") if mimic_el is not None else None,
+            )
+        )
+    joint_params: dict[str, dict[str, str]] = {}
+    hardware_params: dict[str, dict[str, str]] = {}
+    for sys_el in root.findall("ros2_control"):
+        sys_name = sys_el.get("name") or f"system{len(hardware_params)}"
+        hw = sys_el.find("hardware")
+        hardware_params[sys_name] = {
+            p.get("name"): (p.text or "").strip() for p in (hw.findall("param") if hw is not None else [])
+        }
+        for jel in sys_el.findall("joint"):
+            jname = jel.get("name")
+            if not jname:
+                raise FileFormatError(f"URDF {source}: <ros2_control> joint on line {jel.sourceline} has no name")
+            params = joint_params.setdefault(jname, {})
+            for p in jel.findall("param"):
+                pname = p.get("name")
+                if pname:
+                    params[pname] = (p.text or "").strip()
+    return UrdfModel(
+        name=root.get("name") or "",
+        joints=tuple(joints),
+        joint_params=MappingProxyType({k: MappingProxyType(v) for k, v in joint_params.items()}),
+        hardware_params=MappingProxyType({k: MappingProxyType(v) for k, v in hardware_params.items()}),
+        source=source,
+    )
+
+
+def parse_urdf(data: bytes | str, source: str = "<string>") -> UrdfModel:
+    """Parse URDF text or bytes into a :class:`UrdfModel`.
+
+    Raises:
+        FileFormatError: Not well-formed, entity declarations, not a ``<robot>``, bad numbers, duplicates.
+    """
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    return _model_from_tree(_parse_tree(raw, source), source)
+
+
+def read_urdf(path: str | os.PathLike[str]) -> UrdfModel:
+    """Read a URDF file (an expanded URDF, not xacro) into a :class:`UrdfModel`."""
+    return parse_urdf(read_bytes(path, "URDF"), str(path))
+
+
+def _prolog_epilog(original: bytes, tree: Any) -> tuple[bytes | None, bytes | None]:
+    """Bytes before the root start tag and after its end tag, so re-serialising keeps them verbatim."""
+    root = tree.getroot()
+    line = root.sourceline or 1
+    lines = original.splitlines(keepends=True)
+    offset = sum(len(x) for x in lines[: line - 1])
+    start = original.find(b"<" + root.tag.encode(), offset)
+    end = original.rfind(b"</" + root.tag.encode())
+    if start < 0:
+        return None, None
+    if end < 0:  # self-closing root
+        end_tag = original.rfind(b"/>")
+        return original[:start], original[end_tag + 2 :] if end_tag > start else b"\n"
+    close = original.find(b">", end)
+    return original[:start], original[close + 1 :] if close >= 0 else b"\n"
+
+
+class UrdfDocument:
+    """A URDF kept as an lxml tree for lossless in-place edits.
+
+    Example:
+        >>> doc = UrdfDocument.load("robot.urdf")  # doctest: +SKIP
+        >>> doc.set_origin("elbow_joint", (0.1, 0.0, 0.0), (0.0, 0.0, 0.0))  # doctest: +SKIP
+        >>> doc.write("robot_calibrated.urdf")  # doctest: +SKIP
+    """
+
+    def __init__(self, tree: Any, source: str, original: bytes | None = None) -> None:
+        self._tree = tree
+        self.source = source
+        self._prolog, self._epilog = _prolog_epilog(original, tree) if original is not None else (None, None)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> UrdfDocument:
+        """Parse a URDF file for editing (same safety rules as :func:`read_urdf`)."""
+        data = read_bytes(path, "URDF")
+        tree = _parse_tree(data, str(path))
+        _model_from_tree(tree, str(path))  # validate once up front
+        return cls(tree, str(path), data)
+
+    @classmethod
+    def from_bytes(cls, data: bytes | str, source: str = "<string>") -> UrdfDocument:
+        """Parse URDF text for editing."""
+        raw = data.encode("utf-8") if isinstance(data, str) else data
+        tree = _parse_tree(raw, source)
+        _model_from_tree(tree, source)
+        return cls(tree, source, raw)
+
+    def model(self) -> UrdfModel:
+        """The current state of the document as a :class:`UrdfModel`."""
+        return _model_from_tree(self._tree, self.source)
+
+    def _joint_el(self, joint: str) -> Any:
+        for el in self._tree.getroot().findall("joint"):
+            if el.get("name") == joint:
+                return el
+        names = [el.get("name") for el in self._tree.getroot().findall("joint")]
+        raise JointMismatchError(f"URDF {self.source}: no joint {joint!r}; joints: {', '.join(map(str, names))}")
+
+    def set_origin(self, joint: str, xyz: Sequence[float], rpy: Sequence[float]) -> None:
+        """Set a joint's ``<origin xyz rpy>`` (creating ``<origin>`` if absent), shortest round-trip floats.
+
+        Args:
+            joint: Robot joint name.
+            xyz: Translation, 3 floats, m.
+            rpy: URDF roll, pitch, yaw, 3 floats, rad (``R = Rz(yaw)·Ry(pitch)·Rx(roll)``).
+        """
+        if len(xyz) != 3 or len(rpy) != 3:
+            raise UsageError(f"set_origin({joint!r}): xyz and rpy need 3 values each")
+        values = [float(v) for v in (*xyz, *rpy)]
+        if any(v != v or v in (float("inf"), float("-inf")) for v in values):
+            raise UsageError(f"set_origin({joint!r}): values must be finite, got {values}")
+        el = self._joint_el(joint)
+        origin = el.find("origin")
+        if origin is None:
+            origin = etree.Element("origin")
+            parent = el.find("parent")
+            idx = list(el).index(parent) if parent is not None else 0
+            origin.tail = el.text
+            el.insert(idx, origin)
+        origin.set("xyz", " ".join(format_float(v) for v in values[:3]))
+        origin.set("rpy", " ".join(format_float(v) for v in values[3:]))
+
+    def set_param(self, joint: str, name: str, value: str) -> None:
+        """Set a ``<ros2_control>/<joint>/<param name=...>`` text; the ``<ros2_control>`` joint must exist.
+
+        An absent ``<param>`` is appended after the joint's last child.
+        """
+        found = False
+        for sys_el in self._tree.getroot().findall("ros2_control"):
+            for jel in sys_el.findall("joint"):
+                if jel.get("name") != joint:
+                    continue
+                found = True
+                for p in jel.findall("param"):
+                    if p.get("name") == name:
+                        p.text = value
+                        break
+                else:
+                    p = etree.Element("param", name=name)
+                    p.text = value
+                    children = list(jel)
+                    if children:
+                        last = children[-1]
+                        p.tail = last.tail
+                        last.tail = children[-2].tail if len(children) >= 2 else jel.text
+                        last.addnext(p)
+                    else:
+                        jel.append(p)
+        if not found:
+            raise JointMismatchError(f"URDF {self.source}: joint {joint!r} is not in any <ros2_control> block")
+
+    def root(self) -> Any:
+        """The lxml root element, for edits not covered above (e.g. ``<transmission>`` blocks)."""
+        return self._tree.getroot()
+
+    def to_bytes(self) -> bytes:
+        """Serialise keeping the original prolog (declaration, comments), comments and element order."""
+        if self._prolog is not None and self._epilog is not None:
+            body: bytes = etree.tostring(self._tree.getroot(), encoding="utf-8", xml_declaration=False)
+            return self._prolog + body + self._epilog
+        out: bytes = etree.tostring(self._tree, xml_declaration=True, encoding="utf-8")
+        return out if out.endswith(b"\n") else out + b"\n"
+
+    def write(self, path: str | os.PathLike[str]) -> Path:
+        """Write atomically (keeping ``NAME.bak`` of an existing file)."""
+        return atomic_write_bytes(path, self.to_bytes())
