@@ -1,0 +1,445 @@
+"""Hard-stop sweep math: wrap-aware range tracking, the bisection rule and sweep diagnostics.
+
+Pure numpy. Positions here are in the *identity frame* of a Robstride joint, ``s = direction·raw`` (rad): what
+the robot publishes with an empty calibration file. The bisection rule puts the centre of the sampled range on
+the centre of the URDF range::
+
+    lower_offset  = s_min − lower            (joint frame, rad)
+    upper_offset  = s_max − upper
+    homing_offset = ½·(lower_offset + upper_offset)·direction     (motor frame, rad)
+
+Diagnostic codes (stable, used in reports and the live view):
+
+* ``ok`` — nothing to report.
+* ``not_swept`` — sweep below the threshold; the prior offset is kept (no prior: the joint has no offset).
+* ``no_overlap`` — the sampled range and the URDF range do not overlap (direction probably flipped).
+* ``span_mismatch`` — ``|sweep − (upper − lower)|`` is above the tolerance (a stop is not where the URDF says,
+  or the sweep stopped short).
+* ``offset_large`` — ``|homing_offset| > π``.
+* ``wrap_in_travel`` — the joint's raw travel contains the motor's power-on wrap point, so after a power cycle
+  the raw reading can be off by 2π; :meth:`robocal.core.RobotCalibration.unwrap_to_limits` fixes it at load.
+* ``direction_flipped`` — the guided direction check saw the joint move the wrong way.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InvalidCalibrationError, ShapeMismatchError
+
+__all__ = [
+    "CODES",
+    "DEFAULT_SPAN_TOLERANCE_RAD",
+    "DEFAULT_THRESHOLD_RAD",
+    "WARNING_CODES",
+    "JointSweep",
+    "RangeTracker",
+    "SweepResult",
+    "analyse_sweep",
+    "bisect_homing_offset",
+    "direction_from_motion",
+    "wrap_in_travel",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+TWO_PI = 2.0 * math.pi
+DEFAULT_THRESHOLD_RAD = 0.5
+"""A joint swept less than this (rad) counts as not swept (the upstream tool's default)."""
+DEFAULT_SPAN_TOLERANCE_RAD = 0.15
+"""Allowed difference between the sweep and the URDF span (rad)."""
+
+WARNING_CODES: tuple[str, ...] = (
+    "not_swept",
+    "no_overlap",
+    "span_mismatch",
+    "offset_large",
+    "wrap_in_travel",
+    "direction_flipped",
+)
+"""Every warning code, in display order."""
+CODES: tuple[str, ...] = ("ok", *WARNING_CODES)
+"""Every status code."""
+
+
+class RangeTracker:
+    """Running min/max of N joint positions that unwraps sample-to-sample jumps.
+
+    Consecutive samples that differ by more than half a period are taken to have crossed a wrap point
+    (the power-on wrap, the ±4π runtime wrap or a publisher that wraps to ±π) and are shifted by whole
+    periods, so a sweep that crosses the wrap gives its true range. Unwrapped values stay on the
+    branch of each joint's first sample. Non-finite samples are ignored per joint.
+
+    Args:
+        n_joints: Number of joints N.
+        period_rad: Wrap period (2π for Robstride positions).
+    """
+
+    def __init__(self, n_joints: int, period_rad: float = TWO_PI) -> None:
+        if n_joints < 0:
+            raise ShapeMismatchError(f"RangeTracker: n_joints {n_joints} must be >= 0")
+        if not (math.isfinite(period_rad) and period_rad > 0):
+            raise InvalidCalibrationError(f"RangeTracker: period {period_rad} must be finite and > 0")
+        self.n_joints = n_joints
+        self.period_rad = float(period_rad)
+        self._last = np.full(n_joints, np.nan)  # last raw (wrapped) sample
+        self._current = np.full(n_joints, np.nan)  # last unwrapped sample
+        self._min = np.full(n_joints, np.inf)
+        self._max = np.full(n_joints, -np.inf)
+        self._count = np.zeros(n_joints, dtype=np.int64)
+
+    def _check(self, s: Any, ndim: int) -> FloatArray:
+        arr = np.asarray(s, dtype=np.float64)
+        if arr.ndim != ndim or arr.shape[-1] != self.n_joints:
+            want = f"({self.n_joints},)" if ndim == 1 else f"(T, {self.n_joints})"
+            raise ShapeMismatchError(f"RangeTracker: sample has shape {arr.shape}; expected {want}")
+        return arr
+
+    def update(self, s_rad: npt.ArrayLike) -> None:
+        """Add one sample, shape ``(N,)``, rad."""
+        self.update_many(self._check(s_rad, 1)[None, :])
+
+    def update_many(self, s_rad: npt.ArrayLike) -> None:
+        """Add a block of samples, shape ``(T, N)``, rad (rows in time order)."""
+        S = self._check(s_rad, 2)
+        if S.shape[0] == 0:
+            return
+        finite = np.isfinite(S)
+        last = self._last.copy()
+        cur = self._current.copy()
+        fresh = ~np.isfinite(last) & finite.any(axis=0)
+        if fresh.any():  # a joint's first finite sample starts its branch
+            first_row = np.argmax(finite, axis=0)
+            first_val = S[first_row, np.arange(self.n_joints)]
+            last[fresh] = first_val[fresh]
+            cur[fresh] = first_val[fresh]
+        if not finite.all():  # forward-fill gaps with the previous finite value
+            idx = np.where(finite, np.arange(S.shape[0])[:, None], -1)
+            np.maximum.accumulate(idx, axis=0, out=idx)
+            S = np.take_along_axis(np.vstack([last[None, :], S]), idx + 1, axis=0)
+        d = np.diff(np.vstack([last[None, :], S]), axis=0)
+        d = np.nan_to_num(d - self.period_rad * np.round(d / self.period_rad), nan=0.0)
+        U = cur[None, :] + np.cumsum(d, axis=0)
+        valid = finite
+        np.minimum(self._min, np.where(valid, U, np.inf).min(axis=0), out=self._min)
+        np.maximum(self._max, np.where(valid, U, -np.inf).max(axis=0), out=self._max)
+        self._count += valid.sum(axis=0)
+        seen = valid.any(axis=0)
+        self._current = np.where(seen, U[-1], cur)
+        self._last = np.where(seen, S[-1], last)
+
+    @property
+    def count(self) -> npt.NDArray[np.int64]:
+        """Finite samples seen per joint, shape ``(N,)``."""
+        out: npt.NDArray[np.int64] = self._count.copy()
+        return out
+
+    @property
+    def current(self) -> FloatArray:
+        """Latest unwrapped position per joint, shape ``(N,)``, rad (NaN before the first sample)."""
+        out: FloatArray = self._current.copy()
+        return out
+
+    @property
+    def minimum(self) -> FloatArray:
+        """Unwrapped minimum per joint, shape ``(N,)``, rad (NaN before the first sample)."""
+        return np.where(self._count > 0, self._min, np.nan)
+
+    @property
+    def maximum(self) -> FloatArray:
+        """Unwrapped maximum per joint, shape ``(N,)``, rad (NaN before the first sample)."""
+        return np.where(self._count > 0, self._max, np.nan)
+
+    @property
+    def sweep(self) -> FloatArray:
+        """``maximum − minimum`` per joint, shape ``(N,)``, rad (0 before the first sample)."""
+        return np.where(self._count > 0, self._max - self._min, 0.0)
+
+
+def bisect_homing_offset(
+    s_min: npt.ArrayLike,
+    s_max: npt.ArrayLike,
+    lower: npt.ArrayLike,
+    upper: npt.ArrayLike,
+    direction: npt.ArrayLike,
+) -> FloatArray:
+    """The bisection rule: motor-frame homing offset that centres the sampled range on the URDF range.
+
+    Args:
+        s_min: Sampled minimum, identity frame (``direction·raw``), shape ``(N,)``, rad.
+        s_max: Sampled maximum, identity frame, shape ``(N,)``, rad.
+        lower: URDF lower limit, shape ``(N,)``, rad.
+        upper: URDF upper limit, shape ``(N,)``, rad.
+        direction: ±1 per joint, shape ``(N,)``.
+
+    Returns:
+        ``homing_offset`` per joint, shape ``(N,)``, motor frame, rad.
+    """
+    lo_off = np.asarray(s_min, dtype=np.float64) - np.asarray(lower, dtype=np.float64)
+    up_off = np.asarray(s_max, dtype=np.float64) - np.asarray(upper, dtype=np.float64)
+    out: FloatArray = 0.5 * (lo_off + up_off) * np.asarray(direction, dtype=np.float64)
+    return out
+
+
+def wrap_in_travel(
+    homing_offset: npt.ArrayLike,
+    direction: npt.ArrayLike,
+    lower: npt.ArrayLike,
+    upper: npt.ArrayLike,
+    zero_sta: npt.ArrayLike = 0,
+) -> npt.NDArray[np.bool_]:
+    """Whether each joint's raw travel contains the motor's power-on wrap point.
+
+    The raw travel is ``homing_offset + direction·[lower, upper]``. With ``zero_sta`` 0 the power-on reading
+    is in ``[0, 2π)`` (wrap points at ``2πk``); with ``zero_sta`` 1 it is in ``[−π, π)`` (wrap points at
+    ``π + 2πk``).
+
+    Args:
+        homing_offset: Shape ``(N,)``, motor frame, rad.
+        direction: Shape ``(N,)``, ±1.
+        lower: Shape ``(N,)``, rad.
+        upper: Shape ``(N,)``, rad.
+        zero_sta: Shape ``(N,)`` or scalar, 0 or 1.
+
+    Returns:
+        Shape ``(N,)`` booleans.
+    """
+    h = np.asarray(homing_offset, dtype=np.float64)
+    d = np.asarray(direction, dtype=np.float64)
+    a = h + np.minimum(d * np.asarray(lower, dtype=np.float64), d * np.asarray(upper, dtype=np.float64))
+    b = h + np.maximum(d * np.asarray(lower, dtype=np.float64), d * np.asarray(upper, dtype=np.float64))
+    w = np.where(np.asarray(zero_sta) == 1, math.pi, 0.0)
+    # a wrap point w + 2πk lies strictly inside (a, b) iff the next one above a is below b
+    k = np.floor((a - w) / TWO_PI) + 1.0
+    out: npt.NDArray[np.bool_] = np.isfinite(h) & (w + k * TWO_PI < b)
+    return out
+
+
+def direction_from_motion(delta_s_rad: float, min_motion_rad: float = 0.2) -> int:
+    """Sign of a guided "move toward the + limit" step seen in the identity frame.
+
+    Args:
+        delta_s_rad: Change of ``direction·raw`` while the operator moved the joint toward its + limit, rad.
+        min_motion_rad: Smallest change that counts as motion, rad.
+
+    Returns:
+        +1 when the URDF direction is right, −1 when it is flipped, 0 when the joint did not move enough.
+    """
+    if not math.isfinite(delta_s_rad) or abs(delta_s_rad) < min_motion_rad:
+        return 0
+    return 1 if delta_s_rad > 0 else -1
+
+
+@dataclass(frozen=True)
+class JointSweep:
+    """Sweep outcome of one joint (angles in rad; sampled values in the identity frame ``direction·raw``).
+
+    Attributes:
+        name: Joint name.
+        direction: ±1 from the URDF.
+        lower: URDF lower limit, rad.
+        upper: URDF upper limit, rad.
+        sampled_min: Unwrapped minimum of ``direction·raw`` (NaN when no sample arrived).
+        sampled_max: Unwrapped maximum of ``direction·raw``.
+        sweep: ``sampled_max − sampled_min``.
+        homing_offset: The offset to write, motor frame (the prior's when not swept; NaN when there is none).
+        bisection_offset: The bisection rule's offset (NaN when not swept).
+        previous_homing_offset: The prior offset, or ``None``.
+        kept_prior: True when the prior offset was kept because the joint was not swept.
+        warnings: Warning codes, in :data:`WARNING_CODES` order.
+    """
+
+    name: str
+    direction: int
+    lower: float
+    upper: float
+    sampled_min: float
+    sampled_max: float
+    sweep: float
+    homing_offset: float
+    bisection_offset: float
+    previous_homing_offset: float | None
+    kept_prior: bool
+    warnings: tuple[str, ...]
+
+    @property
+    def status(self) -> str:
+        """``"ok"`` or the first warning code."""
+        return self.warnings[0] if self.warnings else "ok"
+
+    @property
+    def span(self) -> float:
+        """URDF span ``upper − lower``, rad."""
+        return self.upper - self.lower
+
+    @property
+    def has_offset(self) -> bool:
+        """Whether :attr:`homing_offset` is a usable number."""
+        return math.isfinite(self.homing_offset)
+
+    def to_report(self) -> dict[str, Any]:
+        """The joint's entry of the sweep report (JSON-ready; NaN becomes ``None``)."""
+
+        def num(x: float | None) -> float | None:
+            return None if x is None or not math.isfinite(x) else float(x)
+
+        return {
+            "sampled_min": num(self.sampled_min),
+            "sampled_max": num(self.sampled_max),
+            "sweep": num(self.sweep),
+            "homing_offset": num(self.homing_offset),
+            "previous_homing_offset": num(self.previous_homing_offset),
+            "kept_prior": self.kept_prior,
+            "warnings": list(self.warnings),
+        }
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """Sweep outcome of a whole robot.
+
+    Attributes:
+        joints: One :class:`JointSweep` per joint, in URDF order.
+        threshold_rad: The not-swept threshold used, rad.
+        span_tolerance_rad: The span tolerance used, rad.
+    """
+
+    joints: tuple[JointSweep, ...]
+    threshold_rad: float = DEFAULT_THRESHOLD_RAD
+    span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Joint names in order."""
+        return tuple(j.name for j in self.joints)
+
+    def __getitem__(self, name: str) -> JointSweep:
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise KeyError(name)
+
+    @property
+    def ok(self) -> bool:
+        """True when no joint raised a warning."""
+        return all(not j.warnings for j in self.joints)
+
+    @property
+    def missing_offsets(self) -> tuple[str, ...]:
+        """Joints with no usable offset (not swept and no prior)."""
+        return tuple(j.name for j in self.joints if not j.has_offset)
+
+    def offsets(self) -> dict[str, float]:
+        """Joint name → homing offset to write (joints without one are left out), motor frame, rad."""
+        return {j.name: j.homing_offset for j in self.joints if j.has_offset}
+
+    def to_report(self) -> dict[str, Any]:
+        """The report: ``{"joints": {name: {sampled_min, sampled_max, sweep, homing_offset, ...}}}``."""
+        return {"joints": {j.name: j.to_report() for j in self.joints}}
+
+
+def _vec(x: npt.ArrayLike, n: int, what: str) -> FloatArray:
+    arr = np.asarray(x, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ShapeMismatchError(f"analyse_sweep: {what} has shape {arr.shape}; expected ({n},)")
+    return arr
+
+
+def analyse_sweep(
+    joint_names: Sequence[str],
+    direction: npt.ArrayLike,
+    lower: npt.ArrayLike,
+    upper: npt.ArrayLike,
+    sampled_min: npt.ArrayLike,
+    sampled_max: npt.ArrayLike,
+    *,
+    prior: Mapping[str, float] | None = None,
+    threshold_rad: float = DEFAULT_THRESHOLD_RAD,
+    span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
+    zero_sta: npt.ArrayLike = 0,
+    direction_check: Mapping[str, int] | None = None,
+) -> SweepResult:
+    """Apply the bisection rule and every diagnostic to a finished sweep.
+
+    Args:
+        joint_names: N joint names.
+        direction: URDF direction per joint, shape ``(N,)``, ±1.
+        lower: URDF lower limits, shape ``(N,)``, rad.
+        upper: URDF upper limits, shape ``(N,)``, rad.
+        sampled_min: Unwrapped minimum of ``direction·raw``, shape ``(N,)``, rad (NaN: no sample).
+        sampled_max: Unwrapped maximum of ``direction·raw``, shape ``(N,)``, rad.
+        prior: Prior homing offsets by joint name (motor frame, rad), kept for joints not swept.
+        threshold_rad: Sweeps below this count as not swept.
+        span_tolerance_rad: Allowed ``|sweep − (upper − lower)|``.
+        zero_sta: Power-on range per joint (0: ``[0, 2π)``, 1: ``[−π, π)``), shape ``(N,)`` or scalar.
+        direction_check: Result of the guided direction check per joint (+1 right, −1 flipped, 0 unknown).
+
+    Returns:
+        The :class:`SweepResult`.
+    """
+    names = tuple(joint_names)
+    n = len(names)
+    d = _vec(direction, n, "direction")
+    lo = _vec(lower, n, "lower")
+    up = _vec(upper, n, "upper")
+    smin = _vec(sampled_min, n, "sampled_min")
+    smax = _vec(sampled_max, n, "sampled_max")
+    zs = np.broadcast_to(np.asarray(zero_sta), (n,))
+    if not (math.isfinite(threshold_rad) and threshold_rad >= 0):
+        raise InvalidCalibrationError(f"threshold {threshold_rad} must be a finite number >= 0 rad")
+    if not (math.isfinite(span_tolerance_rad) and span_tolerance_rad >= 0):
+        raise InvalidCalibrationError(f"span tolerance {span_tolerance_rad} must be a finite number >= 0 rad")
+    prior = dict(prior or {})
+    checks = dict(direction_check or {})
+    sweep = np.where(np.isfinite(smin) & np.isfinite(smax), smax - smin, 0.0)
+    h_bis = bisect_homing_offset(smin, smax, lo, up, d)
+    joints: list[JointSweep] = []
+    for i, name in enumerate(names):
+        warnings: set[str] = set()
+        prev = prior.get(name)
+        prev_f = None if prev is None else float(prev)
+        swept = bool(sweep[i] >= threshold_rad and np.isfinite(h_bis[i]))
+        if not swept:
+            warnings.add("not_swept")
+            h = prev_f if prev_f is not None else math.nan
+            kept = prev_f is not None
+            bis = math.nan
+        else:
+            h = float(h_bis[i])
+            bis = h
+            kept = False
+            if smin[i] > up[i] or smax[i] < lo[i]:
+                warnings.add("no_overlap")
+            if abs(sweep[i] - (up[i] - lo[i])) > span_tolerance_rad:
+                warnings.add("span_mismatch")
+            if abs(h) > math.pi:
+                warnings.add("offset_large")
+        if math.isfinite(h) and bool(wrap_in_travel(h, d[i], lo[i], up[i], zs[i])):
+            warnings.add("wrap_in_travel")
+        if checks.get(name, 0) < 0:
+            warnings.add("direction_flipped")
+        joints.append(
+            JointSweep(
+                name=name,
+                direction=int(d[i]),
+                lower=float(lo[i]),
+                upper=float(up[i]),
+                sampled_min=float(smin[i]),
+                sampled_max=float(smax[i]),
+                sweep=float(sweep[i]),
+                homing_offset=float(h),
+                bisection_offset=float(bis),
+                previous_homing_offset=prev_f,
+                kept_prior=kept,
+                warnings=tuple(c for c in WARNING_CODES if c in warnings),
+            )
+        )
+    return SweepResult(tuple(joints), float(threshold_rad), float(span_tolerance_rad))
