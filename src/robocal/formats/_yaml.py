@@ -1,0 +1,72 @@
+"""The one place robocal talks to ruamel.yaml.
+
+Round-trip mode keeps comments, key order and flow style when a file is updated in place. Floats are written
+shortest-round-trip with a decimal point (``1.0e-20``, not ``1e-20``) so YAML 1.1 readers such as PyYAML also
+read them as floats; ``-0.0`` is written as ``0.0``.
+"""
+
+from __future__ import annotations
+
+import io
+from typing import Any
+
+from ruamel.yaml import YAML
+from ruamel.yaml.error import YAMLError
+
+from ..errors import FileFormatError
+
+__all__ = ["dump_yaml", "load_yaml", "yaml_float"]
+
+
+def yaml_float(x: float) -> str:
+    """YAML text of a float: shortest round trip, always with a ``.``, never ``-0``, ``.nan``/``.inf`` kept."""
+    v = float(x)
+    if v != v:
+        return ".nan"
+    if v in (float("inf"), float("-inf")):
+        return ".inf" if v > 0 else "-.inf"
+    if v == 0.0:
+        return "0.0"
+    text = repr(v)
+    if "e" in text:
+        mant, exp = text.split("e")
+        if "." not in mant:
+            mant += ".0"
+        text = f"{mant}e{exp}"
+    return text
+
+
+def _represent_float(representer: Any, data: float) -> Any:
+    return representer.represent_scalar("tag:yaml.org,2002:float", yaml_float(data))
+
+
+def _yaml() -> YAML:
+    y = YAML(typ="rt")
+    y.preserve_quotes = True
+    y.indent(mapping=2, sequence=4, offset=2)
+    y.width = 4096
+    y.allow_duplicate_keys = False
+    y.representer.add_representer(float, _represent_float)
+    return y
+
+
+def load_yaml(text: str, source: str) -> Any:
+    """Parse YAML text (round-trip types: ``CommentedMap`` / ``CommentedSeq``).
+
+    Raises:
+        FileFormatError: Syntax errors or duplicate keys, naming the file and line.
+    """
+    try:
+        return _yaml().load(text)
+    except YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise FileFormatError(f"{source}: invalid YAML{where}: {problem}") from None
+
+
+def dump_yaml(data: Any) -> str:
+    """Serialise to YAML text, preserving comments and order of round-trip objects."""
+    buf = io.StringIO()
+    _yaml().dump(data, buf)
+    return buf.getvalue()

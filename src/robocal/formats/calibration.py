@@ -1,0 +1,675 @@
+"""Calibration files: read, write and detect every joint-map format robocal converts between.
+
+=====================  ==========================================================================================
+``lite-json``          Lite-Lowlevel-Python ``calibration.json``: ``{joint: {id, direction, homing_offset}}``
+``lite-yaml``          Humanoid-Control ``calibration.yaml``, same schema; updated in place keeping comments
+``berkeley-offsets``   Berkeley-Humanoid-Lite-Lowlevel ``{"position_offsets": [...]}``: joint-frame, positional
+``ros2-transmission``  URDF ``<transmission>`` with ``SimpleTransmission`` (``mechanical_reduction``, ``offset``)
+``lerobot-legacy``     LeRobot legacy array JSON (read only); DEGREE joints convert exactly
+``robocal``            robocal's canonical joint map YAML (direction, homing_offset, scale per joint)
+=====================  ==========================================================================================
+
+Every reader validates the whole file before returning; every writer validates before writing, writes atomically
+and keeps ``NAME.bak``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+from lxml import etree
+
+from ..core.conventions import (
+    berkeley_offset_from_homing,
+    homing_from_berkeley_offset,
+)
+from ..core.jointmap import RobotCalibration
+from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
+from ..fileio import atomic_write_bytes, atomic_write_text, read_bytes, read_text
+from ._numbers import format_float, parse_direction, parse_finite, parse_int
+from ._yaml import dump_yaml, load_yaml
+from .urdf import UrdfDocument, UrdfModel, _parse_tree
+
+__all__ = [
+    "FORMATS",
+    "CalibrationFile",
+    "detect_format",
+    "read_calibration",
+    "write_calibration",
+]
+
+LITE_KEYS = ("id", "direction", "homing_offset")
+ROBOCAL_FORMAT_TAG = "robocal-joint-map"
+
+
+@dataclass(frozen=True)
+class CalibrationFile:
+    """A joint calibration together with what its file said about the joints.
+
+    Attributes:
+        calibration: The canonical joint map.
+        ids: Motor id per joint where the file (or URDF) gives one.
+        fmt: Format name the data was read from (or is meant for).
+        source: Path or description of the origin.
+        notes: Human-readable remarks made while reading (e.g. values taken from the URDF).
+    """
+
+    calibration: RobotCalibration
+    ids: Mapping[str, int] = field(default_factory=dict)
+    fmt: str = "robocal"
+    source: str = "<memory>"
+    notes: tuple[str, ...] = ()
+
+
+# ------------------------------------------------------------------------------------------------- helpers
+def _json_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"duplicate key {k!r}")
+        out[k] = v
+    return out
+
+
+def _reject_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not valid JSON")
+
+
+def _load_json(text: str, source: str) -> Any:
+    try:
+        return json.loads(text, object_pairs_hook=_json_pairs, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{source}: invalid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from None
+    except ValueError as exc:
+        raise FileFormatError(f"{source}: invalid JSON: {exc}") from None
+
+
+def _check_unique_ids(ids: Mapping[str, int], source: str) -> None:
+    seen: dict[int, str] = {}
+    for name, mid in ids.items():
+        if mid in seen:
+            raise FileFormatError(f"{source}: joints {seen[mid]!r} and {name!r} share id {mid}")
+        seen[mid] = name
+
+
+def _require_rad(cal: RobotCalibration, fmt: str) -> None:
+    bad = [n for n, s in zip(cal.joint_names, cal.scale) if s != 1.0]
+    if bad:
+        raise UsageError(
+            f"format {fmt} stores offsets in the motor's rad frame (scale 1); joints {', '.join(bad)} have a "
+            "different scale; use --to robocal"
+        )
+
+
+def _ids_from(cal: RobotCalibration, ids: Mapping[str, int], urdf: UrdfModel | None) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for name in cal.joint_names:
+        if name in ids:
+            out[name] = int(ids[name])
+        elif urdf is not None and name in urdf.joint_params and urdf.motor_id(name) is not None:
+            out[name] = int(urdf.motor_id(name))  # type: ignore[arg-type]
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ lite-*
+def _parse_lite(data: Any, source: str, fmt: str) -> CalibrationFile:
+    if not isinstance(data, Mapping) or not data:
+        raise FileFormatError(f"{source}: expected a mapping of joint name -> {{id, direction, homing_offset}}")
+    names: list[str] = []
+    dirs: list[int] = []
+    offs: list[float] = []
+    ids: dict[str, int] = {}
+    for name, entry in data.items():
+        if not isinstance(name, str) or not name:
+            raise FileFormatError(f"{source}: joint name {name!r} is not a string")
+        where = f"{source}: joint {name!r}"
+        if not isinstance(entry, Mapping):
+            raise FileFormatError(f"{where}: expected a mapping with keys id, direction, homing_offset")
+        missing = [k for k in ("direction", "homing_offset") if k not in entry]
+        if missing:
+            raise FileFormatError(f"{where}: missing key {', '.join(missing)}")
+        extra = [str(k) for k in entry if k not in LITE_KEYS]
+        if extra:
+            raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected id, direction, homing_offset")
+        if "id" in entry:
+            ids[name] = parse_int(entry["id"], where, "id")
+        dirs.append(parse_direction(entry["direction"], where))
+        offs.append(parse_finite(entry["homing_offset"], where, "homing_offset"))
+        names.append(name)
+    _check_unique_ids(ids, source)
+    return CalibrationFile(RobotCalibration(names, dirs, offs, 1.0), MappingProxyType(ids), fmt, source)
+
+
+def _read_lite_json(path: Path, **_: Any) -> CalibrationFile:
+    return _parse_lite(_load_json(read_text(path, "calibration file"), str(path)), str(path), "lite-json")
+
+
+def _read_lite_yaml(path: Path, **_: Any) -> CalibrationFile:
+    return _parse_lite(load_yaml(read_text(path, "calibration file"), str(path)), str(path), "lite-yaml")
+
+
+def _lite_entries(cf: CalibrationFile, urdf: UrdfModel | None, fmt: str) -> dict[str, dict[str, Any]]:
+    cal = cf.calibration
+    _require_rad(cal, fmt)
+    ids = _ids_from(cal, cf.ids, urdf)
+    missing = [n for n in cal.joint_names if n not in ids]
+    if missing:
+        raise UsageError(f"format {fmt} needs a motor id for every joint; missing for {', '.join(missing)} (pass --urdf)")
+    _check_unique_ids(ids, f"calibration for {fmt}")
+    return {
+        n: {"id": ids[n], "direction": int(d), "homing_offset": float(h)}
+        for n, d, h in zip(cal.joint_names, cal.direction, cal.homing_offset)
+    }
+
+
+def _write_lite_json(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
+    entries = _lite_entries(cf, urdf, "lite-json")
+    for e in entries.values():
+        if e["homing_offset"] == 0.0:
+            e["homing_offset"] = 0.0  # normalise -0.0
+    atomic_write_text(path, json.dumps(entries, indent=4) + "\n")
+
+
+def _write_lite_yaml(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
+    entries = _lite_entries(cf, urdf, "lite-yaml")
+    doc: Any = None
+    if path.exists():
+        try:
+            doc = load_yaml(read_text(path, "calibration file"), str(path))
+            _parse_lite(doc, str(path), "lite-yaml")
+        except FileFormatError:
+            doc = None  # not a lite-yaml file we can update: replace it (the old one is kept as .bak)
+    if doc is None:
+        from ruamel.yaml.comments import CommentedMap
+
+        doc = CommentedMap()
+    for name, entry in entries.items():
+        if name in doc:
+            node = doc[name]
+            for key in LITE_KEYS:
+                old = node.get(key)
+                new = entry[key]
+                if old is None or isinstance(old, bool) or float(old) != float(new):
+                    node[key] = new
+        else:
+            from ruamel.yaml.comments import CommentedMap
+
+            node = CommentedMap()
+            for key in LITE_KEYS:
+                node[key] = entry[key]
+            doc[name] = node
+    atomic_write_text(path, dump_yaml(doc))
+
+
+# ----------------------------------------------------------------------------------------------- robocal
+def _read_robocal(path: Path, **_: Any) -> CalibrationFile:
+    source = str(path)
+    data = load_yaml(read_text(path, "calibration file"), source)
+    if not isinstance(data, Mapping) or data.get("format") != ROBOCAL_FORMAT_TAG:
+        raise FileFormatError(f"{source}: not a robocal joint map (expected 'format: {ROBOCAL_FORMAT_TAG}')")
+    version = data.get("version")
+    if version != 1:
+        raise FileFormatError(f"{source}: version {version!r} is not supported (expected 1)")
+    joints = data.get("joints")
+    if not isinstance(joints, Mapping) or not joints:
+        raise FileFormatError(f"{source}: 'joints' must be a non-empty mapping")
+    names, dirs, offs, scales = [], [], [], []
+    ids: dict[str, int] = {}
+    for name, entry in joints.items():
+        where = f"{source}: joint {name!r}"
+        if not isinstance(entry, Mapping):
+            raise FileFormatError(f"{where}: expected a mapping")
+        allowed = {"id", "direction", "homing_offset", "scale", "raw_unit", "joint_unit"}
+        extra = [str(k) for k in entry if k not in allowed]
+        if extra:
+            raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected {', '.join(sorted(allowed))}")
+        for key in ("direction", "homing_offset"):
+            if key not in entry:
+                raise FileFormatError(f"{where}: missing key {key}")
+        if "id" in entry:
+            ids[str(name)] = parse_int(entry["id"], where, "id")
+        dirs.append(parse_direction(entry["direction"], where))
+        offs.append(parse_finite(entry["homing_offset"], where, "homing_offset"))
+        scale = parse_finite(entry.get("scale", 1.0), where, "scale")
+        if scale <= 0:
+            raise FileFormatError(f"{where}: scale {scale} must be > 0")
+        scales.append(scale)
+        names.append(str(name))
+    _check_unique_ids(ids, source)
+    return CalibrationFile(RobotCalibration(names, dirs, offs, scales), MappingProxyType(ids), "robocal", source)
+
+
+def _write_robocal(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
+    cal = cf.calibration
+    ids = _ids_from(cal, cf.ids, urdf)
+    lines = [
+        "# robocal joint map: q_joint = direction * scale * (raw - homing_offset)",
+        "# homing_offset is in the motor's raw unit; scale converts raw units to joint units (rad or m).",
+        f"format: {ROBOCAL_FORMAT_TAG}",
+        "version: 1",
+        "joints:",
+    ]
+    from ._yaml import yaml_float
+
+    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale):
+        lines.append(f"  {json.dumps(n)}:")
+        if n in ids:
+            lines.append(f"    id: {ids[n]}")
+        lines.append(f"    direction: {int(d)}")
+        lines.append(f"    homing_offset: {yaml_float(h)}")
+        lines.append(f"    scale: {yaml_float(s)}")
+    atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+# -------------------------------------------------------------------------------------- berkeley-offsets
+def _order_and_directions(
+    n: int, urdf: UrdfModel | None, joint_order: Sequence[str] | None, source: str
+) -> tuple[list[str], list[int]]:
+    if joint_order is not None:
+        order = list(joint_order)
+    elif urdf is not None:
+        order = list(urdf.calibration_joint_names())
+    else:
+        raise UsageError(f"{source}: berkeley-offsets is positional; pass --joints or --urdf for the joint order")
+    if len(order) != n:
+        raise JointMismatchError(f"{source}: {n} offsets but {len(order)} joints in the order ({', '.join(order)})")
+    if urdf is None:
+        raise UsageError(f"{source}: berkeley-offsets holds joint-frame offsets; pass --urdf for the directions")
+    dirs = []
+    for name in order:
+        if name not in urdf.joint_params and name not in urdf.joint_names:
+            raise JointMismatchError(f"{source}: joint {name!r} is not in URDF {urdf.source}")
+        d = urdf.direction(name)
+        if d is None:
+            raise FileFormatError(f"URDF {urdf.source}: joint {name!r} has no <param name='direction'>")
+        dirs.append(d)
+    return order, dirs
+
+
+def _read_berkeley(
+    path: Path, urdf: UrdfModel | None = None, joint_order: Sequence[str] | None = None, **_: Any
+) -> CalibrationFile:
+    source = str(path)
+    data = load_yaml(read_text(path, "calibration file"), source)
+    if not isinstance(data, Mapping) or "position_offsets" not in data:
+        raise FileFormatError(f"{source}: expected a mapping with key position_offsets")
+    extra = [str(k) for k in data if k != "position_offsets"]
+    if extra:
+        raise FileFormatError(f"{source}: unknown key {', '.join(extra)}; expected only position_offsets")
+    raw = data["position_offsets"]
+    if not isinstance(raw, Sequence) or isinstance(raw, str) or not raw:
+        raise FileFormatError(f"{source}: position_offsets must be a non-empty list of numbers")
+    offsets = [parse_finite(v, source, f"position_offsets[{i}]") for i, v in enumerate(raw)]
+    order, dirs = _order_and_directions(len(offsets), urdf, joint_order, source)
+    h = homing_from_berkeley_offset(np.array(dirs, float), np.array(offsets))
+    ids = {n: urdf.motor_id(n) for n in order} if urdf is not None else {}
+    clean_ids = {k: int(v) for k, v in ids.items() if v is not None}
+    return CalibrationFile(
+        RobotCalibration(order, dirs, h, 1.0), MappingProxyType(clean_ids), "berkeley-offsets", source
+    )
+
+
+def _write_berkeley(
+    path: Path, cf: CalibrationFile, urdf: UrdfModel | None, joint_order: Sequence[str] | None = None, **_: Any
+) -> None:
+    cal = cf.calibration if joint_order is None else cf.calibration.select(joint_order)
+    _require_rad(cal, "berkeley-offsets")
+    offs = berkeley_offset_from_homing(cal.direction, cal.homing_offset)
+    body = ", ".join(format_float(v) for v in offs)
+    text = (
+        "# Berkeley-Humanoid-Lite-Lowlevel joint offsets (rad, joint frame): q = direction*raw - offset\n"
+        f"# joint order: {', '.join(cal.joint_names)}\n"
+        f"position_offsets: [{body}]\n"
+    )
+    atomic_write_text(path, text)
+
+
+# ------------------------------------------------------------------------------------- ros2-transmission
+_SIMPLE = "SimpleTransmission"
+
+
+def _child_text(el: Any, *tags: str) -> str | None:
+    for tag in tags:
+        c = el.find(tag)
+        if c is not None and c.text is not None and c.text.strip():
+            return str(c.text.strip())
+    return None
+
+
+def _transmissions(root: Any) -> list[Any]:
+    found = list(root.findall("transmission"))
+    for sys_el in root.findall("ros2_control"):
+        found.extend(sys_el.findall("transmission"))
+    return found
+
+
+def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
+    source = str(path)
+    tree = _parse_tree(read_bytes(path, "URDF"), source)
+    root = tree.getroot()
+    names, dirs, offs, scales = [], [], [], []
+    skipped: list[str] = []
+    for tr in _transmissions(root):
+        tname = tr.get("name") or f"line {tr.sourceline}"
+        kind = _child_text(tr, "plugin", "type") or ""
+        if not kind.endswith(_SIMPLE):
+            skipped.append(tname)
+            continue
+        joint = tr.find("joint")
+        if joint is None or not joint.get("name"):
+            raise FileFormatError(f"{source}: transmission {tname!r} has no <joint name=...>")
+        jname = joint.get("name")
+        where = f"{source}: transmission {tname!r} joint {jname!r}"
+        red_text = _child_text(joint, "mechanical_reduction", "mechanicalReduction")
+        if red_text is None:
+            actuator = tr.find("actuator")
+            if actuator is not None:
+                red_text = _child_text(actuator, "mechanical_reduction", "mechanicalReduction")
+        reduction = parse_finite(red_text if red_text is not None else "1", where, "mechanical_reduction")
+        if reduction == 0.0:
+            raise FileFormatError(f"{where}: mechanical_reduction is 0")
+        offset = parse_finite(_child_text(joint, "offset") or "0", where, "offset")
+        if jname in names:
+            raise FileFormatError(f"{source}: joint {jname!r} has two transmissions")
+        names.append(jname)
+        dirs.append(1 if reduction > 0 else -1)
+        scales.append(1.0 / abs(reduction))
+        offs.append(-offset * reduction)
+    if not names:
+        raise FileFormatError(f"{source}: no SimpleTransmission <transmission> elements found")
+    notes = (f"skipped non-SimpleTransmission transmissions: {', '.join(skipped)}",) if skipped else ()
+    model_ids: dict[str, int] = {}
+    try:
+        from .urdf import _model_from_tree
+
+        model = _model_from_tree(tree, source)
+        for n in names:
+            if n in model.joint_params and model.motor_id(n) is not None:
+                model_ids[n] = int(model.motor_id(n))  # type: ignore[arg-type]
+    except FileFormatError:
+        pass
+    return CalibrationFile(
+        RobotCalibration(names, dirs, offs, scales), MappingProxyType(model_ids), "ros2-transmission", source, notes
+    )
+
+
+def _set_child(parent: Any, tag: str, text: str, indent: str) -> None:
+    el = parent.find(tag)
+    if el is None:
+        el = etree.SubElement(parent, tag)
+        children = list(parent)
+        if len(children) >= 2:
+            el.tail = children[-2].tail
+            children[-2].tail = indent
+        else:
+            parent.text = indent
+    el.text = text
+
+
+def _append_transmission(host: Any, joint: str, reduction: float, offset: float) -> None:
+    text = host.text or ""
+    indent = text.split("\n")[-1] if "\n" in text else "  "
+    outer = (host.tail or "\n").split("\n")[-1] if host.getparent() is not None else ""
+    xml = (
+        f'<transmission name="{joint}_transmission">\n'
+        f"{indent}  <plugin>transmission_interface/SimpleTransmission</plugin>\n"
+        f'{indent}  <actuator name="{joint}_actuator" role="actuator1"/>\n'
+        f'{indent}  <joint name="{joint}" role="joint1">\n'
+        f"{indent}    <mechanical_reduction>{format_float(reduction)}</mechanical_reduction>\n"
+        f"{indent}    <offset>{format_float(offset)}</offset>\n"
+        f"{indent}  </joint>\n"
+        f"{indent}</transmission>"
+    )
+    el = etree.fromstring(xml)
+    children = list(host)
+    if children:
+        last = children[-1]
+        el.tail = last.tail
+        last.tail = "\n" + indent
+        last.addnext(el)
+    else:
+        host.text = "\n" + indent
+        el.tail = "\n" + outer
+        host.append(el)
+
+
+def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
+    cal = cf.calibration
+    doc: UrdfDocument
+    if path.exists():
+        doc = UrdfDocument.load(path)
+    elif urdf is not None and urdf.source and Path(urdf.source).is_file():
+        doc = UrdfDocument.load(urdf.source)
+    else:
+        doc = UrdfDocument.from_bytes(
+            b'<?xml version="1.0"?>\n<robot name="robocal_calibration">\n  <!-- SimpleTransmission calibration written by robocal -->\n</robot>\n'
+        )
+    root = doc.root()
+    by_joint = {}
+    for tr in _transmissions(root):
+        j = tr.find("joint")
+        kind = _child_text(tr, "plugin", "type") or ""
+        if j is not None and j.get("name") and kind.endswith(_SIMPLE):
+            by_joint[j.get("name")] = tr
+    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale):
+        reduction = float(d) / float(s)
+        offset = -float(h) / reduction
+        tr = by_joint.get(n)
+        if tr is None:
+            host = root
+            for sys_el in root.findall("ros2_control"):
+                if any(j.get("name") == n for j in sys_el.findall("joint")):
+                    host = sys_el
+                    break
+            _append_transmission(host, n, reduction, offset)
+        else:
+            jel = tr.find("joint")
+            indent = (jel.text or "\n        ") if jel is not None else "\n"
+            _set_child(jel, "mechanical_reduction", format_float(reduction), indent)
+            _set_child(jel, "offset", format_float(offset), indent)
+    atomic_write_bytes(path, doc.to_bytes())
+
+
+# -------------------------------------------------------------------------------------- lerobot-legacy
+def _read_lerobot_legacy(path: Path, **_: Any) -> CalibrationFile:
+    try:
+        from ..lerobot import legacy
+    except ImportError as exc:  # pragma: no cover - the module ships with robocal
+        raise UsageError(f"lerobot-legacy support is not available: {exc}") from None
+    cal = legacy.read_legacy(path)
+    rc = legacy.to_robot_calibration(cal)
+    return CalibrationFile(rc, MappingProxyType({}), "lerobot-legacy", str(path))
+
+
+# ------------------------------------------------------------------------------------------- registry
+Reader = Callable[..., CalibrationFile]
+Writer = Callable[..., None]
+
+
+@dataclass(frozen=True)
+class FormatSpec:
+    """One calibration file format."""
+
+    name: str
+    description: str
+    reader: Reader
+    writer: Writer | None
+
+
+FORMATS: dict[str, FormatSpec] = {
+    "lite-json": FormatSpec(
+        "lite-json", "Lite-Lowlevel-Python calibration.json {joint: {id, direction, homing_offset}}",
+        _read_lite_json, _write_lite_json,
+    ),
+    "lite-yaml": FormatSpec(
+        "lite-yaml", "Humanoid-Control calibration.yaml (same schema; updated in place)",
+        _read_lite_yaml, _write_lite_yaml,
+    ),
+    "berkeley-offsets": FormatSpec(
+        "berkeley-offsets", "Berkeley-Humanoid-Lite-Lowlevel {position_offsets: [...]} (joint frame, positional)",
+        _read_berkeley, _write_berkeley,
+    ),
+    "ros2-transmission": FormatSpec(
+        "ros2-transmission", "URDF <transmission> SimpleTransmission (mechanical_reduction, offset)",
+        _read_transmission, _write_transmission,
+    ),
+    "lerobot-legacy": FormatSpec(
+        "lerobot-legacy", "LeRobot legacy array JSON (read only; DEGREE joints)", _read_lerobot_legacy, None
+    ),
+    "robocal": FormatSpec(
+        "robocal", "robocal canonical joint map YAML (direction, homing_offset, scale)", _read_robocal, _write_robocal
+    ),
+}
+
+
+def _check_fmt(fmt: str) -> FormatSpec:
+    if fmt not in FORMATS:
+        raise UsageError(f"unknown format {fmt!r}; valid: {', '.join(FORMATS)}")
+    return FORMATS[fmt]
+
+
+def _sniff(text: str, source: str) -> str | None:
+    stripped = text.lstrip("\ufeff \t\r\n")
+    if stripped.startswith("<"):
+        return "ros2-transmission"
+    if stripped.startswith("{") or stripped.startswith("["):
+        try:
+            data = json.loads(stripped)
+        except ValueError:
+            data = None
+        if isinstance(data, dict):
+            if "position_offsets" in data:
+                return "berkeley-offsets"
+            if "motor_names" in data and "homing_offset" in data:
+                return "lerobot-legacy"
+            first = next(iter(data.values()), None)
+            if isinstance(first, dict) and "range_min" in first:
+                return "lerobot"
+            if isinstance(first, dict):
+                return "lite-json"
+            return None
+    try:
+        data = load_yaml(text, source)
+    except FileFormatError:
+        return None
+    if isinstance(data, Mapping):
+        if data.get("format") == ROBOCAL_FORMAT_TAG:
+            return "robocal"
+        if "position_offsets" in data:
+            return "berkeley-offsets"
+        first = next(iter(data.values()), None)
+        if isinstance(first, Mapping):
+            return "lite-yaml"
+    return None
+
+
+def detect_format(path: str | os.PathLike[str]) -> str:
+    """Guess the format of an existing calibration file from its content.
+
+    Raises:
+        FileFormatError: The file cannot be read or matches no known format.
+    """
+    source = str(path)
+    text = read_text(path, "calibration file")
+    fmt = _sniff(text, source)
+    if fmt == "lerobot":
+        raise FileFormatError(
+            f"{source}: a current LeRobot calibration (range_min/range_max) is not a joint map; "
+            "use 'robocal lerobot export-urdf' to derive one"
+        )
+    if fmt is None:
+        raise FileFormatError(f"{source}: unrecognised calibration format; pass --from ({', '.join(FORMATS)})")
+    return fmt
+
+
+def _format_for_output(path: Path) -> str:
+    if path.exists() and path.stat().st_size > 0:
+        try:
+            fmt = detect_format(path)
+            if FORMATS[fmt].writer is not None:
+                return fmt
+        except FileFormatError:
+            pass
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        return "lite-json"
+    if suffix in (".yaml", ".yml"):
+        return "lite-yaml"
+    if suffix in (".urdf", ".xml"):
+        return "ros2-transmission"
+    raise UsageError(f"cannot tell the format of {path} from its name; pass --to ({', '.join(FORMATS)})")
+
+
+def read_calibration(
+    path: str | os.PathLike[str],
+    fmt: str | None = None,
+    *,
+    urdf: UrdfModel | None = None,
+    joint_order: Sequence[str] | None = None,
+) -> CalibrationFile:
+    """Read a calibration file of any supported format into the canonical joint map.
+
+    Args:
+        path: The file.
+        fmt: Format name (see :data:`FORMATS`); detected from the content when None.
+        urdf: Supplies directions, ids and joint order for formats that lack them (``berkeley-offsets``).
+        joint_order: Joint order for positional formats (overrides the URDF order).
+
+    Returns:
+        The calibration with the ids the file (or URDF) gave.
+
+    Raises:
+        FileFormatError: Malformed file, naming the file, joint and field.
+        UsageError: Unknown format, or a positional format without a joint order.
+    """
+    p = Path(path)
+    spec = _check_fmt(fmt) if fmt is not None else FORMATS[detect_format(p)]
+    try:
+        return spec.reader(p, urdf=urdf, joint_order=joint_order)
+    except InvalidCalibrationError as exc:
+        raise FileFormatError(f"{p}: {exc}") from None
+
+
+def write_calibration(
+    path: str | os.PathLike[str],
+    data: CalibrationFile | RobotCalibration,
+    fmt: str | None = None,
+    *,
+    urdf: UrdfModel | None = None,
+    ids: Mapping[str, int] | None = None,
+    joint_order: Sequence[str] | None = None,
+) -> str:
+    """Write a calibration atomically (keeping ``NAME.bak``), in place where the format allows.
+
+    An existing ``lite-yaml`` file is updated in place: comments, key order and untouched values stay as
+    they were, and only changed values change. An existing URDF gets its ``<transmission>`` elements updated.
+
+    Args:
+        path: Destination.
+        data: The calibration (optionally with ids).
+        fmt: Format name; when None, the existing file's format, else the file suffix.
+        urdf: Supplies ids (``id``/``can_id`` params) where ``data`` has none; base document for URDF output.
+        ids: Extra motor ids, overriding those in ``data``.
+        joint_order: Order for positional formats.
+
+    Returns:
+        The format written.
+    """
+    p = Path(path)
+    cf = data if isinstance(data, CalibrationFile) else CalibrationFile(data)
+    if ids:
+        cf = CalibrationFile(cf.calibration, {**cf.ids, **ids}, cf.fmt, cf.source, cf.notes)
+    name = fmt if fmt is not None else _format_for_output(p)
+    spec = _check_fmt(name)
+    if spec.writer is None:
+        raise UsageError(f"format {name} is read-only; valid output formats: "
+                         f"{', '.join(k for k, v in FORMATS.items() if v.writer is not None)}")
+    spec.writer(p, cf, urdf, joint_order=joint_order)
+    return name
