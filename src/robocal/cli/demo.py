@@ -1,9 +1,48 @@
-"""Top-level ``robocal`` commands of this area."""
+"""``robocal demo``: the main job end to end on a simulated robot."""
 
 from __future__ import annotations
 
+import importlib
+from pathlib import Path
+from typing import Optional
+
 import typer
+
+from ..errors import UsageError
+
+ROBOTS: dict[str, str] = {
+    "lite": "robocal.cli.sweep",
+    "so101": "robocal.cli.lerobot",
+    "koch": "robocal.cli.lerobot",
+    "ur3": "robocal.cli.ur",
+    "ur5": "robocal.cli.ur",
+    "ur10": "robocal.cli.ur",
+    "ur3e": "robocal.cli.ur",
+    "ur5e": "robocal.cli.ur",
+    "ur10e": "robocal.cli.ur",
+    "ur16e": "robocal.cli.ur",
+    "ur20": "robocal.cli.ur",
+    "ur30": "robocal.cli.ur",
+}
+"""Demo robot → CLI module providing ``run_demo(robot, out_dir) -> int``."""
+
+
+def demo(
+    robot: str = typer.Option("lite", "--robot", help="Simulated robot: " + ", ".join(ROBOTS) + "."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for the files written (default: a temporary one)."),
+) -> None:
+    """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
+    if robot not in ROBOTS:
+        raise UsageError(f"unknown demo robot {robot!r}; valid: {', '.join(ROBOTS)}")
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    module = importlib.import_module(ROBOTS[robot])
+    run = getattr(module, "run_demo", None)
+    if run is None:
+        raise UsageError(f"the {robot} demo is not available in this build")
+    raise typer.Exit(int(run(robot, out)))
 
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the root app."""
+    """Add ``demo`` to the root app."""
+    app.command("demo")(demo)

@@ -1,9 +1,68 @@
-"""Top-level ``robocal`` commands of this area."""
+"""``robocal convert`` and ``robocal check``: calibration files between formats and against a URDF."""
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Optional
+
 import typer
+from rich.table import Table
+
+from ..formats import FORMATS, read_calibration
+from ..formats.urdf import read_urdf
+from ..workflows.calibration import check_calibration, convert_file
+from ._common import EXIT_OK, EXIT_WARNINGS, console, parse_csv_list, print_warning
+
+FORMAT_HELP = "Format: " + ", ".join(FORMATS) + "."
+
+
+def convert(
+    src: Path = typer.Argument(..., help="Calibration file to read."),
+    dst: Path = typer.Argument(..., help="File to write (updated in place when it exists and the format allows)."),
+    from_fmt: Optional[str] = typer.Option(None, "--from", help="Source format (detected when omitted). " + FORMAT_HELP),
+    to_fmt: Optional[str] = typer.Option(None, "--to", help="Destination format (from DST when omitted). " + FORMAT_HELP),
+    urdf: Optional[Path] = typer.Option(None, "--urdf", help="URDF giving directions, ids and joint order."),
+    joints: Optional[str] = typer.Option(None, "--joints", help="Comma-separated joint order (positional formats)."),
+) -> None:
+    """Convert a calibration file between formats, exactly."""
+    result = convert_file(
+        src, dst, src_format=from_fmt, dst_format=to_fmt, urdf_path=urdf, joints=parse_csv_list(joints, "--joints")
+    )
+    for note in result.notes:
+        print_warning(note)
+    console.print(
+        f"wrote {dst} ({result.dst_format}) from {src} ({result.src_format}): {len(result.joints)} joints"
+    )
+    raise typer.Exit(EXIT_WARNINGS if result.notes else EXIT_OK)
+
+
+def check(
+    calibration: Path = typer.Option(..., "--calibration", help="Calibration file to check."),
+    urdf: Path = typer.Option(..., "--urdf", help="The robot's URDF (expanded, not xacro)."),
+    fmt: Optional[str] = typer.Option(None, "--format", help="Calibration format (detected when omitted)."),
+) -> None:
+    """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
+    model = read_urdf(urdf)
+    cf = read_calibration(calibration, fmt, urdf=model)
+    report = check_calibration(cf, model)
+    console.print(f"{calibration}: {len(report.matched)}/{report.n_expected} joints matched ({cf.fmt})")
+    table = Table("joint", "id", "direction", "homing_offset", "status", box=None, pad_edge=False)
+    for j in report.joints:
+        status = "[yellow]" + "; ".join(j.warnings) + "[/]" if j.warnings else "[green]ok[/]"
+        table.add_row(j.name, str(j.motor_id if j.motor_id is not None else "-"), f"{j.direction:+d}" if j.direction else "-",
+                      f"{j.homing_offset:.6f}" if j.homing_offset is not None else "-", status)
+    console.print(table)
+    if report.missing:
+        print_warning(f"joints missing from the calibration file: {', '.join(report.missing)}")
+    if report.extra:
+        print_warning(f"joints in the calibration file but not in the URDF: {', '.join(report.extra)}")
+    for j in report.joints:
+        for w in j.warnings:
+            print_warning(f"{j.name}: {w}")
+    raise typer.Exit(EXIT_OK if report.ok else EXIT_WARNINGS)
 
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the root app."""
+    """Add ``convert`` and ``check`` to the root app."""
+    app.command("convert")(convert)
+    app.command("check")(check)

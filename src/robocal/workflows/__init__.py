@@ -1,0 +1,1 @@
+"""Jobs that orchestrate sources → core → formats (one module per job)."""
