@@ -1,0 +1,159 @@
+"""How a dataset's stored joint values relate to the motors' actual encoder positions.
+
+Re-calibrating a dataset is ``value_old → actual → value_new``: every convention maps stored values to the
+motor's *actual* encoder position (the position the encoder reports with no homing offset applied, in raw
+units: ticks for servos, rad for Robstride) and back. The actual position is the one quantity both the old and
+the new calibration agree on, because it does not depend on any calibration.
+
+Implementations: :class:`JointMapConvention` (robocal's canonical joint map, joint-frame radians) and, in
+:mod:`robocal.dataset._lerobot`, LeRobot's current and legacy conventions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.jointmap import RobotCalibration
+from ..errors import InvalidCalibrationError, JointMismatchError
+
+__all__ = ["FloatArray", "JointMapConvention", "ValueConvention", "check_joint_names"]
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@runtime_checkable
+class ValueConvention(Protocol):
+    """A per-joint map between stored values and actual encoder positions.
+
+    Implementations are frozen, picklable values (they are sent to worker processes).
+    """
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Joint names in the order of the value arrays' last axis."""
+        ...
+
+    def select(self, joint_names: Sequence[str]) -> ValueConvention:
+        """The same convention restricted to and reordered as ``joint_names``."""
+        ...
+
+    def to_actual(self, values: FloatArray) -> FloatArray:
+        """Stored values, shape ``(N, D)`` → actual encoder positions, shape ``(N, D)``, raw units."""
+        ...
+
+    def from_actual(self, actual: FloatArray) -> tuple[FloatArray, BoolArray]:
+        """Actual encoder positions ``(N, D)`` → (stored values ``(N, D)``, out-of-range mask ``(N, D)``).
+
+        The mask is ``True`` where the position lies outside the range this calibration covers (where
+        LeRobot's range modes clamp); those values are still mapped (clamped or not, as the convention does)
+        and counted.
+        """
+        ...
+
+    def value_range(self) -> tuple[FloatArray, FloatArray] | None:
+        """Calibrated range per joint in stored-value units, ``(lo (D,), hi (D,))``; ``None``: unbounded."""
+        ...
+
+    def full_turn(self) -> FloatArray:
+        """Change of the stored value per full encoder turn, shape ``(D,)`` (absolute value)."""
+        ...
+
+
+def check_joint_names(expected: Sequence[str], available: Sequence[str], where: str) -> None:
+    """Raise :class:`JointMismatchError` unless ``expected`` and ``available`` name the same joints.
+
+    Args:
+        expected: Joint names the dataset feature holds.
+        available: Joint names the calibration holds.
+        where: What is being matched, used in the message (``"feature 'action' vs --old"``).
+    """
+    missing = [n for n in expected if n not in available]
+    extra = [n for n in available if n not in expected]
+    dup = sorted({n for n in expected if list(expected).count(n) > 1})
+    if missing or extra or dup:
+        parts = []
+        if missing:
+            parts.append(f"not in the calibration: {', '.join(missing)}")
+        if extra:
+            parts.append(f"not in the dataset: {', '.join(extra)}")
+        if dup:
+            parts.append(f"duplicated: {', '.join(dup)}")
+        raise JointMismatchError(f"{where}: joint names do not match ({'; '.join(parts)})")
+
+
+@dataclass(frozen=True, eq=False)
+class JointMapConvention:
+    """Stored values are joint-frame positions of robocal's canonical joint map.
+
+    ``q = direction·scale·(actual − homing_offset)``, so ``actual = direction·q/scale + homing_offset``.
+
+    Attributes:
+        calibration: The robot's canonical calibration (joint names, directions, offsets, scales).
+        lower: Optional lower joint limits, shape ``(D,)``, joint units; values below are counted.
+        upper: Optional upper joint limits, shape ``(D,)``, joint units; values above are counted.
+        turn_raw: Encoder period in raw units (2π for Robstride, 4096 for a 4096-tick servo).
+    """
+
+    calibration: RobotCalibration
+    lower: FloatArray | None = None
+    upper: FloatArray | None = None
+    turn_raw: float = 2.0 * np.pi
+
+    def __post_init__(self) -> None:
+        n = self.calibration.n_joints
+        for name in ("lower", "upper"):
+            arr = getattr(self, name)
+            if arr is not None:
+                a = np.asarray(arr, dtype=np.float64)
+                if a.shape != (n,) or np.any(np.isnan(a)):
+                    raise InvalidCalibrationError(f"joint limits {name}: {n} numbers expected, no NaN")
+                object.__setattr__(self, name, a)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Joint names in column order."""
+        return self.calibration.joint_names
+
+    def select(self, joint_names: Sequence[str]) -> JointMapConvention:
+        """Restrict to and reorder as ``joint_names``."""
+        missing = [n for n in joint_names if n not in self.joint_names]
+        if missing:
+            raise JointMismatchError(f"joint map: no joint named {', '.join(missing)}")
+        idx = [self.calibration.index(n) for n in joint_names]
+        return JointMapConvention(
+            calibration=self.calibration.select(joint_names),
+            lower=None if self.lower is None else self.lower[idx],
+            upper=None if self.upper is None else self.upper[idx],
+            turn_raw=self.turn_raw,
+        )
+
+    def to_actual(self, values: FloatArray) -> FloatArray:
+        """Joint positions ``(N, D)`` → actual raw positions ``(N, D)``."""
+        return self.calibration.to_raw(values)
+
+    def from_actual(self, actual: FloatArray) -> tuple[FloatArray, BoolArray]:
+        """Actual raw positions ``(N, D)`` → joint positions and the outside-the-limits mask."""
+        q = self.calibration.to_joint(actual)
+        mask = np.zeros(q.shape, dtype=np.bool_)
+        if self.lower is not None:
+            mask |= q < self.lower
+        if self.upper is not None:
+            mask |= q > self.upper
+        return q, mask
+
+    def value_range(self) -> tuple[FloatArray, FloatArray] | None:
+        """The joint limits, if given."""
+        if self.lower is None or self.upper is None:
+            return None
+        return self.lower, self.upper
+
+    def full_turn(self) -> FloatArray:
+        """One encoder turn in joint units: ``|scale|·turn_raw`` per joint."""
+        out: FloatArray = np.abs(self.calibration.scale) * self.turn_raw
+        return out

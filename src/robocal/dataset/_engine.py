@@ -1,0 +1,260 @@
+"""Per-table and per-file re-calibration engine (pyarrow + numpy).
+
+A vector feature column is a ``fixed_size_list<float32>[D]``; its flat child array is viewed as a numpy
+``(N, D)`` array, mapped ``value_old → actual → value_new`` joint by joint, and rebuilt with
+``FixedSizeListArray.from_arrays`` using the column's own type, so the Arrow schema (and its HF metadata) is
+unchanged. Files are rewritten row group by row group, so one row group per episode stays one per episode.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from numpy.typing import NDArray
+
+from ..errors import FileFormatError, ShapeMismatchError
+from ._convention import BoolArray, FloatArray, ValueConvention, check_joint_names
+from ._stats import StatAccumulator, episode_stats
+
+NDArrayInt = NDArray[np.int64]
+
+__all__ = [
+    "FeaturePlan",
+    "FileResult",
+    "recalibrate_file",
+    "recalibrate_table",
+    "recalibrate_table_with_counts",
+    "recalibrate_values",
+]
+
+
+@dataclass(frozen=True)
+class FeaturePlan:
+    """How one feature column is re-calibrated.
+
+    Attributes:
+        key: Column name, e.g. ``"action"``.
+        joint_names: Joint names in column order, length ``D``.
+        old: Convention the values were recorded with, in column order.
+        new: Convention to convert to, in column order.
+    """
+
+    key: str
+    joint_names: tuple[str, ...]
+    old: ValueConvention
+    new: ValueConvention
+
+    @classmethod
+    def build(
+        cls, key: str, joint_names: Sequence[str], old: ValueConvention, new: ValueConvention
+    ) -> FeaturePlan:
+        """Select and reorder ``old`` and ``new`` to the feature's joints.
+
+        Raises:
+            JointMismatchError: A calibration does not hold exactly the feature's joints.
+        """
+        names = tuple(joint_names)
+        check_joint_names(names, list(old.joint_names), f"feature {key!r} vs the old calibration")
+        check_joint_names(names, list(new.joint_names), f"feature {key!r} vs the new calibration")
+        return cls(key=key, joint_names=names, old=old.select(names), new=new.select(names))
+
+
+def recalibrate_values(
+    values: FloatArray, old: ValueConvention, new: ValueConvention
+) -> tuple[FloatArray, BoolArray]:
+    """Map stored values through the actual encoder position.
+
+    Args:
+        values: Shape ``(N, D)``, stored values under ``old`` (columns in ``old.joint_names`` order).
+        old: Convention the values were recorded with.
+        new: Convention to convert to (same joint order).
+
+    Returns:
+        ``(new_values (N, D), out_of_range (N, D))``, the mask marks positions outside ``new``'s range.
+    """
+    actual = old.to_actual(np.asarray(values, dtype=np.float64))
+    return new.from_actual(actual)
+
+
+def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatArray, pa.DataType]:
+    arr = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
+    typ = arr.type
+    if not pa.types.is_fixed_size_list(typ):
+        raise FileFormatError(f"column {key!r}: expected fixed_size_list<float>, found {typ}")
+    if arr.null_count:
+        raise FileFormatError(f"column {key!r}: {arr.null_count} null rows; expected a value in every frame")
+    flat = arr.flatten()  # respects slicing, unlike .values
+    if flat.null_count:
+        raise FileFormatError(f"column {key!r}: {flat.null_count} null entries; expected finite numbers")
+    d = typ.list_size
+    np_flat = flat.to_numpy(zero_copy_only=False)
+    return np.asarray(np_flat, dtype=np.float64).reshape(-1, d), typ
+
+
+def recalibrate_table_with_counts(
+    table: pa.Table, plans: Sequence[FeaturePlan]
+) -> tuple[pa.Table, dict[str, NDArrayInt], dict[str, FloatArray]]:
+    """Re-calibrate the planned feature columns of one table.
+
+    Args:
+        table: Frames, with each planned feature a ``fixed_size_list<float>[D]`` column.
+        plans: One :class:`FeaturePlan` per feature to convert.
+
+    Returns:
+        ``(table, out_of_range, new_values)``: the new table (same schema), per feature the count of values
+        outside the new calibrated range per joint (shape ``(D,)``), and per feature the stored new values as
+        float64 ``(N, D)`` (for statistics).
+
+    Raises:
+        FileFormatError: A column is missing, not a fixed-size list or has nulls.
+        ShapeMismatchError: A column's width differs from the feature's number of joints.
+    """
+    counts: dict[str, NDArrayInt] = {}
+    stored: dict[str, FloatArray] = {}
+    out = table
+    for plan in plans:
+        idx = table.schema.get_field_index(plan.key)
+        if idx < 0:
+            raise FileFormatError(f"column {plan.key!r} is missing from the data table")
+        values, typ = _column_values(table.column(idx), plan.key)
+        if values.shape[1] != len(plan.joint_names):
+            raise ShapeMismatchError(
+                f"column {plan.key!r} has {values.shape[1]} entries per frame; "
+                f"expected {len(plan.joint_names)} ({', '.join(plan.joint_names)})"
+            )
+        new_values, mask = recalibrate_values(values, plan.old, plan.new)
+        np_type = typ.value_type.to_pandas_dtype()
+        cast = np.ascontiguousarray(new_values, dtype=np_type)
+        child = pa.array(cast.reshape(-1), type=typ.value_type)
+        new_col = pa.FixedSizeListArray.from_arrays(child, type=typ)
+        out = out.set_column(idx, table.schema.field(idx), new_col)
+        counts[plan.key] = mask.sum(axis=0).astype(np.int64)
+        stored[plan.key] = cast.astype(np.float64, copy=False)
+    return out, counts, stored
+
+
+
+def recalibrate_table(
+    table: pa.Table,
+    old: ValueConvention | Mapping[str, ValueConvention],
+    new: ValueConvention | Mapping[str, ValueConvention],
+    *,
+    features: Mapping[str, Sequence[str]] | None = None,
+) -> pa.Table:
+    """Re-calibrate the joint-position features of a table of frames.
+
+    Args:
+        table: Frames (e.g. one row group of a LeRobot data file).
+        old: The recording's convention, one for all features or one per feature key.
+        new: The target convention, one for all features or one per feature key.
+        features: Feature key → joint names in column order. Default: every key of ``old`` when it is a
+            mapping, else ``observation.state`` and ``action`` (those present) with ``old.joint_names``.
+
+    Returns:
+        A table with the same schema and the converted feature columns.
+    """
+    if features is None:
+        if isinstance(old, Mapping):
+            features = {k: old[k].joint_names for k in old}
+        else:
+            keys = [k for k in ("observation.state", "action") if k in table.schema.names]
+            features = dict.fromkeys(keys, old.joint_names)
+    plans = [
+        FeaturePlan.build(
+            k,
+            names,
+            old[k] if isinstance(old, Mapping) else old,
+            new[k] if isinstance(new, Mapping) else new,
+        )
+        for k, names in features.items()
+    ]
+    out, _, _ = recalibrate_table_with_counts(table, plans)
+    return out
+
+
+@dataclass
+class FileResult:
+    """What re-calibrating one data file produced.
+
+    Attributes:
+        path: File path relative to the dataset root.
+        frames: Number of frames (rows).
+        row_groups: Number of row groups written (equal to the source's).
+        out_of_range: Per feature, count per joint of values outside the new calibrated range, shape ``(D,)``.
+        episode_stats: Episode index → feature → accumulated statistics of the new values.
+    """
+
+    path: str
+    frames: int = 0
+    row_groups: int = 0
+    out_of_range: dict[str, NDArrayInt] = field(default_factory=dict)
+    episode_stats: dict[int, dict[str, StatAccumulator]] = field(default_factory=dict)
+
+
+def _compression_of(meta: pq.FileMetaData) -> str:
+    if meta.num_row_groups and meta.num_columns:
+        comp = str(meta.row_group(0).column(0).compression).lower()
+        if comp in ("snappy", "gzip", "brotli", "zstd", "lz4", "none", "uncompressed"):
+            return "none" if comp == "uncompressed" else comp
+    return "snappy"
+
+
+def recalibrate_file(
+    src: str | Path, dst: str | Path, plans: Sequence[FeaturePlan], rel_path: str = ""
+) -> FileResult:
+    """Re-calibrate one Parquet data file row group by row group.
+
+    The output has the source's Arrow schema (including the ``huggingface`` metadata), the same row groups
+    and the same compression.
+
+    Args:
+        src: Source Parquet file.
+        dst: Destination file (its folder must exist; it is overwritten).
+        plans: Features to convert.
+        rel_path: Path reported in results and errors (default: ``src``).
+
+    Returns:
+        Frame count, out-of-range counts and per-episode statistics.
+
+    Raises:
+        FileFormatError: The file cannot be read as Parquet or a column is malformed.
+    """
+    name = rel_path or str(src)
+    result = FileResult(path=name)
+    try:
+        pf = pq.ParquetFile(src)
+        schema = pf.schema_arrow
+    except (pa.ArrowException, OSError) as exc:
+        raise FileFormatError(f"data file {name}: cannot read Parquet ({exc})") from None
+    for plan in plans:
+        if schema.get_field_index(plan.key) < 0:
+            raise FileFormatError(f"data file {name}: column {plan.key!r} is missing")
+        result.out_of_range[plan.key] = np.zeros(len(plan.joint_names), dtype=np.int64)
+    has_episode = schema.get_field_index("episode_index") >= 0
+    try:
+        with pq.ParquetWriter(dst, schema=schema, compression=_compression_of(pf.metadata)) as writer:
+            for g in range(pf.metadata.num_row_groups):
+                table = pf.read_row_group(g)
+                try:
+                    new_table, counts, stored = recalibrate_table_with_counts(table, plans)
+                except FileFormatError as exc:
+                    raise FileFormatError(f"data file {name}, row group {g}: {exc}") from None
+                writer.write_table(new_table, row_group_size=max(new_table.num_rows, 1))
+                result.frames += new_table.num_rows
+                result.row_groups += 1
+                for key, c in counts.items():
+                    result.out_of_range[key] += c
+                if has_episode and new_table.num_rows:
+                    episodes = np.asarray(new_table.column("episode_index").to_numpy(), dtype=np.int64)
+                    for ep, acc in episode_stats(episodes, stored).items():
+                        dest = result.episode_stats.setdefault(ep, {})
+                        for key, a in acc.items():
+                            dest[key] = dest[key].merge(a) if key in dest else a
+    except (pa.ArrowException, OSError) as exc:
+        raise FileFormatError(f"data file {name}: cannot read or write Parquet ({exc})") from None
+    return result
