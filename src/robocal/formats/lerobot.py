@@ -1,0 +1,228 @@
+"""LeRobot calibration files: the current per-motor JSON and the legacy parallel-array JSON.
+
+Current (huggingface/lerobot#777 → v0.6.x): ``draccus.dump(dict[str, MotorCalibration], indent=4)`` — a JSON
+object keyed by motor name in bus order, each value ``{"id", "drive_mode", "homing_offset", "range_min",
+"range_max"}`` (ints, that key order), 4-space indent, no trailing newline. Reading is strict like draccus:
+every field required, no extra field, ints only.
+
+Legacy (2024 → 2025-06): ``json.dump(calibration, f)`` without indent — a flat object of six parallel arrays
+``homing_offset, drive_mode, start_pos, end_pos, calib_mode, motor_names``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ..core.lerobot import LegacyCalibration, MotorCalibration
+from ..errors import CalibError, FileFormatError
+from ..fileio import atomic_write_text, read_text
+
+__all__ = [
+    "CURRENT_FIELDS",
+    "LEGACY_KEYS",
+    "dumps_current",
+    "dumps_legacy",
+    "parse_current",
+    "parse_legacy",
+    "read_current",
+    "read_legacy",
+    "write_current",
+    "write_legacy",
+]
+
+CURRENT_FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
+"""Field order of one motor in the current JSON (``MotorCalibration`` field order)."""
+LEGACY_KEYS = ("homing_offset", "drive_mode", "start_pos", "end_pos", "calib_mode", "motor_names")
+"""Key order of the legacy JSON."""
+
+PathLike = str | os.PathLike[str]
+
+
+def dumps_current(cals: Mapping[str, MotorCalibration]) -> str:
+    """Serialise like ``draccus.dump(..., indent=4)``: 4-space indent, bus order, ints, no final newline."""
+    data = {name: {f: int(getattr(c, f)) for f in CURRENT_FIELDS} for name, c in cals.items()}
+    return json.dumps(data, indent=4)
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibration]:
+    """Parse and strictly validate a current LeRobot calibration JSON.
+
+    Args:
+        text: File contents.
+        source: File name used in error messages.
+
+    Returns:
+        Motor name → calibration, in file order.
+
+    Raises:
+        FileFormatError: Not JSON, not an object of objects, a missing/extra/non-int field, duplicate ids,
+            ``range_min >= range_max``, or a legacy array file. The message names the file, motor and field.
+    """
+    try:
+        data = json.loads(text, object_pairs_hook=_no_duplicates(source))
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(data, dict):
+        raise FileFormatError(f"{source}: expected a JSON object of motors, got {type(data).__name__}")
+    if data and all(isinstance(v, list) for v in data.values()):
+        raise FileFormatError(
+            f"{source}: this is a legacy LeRobot calibration (parallel arrays); convert it with "
+            "`robocal lerobot migrate`"
+        )
+    if not data:
+        raise FileFormatError(f"{source}: no motors")
+    out: dict[str, MotorCalibration] = {}
+    ids: dict[int, str] = {}
+    for motor, entry in data.items():
+        if not isinstance(entry, dict):
+            raise FileFormatError(
+                f"{source}: motor {motor!r}: expected an object, got {type(entry).__name__}"
+            )
+        missing = [f for f in CURRENT_FIELDS if f not in entry]
+        if missing:
+            raise FileFormatError(
+                f"{source}: motor {motor!r}: missing required field(s) {', '.join(missing)}"
+            )
+        extra = [f for f in entry if f not in CURRENT_FIELDS]
+        if extra:
+            raise FileFormatError(f"{source}: motor {motor!r}: unknown field(s) {', '.join(extra)}")
+        for f in CURRENT_FIELDS:
+            if not _is_int(entry[f]):
+                raise FileFormatError(
+                    f"{source}: motor {motor!r}: field {f} is {entry[f]!r}; expected an integer"
+                )
+        if entry["drive_mode"] not in (0, 1):
+            raise FileFormatError(
+                f"{source}: motor {motor!r}: field drive_mode is {entry['drive_mode']}; expected 0 or 1"
+            )
+        if not 0 <= entry["id"] <= 253:
+            raise FileFormatError(f"{source}: motor {motor!r}: field id is {entry['id']}; expected 0..253")
+        if entry["range_min"] >= entry["range_max"]:
+            raise FileFormatError(
+                f"{source}: motor {motor!r}: field range_min {entry['range_min']} must be less than "
+                f"range_max {entry['range_max']}"
+            )
+        if entry["id"] in ids:
+            raise FileFormatError(
+                f"{source}: motor {motor!r}: field id {entry['id']} is also used by {ids[entry['id']]!r}"
+            )
+        ids[entry["id"]] = motor
+        out[motor] = MotorCalibration(**{f: entry[f] for f in CURRENT_FIELDS})
+    return out
+
+
+def _no_duplicates(source: str) -> Any:
+    def hook(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for key, value in pairs:
+            if key in out:
+                raise FileFormatError(f"{source}: duplicate key {key!r}")
+            out[key] = value
+        return out
+
+    return hook
+
+
+def read_current(path: PathLike) -> dict[str, MotorCalibration]:
+    """Read a current LeRobot calibration JSON file (see :func:`parse_current`)."""
+    return parse_current(read_text(path, "LeRobot calibration"), str(path))
+
+
+def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_dirs: bool = True) -> Path:
+    """Write a current LeRobot calibration JSON atomically (keeps ``NAME.bak``); validates first."""
+    text = dumps_current(cals)
+    parse_current(text, str(path))
+    p = Path(path)
+    if make_dirs:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    return atomic_write_text(p, text)
+
+
+def dumps_legacy(cal: LegacyCalibration) -> str:
+    """Serialise like LeRobot's legacy ``json.dump(calibration, f)`` (no indent, default separators)."""
+    data = {
+        "homing_offset": [int(v) for v in cal.homing_offset],
+        "drive_mode": [int(v) for v in cal.drive_mode],
+        "start_pos": [int(v) for v in cal.start_pos],
+        "end_pos": [int(v) for v in cal.end_pos],
+        "calib_mode": list(cal.calib_mode),
+        "motor_names": list(cal.motor_names),
+    }
+    return json.dumps(data)
+
+
+def parse_legacy(text: str, source: str = "<string>") -> LegacyCalibration:
+    """Parse and validate a legacy LeRobot calibration JSON (six parallel arrays).
+
+    Raises:
+        FileFormatError: Not JSON, a missing/extra key, a wrong element type, arrays of different lengths,
+            or a current-format file; the message names the file and key.
+    """
+    try:
+        data = json.loads(text, object_pairs_hook=_no_duplicates(source))
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(data, dict):
+        raise FileFormatError(f"{source}: expected a JSON object of arrays, got {type(data).__name__}")
+    if data and all(isinstance(v, dict) for v in data.values()):
+        raise FileFormatError(
+            f"{source}: this is a current LeRobot calibration (per-motor objects), not legacy"
+        )
+    missing = [k for k in LEGACY_KEYS if k not in data]
+    if missing:
+        raise FileFormatError(f"{source}: missing key(s) {', '.join(missing)}")
+    extra = [k for k in data if k not in LEGACY_KEYS]
+    if extra:
+        raise FileFormatError(f"{source}: unknown key(s) {', '.join(extra)}")
+    n = None
+    for key in LEGACY_KEYS:
+        arr = data[key]
+        if not isinstance(arr, list):
+            raise FileFormatError(f"{source}: key {key} is {type(arr).__name__}; expected a list")
+        want_str = key in ("calib_mode", "motor_names")
+        for i, v in enumerate(arr):
+            if want_str and not isinstance(v, str):
+                raise FileFormatError(f"{source}: key {key}[{i}] is {v!r}; expected a string")
+            if not want_str and not _is_int(v):
+                raise FileFormatError(f"{source}: key {key}[{i}] is {v!r}; expected an integer")
+        if n is None:
+            n = len(arr)
+        elif len(arr) != n:
+            raise FileFormatError(
+                f"{source}: key {key} has {len(arr)} entries; expected {n} like homing_offset"
+            )
+    for i, m in enumerate(data["calib_mode"]):
+        if m not in ("DEGREE", "LINEAR"):
+            raise FileFormatError(f"{source}: key calib_mode[{i}] is {m!r}; expected 'DEGREE' or 'LINEAR'")
+    for i, d in enumerate(data["drive_mode"]):
+        if d not in (0, 1):
+            raise FileFormatError(f"{source}: key drive_mode[{i}] is {d}; expected 0 or 1")
+    try:
+        return LegacyCalibration(
+            data["motor_names"],
+            data["homing_offset"],
+            data["drive_mode"],
+            data["start_pos"],
+            data["end_pos"],
+            data["calib_mode"],
+        )
+    except CalibError as exc:
+        raise FileFormatError(f"{source}: {exc}") from None
+
+
+def read_legacy(path: PathLike) -> LegacyCalibration:
+    """Read a legacy LeRobot calibration JSON file (see :func:`parse_legacy`)."""
+    return parse_legacy(read_text(path, "LeRobot legacy calibration"), str(path))
+
+
+def write_legacy(path: PathLike, cal: LegacyCalibration) -> Path:
+    """Write a legacy LeRobot calibration JSON atomically, byte-identical to LeRobot's writer."""
+    return atomic_write_text(path, dumps_legacy(cal))

@@ -1,0 +1,205 @@
+"""LeRobot compatibility: current-scheme calibration values, normalisation and files.
+
+>>> cal = MotorCalibration(id=1, drive_mode=0, homing_offset=0, range_min=1000, range_max=3000)
+>>> float(normalize(1500, cal, "range_m100_100"))
+-50.0
+
+``compat="lerobot"`` is bit-identical to LeRobot 0.6.1; ``compat="exact"`` rounds so raw → normalised → raw
+is the identity (see ``docs/lerobot.md``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from ..core.lerobot import MODE_CODES, Compat, MotorCalibration, normalize_array, unnormalize_array
+from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
+from ..formats import lerobot as _fmt
+
+__all__ = [
+    "MotorCalibration",
+    "NormMode",
+    "calibration_path",
+    "normalize",
+    "read_calibration",
+    "unnormalize",
+    "write_calibration",
+]
+
+
+class NormMode(str, Enum):
+    """LeRobot ``MotorNormMode``; plain strings with these values are accepted everywhere."""
+
+    RANGE_M100_100 = "range_m100_100"
+    RANGE_0_100 = "range_0_100"
+    DEGREES = "degrees"
+
+
+CalibrationArg = MotorCalibration | Sequence[MotorCalibration]
+ModeArg = NormMode | str | Sequence[NormMode | str]
+
+
+def _mode_code(mode: NormMode | str) -> int:
+    value = mode.value if isinstance(mode, NormMode) else mode
+    if not isinstance(value, str) or value not in MODE_CODES:
+        raise InvalidCalibrationError(f"norm mode {mode!r}: expected one of {', '.join(MODE_CODES)}")
+    return MODE_CODES[value]
+
+
+def _unpack(calibration: CalibrationArg, mode: ModeArg) -> tuple[bool, list[MotorCalibration], list[int]]:
+    single = isinstance(calibration, MotorCalibration)
+    cals = [calibration] if isinstance(calibration, MotorCalibration) else list(calibration)
+    if not cals or not all(isinstance(c, MotorCalibration) for c in cals):
+        raise InvalidCalibrationError(
+            "calibration: expected a MotorCalibration or a non-empty sequence of them"
+        )
+    if isinstance(mode, (str, NormMode)):
+        codes = [_mode_code(mode)] * len(cals)
+    else:
+        codes = [_mode_code(m) for m in mode]
+        if len(codes) != len(cals):
+            raise ShapeMismatchError(
+                f"{len(codes)} modes for {len(cals)} motors; expected one mode per motor"
+            )
+    return single, cals, codes
+
+
+def normalize(
+    raw: npt.ArrayLike,
+    calibration: CalibrationArg,
+    mode: ModeArg,
+    *,
+    apply_drive_mode: bool = True,
+    compat: Compat = "lerobot",
+    resolution: int = 4096,
+) -> npt.NDArray[np.float64]:
+    """Raw ``Present_Position`` ticks → LeRobot normalised values (LeRobot's ``_normalize``).
+
+    Args:
+        raw: Decoded ticks, shape ``(..., n_motors)``; with a single ``MotorCalibration`` any shape (each
+            element is that motor).
+        calibration: One ``MotorCalibration`` or one per motor.
+        mode: One mode for all motors or one per motor (``NormMode`` or its string value).
+        apply_drive_mode: True for Feetech (software inversion), False for Dynamixel (hardware Drive_Mode).
+        compat: ``"lerobot"`` bit-identical to LeRobot 0.6.1, ``"exact"`` lossless.
+        resolution: Ticks per turn (4096; scs0009 1024).
+
+    Returns:
+        Float64 array of ``raw``'s shape: −100..100, 0..100 or degrees.
+    """
+    single, cals, codes = _unpack(calibration, mode)
+    x = np.asarray(raw, dtype=np.float64)
+    if single:
+        x = x[..., np.newaxis]
+    out = normalize_array(
+        x,
+        [c.range_min for c in cals],
+        [c.range_max for c in cals],
+        [c.drive_mode for c in cals],
+        codes,
+        apply_drive_mode=apply_drive_mode,
+        compat=compat,
+        resolution=resolution,
+    )
+    return out[..., 0] if single else out
+
+
+def unnormalize(
+    values: npt.ArrayLike,
+    calibration: CalibrationArg,
+    mode: ModeArg,
+    *,
+    apply_drive_mode: bool = True,
+    compat: Compat = "lerobot",
+    resolution: int = 4096,
+) -> npt.NDArray[np.int64]:
+    """Normalised values → raw ``Goal_Position`` ticks (LeRobot's ``_unnormalize``); see :func:`normalize`.
+
+    Returns:
+        Int64 array of ``values``' shape (truncated like ``int()`` with ``compat="lerobot"``, rounded with
+        ``"exact"``).
+    """
+    single, cals, codes = _unpack(calibration, mode)
+    x = np.asarray(values, dtype=np.float64)
+    if single:
+        x = x[..., np.newaxis]
+    out = unnormalize_array(
+        x,
+        [c.range_min for c in cals],
+        [c.range_max for c in cals],
+        [c.drive_mode for c in cals],
+        codes,
+        apply_drive_mode=apply_drive_mode,
+        compat=compat,
+        resolution=resolution,
+    )
+    return out[..., 0] if single else out
+
+
+def read_calibration(path: str | os.PathLike[str]) -> dict[str, MotorCalibration]:
+    """Read a current LeRobot calibration JSON (strict: every field, ints, no extras).
+
+    Raises:
+        FileFormatError: Naming the file, motor and field.
+    """
+    return _fmt.read_current(path)
+
+
+def write_calibration(path: str | os.PathLike[str], cals: Mapping[str, MotorCalibration]) -> Path:
+    """Write a current LeRobot calibration JSON exactly as LeRobot does (4-space indent), atomically.
+
+    Missing parent folders are created; an existing file is kept as ``NAME.bak``.
+    """
+    return _fmt.write_current(path, cals)
+
+
+KINDS = {
+    "robots": "robots",
+    "robot": "robots",
+    "teleoperators": "teleoperators",
+    "teleoperator": "teleoperators",
+}
+
+
+def default_calibration_root() -> Path:
+    """LeRobot's calibration root folder.
+
+    ``$HF_LEROBOT_CALIBRATION``, else ``$HF_LEROBOT_HOME/calibration``, else ``$HF_HOME/lerobot/calibration``,
+    else ``~/.cache/huggingface/lerobot/calibration``.
+    """
+    env = os.environ
+    if env.get("HF_LEROBOT_CALIBRATION"):
+        return Path(env["HF_LEROBOT_CALIBRATION"]).expanduser()
+    if env.get("HF_LEROBOT_HOME"):
+        return Path(env["HF_LEROBOT_HOME"]).expanduser() / "calibration"
+    hf_home = (
+        Path(env["HF_HOME"]).expanduser() if env.get("HF_HOME") else Path.home() / ".cache" / "huggingface"
+    )
+    return hf_home / "lerobot" / "calibration"
+
+
+def calibration_path(
+    kind: str, name: str, id: str | None, root: str | os.PathLike[str] | None = None
+) -> Path:
+    """LeRobot's calibration file path ``ROOT/{robots|teleoperators}/<name>/<id>.json``.
+
+    Args:
+        kind: ``"robots"`` or ``"teleoperators"`` (singular accepted).
+        name: Device class name, e.g. ``"so_follower"`` (v0.4.3+), ``"so101_follower"`` (older),
+            ``"koch_leader"``.
+        id: The robot id; ``None`` gives LeRobot's literal ``None.json``.
+        root: Calibration root; default :func:`default_calibration_root`.
+    """
+    if kind not in KINDS:
+        raise UsageError(f"calibration kind {kind!r}: expected 'robots' or 'teleoperators'")
+    for what, value in (("name", name), ("id", str(id))):
+        if not value or "/" in value or "\\" in value or value in (".", ".."):
+            raise UsageError(f"calibration {what} {value!r}: expected a plain file name")
+    base = Path(root).expanduser() if root is not None else default_calibration_root()
+    return base / KINDS[kind] / name / f"{id}.json"

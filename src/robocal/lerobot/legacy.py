@@ -1,0 +1,83 @@
+"""LeRobot legacy calibration (2024 → 2025-06): files, ``apply_calibration`` / ``revert_calibration``.
+
+``cal`` is a :class:`~robocal.core.lerobot.LegacyCalibration` (the six arrays of the legacy JSON).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from ..core.jointmap import RobotCalibration
+from ..core.lerobot import (
+    LegacyCalibration,
+    apply_legacy,
+    autocorrect_legacy,
+    legacy_calibration_from_poses,
+    revert_legacy,
+)
+from ..errors import InvalidCalibrationError
+from ..formats import lerobot as _fmt
+
+__all__ = [
+    "LegacyCalibration",
+    "apply_calibration",
+    "autocorrect_calibration",
+    "calibration_from_poses",
+    "read_legacy",
+    "revert_calibration",
+    "to_robot_calibration",
+    "write_legacy",
+]
+
+calibration_from_poses = legacy_calibration_from_poses
+autocorrect_calibration = autocorrect_legacy
+
+
+def read_legacy(path: str | os.PathLike[str]) -> LegacyCalibration:
+    """Read a legacy LeRobot calibration JSON (raises ``FileFormatError`` naming the file and key)."""
+    return _fmt.read_legacy(path)
+
+
+def write_legacy(path: str | os.PathLike[str], cal: LegacyCalibration) -> Path:
+    """Write a legacy calibration byte-identical to LeRobot's ``json.dump`` (atomic, keeps ``NAME.bak``)."""
+    return _fmt.write_legacy(path, cal)
+
+
+def apply_calibration(raw: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.float64]:
+    """Raw ticks ``(..., n_motors)`` → degrees (DEGREE) / percent (LINEAR).
+
+    Raises:
+        JointOutOfRangeError: With LeRobot's message, outside ±270° / −10..110 %.
+    """
+    return apply_legacy(raw, cal)
+
+
+def revert_calibration(values: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.int64]:
+    """Degrees / percent ``(..., n_motors)`` → raw ticks, rounded half to even like ``np.round``."""
+    return revert_legacy(values, cal)
+
+
+def to_robot_calibration(cal: LegacyCalibration) -> RobotCalibration:
+    """Exact canonical joint map of a legacy DEGREE calibration, in radians.
+
+    Legacy: ``q_rad = (±raw + h)·π/2048``. Canonical: ``q = direction·scale·(raw − homing_offset)`` with
+    ``direction = −1 if drive_mode else +1``, ``scale = π/2048`` rad/tick and
+    ``homing_offset = −direction·h`` ticks.
+
+    Raises:
+        InvalidCalibrationError: Naming every LINEAR motor (a percentage has no joint-angle equivalent).
+    """
+    linear = [m for m, mode in zip(cal.motor_names, cal.calib_mode, strict=True) if mode == "LINEAR"]
+    if linear:
+        raise InvalidCalibrationError(
+            f"LINEAR motor(s) {', '.join(linear)} are not convertible to a joint map "
+            "(percent of a start..end span, not an angle); only DEGREE motors are"
+        )
+    direction = np.where(cal.drive_mode == 1, -1.0, 1.0)
+    homing = -direction * cal.homing_offset.astype(np.float64)
+    return RobotCalibration(cal.motor_names, direction, homing, math.pi / 2048)
