@@ -1,0 +1,248 @@
+"""Simulated UR controller: a loopback TCP server speaking the primary interface.
+
+On connect it sends a version message (type 20), then at 10 Hz a MODBUS_INFO message (top-level
+type 5, which a client must not confuse with sub-type 5) and a RobotState (type 16) with the sub-package
+sequence of a URSim 5.8 UR5e (RobotMode, Joint, CartesianInfo, KinematicsInfo, CalibrationData,
+Masterboard, Tool, Configuration, ForceMode, AdditionalInfo, Safety, ToolComm, ToolMode; 1386 bytes,
+KinematicsInfo at offset 404) with the KinematicsInfo built from a given DH set. Fault modes send
+truncated, garbage or oversized packets, or nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import struct
+import threading
+import time
+
+from ...core.dh import DHParameters
+from ..ur_primary import encode_kinematics_info, encode_message, encode_subpackage
+
+__all__ = [
+    "FAULT_MODES",
+    "ROBOT_STATE_LAYOUT",
+    "SimUrController",
+    "build_robot_state",
+    "build_version_message",
+]
+
+ROBOT_STATE_LAYOUT: tuple[tuple[int, int], ...] = (
+    (0, 47),
+    (1, 251),
+    (4, 101),
+    (5, 225),
+    (9, 53),
+    (3, 75),
+    (2, 37),
+    (6, 445),
+    (7, 61),
+    (8, 9),
+    (10, 43),
+    (11, 26),
+    (12, 8),
+)
+"""(sub-type, size incl. header) of a URSim 5.8 UR5e RobotState."""
+
+FAULT_MODES: tuple[str, ...] = (
+    "normal",
+    "truncated",
+    "garbage",
+    "oversized",
+    "silent",
+    "bad_subpackage",
+    "short_kinematics",
+    "no_kinematics",
+    "close",
+)
+"""Behaviours of :class:`SimUrController` (``normal`` is a healthy controller)."""
+
+
+def build_version_message(major: int = 5, minor: int = 8, bugfix: int = 0, build: int = 0) -> bytes:
+    """A ROBOT_MESSAGE (type 20) version message as the controller sends first on connect."""
+    name = b"URControl"
+    date = b"01-01-2026, 00:00:00"
+    payload = (
+        struct.pack(">QbB", 0, -1, 3)
+        + struct.pack(">B", len(name))
+        + name
+        + struct.pack(">BBii", major, minor, bugfix, build)
+        + date
+    )
+    return encode_message(20, payload)
+
+
+def build_robot_state(
+    dh: DHParameters,
+    calibration_status: int = 2,
+    *,
+    include_kinematics: bool = True,
+    kinematics_size: int = 225,
+) -> bytes:
+    """A complete RobotState message (type 16) with the URSim sub-package sequence.
+
+    Args:
+        dh: DH parameters reported in KinematicsInfo.
+        calibration_status: KinematicsInfo ``calibration_status``.
+        include_kinematics: Leave KinematicsInfo out (pre-3.6 CB3 software).
+        kinematics_size: Size of the KinematicsInfo sub-package (< 225 makes it truncated, > 225 over-long).
+
+    Returns:
+        The framed message (1386 bytes for the default layout).
+    """
+    subs = []
+    for sub_type, size in ROBOT_STATE_LAYOUT:
+        if sub_type == 5:
+            if not include_kinematics:
+                continue
+            kin = encode_kinematics_info(dh, calibration_status)
+            if kinematics_size < len(kin):
+                body = kin[5:kinematics_size]
+            else:
+                body = kin[5:] + bytes(kinematics_size - len(kin))
+            subs.append(encode_subpackage(5, body))
+        else:
+            subs.append(encode_subpackage(sub_type, bytes(size - 5)))
+    return encode_message(16, b"".join(subs))
+
+
+class SimUrController:
+    """Loopback primary-interface server (context manager).
+
+    Example:
+        >>> with SimUrController(nominal_dh("ur10e")) as sim:  # doctest: +SKIP
+        ...     info = PrimaryClient(*sim.address, timeout_s=2).read_kinematics()
+
+    Args:
+        dh: DH reported in KinematicsInfo.
+        calibration_status: Reported status (2 = linearised).
+        mode: One of :data:`FAULT_MODES`.
+        rate_hz: RobotState rate (10 Hz like the real controller).
+        host: Bind address (loopback by default).
+        port: Bind port (0 = a free port; see :attr:`address`).
+    """
+
+    def __init__(
+        self,
+        dh: DHParameters,
+        *,
+        calibration_status: int = 2,
+        mode: str = "normal",
+        rate_hz: float = 10.0,
+        host: str = "127.0.0.1",
+        port: int = 0,
+    ) -> None:
+        if mode not in FAULT_MODES:
+            raise ValueError(f"unknown simulator mode {mode!r}; valid: {', '.join(FAULT_MODES)}")
+        self.dh = dh
+        self.calibration_status = calibration_status
+        self.mode = mode
+        self.period_s = 1.0 / rate_hz
+        self._stop = threading.Event()
+        self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self._listener.bind((host, port))
+        self._listener.listen(8)
+        self._listener.settimeout(0.05)
+        self._threads: list[threading.Thread] = []
+        self._clients: list[socket.socket] = []
+        self._lock = threading.Lock()
+        self.connections = 0
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """``(host, port)`` the server listens on."""
+        host, port = self._listener.getsockname()[:2]
+        return str(host), int(port)
+
+    def __enter__(self) -> SimUrController:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def start(self) -> SimUrController:
+        """Start accepting connections in a background thread."""
+        t = threading.Thread(target=self._accept_loop, name="sim-ur-accept", daemon=True)
+        self._threads.append(t)
+        t.start()
+        return self
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Stop the server and close every connection (threads joined with a timeout)."""
+        self._stop.set()
+        with self._lock:
+            for c in self._clients:
+                with contextlib.suppress(OSError):
+                    c.shutdown(socket.SHUT_RDWR)
+                with contextlib.suppress(OSError):
+                    c.close()
+        for t in list(self._threads):
+            t.join(timeout_s)
+        with contextlib.suppress(OSError):
+            self._listener.close()
+
+    def _accept_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                conn, _ = self._listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            with self._lock:
+                self._clients.append(conn)
+                self.connections += 1
+            t = threading.Thread(target=self._serve, args=(conn,), name="sim-ur-client", daemon=True)
+            self._threads.append(t)
+            t.start()
+
+    def _send(self, conn: socket.socket, data: bytes) -> bool:
+        try:
+            conn.sendall(data)
+            return True
+        except OSError:
+            return False
+
+    def _serve(self, conn: socket.socket) -> None:
+        conn.settimeout(1.0)
+        try:
+            mode = self.mode
+            if mode == "silent":
+                self._stop.wait()
+                return
+            if mode == "close":
+                return
+            if mode == "garbage":
+                self._send(conn, b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+                self._stop.wait(0.5)
+                return
+            if not self._send(conn, build_version_message()):
+                return
+            if mode == "oversized":
+                self._send(conn, struct.pack(">iB", 0x7FFFFFFF, 16) + bytes(64))
+                self._stop.wait(0.5)
+                return
+            state = build_robot_state(
+                self.dh,
+                self.calibration_status,
+                include_kinematics=mode != "no_kinematics",
+                kinematics_size=100 if mode == "short_kinematics" else 225,
+            )
+            if mode == "truncated":
+                self._send(conn, state[: len(state) // 2])
+                return
+            if mode == "bad_subpackage":
+                bad = bytearray(state)
+                struct.pack_into(">I", bad, 5, 5000)  # first sub-package claims more than the message holds
+                state = bytes(bad)
+            modbus = encode_message(5, bytes(12))  # top-level type 5 (MODBUS_INFO), not KinematicsInfo
+            next_t = time.monotonic()
+            while not self._stop.is_set():
+                if not self._send(conn, modbus + state):
+                    return
+                next_t += self.period_s
+                self._stop.wait(max(0.0, next_t - time.monotonic()))
+        finally:
+            with contextlib.suppress(OSError):
+                conn.close()

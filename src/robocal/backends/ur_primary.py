@@ -1,0 +1,302 @@
+"""UR primary-interface client (TCP port 30001): reads the controller's calibrated DH (KinematicsInfo).
+
+Wire format (all big-endian):
+
+* message: ``int32 size`` (whole message, **including** these 4 bytes), ``uint8 type``, payload;
+* type 16 (ROBOT_STATE): sub-packages until the end, each ``uint32 size`` (incl. header),
+  ``uint8 type``, body;
+* sub-type 5 (KinematicsInfo, 225 bytes): ``6×uint32 checksum``, ``6×float64 dh_theta``, ``6×float64 dh_a``,
+  ``6×float64 dh_d``, ``6×float64 dh_alpha``, ``uint32 calibration_status`` (2 = linearised).
+
+Every other message type (20 version/robot messages, 5 MODBUS_INFO, 22, 23, 24, 25, …) and sub-package
+is skipped by its length. Lengths are bounded (:data:`MAX_MESSAGE_BYTES`), so a bogus size field cannot
+allocate gigabytes, and every read is bounded by one overall deadline (default 10 s).
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import struct
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+from ..core.dh import DHParameters
+from ..errors import CalibTimeoutError, DeviceError, ProtocolError
+
+__all__ = [
+    "CALIBRATION_LINEARISED",
+    "DEFAULT_PORT",
+    "DEFAULT_TIMEOUT_S",
+    "KINEMATICS_INFO_SIZE",
+    "MAX_MESSAGE_BYTES",
+    "MSG_ROBOT_STATE",
+    "SUB_KINEMATICS_INFO",
+    "KinematicsInfo",
+    "PrimaryClient",
+    "encode_kinematics_info",
+    "encode_message",
+    "encode_subpackage",
+    "iter_subpackages",
+    "parse_kinematics_info",
+]
+
+DEFAULT_PORT = 30001
+"""Primary interface port (30011 is the read-only variant)."""
+DEFAULT_TIMEOUT_S = 10.0
+"""Overall time allowed to connect and receive a KinematicsInfo."""
+MAX_MESSAGE_BYTES = 65536
+"""Largest message accepted (a real RobotState is ~1.4 kB)."""
+MSG_ROBOT_STATE = 16
+SUB_KINEMATICS_INFO = 5
+KINEMATICS_INFO_SIZE = 225
+CALIBRATION_LINEARISED = 2
+
+_HEADER = struct.Struct(">iB")
+_SUB_HEADER = struct.Struct(">IB")
+_KIN_BODY = struct.Struct(">6I6d6d6d6dI")
+
+
+@dataclass(frozen=True)
+class KinematicsInfo:
+    """Decoded KinematicsInfo sub-package.
+
+    Attributes:
+        checksum: Per-joint checksums (URSim sends 0xFFFFFFFF).
+        dh: Calibrated DH (nominal + controller deltas), radians and metres.
+        calibration_status: 0 not initialised, 1 not linearised, 2 linearised (real robots report 2).
+    """
+
+    checksum: tuple[int, ...]
+    dh: DHParameters
+    calibration_status: int
+
+    @property
+    def linearised(self) -> bool:
+        """True when ``calibration_status`` is 2."""
+        return self.calibration_status == CALIBRATION_LINEARISED
+
+
+def encode_message(msg_type: int, payload: bytes) -> bytes:
+    """Frame a primary-interface message: ``int32 size`` (incl. header) + ``uint8 type`` + payload."""
+    return _HEADER.pack(len(payload) + _HEADER.size, msg_type) + payload
+
+
+def encode_subpackage(sub_type: int, body: bytes) -> bytes:
+    """Frame a RobotState sub-package: ``uint32 size`` (incl. header) + ``uint8 type`` + body."""
+    return _SUB_HEADER.pack(len(body) + _SUB_HEADER.size, sub_type) + body
+
+
+def encode_kinematics_info(
+    dh: DHParameters, calibration_status: int = 2, checksum: int = 0xFFFFFFFF
+) -> bytes:
+    """Encode a KinematicsInfo sub-package (225 bytes, header included) from a six-joint DH model."""
+    body = _KIN_BODY.pack(
+        *([checksum] * 6), *dh.theta_rad, *dh.a_m, *dh.d_m, *dh.alpha_rad, calibration_status
+    )
+    return encode_subpackage(SUB_KINEMATICS_INFO, body)
+
+
+def iter_subpackages(payload: bytes) -> Iterator[tuple[int, bytes]]:
+    """Walk the sub-packages of a RobotState payload (after the message header).
+
+    Yields:
+        ``(sub_type, sub_package_bytes_including_header)``.
+
+    Raises:
+        ProtocolError: A sub-package length is shorter than its header or runs past the message.
+    """
+    off = 0
+    n = len(payload)
+    while off < n:
+        if n - off < _SUB_HEADER.size:
+            raise ProtocolError(
+                f"RobotState: {n - off} trailing byte(s) at offset {off}, too short for a header"
+            )
+        size, sub_type = _SUB_HEADER.unpack_from(payload, off)
+        if size < _SUB_HEADER.size or size > n - off:
+            raise ProtocolError(
+                f"RobotState: sub-package type {sub_type} at offset {off} claims {size} bytes; "
+                f"{n - off} remain in the message"
+            )
+        yield sub_type, payload[off : off + size]
+        off += size
+
+
+def parse_kinematics_info(sub: bytes) -> tuple[KinematicsInfo, bool]:
+    """Decode a KinematicsInfo sub-package (header included).
+
+    Returns:
+        ``(info, longer)`` where ``longer`` is True when the sub-package had extra bytes (ignored).
+
+    Raises:
+        ProtocolError: Truncated (shorter than 225 bytes) or a non-finite DH value.
+    """
+    if len(sub) < KINEMATICS_INFO_SIZE:
+        raise ProtocolError(
+            f"KinematicsInfo: {len(sub)} bytes, expected {KINEMATICS_INFO_SIZE} (truncated sub-package)"
+        )
+    vals = _KIN_BODY.unpack_from(sub, _SUB_HEADER.size)
+    checksum = tuple(int(v) for v in vals[0:6])
+    arrays = [tuple(float(v) for v in vals[6 + 6 * k : 12 + 6 * k]) for k in range(4)]
+    for name, arr in zip(("dh_theta", "dh_a", "dh_d", "dh_alpha"), arrays, strict=True):
+        for i, v in enumerate(arr):
+            if not math.isfinite(v):
+                raise ProtocolError(f"KinematicsInfo: {name}[{i}] is {v}; expected a finite number")
+    dh = DHParameters(theta_rad=arrays[0], a_m=arrays[1], d_m=arrays[2], alpha_rad=arrays[3])
+    info = KinematicsInfo(checksum=checksum, dh=dh, calibration_status=int(vals[30]))
+    return info, len(sub) > KINEMATICS_INFO_SIZE
+
+
+@dataclass
+class PrimaryClient:
+    """Blocking client for the UR primary interface; registered as backend ``"ur_primary"``.
+
+    Example:
+        >>> with PrimaryClient("192.168.1.10") as client:  # doctest: +SKIP
+        ...     info = client.read_kinematics()
+
+    Attributes:
+        host: Controller address.
+        port: TCP port (30001; 30011 read-only).
+        timeout_s: Overall deadline for connecting and receiving a KinematicsInfo, seconds.
+        warnings: Human-readable warnings collected while reading (status ≠ 2, over-long sub-package).
+    """
+
+    host: str
+    port: int = DEFAULT_PORT
+    timeout_s: float = DEFAULT_TIMEOUT_S
+    warnings: list[str] = field(default_factory=list)
+    _sock: socket.socket | None = field(default=None, repr=False)
+    _deadline: float = field(default=0.0, repr=False)
+
+    def __enter__(self) -> PrimaryClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def _where(self) -> str:
+        return f"UR controller {self.host}:{self.port}"
+
+    def _remaining(self, what: str) -> float:
+        left = self._deadline - time.monotonic()
+        if left <= 0:
+            raise CalibTimeoutError(f"{self._where}: no KinematicsInfo within {self.timeout_s:g} s ({what})")
+        return left
+
+    def connect(self) -> None:
+        """Open the TCP connection (bounded by the timeout)."""
+        if self._sock is not None:
+            return
+        if not (self.timeout_s > 0):
+            raise DeviceError(f"{self._where}: timeout must be positive, got {self.timeout_s}")
+        self._deadline = time.monotonic() + self.timeout_s
+        try:
+            self._sock = socket.create_connection(
+                (self.host, self.port), timeout=self._remaining("connecting")
+            )
+        except TimeoutError:
+            raise CalibTimeoutError(
+                f"{self._where}: connection timed out after {self.timeout_s:g} s"
+            ) from None
+        except OSError as exc:
+            raise DeviceError(f"{self._where}: cannot connect ({exc.strerror or exc})") from None
+
+    def close(self) -> None:
+        """Close the connection (idempotent)."""
+        if self._sock is not None:
+            try:
+                self._sock.close()
+            finally:
+                self._sock = None
+
+    def _recv_exact(self, n: int, what: str) -> bytes:
+        assert self._sock is not None
+        buf = bytearray()
+        while len(buf) < n:
+            self._sock.settimeout(self._remaining(f"waiting for {what}"))
+            try:
+                chunk = self._sock.recv(min(n - len(buf), 65536))
+            except TimeoutError:
+                raise CalibTimeoutError(
+                    f"{self._where}: no KinematicsInfo within {self.timeout_s:g} s (waiting for {what})"
+                ) from None
+            except OSError as exc:
+                raise DeviceError(f"{self._where}: connection lost ({exc.strerror or exc})") from None
+            if not chunk:
+                if buf or what != "a message header":
+                    raise ProtocolError(
+                        f"{self._where}: connection closed in the middle of {what} "
+                        f"({len(buf)} of {n} bytes; truncated message)"
+                    )
+                raise DeviceError(f"{self._where}: connection closed before a KinematicsInfo arrived")
+            buf += chunk
+        return bytes(buf)
+
+    def read_message(self) -> tuple[int, bytes]:
+        """Read one message.
+
+        Returns:
+            ``(type, payload)`` with the 5-byte header removed.
+
+        Raises:
+            ProtocolError: Size field out of bounds, or the stream ended mid-message.
+            CalibTimeoutError: The deadline passed.
+        """
+        self.connect()
+        header = self._recv_exact(_HEADER.size, "a message header")
+        size, msg_type = _HEADER.unpack(header)
+        if size < _HEADER.size or size > MAX_MESSAGE_BYTES:
+            raise ProtocolError(
+                f"{self._where}: message type {msg_type} has size {size}; expected {_HEADER.size}.."
+                f"{MAX_MESSAGE_BYTES} bytes (garbage or not a primary interface)"
+            )
+        payload = self._recv_exact(size - _HEADER.size, f"a {size}-byte message of type {msg_type}")
+        return msg_type, payload
+
+    def read_kinematics(self) -> KinematicsInfo:
+        """Read messages until the first RobotState that carries a KinematicsInfo and decode it.
+
+        Returns:
+            The controller's calibrated DH and calibration status. A status other than 2 adds a warning
+            to :attr:`warnings` (the DH may not be the robot's real calibration).
+
+        Raises:
+            CalibTimeoutError: Nothing usable within ``timeout_s`` (a silent server, pre-3.6 software).
+            ProtocolError: Truncated, garbage or oversized packets.
+            DeviceError: Connection refused or closed.
+        """
+        self.connect()
+        while True:
+            msg_type, payload = self.read_message()
+            if msg_type != MSG_ROBOT_STATE:
+                continue
+            try:
+                found = self._find_kinematics(payload)
+            except ProtocolError as exc:
+                raise ProtocolError(f"{self._where}: {exc}") from None
+            if found is None:
+                continue
+            info, size = found
+            if size > KINEMATICS_INFO_SIZE:
+                self.warnings.append(
+                    f"{self._where}: KinematicsInfo is {size} bytes (expected "
+                    f"{KINEMATICS_INFO_SIZE}); extra bytes ignored"
+                )
+            if not info.linearised:
+                self.warnings.append(
+                    f"{self._where}: calibration_status is {info.calibration_status}, not 2 "
+                    "(linearised); the DH may be nominal rather than the robot's calibration"
+                )
+            return info
+
+    @staticmethod
+    def _find_kinematics(payload: bytes) -> tuple[KinematicsInfo, int] | None:
+        for sub_type, sub in iter_subpackages(payload):
+            if sub_type == SUB_KINEMATICS_INFO:
+                info, _ = parse_kinematics_info(sub)
+                return info, len(sub)
+        return None
