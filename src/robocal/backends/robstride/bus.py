@@ -1,0 +1,299 @@
+"""``RobstrideBus``: one CAN channel of Robstride motors on python-can.
+
+Every request waits for its reply with a timeout; a motor that stays silent is named in the
+:class:`~robocal.errors.CalibTimeoutError`. The calibration path is passive: :meth:`RobstrideBus.zero_torque`
+sends the MIT command ``(0, 0, 0, 0, 0)`` (no torque, no gains) and reads the feedback; nothing moves a joint.
+:meth:`RobstrideBus.set_zero` (type 6) and :meth:`RobstrideBus.save` (type 22) only run when called explicitly
+with ``confirm=True``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
+from .. import require
+from .protocol import (
+    DEFAULT_HOST_ID,
+    FIRMWARE_QUERY,
+    SAVE_PAYLOAD,
+    CommType,
+    Feedback,
+    ModelLimits,
+    Param,
+    decode_feedback,
+    decode_firmware_reply,
+    decode_param_reply,
+    encode_mit_command,
+    encode_param_read,
+    encode_param_write,
+    make_id,
+    model_limits,
+    split_id,
+)
+
+__all__ = ["MotorSpec", "RobstrideBus"]
+
+DEFAULT_TIMEOUT_S = 0.1
+"""Default time to wait for one reply (s)."""
+
+
+@dataclass(frozen=True)
+class MotorSpec:
+    """A motor on a bus.
+
+    Attributes:
+        name: Name used in messages (usually the joint name).
+        can_id: Motor CAN id, 1…127.
+        model: Model name (``"rs-00"`` …).
+    """
+
+    name: str
+    can_id: int
+    model: str = "rs-00"
+
+
+class RobstrideBus:
+    """Robstride motors on one CAN channel.
+
+    Args:
+        channel: python-can channel (``"can0"``; any name for ``virtual``).
+        motors: The motors on the channel.
+        interface: python-can interface (``"socketcan"``, ``"virtual"``, …).
+        host_id: Host CAN id used in requests.
+        timeout_s: Time to wait for each reply, s.
+        bus: An already open python-can bus to use instead of opening one (not closed by :meth:`close`).
+    """
+
+    def __init__(
+        self,
+        channel: str,
+        motors: Sequence[MotorSpec],
+        *,
+        interface: str = "socketcan",
+        host_id: int = DEFAULT_HOST_ID,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        bus: Any = None,
+    ) -> None:
+        if not timeout_s > 0:
+            raise UsageError(f"Robstride bus {channel}: timeout {timeout_s} s must be > 0")
+        self.channel = channel
+        self.interface = interface
+        self.host_id = host_id
+        self.timeout_s = float(timeout_s)
+        self.motors: dict[str, MotorSpec] = {}
+        self._by_id: dict[int, MotorSpec] = {}
+        self._limits: dict[int, ModelLimits] = {}
+        for m in motors:
+            if not 0 < m.can_id < 0xFF:
+                raise UsageError(f"motor {m.name!r}: CAN id {m.can_id} must be between 1 and 254")
+            if m.name in self.motors or m.can_id in self._by_id:
+                raise UsageError(f"Robstride bus {channel}: motor {m.name!r} (id {m.can_id}) is listed twice")
+            self.motors[m.name] = m
+            self._by_id[m.can_id] = m
+            self._limits[m.can_id] = model_limits(m.model)
+        self._can = require("can", "the Robstride CAN backend")
+        self._owns_bus = bus is None
+        self._bus = bus
+        if bus is None:
+            try:
+                self._bus = self._can.Bus(channel=channel, interface=interface, receive_own_messages=False)
+            except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
+                raise DeviceError(f"cannot open CAN {interface}:{channel}: {exc}") from None
+
+    # ----------------------------------------------------------------------------------------- lifecycle
+    def close(self) -> None:
+        """Close the CAN channel (if this object opened it)."""
+        if self._bus is not None and self._owns_bus:
+            self._bus.shutdown()
+        self._bus = None
+
+    def __enter__(self) -> RobstrideBus:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _spec(self, motor: str | int) -> MotorSpec:
+        if isinstance(motor, int):
+            if motor not in self._by_id:
+                raise UsageError(f"Robstride bus {self.channel}: no motor with CAN id {motor}")
+            return self._by_id[motor]
+        if motor not in self.motors:
+            raise UsageError(f"Robstride bus {self.channel}: no motor named {motor!r}")
+        return self.motors[motor]
+
+    def _where(self, spec: MotorSpec) -> str:
+        return f"motor {spec.name!r} (CAN id {spec.can_id} on {self.interface}:{self.channel})"
+
+    # ---------------------------------------------------------------------------------------- transport
+    def _send(self, arb: int, data: bytes) -> None:
+        if self._bus is None:
+            raise DeviceError(f"Robstride bus {self.channel} is closed")
+        msg = self._can.Message(arbitration_id=arb, data=data, is_extended_id=True)
+        try:
+            self._bus.send(msg, timeout=self.timeout_s)
+        except Exception as exc:
+            raise DeviceError(f"CAN {self.interface}:{self.channel}: send failed ({exc})") from None
+
+    def _collect(self, want: dict[int, set[int]], deadline: float) -> dict[int, tuple[int, bytes]]:
+        """Receive until each motor in ``want`` (id → accepted types) answered or the deadline passed."""
+        got: dict[int, tuple[int, bytes]] = {}
+        while len(got) < len(want):
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            msg = self._bus.recv(timeout=remaining)
+            if msg is None:
+                break
+            if not msg.is_extended_id:
+                continue
+            comm, data16, low = split_id(msg.arbitration_id)
+            motor_id = data16 & 0xFF  # every reply carries the motor id in bits 15..8
+            if comm != CommType.GET_ID and low != self.host_id:
+                continue  # addressed to another host
+            if motor_id in want and comm in want[motor_id] and motor_id not in got:
+                got[motor_id] = (msg.arbitration_id, bytes(msg.data))
+        missing = [self._by_id[i] for i in want if i not in got]
+        if missing:
+            names = ", ".join(self._where(m) for m in missing)
+            raise CalibTimeoutError(f"no reply within {self.timeout_s:g} s from {names}")
+        return got
+
+    def _request_many(
+        self, frames: Mapping[int, tuple[int, bytes]], reply_types: set[int]
+    ) -> dict[int, tuple[int, bytes]]:
+        for arb, data in frames.values():
+            self._send(arb, data)
+        return self._collect(dict.fromkeys(frames, reply_types), time.monotonic() + self.timeout_s)
+
+    def _feedback_all(self, frames: Mapping[int, tuple[int, bytes]]) -> dict[str, Feedback]:
+        got = self._request_many(frames, {CommType.FEEDBACK})
+        return {self._by_id[i].name: decode_feedback(a, d, self._limits[i]) for i, (a, d) in got.items()}
+
+    def _simple(self, motor: str | int, comm: int, data: bytes = bytes(8)) -> Feedback:
+        spec = self._spec(motor)
+        frame = (make_id(comm, self.host_id, spec.can_id), data)
+        return self._feedback_all({spec.can_id: frame})[spec.name]
+
+    # ------------------------------------------------------------------------------------------ commands
+    def ping(self, motor: str | int) -> int:
+        """Type 0: ask the motor for its 64-bit MCU unique id."""
+        spec = self._spec(motor)
+        frame = (make_id(CommType.GET_ID, self.host_id, spec.can_id), bytes(8))
+        _arb, data = self._request_many({spec.can_id: frame}, {CommType.GET_ID})[spec.can_id]
+        return int.from_bytes(data, "little")
+
+    def enable(self, motor: str | int) -> Feedback:
+        """Type 3: enable (run mode)."""
+        return self._simple(motor, CommType.ENABLE)
+
+    def stop(self, motor: str | int, clear_faults: bool = False) -> Feedback:
+        """Type 4: stop (reset mode); ``clear_faults`` also clears faults."""
+        return self._simple(motor, CommType.STOP, bytes([1 if clear_faults else 0, 0, 0, 0, 0, 0, 0, 0]))
+
+    def mit_command(
+        self,
+        motor: str | int,
+        position_rad: float,
+        velocity_rad_s: float,
+        kp: float,
+        kd: float,
+        torque_nm: float,
+    ) -> Feedback:
+        """Type 1: one MIT command (motor frame) and its feedback."""
+        return self.mit_many({motor: (position_rad, velocity_rad_s, kp, kd, torque_nm)})[
+            self._spec(motor).name
+        ]
+
+    def mit_many(
+        self, commands: Mapping[str | int, tuple[float, float, float, float, float]]
+    ) -> dict[str, Feedback]:
+        """Type 1 to several motors, then wait for all feedback.
+
+        Args:
+            commands: Motor → ``(position_rad, velocity_rad_s, kp, kd, torque_nm)``, motor frame.
+
+        Returns:
+            Motor name → feedback.
+        """
+        frames: dict[int, tuple[int, bytes]] = {}
+        for motor, (p, v, kp, kd, t) in commands.items():
+            spec = self._spec(motor)
+            frames[spec.can_id] = encode_mit_command(spec.can_id, p, v, kp, kd, t, self._limits[spec.can_id])
+        return self._feedback_all(frames)
+
+    def zero_torque(self, motors: Iterable[str | int] | None = None) -> dict[str, Feedback]:
+        """Passive read: MIT ``(0, 0, 0, 0, 0)`` to each motor (all by default); never moves a joint."""
+        names = list(self.motors) if motors is None else list(motors)
+        return self.mit_many(dict.fromkeys(names, (0.0, 0.0, 0.0, 0.0, 0.0)))
+
+    def read_param(self, motor: str | int, index: int) -> float:
+        """Type 17: read one parameter.
+
+        Raises:
+            ProtocolError: The motor answered with an error status or another index.
+        """
+        return self.read_param_many([motor], index)[self._spec(motor).name]
+
+    def read_param_many(self, motors: Iterable[str | int], index: int) -> dict[str, float]:
+        """Type 17 to several motors for the same index; motor name → value."""
+        specs = [self._spec(m) for m in motors]
+        frames = {s.can_id: encode_param_read(self.host_id, s.can_id, index) for s in specs}
+        got = self._request_many(frames, {CommType.PARAM_READ})
+        out: dict[str, float] = {}
+        for s in specs:
+            _motor, idx, ok, value = decode_param_reply(*got[s.can_id])
+            if not ok or idx != index:
+                raise ProtocolError(f"{self._where(s)}: parameter {index:#06x} read failed (status or index)")
+            out[s.name] = value
+        return out
+
+    def write_param(self, motor: str | int, index: int, value: float) -> Feedback:
+        """Type 18: write one parameter (lost at power-off unless :meth:`save` is called)."""
+        spec = self._spec(motor)
+        frame = encode_param_write(self.host_id, spec.can_id, index, value)
+        return self._feedback_all({spec.can_id: frame})[spec.name]
+
+    def read_position(self, motor: str | int) -> float:
+        """``mechPos`` (0x7019) as float32, motor frame, rad."""
+        return self.read_param(motor, Param.MECH_POS)
+
+    def read_zero_sta(self, motor: str | int) -> int:
+        """``zero_sta`` (0x7029): 0 → power-on range ``[0, 2π)``, 1 → ``[−π, π)``."""
+        return int(self.read_param(motor, Param.ZERO_STA))
+
+    def read_add_offset(self, motor: str | int) -> float:
+        """``add_offset`` (0x702B), rad."""
+        return self.read_param(motor, Param.ADD_OFFSET)
+
+    def read_firmware_version(self, motor: str | int) -> str:
+        """Type 4 with ``00 C4``: the firmware version as ``"a.b.c.d"``."""
+        spec = self._spec(motor)
+        frame = (make_id(CommType.STOP, self.host_id, spec.can_id), FIRMWARE_QUERY)
+        got = self._request_many({spec.can_id: frame}, {CommType.STOP})
+        return decode_firmware_reply(*got[spec.can_id])[1]
+
+    def set_zero(self, motor: str | int, *, confirm: bool = False) -> Feedback:
+        """Type 6: make the current pose read 0. Refused unless ``confirm`` is True, and in PP mode.
+
+        Reads the firmware version and run mode first (type 6 is blocked in PP mode; old firmware jumped
+        toward the previous target after zeroing).
+        """
+        spec = self._spec(motor)
+        if not confirm:
+            raise UsageError(f"{self._where(spec)}: set-zero (type 6) needs an explicit confirm=True")
+        self.read_firmware_version(spec.name)
+        if int(self.read_param(spec.name, Param.RUN_MODE)) == 1:
+            raise UsageError(f"{self._where(spec)}: set-zero is refused in PP mode (run_mode 1)")
+        return self._simple(spec.name, CommType.SET_ZERO, bytes([1, 0, 0, 0, 0, 0, 0, 0]))
+
+    def save(self, motor: str | int, *, confirm: bool = False) -> Feedback:
+        """Type 22: persist parameters written with type 18. Refused unless ``confirm`` is True."""
+        spec = self._spec(motor)
+        if not confirm:
+            raise UsageError(f"{self._where(spec)}: save (type 22) needs an explicit confirm=True")
+        return self._simple(spec.name, CommType.SAVE, SAVE_PAYLOAD)

@@ -1,0 +1,277 @@
+"""Simulated Robstride motors answering the private CAN protocol on python-can's ``virtual`` bus.
+
+A :class:`SimMotor` is the physics and firmware state of one motor: a hidden factory zero, the true wiring
+direction, hard stops, encoder noise and the power-on wrap (``[0, 2π)`` with ``zero_sta`` 0, ``[−π, π)`` with
+``zero_sta`` 1). A :class:`SimMotorBus` is one CAN channel: a thread that owns a ``virtual`` bus, decodes
+every request addressed to one of its motors and answers it as the firmware would (types 0, 1, 3, 4, 6, 17,
+18, 22).
+
+The joint's true position is set from outside (by a simulated operator or a test), so a simulation runs as
+fast as the protocol allows, not in real time.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import threading
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .. import require
+from ..robstride.protocol import (
+    FIRMWARE_QUERY,
+    CommType,
+    Feedback,
+    ModelLimits,
+    Param,
+    decode_mit_command,
+    encode_feedback,
+    encode_firmware_reply,
+    encode_param_reply,
+    make_id,
+    model_limits,
+    split_id,
+    unpack_param_value,
+)
+
+__all__ = ["SimMotor", "SimMotorBus"]
+
+TWO_PI = 2.0 * math.pi
+FOUR_PI = 4.0 * math.pi
+
+
+@dataclass
+class SimMotor:
+    """State of one simulated motor (mutable: it is the simulated hardware).
+
+    Attributes:
+        can_id: Motor CAN id.
+        model: Model name (``"rs-00"`` …).
+        direction: True wiring sign: ``raw = direction·q + factory_zero`` (continuous, before wrapping).
+        factory_zero_rad: Hidden factory zero: raw reading at joint position 0 on the continuous branch.
+        stop_lower_rad: Lower hard stop, joint frame, rad.
+        stop_upper_rad: Upper hard stop, joint frame, rad.
+        noise_rad: Standard deviation of the encoder noise, rad.
+        zero_sta: 0 → power-on reading in ``[0, 2π)``; 1 → ``[−π, π)``.
+        single_turn: Report positions wrapped into the power-on range on every reading (a single-turn encoder
+            or a publisher that wraps) instead of counting turns within ±4π.
+        q_rad: True joint position, rad (set by the operator; clamped to the stops).
+        v_rad_s: True joint velocity, rad/s.
+        firmware: Firmware version reported by the ``00 C4`` query.
+        seed: Seed of the noise generator.
+    """
+
+    can_id: int
+    model: str = "rs-00"
+    direction: int = 1
+    factory_zero_rad: float = 0.0
+    stop_lower_rad: float = -math.pi
+    stop_upper_rad: float = math.pi
+    noise_rad: float = 0.0
+    zero_sta: int = 0
+    single_turn: bool = False
+    q_rad: float = 0.0
+    v_rad_s: float = 0.0
+    firmware: tuple[int, int, int, int] = (0, 0, 3, 6)
+    seed: int = 0
+    host_id: int = 0xFD
+    mode: int = 0
+    run_mode: int = 0
+    add_offset_rad: float = 0.0
+    zero_shift_rad: float = 0.0
+    last_command: tuple[float, float, float, float, float] | None = None
+    requests: dict[int, int] = field(default_factory=dict)
+    _branch_rad: float = 0.0
+    _rng: Any = None
+
+    def __post_init__(self) -> None:
+        self.limits: ModelLimits = model_limits(self.model)
+        self._rng = np.random.default_rng(self.seed)
+        self.set_position(self.q_rad)
+        self.power_on()
+
+    # ------------------------------------------------------------------------------------------ physics
+    def set_position(self, q_rad: float, v_rad_s: float = 0.0) -> None:
+        """Move the joint (clamped to the hard stops)."""
+        self.q_rad = min(max(q_rad, self.stop_lower_rad), self.stop_upper_rad)
+        self.v_rad_s = v_rad_s
+
+    def _continuous_raw(self) -> float:
+        return self.direction * self.q_rad + self.factory_zero_rad - self.zero_shift_rad + self.add_offset_rad
+
+    def _wrap_power_on(self, x: float) -> float:
+        lo = -math.pi if self.zero_sta == 1 else 0.0
+        return (x - lo) % TWO_PI + lo
+
+    def power_on(self) -> None:
+        """Power-cycle: the reading restarts inside one turn (by ``zero_sta``); run-time state is reset."""
+        raw = self._continuous_raw()
+        self._branch_rad = self._wrap_power_on(raw) - raw
+        self.mode = 0
+        self.last_command = None
+
+    @property
+    def true_homing_offset_rad(self) -> float:
+        """The offset that maps this power-on's readings to the joint: ``q = direction·(raw − offset)``."""
+        return self.factory_zero_rad - self.zero_shift_rad + self.add_offset_rad + self._branch_rad
+
+    def reading_rad(self, noisy: bool = True) -> float:
+        """Position the motor reports now (motor frame, rad)."""
+        x = self._continuous_raw() + self._branch_rad
+        if noisy and self.noise_rad > 0:
+            x += float(self._rng.normal(0.0, self.noise_rad))
+        if self.single_turn:
+            return self._wrap_power_on(x)
+        return (x + FOUR_PI) % (2 * FOUR_PI) - FOUR_PI
+
+    def feedback(self, host_id: int) -> Feedback:
+        """The type-2 frame content for the current state."""
+        tau = 0.0
+        if self.last_command is not None and self.mode == 2:
+            p, v, kp, kd, t_ff = self.last_command
+            raw = self.reading_rad(noisy=False)
+            tau = kp * (p - raw) + kd * (v - self.direction * self.v_rad_s) + t_ff
+            tau = max(-self.limits.t_max_nm, min(self.limits.t_max_nm, tau))
+        return Feedback(
+            motor_id=self.can_id,
+            host_id=host_id,
+            mode=self.mode,
+            faults=0,
+            position_rad=self.reading_rad(),
+            velocity_rad_s=self.direction * self.v_rad_s,
+            torque_nm=tau,
+            temperature_c=30.0,
+        )
+
+    # ----------------------------------------------------------------------------------------- protocol
+    def handle(self, arbitration_id: int, data: bytes) -> list[tuple[int, bytes]]:
+        """Answer one request frame addressed to this motor; returns the reply frames."""
+        comm, data16, _ = split_id(arbitration_id)
+        self.requests[comm] = self.requests.get(comm, 0) + 1
+        host = data16 & 0xFF
+        if comm != CommType.MIT:
+            self.host_id = host
+        if comm == CommType.GET_ID:
+            uid = struct.pack("<Q", 0x5253000000000000 | self.can_id)
+            return [(make_id(CommType.GET_ID, self.can_id, 0xFE), uid)]
+        if comm == CommType.MIT:
+            _, p, v, kp, kd, t = decode_mit_command(arbitration_id, data, self.limits)
+            host = self.host_id  # type 1 carries the torque in the id: answer the last host seen
+            self.last_command = (p, v, kp, kd, t)
+        elif comm == CommType.ENABLE:
+            self.mode = 2
+        elif comm == CommType.STOP:
+            if bytes(data[:2]) == FIRMWARE_QUERY[:2]:
+                return [encode_firmware_reply(self.can_id, host, self.firmware)]
+            self.mode = 0
+        elif comm == CommType.SET_ZERO:
+            if self.run_mode == 1:  # blocked in PP mode
+                return [encode_feedback(self.feedback(host), self.limits)]
+            self.zero_shift_rad += self._continuous_raw() + self._branch_rad
+        elif comm == CommType.PARAM_READ:
+            index = struct.unpack("<H", data[:2])[0]
+            value = self._read_param(index)
+            if value is None:
+                return [encode_param_reply(self.can_id, host, index, 0.0, ok=False)]
+            return [encode_param_reply(self.can_id, host, index, value)]
+        elif comm == CommType.PARAM_WRITE:
+            index = struct.unpack("<H", data[:2])[0]
+            value = unpack_param_value(index, bytes(data[4:8]))
+            if index == Param.ZERO_STA:
+                self.zero_sta = int(value)
+            elif index == Param.ADD_OFFSET:
+                self.add_offset_rad = value  # takes effect on the reading at the next power-on
+                self._branch_rad -= value
+            elif index == Param.RUN_MODE:
+                self.run_mode = int(value)
+        elif comm == CommType.SAVE:
+            pass
+        else:
+            return []
+        return [encode_feedback(self.feedback(host), self.limits)]
+
+    def _read_param(self, index: int) -> float | None:
+        if index == Param.MECH_POS:
+            return self.reading_rad()
+        if index == Param.MECH_VEL:
+            return self.direction * self.v_rad_s
+        if index == Param.ZERO_STA:
+            return float(self.zero_sta)
+        if index == Param.ADD_OFFSET:
+            return self.add_offset_rad
+        if index == Param.RUN_MODE:
+            return float(self.run_mode)
+        if index == Param.VBUS:
+            return 24.0
+        if index == 0x701E:  # loc_kp (the manual's example)
+            return 30.0
+        return None
+
+
+class SimMotorBus:
+    """A thread answering, on one ``virtual`` CAN channel, for every motor in ``motors``.
+
+    Args:
+        channel: python-can ``virtual`` channel name (use a unique one per simulated robot).
+        motors: The simulated motors on this channel.
+        silent: CAN ids that never answer (to test timeouts).
+
+    Use as a context manager, or call :meth:`start` and :meth:`stop`.
+    """
+
+    def __init__(self, channel: str, motors: Iterable[SimMotor], silent: Iterable[int] = ()) -> None:
+        self.channel = channel
+        self.motors: dict[int, SimMotor] = {m.can_id: m for m in motors}
+        self.silent = set(silent)
+        self.lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._bus: Any = None
+
+    def start(self) -> SimMotorBus:
+        """Open the channel and start answering."""
+        can = require("can", "the simulated Robstride bus")
+        self._bus = can.Bus(channel=self.channel, interface="virtual", receive_own_messages=False)
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name=f"sim-robstride-{self.channel}", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop answering and close the channel."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        if self._bus is not None:
+            self._bus.shutdown()
+            self._bus = None
+
+    def __enter__(self) -> SimMotorBus:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def _run(self) -> None:
+        can = require("can", "the simulated Robstride bus")
+        bus = self._bus
+        while not self._stop.is_set():
+            msg = bus.recv(timeout=0.02)
+            if msg is None or not msg.is_extended_id:
+                continue
+            motor_id = msg.arbitration_id & 0xFF
+            motor = self.motors.get(motor_id)
+            if motor is None or motor_id in self.silent:
+                continue
+            with self.lock:
+                try:
+                    replies = motor.handle(msg.arbitration_id, bytes(msg.data))
+                except Exception:  # a malformed request: a real motor ignores it
+                    continue
+            for arb, data in replies:
+                bus.send(can.Message(arbitration_id=arb, data=data, is_extended_id=True))
