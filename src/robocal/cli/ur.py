@@ -1,7 +1,176 @@
-"""``robocal ur`` commands."""
+"""``robocal ur`` commands: extract, correct, defaults, verify, plot (and the ``run_demo`` helper)."""
 
 from __future__ import annotations
 
-import typer
+import pathlib
+import tempfile
+from pathlib import Path
+from typing import Annotated
 
-app = typer.Typer(help="ur commands.", no_args_is_help=True)
+import typer
+from rich.table import Table
+
+from ..core.ur import RPY_CONVENTIONS, TEST_SET_3_DELTAS, UR_MODELS, nominal_dh
+from ..workflows import ur as wf
+from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
+
+app = typer.Typer(
+    help="Universal Robots: calibrated kinematics for ur_description (extract, correct, verify).",
+    no_args_is_help=True,
+)
+
+RPY_HELP = "Angle convention: 'urdf' (correct, default) or 'upstream' (ur_calibration's Eigen angles)."
+MODELS = ", ".join(UR_MODELS)
+DELTAS_HELP = "Calibration deltas (delta_theta/a/d/alpha)."
+DEFAULTS_RPY_HELP = "'upstream' (default) reproduces ur_description's files; 'urdf' = URDF angles."
+
+
+def _note_overwrite(path: Path) -> None:
+    if path.exists():
+        err_console.print(f"note: replacing {path} (previous file kept as {path.name}.bak)")
+
+
+def _print_result(result: wf.CorrectionResult) -> int:
+    table = Table("link", "x", "y", "z", "roll", "pitch", "yaw", box=None, pad_edge=False)
+    for link in result.kinematics.links:
+        table.add_row(link.name, *(f"{v:.9g}" for v in (*link.xyz_m, *link.rpy_rad)))
+    console.print(table)
+    console.print(f"hash: {result.kinematics.hash}  (rpy convention: {result.kinematics.rpy_convention})")
+    console.print(f"wrote {result.out_path}")
+    if result.urdf_out is not None:
+        console.print(f"wrote {result.urdf_out} (six joint origins updated)")
+    for w in result.warnings:
+        print_warning(w)
+    return EXIT_WARNINGS if result.warnings else EXIT_OK
+
+
+@app.command("extract")
+def extract(
+    host: Annotated[str, typer.Option("--host", help="Controller IP or host name.")],
+    out: Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")],
+    port: Annotated[int, typer.Option("--port", help="Primary interface port (30011 = read-only).")] = 30001,
+    timeout: Annotated[float, typer.Option("--timeout", help="Seconds to wait for KinematicsInfo.")] = 10.0,
+    rpy: Annotated[str, typer.Option("--rpy", help=RPY_HELP)] = "urdf",
+    urdf_in: Annotated[Path | None, typer.Option("--urdf-in", help="Expanded URDF to update.")] = None,
+    urdf_out: Annotated[Path | None, typer.Option("--urdf-out", help="Updated URDF to write.")] = None,
+) -> None:
+    """Read the calibrated DH from a controller, correct it and write ur_description's kinematics YAML."""
+    _note_overwrite(out)
+    result = wf.extract(host, out, port=port, timeout_s=timeout, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out)
+    raise typer.Exit(_print_result(result))
+
+
+@app.command("correct")
+def correct(
+    out: Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")],
+    dh: Annotated[Path | None, typer.Option("--dh", help="DH YAML (dh_theta, dh_a, dh_d, dh_alpha).")] = None,
+    model: Annotated[str | None, typer.Option("--model", help=f"UR model for nominal DH ({MODELS}).")] = None,
+    deltas: Annotated[Path | None, typer.Option("--deltas", help=DELTAS_HELP)] = None,
+    rpy: Annotated[str, typer.Option("--rpy", help=RPY_HELP)] = "urdf",
+    urdf_in: Annotated[Path | None, typer.Option("--urdf-in", help="Expanded URDF to update.")] = None,
+    urdf_out: Annotated[Path | None, typer.Option("--urdf-out", help="Updated URDF to write.")] = None,
+) -> None:
+    """Correct DH parameters offline (no robot) and write ur_description's kinematics YAML."""
+    params = wf.load_dh_input(dh, model, deltas)
+    _note_overwrite(out)
+    result = wf.correct(params, out, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out)
+    raise typer.Exit(_print_result(result))
+
+
+@app.command("defaults")
+def defaults(
+    model: Annotated[str, typer.Option("--model", help=f"UR model ({MODELS}).")],
+    out: Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")],
+    rpy: Annotated[str, typer.Option("--rpy", help=DEFAULTS_RPY_HELP)] = "upstream",
+) -> None:
+    """Regenerate ur_description's default_kinematics.yaml for a model from URSim's nominal DH."""
+    _note_overwrite(out)
+    raise typer.Exit(_print_result(wf.defaults(model, out, rpy=rpy)))
+
+
+def _print_reports(reports: list[wf.VerifyReport]) -> int:
+    table = Table(box=None)
+    table.add_column("source", overflow="fold")
+    for col in ("samples", "max position error [m]", "max rotation error [rad]", "hash"):
+        table.add_column(col)
+    warnings: list[str] = []
+    for r in reports:
+        hash_state = "-" if r.file_hash is None else ("match" if r.file_hash == r.dh_hash else "MISMATCH")
+        table.add_row(
+            r.source,
+            str(r.samples),
+            f"{r.max_position_error_m:.3g}",
+            f"{r.max_rotation_error_rad:.3g}",
+            hash_state,
+        )
+        warnings.extend(r.warnings)
+    console.print(table)
+    for w in warnings:
+        print_warning(w)
+    return EXIT_WARNINGS if warnings else EXIT_OK
+
+
+@app.command("verify")
+def verify(
+    file: Annotated[Path | None, typer.Argument(help="Kinematics YAML to check.")] = None,
+    dh: Annotated[Path | None, typer.Option("--dh", help="DH YAML the file was made from.")] = None,
+    model: Annotated[str | None, typer.Option("--model", help=f"UR model for nominal DH ({MODELS}).")] = None,
+    deltas: Annotated[Path | None, typer.Option("--deltas", help=DELTAS_HELP)] = None,
+    urdf: Annotated[Path | None, typer.Option("--urdf", help="Also check this expanded URDF.")] = None,
+    samples: Annotated[int, typer.Option("--samples", help="Random joint vectors in [-2π, 2π].")] = 1000,
+    seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
+) -> None:
+    """Compare the FK of the YAML (built like ur_description does) and/or a URDF with the DH FK."""
+    params = wf.load_dh_input(dh, model, deltas)
+    raise typer.Exit(_print_reports(wf.verify(file, params, urdf_path=urdf, samples=samples, seed=seed)))
+
+
+@app.command("plot")
+def plot(
+    out: Annotated[Path, typer.Option("--out", help="Figure to write (PNG, SVG, PDF).")],
+    dh: Annotated[Path | None, typer.Option("--dh", help="DH YAML.")] = None,
+    model: Annotated[str | None, typer.Option("--model", help=f"UR model for nominal DH ({MODELS}).")] = None,
+    deltas: Annotated[Path | None, typer.Option("--deltas", help="Calibration deltas.")] = None,
+) -> None:
+    """Plot the split DH model (arm links far away) next to the corrected model."""
+    params = wf.load_dh_input(dh, model, deltas)
+    console.print(f"wrote {wf.plot(params, out)}")
+    raise typer.Exit(EXIT_OK)
+
+
+def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
+    """End-to-end demo against the simulated controller: extract → YAML → verify, with a short summary.
+
+    The simulated controller reports ``robot``'s nominal DH plus the calibration deltas of a real UR10e
+    (ur_calibration's test set 3: d2 ≈ 439 m, d3 ≈ −446 m).
+
+    Args:
+        robot: UR model (``ur10e``, ``ur5e``, …).
+        out_dir: Folder for ``<robot>_calibration.yaml``; a temporary folder when None.
+
+    Returns:
+        Exit code (0 ok, 1 warnings).
+    """
+    from ..backends.sim.ur_controller import SimUrController
+
+    dh_params = nominal_dh(robot) + TEST_SET_3_DELTAS
+    with tempfile.TemporaryDirectory(prefix="robocal-ur-demo-") as tmp:
+        folder = out_dir if out_dir is not None else Path(tmp)
+        out = folder / f"{robot.lower()}_calibration.yaml"
+        with SimUrController(dh_params) as sim:
+            host, port = sim.address
+            console.print(f"[bold]UR demo[/]: simulated {robot} controller on {host}:{port}")
+            result = wf.extract(host, out, port=port, timeout_s=5.0)
+        reports = wf.verify(out, result.dh, samples=1000, seed=0)
+        forearm, wrist_1 = result.kinematics.links[2], result.kinematics.links[3]
+        console.print(
+            f"controller DH: d2 = {result.dh.d_m[1]:.3f} m, d3 = {result.dh.d_m[2]:.3f} m → corrected "
+            f"forearm x = {forearm.xyz_m[0]:.6f} m, wrist_1 x = {wrist_1.xyz_m[0]:.6f} m"
+        )
+        code = _print_reports(reports)
+        console.print(f"hash: {result.kinematics.hash}")
+        console.print(f"wrote {out}" + (" (temporary folder, removed on exit)" if out_dir is None else ""))
+        return max(code, EXIT_WARNINGS if result.warnings else EXIT_OK)
+
+
+__all__ = ["RPY_CONVENTIONS", "app", "run_demo"]

@@ -41,6 +41,7 @@ __all__ = [
     "LINK_NAMES",
     "MIN_ABS_COS_ALPHA",
     "RPY_CONVENTIONS",
+    "TEST_SET_3_DELTAS",
     "URSIM_HALF_PI",
     "UR_MODELS",
     "LinkOrigin",
@@ -51,6 +52,7 @@ __all__ = [
     "fk_origins",
     "nominal_dh",
     "six_transforms",
+    "split_chain",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -397,3 +399,38 @@ def fk_origins(xyz_m: ArrayLike, rpy_rad: ArrayLike, q_rad: ArrayLike) -> FloatA
         Rq[:, 3, 3] = 1.0
         T = T @ origins[k] @ Rq
     return np.asarray(T[0] if single else T, dtype=np.float64)
+
+
+def split_chain(dh: DHParameters) -> FloatArray:
+    """The uncorrected 12-matrix split chain ``D_1, A_1, …, D_6, A_6`` (for plots and diagnostics).
+
+    Args:
+        dh: Raw DH, six joints.
+
+    Returns:
+        ``(12, 4, 4)`` matrices.
+    """
+    if dh.n_joints != 6:
+        raise ShapeMismatchError(f"UR DH parameters: expected 6 joints, got {dh.n_joints}")
+    return np.array(_build_chain(dh), dtype=np.float64)
+
+
+TEST_SET_3_DELTAS = DHParameters(
+    theta_rad=(
+        -2.41478068943590252e-07, 1.60233952386694556, -1.68607190752171299,
+        0.0837331147700118711, -1.01260355871157781e-07, 3.91986209186123702e-08,
+    ),
+    a_m=(
+        2.12234865571205891e-05, 0.632017132627700651, 0.00229833638891230319,
+        -4.61409023720933908e-05, -6.39280053471801522e-05, 0.0,
+    ),
+    d_m=(
+        -0.000160188285741325043, 439.140974079900957, -446.027059806332147,
+        6.88618689642360149, -3.86588496858186748e-05, -0.00087908274257374186,
+    ),
+    alpha_rad=(
+        -0.000650246557584166496, 0.00139416666825590402, 0.00693818880325995126,
+        -0.000811641562390219562, 0.000411120504570705592, 0.0,
+    ),
+)
+"""Calibration deltas of a real UR10e (ur_calibration's test set 3; d2 = 439 m once added to nominal)."""

@@ -1,0 +1,377 @@
+"""UR kinematics jobs: extract from a controller, correct offline, regenerate defaults, verify, plot.
+
+Sources (controller via the primary interface, a DH YAML, or a model + calibration deltas) → core correction
+→ ur_description kinematics YAML (+ optional in-place update of an expanded URDF) → verification through the
+URDF forward kinematics (origin ``T(xyz)·Rz(y)Ry(p)Rx(r)``, then the joint's rotation).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..backends import require
+from ..core.dh import DHParameters, fk_dh
+from ..core.se3 import homogeneous, rot_z, rotation_angle_between, transform_from_xyz_rpy_urdf
+from ..core.ur import (
+    JOINT_NAMES,
+    RPY_CONVENTIONS,
+    UrKinematics,
+    correct_chain,
+    correct_kinematics,
+    default_kinematics,
+    fk_origins,
+    nominal_dh,
+    six_transforms,
+    split_chain,
+)
+from ..core.urhash import calib_hash
+from ..errors import JointMismatchError, UsageError
+from ..formats.ur_kinematics import (
+    read_deltas,
+    read_dh,
+    read_kinematics,
+    update_urdf_origins,
+    write_kinematics,
+)
+from ..formats.urdf import UrdfDocument, read_urdf
+
+__all__ = [
+    "DEFAULT_TOLERANCE_M",
+    "DEFAULT_TOLERANCE_RAD",
+    "CorrectionResult",
+    "VerifyReport",
+    "check_out_path",
+    "correct",
+    "defaults",
+    "extract",
+    "load_dh_input",
+    "plot",
+    "urdf_fk",
+    "verify",
+]
+
+DEFAULT_TOLERANCE_M = 1e-9
+"""verify: largest position error accepted without a warning (metres)."""
+DEFAULT_TOLERANCE_RAD = 1e-9
+"""verify: largest rotation error accepted without a warning (radians)."""
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CorrectionResult:
+    """Outcome of extract / correct / defaults.
+
+    Attributes:
+        dh: The raw DH that was corrected.
+        kinematics: The written content.
+        out_path: The kinematics YAML written.
+        urdf_out: The URDF written, if any.
+        warnings: Warnings (e.g. calibration_status ≠ 2); non-empty means exit code 1.
+    """
+
+    dh: DHParameters
+    kinematics: UrKinematics
+    out_path: Path
+    urdf_out: Path | None = None
+    warnings: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """FK comparison of a kinematics file (or URDF) with the DH model.
+
+    Attributes:
+        source: What was checked (file path and kind).
+        samples: Number of random joint vectors (uniform in [−2π, 2π]).
+        max_position_error_m: Largest ``‖p_file − p_dh‖`` over the samples, metres.
+        max_rotation_error_rad: Largest relative rotation angle, radians.
+        file_hash: The file's ``hash`` (None for a URDF).
+        dh_hash: ``calib_`` hash of the DH.
+        warnings: Tolerance or hash problems.
+    """
+
+    source: str
+    samples: int
+    max_position_error_m: float
+    max_rotation_error_rad: float
+    file_hash: str | None
+    dh_hash: str
+    warnings: tuple[str, ...] = ()
+
+
+def check_out_path(path: str | os.PathLike[str], what: str = "--out") -> Path:
+    """Refuse an output path whose folder does not exist or that is a directory (exit 2, nothing written)."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise UsageError(f"{what} {p}: folder {parent} does not exist")
+    if p.is_dir():
+        raise UsageError(f"{what} {p}: is a directory")
+    return p
+
+
+def load_dh_input(
+    dh_path: str | os.PathLike[str] | None,
+    model: str | None,
+    deltas_path: str | os.PathLike[str] | None,
+) -> DHParameters:
+    """The DH to work on: ``--dh FILE``, or ``--model MODEL`` (+ ``--deltas FILE``) = nominal + deltas.
+
+    Raises:
+        UsageError: Neither or both forms given, or ``--deltas`` without ``--model``.
+        FileFormatError: Malformed files (names the file and key).
+    """
+    if dh_path is not None and (model is not None or deltas_path is not None):
+        raise UsageError("give either --dh FILE or --model MODEL [--deltas FILE], not both")
+    if dh_path is not None:
+        return read_dh(dh_path)
+    if model is None:
+        raise UsageError("missing DH input: give --dh FILE or --model MODEL [--deltas FILE]")
+    nominal = nominal_dh(model)
+    if deltas_path is None:
+        return nominal
+    return nominal + read_deltas(deltas_path)
+
+
+def _check_rpy(rpy: str) -> None:
+    if rpy not in RPY_CONVENTIONS:
+        raise UsageError(f"--rpy {rpy!r}: expected one of {', '.join(RPY_CONVENTIONS)}")
+
+
+def _check_urdf_pair(urdf_in: str | os.PathLike[str] | None, urdf_out: str | os.PathLike[str] | None) -> None:
+    if (urdf_in is None) != (urdf_out is None):
+        raise UsageError("--urdf-in and --urdf-out must be given together")
+    if urdf_in is not None and urdf_out is not None:
+        check_out_path(urdf_out, "--urdf-out")
+        doc = UrdfDocument.load(urdf_in)  # parse + validate before anything is written
+        names = set(doc.model().joint_names)
+        missing = [j for j in JOINT_NAMES if j not in names]
+        if missing:
+            raise JointMismatchError(f"URDF {urdf_in}: missing UR joint(s) {', '.join(missing)}")
+
+
+def correct(
+    dh: DHParameters,
+    out: str | os.PathLike[str],
+    *,
+    rpy: str = "urdf",
+    urdf_in: str | os.PathLike[str] | None = None,
+    urdf_out: str | os.PathLike[str] | None = None,
+    warnings: tuple[str, ...] = (),
+) -> CorrectionResult:
+    """Correct a DH set and write the kinematics YAML (and optionally the URDF origins).
+
+    Everything is validated (paths, URDF joints, finite values) before the first byte is written.
+    """
+    _check_rpy(rpy)
+    out_path = check_out_path(out)
+    _check_urdf_pair(urdf_in, urdf_out)
+    kin = correct_kinematics(dh, rpy)
+    urdf_kin = kin if rpy == "urdf" else correct_kinematics(dh, "urdf")
+    written = write_kinematics(out_path, kin)
+    urdf_written = None
+    if urdf_in is not None and urdf_out is not None:
+        urdf_written = update_urdf_origins(urdf_in, urdf_out, urdf_kin)
+    return CorrectionResult(dh, kin, written, urdf_written, warnings)
+
+
+def extract(
+    host: str,
+    out: str | os.PathLike[str],
+    *,
+    port: int = 30001,
+    timeout_s: float = 10.0,
+    rpy: str = "urdf",
+    urdf_in: str | os.PathLike[str] | None = None,
+    urdf_out: str | os.PathLike[str] | None = None,
+) -> CorrectionResult:
+    """Read KinematicsInfo from a controller (primary interface), correct it and write the YAML.
+
+    Paths are checked before connecting, so a typo costs no robot time.
+    """
+    _check_rpy(rpy)
+    check_out_path(out)
+    _check_urdf_pair(urdf_in, urdf_out)
+    from ..backends.ur_primary import PrimaryClient
+
+    with PrimaryClient(host, port, timeout_s) as client:
+        info = client.read_kinematics()
+        warnings = tuple(client.warnings)
+    return correct(info.dh, out, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out, warnings=warnings)
+
+
+def defaults(model: str, out: str | os.PathLike[str], *, rpy: str = "upstream") -> CorrectionResult:
+    """Regenerate ur_description's ``default_kinematics.yaml`` for ``model`` (URSim nominal DH)."""
+    _check_rpy(rpy)
+    out_path = check_out_path(out)
+    kin = default_kinematics(model, rpy)
+    return CorrectionResult(nominal_dh(model), kin, write_kinematics(out_path, kin))
+
+
+def _rotation_about(axis: tuple[float, float, float], q_rad: FloatArray) -> FloatArray:
+    """``(N, 3, 3)`` rotations by ``q_rad`` about a unit ``axis`` (Rodrigues)."""
+    k = np.asarray(axis, dtype=np.float64)
+    n = float(np.linalg.norm(k))
+    if n == 0.0:
+        raise UsageError("URDF joint axis is the zero vector")
+    k = k / n
+    if k[0] == 0.0 and k[1] == 0.0 and k[2] > 0:
+        return rot_z(q_rad)
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    s = np.sin(q_rad)[:, None, None]
+    c = np.cos(q_rad)[:, None, None]
+    return np.asarray(np.eye(3) + s * K + (1.0 - c) * (K @ K), dtype=np.float64)
+
+
+def urdf_fk(urdf_path: str | os.PathLike[str], q_rad: FloatArray) -> FloatArray:
+    """FK over the six UR joints of an expanded URDF: ``Π origin_k · Rot(axis_k, q_k)``.
+
+    Args:
+        urdf_path: Expanded URDF with ``shoulder_pan_joint`` … ``wrist_3_joint``.
+        q_rad: ``(N, 6)`` joint positions.
+
+    Returns:
+        ``(N, 4, 4)`` transforms from ``shoulder_pan_joint``'s parent frame to ``wrist_3_link``.
+    """
+    model = read_urdf(urdf_path)
+    names = set(model.joint_names)
+    missing = [j for j in JOINT_NAMES if j not in names]
+    if missing:
+        raise JointMismatchError(f"URDF {urdf_path}: missing UR joint(s) {', '.join(missing)}")
+    n = q_rad.shape[0]
+    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    for k, name in enumerate(JOINT_NAMES):
+        j = model.joint(name)
+        origin = transform_from_xyz_rpy_urdf(np.array(j.origin_xyz), np.array(j.origin_rpy))
+        Rq = homogeneous(_rotation_about(j.axis, q_rad[:, k]), np.zeros(3))
+        T = T @ origin @ Rq
+    return np.asarray(T, dtype=np.float64)
+
+
+def _report(
+    source: str,
+    T_file: FloatArray,
+    T_dh: FloatArray,
+    file_hash: str | None,
+    dh: DHParameters,
+    tol: tuple[float, float],
+) -> VerifyReport:
+    pos = float(np.max(np.linalg.norm(T_file[:, :3, 3] - T_dh[:, :3, 3], axis=1)))
+    rot = float(np.max(rotation_angle_between(T_file[:, :3, :3], T_dh[:, :3, :3])))
+    dh_hash = calib_hash(dh.theta_rad, dh.d_m, dh.a_m, dh.alpha_rad)
+    warnings: list[str] = []
+    if not (pos <= tol[0]) or not (rot <= tol[1]):
+        warnings.append(
+            f"{source}: FK differs from the DH model by up to {pos:.3g} m / {rot:.3g} rad "
+            f"(tolerance {tol[0]:g} m / {tol[1]:g} rad)"
+        )
+    if file_hash is not None and file_hash != dh_hash:
+        warnings.append(
+            f"{source}: hash {file_hash} does not match the DH ({dh_hash}); the driver will complain"
+        )
+    return VerifyReport(source, int(T_dh.shape[0]), pos, rot, file_hash, dh_hash, tuple(warnings))
+
+
+def verify(
+    kinematics_path: str | os.PathLike[str] | None,
+    dh: DHParameters,
+    *,
+    urdf_path: str | os.PathLike[str] | None = None,
+    samples: int = 1000,
+    seed: int = 0,
+    tolerance_m: float = DEFAULT_TOLERANCE_M,
+    tolerance_rad: float = DEFAULT_TOLERANCE_RAD,
+) -> list[VerifyReport]:
+    """Compare the FK of a kinematics YAML (as ur_description builds it) and/or a URDF with the DH FK.
+
+    Args:
+        kinematics_path: ur_description kinematics YAML (may be None when only ``urdf_path`` is checked).
+        dh: Raw controller DH.
+        urdf_path: Optional expanded URDF.
+        samples: Random joint vectors, uniform in [−2π, 2π] (fixed ``seed``).
+        seed: RNG seed.
+        tolerance_m: Position tolerance for the warning.
+        tolerance_rad: Rotation tolerance for the warning.
+
+    Returns:
+        One report per checked source.
+    """
+    if samples < 1:
+        raise UsageError(f"--samples {samples}: expected at least 1")
+    if kinematics_path is None and urdf_path is None:
+        raise UsageError("nothing to verify: give a kinematics FILE and/or --urdf")
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(-2.0 * math.pi, 2.0 * math.pi, size=(samples, 6))
+    T_dh = fk_dh(dh, q)
+    tol = (tolerance_m, tolerance_rad)
+    reports: list[VerifyReport] = []
+    if kinematics_path is not None:
+        kin = read_kinematics(kinematics_path)
+        T = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
+        reports.append(_report(f"kinematics YAML {kinematics_path}", T, T_dh, kin.hash, dh, tol))
+    if urdf_path is not None:
+        reports.append(_report(f"URDF {urdf_path}", urdf_fk(urdf_path, q), T_dh, None, dh, tol))
+    return reports
+
+
+def _frame_origins(mats: FloatArray) -> FloatArray:
+    T = np.eye(4)
+    pts = [T[:3, 3].copy()]
+    for M in mats:
+        T = T @ M
+        pts.append(T[:3, 3].copy())
+    return np.array(pts)
+
+
+def plot(dh: DHParameters, out: str | os.PathLike[str], *, title: str | None = None) -> Path:
+    """Draw the split DH model (arm links possibly far away) and the corrected model, at q = 0.
+
+    Args:
+        dh: Raw DH.
+        out: PNG (or any matplotlib format) path; its folder must exist.
+        title: Optional figure title.
+
+    Returns:
+        The written path.
+    """
+    out_path = check_out_path(out)
+    split_pts = _frame_origins(split_chain(dh))
+    corrected = six_transforms(correct_chain(dh))
+    corr_pts = _frame_origins(corrected)
+    require("matplotlib", "robocal ur plot")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(11, 5))
+    panels = (
+        (split_pts, "split DH model (D/A segments)", "tab:red"),
+        (corr_pts, "corrected model (ur_description)", "tab:blue"),
+    )
+    for idx, (pts, label, color) in enumerate(panels, start=1):
+        ax = fig.add_subplot(1, 2, idx, projection="3d")
+        ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], "-o", color=color, markersize=3)
+        ax.scatter([pts[-1, 0]], [pts[-1, 1]], [pts[-1, 2]], color="black", marker="*", s=60, label="flange")
+        ax.set_title(label)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_zlabel("z [m]")
+        ax.legend(loc="upper left")
+    if title:
+        fig.suptitle(title)
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format=out_path.suffix.lstrip(".") or "png", dpi=100)
+    plt.close(fig)
+    from ..fileio import atomic_write_bytes
+
+    return atomic_write_bytes(out_path, buf.getvalue())
