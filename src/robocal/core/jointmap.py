@@ -266,33 +266,37 @@ class RobotCalibration:
         """
         r = self._check(raw, "raw position")
         out: FloatArray = self._gain * (r - self.homing_offset)
-        return out
+        return out.reshape(r.shape)
 
     def to_raw(self, q: ArrayLike) -> FloatArray:
         """Joint positions → raw motor positions (inverse of :meth:`to_joint`), shape ``(..., N)``."""
         qq = self._check(q, "joint position")
         out: FloatArray = self._inv_gain * qq + self.homing_offset
-        return out
+        return out.reshape(qq.shape)
 
     def velocity_to_joint(self, v_raw: ArrayLike) -> FloatArray:
         """Raw velocities → joint velocities: ``direction·scale·v`` (no offset), shape ``(..., N)``."""
-        out: FloatArray = self._gain * self._check(v_raw, "raw velocity")
-        return out
+        x = self._check(v_raw, "raw velocity")
+        out: FloatArray = self._gain * x
+        return out.reshape(x.shape)
 
     def velocity_to_raw(self, v_joint: ArrayLike) -> FloatArray:
         """Joint velocities → raw velocities: ``direction·v/scale``, shape ``(..., N)``."""
-        out: FloatArray = self._inv_gain * self._check(v_joint, "joint velocity")
-        return out
+        x = self._check(v_joint, "joint velocity")
+        out: FloatArray = self._inv_gain * x
+        return out.reshape(x.shape)
 
     def effort_to_joint(self, e_raw: ArrayLike) -> FloatArray:
         """Raw efforts → joint efforts: ``direction·scale·e`` (no offset), shape ``(..., N)``."""
-        out: FloatArray = self._gain * self._check(e_raw, "raw effort")
-        return out
+        x = self._check(e_raw, "raw effort")
+        out: FloatArray = self._gain * x
+        return out.reshape(x.shape)
 
     def effort_to_raw(self, e_joint: ArrayLike) -> FloatArray:
         """Joint efforts → raw efforts: ``direction·e/scale``, shape ``(..., N)``."""
-        out: FloatArray = self._inv_gain * self._check(e_joint, "joint effort")
-        return out
+        x = self._check(e_joint, "joint effort")
+        out: FloatArray = self._inv_gain * x
+        return out.reshape(x.shape)
 
     def unwrap_to_limits(
         self,

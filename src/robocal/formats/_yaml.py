@@ -12,6 +12,8 @@ from typing import Any
 
 from ruamel.yaml import YAML
 from ruamel.yaml.error import YAMLError
+from ruamel.yaml.representer import RoundTripRepresenter
+from ruamel.yaml.scalarfloat import ScalarFloat
 
 from ..errors import FileFormatError
 
@@ -40,6 +42,20 @@ def _represent_float(representer: Any, data: float) -> Any:
     return representer.represent_scalar("tag:yaml.org,2002:float", yaml_float(data))
 
 
+def _represent_scalar_float(representer: Any, data: Any) -> Any:
+    """Keep a loaded float's original spelling when it reads back exactly; otherwise write it exactly."""
+    node = RoundTripRepresenter.represent_scalar_float(representer, data)
+    text = str(node.value)
+    try:
+        exact = float(text.replace("_", "")) == float(data)
+    except ValueError:
+        exact = False
+    # ruamel re-renders from the value; keep its spelling (e.g. "0.50") unless it is inexact or needlessly long
+    # (exponent forms are re-rendered with ruamel's own digits, so those are written shortest-round-trip)
+    keep = exact and "e" not in text.lower() and len(text) <= len(yaml_float(float(data))) + 3
+    return node if keep else _represent_float(representer, float(data))
+
+
 def _yaml() -> YAML:
     y = YAML(typ="rt")
     y.preserve_quotes = True
@@ -47,6 +63,7 @@ def _yaml() -> YAML:
     y.width = 4096
     y.allow_duplicate_keys = False
     y.representer.add_representer(float, _represent_float)
+    y.representer.add_representer(ScalarFloat, _represent_scalar_float)
     return y
 
 
