@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import FileFormatError, UsageError
+from ..errors import UsageError
 from ..formats import CalibrationFile, read_calibration, write_calibration
 from ..formats.urdf import UrdfModel, read_urdf
 
@@ -119,16 +119,8 @@ def check_calibration(cf: CalibrationFile, urdf: UrdfModel) -> CheckReport:
     for name in matched:
         warnings: list[str] = []
         jm = cal.joint_map(name)
-        try:
-            u_dir = urdf.direction(name)
-        except FileFormatError as exc:
-            u_dir = None
-            warnings.append(str(exc))
-        try:
-            u_id = urdf.motor_id(name)
-        except FileFormatError as exc:
-            u_id = None
-            warnings.append(str(exc))
+        u_dir = urdf.direction(name)  # a malformed param is bad input (FileFormatError), not a warning
+        u_id = urdf.motor_id(name)
         file_id = cf.ids.get(name)
         if u_dir is not None and cf.fmt in ("lite-json", "lite-yaml") and u_dir != jm.direction:
             warnings.append(
