@@ -24,8 +24,9 @@ from robocal.errors import FileFormatError, JointMismatchError, ShapeMismatchErr
 @pytest.fixture(scope="module")
 def src(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("engine") / "src"
-    generate_dataset(root, n_episodes=5, frames_per_episode=[40, 55, 30, 61, 20], episodes_per_file=2,
-                     convention=A)
+    generate_dataset(
+        root, n_episodes=5, frames_per_episode=[40, 55, 30, 61, 20], episodes_per_file=2, convention=A
+    )
     return root
 
 
@@ -99,8 +100,12 @@ def test_round_trip_preserves_everything(src: Path, tmp_path: Path) -> None:
     np.testing.assert_allclose(
         all_values(mid, "action")[:, 0] - all_values(src, "action")[:, 0], 47 * TICK_RAD, atol=2e-6
     )
-    for rel in ("meta/info.json", "meta/tasks.parquet", "README.md",
-                "videos/observation.images.front/chunk-000/file-000.mp4"):
+    for rel in (
+        "meta/info.json",
+        "meta/tasks.parquet",
+        "README.md",
+        "videos/observation.images.front/chunk-000/file-000.mp4",
+    ):
         assert (back / rel).read_bytes() == (src / rel).read_bytes()
 
 
@@ -124,7 +129,7 @@ def test_stats_recomputed(src: Path, tmp_path: Path) -> None:
     eps = pq.read_table(dst / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
     old_eps = pq.read_table(src / "meta/episodes/chunk-000/file-000.parquet")
     assert pq.read_schema(dst / "meta/episodes/chunk-000/file-000.parquet") == old_eps.schema
-    ep3 = values[40 + 55 + 30: 40 + 55 + 30 + 61]
+    ep3 = values[40 + 55 + 30 : 40 + 55 + 30 + 61]
     np.testing.assert_allclose(eps[3]["stats/action/min"], ep3.min(axis=0), rtol=1e-12)
     np.testing.assert_allclose(eps[3]["stats/action/mean"], ep3.mean(axis=0), rtol=1e-9)
     np.testing.assert_allclose(eps[3]["stats/action/q50"], np.quantile(ep3, 0.5, axis=0), rtol=1e-9)
@@ -193,8 +198,11 @@ def test_overwrite_replaces_only_at_the_end(src: Path, tmp_path: Path) -> None:
     [
         (lambda r: (r / "meta/info.json").unlink(), FileFormatError, "missing meta/info.json"),
         (lambda r: (r / "meta/info.json").write_text("{not json"), FileFormatError, "not valid JSON"),
-        (lambda r: (r / "meta/info.json").write_text('{"codebase_version": "v2.1", "features": {}}'),
-         FileFormatError, "only LeRobot v3"),
+        (
+            lambda r: (r / "meta/info.json").write_text('{"codebase_version": "v2.1", "features": {}}'),
+            FileFormatError,
+            "only LeRobot v3",
+        ),
         (lambda r: [p.unlink() for p in r.glob("data/*/*.parquet")], FileFormatError, "no data/chunk-"),
     ],
 )
@@ -209,13 +217,19 @@ def test_malformed_dataset(tmp_path: Path, mutate, exc: type[Exception], message
 
 
 def test_unknown_feature_and_joint_mismatch(src: Path, tmp_path: Path) -> None:
-    with pytest.raises(UsageError, match=r"unknown feature 'observation.velocity'; float vector features: "
-                       r"observation.state, action"):
+    with pytest.raises(
+        UsageError,
+        match=r"unknown feature 'observation.velocity'; float vector features: "
+        r"observation.state, action",
+    ):
         recalibrate_dataset(src, tmp_path / "d", A, B, features=["observation.velocity"])
     five = A.select(SO_ARM_JOINTS[:5])
     assert five.joint_names == SO_ARM_JOINTS[:5]
-    with pytest.raises(JointMismatchError, match=r"feature 'observation.state' vs the new calibration: joint "
-                       r"names do not match \(not in the calibration: gripper\)"):
+    with pytest.raises(
+        JointMismatchError,
+        match=r"feature 'observation.state' vs the new calibration: joint "
+        r"names do not match \(not in the calibration: gripper\)",
+    ):
         recalibrate_dataset(src, tmp_path / "d", A, type(A)(five.calibration))
     with pytest.raises(UsageError, match="overlaps the source"):
         recalibrate_dataset(src, src / "inner", A, B)

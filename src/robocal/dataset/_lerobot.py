@@ -1,0 +1,407 @@
+"""LeRobot conventions for dataset values: current (normalised) and legacy (degrees / percent).
+
+Current scheme, per motor (normalisation by :mod:`robocal.lerobot`)::
+
+    value --unnormalize--> present ticks --homing offset in the motor--> actual ticks
+    Feetech:   actual = present + homing_offset     (firmware: Present = Actual − Homing_Offset)
+    Dynamixel: actual = present − homing_offset     (firmware: Present = Actual + Homing_Offset)
+
+Feetech STS servos report a single-turn position, so a new present position is wrapped into
+``[0, resolution)``; Dynamixel arms (Koch) run in extended-position mode and are not wrapped.
+
+Legacy scheme: the offset lived in software only, so present = actual and the value is LeRobot's legacy
+``apply_calibration`` (DEGREE or LINEAR, :mod:`robocal.lerobot.legacy`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from ..core.lerobot import Compat, LegacyCalibration, MotorCalibration
+from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
+from ..fileio import read_text
+from ..lerobot import NormMode, normalize, unnormalize
+from ..lerobot import legacy as _legacy
+from ._convention import BoolArray, FloatArray, JointMapConvention, ValueConvention
+
+__all__ = [
+    "LeRobotConvention",
+    "LegacyConvention",
+    "MotorFamily",
+    "load_convention",
+    "motor_family_for_robot",
+    "preset_modes",
+]
+
+MotorFamily = Literal["feetech", "dynamixel"]
+
+_LEGACY_BOUNDS = {"DEGREE": (-270.0, 270.0), "LINEAR": (-10.0, 110.0)}
+"""Where LeRobot's legacy ``apply_calibration`` raises (the calibrated range of a legacy value)."""
+
+_ROBOT_FAMILIES: tuple[tuple[str, MotorFamily, bool], ...] = (
+    # prefix, motor family, use_degrees default (LeRobot ≥ 0.4.4 for SO arms; Koch default False)
+    ("so", "feetech", True),
+    ("lekiwi", "feetech", True),
+    ("koch", "dynamixel", False),
+)
+
+
+def motor_family_for_robot(robot: str) -> MotorFamily:
+    """Motor family of a LeRobot robot type (``so*`` → Feetech, ``koch*`` → Dynamixel).
+
+    Raises:
+        UsageError: Unknown robot type (the message lists the known prefixes).
+    """
+    for prefix, family, _ in _ROBOT_FAMILIES:
+        if robot.lower().startswith(prefix):
+            return family
+    known = ", ".join(f"{p}*" for p, _, _ in _ROBOT_FAMILIES)
+    raise UsageError(f"--robot {robot!r}: unknown robot type; known: {known} (or pass --motor-family)")
+
+
+def preset_modes(robot: str, joint_names: Sequence[str], use_degrees: bool | None = None) -> dict[str, str]:
+    """LeRobot's normalisation mode per joint for a robot preset.
+
+    SO-100/101 and Koch followers: arm joints ``degrees`` when recorded with ``use_degrees`` (SO default
+    True since LeRobot 0.4.4, Koch default False), else ``range_m100_100``; the Koch leader always uses
+    ``range_m100_100``; every ``gripper`` uses ``range_0_100``.
+
+    Args:
+        robot: LeRobot robot type, e.g. ``"so101_follower"``, ``"koch_leader"``.
+        joint_names: Joints to assign.
+        use_degrees: The recording's ``use_degrees`` (``None``: the robot's default).
+
+    Returns:
+        Joint name → mode value.
+    """
+    motor_family_for_robot(robot)
+    default = next(d for p, _, d in _ROBOT_FAMILIES if robot.lower().startswith(p))
+    if robot.lower().startswith("koch") and "leader" in robot.lower():
+        default = False
+    degrees = default if use_degrees is None else use_degrees
+    arm = NormMode.DEGREES.value if degrees else NormMode.RANGE_M100_100.value
+    return {n: (NormMode.RANGE_0_100.value if n == "gripper" else arm) for n in joint_names}
+
+
+@dataclass(frozen=True, eq=False)
+class LeRobotConvention:
+    """Stored values are LeRobot current-scheme normalised positions.
+
+    Attributes:
+        joint_names: Motor names in column order.
+        calibrations: One :class:`MotorCalibration` per joint.
+        modes: One mode value per joint (``"degrees"``, ``"range_m100_100"``, ``"range_0_100"``).
+        family: ``"feetech"`` (drive mode in software, offset added) or ``"dynamixel"``.
+        compat: ``"lerobot"`` (bit-identical, truncating) or ``"exact"`` (rounding, lossless).
+        resolution: Ticks per turn.
+        wrap: Wrap present positions into ``[0, resolution)`` (default: Feetech yes, Dynamixel no).
+    """
+
+    joint_names: tuple[str, ...]
+    calibrations: tuple[MotorCalibration, ...]
+    modes: tuple[str, ...]
+    family: MotorFamily = "feetech"
+    compat: Compat = "lerobot"
+    resolution: int = 4096
+    wrap: bool | None = None
+
+    def __post_init__(self) -> None:
+        n = len(self.joint_names)
+        if len(self.calibrations) != n or len(self.modes) != n:
+            raise InvalidCalibrationError(
+                f"LeRobot convention: {n} joints, {len(self.calibrations)} calibrations, "
+                f"{len(self.modes)} modes"
+            )
+        valid = [m.value for m in NormMode]
+        for name, mode in zip(self.joint_names, self.modes, strict=True):
+            if mode not in valid:
+                raise UsageError(f"joint {name!r}: mode {mode!r} is not one of {', '.join(valid)}")
+        if self.family not in ("feetech", "dynamixel"):
+            raise UsageError(f"motor family {self.family!r}: expected feetech or dynamixel")
+        if self.compat not in ("lerobot", "exact"):
+            raise UsageError(f"compat {self.compat!r}: expected lerobot or exact")
+
+    @classmethod
+    def from_calibrations(
+        cls,
+        calibrations: Mapping[str, MotorCalibration],
+        modes: Mapping[str, str],
+        family: MotorFamily,
+        compat: Compat = "lerobot",
+    ) -> LeRobotConvention:
+        """Build from LeRobot's ``{motor: MotorCalibration}`` and ``{motor: mode}``.
+
+        Raises:
+            UsageError: A motor has no mode (the message names it).
+        """
+        names = tuple(calibrations)
+        missing = [n for n in names if n not in modes]
+        if missing:
+            raise UsageError(f"no normalisation mode for {', '.join(missing)}; pass --robot or --modes")
+        cals = tuple(calibrations[n] for n in names)
+        return cls(names, cals, tuple(modes[n] for n in names), family, compat)
+
+    @property
+    def _apply_drive_mode(self) -> bool:
+        return self.family == "feetech"
+
+    @property
+    def _wraps(self) -> bool:
+        return self.family == "feetech" if self.wrap is None else self.wrap
+
+    @property
+    def _homing_sign(self) -> float:
+        return 1.0 if self.family == "feetech" else -1.0
+
+    def _homing(self) -> FloatArray:
+        return np.array([c.homing_offset for c in self.calibrations], dtype=np.float64)
+
+    def select(self, joint_names: Sequence[str]) -> LeRobotConvention:
+        """Restrict to and reorder as ``joint_names``."""
+        missing = [n for n in joint_names if n not in self.joint_names]
+        if missing:
+            raise JointMismatchError(f"LeRobot calibration: no motor named {', '.join(missing)}")
+        idx = [self.joint_names.index(n) for n in joint_names]
+        return LeRobotConvention(
+            tuple(joint_names),
+            tuple(self.calibrations[i] for i in idx),
+            tuple(self.modes[i] for i in idx),
+            self.family,
+            self.compat,
+            self.resolution,
+            self.wrap,
+        )
+
+    def _half_tick(self) -> FloatArray:
+        """Half a tick in value units, signed so that it moves the unnormalised position up."""
+        out = []
+        for cal, mode in zip(self.calibrations, self.modes, strict=True):
+            inverted = self._apply_drive_mode and bool(cal.drive_mode)
+            span = float(cal.range_max - cal.range_min)
+            if mode == NormMode.DEGREES.value:
+                out.append(0.5 * 360.0 / (self.resolution - 1))
+            elif mode == NormMode.RANGE_M100_100.value:
+                out.append((-1.0 if inverted else 1.0) * 0.5 * 200.0 / span)
+            else:
+                out.append((-1.0 if inverted else 1.0) * 0.5 * 100.0 / span)
+        return np.array(out, dtype=np.float64)
+
+    def to_actual(self, values: FloatArray) -> FloatArray:
+        """Normalised values ``(N, D)`` → actual ticks ``(N, D)`` (through LeRobot's ``_unnormalize``).
+
+        Stored values are readings, ``normalize(present)`` of whole ticks kept as float32, so the present
+        position is recovered to the *nearest* tick: with ``compat="lerobot"`` the value is moved up by half
+        a tick before LeRobot's truncating ``_unnormalize``; ``compat="exact"`` rounds by itself.
+        """
+        v = np.asarray(values, dtype=np.float64)
+        if self.compat == "lerobot":
+            v = v + self._half_tick()
+        present = unnormalize(
+            v,
+            self.calibrations,
+            self.modes,
+            apply_drive_mode=self._apply_drive_mode,
+            compat=self.compat,
+            resolution=self.resolution,
+        ).astype(np.float64)
+        actual: FloatArray = present + self._homing_sign * self._homing()
+        return actual
+
+    def from_actual(self, actual: FloatArray) -> tuple[FloatArray, BoolArray]:
+        """Actual ticks ``(N, D)`` → normalised values and the outside-``[range_min, range_max]`` mask."""
+        present = np.asarray(actual, dtype=np.float64) - self._homing_sign * self._homing()
+        if self._wraps:
+            present = np.mod(present, self.resolution)
+        lo = np.array([c.range_min for c in self.calibrations], dtype=np.float64)
+        hi = np.array([c.range_max for c in self.calibrations], dtype=np.float64)
+        mask = (present < lo) | (present > hi)
+        values = normalize(
+            present,
+            self.calibrations,
+            self.modes,
+            apply_drive_mode=self._apply_drive_mode,
+            compat=self.compat,
+            resolution=self.resolution,
+        )
+        return values, mask
+
+    def value_range(self) -> tuple[FloatArray, FloatArray] | None:
+        """Normalised values of ``range_min`` and ``range_max`` per joint (sorted)."""
+        lo = np.array([[c.range_min for c in self.calibrations]], dtype=np.float64)
+        hi = np.array([[c.range_max for c in self.calibrations]], dtype=np.float64)
+        a, b = (
+            normalize(
+                x,
+                self.calibrations,
+                self.modes,
+                apply_drive_mode=self._apply_drive_mode,
+                compat=self.compat,
+                resolution=self.resolution,
+            )[0]
+            for x in (lo, hi)
+        )
+        return np.minimum(a, b), np.maximum(a, b)
+
+    def full_turn(self) -> FloatArray:
+        """Value change per full turn: 360 in degrees mode, ``resolution/(max − min)`` spans otherwise."""
+        out = []
+        for cal, mode in zip(self.calibrations, self.modes, strict=True):
+            span = float(cal.range_max - cal.range_min)
+            if mode == NormMode.DEGREES.value:
+                out.append(360.0)
+            elif mode == NormMode.RANGE_M100_100.value:
+                out.append(200.0 * self.resolution / span)
+            else:
+                out.append(100.0 * self.resolution / span)
+        return np.array(out, dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class LegacyConvention:
+    """Stored values are LeRobot legacy degrees (DEGREE) or percent (LINEAR); present = actual ticks.
+
+    Attributes:
+        calibration: The legacy calibration (its ``motor_names`` order is the column order).
+        resolution: Ticks per turn.
+    """
+
+    calibration: LegacyCalibration
+    resolution: int = 4096
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Motor names in column order."""
+        return self.calibration.motor_names
+
+    def select(self, joint_names: Sequence[str]) -> LegacyConvention:
+        """Restrict to and reorder as ``joint_names``."""
+        cal = self.calibration
+        missing = [n for n in joint_names if n not in cal.motor_names]
+        if missing:
+            raise JointMismatchError(f"legacy calibration: no motor named {', '.join(missing)}")
+        idx = [cal.motor_names.index(n) for n in joint_names]
+        return LegacyConvention(
+            LegacyCalibration(
+                tuple(joint_names),
+                cal.homing_offset[idx],
+                cal.drive_mode[idx],
+                cal.start_pos[idx],
+                cal.end_pos[idx],
+                tuple(cal.calib_mode[i] for i in idx),
+            ),
+            self.resolution,
+        )
+
+    def to_actual(self, values: FloatArray) -> FloatArray:
+        """Legacy values ``(N, D)`` → ticks (LeRobot's ``revert_calibration``, rounded)."""
+        return _legacy.revert_calibration(values, self.calibration).astype(np.float64)
+
+    def _bounds(self) -> tuple[FloatArray, FloatArray]:
+        lo = np.array([_LEGACY_BOUNDS[m][0] for m in self.calibration.calib_mode])
+        hi = np.array([_LEGACY_BOUNDS[m][1] for m in self.calibration.calib_mode])
+        return lo, hi
+
+    def from_actual(self, actual: FloatArray) -> tuple[FloatArray, BoolArray]:
+        """Ticks ``(N, D)`` → legacy values and the mask of values where LeRobot's legacy read would raise.
+
+        Values in range come from LeRobot's ``apply_calibration``; the affine formula is used only to find
+        (and still convert) out-of-range values instead of raising.
+        """
+        cal = self.calibration
+        raw = np.asarray(actual, dtype=np.float64)
+        half = self.resolution // 2
+        signed = np.where(cal.drive_mode.astype(bool), -raw, raw)
+        deg = (signed + cal.homing_offset) / half * 180.0
+        span = (cal.end_pos - cal.start_pos).astype(np.float64)
+        if np.any(span == 0):
+            raise InvalidCalibrationError("legacy calibration: start_pos equals end_pos for a LINEAR motor")
+        pct = (raw - cal.start_pos) / span * 100.0
+        linear = np.array([m == "LINEAR" for m in cal.calib_mode])
+        values: FloatArray = np.where(linear, pct, deg)
+        lo, hi = self._bounds()
+        mask = (values < lo) | (values > hi)
+        if not np.any(mask):
+            values = _legacy.apply_calibration(raw, cal)
+        return values, mask
+
+    def value_range(self) -> tuple[FloatArray, FloatArray] | None:
+        """Legacy bounds: ±270° (DEGREE), −10..110 % (LINEAR)."""
+        return self._bounds()
+
+    def full_turn(self) -> FloatArray:
+        """360° per turn (DEGREE); ``resolution/|end − start|·100`` % (LINEAR)."""
+        cal = self.calibration
+        span = np.abs((cal.end_pos - cal.start_pos).astype(np.float64))
+        linear = np.array([m == "LINEAR" for m in cal.calib_mode])
+        with np.errstate(divide="ignore"):
+            out: FloatArray = np.where(linear, 100.0 * self.resolution / span, 360.0)
+        return out
+
+
+def _json_kind(path: Path) -> str | None:
+    if path.suffix.lower() != ".json":
+        return None
+    try:
+        data = json.loads(read_text(path, "calibration file"))
+    except json.JSONDecodeError:
+        return None
+    if isinstance(data, dict) and "motor_names" in data:
+        return "legacy"
+    if isinstance(data, dict) and data and all(isinstance(v, dict) and "range_min" in v
+                                                  for v in data.values()):
+        return "current"
+    return None
+
+
+def load_convention(
+    path: str | Path,
+    *,
+    joint_names: Sequence[str],
+    modes: Mapping[str, str] | None = None,
+    family: MotorFamily | None = None,
+    compat: Compat = "lerobot",
+    what: str = "calibration",
+) -> ValueConvention:
+    """Read a calibration file as a dataset value convention.
+
+    LeRobot current JSON → :class:`LeRobotConvention` (needs ``modes`` and ``family``); LeRobot legacy JSON
+    → :class:`LegacyConvention`; any file :func:`robocal.formats.read_calibration` reads (canonical joint
+    maps) → :class:`JointMapConvention` (values are joint-frame radians).
+
+    Args:
+        path: The calibration file.
+        joint_names: The dataset's joints (used to pick modes).
+        modes: Joint → mode for LeRobot current files.
+        family: Motor family for LeRobot current files.
+        compat: LeRobot compatibility mode.
+        what: Role of the file for messages (``"--old"``).
+
+    Raises:
+        FileFormatError: The file is malformed.
+        UsageError: A LeRobot current file without modes or motor family.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError(f"{what} {p}: no such file")
+    kind = _json_kind(p)
+    if kind == "current":
+        from ..lerobot import read_calibration as read_current
+
+        cals = read_current(p)
+        if family is None:
+            raise UsageError(f"{what} {p} is a LeRobot calibration: pass --robot or --motor-family")
+        if modes is None:
+            raise UsageError(f"{what} {p} is a LeRobot calibration: pass --robot or --modes")
+        return LeRobotConvention.from_calibrations(cals, modes, family, compat)
+    if kind == "legacy":
+        return LegacyConvention(_legacy.read_legacy(p))
+    from ..formats import read_calibration
+
+    cf = read_calibration(p, joint_order=list(joint_names))
+    return JointMapConvention(cf.calibration)
