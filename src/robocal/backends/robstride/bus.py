@@ -187,6 +187,25 @@ class RobstrideBus:
         _arb, data = self._request_many({spec.can_id: frame}, {CommType.GET_ID})[spec.can_id]
         return int.from_bytes(data, "little")
 
+    def probe(self, can_ids: Iterable[int]) -> set[int]:
+        """Send type 0 (device id, harmless) to each CAN id and return the ids that answered in time."""
+        ids = sorted(set(can_ids))
+        for i in ids:
+            self._send(make_id(CommType.GET_ID, self.host_id, i), bytes(8))
+        found: set[int] = set()
+        deadline = time.monotonic() + self.timeout_s
+        while len(found) < len(ids):
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            msg = self._bus.recv(timeout=remaining)
+            if msg is None:
+                break
+            comm, data16, _low = split_id(msg.arbitration_id) if msg.is_extended_id else (-1, 0, 0)
+            if comm == CommType.GET_ID and (data16 & 0xFF) in ids:
+                found.add(data16 & 0xFF)
+        return found
+
     def enable(self, motor: str | int) -> Feedback:
         """Type 3: enable (run mode)."""
         return self._simple(motor, CommType.ENABLE)
