@@ -1,0 +1,501 @@
+"""Hard-stop sweep calibration of Robstride joints: source → range tracker → bisection → file + report.
+
+The source is read in the identity frame (``s = direction·raw``, what the robot publishes with an empty
+calibration file). When the sweep ends (source exhausted, Enter, or a first Ctrl-C) the offsets are computed,
+validated and written atomically; a second Ctrl-C while finishing aborts and writes nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from ..backends.sources import FRAMES, JointSpec, ReplaySource, Source, open_source, parse_source
+from ..core.jointmap import RobotCalibration
+from ..core.sweep import (
+    DEFAULT_SPAN_TOLERANCE_RAD,
+    DEFAULT_THRESHOLD_RAD,
+    RangeTracker,
+    SweepResult,
+    analyse_sweep,
+    direction_from_motion,
+)
+from ..errors import CalibError, FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
+from ..fileio import atomic_write_text
+from ..formats import CalibrationFile, read_calibration, write_calibration
+from ..formats.urdf import UrdfModel, read_urdf
+
+__all__ = [
+    "OUTPUT_FORMATS",
+    "BranchCheck",
+    "SweepAbortedError",
+    "SweepOutcome",
+    "SweepSession",
+    "SweepView",
+    "check_source",
+    "joints_from_urdf",
+    "run_direction_check",
+    "run_sweep",
+]
+
+FloatArray = npt.NDArray[np.float64]
+OUTPUT_FORMATS = ("lite-yaml", "lite-json")
+
+
+class SweepAbortedError(CalibError):
+    """A second Ctrl-C aborted the sweep; nothing was written (exit 130)."""
+
+    exit_code = 130
+
+
+def joints_from_urdf(urdf: UrdfModel) -> list[JointSpec]:
+    """The calibrated joints of a URDF with direction, limits, CAN id and model.
+
+    Raises:
+        FileFormatError: A joint has no ``direction`` param or no limits.
+    """
+    out = []
+    for name in urdf.calibration_joint_names():
+        d = urdf.direction(name)
+        if d is None:
+            raise FileFormatError(f"URDF {urdf.source}: joint {name!r} has no <param name='direction'>")
+        lo, up = urdf.limits(name)
+        out.append(JointSpec(name, urdf.motor_id(name) or 0, urdf.param(name, "model") or "rs-00", d, lo, up))
+    if not out:
+        raise FileFormatError(f"URDF {urdf.source}: no joints to calibrate")
+    return out
+
+
+class SweepView(Protocol):
+    """What the sweep loop reports to (the CLI's live table; tests use a recorder)."""
+
+    def update(self, session: SweepSession) -> None:
+        """Called after every sample (rate-limit the drawing yourself)."""
+        ...
+
+    def prompt(self, joint: str) -> None:
+        """The direction check asks the operator to move ``joint`` toward its + limit."""
+        ...
+
+    def finish(self, result: SweepResult) -> None:
+        """Called once with the final result, before anything is written."""
+        ...
+
+
+class SweepSession:
+    """The state of a running sweep: a wrap-aware range tracker over the identity frame.
+
+    Args:
+        source: Where samples come from.
+        joints: Joints in URDF order (the source's order).
+    """
+
+    def __init__(self, source: Source, joints: Sequence[JointSpec]) -> None:
+        self.source = source
+        self.joints = tuple(joints)
+        self.names = tuple(j.name for j in self.joints)
+        self.direction = np.array([j.direction for j in self.joints], dtype=np.float64)
+        self.lower = np.array([j.lower for j in self.joints], dtype=np.float64)
+        self.upper = np.array([j.upper for j in self.joints], dtype=np.float64)
+        self.tracker = RangeTracker(len(self.joints))
+        self.samples = 0
+        self.t_s = 0.0
+
+    def to_identity(self, positions: FloatArray) -> FloatArray:
+        """Source frame → identity frame ``direction·raw``, shape ``(..., N)``."""
+        if self.source.frame == "motor":
+            out: FloatArray = positions * self.direction
+            return out
+        return positions
+
+    @property
+    def exhausted(self) -> bool:
+        """True when the source has nothing more."""
+        return self.source.exhausted
+
+    def step(self) -> bool:
+        """Read one sample (a replay: a block) into the tracker; False when the source is exhausted."""
+        if isinstance(self.source, ReplaySource):
+            t, pos = self.source.read_block(2000)
+            if len(t) == 0:
+                return False
+            self.tracker.update_many(self.to_identity(pos))
+            self.samples += len(t)
+            self.t_s = float(t[-1])
+            return True
+        sample = self.source.read()
+        if sample is None:
+            return False
+        self.tracker.update(self.to_identity(sample.position_rad))
+        self.samples += 1
+        self.t_s = sample.t_s
+        return True
+
+    def result(
+        self,
+        *,
+        prior: Mapping[str, float] | None = None,
+        threshold_rad: float = DEFAULT_THRESHOLD_RAD,
+        span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
+        zero_sta: Mapping[str, int] | None = None,
+        direction_check: Mapping[str, int] | None = None,
+    ) -> SweepResult:
+        """Bisection and diagnostics for what was sampled so far."""
+        zs = np.array([(zero_sta or {}).get(n, 0) for n in self.names])
+        return analyse_sweep(
+            self.names,
+            self.direction,
+            self.lower,
+            self.upper,
+            self.tracker.minimum,
+            self.tracker.maximum,
+            prior=prior,
+            threshold_rad=threshold_rad,
+            span_tolerance_rad=span_tolerance_rad,
+            zero_sta=zs,
+            direction_check=direction_check,
+        )
+
+
+def run_direction_check(
+    source: Source,
+    joints: Sequence[JointSpec],
+    *,
+    on_prompt: Callable[[str], None] | None = None,
+    min_motion_rad: float = 0.1,
+    max_samples: int = 2000,
+    timeout_s: float = 30.0,
+) -> dict[str, int]:
+    """Guided direction check: per joint, ask for a move toward the + limit and watch the sign of motion.
+
+    Args:
+        source: A live or simulated source.
+        joints: Joints in the source's order.
+        on_prompt: Shows the instruction (called before the source is told).
+        min_motion_rad: Motion that counts, rad.
+        max_samples: Samples to wait at most per joint.
+        timeout_s: Wall-clock time to wait at most per joint, s.
+
+    Returns:
+        Joint → +1 (URDF direction right), −1 (flipped) or 0 (the joint did not move enough).
+    """
+    d = np.array([j.direction for j in joints], dtype=np.float64)
+    out: dict[str, int] = {}
+    for i, j in enumerate(joints):
+        if on_prompt is not None:
+            on_prompt(j.name)
+        first = source.read()
+        source.prompt_positive(j.name)
+        if first is None:
+            out[j.name] = 0
+            continue
+        start = float((d * first.position_rad if source.frame == "motor" else first.position_rad)[i])
+        tracker = RangeTracker(1)
+        tracker.update([start])
+        verdict = 0
+        deadline = time.monotonic() + timeout_s
+        for _ in range(max_samples):
+            s = source.read()
+            if s is None or time.monotonic() > deadline:
+                break
+            pos = d * s.position_rad if source.frame == "motor" else s.position_rad
+            tracker.update([float(pos[i])])
+            verdict = direction_from_motion(float(tracker.current[0]) - start, min_motion_rad)
+            if verdict:
+                break
+        out[j.name] = verdict
+    return out
+
+
+@dataclass(frozen=True)
+class SweepOutcome:
+    """What :func:`run_sweep` produced.
+
+    Attributes:
+        result: Offsets and diagnostics.
+        out: The calibration file written.
+        fmt: Its format.
+        report: The report written, or None.
+        exit_code: 0 every joint ok, 1 warnings.
+        samples: Samples read.
+        interrupted: True when the sweep was ended by Ctrl-C or Enter.
+    """
+
+    result: SweepResult
+    out: Path
+    fmt: str
+    report: Path | None
+    exit_code: int
+    samples: int
+    interrupted: bool
+
+
+def _prior_offsets(path: Path, urdf: UrdfModel) -> dict[str, float]:
+    cf = read_calibration(path, urdf=urdf)
+    cal = cf.calibration
+    return {n: float(h) for n, h in zip(cal.joint_names, cal.homing_offset, strict=True)}
+
+
+def _check_number(value: float, flag: str) -> float:
+    if not (math.isfinite(value) and value >= 0):
+        raise UsageError(f"{flag} {value}: expected a finite number of rad >= 0")
+    return float(value)
+
+
+def run_sweep(
+    urdf_path: str | Path,
+    source: str,
+    out: str | Path,
+    *,
+    prior: str | Path | None = None,
+    threshold_rad: float = DEFAULT_THRESHOLD_RAD,
+    span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
+    report: str | Path | None = None,
+    fmt: str | None = None,
+    direction_check: bool = False,
+    topic: str = "/lite/joint_states",
+    frame: str | None = None,
+    view: SweepView | None = None,
+    stop: threading.Event | None = None,
+    max_samples: int | None = None,
+    open_source_fn: Callable[..., Source] = open_source,
+) -> SweepOutcome:
+    """Run a whole sweep calibration and write the calibration file (and report).
+
+    Args:
+        urdf_path: URDF with ``<ros2_control>`` joint params (direction, limits, can_id, model).
+        source: ``--source`` string.
+        out: Calibration file to write (updated in place when it exists).
+        prior: Calibration whose offsets are kept for joints not swept (default: ``out`` if it exists).
+        threshold_rad: Sweeps below this count as not swept.
+        span_tolerance_rad: Allowed ``|sweep − (upper − lower)|``.
+        report: JSON report to write.
+        fmt: ``lite-yaml`` or ``lite-json`` (default: from ``out``'s name, ``lite-yaml`` otherwise).
+        direction_check: Run the guided direction check before the sweep.
+        topic: JointState topic of a rosbag2 replay.
+        frame: Frame of a replay (``identity`` or ``motor``).
+        view: Live view.
+        stop: Set to end the sweep (Enter).
+        max_samples: Stop after this many samples (None: until the source ends or the user stops).
+        open_source_fn: Opens the source (tests inject one).
+
+    Returns:
+        The :class:`SweepOutcome`.
+
+    Raises:
+        UsageError, FileFormatError, InvalidCalibrationError: bad input; nothing written.
+        DeviceError: a bus failed; nothing written.
+        SweepAbortedError: a second Ctrl-C; nothing written.
+    """
+    # ---- validate everything before touching a device or a file
+    threshold_rad = _check_number(threshold_rad, "--threshold")
+    span_tolerance_rad = _check_number(span_tolerance_rad, "--span-tolerance")
+    out_path = Path(out)
+    if fmt is None:
+        fmt = "lite-json" if out_path.suffix.lower() == ".json" else "lite-yaml"
+    if fmt not in OUTPUT_FORMATS:
+        raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
+    if frame is not None and frame not in FRAMES:
+        raise UsageError(f"--frame {frame!r}: expected one of {', '.join(FRAMES)}")
+    if out_path.is_dir() or not out_path.parent.is_dir():
+        raise UsageError(f"--out {out_path}: expected a file in an existing folder")
+    report_path = Path(report) if report is not None else None
+    if report_path is not None and (report_path.is_dir() or not report_path.parent.is_dir()):
+        raise UsageError(f"--report {report_path}: expected a file in an existing folder")
+    spec = parse_source(source)
+    if direction_check and spec.kind == "replay":
+        raise UsageError("--direction-check needs a live or simulated source, not a replay")
+    urdf = read_urdf(urdf_path)
+    joints = joints_from_urdf(urdf)
+    prior_offsets: dict[str, float] = {}
+    if prior is not None:
+        prior_offsets = _prior_offsets(Path(prior), urdf)
+    elif out_path.exists():
+        try:
+            prior_offsets = _prior_offsets(out_path, urdf)
+        except CalibError:
+            prior_offsets = {}
+
+    # ---- sample
+    src = open_source_fn(spec, joints, topic=topic, frame=frame)
+    session = SweepSession(src, joints)
+    interrupted = False
+    checks: dict[str, int] | None = None
+    zero_sta: dict[str, int] = {}
+    try:
+        try:
+            if direction_check:
+                checks = run_direction_check(src, joints, on_prompt=view.prompt if view else None)
+            zero_sta = src.zero_sta()
+            src.begin_sweep()
+            while not (stop is not None and stop.is_set()):
+                if max_samples is not None and session.samples >= max_samples:
+                    break
+                if not session.step():
+                    break
+                if view is not None:
+                    view.update(session)
+                if session.exhausted:
+                    break
+        except KeyboardInterrupt:
+            interrupted = True  # first Ctrl-C: finish and write
+        if stop is not None and stop.is_set():
+            interrupted = True
+        # ---- finish: a second Ctrl-C from here on aborts without writing
+        try:
+            src.close()
+            result = session.result(
+                prior=prior_offsets,
+                threshold_rad=threshold_rad,
+                span_tolerance_rad=span_tolerance_rad,
+                zero_sta=zero_sta,
+                direction_check=checks,
+            )
+            if view is not None:
+                view.finish(result)
+            _write(result, urdf, joints, out_path, fmt, report_path)
+        except KeyboardInterrupt:
+            raise SweepAbortedError("sweep aborted by a second Ctrl-C; nothing was written") from None
+    finally:
+        with contextlib.suppress(Exception, KeyboardInterrupt):
+            src.close()
+    code = 0 if result.ok else 1
+    return SweepOutcome(result, out_path, fmt, report_path, code, session.samples, interrupted)
+
+
+def _write(
+    result: SweepResult,
+    urdf: UrdfModel,
+    joints: Sequence[JointSpec],
+    out: Path,
+    fmt: str,
+    report: Path | None,
+) -> None:
+    missing = [j for j in result.joints if not j.has_offset]
+    if missing:
+        detail = ", ".join(f"{j.name} (swept {j.sweep:.3f} rad)" for j in missing)
+        raise InvalidCalibrationError(
+            f"not swept and no prior offset: {detail}; threshold {result.threshold_rad:g} rad. "
+            "Sweep them or pass --prior FILE; nothing was written"
+        )
+    cal = RobotCalibration(
+        [j.name for j in joints],
+        [j.direction for j in joints],
+        [result[j.name].homing_offset for j in joints],
+    )
+    ids = {j.name: j.can_id for j in joints if j.can_id > 0}
+    text = json.dumps(result.to_report(), indent=2) + "\n" if report is not None else ""
+    write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf)
+    if report is not None:
+        atomic_write_text(report, text)
+
+
+# ------------------------------------------------------------------------------------------ power-on check
+@dataclass(frozen=True)
+class BranchCheck:
+    """First reading after power-on of one joint, with the 2π branch selection applied.
+
+    Attributes:
+        name: Joint name.
+        raw_rad: Raw motor position as read, rad.
+        raw_selected_rad: Raw position on the branch that puts the joint inside its limits, rad.
+        turns: Whole turns added (``(raw_selected − raw)/2π``).
+        q_rad: Joint position on the selected branch, rad.
+        lower: Lower limit, rad.
+        upper: Upper limit, rad.
+        in_limits: Whether ``q_rad`` is inside the limits (± margin).
+    """
+
+    name: str
+    raw_rad: float
+    raw_selected_rad: float
+    turns: int
+    q_rad: float
+    lower: float
+    upper: float
+    in_limits: bool
+
+    @property
+    def problem(self) -> str | None:
+        """A one-line problem description, or None."""
+        if not self.in_limits:
+            return (
+                f"{self.name}: q = {self.q_rad:.3f} rad is outside [{self.lower:.3f}, {self.upper:.3f}] "
+                "on every 2π branch; recalibrate or check the URDF"
+            )
+        return None
+
+
+def check_source(
+    urdf_path: str | Path,
+    calibration_path: str | Path,
+    source: str,
+    *,
+    topic: str = "/lite/joint_states",
+    frame: str | None = None,
+    margin_rad: float = 0.05,
+    open_source_fn: Callable[..., Source] = open_source,
+) -> list[BranchCheck]:
+    """Read the first sample after power-on and apply the 2π branch selection per joint.
+
+    Args:
+        urdf_path: The URDF.
+        calibration_path: The calibration file (any format robocal reads).
+        source: ``--source``.
+        topic: rosbag2 topic.
+        frame: Replay frame.
+        margin_rad: Tolerance on the limits, rad.
+        open_source_fn: Opens the source.
+
+    Returns:
+        One :class:`BranchCheck` per joint in URDF order.
+    """
+    spec = parse_source(source)
+    urdf = read_urdf(urdf_path)
+    joints = joints_from_urdf(urdf)
+    cf = read_calibration(calibration_path, urdf=urdf)
+    names = [j.name for j in joints]
+    missing = [n for n in names if n not in cf.calibration]
+    if missing:
+        raise JointMismatchError(f"calibration {calibration_path}: no offset for {', '.join(missing)}")
+    cal = cf.calibration.select(names).with_directions({j.name: j.direction for j in joints})
+    src = open_source_fn(spec, joints, topic=topic, frame=frame)
+    try:
+        sample = src.read()
+        if sample is None:
+            raise FileFormatError(f"source {source}: no samples")
+        d = np.array([j.direction for j in joints], dtype=np.float64)
+        raw = sample.position_rad if src.frame == "motor" else d * sample.position_rad
+    finally:
+        src.close()
+    if not np.all(np.isfinite(raw)):
+        bad = [n for n, r in zip(names, raw, strict=True) if not math.isfinite(r)]
+        raise FileFormatError(f"source {source}: first sample has no position for {', '.join(bad)}")
+    lo = np.array([j.lower for j in joints])
+    up = np.array([j.upper for j in joints])
+    sel = cal.unwrap_to_limits(raw, lo, up)
+    q = cal.to_joint(sel)
+    inside = (q >= lo - margin_rad) & (q <= up + margin_rad)
+    return [
+        BranchCheck(
+            n,
+            float(raw[i]),
+            float(sel[i]),
+            round((sel[i] - raw[i]) / (2 * math.pi)),
+            float(q[i]),
+            float(lo[i]),
+            float(up[i]),
+            bool(inside[i]),
+        )
+        for i, n in enumerate(names)
+    ]
