@@ -145,3 +145,18 @@ def test_unwrap_to_limits_recovers_any_turn(cal: RobotCalibration, data: st.Data
     raw_true = cal.to_raw(q_true)
     fixed = cal.unwrap_to_limits(raw_true + turns * 2 * math.pi, lo, lo + width)
     np.testing.assert_allclose(fixed, raw_true, atol=1e-9)
+
+
+def test_blocked_batch_path_is_bit_identical() -> None:
+    rng = np.random.default_rng(3)
+    cal = RobotCalibration([f"j{i}" for i in range(14)], rng.choice([-1, 1], 14), rng.uniform(-3, 3, 14),
+                           rng.choice([1.0, 0.5], 14))
+    raw = rng.uniform(-5, 5, (100_003, 14))
+    expected = cal._gain * (raw - cal.homing_offset)  # type: ignore[attr-defined]
+    out = np.empty_like(raw)
+    assert cal.to_joint(raw, out=out) is out
+    np.testing.assert_array_equal(out, expected)
+    np.testing.assert_array_equal(cal.to_joint(raw), expected)
+    np.testing.assert_array_equal(cal.to_joint(raw[:, ::1].T.copy().T), expected)  # non-contiguous input
+    with pytest.raises(ShapeMismatchError, match="out has shape"):
+        cal.to_joint(raw, out=np.empty((3, 14)))

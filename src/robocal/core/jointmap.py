@@ -28,6 +28,7 @@ __all__ = ["TWO_PI", "FloatArray", "JointMap", "RobotCalibration"]
 
 FloatArray = NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
+_BLOCK_ELEMENTS = 16384  # 128 KiB of float64 per block: stays in L2 between the two passes
 
 
 def _check_direction(direction: Any, where: str) -> int:
@@ -255,18 +256,44 @@ class RobotCalibration:
             )
         return arr
 
-    def to_joint(self, raw: ArrayLike) -> FloatArray:
+    def to_joint(self, raw: ArrayLike, out: FloatArray | None = None) -> FloatArray:
         """Raw motor positions → joint positions.
 
         Args:
             raw: Shape ``(N,)``, ``(T, N)`` or ``(..., N)`` in raw units (a scalar when N = 1).
+            out: Optional float64 array of the same shape to write into (no allocation); large recordings
+                are then processed in cache-sized blocks, close to the speed of a plain copy.
 
         Returns:
             Joint positions, same shape, joint units (rad).
         """
         r = self._check(raw, "raw position")
-        out: FloatArray = self._gain * (r - self.homing_offset)
-        return out.reshape(r.shape)
+        if out is None:
+            if r.ndim < 2 or r.size < 4 * _BLOCK_ELEMENTS:
+                res: FloatArray = self._gain * (r - self.homing_offset)
+                return res.reshape(r.shape)
+            out = np.empty(r.shape, dtype=np.float64)
+        if out.shape != r.shape or out.dtype != np.float64:
+            raise ShapeMismatchError(f"out has shape {out.shape} and dtype {out.dtype}; expected {r.shape} float64")
+        if r.ndim == 0 or not (r.flags.c_contiguous and out.flags.c_contiguous):
+            np.multiply(self._gain, r - self.homing_offset, out=out)
+            return out
+        # Contiguous recording: work on flat blocks against tiled per-joint constants, so every ufunc runs one
+        # long contiguous inner loop and the second pass hits the cache.
+        n = self.n_joints
+        rows = max(1, _BLOCK_ELEMENTS // n)
+        step = rows * n
+        tiled_h = np.tile(self.homing_offset, rows)
+        tiled_g = np.tile(self._gain, rows)
+        flat_in = r.reshape(-1)
+        flat_out = out.reshape(-1)
+        for start in range(0, flat_in.size, step):
+            stop = min(start + step, flat_in.size)
+            k = stop - start
+            o = flat_out[start:stop]
+            np.subtract(flat_in[start:stop], tiled_h[:k], out=o)
+            np.multiply(o, tiled_g[:k], out=o)
+        return out
 
     def to_raw(self, q: ArrayLike) -> FloatArray:
         """Joint positions → raw motor positions (inverse of :meth:`to_joint`), shape ``(..., N)``."""
