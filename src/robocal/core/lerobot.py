@@ -26,9 +26,12 @@ from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatc
 
 __all__ = [
     "MODE_CODES",
+    "ROBOTS",
     "LegacyCalibration",
     "MotorCalibration",
+    "MotorSpec",
     "RangeTracker",
+    "RobotSpec",
     "apply_legacy",
     "autocorrect_legacy",
     "avoid_rotation_reset",
@@ -676,3 +679,104 @@ def legacy_calibration_from_poses(
     else:
         modes = list(calib_mode)
     return LegacyCalibration(motor_names, homing, drive_mode, zero, rot_driven, modes)
+
+
+# ------------------------------------------------------------------------------------------ robot specs
+@dataclass(frozen=True)
+class MotorSpec:
+    """One motor of a LeRobot arm: name, bus id, model and LeRobot norm mode."""
+
+    name: str
+    motor_id: int
+    model: str
+    norm_mode: str
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """A LeRobot arm as its calibration sees it.
+
+    Attributes:
+        name: robocal / LeRobot CLI name (``"so101_follower"``).
+        device_name: LeRobot class ``name`` used in the calibration path (``"so_follower"`` since v0.4.3).
+        old_device_name: The directory name before v0.4.3 (``"so101_follower"``).
+        kind: ``"robots"`` or ``"teleoperators"``.
+        vendor: ``"feetech"`` or ``"dynamixel"``.
+        motors: Motors in bus order.
+        full_turn: Motors LeRobot does not sweep (forced to ``0..resolution − 1``).
+        operating_mode: Operating_Mode written before calibrating.
+        inverted: Motors whose drive_mode is 1 (Koch leader ``elbow_flex``).
+    """
+
+    name: str
+    device_name: str
+    old_device_name: str
+    kind: str
+    vendor: Literal["feetech", "dynamixel"]
+    motors: tuple[MotorSpec, ...]
+    full_turn: tuple[str, ...]
+    operating_mode: int
+    inverted: tuple[str, ...] = ()
+
+    @property
+    def motor_names(self) -> tuple[str, ...]:
+        """Motor names in bus order."""
+        return tuple(m.name for m in self.motors)
+
+
+_ARM = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
+
+
+def _motors(models: Sequence[str], modes: Sequence[str]) -> tuple[MotorSpec, ...]:
+    return tuple(
+        MotorSpec(n, i + 1, mo, md) for i, (n, mo, md) in enumerate(zip(_ARM, models, modes, strict=True))
+    )
+
+
+_SO_MODES = ("degrees",) * 5 + ("range_0_100",)
+_KOCH_MODES = ("range_m100_100",) * 5 + ("range_0_100",)
+
+ROBOTS: dict[str, RobotSpec] = {
+    "so101_follower": RobotSpec(
+        "so101_follower",
+        "so_follower",
+        "so101_follower",
+        "robots",
+        "feetech",
+        _motors(["sts3215"] * 6, _SO_MODES),
+        ("wrist_roll",),
+        0,
+    ),
+    "so101_leader": RobotSpec(
+        "so101_leader",
+        "so_leader",
+        "so101_leader",
+        "teleoperators",
+        "feetech",
+        _motors(["sts3215"] * 6, _SO_MODES),
+        ("wrist_roll",),
+        0,
+    ),
+    "koch_follower": RobotSpec(
+        "koch_follower",
+        "koch_follower",
+        "koch_follower",
+        "robots",
+        "dynamixel",
+        _motors(["xl430-w250"] * 2 + ["xl330-m288"] * 4, _KOCH_MODES),
+        ("shoulder_pan", "wrist_roll"),
+        4,
+    ),
+    "koch_leader": RobotSpec(
+        "koch_leader",
+        "koch_leader",
+        "koch_leader",
+        "teleoperators",
+        "dynamixel",
+        _motors(["xl330-m077"] * 6, _KOCH_MODES),
+        ("shoulder_pan", "wrist_roll"),
+        4,
+        ("elbow_flex",),
+    ),
+}
+"""LeRobot arms robocal calibrates (SO-100/SO-101 share the SO entries)."""

@@ -1,0 +1,222 @@
+"""Simulated LeRobot arms (SO-101 and Koch, follower and leader) and a simulated operator.
+
+A :class:`SimArm` puts one :class:`~robocal.backends.sim.servo.SimServo` per motor behind a pseudo-terminal,
+with a physical truth per joint (mid pose and hard stops in the motor's actual-tick frame). A
+:class:`SimOperator` plays the human: it holds the arm at its mid pose when asked and sweeps every joint from
+stop to stop during range recording, and can raise ``KeyboardInterrupt`` at a chosen step (Ctrl-C).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from ...core.lerobot import ROBOTS, MotorCalibration, RobotSpec
+from ...errors import UsageError
+from .servo import SimServo, SimServoBus
+
+__all__ = ["DEFAULT_TRUTH", "JointTruth", "SimArm", "SimOperator"]
+
+
+@dataclass(frozen=True)
+class JointTruth:
+    """Physical truth of one joint, in the motor's actual ticks (continuous across the 0/4096 seam).
+
+    Attributes:
+        mid_ticks: Where the operator holds the joint for "middle of the range".
+        stop_low_ticks: Lower hard stop.
+        stop_high_ticks: Upper hard stop.
+    """
+
+    mid_ticks: float
+    stop_low_ticks: float
+    stop_high_ticks: float
+
+
+def _t(mid: float, lo: float, hi: float) -> JointTruth:
+    return JointTruth(mid, lo, hi)
+
+
+DEFAULT_TRUTH: dict[str, dict[str, JointTruth]] = {
+    "so101_follower": {
+        "shoulder_pan": _t(2100, 900, 3300),
+        "shoulder_lift": _t(1950, 780, 3150),
+        "elbow_flex": _t(2000, 850, 3100),
+        "wrist_flex": _t(4200, 3100, 5300),  # its travel crosses the encoder seam
+        "wrist_roll": _t(2047, 113, 3981),  # not a full turn (huggingface/lerobot#4583)
+        "gripper": _t(2300, 2000, 3400),
+    },
+    "so101_leader": {
+        "shoulder_pan": _t(1990, 820, 3210),
+        "shoulder_lift": _t(2080, 900, 3260),
+        "elbow_flex": _t(1900, 700, 3050),
+        "wrist_flex": _t(2150, 1000, 3250),
+        "wrist_roll": _t(2010, 200, 3900),
+        "gripper": _t(2100, 1900, 2900),
+    },
+    "koch_follower": {
+        "shoulder_pan": _t(2048, 500, 3600),
+        "shoulder_lift": _t(1900, 800, 3000),
+        "elbow_flex": _t(2100, 1000, 3200),
+        "wrist_flex": _t(2000, 900, 3100),
+        "wrist_roll": _t(2048, 300, 3800),
+        "gripper": _t(2200, 2000, 3000),
+    },
+    "koch_leader": {
+        "shoulder_pan": _t(2000, 600, 3500),
+        "shoulder_lift": _t(2050, 900, 3100),
+        "elbow_flex": _t(2100, 1050, 3150),
+        "wrist_flex": _t(1950, 850, 3050),
+        "wrist_roll": _t(2048, 300, 3700),
+        "gripper": _t(2150, 1950, 2800),
+    },
+}
+"""Default physical truth of each simulated arm."""
+
+
+class SimArm:
+    """A simulated LeRobot arm on a pseudo-terminal.
+
+    Args:
+        robot: ``so101_follower``, ``so101_leader``, ``koch_follower`` or ``koch_leader``.
+        truth: Per-joint physical truth; default :data:`DEFAULT_TRUTH`.
+        noise_ticks: Read noise (±ticks) on Present_Position.
+        seed: Noise seed.
+        eeprom: Initial EEPROM per motor name (``Homing_Offset``, ``Min_Position_Limit``, ... ), e.g. a
+            previous calibration.
+    """
+
+    def __init__(
+        self,
+        robot: str,
+        *,
+        truth: Mapping[str, JointTruth] | None = None,
+        noise_ticks: int = 0,
+        seed: int = 0,
+        eeprom: Mapping[str, Mapping[str, int]] | None = None,
+    ) -> None:
+        if robot not in ROBOTS:
+            raise UsageError(f"unknown robot {robot!r}; valid: {', '.join(ROBOTS)}")
+        self.spec: RobotSpec = ROBOTS[robot]
+        self.truth: dict[str, JointTruth] = dict(truth if truth is not None else DEFAULT_TRUTH[robot])
+        servos = []
+        for m in self.spec.motors:
+            t = self.truth[m.name]
+            servo = SimServo(
+                m.motor_id, m.model, float(t.mid_ticks), float(t.stop_low_ticks), float(t.stop_high_ticks)
+            )
+            for reg, value in (eeprom or {}).get(m.name, {}).items():
+                servo.set_reg(reg, value)
+            servos.append(servo)
+        self.bus = SimServoBus(servos, noise_ticks=noise_ticks, seed=seed)
+        self.port = self.bus.port
+
+    def start(self) -> SimArm:
+        """Start the simulated bus."""
+        self.bus.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the simulated bus and close the pty."""
+        self.bus.stop()
+
+    def __enter__(self) -> SimArm:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def servo(self, name: str) -> SimServo:
+        """The simulated servo of a motor."""
+        return self.bus.servos[self.spec.motors[self.spec.motor_names.index(name)].motor_id]
+
+    def eeprom(self) -> dict[str, dict[str, int]]:
+        """Calibration EEPROM registers per motor name."""
+        snap = self.bus.snapshot()
+        return {m.name: snap[m.motor_id] for m in self.spec.motors}
+
+    def move(self, positions: Mapping[str, float]) -> None:
+        """Move joints by hand (actual ticks)."""
+        self.bus.move({self.servo(n).motor_id: p for n, p in positions.items()})
+
+    def recovered_stops(self, cals: Mapping[str, MotorCalibration]) -> dict[str, tuple[int, int]]:
+        """Hard stops implied by a calibration, mapped back to actual ticks (modulo a turn on Feetech)."""
+        out: dict[str, tuple[int, int]] = {}
+        for name, c in cals.items():
+            servo = self.servo(name)
+            if servo.vendor == "feetech":
+                lo, hi = c.range_min + c.homing_offset, c.range_max + c.homing_offset
+            else:
+                sign = -1 if c.drive_mode else 1
+                a, b = sign * (c.range_min - c.homing_offset), sign * (c.range_max - c.homing_offset)
+                lo, hi = min(a, b), max(a, b)
+            out[name] = (lo, hi)
+        return out
+
+
+class SimOperator:
+    """Plays the human during calibration: mid pose on request, stop-to-stop sweeps, optional Ctrl-C.
+
+    Args:
+        arm: The simulated arm.
+        steps_per_segment: Readings per sweep segment (mid → low stop → high stop → mid).
+        mid_pose: Override of where joints are held for "middle" (actual ticks), e.g. a poor mid pose.
+        interrupt_at_step: Raise ``KeyboardInterrupt`` at this sweep step (simulated Ctrl-C).
+        interrupt_at_prompt: Raise ``KeyboardInterrupt`` when this prompt stage is shown.
+        overshoot_ticks: How far past each stop the operator pushes (the hard stop holds the joint).
+    """
+
+    def __init__(
+        self,
+        arm: SimArm,
+        *,
+        steps_per_segment: int = 8,
+        mid_pose: Mapping[str, float] | None = None,
+        interrupt_at_step: int | None = None,
+        interrupt_at_prompt: str | None = None,
+        overshoot_ticks: float = 40.0,
+    ) -> None:
+        self.arm = arm
+        self.steps_per_segment = steps_per_segment
+        self.mid_pose = {n: float(t.mid_ticks) for n, t in arm.truth.items()}
+        self.mid_pose.update(mid_pose or {})
+        self.interrupt_at_step = interrupt_at_step
+        self.interrupt_at_prompt = interrupt_at_prompt
+        self.overshoot_ticks = overshoot_ticks
+        self.step = 0
+        self.prompts: list[str] = []
+
+    def prompt(self, stage: str, message: str) -> None:
+        """Answer a prompt: at ``"middle"`` hold every joint at its mid pose, then 'press ENTER'."""
+        self.prompts.append(stage)
+        if stage == self.interrupt_at_prompt:
+            raise KeyboardInterrupt
+        if stage == "middle":
+            self.arm.move(self.mid_pose)
+            self.step = 0
+
+    def _path(self, name: str, k: int) -> float:
+        t = self.arm.truth[name]
+        n = self.steps_per_segment
+        lo, hi, mid = (
+            t.stop_low_ticks - self.overshoot_ticks,
+            t.stop_high_ticks + self.overshoot_ticks,
+            self.mid_pose[name],
+        )
+        seg, f = divmod(k, n)
+        frac = f / n
+        if seg == 0:
+            return mid + (lo - mid) * frac
+        if seg == 1:
+            return lo + (hi - lo) * frac
+        if seg == 2:
+            return hi + (mid - hi) * frac
+        return mid
+
+    def sweep_step(self) -> bool:
+        """Move every joint one step along its sweep; True once the sweep is finished ('ENTER')."""
+        if self.interrupt_at_step is not None and self.step >= self.interrupt_at_step:
+            raise KeyboardInterrupt
+        self.step += 1
+        self.arm.move({n: self._path(n, self.step) for n in self.arm.truth})
+        return self.step > 3 * self.steps_per_segment

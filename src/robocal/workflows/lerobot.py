@@ -1,0 +1,443 @@
+"""LeRobot calibration jobs: current two-step calibration, restore, EEPROM check, migration, URDF joint map.
+
+The calibration follows LeRobot's procedure (torque off → Operating_Mode → mid pose → half-turn homing in
+EEPROM → range-of-motion sweep → limits in EEPROM → JSON file), with robocal's fixes:
+
+* the sweep is recorded wrap-aware; a travel that crosses the 0/4095 seam is re-homed so the seam lies outside
+  it, instead of being clipped to (≈0, ≈4095) (huggingface/lerobot#3586);
+* ``home_after_sweep``: sweep first, then centre the homing on the travel (#3587);
+* a Feetech pose at 4095 no longer overflows the sign-magnitude Homing_Offset;
+* any exception or Ctrl-C restores every motor's previous Homing_Offset, limits and Drive_Mode, and the file
+  is not written;
+* full-turn joints (SO ``wrist_roll``, Koch ``shoulder_pan``/``wrist_roll``) may be swept (#4583);
+* restoring a file on Dynamixel also writes Drive_Mode.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+from ..backends.servo_bus import ServoBus
+from ..core.jointmap import RobotCalibration
+from ..core.lerobot import (
+    ROBOTS,
+    MotorCalibration,
+    RangeTracker,
+    RobotSpec,
+    centre_homing,
+    half_turn_homing_offset,
+)
+from ..errors import CalibError, InvalidCalibrationError, UsageError
+from ..formats.lerobot import write_current
+
+__all__ = [
+    "CalibrationResult",
+    "Difference",
+    "Operator",
+    "SweepView",
+    "calibrate",
+    "check",
+    "export_joint_map",
+    "legacy_to_current",
+    "open_bus",
+    "read_eeprom",
+    "restore",
+    "robot_spec",
+]
+
+EEPROM_FIELDS = ("Homing_Offset", "Min_Position_Limit", "Max_Position_Limit", "Drive_Mode")
+
+
+class Operator(Protocol):
+    """The human (or a simulated one) who moves the arm."""
+
+    def prompt(self, stage: str, message: str) -> None:
+        """Show ``message`` and wait for ENTER; ``stage`` is ``"middle"`` or ``"sweep"``."""
+        ...
+
+    def sweep_step(self) -> bool:
+        """Called once per range-recording loop; return True when the operator has finished the sweep."""
+        ...
+
+
+@dataclass(frozen=True)
+class SweepView:
+    """What the live range table shows after each reading (per swept motor, ticks)."""
+
+    names: tuple[str, ...]
+    present: tuple[int, ...]
+    minimum: tuple[int, ...]
+    maximum: tuple[int, ...]
+    step: int
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Result of :func:`calibrate`.
+
+    Attributes:
+        calibration: Motor name → calibration, in bus order.
+        path: The JSON file written (None if not written).
+        notes: What robocal did differently from LeRobot (seam re-homing, 4095 clamp), one line each.
+        naive_ranges: LeRobot's wrap-blind (min, max) per swept motor, for comparison.
+    """
+
+    calibration: dict[str, MotorCalibration]
+    path: Path | None
+    notes: tuple[str, ...] = ()
+    naive_ranges: dict[str, tuple[int, int]] = field(default_factory=dict)
+
+
+def robot_spec(robot: str) -> RobotSpec:
+    """The :class:`RobotSpec` of a robot name (``so101_follower``, ...)."""
+    if robot not in ROBOTS:
+        raise UsageError(f"unknown robot {robot!r}; valid: {', '.join(ROBOTS)}")
+    return ROBOTS[robot]
+
+
+def open_bus(spec: RobotSpec, port: str, *, retries: int = 3) -> ServoBus:
+    """Open the vendor-SDK bus of an arm on ``port``."""
+    motors = {m.motor_id: m.model for m in spec.motors}
+    if spec.vendor == "feetech":
+        from ..backends.feetech import FeetechBus
+
+        return FeetechBus(port, motors, retries=retries)
+    from ..backends.dynamixel import DynamixelBus
+
+    return DynamixelBus(port, motors, retries=retries)
+
+
+def read_eeprom(bus: ServoBus, spec: RobotSpec) -> dict[str, dict[str, int]]:
+    """Calibration EEPROM registers (Homing_Offset, limits, Drive_Mode where present) per motor name."""
+    out: dict[str, dict[str, int]] = {}
+    for m in spec.motors:
+        out[m.name] = {f: bus.read(f, m.motor_id) for f in EEPROM_FIELDS if bus.has_register(m.motor_id, f)}
+    return out
+
+
+def _write_eeprom(bus: ServoBus, spec: RobotSpec, values: Mapping[str, Mapping[str, int]]) -> None:
+    for m in spec.motors:
+        for f, v in values.get(m.name, {}).items():
+            if bus.has_register(m.motor_id, f):
+                bus.write(f, m.motor_id, v)
+
+
+def _disable_torque(bus: ServoBus, spec: RobotSpec) -> None:
+    for m in spec.motors:
+        bus.write("Torque_Enable", m.motor_id, 0)
+        if bus.has_register(m.motor_id, "Lock"):
+            bus.write("Lock", m.motor_id, 0)
+
+
+def _normalise_feetech_offset(offset: int, lo: int, hi: int, res: int) -> tuple[int, int, int]:
+    """Bring a Feetech offset into ±(res/2 − 1) (Present wraps modulo a turn); adjust the range if clamped."""
+    half = res // 2
+    off = (offset + half) % res - half
+    if off == -half:  # −2048 is not encodable; 2047 reads one tick lower... use −2047: Present one tick lower
+        off = -half + 1
+        lo, hi = lo - 1, hi - 1
+    return off, lo, hi
+
+
+def calibrate(
+    bus: ServoBus,
+    spec: RobotSpec,
+    operator: Operator,
+    *,
+    path: str | os.PathLike[str] | None = None,
+    home_after_sweep: bool = False,
+    sweep_full_turn: bool = False,
+    on_sweep: Callable[[SweepView], None] | None = None,
+    max_steps: int | None = None,
+) -> CalibrationResult:
+    """Run LeRobot's current calibration with robocal's fixes and write the JSON file.
+
+    Args:
+        bus: The arm's bus.
+        spec: The arm.
+        operator: Moves the arm and confirms steps.
+        path: Where to write the LeRobot JSON (None: do not write).
+        home_after_sweep: Sweep first, then choose the homing so the travel is centred on the half turn.
+        sweep_full_turn: Also sweep the joints LeRobot forces to 0..4095 (#4583).
+        on_sweep: Called after each reading of the sweep (live table).
+        max_steps: Stop the sweep after this many readings (None: until the operator finishes).
+
+    Returns:
+        The calibration, the file written and notes.
+
+    Raises:
+        DeviceError: Bus failure (EEPROM restored as far as the bus allows).
+        KeyboardInterrupt: Re-raised after the EEPROM was restored; no file written.
+    """
+    ids = [m.motor_id for m in spec.motors]
+    names = [m.name for m in spec.motors]
+    res = {m.name: bus.resolution(m.motor_id) for m in spec.motors}
+    before = read_eeprom(bus, spec)
+    notes: list[str] = []
+    try:
+        _disable_torque(bus, spec)
+        for m in spec.motors:
+            bus.write("Operating_Mode", m.motor_id, spec.operating_mode)
+            if spec.vendor == "dynamixel":
+                bus.write("Drive_Mode", m.motor_id, 1 if m.name in spec.inverted else 0)
+        operator.prompt("middle", "Move the arm to the middle of its range of motion and press ENTER")
+        # reset_calibration: offsets 0 and full limits, so Present = Actual
+        for m in spec.motors:
+            bus.write("Homing_Offset", m.motor_id, 0)
+            bus.write("Min_Position_Limit", m.motor_id, 0)
+            bus.write("Max_Position_Limit", m.motor_id, res[m.name] - 1)
+        mid = bus.sync_read("Present_Position", ids)
+        offsets: dict[str, int] = {}
+        for m in spec.motors:
+            offsets[m.name] = half_turn_homing_offset(
+                mid[m.motor_id], vendor=spec.vendor, resolution=res[m.name]
+            )
+            if spec.vendor == "feetech" and mid[m.motor_id] % res[m.name] == res[m.name] - 1:
+                notes.append(
+                    f"{m.name}: mid pose at {res[m.name] - 1}; Homing_Offset clamped to 2047 (no overflow)"
+                )
+        if not home_after_sweep:
+            for m in spec.motors:
+                bus.write("Homing_Offset", m.motor_id, offsets[m.name])
+
+        swept = [m for m in spec.motors if sweep_full_turn or m.name not in spec.full_turn]
+        swept_ids = [m.motor_id for m in swept]
+        operator.prompt("sweep", "Move every joint through its whole range of motion, then press ENTER")
+        first = bus.sync_read("Present_Position", swept_ids)
+        tracker = RangeTracker.start([first[i] for i in swept_ids], resolution=res[swept[0].name])
+        step = 0
+        while True:
+            done = operator.sweep_step()
+            now = bus.sync_read("Present_Position", swept_ids)
+            tracker = tracker.update([now[i] for i in swept_ids])
+            step += 1
+            if on_sweep is not None:
+                on_sweep(
+                    SweepView(
+                        tuple(m.name for m in swept),
+                        tuple(now[i] for i in swept_ids),
+                        tuple(int(v) for v in tracker.min_unwrapped),
+                        tuple(int(v) for v in tracker.max_unwrapped),
+                        step,
+                    )
+                )
+            if done or (max_steps is not None and step >= max_steps):
+                break
+
+        cals: dict[str, MotorCalibration] = {}
+        naive: dict[str, tuple[int, int]] = {}
+        for k, m in enumerate(swept):
+            r = res[m.name]
+            lo, hi = int(tracker.min_unwrapped[k]), int(tracker.max_unwrapped[k])
+            naive[m.name] = (int(tracker.wrap_unaware_min[k]), int(tracker.wrap_unaware_max[k]))
+            base = 0 if home_after_sweep else offsets[m.name]
+            if lo == hi:
+                raise InvalidCalibrationError(
+                    f"motor {m.name!r} (id {m.motor_id}) did not move during the sweep"
+                )
+            if bool(tracker.full_turn[k]):
+                notes.append(f"{m.name}: swept a full turn; range set to 0..{r - 1}")
+                offset, rmin, rmax = offsets[m.name], 0, r - 1
+            elif home_after_sweep or bool(tracker.crossed_seam[k]):
+                if not home_after_sweep:
+                    notes.append(
+                        f"{m.name}: the sweep crossed the 0/{r - 1} seam (LeRobot would record "
+                        f"{naive[m.name][0]}..{naive[m.name][1]}); re-homed so the seam is outside the travel"
+                    )
+                shift, rmin, rmax = centre_homing(lo, hi, resolution=r)
+                offset = base + shift if spec.vendor == "feetech" else base - shift
+            else:
+                offset, rmin, rmax = base, lo, hi
+            if spec.vendor == "feetech":
+                offset, rmin, rmax = _normalise_feetech_offset(offset, rmin, rmax, r)
+            dm = 1 if (spec.vendor == "dynamixel" and m.name in spec.inverted) else 0
+            cals[m.name] = MotorCalibration(m.motor_id, dm, offset, rmin, rmax)
+        for m in spec.motors:
+            if m.name not in cals:  # full-turn joint not swept: LeRobot forces 0..res-1
+                dm = 1 if (spec.vendor == "dynamixel" and m.name in spec.inverted) else 0
+                cals[m.name] = MotorCalibration(m.motor_id, dm, offsets[m.name], 0, res[m.name] - 1)
+        ordered = {n: cals[n] for n in names}
+        restore(bus, spec, ordered)
+        written = write_current(path, ordered) if path is not None else None
+    except BaseException:
+        with contextlib.suppress(CalibError):
+            _write_eeprom(bus, spec, before)
+        raise
+    return CalibrationResult(ordered, written, tuple(notes), naive)
+
+
+def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> None:
+    """Write a calibration to the motors: Homing_Offset, limits and (Dynamixel) Drive_Mode.
+
+    LeRobot's Dynamixel ``write_calibration`` omits Drive_Mode, so a restored Koch leader stayed uncalibrated;
+    robocal writes it. Torque is disabled first (EEPROM writes).
+    """
+    missing = [m.name for m in spec.motors if m.name not in cals]
+    if missing:
+        raise InvalidCalibrationError(f"calibration has no entry for motor(s) {', '.join(missing)}")
+    _disable_torque(bus, spec)
+    for m in spec.motors:
+        c = cals[m.name]
+        if spec.vendor == "dynamixel":
+            bus.write("Drive_Mode", m.motor_id, c.drive_mode)
+        if bus.has_register(m.motor_id, "Homing_Offset"):
+            bus.write("Homing_Offset", m.motor_id, c.homing_offset)
+        bus.write("Min_Position_Limit", m.motor_id, c.range_min)
+        bus.write("Max_Position_Limit", m.motor_id, c.range_max)
+
+
+@dataclass(frozen=True)
+class Difference:
+    """One EEPROM value that differs from the calibration file."""
+
+    motor: str
+    motor_id: int
+    field: str
+    file_value: int
+    motor_value: int
+
+    def __str__(self) -> str:
+        return (
+            f"motor {self.motor!r} (id {self.motor_id}): {self.field} is {self.motor_value} on the motor, "
+            f"{self.file_value} in the file"
+        )
+
+
+def check(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> list[Difference]:
+    """Compare the motors' EEPROM with a calibration file, naming each motor and field (#1360).
+
+    Compares ``homing_offset``, ``range_min``, ``range_max``, the id (by ping) and, on Dynamixel, bit 0 of
+    ``Drive_Mode`` (other bits are ignored). Feetech drive_mode lives only in the file and is not compared.
+    """
+    unknown = [n for n in cals if n not in spec.motor_names]
+    if unknown:
+        raise InvalidCalibrationError(f"calibration names motor(s) {', '.join(unknown)} not on a {spec.name}")
+    diffs: list[Difference] = []
+    eeprom = read_eeprom(bus, spec)
+    for m in spec.motors:
+        if m.name not in cals:
+            raise InvalidCalibrationError(f"calibration has no entry for motor {m.name!r}")
+        c = cals[m.name]
+        if c.id != m.motor_id:
+            diffs.append(Difference(m.name, m.motor_id, "id", c.id, m.motor_id))
+        e = eeprom[m.name]
+        pairs = [
+            ("homing_offset", "Homing_Offset", c.homing_offset),
+            ("range_min", "Min_Position_Limit", c.range_min),
+            ("range_max", "Max_Position_Limit", c.range_max),
+        ]
+        if spec.vendor == "dynamixel":
+            pairs.append(("drive_mode", "Drive_Mode", c.drive_mode))
+        for fname, reg, fval in pairs:
+            if reg not in e:
+                continue
+            mval = e[reg] & 1 if reg == "Drive_Mode" else e[reg]
+            if mval != fval:
+                diffs.append(Difference(m.name, m.motor_id, fname, fval, mval))
+    return diffs
+
+
+def legacy_to_current(
+    legacy_cal: object, vendor: str, ids: Sequence[int] | None = None
+) -> tuple[dict[str, MotorCalibration], list[str]]:
+    """Convert a legacy calibration to the current format, keeping each DEGREE joint's zero exactly.
+
+    The current DEGREES zero is the middle of ``range_min..range_max``. robocal picks range 0..4094 (middle
+    2047) and the Homing_Offset that makes legacy 0° read 2047: Feetech ``H = −h − 2047`` (wrapped to ±2047),
+    Dynamixel ``H = h + 2047`` (Drive_Mode carries the inversion). Remaining difference: LeRobot's DEGREES
+    scale is 360/4095 per tick instead of the legacy 360/4096 (0.024 %). LINEAR joints keep
+    ``start_pos..end_pos`` as their range.
+
+    Returns:
+        The current calibration and warnings (Feetech inverted DEGREE joints: LeRobot's DEGREES ignores
+        drive_mode).
+    """
+    from ..core.lerobot import LegacyCalibration
+
+    if not isinstance(legacy_cal, LegacyCalibration):
+        raise UsageError("legacy_to_current needs a LegacyCalibration")
+    if vendor not in ("feetech", "dynamixel"):
+        raise UsageError(f"vendor {vendor!r}: expected 'feetech' or 'dynamixel'")
+    n = len(legacy_cal.motor_names)
+    motor_ids = list(ids) if ids is not None else list(range(1, n + 1))
+    if len(motor_ids) != n:
+        raise UsageError(f"{len(motor_ids)} ids for {n} motors")
+    out: dict[str, MotorCalibration] = {}
+    warnings: list[str] = []
+    for k, name in enumerate(legacy_cal.motor_names):
+        h = int(legacy_cal.homing_offset[k])
+        dm = int(legacy_cal.drive_mode[k])
+        if legacy_cal.calib_mode[k] == "LINEAR":
+            lo, hi = sorted((int(legacy_cal.start_pos[k]), int(legacy_cal.end_pos[k])))
+            if lo == hi:
+                raise InvalidCalibrationError(f"motor {name!r}: LINEAR start_pos equals end_pos ({lo})")
+            out[name] = MotorCalibration(motor_ids[k], 0, 0, lo, hi)
+            continue
+        if vendor == "feetech":
+            offset = (-h - 2047 + 2048) % 4096 - 2048
+            if offset == -2048:
+                offset = -2047
+                warnings.append(f"{name}: offset clamped by one tick")
+            if dm:
+                warnings.append(
+                    f"{name}: inverted (drive_mode 1) but LeRobot's DEGREES ignores drive_mode on Feetech; "
+                    "the sign of this joint flips"
+                )
+        else:
+            offset = h + 2047
+        out[name] = MotorCalibration(motor_ids[k], dm, offset, 0, 4094)
+    return out, warnings
+
+
+def export_joint_map(
+    spec: RobotSpec,
+    cals: Mapping[str, MotorCalibration],
+    *,
+    signs: Mapping[str, int] | None = None,
+    offsets_deg: Mapping[str, float] | None = None,
+    compat: str = "lerobot",
+) -> tuple[RobotCalibration, list[str]]:
+    """Exact canonical joint map ``q_urdf = sign·q_lerobot + offset`` of the DEGREES joints (#4442).
+
+    LeRobot DEGREES: ``q = (present − mid)·360/4095`` (``compat="lerobot"``) or ``·360/4096`` with drive_mode
+    (``"exact"``), ``mid = (range_min + range_max)/2``. Canonical form ``q_rad = d·k·(present − h)`` with
+    ``d = sign·(−1 if exact and drive_mode else 1)``, ``k = 2π/4095`` (or ``2π/4096``) rad/tick and
+    ``h = mid − offset_rad/(d·k)``. ``present`` is the Present_Position register (EEPROM homing applied).
+
+    Returns:
+        The joint map (radians) of the DEGREES motors and the names of the skipped (range-mode) motors.
+    """
+    signs = dict(signs or {})
+    offsets_deg = dict(offsets_deg or {})
+    unknown = sorted((set(signs) | set(offsets_deg)) - set(spec.motor_names))
+    if unknown:
+        raise UsageError(f"--sign/--offset name unknown motor(s) {', '.join(unknown)}")
+    names, dirs, homes, scales, skipped = [], [], [], [], []
+    for m in spec.motors:
+        if m.name not in cals:
+            raise InvalidCalibrationError(f"calibration has no entry for motor {m.name!r}")
+        if m.norm_mode != "degrees":
+            skipped.append(m.name)
+            continue
+        c = cals[m.name]
+        s = signs.get(m.name, 1)
+        if s not in (-1, 1):
+            raise UsageError(f"--sign {m.name}={s}: expected -1 or 1")
+        ticks = 4095 if compat == "lerobot" else 4096
+        d = s * (-1 if (compat == "exact" and c.drive_mode and spec.vendor == "feetech") else 1)
+        k = 2 * math.pi / ticks
+        mid = (c.range_min + c.range_max) / 2
+        off_rad = math.radians(offsets_deg.get(m.name, 0.0))
+        names.append(m.name)
+        dirs.append(float(d))
+        homes.append(mid - off_rad / (d * k))
+        scales.append(k)
+    if not names:
+        raise InvalidCalibrationError(f"{spec.name}: no DEGREES motors to export")
+    return RobotCalibration(names, dirs, homes, scales), skipped
