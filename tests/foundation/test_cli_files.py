@@ -97,3 +97,28 @@ def test_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     assert err.count("\n") == 1 and err.startswith("error: ") and "--calibration" in err
     assert main(["frobnicate"]) == 2
     assert capsys.readouterr().err.startswith("error: No such command")
+
+
+def test_convert_lerobot_legacy_degree_exact(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import math
+
+    import numpy as np
+
+    src = tmp_path / "legacy.json"
+    src.write_text(json.dumps({"homing_offset": [2048, -1024, 0], "drive_mode": [1, 0, 0], "start_pos": [0, 0, 0],
+                               "end_pos": [0, 0, 0], "calib_mode": ["DEGREE"] * 3, "motor_names": ["a", "b", "c"]}))
+    dst = tmp_path / "map.yaml"
+    assert main(["convert", str(src), str(dst), "--to", "robocal"]) == 0
+    cal = read_calibration(dst).calibration
+    # LeRobot legacy golden vector: raw [3072, 3072, -2048] -> [-90, 180, -180] degrees
+    np.testing.assert_allclose(np.degrees(cal.to_joint([3072, 3072, -2048])), [-90.0, 180.0, -180.0], atol=1e-12)
+    assert cal.scale[0] == math.pi / 2048
+    # a motor-rad format cannot hold tick offsets: clear error, nothing written
+    assert main(["convert", str(src), str(tmp_path / "x.json")]) == 2
+    assert "use --to robocal" in capsys.readouterr().err
+    linear = json.loads(src.read_text())
+    linear["calib_mode"][2] = "LINEAR"
+    src.write_text(json.dumps(linear))
+    assert main(["convert", str(src), str(tmp_path / "y.yaml"), "--to", "robocal"]) == 2
+    assert "LINEAR motor(s) c" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["legacy.json", "map.yaml"]
