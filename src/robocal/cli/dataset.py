@@ -1,7 +1,169 @@
-"""``robocal dataset`` commands."""
+"""``robocal dataset`` commands: re-calibrate and inspect recorded LeRobot v3 datasets."""
 
 from __future__ import annotations
 
-import typer
+from pathlib import Path
+from typing import Annotated
 
-app = typer.Typer(help="dataset commands.", no_args_is_help=True)
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from ..workflows.dataset import DatasetOptions
+from . import _common
+
+app = typer.Typer(help="Re-calibrate and inspect recorded LeRobot v3 datasets.", no_args_is_help=True)
+
+
+def _options(
+    robot: str | None,
+    motor_family: str | None,
+    use_degrees: bool | None,
+    modes: str | None,
+    old_modes: str | None,
+    compat: str,
+) -> DatasetOptions:
+    return DatasetOptions(
+        robot=robot,
+        motor_family=motor_family,
+        use_degrees=use_degrees,
+        modes=_common.parse_assignments(modes, "--modes") or None,
+        old_modes=_common.parse_assignments(old_modes, "--old-modes") or None,
+        compat=compat,
+    )
+
+
+Robot = Annotated[
+    str | None, typer.Option("--robot", help="LeRobot robot type (so101_follower, koch_follower, ...).")
+]
+Family = Annotated[
+    str | None, typer.Option("--motor-family", help="feetech or dynamixel (default: --robot).")
+]
+Degrees = Annotated[
+    bool | None,
+    typer.Option(
+        "--use-degrees/--no-use-degrees", help="Arm joints recorded in degrees (default: the robot's)."
+    ),
+]
+Modes = Annotated[
+    str | None, typer.Option("--modes", help="joint=mode,... (degrees, range_m100_100, range_0_100).")
+]
+Features = Annotated[
+    str | None,
+    typer.Option("--features", help="Comma-separated features (default observation.state,action)."),
+]
+Compat = Annotated[str, typer.Option("--compat", help="lerobot (bit-identical) or exact (lossless).")]
+
+
+@app.command()
+def recalibrate(
+    src: Annotated[Path, typer.Argument(help="Source dataset root (LeRobot v3).")],
+    dst: Annotated[Path, typer.Argument(help="New dataset root (must not exist unless --overwrite).")],
+    old: Annotated[Path, typer.Option("--old", help="Calibration the dataset was recorded with.")],
+    new: Annotated[Path, typer.Option("--new", help="Calibration to convert to.")],
+    features: Features = None,
+    workers: Annotated[int, typer.Option("--workers", help="Worker processes.")] = 1,
+    robot: Robot = None,
+    motor_family: Family = None,
+    use_degrees: Degrees = None,
+    modes: Modes = None,
+    old_modes: Annotated[
+        str | None, typer.Option("--old-modes", help="Modes of the old calibration if different.")
+    ] = None,
+    compat: Compat = "lerobot",
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace DST once the new root is complete.")
+    ] = False,
+) -> None:
+    """Re-calibrate the joint features of a dataset: value → actual encoder position → new value."""
+    from ..workflows.dataset import recalibrate as run
+
+    feats = _common.parse_csv_list(features, "--features")
+    opts = _options(robot, motor_family, use_degrees, modes, old_modes, compat)
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[frames]} frames"),
+        TimeElapsedColumn(),
+        console=_common.err_console,
+        transient=True,
+        disable=not _common.err_console.is_terminal,
+    ) as progress:
+        task = progress.add_task("re-calibrating", total=None, frames=0)
+        done = {"files": 0, "frames": 0}
+
+        def on_file_done(path: str, frames: int) -> None:
+            done["files"] += 1
+            done["frames"] += frames
+            progress.update(task, completed=done["files"], frames=done["frames"])
+
+        from ..dataset import read_layout
+
+        progress.update(task, total=len(read_layout(src).data_files))
+        report = run(
+            src,
+            dst,
+            old,
+            new,
+            features=feats,
+            workers=workers,
+            overwrite=overwrite,
+            options=opts,
+            on_file_done=on_file_done,
+        )
+    _common.console.print(
+        f"wrote {report.dst}: {report.frames} frames in {report.files} files, "
+        f"{report.row_groups} row groups; features {', '.join(report.features)}"
+    )
+    for w in report.warnings:
+        _common.print_warning(w)
+    raise typer.Exit(_common.exit_code_for(report.warnings))
+
+
+@app.command()
+def inspect(
+    root: Annotated[Path, typer.Argument(help="Dataset root (LeRobot v3).")],
+    calibration: Annotated[
+        Path | None, typer.Option("--calibration", help="The dataset's calibration file.")
+    ] = None,
+    features: Features = None,
+    robot: Robot = None,
+    motor_family: Family = None,
+    use_degrees: Degrees = None,
+    modes: Modes = None,
+    compat: Compat = "lerobot",
+) -> None:
+    """Per-joint min/max/mean; flags full-turn jumps and values outside the calibrated range (exit 1)."""
+    from ..workflows.dataset import inspect as run
+
+    opts = _options(robot, motor_family, use_degrees, modes, None, compat)
+    report = run(
+        root, calibration=calibration, features=_common.parse_csv_list(features, "--features"), options=opts
+    )
+    table = Table(title=f"{report.root}: {report.frames} frames")
+    for col in ("feature", "joint", "min", "max", "mean", "range", "jumps", "out of range"):
+        table.add_column(col, justify="right" if col not in ("feature", "joint") else "left")
+    for j in report.joints:
+        rng = "-" if j.range_lo is None or j.range_hi is None else f"{j.range_lo:.3f}..{j.range_hi:.3f}"
+        table.add_row(
+            j.feature,
+            j.joint,
+            f"{j.min:.3f}",
+            f"{j.max:.3f}",
+            f"{j.mean:.3f}",
+            rng,
+            str(j.jumps),
+            str(j.out_of_range),
+        )
+    out = _common.console if _common.console.is_terminal else Console(highlight=False, width=160)
+    out.print(table)
+    for j in report.flagged:
+        parts = []
+        if j.jumps:
+            parts.append(f"{j.jumps} full-turn jump(s) between frames")
+        if j.out_of_range:
+            parts.append(f"{j.out_of_range} value(s) outside the calibrated range")
+        _common.print_warning(f"{j.feature} {j.joint}: {'; '.join(parts)} — check the calibration")
+    raise typer.Exit(_common.EXIT_WARNINGS if report.flagged else _common.EXIT_OK)

@@ -30,6 +30,9 @@ from ._engine import recalibrate_values as recalibrate_values  # noqa: E402
 from ._generate import SO_ARM_JOINTS as SO_ARM_JOINTS  # noqa: E402
 from ._generate import GeneratedDataset as GeneratedDataset  # noqa: E402
 from ._generate import generate_dataset as generate_dataset  # noqa: E402
+from ._inspect import InspectReport as InspectReport  # noqa: E402
+from ._inspect import JointSummary as JointSummary  # noqa: E402
+from ._inspect import inspect_dataset as inspect_dataset  # noqa: E402
 from ._layout import DatasetLayout as DatasetLayout  # noqa: E402
 from ._layout import VectorFeature as VectorFeature  # noqa: E402
 from ._layout import read_layout as read_layout  # noqa: E402
