@@ -246,29 +246,16 @@ def recalibrate_dataset(
     tmp = Path(tempfile.mkdtemp(prefix=f".{dst_p.name}.robocal-", dir=dst_p.parent))
     try:
         _build(layout, tmp, plans, workers, report, on_file_done)
-        if dst_p.exists():
-            old_dir = Path(tempfile.mkdtemp(prefix=f".{dst_p.name}.old-", dir=dst_p.parent))
-            os.replace(dst_p, old_dir / "root")
-            os.replace(tmp, dst_p)
-            shutil.rmtree(old_dir, ignore_errors=True)
-        else:
-            os.replace(tmp, dst_p)
+        publish_root(tmp, dst_p)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return report
 
 
-def _build(
-    layout: DatasetLayout,
-    tmp: Path,
-    plans: list[FeaturePlan],
-    workers: int,
-    report: DatasetReport,
-    on_file_done: ProgressCallback | None,
-) -> None:
+def prepare_root(layout: DatasetLayout, tmp: Path) -> None:
+    """Carry every file that is not re-calibrated into ``tmp`` (videos linked) and create the data folders."""
     root = layout.root
-    keys = [p.key for p in plans]
     special = set(layout.data_files) | set(layout.episode_files) | {"meta/stats.json"}
     for path in sorted(root.rglob("*")):
         if path.is_dir():
@@ -283,6 +270,18 @@ def _build(
             shutil.copy2(path, tmp / rel)
     for rel in layout.data_files:
         (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+
+
+def _build(
+    layout: DatasetLayout,
+    tmp: Path,
+    plans: list[FeaturePlan],
+    workers: int,
+    report: DatasetReport,
+    on_file_done: ProgressCallback | None,
+) -> None:
+    root = layout.root
+    prepare_root(layout, tmp)
     jobs = [(str(root / rel), str(tmp / rel), rel, plans) for rel in layout.data_files]
     results: list[FileResult] = []
     if workers == 1 or len(jobs) == 1:
@@ -307,7 +306,19 @@ def _build(
                     if on_file_done is not None:
                         on_file_done(res.path, res.frames)
             results = [f.result() for f in futures]
+    finish_root(layout, tmp, plans, results, report)
 
+
+def finish_root(
+    layout: DatasetLayout,
+    tmp: Path,
+    plans: Sequence[FeaturePlan],
+    results: Sequence[FileResult],
+    report: DatasetReport,
+) -> None:
+    """Fill ``report`` from the per-file results and write the episode and dataset statistics into ``tmp``."""
+    root = layout.root
+    keys = [p.key for p in plans]
     episode_acc: dict[int, dict[str, StatAccumulator]] = {}
     for res in results:
         report.frames += res.frames
@@ -341,3 +352,14 @@ def _build(
         report.warnings += write_dataset_stats(stats_src, tmp / "meta" / "stats.json", totals, keys)
     with contextlib.suppress(OSError):
         shutil.copystat(root, tmp)
+
+
+def publish_root(tmp: Path, dst: Path) -> None:
+    """Rename the finished ``tmp`` root to ``dst``, replacing an existing ``dst`` only now."""
+    if dst.exists():
+        old_dir = Path(tempfile.mkdtemp(prefix=f".{dst.name}.old-", dir=dst.parent))
+        os.replace(dst, old_dir / "root")
+        os.replace(tmp, dst)
+        shutil.rmtree(old_dir, ignore_errors=True)
+    else:
+        os.replace(tmp, dst)
