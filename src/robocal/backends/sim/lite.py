@@ -21,7 +21,7 @@ import numpy as np
 
 from .robstride import SimMotor, SimMotorBus
 
-__all__ = ["LITE_JOINTS", "LiteJoint", "SimLite", "SimOperator"]
+__all__ = ["LITE_JOINTS", "LiteJoint", "SimLite", "SimOperator", "lite_urdf_text"]
 
 
 @dataclass(frozen=True)
@@ -250,3 +250,39 @@ class SimLite:
     def joint_positions(self) -> dict[str, float]:
         """Joint → true joint position, rad."""
         return {n: m.q_rad for n, m in self.motors.items()}
+
+
+def lite_urdf_text() -> str:
+    """A minimal URDF of the Lite bimanual arms with ``<ros2_control>`` joint params (for the demo)."""
+    links = ['  <link name="base_link"/>']
+    for side in ("left", "right"):
+        parent = "base_link"
+        for j in (j for j in LITE_JOINTS if j.name.startswith(side)):
+            links.append(f'  <link name="{j.name}_link"/>')
+            links.append(
+                f'  <joint name="{j.name}" type="revolute"><parent link="{parent}"/>'
+                f'<child link="{j.name}_link"/><axis xyz="0 1 0"/>'
+                f'<limit lower="{j.lower}" upper="{j.upper}" effort="{j.torque_limit}" velocity="30"/>'
+                "</joint>"
+            )
+            parent = f"{j.name}_link"
+    systems = []
+    for bus in ("can0", "can1"):
+        rows = [f'  <ros2_control name="RobstrideSystem_{bus}" type="system">', "    <hardware>"]
+        rows.append(f'      <param name="can_interface">{bus}</param>')
+        rows.append("    </hardware>")
+        for j in (j for j in LITE_JOINTS if j.bus == bus):
+            rows.append(f'    <joint name="{j.name}">')
+            for key, value in (
+                ("can_id", j.can_id),
+                ("model", j.model),
+                ("direction", j.direction),
+                ("lower_limit", j.lower),
+                ("upper_limit", j.upper),
+            ):
+                rows.append(f'      <param name="{key}">{value}</param>')
+            rows.append("    </joint>")
+        rows.append("  </ros2_control>")
+        systems.extend(rows)
+    body = "\n".join(links + systems)
+    return f'<?xml version="1.0"?>\n<robot name="lite_bimanual">\n{body}\n</robot>\n'
