@@ -1,4 +1,3 @@
-# ruff: noqa: E501  (pinned golden vectors keep their full digits on one line)
 """UR core: DH FK, the correction (upstream suite reproduced), the calib_ hash, rpy conventions."""
 
 from __future__ import annotations

@@ -1,4 +1,3 @@
-# ruff: noqa: E501  (CLI argument lists and byte layouts stay on one line)
 """Primary-interface client against the simulated controller on loopback TCP, and the byte layout."""
 
 from __future__ import annotations

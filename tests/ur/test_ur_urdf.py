@@ -1,4 +1,3 @@
-# ruff: noqa: E501  (URDF snippets stay on one line)
 """YAML → URDF → FK through an independent URDF reader (pytransform3d), and in-place URDF origin edits."""
 
 from __future__ import annotations
