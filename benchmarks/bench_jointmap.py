@@ -57,7 +57,9 @@ def main() -> None:
     t_loop = _best(tick_loop, 5, 20000)
     print(f"per tick, {N_JOINTS} joints, position+velocity+effort:")
     print(f"  robocal RobotCalibration     {t_np * 1e6:8.2f} us/tick   (target <= 5 us)")
-    print(f"  baseline per-joint loop      {t_loop * 1e6:8.2f} us/tick   ratio robocal/baseline = {t_np / t_loop:.2f}")
+    print(
+        f"  baseline per-joint loop      {t_loop * 1e6:8.2f} us/tick   ratio robocal/baseline = {t_np / t_loop:.2f}"
+    )
 
     total = 10_000_000
     t_rows = total // N_JOINTS
@@ -78,9 +80,13 @@ def main() -> None:
     t_api = _best(batch_api, 3, 2)
     t_copy = _best(copy, 5, 3)
     print(f"batch ({t_rows}, {N_JOINTS}) = {samples:.1e} joint-samples:")
-    print(f"  robocal to_joint(out=...)   {samples / t_batch / 1e6:8.1f} M samples/s   "
-          f"ratio to copy = {t_copy / t_batch:.2f}   (target >= 0.5)")
-    print(f"  robocal to_joint (new array) {samples / t_api / 1e6:8.1f} M samples/s   ratio to copy = {t_copy / t_api:.2f}")
+    print(
+        f"  robocal to_joint(out=...)   {samples / t_batch / 1e6:8.1f} M samples/s   "
+        f"ratio to copy = {t_copy / t_batch:.2f}   (target >= 0.5)"
+    )
+    print(
+        f"  robocal to_joint (new array) {samples / t_api / 1e6:8.1f} M samples/s   ratio to copy = {t_copy / t_api:.2f}"
+    )
     print(f"  baseline numpy.copyto        {samples / t_copy / 1e6:8.1f} M samples/s")
 
 

@@ -28,7 +28,9 @@ def test_check_consistent_file_exits_0(capsys: pytest.CaptureFixture[str]) -> No
 
 def test_check_reports_mismatches_and_exits_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     text = CAL.read_text()
-    text = text.replace("left_elbow_pitch:\n  id: 14\n  direction: -1", "left_elbow_pitch:\n  id: 99\n  direction: 1")
+    text = text.replace(
+        "left_elbow_pitch:\n  id: 14\n  direction: -1", "left_elbow_pitch:\n  id: 99\n  direction: 1"
+    )
     text = text.replace("right_wrist_pitch:", "right_wrist_pich:")
     cal = tmp_path / "calibration.yaml"
     cal.write_text(text)
@@ -60,7 +62,9 @@ def test_convert_chain_is_exact(tmp_path: Path, capsys: pytest.CaptureFixture[st
     src = CAL
     for name, extra in steps:
         dst = tmp_path / name
-        code = main(["convert", str(src), str(dst), *extra, *(["--urdf", str(URDF)] if src.name == "b.yaml" else [])])
+        code = main(
+            ["convert", str(src), str(dst), *extra, *(["--urdf", str(URDF)] if src.name == "b.yaml" else [])]
+        )
         assert code == 0, capsys.readouterr().err
         src = dst
     original = read_calibration(CAL)
@@ -105,13 +109,25 @@ def test_convert_lerobot_legacy_degree_exact(tmp_path: Path, capsys: pytest.Capt
     import numpy as np
 
     src = tmp_path / "legacy.json"
-    src.write_text(json.dumps({"homing_offset": [2048, -1024, 0], "drive_mode": [1, 0, 0], "start_pos": [0, 0, 0],
-                               "end_pos": [0, 0, 0], "calib_mode": ["DEGREE"] * 3, "motor_names": ["a", "b", "c"]}))
+    src.write_text(
+        json.dumps(
+            {
+                "homing_offset": [2048, -1024, 0],
+                "drive_mode": [1, 0, 0],
+                "start_pos": [0, 0, 0],
+                "end_pos": [0, 0, 0],
+                "calib_mode": ["DEGREE"] * 3,
+                "motor_names": ["a", "b", "c"],
+            }
+        )
+    )
     dst = tmp_path / "map.yaml"
     assert main(["convert", str(src), str(dst), "--to", "robocal"]) == 0
     cal = read_calibration(dst).calibration
     # LeRobot legacy golden vector: raw [3072, 3072, -2048] -> [-90, 180, -180] degrees
-    np.testing.assert_allclose(np.degrees(cal.to_joint([3072, 3072, -2048])), [-90.0, 180.0, -180.0], atol=1e-12)
+    np.testing.assert_allclose(
+        np.degrees(cal.to_joint([3072, 3072, -2048])), [-90.0, 180.0, -180.0], atol=1e-12
+    )
     assert cal.scale[0] == math.pi / 2048
     # a motor-rad format cannot hold tick offsets: clear error, nothing written
     assert main(["convert", str(src), str(tmp_path / "x.json")]) == 2

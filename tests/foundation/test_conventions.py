@@ -80,5 +80,7 @@ def test_lerobot_legacy_golden_vectors() -> None:
     d, h, s = homing_from_lerobot_legacy([1, 0, 0], [2048, -1024, 0])
     cal = RobotCalibration(["a", "b", "c"], d, h, s)
     np.testing.assert_allclose(np.degrees(cal.to_joint([1024, 2048, 1024])), [90.0, 90.0, 90.0], atol=1e-12)
-    np.testing.assert_allclose(np.degrees(cal.to_joint([3072, 3072, -2048])), [-90.0, 180.0, -180.0], atol=1e-12)
-    assert LEROBOT_LEGACY_RAD_PER_TICK == math.pi / 2048
+    np.testing.assert_allclose(
+        np.degrees(cal.to_joint([3072, 3072, -2048])), [-90.0, 180.0, -180.0], atol=1e-12
+    )
+    assert math.pi / 2048 == LEROBOT_LEGACY_RAD_PER_TICK

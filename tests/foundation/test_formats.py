@@ -29,7 +29,7 @@ def calibration_files(draw: st.DrawFn) -> CalibrationFile:
     dirs = draw(st.lists(st.sampled_from([-1, 1]), min_size=n, max_size=n))
     offs = draw(st.lists(offsets, min_size=n, max_size=n))
     ids = draw(st.lists(st.integers(0, 255), min_size=n, max_size=n, unique=True))
-    return CalibrationFile(RobotCalibration(joint_names, dirs, offs), dict(zip(joint_names, ids)))
+    return CalibrationFile(RobotCalibration(joint_names, dirs, offs), dict(zip(joint_names, ids, strict=False)))
 
 
 @pytest.mark.parametrize("fmt", ["lite-json", "lite-yaml", "robocal", "ros2-transmission"])
@@ -91,7 +91,7 @@ def test_lite_yaml_update_in_place_keeps_comments_and_changes_one_line(tmp_path:
     write_calibration(path, CalibrationFile(new, cf.ids))
     updated = path.read_text().splitlines()
     assert len(updated) == len(original)
-    changed = [(a, b) for a, b in zip(original, updated) if a != b]
+    changed = [(a, b) for a, b in zip(original, updated, strict=False) if a != b]
     assert changed == [("  homing_offset: -1.026153", "  homing_offset: 0.123456789")]
     assert (tmp_path / "calibration.yaml.bak").read_text().splitlines() == original
 
@@ -130,10 +130,21 @@ def test_transmission_with_gear_ratio_reads_scale(tmp_path: Path) -> None:
 
 def test_detect_formats(tmp_path: Path) -> None:
     (tmp_path / "a.json").write_text('{"j": {"id": 1, "direction": 1, "homing_offset": 0.5}}')
-    (tmp_path / "leg.json").write_text(json.dumps({"homing_offset": [0], "drive_mode": [0], "start_pos": [0],
-                                                   "end_pos": [0], "calib_mode": ["DEGREE"], "motor_names": ["m"]}))
-    (tmp_path / "cur.json").write_text(json.dumps({"m": {"id": 1, "drive_mode": 0, "homing_offset": 0,
-                                                         "range_min": 0, "range_max": 4095}}))
+    (tmp_path / "leg.json").write_text(
+        json.dumps(
+            {
+                "homing_offset": [0],
+                "drive_mode": [0],
+                "start_pos": [0],
+                "end_pos": [0],
+                "calib_mode": ["DEGREE"],
+                "motor_names": ["m"],
+            }
+        )
+    )
+    (tmp_path / "cur.json").write_text(
+        json.dumps({"m": {"id": 1, "drive_mode": 0, "homing_offset": 0, "range_min": 0, "range_max": 4095}})
+    )
     (tmp_path / "junk.txt").write_text("hello")
     assert detect_format(tmp_path / "a.json") == "lite-json"
     assert detect_format(EXAMPLES / "calibration.yaml") == "lite-yaml"

@@ -86,12 +86,23 @@ def test_select_reorders_and_rejects_unknown() -> None:
         ({"homing_offset": [math.nan, 0.0]}, InvalidCalibrationError, "joint 'a': homing_offset is nan"),
         ({"homing_offset": [0.0, math.inf]}, InvalidCalibrationError, "joint 'b': homing_offset is inf"),
         ({"scale": [0.0, 1.0]}, InvalidCalibrationError, "joint 'a': scale 0.0 must be finite and > 0"),
-        ({"homing_offset": [0.0, 1.0, 2.0]}, ShapeMismatchError, r"homing_offset has shape \(3,\); expected \(2,\)"),
+        (
+            {"homing_offset": [0.0, 1.0, 2.0]},
+            ShapeMismatchError,
+            r"homing_offset has shape \(3,\); expected \(2,\)",
+        ),
         ({"names": ["a", "a"]}, JointMismatchError, "duplicate joint names: a"),
     ],
 )
-def test_invalid_calibrations_are_rejected(kwargs: dict[str, object], error: type[Exception], message: str) -> None:
-    args: dict[str, object] = {"names": ["a", "b"], "direction": [1, 1], "homing_offset": [0.0, 0.0], "scale": 1.0}
+def test_invalid_calibrations_are_rejected(
+    kwargs: dict[str, object], error: type[Exception], message: str
+) -> None:
+    args: dict[str, object] = {
+        "names": ["a", "b"],
+        "direction": [1, 1],
+        "homing_offset": [0.0, 0.0],
+        "scale": 1.0,
+    }
     args.update(kwargs)
     with pytest.raises(error, match=message) as info:
         RobotCalibration(args["names"], args["direction"], args["homing_offset"], args["scale"])  # type: ignore[arg-type]
@@ -149,8 +160,12 @@ def test_unwrap_to_limits_recovers_any_turn(cal: RobotCalibration, data: st.Data
 
 def test_blocked_batch_path_is_bit_identical() -> None:
     rng = np.random.default_rng(3)
-    cal = RobotCalibration([f"j{i}" for i in range(14)], rng.choice([-1, 1], 14), rng.uniform(-3, 3, 14),
-                           rng.choice([1.0, 0.5], 14))
+    cal = RobotCalibration(
+        [f"j{i}" for i in range(14)],
+        rng.choice([-1, 1], 14),
+        rng.uniform(-3, 3, 14),
+        rng.choice([1.0, 0.5], 14),
+    )
     raw = rng.uniform(-5, 5, (100_003, 14))
     expected = cal._gain * (raw - cal.homing_offset)  # type: ignore[attr-defined]
     out = np.empty_like(raw)

@@ -22,7 +22,11 @@ err_console = Console(stderr=True, highlight=False, soft_wrap=True)
 
 def print_error(message: str) -> None:
     """Print one ``error:`` line (no markup, no traceback) to standard error."""
-    line = " ".join(str(message).split("\n")[0:1]) if "\n" not in str(message) else str(message).replace("\n", "; ")
+    line = (
+        " ".join(str(message).split("\n")[0:1])
+        if "\n" not in str(message)
+        else str(message).replace("\n", "; ")
+    )
     sys.stderr.write(f"error: {line}\n")
     sys.stderr.flush()
 

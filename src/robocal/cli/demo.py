@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -29,7 +28,9 @@ ROBOTS: dict[str, str] = {
 
 def demo(
     robot: str = typer.Option("lite", "--robot", help="Simulated robot: " + ", ".join(ROBOTS) + "."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Folder for the files written (default: a temporary one)."),
+    out: Path | None = typer.Option(
+        None, "--out", help="Folder for the files written (default: a temporary one)."
+    ),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
     if robot not in ROBOTS:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 from rich.table import Table
@@ -18,15 +17,28 @@ FORMAT_HELP = "Format: " + ", ".join(FORMATS) + "."
 
 def convert(
     src: Path = typer.Argument(..., help="Calibration file to read."),
-    dst: Path = typer.Argument(..., help="File to write (updated in place when it exists and the format allows)."),
-    from_fmt: Optional[str] = typer.Option(None, "--from", help="Source format (detected when omitted). " + FORMAT_HELP),
-    to_fmt: Optional[str] = typer.Option(None, "--to", help="Destination format (from DST when omitted). " + FORMAT_HELP),
-    urdf: Optional[Path] = typer.Option(None, "--urdf", help="URDF giving directions, ids and joint order."),
-    joints: Optional[str] = typer.Option(None, "--joints", help="Comma-separated joint order (positional formats)."),
+    dst: Path = typer.Argument(
+        ..., help="File to write (updated in place when it exists and the format allows)."
+    ),
+    from_fmt: str | None = typer.Option(
+        None, "--from", help="Source format (detected when omitted). " + FORMAT_HELP
+    ),
+    to_fmt: str | None = typer.Option(
+        None, "--to", help="Destination format (from DST when omitted). " + FORMAT_HELP
+    ),
+    urdf: Path | None = typer.Option(None, "--urdf", help="URDF giving directions, ids and joint order."),
+    joints: str | None = typer.Option(
+        None, "--joints", help="Comma-separated joint order (positional formats)."
+    ),
 ) -> None:
     """Convert a calibration file between formats, exactly."""
     result = convert_file(
-        src, dst, src_format=from_fmt, dst_format=to_fmt, urdf_path=urdf, joints=parse_csv_list(joints, "--joints")
+        src,
+        dst,
+        src_format=from_fmt,
+        dst_format=to_fmt,
+        urdf_path=urdf,
+        joints=parse_csv_list(joints, "--joints"),
     )
     for note in result.notes:
         print_warning(note)
@@ -39,7 +51,7 @@ def convert(
 def check(
     calibration: Path = typer.Option(..., "--calibration", help="Calibration file to check."),
     urdf: Path = typer.Option(..., "--urdf", help="The robot's URDF (expanded, not xacro)."),
-    fmt: Optional[str] = typer.Option(None, "--format", help="Calibration format (detected when omitted)."),
+    fmt: str | None = typer.Option(None, "--format", help="Calibration format (detected when omitted)."),
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
     model = read_urdf(urdf)
@@ -49,8 +61,13 @@ def check(
     table = Table("joint", "id", "direction", "homing_offset", "status", box=None, pad_edge=False)
     for j in report.joints:
         status = "[yellow]" + "; ".join(j.warnings) + "[/]" if j.warnings else "[green]ok[/]"
-        table.add_row(j.name, str(j.motor_id if j.motor_id is not None else "-"), f"{j.direction:+d}" if j.direction else "-",
-                      f"{j.homing_offset:.6f}" if j.homing_offset is not None else "-", status)
+        table.add_row(
+            j.name,
+            str(j.motor_id if j.motor_id is not None else "-"),
+            f"{j.direction:+d}" if j.direction else "-",
+            f"{j.homing_offset:.6f}" if j.homing_offset is not None else "-",
+            status,
+        )
     console.print(table)
     if report.missing:
         print_warning(f"joints missing from the calibration file: {', '.join(report.missing)}")

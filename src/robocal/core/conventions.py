@@ -102,7 +102,9 @@ def homing_from_lerobot_legacy(
     return s, -s * h, scale
 
 
-def lerobot_legacy_from_homing(direction: ArrayLike, homing_offset_ticks: ArrayLike) -> tuple[NDArray[np.int64], FloatArray]:
+def lerobot_legacy_from_homing(
+    direction: ArrayLike, homing_offset_ticks: ArrayLike
+) -> tuple[NDArray[np.int64], FloatArray]:
     """Canonical (scale π/2048) → LeRobot legacy ``(drive_mode, homing_offset)``; inverse of the above."""
     d = _f(direction)
     drive_mode = (d < 0).astype(np.int64)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, SupportsFloat
 
 import numpy as np
@@ -35,7 +35,9 @@ def _check_direction(direction: Any, where: str) -> int:
     try:
         d = float(direction)
     except (TypeError, ValueError):
-        raise InvalidCalibrationError(f"{where}: direction {direction!r} is not a number; expected -1 or +1") from None
+        raise InvalidCalibrationError(
+            f"{where}: direction {direction!r} is not a number; expected -1 or +1"
+        ) from None
     if isinstance(direction, bool) or d not in (-1.0, 1.0):
         raise InvalidCalibrationError(f"{where}: direction {direction!r} is invalid; expected -1 or +1")
     return int(d)
@@ -69,7 +71,9 @@ class JointMap:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "direction", _check_direction(self.direction, "joint map"))
-        object.__setattr__(self, "homing_offset", _check_finite(self.homing_offset, "homing_offset", "joint map"))
+        object.__setattr__(
+            self, "homing_offset", _check_finite(self.homing_offset, "homing_offset", "joint map")
+        )
         scale = _check_finite(self.scale, "scale", "joint map")
         if scale <= 0.0:
             raise InvalidCalibrationError(f"joint map: scale {scale} must be > 0")
@@ -112,6 +116,8 @@ class RobotCalibration:
     direction: FloatArray
     homing_offset: FloatArray
     scale: FloatArray
+    _gain: FloatArray = field(init=False, repr=False, compare=False)
+    _inv_gain: FloatArray = field(init=False, repr=False, compare=False)
 
     def __init__(
         self,
@@ -138,9 +144,13 @@ class RobotCalibration:
             raise InvalidCalibrationError(f"calibration arrays are not numeric: {exc}") from None
         for i, name in enumerate(names):
             if d[i] not in (-1.0, 1.0):
-                raise InvalidCalibrationError(f"joint {name!r}: direction {d[i]:g} is invalid; expected -1 or +1")
+                raise InvalidCalibrationError(
+                    f"joint {name!r}: direction {d[i]:g} is invalid; expected -1 or +1"
+                )
             if not math.isfinite(h[i]):
-                raise InvalidCalibrationError(f"joint {name!r}: homing_offset is {h[i]}; expected a finite number")
+                raise InvalidCalibrationError(
+                    f"joint {name!r}: homing_offset is {h[i]}; expected a finite number"
+                )
             if not (math.isfinite(s[i]) and s[i] > 0.0):
                 raise InvalidCalibrationError(f"joint {name!r}: scale {s[i]} must be finite and > 0")
         object.__setattr__(self, "joint_names", names)
@@ -238,7 +248,7 @@ class RobotCalibration:
     def __repr__(self) -> str:
         rows = ", ".join(
             f"{n}: d={int(d):+d} h={h:.6g} s={s:.6g}"
-            for n, d, h, s in zip(self.joint_names, self.direction, self.homing_offset, self.scale)
+            for n, d, h, s in zip(self.joint_names, self.direction, self.homing_offset, self.scale, strict=False)
         )
         return f"RobotCalibration({rows})"
 
@@ -274,7 +284,9 @@ class RobotCalibration:
                 return res.reshape(r.shape)
             out = np.empty(r.shape, dtype=np.float64)
         if out.shape != r.shape or out.dtype != np.float64:
-            raise ShapeMismatchError(f"out has shape {out.shape} and dtype {out.dtype}; expected {r.shape} float64")
+            raise ShapeMismatchError(
+                f"out has shape {out.shape} and dtype {out.dtype}; expected {r.shape} float64"
+            )
         if r.ndim == 0 or not (r.flags.c_contiguous and out.flags.c_contiguous):
             np.multiply(self._gain, r - self.homing_offset, out=out)
             return out

@@ -86,7 +86,9 @@ def _load_json(text: str, source: str) -> Any:
     try:
         return json.loads(text, object_pairs_hook=_json_pairs, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{source}: invalid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from None
+        raise FileFormatError(
+            f"{source}: invalid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}"
+        ) from None
     except ValueError as exc:
         raise FileFormatError(f"{source}: invalid JSON: {exc}") from None
 
@@ -100,7 +102,7 @@ def _check_unique_ids(ids: Mapping[str, int], source: str) -> None:
 
 
 def _require_rad(cal: RobotCalibration, fmt: str) -> None:
-    bad = [n for n, s in zip(cal.joint_names, cal.scale) if s != 1.0]
+    bad = [n for n, s in zip(cal.joint_names, cal.scale, strict=False) if s != 1.0]
     if bad:
         raise UsageError(
             f"format {fmt} stores offsets in the motor's rad frame (scale 1); joints {', '.join(bad)} have a "
@@ -121,7 +123,9 @@ def _ids_from(cal: RobotCalibration, ids: Mapping[str, int], urdf: UrdfModel | N
 # ------------------------------------------------------------------------------------------------ lite-*
 def _parse_lite(data: Any, source: str, fmt: str) -> CalibrationFile:
     if not isinstance(data, Mapping) or not data:
-        raise FileFormatError(f"{source}: expected a mapping of joint name -> {{id, direction, homing_offset}}")
+        raise FileFormatError(
+            f"{source}: expected a mapping of joint name -> {{id, direction, homing_offset}}"
+        )
     names: list[str] = []
     dirs: list[int] = []
     offs: list[float] = []
@@ -137,7 +141,9 @@ def _parse_lite(data: Any, source: str, fmt: str) -> CalibrationFile:
             raise FileFormatError(f"{where}: missing key {', '.join(missing)}")
         extra = [str(k) for k in entry if k not in LITE_KEYS]
         if extra:
-            raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected id, direction, homing_offset")
+            raise FileFormatError(
+                f"{where}: unknown key {', '.join(extra)}; expected id, direction, homing_offset"
+            )
         if "id" in entry:
             ids[name] = parse_int(entry["id"], where, "id")
         dirs.append(parse_direction(entry["direction"], where))
@@ -161,11 +167,13 @@ def _lite_entries(cf: CalibrationFile, urdf: UrdfModel | None, fmt: str) -> dict
     ids = _ids_from(cal, cf.ids, urdf)
     missing = [n for n in cal.joint_names if n not in ids]
     if missing:
-        raise UsageError(f"format {fmt} needs a motor id for every joint; missing for {', '.join(missing)} (pass --urdf)")
+        raise UsageError(
+            f"format {fmt} needs a motor id for every joint; missing for {', '.join(missing)} (pass --urdf)"
+        )
     _check_unique_ids(ids, f"calibration for {fmt}")
     return {
         n: {"id": ids[n], "direction": int(d), "homing_offset": float(h)}
-        for n, d, h in zip(cal.joint_names, cal.direction, cal.homing_offset)
+        for n, d, h in zip(cal.joint_names, cal.direction, cal.homing_offset, strict=False)
     }
 
 
@@ -229,7 +237,9 @@ def _read_robocal(path: Path, **_: Any) -> CalibrationFile:
         allowed = {"id", "direction", "homing_offset", "scale", "raw_unit", "joint_unit"}
         extra = [str(k) for k in entry if k not in allowed]
         if extra:
-            raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected {', '.join(sorted(allowed))}")
+            raise FileFormatError(
+                f"{where}: unknown key {', '.join(extra)}; expected {', '.join(sorted(allowed))}"
+            )
         for key in ("direction", "homing_offset"):
             if key not in entry:
                 raise FileFormatError(f"{where}: missing key {key}")
@@ -243,7 +253,9 @@ def _read_robocal(path: Path, **_: Any) -> CalibrationFile:
         scales.append(scale)
         names.append(str(name))
     _check_unique_ids(ids, source)
-    return CalibrationFile(RobotCalibration(names, dirs, offs, scales), MappingProxyType(ids), "robocal", source)
+    return CalibrationFile(
+        RobotCalibration(names, dirs, offs, scales), MappingProxyType(ids), "robocal", source
+    )
 
 
 def _write_robocal(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
@@ -258,7 +270,7 @@ def _write_robocal(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_:
     ]
     from ._yaml import yaml_float
 
-    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale):
+    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=False):
         lines.append(f"  {json.dumps(n)}:")
         if n in ids:
             lines.append(f"    id: {ids[n]}")
@@ -277,11 +289,17 @@ def _order_and_directions(
     elif urdf is not None:
         order = list(urdf.calibration_joint_names())
     else:
-        raise UsageError(f"{source}: berkeley-offsets is positional; pass --joints or --urdf for the joint order")
+        raise UsageError(
+            f"{source}: berkeley-offsets is positional; pass --joints or --urdf for the joint order"
+        )
     if len(order) != n:
-        raise JointMismatchError(f"{source}: {n} offsets but {len(order)} joints in the order ({', '.join(order)})")
+        raise JointMismatchError(
+            f"{source}: {n} offsets but {len(order)} joints in the order ({', '.join(order)})"
+        )
     if urdf is None:
-        raise UsageError(f"{source}: berkeley-offsets holds joint-frame offsets; pass --urdf for the directions")
+        raise UsageError(
+            f"{source}: berkeley-offsets holds joint-frame offsets; pass --urdf for the directions"
+        )
     dirs = []
     for name in order:
         if name not in urdf.joint_params and name not in urdf.joint_names:
@@ -317,7 +335,11 @@ def _read_berkeley(
 
 
 def _write_berkeley(
-    path: Path, cf: CalibrationFile, urdf: UrdfModel | None, joint_order: Sequence[str] | None = None, **_: Any
+    path: Path,
+    cf: CalibrationFile,
+    urdf: UrdfModel | None,
+    joint_order: Sequence[str] | None = None,
+    **_: Any,
 ) -> None:
     cal = cf.calibration if joint_order is None else cf.calibration.select(joint_order)
     _require_rad(cal, "berkeley-offsets")
@@ -396,7 +418,11 @@ def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
     except FileFormatError:
         pass
     return CalibrationFile(
-        RobotCalibration(names, dirs, offs, scales), MappingProxyType(model_ids), "ros2-transmission", source, notes
+        RobotCalibration(names, dirs, offs, scales),
+        MappingProxyType(model_ids),
+        "ros2-transmission",
+        source,
+        notes,
     )
 
 
@@ -458,7 +484,7 @@ def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None,
         kind = _child_text(tr, "plugin", "type") or ""
         if j is not None and j.get("name") and kind.endswith(_SIMPLE):
             by_joint[j.get("name")] = tr
-    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale):
+    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=False):
         reduction = float(d) / float(s)
         offset = -float(h) / reduction
         tr = by_joint.get(n)
@@ -505,26 +531,37 @@ class FormatSpec:
 
 FORMATS: dict[str, FormatSpec] = {
     "lite-json": FormatSpec(
-        "lite-json", "Lite-Lowlevel-Python calibration.json {joint: {id, direction, homing_offset}}",
-        _read_lite_json, _write_lite_json,
+        "lite-json",
+        "Lite-Lowlevel-Python calibration.json {joint: {id, direction, homing_offset}}",
+        _read_lite_json,
+        _write_lite_json,
     ),
     "lite-yaml": FormatSpec(
-        "lite-yaml", "Humanoid-Control calibration.yaml (same schema; updated in place)",
-        _read_lite_yaml, _write_lite_yaml,
+        "lite-yaml",
+        "Humanoid-Control calibration.yaml (same schema; updated in place)",
+        _read_lite_yaml,
+        _write_lite_yaml,
     ),
     "berkeley-offsets": FormatSpec(
-        "berkeley-offsets", "Berkeley-Humanoid-Lite-Lowlevel {position_offsets: [...]} (joint frame, positional)",
-        _read_berkeley, _write_berkeley,
+        "berkeley-offsets",
+        "Berkeley-Humanoid-Lite-Lowlevel {position_offsets: [...]} (joint frame, positional)",
+        _read_berkeley,
+        _write_berkeley,
     ),
     "ros2-transmission": FormatSpec(
-        "ros2-transmission", "URDF <transmission> SimpleTransmission (mechanical_reduction, offset)",
-        _read_transmission, _write_transmission,
+        "ros2-transmission",
+        "URDF <transmission> SimpleTransmission (mechanical_reduction, offset)",
+        _read_transmission,
+        _write_transmission,
     ),
     "lerobot-legacy": FormatSpec(
         "lerobot-legacy", "LeRobot legacy array JSON (read only; DEGREE joints)", _read_lerobot_legacy, None
     ),
     "robocal": FormatSpec(
-        "robocal", "robocal canonical joint map YAML (direction, homing_offset, scale)", _read_robocal, _write_robocal
+        "robocal",
+        "robocal canonical joint map YAML (direction, homing_offset, scale)",
+        _read_robocal,
+        _write_robocal,
     ),
 }
 
@@ -585,7 +622,9 @@ def detect_format(path: str | os.PathLike[str]) -> str:
             "use 'robocal lerobot export-urdf' to derive one"
         )
     if fmt is None:
-        raise FileFormatError(f"{source}: unrecognised calibration format; pass --from ({', '.join(FORMATS)})")
+        raise FileFormatError(
+            f"{source}: unrecognised calibration format; pass --from ({', '.join(FORMATS)})"
+        )
     return fmt
 
 
@@ -669,7 +708,9 @@ def write_calibration(
     name = fmt if fmt is not None else _format_for_output(p)
     spec = _check_fmt(name)
     if spec.writer is None:
-        raise UsageError(f"format {name} is read-only; valid output formats: "
-                         f"{', '.join(k for k, v in FORMATS.items() if v.writer is not None)}")
+        raise UsageError(
+            f"format {name} is read-only; valid output formats: "
+            f"{', '.join(k for k, v in FORMATS.items() if v.writer is not None)}"
+        )
     spec.writer(p, cf, urdf, joint_order=joint_order)
     return name

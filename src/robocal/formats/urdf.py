@@ -114,7 +114,9 @@ class UrdfModel:
         for j in self.joints:
             if j.name == name:
                 return j
-        raise JointMismatchError(f"URDF {self.source}: no joint {name!r}; joints: {', '.join(self.joint_names)}")
+        raise JointMismatchError(
+            f"URDF {self.source}: no joint {name!r}; joints: {', '.join(self.joint_names)}"
+        )
 
     def param(self, joint: str, name: str) -> str | None:
         """A ``<ros2_control>`` joint parameter as text, or None."""
@@ -182,7 +184,9 @@ def _parse_tree(data: bytes, source: str) -> Any:
     tree = root.getroottree()
     dtd = tree.docinfo.internalDTD
     if dtd is not None and any(True for _ in dtd.iterentities()):
-        raise FileFormatError(f"URDF {source}: entity declarations are not allowed (possible XXE); expand it first")
+        raise FileFormatError(
+            f"URDF {source}: entity declarations are not allowed (possible XXE); expand it first"
+        )
     for el in root.iter():
         if isinstance(el, etree._Entity):
             raise FileFormatError(f"URDF {source}: unresolved entity reference &{el.name}; is not allowed")
@@ -212,7 +216,9 @@ def _model_from_tree(tree: Any, source: str) -> UrdfModel:
     seen: set[str] = set()
     for el in root.findall("joint"):
         name = el.get("name")
-        where = f"URDF {source}: joint {name!r}" if name else f"URDF {source}: <joint> on line {el.sourceline}"
+        where = (
+            f"URDF {source}: joint {name!r}" if name else f"URDF {source}: <joint> on line {el.sourceline}"
+        )
         if not name:
             raise FileFormatError(f"{where}: missing name attribute")
         if name in seen:
@@ -265,7 +271,9 @@ def _model_from_tree(tree: Any, source: str) -> UrdfModel:
         for jel in sys_el.findall("joint"):
             jname = jel.get("name")
             if not jname:
-                raise FileFormatError(f"URDF {source}: <ros2_control> joint on line {jel.sourceline} has no name")
+                raise FileFormatError(
+                    f"URDF {source}: <ros2_control> joint on line {jel.sourceline} has no name"
+                )
             params = joint_params.setdefault(jname, {})
             for p in jel.findall("param"):
                 pname = p.get("name")
@@ -351,7 +359,9 @@ class UrdfDocument:
             if el.get("name") == joint:
                 return el
         names = [el.get("name") for el in self._tree.getroot().findall("joint")]
-        raise JointMismatchError(f"URDF {self.source}: no joint {joint!r}; joints: {', '.join(map(str, names))}")
+        raise JointMismatchError(
+            f"URDF {self.source}: no joint {joint!r}; joints: {', '.join(map(str, names))}"
+        )
 
     def set_origin(self, joint: str, xyz: Sequence[float], rpy: Sequence[float]) -> None:
         """Set a joint's ``<origin xyz rpy>`` (creating ``<origin>`` if absent), shortest round-trip floats.
@@ -404,7 +414,9 @@ class UrdfDocument:
                     else:
                         jel.append(p)
         if not found:
-            raise JointMismatchError(f"URDF {self.source}: joint {joint!r} is not in any <ros2_control> block")
+            raise JointMismatchError(
+                f"URDF {self.source}: joint {joint!r} is not in any <ros2_control> block"
+            )
 
     def root(self) -> Any:
         """The lxml root element, for edits not covered above (e.g. ``<transmission>`` blocks)."""

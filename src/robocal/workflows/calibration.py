@@ -128,8 +128,12 @@ def check_calibration(cf: CalibrationFile, urdf: UrdfModel) -> CheckReport:
                 "(the robot uses the URDF's)"
             )
         if u_id is not None and file_id is not None and u_id != file_id:
-            warnings.append(f"id {file_id} in the file disagrees with can_id {u_id} in the URDF (the robot uses the URDF's)")
+            warnings.append(
+                f"id {file_id} in the file disagrees with can_id {u_id} in the URDF (the robot uses the URDF's)"
+            )
         if jm.scale == 1.0 and abs(jm.homing_offset) > math.pi:
-            warnings.append(f"|homing_offset| = {abs(jm.homing_offset):.3f} rad > pi: direction flipped or zero off by a turn?")
+            warnings.append(
+                f"|homing_offset| = {abs(jm.homing_offset):.3f} rad > pi: direction flipped or zero off by a turn?"
+            )
         results.append(JointCheck(name, jm.homing_offset, jm.direction, file_id, tuple(warnings)))
     return CheckReport(cf.source, urdf.source, matched, missing, extra, tuple(results))
