@@ -1,0 +1,209 @@
+"""End-to-end sweeps on the simulated Lite over the virtual CAN bus, replay equivalence, interrupts."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from robocal.backends.sim.lite import SimLite
+from robocal.core.sweep import wrap_in_travel
+from robocal.formats import read_calibration
+from robocal.workflows.sweep import SweepAbortedError, check_source, run_sweep
+
+TOL = 2e-3
+
+
+@pytest.mark.parametrize(
+    ("seed", "zero_sta", "single_turn"),
+    [(0, 1, False), (1, 1, True), (2, 0, False), (3, 0, True)],
+)
+def test_recovered_offsets_match_truth(
+    urdf: Path, tmp_path: Path, h: Any, seed: int, zero_sta: int, single_turn: bool
+) -> None:
+    sim = SimLite(seed, noise_rad=5e-4, zero_sta=zero_sta, single_turn=single_turn)
+    out = tmp_path / "cal.yaml"
+    outcome = run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(sim))
+    truth = sim.true_offsets()
+    cf = read_calibration(out)
+    assert cf.calibration.joint_names == tuple(h.names)
+    for j in outcome.result.joints:
+        assert j.homing_offset == pytest.approx(truth[j.name], abs=TOL), j.name
+        assert cf.calibration.homing_offset[cf.calibration.index(j.name)] == j.homing_offset
+        assert "not_swept" not in j.warnings and "span_mismatch" not in j.warnings
+        assert j.sweep == pytest.approx(j.span, abs=0.01)
+    assert dict(cf.ids) == {j.name: j.can_id for j in sim.joints}
+
+
+def test_joints_whose_travel_crosses_the_wrap_point(urdf: Path, tmp_path: Path, h: Any) -> None:
+    # factory zeros chosen so the power-on wrap point (0 with zero_sta 0) lies inside the travel of these joints;
+    # single-turn readings jump by 2π mid-sweep
+    zeros = {"left_shoulder_pitch": 0.3, "left_elbow_pitch": -0.6, "right_shoulder_roll": 0.2}
+    sim = SimLite(5, noise_rad=5e-4, zero_sta=0, single_turn=True, factory_zero_rad=zeros)
+    outcome = run_sweep(urdf, "sim:lite", tmp_path / "c.yaml", open_source_fn=h.sim_opener(sim))
+    truth = sim.true_offsets()
+    for name in zeros:
+        j = outcome.result[name]
+        assert j.homing_offset == pytest.approx(truth[name], abs=TOL)
+        assert "wrap_in_travel" in j.warnings
+        assert bool(wrap_in_travel(truth[name], j.direction, j.lower, j.upper, 0))
+        assert j.sweep == pytest.approx(j.span, abs=0.01)  # the tracker unwrapped the 2π jump
+    assert outcome.exit_code == 1
+
+
+def test_power_on_branch_selection_via_check_source(urdf: Path, tmp_path: Path, h: Any) -> None:
+    zeros = {"left_elbow_pitch": 0.6}
+    sim = SimLite(6, noise_rad=0.0, zero_sta=0, factory_zero_rad=zeros)
+    out = tmp_path / "c.yaml"
+    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(sim))
+    # after a power cycle at another pose every joint must still read its true position
+    h_cal = read_calibration(out).calibration.homing_offset[3]
+    sim.motors["left_elbow_pitch"].set_position(-2.3)
+    sim.power_cycle()
+    checks = {c.name: c for c in check_source(urdf, out, "sim:lite", open_source_fn=h.sim_opener(sim))}
+    c = checks["left_elbow_pitch"]
+    assert c.in_limits and c.problem is None
+    assert c.q_rad == pytest.approx(-2.3, abs=1e-3)
+    assert c.raw_selected_rad - c.raw_rad == pytest.approx(2 * math.pi * c.turns)
+    assert np.isfinite(h_cal)
+    for name, q in sim.joint_positions().items():
+        assert checks[name].q_rad == pytest.approx(q, abs=1e-3), name
+
+
+def test_check_source_reports_the_two_pi_correction(urdf: Path, tmp_path: Path, h: Any) -> None:
+    sim = SimLite(8, noise_rad=0.0, zero_sta=0, factory_zero_rad={"left_shoulder_pitch": 0.2})
+    out = tmp_path / "c.yaml"
+    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(sim))
+    sp = sim.motors["left_shoulder_pitch"]  # dir -1: raw = -q + 0.2 (+ branch)
+    results = []
+    for q in (-2.5, 0.5):  # raw 2.7 and -0.3: the second wraps to 2π - 0.3 at power-on
+        sp.set_position(q)
+        sim.power_cycle()
+        c = {c.name: c for c in check_source(urdf, out, "sim:lite", open_source_fn=h.sim_opener(sim))}
+        results.append(c["left_shoulder_pitch"])
+        assert c["left_shoulder_pitch"].q_rad == pytest.approx(q, abs=1e-3)
+    assert {r.turns for r in results} == {0, 1} or {r.turns for r in results} == {0, -1}
+
+
+def _write_csv(path: Path, names: list[str], t: np.ndarray, s: np.ndarray) -> None:
+    rows = ["t," + ",".join(names)]
+    rows += [",".join(repr(float(x)) for x in (ti, *si)) for ti, si in zip(t, s, strict=True)]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def _write_bag(path: Path, names: list[str], t: np.ndarray, s: np.ndarray, plugin: str, topic: str) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    JointState = ts.types["sensor_msgs/msg/JointState"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    storage = StoragePlugin.MCAP if plugin == "mcap" else StoragePlugin.SQLITE3
+    with Writer(path, version=8, storage_plugin=storage) as w:
+        conn = w.add_connection(topic, JointState.__msgtype__, typestore=ts)
+        for ti, si in zip(t, s, strict=True):
+            ns = round(ti * 1e9) + 1_000_000_000
+            msg = JointState(
+                header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                name=list(names),
+                position=np.asarray(si, dtype=np.float64),
+                velocity=np.zeros(0),
+                effort=np.zeros(0),
+            )
+            w.write(conn, ns, ts.serialize_cdr(msg, JointState.__msgtype__))
+
+
+def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) -> None:
+    sim = SimLite(11, noise_rad=5e-4, zero_sta=0, single_turn=True)
+    opener, made = h.recording_opener(sim)
+    live = run_sweep(urdf, "sim:lite", tmp_path / "live.yaml", open_source_fn=opener)
+    rec = made[0]
+    t = np.array([s.t_s for s in rec.samples])
+    raw = np.vstack([s.position_rad for s in rec.samples])
+    d = np.array([h.dirs[n] for n in h.names], dtype=float)
+    ident = raw * d  # what the robot publishes with an empty calibration
+    live_off = live.result.offsets()
+
+    _write_csv(tmp_path / "sweep.csv", h.names, t, ident)
+    _write_csv(tmp_path / "motor.csv", h.names, t, raw)
+    _write_bag(tmp_path / "bag_sqlite", h.names, t, ident, "sqlite3", "/lite/joint_states")
+    _write_bag(tmp_path / "bag_mcap", h.names, t, ident, "mcap", "/robot/js")
+    cases: list[tuple[str, dict[str, Any]]] = [
+        (f"replay:{tmp_path / 'sweep.csv'}", {}),
+        (f"replay:{tmp_path / 'motor.csv'}", {"frame": "motor"}),
+        (f"replay:{tmp_path / 'bag_sqlite'}", {}),
+        (f"replay:{tmp_path / 'bag_mcap'}", {"topic": "/robot/js"}),
+    ]
+    for i, (src, kw) in enumerate(cases):
+        res = run_sweep(urdf, src, tmp_path / f"r{i}.yaml", **kw)
+        for name, off in live_off.items():
+            assert res.result[name].homing_offset == pytest.approx(off, abs=1e-12), (src, name)
+        assert [j.warnings for j in res.result.joints] == [j.warnings for j in live.result.joints]
+        assert res.samples == live.samples
+
+
+def test_first_ctrl_c_writes_a_complete_file(urdf: Path, tmp_path: Path, h: Any) -> None:
+    out = tmp_path / "cal.yaml"
+    prior_sim = SimLite(12, noise_rad=0.0)
+    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(prior_sim))
+    before = read_calibration(out).calibration
+    sim = SimLite(13, noise_rad=0.0, skip=["left_wrist_pitch"])
+    opener, _ = h.recording_opener(sim, interrupt_at=60)
+    outcome = run_sweep(urdf, "sim:lite", out, open_source_fn=opener)
+    assert outcome.interrupted and outcome.samples == 60
+    after = read_calibration(out).calibration
+    assert after.joint_names == tuple(h.names)  # complete: every joint present
+    kept = [j.name for j in outcome.result.joints if j.kept_prior]
+    assert kept == ["left_wrist_pitch"]  # joints not yet swept at the interrupt kept the previous file's offset
+    for name in kept:
+        assert after.homing_offset[after.index(name)] == before.homing_offset[before.index(name)]
+    assert (tmp_path / "cal.yaml.bak").exists()
+
+
+def test_second_ctrl_c_writes_nothing(urdf: Path, tmp_path: Path, h: Any) -> None:
+    out = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(SimLite(14, noise_rad=0.0)))
+    old = out.read_bytes()
+    opener, _ = h.recording_opener(SimLite(15), interrupt_at=30, interrupt_close=True)
+    with pytest.raises(SweepAbortedError, match="second Ctrl-C; nothing was written"):
+        run_sweep(urdf, "sim:lite", out, report=tmp_path / "r.json", open_source_fn=opener)
+    assert out.read_bytes() == old
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_report_json_exact_shape(urdf: Path, tmp_path: Path, h: Any) -> None:
+    sim = SimLite(16, noise_rad=0.0, skip=["right_wrist_roll"])
+    prior = tmp_path / "prior.json"
+    ids = {j.name: j.can_id for j in sim.joints}
+    prior.write_text(
+        json.dumps({n: {"id": ids[n], "direction": h.dirs[n], "homing_offset": 0.125} for n in h.names})
+    )
+    out, rep = tmp_path / "cal.json", tmp_path / "report.json"
+    outcome = run_sweep(urdf, "sim:lite", out, prior=prior, report=rep, open_source_fn=h.sim_opener(sim))
+    data = json.loads(rep.read_text())
+    assert list(data) == ["joints"] and list(data["joints"]) == h.names
+    keys = [
+        "sampled_min",
+        "sampled_max",
+        "sweep",
+        "homing_offset",
+        "previous_homing_offset",
+        "kept_prior",
+        "warnings",
+    ]
+    for entry in data["joints"].values():
+        assert list(entry) == keys
+    wr = data["joints"]["right_wrist_roll"]
+    assert wr["kept_prior"] is True and wr["homing_offset"] == 0.125 and wr["warnings"] == ["not_swept"]
+    assert data["joints"]["left_elbow_pitch"]["previous_homing_offset"] == 0.125
+    assert json.loads(out.read_text())["right_wrist_roll"] == {
+        "id": 26,
+        "direction": 1,
+        "homing_offset": 0.125,
+    }
+    assert outcome.exit_code == 1
