@@ -139,7 +139,7 @@ def test_ideal_model_closed_form_bent_pose() -> None:
     expected = (d4 + d6, a2 / r2 + a3 / r2, d1 - a2 / r2 + a3 / r2 - d5)
     np.testing.assert_allclose(T[:3, 3], expected, atol=1e-8)
     # the corrected chain of the ideal model is the unchanged chain (d2 = d3 = 0 → nothing to move)
-    np.testing.assert_array_equal(chain_fk(_ur10_ideal(), q[None])[0], T)
+    np.testing.assert_allclose(chain_fk(_ur10_ideal(), q[None])[0], T, rtol=0, atol=1e-15)
 
 
 def test_batched_fk_equals_python_loop() -> None:
