@@ -1,7 +1,419 @@
-"""``robocal lerobot`` commands."""
+"""``robocal lerobot`` commands: calibrate, check, migrate, show, export-urdf (and the demo runner)."""
 
 from __future__ import annotations
 
-import typer
+import contextlib
+import json
+import pathlib
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Annotated
 
-app = typer.Typer(help="lerobot commands.", no_args_is_help=True)
+import typer
+from rich.live import Live
+from rich.table import Table
+
+from ..core.lerobot import ROBOTS, MotorCalibration, RobotSpec
+from ..errors import UsageError
+from . import _common
+
+app = typer.Typer(help="LeRobot arms: calibrate, check, migrate, show, export-urdf.", no_args_is_help=True)
+
+ROBOT_HELP = "so101_follower | so101_leader | koch_follower | koch_leader"
+CalDir = Annotated[
+    pathlib.Path | None, typer.Option("--calibration-dir", help="Calibration root (default: LeRobot's).")
+]
+CalFile = Annotated[pathlib.Path | None, typer.Option("--file", help="Calibration JSON (instead of --id).")]
+
+
+class ConsoleOperator:
+    """A human at a terminal: ``input()`` for prompts; the sweep ends when ENTER is pressed."""
+
+    def __init__(self) -> None:
+        self._done = threading.Event()
+
+    def prompt(self, stage: str, message: str) -> None:
+        """Print the message and wait for ENTER (the sweep prompt returns at once; ENTER ends the sweep)."""
+        if stage == "sweep":
+            _common.err_console.print(message)
+            self._done.clear()
+
+            def wait() -> None:
+                with contextlib.suppress(EOFError, OSError):
+                    sys.stdin.readline()
+                self._done.set()
+
+            threading.Thread(target=wait, daemon=True).start()
+            return
+        _common.err_console.print(message)
+        sys.stdin.readline()
+
+    def sweep_step(self) -> bool:
+        """True once ENTER was pressed; paces the loop at about 50 Hz like LeRobot."""
+        time.sleep(0.02)
+        return self._done.is_set()
+
+
+def _spec(robot: str) -> RobotSpec:
+    from ..workflows.lerobot import robot_spec
+
+    return robot_spec(robot)
+
+
+def _cal_file(
+    spec: RobotSpec, robot_id: str | None, calibration_dir: pathlib.Path | None, file: pathlib.Path | None
+) -> pathlib.Path:
+    from ..lerobot import calibration_path
+
+    if file is not None:
+        return file
+    if robot_id is None:
+        raise UsageError("give --id (and optionally --calibration-dir) or --file")
+    return calibration_path(spec.kind, spec.device_name, robot_id, root=calibration_dir)
+
+
+def _sweep_renderer() -> tuple[Callable[[object], None], Callable[[], None]]:
+    """A live rich table on a terminal, otherwise one plain line every 10 readings."""
+    from ..workflows.lerobot import SweepView
+
+    live: Live | None = None
+    last: list[SweepView] = []
+
+    def table(view: SweepView) -> Table:
+        t = Table(title=f"range of motion (reading {view.step})")
+        for col in ("motor", "min", "present", "max"):
+            t.add_column(col, justify="right" if col != "motor" else "left")
+        for n, p, lo, hi in zip(view.names, view.present, view.minimum, view.maximum, strict=True):
+            t.add_row(n, str(lo), str(p), str(hi))
+        return t
+
+    def update(view: object) -> None:
+        nonlocal live
+        assert isinstance(view, SweepView)
+        last[:] = [view]
+        if _common.err_console.is_terminal:
+            if live is None:
+                live = Live(table(view), console=_common.err_console, refresh_per_second=10)
+                live.start()
+            else:
+                live.update(table(view))
+        elif view.step % 10 == 0:
+            parts = [
+                f"{n} {lo}..{hi}" for n, lo, hi in zip(view.names, view.minimum, view.maximum, strict=True)
+            ]
+            _common.err_console.print(f"reading {view.step}: " + ", ".join(parts))
+
+    def close() -> None:
+        nonlocal live
+        if live is not None:
+            live.stop()
+            live = None
+        elif last:
+            v = last.pop()
+            parts = [f"{n} {lo}..{hi}" for n, lo, hi in zip(v.names, v.minimum, v.maximum, strict=True)]
+            _common.err_console.print(f"reading {v.step}: " + ", ".join(parts))
+
+    return update, close
+
+
+def _print_calibration(cals: dict[str, MotorCalibration]) -> None:
+    t = Table(title="calibration")
+    for col in ("motor", "id", "drive_mode", "homing_offset", "range_min", "range_max"):
+        t.add_column(col)
+    for n, c in cals.items():
+        t.add_row(n, str(c.id), str(c.drive_mode), str(c.homing_offset), str(c.range_min), str(c.range_max))
+    _common.console.print(t)
+
+
+@contextlib.contextmanager
+def _arm_bus(spec: RobotSpec, port: str) -> Iterator[tuple[object, object | None]]:
+    """Open the bus on ``port``; ``sim`` starts a simulated arm (yields the bus and the SimArm or None)."""
+    from ..workflows.lerobot import open_bus
+
+    if port == "sim":
+        from ..backends.sim.lerobot_arms import SimArm
+
+        with SimArm(spec.name) as arm:
+            bus = open_bus(spec, arm.port)
+            try:
+                yield bus, arm
+            finally:
+                bus.close()
+        return
+    bus = open_bus(spec, port)
+    try:
+        yield bus, None
+    finally:
+        bus.close()
+
+
+@app.command()
+def calibrate(
+    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
+    port: str = typer.Option(..., "--port", help="Serial port, or 'sim' for the simulated arm."),
+    robot_id: str = typer.Option(..., "--id", help="Robot id: the file is <id>.json."),
+    calibration_dir: CalDir = None,
+    home_after_sweep: bool = typer.Option(
+        False, "--home-after-sweep", help="Sweep first, then centre homing."
+    ),
+    sweep_full_turn: bool = typer.Option(
+        False, "--sweep-full-turn", help="Also sweep wrist_roll (and Koch shoulder_pan) instead of 0..4095."
+    ),
+    use_file: bool = typer.Option(False, "--use-file", help="Write the existing file to the motors instead."),
+) -> None:
+    """Calibrate a LeRobot arm (mid pose, then sweep every joint) and write LeRobot's JSON."""
+    from ..lerobot import read_calibration
+    from ..workflows.lerobot import calibrate as run
+    from ..workflows.lerobot import restore
+
+    spec = _spec(robot)
+    path = _cal_file(spec, robot_id, calibration_dir, None)
+    if use_file:
+        cals = read_calibration(path)
+        with _arm_bus(spec, port) as (bus, _arm):
+            restore(bus, spec, cals)  # type: ignore[arg-type]
+        _common.console.print(f"wrote {path} to the motors")
+        raise typer.Exit(_common.EXIT_OK)
+    update, close = _sweep_renderer()
+    with _arm_bus(spec, port) as (bus, arm):
+        if arm is not None:
+            from ..backends.sim.lerobot_arms import SimArm, SimOperator
+
+            assert isinstance(arm, SimArm)
+            operator: object = SimOperator(arm)
+        else:
+            operator = ConsoleOperator()
+        try:
+            result = run(
+                bus,  # type: ignore[arg-type]
+                spec,
+                operator,  # type: ignore[arg-type]
+                path=path,
+                home_after_sweep=home_after_sweep,
+                sweep_full_turn=sweep_full_turn,
+                on_sweep=update,
+            )
+        except KeyboardInterrupt:
+            close()
+            _common.print_error("interrupted: every motor's EEPROM was restored and no file was written")
+            raise typer.Exit(130) from None
+        finally:
+            close()
+    _print_calibration(result.calibration)
+    for note in result.notes:
+        _common.print_warning(note)
+    _common.console.print(f"calibration saved to {result.path}")
+    raise typer.Exit(_common.exit_code_for(result.notes))
+
+
+@app.command()
+def check(
+    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
+    port: str = typer.Option(..., "--port", help="Serial port of the arm."),
+    robot_id: str | None = typer.Option(None, "--id", help="Robot id."),
+    calibration_dir: CalDir = None,
+    file: CalFile = None,
+) -> None:
+    """Compare the motors' EEPROM with the calibration file, naming each motor and field that differs."""
+    from ..lerobot import read_calibration
+    from ..workflows.lerobot import check as run
+
+    spec = _spec(robot)
+    path = _cal_file(spec, robot_id, calibration_dir, file)
+    cals = read_calibration(path)
+    with _arm_bus(spec, port) as (bus, _arm):
+        diffs = run(bus, spec, cals)  # type: ignore[arg-type]
+    for d in diffs:
+        _common.console.print(f"differs: {d}")
+    if not diffs:
+        _common.console.print(f"EEPROM matches {path}")
+    raise typer.Exit(_common.EXIT_WARNINGS if diffs else _common.EXIT_OK)
+
+
+@app.command()
+def migrate(
+    legacy_file: Annotated[
+        pathlib.Path, typer.Argument(help="Legacy LeRobot calibration JSON (parallel arrays).")
+    ],
+    vendor: str = typer.Option(..., "--vendor", help="feetech | dynamixel"),
+    out: Annotated[
+        pathlib.Path | None, typer.Option("--out", help="Current-format JSON to write (default: print).")
+    ] = None,
+    ids: str | None = typer.Option(None, "--ids", help="Motor ids in file order, e.g. 1,2,3 (default 1..n)."),
+) -> None:
+    """Convert a legacy calibration to LeRobot's current JSON and print the dataset degree transform."""
+    from ..formats.lerobot import dumps_current, write_current
+    from ..lerobot.legacy import read_legacy
+    from ..workflows.lerobot import legacy_to_current
+
+    id_list = None
+    if ids is not None:
+        items = _common.parse_csv_list(ids, "--ids") or []
+        try:
+            id_list = [int(i) for i in items]
+        except ValueError:
+            raise UsageError(f"--ids {ids!r}: expected comma-separated integers") from None
+    cal = read_legacy(legacy_file)
+    cals, warnings = legacy_to_current(cal, vendor, id_list)
+    if out is not None:
+        write_current(out, cals)
+        _common.console.print(f"wrote {out}")
+    else:
+        _common.console.print(dumps_current(cals), markup=False)
+    _common.console.print(
+        "old SO-100/SO-101 datasets (legacy degrees) → current DEGREES, LeRobot's documented transform: "
+        "key = name.removeprefix('main_') + '.pos'; shoulder_lift_new = -(old - 90); "
+        "elbow_flex_new = old - 90; other joints unchanged",
+        markup=False,
+    )
+    for w in warnings:
+        _common.print_warning(w)
+    raise typer.Exit(_common.exit_code_for(warnings))
+
+
+@app.command()
+def show(
+    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
+    port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim'."),
+    robot_id: str | None = typer.Option(None, "--id"),
+    calibration_dir: CalDir = None,
+    file: CalFile = None,
+    samples: int = typer.Option(1, "--samples", min=1, max=100000, help="Readings to print."),
+    compat: str = typer.Option("lerobot", "--compat", help="lerobot | exact"),
+) -> None:
+    """Print live normalised positions (LeRobot's units) of every motor."""
+    from ..lerobot import normalize, read_calibration
+
+    if compat not in ("lerobot", "exact"):
+        raise UsageError(f"--compat {compat!r}: expected lerobot or exact")
+    spec = _spec(robot)
+    cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
+    missing = [n for n in spec.motor_names if n not in cals]
+    if missing:
+        raise UsageError(f"calibration has no entry for motor(s) {', '.join(missing)}")
+    order = [cals[n] for n in spec.motor_names]
+    modes = [m.norm_mode for m in spec.motors]
+    ids = [m.motor_id for m in spec.motors]
+    with _arm_bus(spec, port) as (bus, _arm):
+        if _arm is not None:
+            from ..workflows.lerobot import restore
+
+            restore(bus, spec, cals)  # type: ignore[arg-type]
+        _common.console.print("reading  " + "  ".join(spec.motor_names))
+        for k in range(samples):
+            raw = bus.sync_read("Present_Position", ids)  # type: ignore[attr-defined]
+            vals = normalize(
+                [raw[i] for i in ids],
+                order,
+                modes,
+                apply_drive_mode=spec.vendor == "feetech",
+                compat=compat,  # type: ignore[arg-type]
+            )
+            _common.console.print(f"{k:>7}  " + "  ".join(f"{v:9.3f}" for v in vals))
+
+
+@app.command("export-urdf")
+def export_urdf(
+    out: Annotated[
+        pathlib.Path, typer.Option("--out", help="Canonical joint map YAML (robocal format) to write.")
+    ],
+    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
+    robot_id: str | None = typer.Option(None, "--id"),
+    calibration_dir: CalDir = None,
+    file: CalFile = None,
+    sign: str | None = typer.Option(None, "--sign", help="URDF sign per joint: name=-1,..."),
+    offset_deg: str | None = typer.Option(None, "--offset-deg", help="URDF offset per joint: name=90,..."),
+    compat: str = typer.Option("lerobot", "--compat", help="lerobot (360/4095, no drive_mode) | exact"),
+) -> None:
+    """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints (#4442)."""
+    from ..formats import write_calibration
+    from ..lerobot import read_calibration
+    from ..workflows.lerobot import export_joint_map
+
+    if compat not in ("lerobot", "exact"):
+        raise UsageError(f"--compat {compat!r}: expected lerobot or exact")
+    spec = _spec(robot)
+    signs: dict[str, int] = {}
+    for k, v in _common.parse_assignments(sign, "--sign").items():
+        try:
+            signs[k] = int(v)
+        except ValueError:
+            raise UsageError(f"--sign {k}={v}: expected -1 or 1") from None
+    offsets: dict[str, float] = {}
+    for k, v in _common.parse_assignments(offset_deg, "--offset-deg").items():
+        try:
+            offsets[k] = float(v)
+        except ValueError:
+            raise UsageError(f"--offset-deg {k}={v}: expected a number of degrees") from None
+    cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
+    rc, skipped = export_joint_map(spec, cals, signs=signs, offsets_deg=offsets, compat=compat)
+    ids = {n: cals[n].id for n in rc.joint_names}
+    write_calibration(out, rc, "robocal", ids=ids)
+    _common.console.print(f"wrote {out} ({len(rc.joint_names)} joints)")
+    if skipped:
+        _common.print_warning(f"not exported (range modes, no angle): {', '.join(skipped)}")
+    raise typer.Exit(_common.exit_code_for(skipped))
+
+
+def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
+    """Calibrate the simulated follower and leader through the real SDK on a pty; print recovered vs true.
+
+    Args:
+        robot: ``so101`` or ``koch``.
+        out_dir: Calibration root to write the JSON files into (a temporary folder when None).
+
+    Returns:
+        Exit code (0 when every recovered hard stop matches the simulator's truth within 2 ticks).
+    """
+    from ..backends.sim.lerobot_arms import SimArm, SimOperator
+    from ..lerobot import calibration_path
+    from ..workflows.lerobot import calibrate as run
+    from ..workflows.lerobot import open_bus
+
+    if robot not in ("so101", "koch"):
+        raise UsageError(f"demo robot {robot!r}: expected so101 or koch")
+    tmp: tempfile.TemporaryDirectory[str] | None = None
+    root = out_dir
+    if root is None:
+        tmp = tempfile.TemporaryDirectory(prefix="robocal-lerobot-demo-")
+        root = pathlib.Path(tmp.name)
+    ok = True
+    try:
+        for name in (f"{robot}_follower", f"{robot}_leader"):
+            spec = ROBOTS[name]
+            with SimArm(name, noise_ticks=1, seed=1) as arm:
+                bus = open_bus(spec, arm.port)
+                try:
+                    path = calibration_path(spec.kind, spec.device_name, "demo", root=root)
+                    result = run(bus, spec, SimOperator(arm), path=path, sweep_full_turn=True)
+                finally:
+                    bus.close()
+                t = Table(title=f"{name}: simulated {spec.vendor} servos on {arm.port}")
+                for col in ("motor", "true stops (ticks)", "recovered stops", "homing_offset", "range"):
+                    t.add_column(col)
+                stops = arm.recovered_stops(result.calibration)
+                for n, c in result.calibration.items():
+                    tr = arm.truth[n]
+                    lo, hi = stops[n]
+                    shift = 4096 * round((tr.stop_low_ticks - lo) / 4096) if spec.vendor == "feetech" else 0
+                    lo, hi = lo + shift, hi + shift
+                    good = abs(lo - tr.stop_low_ticks) <= 2 and abs(hi - tr.stop_high_ticks) <= 2
+                    ok = ok and good
+                    t.add_row(
+                        n,
+                        f"{tr.stop_low_ticks:g}..{tr.stop_high_ticks:g}",
+                        f"{lo}..{hi}" + ("" if good else " !"),
+                        str(c.homing_offset),
+                        f"{c.range_min}..{c.range_max}",
+                    )
+                _common.console.print(t)
+                _common.console.print(f"wrote {result.path}")
+                data = json.loads(pathlib.Path(str(result.path)).read_text())
+                _common.console.print(f"{len(data)} motors in LeRobot's format", markup=False)
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+    return _common.EXIT_OK if ok else _common.EXIT_WARNINGS

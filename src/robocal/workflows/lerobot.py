@@ -418,6 +418,9 @@ def export_joint_map(
     unknown = sorted((set(signs) | set(offsets_deg)) - set(spec.motor_names))
     if unknown:
         raise UsageError(f"--sign/--offset name unknown motor(s) {', '.join(unknown)}")
+    for name, value in signs.items():
+        if value not in (-1, 1):
+            raise UsageError(f"--sign {name}={value}: expected -1 or 1")
     names, dirs, homes, scales, skipped = [], [], [], [], []
     for m in spec.motors:
         if m.name not in cals:
@@ -427,8 +430,6 @@ def export_joint_map(
             continue
         c = cals[m.name]
         s = signs.get(m.name, 1)
-        if s not in (-1, 1):
-            raise UsageError(f"--sign {m.name}={s}: expected -1 or 1")
         ticks = 4095 if compat == "lerobot" else 4096
         d = s * (-1 if (compat == "exact" and c.drive_mode and spec.vendor == "feetech") else 1)
         k = 2 * math.pi / ticks

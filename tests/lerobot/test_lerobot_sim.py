@@ -1,0 +1,289 @@
+"""Vendor SDKs against the simulated servos on a pty, and the calibration workflow with robocal's fixes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from robocal.backends.dynamixel import DynamixelBus
+from robocal.backends.feetech import FeetechBus
+from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, JointTruth, SimArm, SimOperator
+from robocal.backends.sim.servo import SimServo, SimServoBus, dxl_crc16
+from robocal.errors import CalibTimeoutError, DeviceError, ProtocolError
+from robocal.lerobot import MotorCalibration, read_calibration
+from robocal.workflows.lerobot import calibrate, check, open_bus, restore
+
+pytestmark = pytest.mark.timeout(60)
+
+
+@pytest.fixture
+def feetech_sim() -> Iterator[tuple[SimServoBus, FeetechBus]]:
+    with SimServoBus([SimServo(1, "sts3215", 1337.0), SimServo(2, "sts3215", 3000.0)]) as sim:
+        bus = FeetechBus(sim.port, {1: "sts3215", 2: "sts3215"}, retries=1)
+        yield sim, bus
+        bus.close()
+
+
+@pytest.fixture
+def dxl_sim() -> Iterator[tuple[SimServoBus, DynamixelBus]]:
+    with SimServoBus([SimServo(1, "xl330-m288", 1337.0), SimServo(2, "xl430-w250", 3672.0)]) as sim:
+        bus = DynamixelBus(sim.port, {1: "xl330-m288", 2: "xl430-w250"}, retries=1)
+        yield sim, bus
+        bus.close()
+
+
+# ------------------------------------------------------------------------------------- SDK ↔ simulator
+def test_feetech_sdk_registers_and_sign_magnitude(feetech_sim: tuple[SimServoBus, FeetechBus]) -> None:
+    sim, bus = feetech_sim
+    assert bus.ping(1) == 777
+    assert bus.sync_read("Present_Position", [1, 2]) == {1: 1337, 2: 3000}
+    bus.write("Homing_Offset", 1, -710)  # the half-turn homing of pose 1337
+    assert bytes(sim.servos[1].regs[31:33]) == bytes([0xC6, 0x0A])  # 2758 = 0x0AC6, little-endian
+    assert bus.read("Homing_Offset", 1) == -710
+    assert bus.read("Present_Position", 1) == 2047  # Present = Actual − Homing_Offset
+    bus.sync_write("Homing_Offset", {1: 0, 2: 1625})
+    assert bus.sync_read("Homing_Offset", [1, 2]) == {1: 0, 2: 1625}
+    assert bus.read("Present_Position", 2) == 3000 - 1625
+
+
+def test_feetech_multi_turn_feedback_and_goal(feetech_sim: tuple[SimServoBus, FeetechBus]) -> None:
+    sim, bus = feetech_sim
+    sim.servos[1].move_to(4368.0)
+    assert bus.read("Present_Position", 1) == 4368 - 4096  # Phase bit 4 clear: single-turn
+    bus.write("Phase", 1, 0x10)
+    assert bus.read("Present_Position", 1) == 4368  # multi-turn feedback (huggingface/lerobot#1296)
+    bus.write("Torque_Enable", 2, 1)
+    bus.write("Goal_Position", 2, 2500)
+    assert bus.read("Present_Position", 2) == 2500
+
+
+def test_dynamixel_sdk_twos_complement_and_drive_mode(dxl_sim: tuple[SimServoBus, DynamixelBus]) -> None:
+    sim, bus = dxl_sim
+    assert (bus.ping(1), bus.ping(2)) == (1200, 1060)
+    bus.write("Homing_Offset", 2, 2047 - 3672)
+    assert bytes(sim.servos[2].regs[20:24]) == (4294965671).to_bytes(4, "little")
+    assert bus.read("Present_Position", 2) == 2047  # Present = Actual + Homing_Offset
+    bus.write("Operating_Mode", 1, 4)
+    bus.write("Drive_Mode", 1, 1)
+    bus.write("Homing_Offset", 1, 0)
+    assert bus.read("Present_Position", 1) == -1337  # reverse mode, extended position: negative
+    assert bus.sync_read("Present_Position", [1, 2]) == {1: -1337, 2: 2047}
+
+
+def test_dynamixel_eeprom_locked_while_torque_on(dxl_sim: tuple[SimServoBus, DynamixelBus]) -> None:
+    sim, bus = dxl_sim
+    bus.write("Torque_Enable", 1, 1)
+    with pytest.raises(DeviceError, match=r"motor 1: write 'Homing_Offset' failed: \[RxPacketError\]") as exc:
+        bus.write("Homing_Offset", 1, 5)
+    assert sim.port in str(exc.value) and exc.value.exit_code == 3
+
+
+def test_timeout_and_corrupt_packets_map_to_exit_3(feetech_sim: tuple[SimServoBus, FeetechBus]) -> None:
+    sim, bus = feetech_sim
+    sim.silent_ids.add(2)
+    with pytest.raises(CalibTimeoutError) as exc:
+        bus.read("Present_Position", 2)
+    assert str(exc.value) == (
+        f"{sim.port}: motor 2: read 'Present_Position' failed after 2 tries: [TxRxResult] There is no status packet!"
+    )
+    assert exc.value.exit_code == 3
+    sim.silent_ids.clear()
+    sim.corrupt_next = 1  # one bad checksum: the retry succeeds
+    assert bus.read("Present_Position", 1) == 1337
+    sim.corrupt_next = 5
+    with pytest.raises(ProtocolError, match="motor 1: read 'Present_Position' failed after 2 tries"):
+        bus.read("Present_Position", 1)
+
+
+def test_dynamixel_crc_matches_sdk() -> None:
+    from dynamixel_sdk import PacketHandler
+
+    pkt = [0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x07, 0x00, 0x02, 0x84, 0x00, 0x04, 0x00]
+    assert (
+        dxl_crc16(pkt) == PacketHandler(2.0).updateCRC(0, pkt, len(pkt)) == 0x151D
+    )  # sent as 1D 15 (e-manual read example)
+
+
+def test_scs0009_protocol_1_big_endian() -> None:
+    with SimServoBus([SimServo(1, "scs0009", 700.0)]) as sim:
+        bus = FeetechBus(sim.port, {1: "scs0009"}, retries=0)
+        try:
+            assert bus.ping(1) == 1284
+            assert bus.read("Present_Position", 1) == 700
+            assert bytes(sim.servos[1].regs[56:58]) == bytes([0x02, 0xBC])  # 700 = 0x02BC big-endian
+        finally:
+            bus.close()
+        # the next Feetech bus object selects protocol 0 again
+    with SimServoBus([SimServo(1, "sts3215", 700.0)]) as sim:
+        bus = FeetechBus(sim.port, {1: "sts3215"})
+        try:
+            assert bus.read("Present_Position", 1) == 700
+        finally:
+            bus.close()
+
+
+# --------------------------------------------------------------------------------------- calibration
+def _run(robot: str, tmp_path: Path, **kw: object) -> tuple[SimArm, dict[str, MotorCalibration], object]:
+    op_kw = {k: kw.pop(k) for k in ("mid_pose", "interrupt_at_step", "interrupt_at_prompt") if k in kw}
+    arm = SimArm(robot, truth=kw.pop("truth", None), eeprom=kw.pop("eeprom", None)).start()  # type: ignore[arg-type]
+    bus = open_bus(arm.spec, arm.port)
+    try:
+        result = calibrate(bus, arm.spec, SimOperator(arm, **op_kw), path=tmp_path / "cal.json", **kw)  # type: ignore[arg-type]
+        return arm, result.calibration, result
+    finally:
+        bus.close()
+        arm.stop()
+
+
+def test_so101_follower_calibration_matches_truth(tmp_path: Path) -> None:
+    arm, cals, result = _run("so101_follower", tmp_path)
+    truth = DEFAULT_TRUTH["so101_follower"]
+    for name in ("shoulder_pan", "shoulder_lift", "elbow_flex", "gripper"):
+        t = truth[name]
+        h = int(t.mid_ticks) - 2047
+        assert cals[name].homing_offset == h
+        assert (cals[name].range_min, cals[name].range_max) == (t.stop_low_ticks - h, t.stop_high_ticks - h)
+    # wrist_flex's travel crosses the encoder seam physically (3100..5300): the mid-pose homing moves it out
+    assert cals["wrist_flex"] == MotorCalibration(4, 0, 104 - 2047, 947, 3147)
+    assert cals["wrist_roll"] == MotorCalibration(5, 0, 0, 0, 4095)  # LeRobot's forced full turn
+    assert read_calibration(tmp_path / "cal.json") == cals
+    assert arm.eeprom()["gripper"] == {
+        "Homing_Offset": 253,
+        "Min_Position_Limit": 1747,
+        "Max_Position_Limit": 3147,
+    }
+    assert result.notes == ()  # type: ignore[attr-defined]
+
+
+def test_koch_follower_and_leader_match_truth(tmp_path: Path) -> None:
+    _, fol, _ = _run("koch_follower", tmp_path)
+    t = DEFAULT_TRUTH["koch_follower"]["elbow_flex"]
+    h = 2047 - int(t.mid_ticks)
+    assert fol["elbow_flex"] == MotorCalibration(
+        3, 0, h, int(t.stop_low_ticks) + h, int(t.stop_high_ticks) + h
+    )
+    assert (fol["shoulder_pan"].range_min, fol["shoulder_pan"].range_max) == (0, 4095)
+    arm, lead, _ = _run("koch_leader", tmp_path)
+    t = DEFAULT_TRUTH["koch_leader"]["elbow_flex"]
+    # Drive_Mode 1: Present = −Actual + offset; offset = 2047 − (−mid)
+    assert lead["elbow_flex"] == MotorCalibration(3, 1, 2047 + 2100, 2047 - 3150 + 2100, 2047 - 1050 + 2100)
+    assert arm.eeprom()["elbow_flex"]["Drive_Mode"] == 1
+    assert lead["wrist_flex"].drive_mode == 0
+
+
+def test_seam_crossing_sweep_is_rehomed(tmp_path: Path) -> None:
+    # a poor mid pose (1100 instead of ~2100) puts shoulder_pan's travel 900..3300 across the seam
+    arm, cals, result = _run("so101_follower", tmp_path, mid_pose={"shoulder_pan": 1100.0})
+    naive = result.naive_ranges["shoulder_pan"]  # type: ignore[attr-defined]
+    assert naive[0] < 400 and naive[1] > 3700  # LeRobot's wrap-blind (≈0, ≈4095) (#3586), true span 2400
+    c = cals["shoulder_pan"]
+    assert (c.range_min, c.range_max) == (847, 3247) and c.homing_offset == 53
+    assert arm.recovered_stops(cals)["shoulder_pan"] == (900, 3300)
+    assert any("shoulder_pan: the sweep crossed the 0/4095 seam" in n for n in result.notes)  # type: ignore[attr-defined]
+
+
+def test_home_after_sweep_centres_every_range(tmp_path: Path) -> None:
+    arm, cals, _ = _run("so101_follower", tmp_path, home_after_sweep=True, mid_pose={"elbow_flex": 900.0})
+    stops = arm.recovered_stops(cals)
+    for name, t in DEFAULT_TRUTH["so101_follower"].items():
+        if name == "wrist_roll":
+            continue
+        c = cals[name]
+        assert abs((c.range_min + c.range_max) // 2 - 2047) <= 1, name
+        lo, hi = stops[name]
+        shift = 4096 * round((t.stop_low_ticks - lo) / 4096)
+        assert (lo + shift, hi + shift) == (t.stop_low_ticks, t.stop_high_ticks), name
+    _, cals_k, _ = _run("koch_follower", tmp_path, home_after_sweep=True)
+    assert all(
+        abs((c.range_min + c.range_max) // 2 - 2047) <= 1 for n, c in cals_k.items() if n != "shoulder_pan"
+    )
+
+
+def test_mid_pose_at_4095_does_not_crash(tmp_path: Path) -> None:
+    truth = dict(DEFAULT_TRUTH["so101_follower"])
+    truth["shoulder_pan"] = JointTruth(4095, 3000, 5000)
+    _, cals, result = _run("so101_follower", tmp_path, truth=truth)
+    assert cals["shoulder_pan"].homing_offset == 2047  # LeRobot: 2048 -> "Magnitude 2048 exceeds 2047"
+    assert (cals["shoulder_pan"].range_min, cals["shoulder_pan"].range_max) == (953, 2953)
+    assert any("clamped to 2047" in n for n in result.notes)  # type: ignore[attr-defined]
+
+
+def test_full_turn_joints_can_be_swept(tmp_path: Path) -> None:
+    _, cals, _ = _run("so101_follower", tmp_path, sweep_full_turn=True)
+    assert (cals["wrist_roll"].range_min, cals["wrist_roll"].range_max) == (113 + 0, 3981)  # #4583
+    _, kcal, _ = _run("koch_follower", tmp_path, sweep_full_turn=True)
+    assert (kcal["shoulder_pan"].range_min, kcal["shoulder_pan"].range_max) == (500 - 1, 3600 - 1)
+
+
+PREVIOUS = {
+    "so101_follower": {
+        n: {"Homing_Offset": -100 - i, "Min_Position_Limit": 500 + i, "Max_Position_Limit": 3500 - i}
+        for i, n in enumerate(DEFAULT_TRUTH["so101_follower"])
+    },
+    "koch_leader": {
+        n: {
+            "Homing_Offset": -3000 + i,
+            "Min_Position_Limit": 100 + i,
+            "Max_Position_Limit": 3900 - i,
+            "Drive_Mode": 0,
+        }
+        for i, n in enumerate(DEFAULT_TRUTH["koch_leader"])
+    },
+}
+
+
+@pytest.mark.parametrize("robot", ["so101_follower", "koch_leader"])
+@pytest.mark.parametrize("where", [{"interrupt_at_step": 5}, {"interrupt_at_prompt": "sweep"}])
+def test_ctrl_c_restores_eeprom_and_leaves_file(tmp_path: Path, robot: str, where: dict[str, object]) -> None:
+    path = tmp_path / "cal.json"
+    path.write_text("previous file\n")
+    arm = SimArm(robot, eeprom=PREVIOUS[robot]).start()
+    bus = open_bus(arm.spec, arm.port)
+    try:
+        before = arm.eeprom()
+        assert before["gripper"]["Homing_Offset"] == PREVIOUS[robot]["gripper"]["Homing_Offset"]
+        with pytest.raises(KeyboardInterrupt):
+            calibrate(bus, arm.spec, SimOperator(arm, **where), path=path)  # type: ignore[arg-type]
+        assert arm.eeprom() == before
+        assert path.read_text() == "previous file\n"
+        assert not (tmp_path / "cal.json.bak").exists()
+    finally:
+        bus.close()
+        arm.stop()
+
+
+def test_dynamixel_restore_writes_drive_mode_and_check_names_fields(tmp_path: Path) -> None:
+    _, cals, _ = _run("koch_leader", tmp_path)
+    arm = SimArm("koch_leader").start()  # a fresh arm: Drive_Mode 0 everywhere, offsets 0
+    bus = open_bus(arm.spec, arm.port)
+    try:
+        diffs = check(bus, arm.spec, cals)
+        assert "motor 'elbow_flex' (id 3): drive_mode is 0 on the motor, 1 in the file" in [
+            str(d) for d in diffs
+        ]
+        restore(bus, arm.spec, cals)
+        assert arm.eeprom()["elbow_flex"]["Drive_Mode"] == 1
+        assert check(bus, arm.spec, cals) == []
+        arm.servo("wrist_flex").set_reg("Max_Position_Limit", 4000)
+        (d,) = check(bus, arm.spec, cals)
+        assert str(d) == (
+            f"motor 'wrist_flex' (id 4): range_max is 4000 on the motor, {cals['wrist_flex'].range_max} in the file"
+        )
+    finally:
+        bus.close()
+        arm.stop()
+
+
+def test_noisy_calibration_within_two_ticks(tmp_path: Path) -> None:
+    arm = SimArm("so101_leader", noise_ticks=1, seed=3).start()
+    bus = open_bus(arm.spec, arm.port)
+    try:
+        cals = calibrate(bus, arm.spec, SimOperator(arm), path=None, sweep_full_turn=True).calibration
+        for name, (lo, hi) in arm.recovered_stops(cals).items():
+            t = arm.truth[name]
+            assert abs(lo - t.stop_low_ticks) <= 2 and abs(hi - t.stop_high_ticks) <= 2, name
+    finally:
+        bus.close()
+        arm.stop()
