@@ -1,0 +1,149 @@
+"""LeRobot normalisation and simulated-bus throughput, each beside a baseline measured in the same run.
+
+* normalise / unnormalise a (100 000, 6) recording with ``robocal.lerobot`` (numpy, one call) vs a transcription
+  of LeRobot 0.6.1's per-motor Python loop (``_normalize`` / ``_unnormalize``) on the same data;
+* one SYNC_READ of 6 Present_Position registers vs 6 single READs, through the unmodified vendor SDKs and the
+  pseudo-terminal simulator (Feetech and Dynamixel);
+* a whole simulated SO-101 calibration (mid pose, 25-reading sweep, EEPROM writes, JSON file).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from robocal.backends.sim.lerobot_arms import SimArm, SimOperator
+from robocal.lerobot import MotorCalibration, normalize, unnormalize
+from robocal.workflows.lerobot import calibrate, open_bus
+
+CALS = [MotorCalibration(i + 1, i % 2, 0, 900 + 20 * i, 3000 + 30 * i) for i in range(6)]
+MODES = ["degrees"] * 5 + ["range_0_100"]
+
+
+def _timeit(fn: Callable[[], object], repeat: int = 3) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def _lerobot_loop_normalize(raw: np.ndarray) -> list[list[float]]:
+    out = []
+    for row in raw.tolist():
+        vals = []
+        for val, c, mode in zip(row, CALS, MODES, strict=True):
+            lo, hi = c.range_min, c.range_max
+            if mode == "range_0_100":
+                b = min(hi, max(lo, val))
+                n = ((b - lo) / (hi - lo)) * 100
+                vals.append(100 - n if c.drive_mode else n)
+            else:
+                vals.append((val - (lo + hi) / 2) * 360 / 4095)
+        out.append(vals)
+    return out
+
+
+def _lerobot_loop_unnormalize(values: np.ndarray) -> list[list[int]]:
+    out = []
+    for row in values.tolist():
+        vals = []
+        for val, c, mode in zip(row, CALS, MODES, strict=True):
+            lo, hi = c.range_min, c.range_max
+            if mode == "range_0_100":
+                v = 100 - val if c.drive_mode else val
+                vals.append(int((min(100.0, max(0.0, v)) / 100) * (hi - lo) + lo))
+            else:
+                vals.append(int((val * 4095 / 360) + (lo + hi) / 2))
+        out.append(vals)
+    return out
+
+
+def _row(what: str, ours: float, base: float, unit: str, n: int) -> None:
+    print(
+        f"{what:<48} robocal {n / ours:>12,.0f} {unit}   baseline {n / base:>12,.0f} {unit}   ratio {base / ours:6.1f}x"
+    )
+
+
+def bench_normalize() -> None:
+    rng = np.random.default_rng(0)
+    t = 100_000
+    raw = rng.integers(0, 4096, size=(t, 6))
+    ours = _timeit(lambda: normalize(raw, CALS, MODES))
+    base = _timeit(lambda: _lerobot_loop_normalize(raw), repeat=1)
+    assert np.array_equal(normalize(raw, CALS, MODES), np.array(_lerobot_loop_normalize(raw)))
+    _row("normalize (100k x 6) vs LeRobot per-motor loop", ours, base, "rows/s", t)
+    vals = normalize(raw, CALS, MODES)
+    ours = _timeit(lambda: unnormalize(vals, CALS, MODES))
+    base = _timeit(lambda: _lerobot_loop_unnormalize(vals), repeat=1)
+    assert unnormalize(vals, CALS, MODES).tolist() == _lerobot_loop_unnormalize(vals)
+    _row("unnormalize (100k x 6) vs LeRobot per-motor loop", ours, base, "rows/s", t)
+    ours = _timeit(
+        lambda: unnormalize(normalize(raw, CALS, MODES, compat="exact"), CALS, MODES, compat="exact")
+    )
+    base = _timeit(lambda: unnormalize(normalize(raw, CALS, MODES), CALS, MODES))
+    _row("exact round trip vs lerobot-compat round trip", ours, base, "rows/s", t)
+
+
+def bench_bus() -> None:
+    n = 200
+    for robot in ("so101_follower", "koch_follower"):
+        with SimArm(robot) as arm:
+            bus = open_bus(arm.spec, arm.port)
+            ids = [m.motor_id for m in arm.spec.motors]
+            try:
+                ours = _timeit(
+                    lambda b=bus, i=ids: [b.sync_read("Present_Position", i) for _ in range(n)], repeat=2
+                )
+                base = _timeit(
+                    lambda b=bus, i=ids: [[b.read("Present_Position", k) for k in i] for _ in range(n)],
+                    repeat=2,
+                )
+            finally:
+                bus.close()
+        _row(f"{arm.spec.vendor}: sync read of 6 vs 6 single reads (pty)", ours, base, "reads/s", n)
+
+
+def bench_calibration() -> None:
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(3):
+            with SimArm("so101_follower") as arm:
+                bus = open_bus(arm.spec, arm.port)
+                try:
+                    t0 = time.perf_counter()
+                    calibrate(bus, arm.spec, SimOperator(arm), path=Path(tmp) / f"{k}.json")
+                    times.append(time.perf_counter() - t0)
+                finally:
+                    bus.close()
+        # baseline: the same number of bus transactions as plain single reads
+        with SimArm("so101_follower") as arm:
+            bus = open_bus(arm.spec, arm.port)
+            try:
+                t0 = time.perf_counter()
+                for _ in range(30):
+                    for m in arm.spec.motors:
+                        bus.read("Present_Position", m.motor_id)
+                base = time.perf_counter() - t0
+            finally:
+                bus.close()
+    print(
+        f"{'simulated SO-101 calibration (whole procedure)':<48} robocal {min(times) * 1e3:10.1f} ms   "
+        f"baseline (180 single reads) {base * 1e3:8.1f} ms   ratio {min(times) / base:6.2f}"
+    )
+
+
+def main() -> None:
+    """Run every LeRobot benchmark and print robocal beside its baseline."""
+    bench_normalize()
+    bench_bus()
+    bench_calibration()
+
+
+if __name__ == "__main__":
+    main()
