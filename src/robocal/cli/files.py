@@ -52,6 +52,9 @@ def check(
     calibration: Path = typer.Option(..., "--calibration", help="Calibration file to check."),
     urdf: Path = typer.Option(..., "--urdf", help="The robot's URDF (expanded, not xacro)."),
     fmt: str | None = typer.Option(None, "--format", help="Calibration format (detected when omitted)."),
+    source: str | None = typer.Option(None, "--source", help="Also read the robot once (sim:, can:, replay:)."),
+    topic: str = typer.Option("/lite/joint_states", "--topic", help="JointState topic of a rosbag2 replay."),
+    frame: str | None = typer.Option(None, "--frame", help="Replay positions: identity (default) or motor."),
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
     model = read_urdf(urdf)
@@ -76,7 +79,17 @@ def check(
     for j in report.joints:
         for w in j.warnings:
             print_warning(f"{j.name}: {w}")
-    raise typer.Exit(EXIT_OK if report.ok else EXIT_WARNINGS)
+    ok = report.ok
+    if source is not None:  # first reading after power-on, with the 2π branch selection (robocal.workflows.sweep)
+        from ..workflows.sweep import check_source
+
+        for c in check_source(urdf, calibration, source, topic=topic, frame=frame):
+            turns = f" ({c.turns:+d} turn)" if c.turns else ""
+            console.print(f"{c.name}: q = {c.q_rad:+.4f} rad{turns}", markup=False)
+            if c.problem:
+                print_warning(c.problem)
+                ok = False
+    raise typer.Exit(EXIT_OK if ok else EXIT_WARNINGS)
 
 
 def register(app: typer.Typer) -> None:
