@@ -96,8 +96,9 @@ def _print_reports(reports: list[wf.VerifyReport]) -> int:
     warnings: list[str] = []
     for r in reports:
         hash_state = "-" if r.file_hash is None else ("match" if r.file_hash == r.dh_hash else "MISMATCH")
+        kind, _, path = r.source.rpartition(" ")
         table.add_row(
-            r.source,
+            f"{kind} {Path(path).name}",
             str(r.samples),
             f"{r.max_position_error_m:.3g}",
             f"{r.max_rotation_error_rad:.3g}",
