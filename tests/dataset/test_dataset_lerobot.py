@@ -209,3 +209,15 @@ def test_legacy_convention_matches_lerobot_legacy() -> None:
     far, mask = legacy.from_actual(np.array([[2145.0 + 3200, 1983.0]]))
     assert far[0, 0] == pytest.approx(3200 / 2048 * 180)
     assert mask.tolist() == [[True, False]]
+
+
+def test_tick_lookup_path_equals_direct_map() -> None:
+    a, b = conv(HOMING_A, RANGE_A), conv(HOMING_B, RANGE_B, use_degrees=False)
+    rng = np.random.default_rng(7)
+    actual = rng.integers(1000, 3200, size=(20000, 6)).astype(np.float64)  # some outside B's ranges
+    values = a.from_actual(actual)[0].astype(np.float32).astype(np.float64)
+    fast, fast_mask = recalibrate_values(values, a, b)  # > 8192 rows: one map per distinct tick
+    slow, slow_mask = b.from_actual(a.to_actual(values))
+    np.testing.assert_array_equal(fast, slow)
+    np.testing.assert_array_equal(fast_mask, slow_mask)
+    assert 0 < int(fast_mask.sum()) < fast_mask.size

@@ -178,6 +178,11 @@ class LeRobotConvention:
             self.wrap,
         )
 
+    @property
+    def integer_ticks(self) -> bool:
+        """:meth:`to_actual` returns whole ticks (lets the engine map each distinct tick once)."""
+        return True
+
     def _half_tick(self) -> FloatArray:
         """Half a tick in value units, signed so that it moves the unnormalised position up."""
         out = []
@@ -278,6 +283,11 @@ class LegacyConvention:
     def joint_names(self) -> tuple[str, ...]:
         """Motor names in column order."""
         return self.calibration.motor_names
+
+    @property
+    def integer_ticks(self) -> bool:
+        """:meth:`to_actual` returns whole ticks (rounded like LeRobot's ``revert_calibration``)."""
+        return True
 
     def select(self, joint_names: Sequence[str]) -> LegacyConvention:
         """Restrict to and reorder as ``joint_names``."""

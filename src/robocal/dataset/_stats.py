@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,28 +118,65 @@ class StatAccumulator:
         return None
 
 
+def _segment_stats(
+    v: FloatArray, starts: NDArray[np.int64], lengths: NDArray[np.int64], fractions: Sequence[float]
+) -> list[StatAccumulator]:
+    """Statistics of consecutive row segments of ``v`` ``(N, D)`` in a few vectorised calls."""
+    mins = np.minimum.reduceat(v, starts, axis=0)
+    maxs = np.maximum.reduceat(v, starts, axis=0)
+    means = np.add.reduceat(v, starts, axis=0) / lengths[:, None]
+    dev = v - np.repeat(means, lengths, axis=0)
+    m2s = np.add.reduceat(dev * dev, starts, axis=0)
+    fr = sorted(set(fractions))
+    if fr and np.all(lengths == lengths[0]):
+        qs = np.quantile(v.reshape(len(starts), int(lengths[0]), v.shape[1]), fr, axis=1)  # (Q, E, D)
+        qlist = [{f: qs[i, e] for i, f in enumerate(fr)} for e in range(len(starts))]
+    else:
+        qlist = []
+        for s0, n in zip(starts, lengths, strict=True):
+            q = np.quantile(v[s0 : s0 + n], fr, axis=0) if fr else np.empty((0, v.shape[1]))
+            qlist.append({f: q[i] for i, f in enumerate(fr)})
+    return [
+        StatAccumulator(
+            count=int(lengths[e]), min=mins[e], max=maxs[e], mean=means[e], m2=m2s[e], quantiles=qlist[e]
+        )
+        for e in range(len(starts))
+    ]
+
+
 def episode_stats(
-    episode_index: NDArray[np.int64], values: Mapping[str, FloatArray]
+    episode_index: NDArray[np.int64],
+    values: Mapping[str, FloatArray],
+    fractions: Sequence[float] = tuple(QUANTILES.values()),
 ) -> dict[int, dict[str, StatAccumulator]]:
     """Statistics per episode and feature.
 
     Args:
-        episode_index: Shape ``(N,)``, the episode of each frame.
+        episode_index: Shape ``(N,)``, the episode of each frame (frames of one episode may be split in
+            several runs; their statistics are merged).
         values: Feature → values ``(N, D)``.
+        fractions: Quantile fractions to compute.
 
     Returns:
         Episode → feature → statistics.
     """
     out: dict[int, dict[str, StatAccumulator]] = {}
-    if episode_index.size == 0:
+    n = episode_index.size
+    if n == 0:
         return out
-    if episode_index[0] == episode_index[-1] and np.all(episode_index == episode_index[0]):
-        groups = [(int(episode_index[0]), slice(None))]
-    else:
-        eps = np.unique(episode_index)
-        groups = [(int(e), np.flatnonzero(episode_index == e)) for e in eps]  # type: ignore[misc]
-    for ep, sel in groups:
-        out[ep] = {key: StatAccumulator.of(v[sel]) for key, v in values.items()}
+    starts = np.concatenate(([0], np.flatnonzero(episode_index[1:] != episode_index[:-1]) + 1)).astype(
+        np.int64
+    )
+    lengths = np.diff(np.concatenate((starts, [n]))).astype(np.int64)
+    eps = episode_index[starts]
+    per_key = {
+        key: _segment_stats(np.asarray(v, dtype=np.float64), starts, lengths, fractions)
+        for key, v in values.items()
+    }
+    for i, ep in enumerate(eps.tolist()):
+        dest = out.setdefault(int(ep), {})
+        for key, accs in per_key.items():
+            dest[key] = dest[key].merge(accs[i]) if key in dest else accs[i]
     return out
 
 
