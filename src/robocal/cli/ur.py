@@ -91,7 +91,7 @@ def defaults(
 def _print_reports(reports: list[wf.VerifyReport]) -> int:
     table = Table(box=None)
     table.add_column("source", overflow="fold")
-    for col in ("samples", "max Δp [m]", "max Δrot [rad]", "hash"):
+    for col in ("samples", "max Δp (m)", "max Δrot (rad)", "hash"):
         table.add_column(col)
     warnings: list[str] = []
     for r in reports:
