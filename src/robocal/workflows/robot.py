@@ -1,0 +1,185 @@
+"""Runtime read/write of a calibrated Robstride robot, in the joint frame.
+
+:class:`CalibratedRobot` is built from the URDF (directions, limits, ids, models), a calibration file (homing
+offsets) and the CAN buses. :meth:`CalibratedRobot.read` returns joint-frame position, velocity and effort
+for every joint in one call; :meth:`CalibratedRobot.write` takes joint-frame MIT targets and sends motor-frame
+frames (position through the full map, velocity and feed-forward torque through the direction only, gains
+unchanged). The first read after power-on picks, per joint, the 2π branch that puts the joint inside its
+limits (:meth:`robocal.core.RobotCalibration.unwrap_to_limits`) and keeps that shift for later ticks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from ..backends.sources import RobstrideSource, open_source, parse_source
+from ..core.jointmap import RobotCalibration
+from ..errors import JointMismatchError, ShapeMismatchError, UsageError
+from ..formats import read_calibration
+from ..formats.urdf import read_urdf
+from .sweep import joints_from_urdf
+
+__all__ = ["CalibratedRobot", "JointState", "open_robot"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class JointState:
+    """Joint-frame state of every joint, shape ``(N,)`` each.
+
+    Attributes:
+        position_rad: Joint positions, rad.
+        velocity_rad_s: Joint velocities, rad/s.
+        effort_nm: Joint efforts, N·m.
+    """
+
+    position_rad: FloatArray
+    velocity_rad_s: FloatArray
+    effort_nm: FloatArray
+
+
+class CalibratedRobot:
+    """Joint-frame read/write over Robstride buses.
+
+    Args:
+        calibration: Joint maps in URDF order (directions from the URDF, offsets from the file).
+        lower: Lower limits, shape ``(N,)``, rad.
+        upper: Upper limits, shape ``(N,)``, rad.
+        source: The open Robstride source (its buses are used; it is closed by :meth:`close`).
+    """
+
+    def __init__(
+        self, calibration: RobotCalibration, lower: FloatArray, upper: FloatArray, source: RobstrideSource
+    ) -> None:
+        if tuple(source.joint_names) != calibration.joint_names:
+            raise JointMismatchError("robot: the buses' joints do not match the calibration's joint order")
+        self.calibration = calibration
+        self.joint_names = calibration.joint_names
+        self.lower = np.asarray(lower, dtype=np.float64)
+        self.upper = np.asarray(upper, dtype=np.float64)
+        self.source = source
+        self._shift_rad: FloatArray | None = None  # whole turns added on the first read after power-on
+
+    @property
+    def branch_shift_rad(self) -> FloatArray | None:
+        """Raw shift (multiples of 2π) chosen on the first read, shape ``(N,)``; None before it."""
+        return None if self._shift_rad is None else self._shift_rad.copy()
+
+    def _to_state(self, raw: FloatArray, vel: FloatArray, eff: FloatArray) -> JointState:
+        cal = self.calibration
+        if self._shift_rad is None:
+            self._shift_rad = cal.unwrap_to_limits(raw, self.lower, self.upper) - raw
+        return JointState(
+            cal.to_joint(raw + self._shift_rad), cal.velocity_to_joint(vel), cal.effort_to_joint(eff)
+        )
+
+    def read(self) -> JointState:
+        """Poll every joint (zero-torque MIT frame) and return the joint-frame state."""
+        s = self.source.read()
+        assert s.velocity_rad_s is not None and s.effort_nm is not None
+        return self._to_state(s.position_rad, s.velocity_rad_s, s.effort_nm)
+
+    def write(
+        self,
+        position_rad: npt.ArrayLike,
+        velocity_rad_s: npt.ArrayLike = 0.0,
+        kp: npt.ArrayLike = 0.0,
+        kd: npt.ArrayLike = 0.0,
+        torque_nm: npt.ArrayLike = 0.0,
+    ) -> JointState:
+        """Send joint-frame MIT targets to every joint and return the joint-frame feedback.
+
+        Args:
+            position_rad: Target joint positions, shape ``(N,)``, rad.
+            velocity_rad_s: Target joint velocities, shape ``(N,)`` or scalar, rad/s.
+            kp: Position gains, shape ``(N,)`` or scalar (unchanged by the calibration).
+            kd: Velocity gains, shape ``(N,)`` or scalar (unchanged).
+            torque_nm: Feed-forward torques, shape ``(N,)`` or scalar, N·m.
+
+        Returns:
+            The state decoded from the replies.
+        """
+        n = len(self.joint_names)
+        if self._shift_rad is None:
+            raise UsageError(
+                "robot.write before the first robot.read: read once after power-on to pick branches"
+            )
+        cal = self.calibration
+
+        def vec(x: npt.ArrayLike, what: str) -> FloatArray:
+            a = (
+                np.broadcast_to(np.asarray(x, dtype=np.float64), (n,))
+                if np.ndim(x) == 0
+                else np.asarray(x, float)
+            )
+            if a.shape != (n,) or not np.all(np.isfinite(a)):
+                raise ShapeMismatchError(
+                    f"robot.write: {what} must be {n} finite numbers, got shape {a.shape}"
+                )
+            return a
+
+        p_raw = cal.to_raw(vec(position_rad, "position")) - self._shift_rad
+        v_raw = cal.velocity_to_raw(vec(velocity_rad_s, "velocity"))
+        t_raw = cal.effort_to_raw(vec(torque_nm, "torque"))
+        kp_v, kd_v = vec(kp, "kp"), vec(kd, "kd")
+        index = {name: i for i, name in enumerate(self.joint_names)}
+        raw = np.full(n, np.nan)
+        vel = np.full(n, np.nan)
+        eff = np.full(n, np.nan)
+        for bus in self.source.buses:
+            cmds = {
+                name: (
+                    p_raw[index[name]],
+                    v_raw[index[name]],
+                    kp_v[index[name]],
+                    kd_v[index[name]],
+                    t_raw[index[name]],
+                )
+                for name in bus.motors
+            }
+            for name, fb in bus.mit_many(cmds).items():
+                i = index[name]
+                raw[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
+        return self._to_state(raw, vel, eff)
+
+    def close(self) -> None:
+        """Close the buses."""
+        self.source.close()
+
+    def __enter__(self) -> CalibratedRobot:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_robot(
+    urdf_path: str | Path, calibration_path: str | Path, source: str, *, timeout_s: float = 0.1
+) -> CalibratedRobot:
+    """Build a :class:`CalibratedRobot` from a URDF, a calibration file and ``sim:lite`` or ``can:…``.
+
+    Raises:
+        UsageError: A ``replay:`` source (a recording cannot be commanded).
+        JointMismatchError: The calibration lacks a URDF joint.
+    """
+    spec = parse_source(source)
+    if spec.kind == "replay":
+        raise UsageError("a robot needs sim: or can: buses, not a replay")
+    urdf = read_urdf(urdf_path)
+    joints = joints_from_urdf(urdf)
+    names = [j.name for j in joints]
+    cf = read_calibration(calibration_path, urdf=urdf)
+    missing = [n for n in names if n not in cf.calibration]
+    if missing:
+        raise JointMismatchError(f"calibration {calibration_path}: no offset for {', '.join(missing)}")
+    cal = cf.calibration.select(names).with_directions({j.name: j.direction for j in joints})
+    src = open_source(spec, joints, timeout_s=timeout_s)
+    assert isinstance(src, RobstrideSource)
+    lower = np.array([j.lower for j in joints])
+    upper = np.array([j.upper for j in joints])
+    return CalibratedRobot(cal, lower, upper, src)

@@ -1,0 +1,92 @@
+"""Runtime joint-frame read/write over the virtual CAN bus (CalibratedRobot)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from robocal.backends.sim.lite import SimLite
+from robocal.backends.sources import SimLiteSource
+from robocal.core import RobotCalibration
+from robocal.errors import ShapeMismatchError, UsageError
+from robocal.formats import read_calibration
+from robocal.formats.urdf import read_urdf
+from robocal.workflows.robot import CalibratedRobot, open_robot
+from robocal.workflows.sweep import joints_from_urdf, run_sweep
+
+
+def _robot(urdf: Path, cal_path: Path, sim: SimLite) -> CalibratedRobot:
+    joints = joints_from_urdf(read_urdf(urdf))
+    names = [j.name for j in joints]
+    cal = read_calibration(cal_path).calibration.select(names)
+    sim.start()
+    src = SimLiteSource(joints, sim)
+    return CalibratedRobot(cal, np.array([j.lower for j in joints]), np.array([j.upper for j in joints]), src)
+
+
+def test_read_after_power_cycle_and_write_mapping(urdf: Path, tmp_path: Path, h: Any) -> None:
+    # elbow travel crosses the power-on wrap point (zero_sta 0): after a power cycle at q = -2.2 the raw
+    # reading jumps a turn; the first read picks the branch inside the limits
+    sim = SimLite(21, noise_rad=0.0, zero_sta=0, factory_zero_rad={"left_elbow_pitch": -0.6})
+    cal_path = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    sim.motors["left_elbow_pitch"].set_position(-0.2)  # raw = 0.2 - 0.6 = -0.4 -> 2π - 0.4 after power-on
+    sim.power_cycle()
+    truth_q = sim.joint_positions()
+    with _robot(urdf, cal_path, sim) as robot:
+        state = robot.read()
+        for i, name in enumerate(robot.joint_names):
+            assert state.position_rad[i] == pytest.approx(truth_q[name], abs=1e-3), name
+        shift = robot.branch_shift_rad
+        assert shift is not None
+        i_el = robot.joint_names.index("left_elbow_pitch")
+        assert abs(shift[i_el]) == pytest.approx(2 * math.pi)
+        turns = shift / (2 * math.pi)
+        assert np.allclose(turns, np.round(turns))  # only whole turns are ever added
+
+        n = len(robot.joint_names)
+        q_cmd = np.linspace(-0.3, 0.2, n)
+        v_cmd = np.full(n, 0.5)
+        tau = np.full(n, 1.0)
+        robot.write(q_cmd, v_cmd, kp=20.0, kd=1.0, torque_nm=tau)
+        cal: RobotCalibration = robot.calibration
+        for i, name in enumerate(robot.joint_names):
+            motor = sim.motors[name]
+            assert motor.last_command is not None
+            p, v, kp, kd, t = motor.last_command
+            d = cal.direction[i]
+            expected_raw = d * q_cmd[i] + cal.homing_offset[i] - shift[i]
+            assert p == pytest.approx(expected_raw, abs=5e-4), name  # full map
+            assert v == pytest.approx(d * 0.5, abs=5e-3)  # direction only
+            assert t == pytest.approx(d * 1.0, abs=5e-3)  # direction only
+            assert kp == pytest.approx(20.0, abs=0.01) and kd == pytest.approx(1.0, abs=0.01)  # unchanged
+
+
+def test_write_errors(urdf: Path, tmp_path: Path, h: Any) -> None:
+    sim = SimLite(22, noise_rad=0.0)
+    cal_path = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    with _robot(urdf, cal_path, sim) as robot:
+        with pytest.raises(UsageError, match=r"before the first robot\.read"):
+            robot.write(np.zeros(14))
+        robot.read()
+        with pytest.raises(ShapeMismatchError, match="position must be 14 finite numbers"):
+            robot.write(np.zeros(3))
+        with pytest.raises(ShapeMismatchError, match="kp"):
+            robot.write(np.zeros(14), kp=[math.nan] * 14)
+
+
+def test_open_robot_from_source_string(urdf: Path, tmp_path: Path) -> None:
+    cal_path = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite?seed=3", cal_path)
+    with open_robot(urdf, cal_path, "sim:lite?seed=3&noise=0") as robot:
+        state = robot.read()
+        assert state.position_rad.shape == (14,) and np.all(np.isfinite(state.position_rad))
+        lo = np.array([j.lower for j in joints_from_urdf(read_urdf(urdf))])
+        assert np.all(state.position_rad >= lo - 0.05)
+    with pytest.raises(UsageError, match="not a replay"):
+        open_robot(urdf, cal_path, "replay:x.csv")
