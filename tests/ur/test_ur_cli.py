@@ -113,3 +113,35 @@ def kin_dh_set3() -> DHParameters:
     from .conftest import calibrated_dh
 
     return calibrated_dh(3)
+
+
+def test_correct_reports_deviation_from_nominal(
+    tmp_path: Path, dh_sets: dict[int, DHParameters], capsys: pytest.CaptureFixture[str]
+) -> None:
+    dh = _write_dh(tmp_path / "dh.yaml", dh_sets[3])
+    assert main(["ur", "correct", "--dh", str(dh), "--out", str(tmp_path / "k.yaml")]) == 0
+    assert "deviation from nominal ur10e: 0.879 mm (d6), 6.938 mrad" in capsys.readouterr().out
+
+
+def test_deviation_from_nominal_values(dh_sets: dict[int, DHParameters]) -> None:
+    from robocal.core.ur import deviation_from_nominal
+
+    dev = deviation_from_nominal(correct_kinematics(dh_sets[1], "upstream"))
+    assert dev.model == "ur10" and dev.length_field == "a3"
+    assert dev.length_m == pytest.approx(0.0011405691720679512, abs=1e-12)
+    assert dev.angle_rad == pytest.approx(0.013483227116492602, abs=1e-12)
+    nominal = deviation_from_nominal(default_kinematics("ur5e"), "ur5e")
+    assert nominal.length_m == 0.0 and nominal.angle_rad < 1e-15
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [(["--timeout", "0"], "--timeout 0.0: expected a positive number"), (["--port", "70000"], "--port 70000")],
+)
+def test_extract_bad_timeout_or_port_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    out = tmp_path / "k.yaml"
+    assert main(["ur", "extract", "--host", "127.0.0.1", "--out", str(out), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()

@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from ..core.ur import RPY_CONVENTIONS, TEST_SET_3_DELTAS, UR_MODELS, nominal_dh
+from ..core.ur import RPY_CONVENTIONS, TEST_SET_3_DELTAS, UR_MODELS, deviation_from_nominal, nominal_dh
 from ..workflows import ur as wf
 from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
 
@@ -36,6 +36,11 @@ def _print_result(result: wf.CorrectionResult) -> int:
         table.add_row(link.name, *(f"{v:.9g}" for v in (*link.xyz_m, *link.rpy_rad)))
     console.print(table)
     console.print(f"hash: {result.kinematics.hash}  (rpy convention: {result.kinematics.rpy_convention})")
+    dev = deviation_from_nominal(result.kinematics)
+    console.print(
+        f"deviation from nominal {dev.model}: {dev.length_m * 1e3:.3f} mm ({dev.length_field}), "
+        f"{dev.angle_rad * 1e3:.3f} mrad"
+    )
     console.print(f"wrote {result.out_path}")
     if result.urdf_out is not None:
         console.print(f"wrote {result.urdf_out} (six joint origins updated)")

@@ -45,10 +45,12 @@ __all__ = [
     "URSIM_HALF_PI",
     "UR_MODELS",
     "LinkOrigin",
+    "NominalDeviation",
     "UrKinematics",
     "correct_chain",
     "correct_kinematics",
     "default_kinematics",
+    "deviation_from_nominal",
     "fk_origins",
     "nominal_dh",
     "six_transforms",
@@ -434,3 +436,68 @@ TEST_SET_3_DELTAS = DHParameters(
     ),
 )
 """Calibration deltas of a real UR10e (ur_calibration's test set 3; d2 = 439 m once added to nominal)."""
+
+
+@dataclass(frozen=True)
+class NominalDeviation:
+    """How far the corrected joint origins sit from a model's nominal geometry.
+
+    Healthy calibrations deviate by about a millimetre / milliradian; metres mean the wrong model or a
+    broken calibration.
+
+    Attributes:
+        model: The nominal model compared with.
+        length_m: Largest ``|corrected − nominal|`` over d1 (shoulder.z), a2 (forearm.x), a3 (wrist_1.x),
+            d4 (wrist_1.z), d5 (−wrist_2.y) and d6 (wrist_3.y), metres.
+        length_field: Which of those is largest (e.g. ``"a2"``).
+        angle_rad: Largest rotation angle between a corrected origin and the nominal one, radians.
+    """
+
+    model: str
+    length_m: float
+    length_field: str
+    angle_rad: float
+
+
+def deviation_from_nominal(kin: UrKinematics, model: str | None = None) -> NominalDeviation:
+    """Compare corrected kinematics with a model's nominal geometry.
+
+    Args:
+        kin: Corrected kinematics (either rpy convention; rotations are compared as matrices).
+        model: Model to compare with; None picks the model whose nominal lengths are closest.
+
+    Returns:
+        The largest length and angle deviation.
+    """
+    from .se3 import matrix_from_rpy_urdf, rotation_angle_between
+
+    xyz = kin.xyz_array()
+    measured = {
+        "d1": xyz[0, 2], "a2": xyz[2, 0], "a3": xyz[3, 0], "d4": xyz[3, 2], "d5": -xyz[4, 1], "d6": xyz[5, 1],
+    }
+
+    def lengths(m: str) -> dict[str, float]:
+        a2, a3, d1, d4, d5, d6 = UR_MODELS[m]
+        return {"d1": d1, "a2": a2, "a3": a3, "d4": d4, "d5": d5, "d6": d6}
+
+    if model is None:
+        model = min(UR_MODELS, key=lambda m: sum((measured[k] - v) ** 2 for k, v in lengths(m).items()))
+    nominal = lengths(model.strip().lower()) if model.strip().lower() in UR_MODELS else None
+    if nominal is None:
+        raise UsageError(f"unknown UR model {model!r}; valid: {', '.join(UR_MODELS)}")
+    diffs = {k: abs(float(measured[k]) - v) for k, v in nominal.items()}
+    field_name = max(diffs, key=lambda k: diffs[k])
+    if kin.rpy_convention == "urdf":
+        R = matrix_from_rpy_urdf(kin.rpy_array())
+    else:
+        R = np.array([_eigen_rpy_to_matrix(lk.rpy_rad) for lk in kin.links])
+    nom_kin = correct_kinematics(nominal_dh(model), "urdf")
+    R_nom = matrix_from_rpy_urdf(nom_kin.rpy_array())
+    angle = float(np.max(rotation_angle_between(R, R_nom)))
+    return NominalDeviation(model.strip().lower(), diffs[field_name], field_name, angle)
+
+
+def _eigen_rpy_to_matrix(angles: tuple[float, float, float]) -> FloatArray:
+    from .se3 import rot_x, rot_y
+
+    return np.asarray(rot_x(angles[0]) @ rot_y(angles[1]) @ rot_z(angles[2]), dtype=np.float64)

@@ -197,6 +197,10 @@ def extract(
     Paths are checked before connecting, so a typo costs no robot time.
     """
     _check_rpy(rpy)
+    if not (timeout_s > 0 and math.isfinite(timeout_s)):
+        raise UsageError(f"--timeout {timeout_s}: expected a positive number of seconds")
+    if not 1 <= port <= 65535:
+        raise UsageError(f"--port {port}: expected 1..65535")
     check_out_path(out)
     _check_urdf_pair(urdf_in, urdf_out)
     from ..backends.ur_primary import PrimaryClient
