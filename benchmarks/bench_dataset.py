@@ -65,7 +65,9 @@ def main() -> None:
             actual_lo=[1100, 1100, 1100, 1100, 200, 1100],
             actual_hi=[2800, 2800, 2800, 2700, 3900, 2400],
         )
-        print(f"generated {ds.n_frames:,} frames in {len(ds.data_files)} files: {time.perf_counter() - t0:.1f} s")
+        print(
+            f"generated {ds.n_frames:,} frames in {len(ds.data_files)} files: {time.perf_counter() - t0:.1f} s"
+        )
         runs: list[tuple[str, float]] = []
         for rep in range(2):  # two rounds, best of each, so page-cache effects hit both alike
             dst = work / f"copy{rep}"
@@ -89,7 +91,9 @@ def main() -> None:
         print(f"{'plain pyarrow read+write copy':34s} {best['copy']:6.2f} s  {base / 1e6:6.2f} M frames/s")
         for name in ("robocal workers=1", "robocal workers=2"):
             fps = ds.n_frames / best[name]
-            print(f"{name:34s} {best[name]:6.2f} s  {fps / 1e6:6.2f} M frames/s  ratio {fps / base:.2f}× of copy")
+            print(
+                f"{name:34s} {best[name]:6.2f} s  {fps / 1e6:6.2f} M frames/s  ratio {fps / base:.2f}× of copy"
+            )
         print("target: ratio ≥ 0.70")
     finally:
         shutil.rmtree(work, ignore_errors=True)

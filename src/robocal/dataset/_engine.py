@@ -9,6 +9,7 @@ unchanged. Files are rewritten row group by row group, so one row group per epis
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -275,19 +276,28 @@ def recalibrate_file(
     meta = pf.metadata
     sizes = [meta.row_group(g).num_rows for g in range(meta.num_row_groups)]
     try:
-        with pq.ParquetWriter(dst, schema=schema, compression=_compression_of(meta)) as writer:
+        with (
+            pq.ParquetWriter(dst, schema=schema, compression=_compression_of(meta)) as writer,
+            ThreadPoolExecutor(max_workers=1) as write_thread,  # writes overlap the next batch's maths
+        ):
+            pending: Future[None] | None = None
+
+            def write(table: pa.Table, batch: list[int]) -> None:
+                offset = 0
+                for g in batch:  # one output row group per source row group
+                    writer.write_table(table.slice(offset, sizes[g]), row_group_size=max(sizes[g], 1))
+                    offset += sizes[g]
+
             for batch in _batches(sizes, batch_rows):
                 table = pf.read_row_groups(batch) if len(batch) > 1 else pf.read_row_group(batch[0])
                 try:
                     new_table, counts, stored = recalibrate_table_with_counts(table, plans)
                 except FileFormatError as exc:
                     raise FileFormatError(f"data file {name}, row groups {batch[0]}-{batch[-1]}: {exc}") from None
-                offset = 0
-                for g in batch:  # one output row group per source row group
-                    part = new_table.slice(offset, sizes[g])
-                    writer.write_table(part, row_group_size=max(sizes[g], 1))
-                    offset += sizes[g]
-                    result.row_groups += 1
+                if pending is not None:
+                    pending.result()
+                pending = write_thread.submit(write, new_table, batch)
+                result.row_groups += len(batch)
                 result.frames += new_table.num_rows
                 for key, c in counts.items():
                     result.out_of_range[key] += c
@@ -297,6 +307,8 @@ def recalibrate_file(
                         dest = result.episode_stats.setdefault(ep, {})
                         for key, a in acc.items():
                             dest[key] = dest[key].merge(a) if key in dest else a
+            if pending is not None:
+                pending.result()
     except (pa.ArrowException, OSError) as exc:
         raise FileFormatError(f"data file {name}: cannot read or write Parquet ({exc})") from None
     return result
