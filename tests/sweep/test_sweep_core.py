@@ -205,3 +205,23 @@ def test_branch_selection_after_power_on_uses_robot_calibration() -> None:
     fixed = cal.unwrap_to_limits(raw_power_on, [-2.356], [0.0])
     assert fixed[0] == pytest.approx(-0.2)
     assert cal.to_joint(fixed)[0] == pytest.approx(-0.3)
+
+
+@given(
+    rows=st.lists(
+        st.lists(st.one_of(st.floats(-7.0, 7.0), st.just(float("nan"))), min_size=3, max_size=3),
+        min_size=1,
+        max_size=60,
+    )
+)
+def test_tracker_per_sample_equals_block(rows: list[list[float]]) -> None:
+    """The per-sample fast path and the block path agree, NaN gaps included."""
+    data = np.array(rows)
+    a, b = RangeTracker(3), RangeTracker(3)
+    for r in data:
+        a.update(r)
+    b.update_many(data)
+    np.testing.assert_array_equal(a.count, b.count)
+    np.testing.assert_allclose(a.minimum, b.minimum, atol=1e-9)
+    np.testing.assert_allclose(a.maximum, b.maximum, atol=1e-9)
+    np.testing.assert_allclose(a.current, b.current, atol=1e-9)

@@ -93,6 +93,9 @@ class RangeTracker:
         self._min = np.full(n_joints, np.inf)
         self._max = np.full(n_joints, -np.inf)
         self._count = np.zeros(n_joints, dtype=np.int64)
+        self._inv_period = 1.0 / self.period_rad
+        self._started = False
+        self._fast = 0  # samples added by the fast path (every joint counted)
 
     def _check(self, s: Any, ndim: int) -> FloatArray:
         arr = np.asarray(s, dtype=np.float64)
@@ -102,8 +105,23 @@ class RangeTracker:
         return arr
 
     def update(self, s_rad: npt.ArrayLike) -> None:
-        """Add one sample, shape ``(N,)``, rad."""
-        self.update_many(self._check(s_rad, 1)[None, :])
+        """Add one sample, shape ``(N,)``, rad (fast path once every joint has a finite sample)."""
+        x = self._check(s_rad, 1)
+        if not self._started:
+            self.update_many(x[None, :])
+            self._started = bool(np.all(self._count > 0))
+            return
+        d = x - self._last
+        if not math.isfinite(d.sum()):
+            self.update_many(x[None, :])
+            return
+        d -= self.period_rad * np.floor(d * self._inv_period + 0.5)
+        d += self._current
+        np.minimum(self._min, d, out=self._min)
+        np.maximum(self._max, d, out=self._max)
+        self._fast += 1
+        self._current = d
+        self._last = x.copy()
 
     def update_many(self, s_rad: npt.ArrayLike) -> None:
         """Add a block of samples, shape ``(T, N)``, rad (rows in time order)."""
@@ -137,7 +155,7 @@ class RangeTracker:
     @property
     def count(self) -> npt.NDArray[np.int64]:
         """Finite samples seen per joint, shape ``(N,)``."""
-        out: npt.NDArray[np.int64] = self._count.copy()
+        out: npt.NDArray[np.int64] = self._count + self._fast
         return out
 
     @property
@@ -149,17 +167,17 @@ class RangeTracker:
     @property
     def minimum(self) -> FloatArray:
         """Unwrapped minimum per joint, shape ``(N,)``, rad (NaN before the first sample)."""
-        return np.where(self._count > 0, self._min, np.nan)
+        return np.where(self.count > 0, self._min, np.nan)
 
     @property
     def maximum(self) -> FloatArray:
         """Unwrapped maximum per joint, shape ``(N,)``, rad (NaN before the first sample)."""
-        return np.where(self._count > 0, self._max, np.nan)
+        return np.where(self.count > 0, self._max, np.nan)
 
     @property
     def sweep(self) -> FloatArray:
         """``maximum − minimum`` per joint, shape ``(N,)``, rad (0 before the first sample)."""
-        return np.where(self._count > 0, self._max - self._min, 0.0)
+        return np.where(self.count > 0, self._max - self._min, 0.0)
 
 
 def bisect_homing_offset(
