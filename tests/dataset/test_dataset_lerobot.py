@@ -53,9 +53,7 @@ def test_presets() -> None:
     assert preset_modes("koch_follower", ["elbow_flex"], True) == {"elbow_flex": "degrees"}
     assert motor_family_for_robot("so_leader") == "feetech"
     assert motor_family_for_robot("koch_leader") == "dynamixel"
-    with pytest.raises(
-        UsageError, match=r"--robot 'ur5e': unknown robot type; known: so\*"
-    ):
+    with pytest.raises(UsageError, match=r"--robot 'ur5e': unknown robot type; known: so\*"):
         motor_family_for_robot("ur5e")
 
 
@@ -221,3 +219,16 @@ def test_tick_lookup_path_equals_direct_map() -> None:
     np.testing.assert_array_equal(fast, slow)
     np.testing.assert_array_equal(fast_mask, slow_mask)
     assert 0 < int(fast_mask.sum()) < fast_mask.size
+
+
+def test_dynamixel_drive_mode_flip_refused(tmp_path: Path) -> None:
+    modes = preset_modes("koch_follower", SO_ARM_JOINTS)
+    a = LeRobotConvention.from_calibrations(cals(HOMING_A, RANGE_A), modes, "dynamixel")
+    b = LeRobotConvention.from_calibrations(cals(HOMING_B, RANGE_B, [0, 0, 1, 0, 0, 0]), modes, "dynamixel")
+    src = tmp_path / "src"
+    generate_dataset(src, n_episodes=1, frames_per_episode=10, convention=a, robot_type="koch_follower")
+    with pytest.raises(
+        UsageError, match="Dynamixel drive_mode differs between the calibrations for elbow_flex"
+    ):
+        recalibrate_dataset(src, tmp_path / "dst", a, b)
+    assert not (tmp_path / "dst").exists()

@@ -62,7 +62,11 @@ class FeaturePlan:
         names = tuple(joint_names)
         check_joint_names(names, list(old.joint_names), f"feature {key!r} vs the old calibration")
         check_joint_names(names, list(new.joint_names), f"feature {key!r} vs the new calibration")
-        return cls(key=key, joint_names=names, old=old.select(names), new=new.select(names))
+        o, n = old.select(names), new.select(names)
+        check = getattr(o, "check_target", None)
+        if callable(check):
+            check(n)
+        return cls(key=key, joint_names=names, old=o, new=n)
 
 
 def recalibrate_values(

@@ -183,6 +183,25 @@ class LeRobotConvention:
         """:meth:`to_actual` returns whole ticks (lets the engine map each distinct tick once)."""
         return True
 
+    def check_target(self, new: object) -> None:
+        """Refuse a Dynamixel conversion that flips a hardware ``Drive_Mode`` (the files cannot define it).
+
+        Raises:
+            UsageError: Naming the joints.
+        """
+        if not (isinstance(new, LeRobotConvention) and self.family == "dynamixel" == new.family):
+            return
+        flipped = [
+            n
+            for n, a, b in zip(self.joint_names, self.calibrations, new.calibrations, strict=True)
+            if a.drive_mode != b.drive_mode
+        ]
+        if flipped:
+            raise UsageError(
+                f"Dynamixel drive_mode differs between the calibrations for {', '.join(flipped)}; the "
+                "Drive_Mode register changes the encoder reading itself, so this conversion is not defined"
+            )
+
     def _half_tick(self) -> FloatArray:
         """Half a tick in value units, signed so that it moves the unnormalised position up."""
         out = []

@@ -1,0 +1,44 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from robocal.dataset import SO_ARM_JOINTS, generate_dataset, inspect_dataset
+from robocal.dataset.lerobot import LeRobotConvention, preset_modes
+from robocal.lerobot import MotorCalibration
+
+MODES = preset_modes("so101_follower", SO_ARM_JOINTS)
+
+
+def conv(wrist_roll_homing: int) -> LeRobotConvention:
+    cals = {n: MotorCalibration(i + 1, 0, 0, 1000, 3000) for i, n in enumerate(SO_ARM_JOINTS)}
+    cals["wrist_roll"] = MotorCalibration(5, 0, wrist_roll_homing, 0, 4095)
+    return LeRobotConvention.from_calibrations(cals, MODES, "feetech")
+
+
+def test_full_turn_jump_flagged(tmp_path: Path) -> None:
+    # wrist_roll travels over actual ticks 200..3900; a homing offset of 1500 puts the 0/4095 seam at actual
+    # 1500, inside the travel, so the stored degrees jump by about 360° whenever the joint crosses it.
+    bad, good = conv(1500), conv(0)
+    lo = [1100, 1100, 1100, 1100, 200, 1100]
+    hi = [2900, 2900, 2900, 2900, 3900, 2900]
+    generate_dataset(
+        tmp_path / "bad", n_episodes=2, frames_per_episode=300, convention=bad, actual_lo=lo, actual_hi=hi
+    )
+    generate_dataset(
+        tmp_path / "good", n_episodes=2, frames_per_episode=300, convention=good, actual_lo=lo, actual_hi=hi
+    )
+    rep = inspect_dataset(tmp_path / "bad", calibration=bad, features=["observation.state"])
+    flagged = {j.joint for j in rep.flagged}
+    assert flagged == {"wrist_roll"}
+    roll = next(j for j in rep.joints if j.joint == "wrist_roll")
+    assert roll.jumps >= 1 and roll.out_of_range == 0
+    assert roll.max - roll.min > 300.0
+    ok = inspect_dataset(tmp_path / "good", calibration=good)
+    assert ok.flagged == ()
+    assert ok.frames == 600
+    pan = next(j for j in ok.joints if j.joint == "shoulder_pan" and j.feature == "action")
+    assert pan.range_lo == pytest.approx(-1000 * 360 / 4095)
+    assert pan.range_hi == pytest.approx(1000 * 360 / 4095)
+    assert -1000 * 360 / 4095 <= pan.min < pan.mean < pan.max <= 1000 * 360 / 4095
