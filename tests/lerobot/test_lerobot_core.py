@@ -439,3 +439,20 @@ def test_malformed_inputs_raise_specific_errors() -> None:
         MotorCalibration(1, 0, 0, 1.5, 3)  # type: ignore[arg-type]
     with pytest.raises(InvalidCalibrationError, match="compat 'fast'"):
         normalize(1, CAL, "degrees", compat="fast")  # type: ignore[arg-type]
+
+
+@given(
+    start=st.integers(0, 4095),
+    steps=st.lists(st.integers(-2000, 2000), min_size=1, max_size=60),
+)
+def test_range_tracker_recovers_true_travel(start: int, steps: list[int]) -> None:
+    # a continuous physical path observed modulo 4096: the unwrapped extremes equal the path's extremes
+    path = np.cumsum([start, *steps])
+    tr = core.RangeTracker.start([path[0] % 4096])
+    for p in path[1:]:
+        tr = tr.update([p % 4096])
+    assert int(tr.max_unwrapped[0] - tr.min_unwrapped[0]) == int(path.max() - path.min())
+    assert int(tr.min_unwrapped[0]) - int(path.min()) == int(path[0] % 4096) - int(path[0])
+    if path.max() - path.min() < 4095:
+        _shift, lo, hi = core.centre_homing(int(tr.min_unwrapped[0]), int(tr.max_unwrapped[0]))
+        assert 0 <= lo <= hi <= 4095 and abs((lo + hi) // 2 - 2047) <= 1

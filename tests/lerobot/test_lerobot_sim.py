@@ -287,3 +287,76 @@ def test_noisy_calibration_within_two_ticks(tmp_path: Path) -> None:
     finally:
         bus.close()
         arm.stop()
+
+
+def test_phase_bit4_cleared_like_lerobot_fixture() -> None:
+    from robocal.workflows.lerobot import clear_phase_bit4, configure
+
+    with SimArm("so101_follower") as arm:
+        for name, phase in (("shoulder_pan", 0b00010000), ("shoulder_lift", 0xFF), ("elbow_flex", 0)):
+            arm.servo(name).set_reg("Phase", phase)
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            assert clear_phase_bit4(bus, arm.spec) == [1, 2]  # 0 needs no write
+            phases = [arm.servo(n).get_reg("Phase") for n in ("shoulder_pan", "shoulder_lift", "elbow_flex")]
+            assert phases == [0, 0b11101111, 0]
+            configure(bus, arm.spec)
+            g = arm.servo("gripper")
+            assert (
+                g.get_reg("Max_Torque_Limit"),
+                g.get_reg("Protection_Current"),
+                g.get_reg("Overload_Torque"),
+            ) == (
+                500,
+                250,
+                25,
+            )
+            assert arm.servo("wrist_flex").get_reg("P_Coefficient") == 16
+        finally:
+            bus.close()
+    with SimArm("koch_follower") as arm:
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            configure(bus, arm.spec)
+            assert [arm.servo(n).get_reg("Operating_Mode") for n in ("elbow_flex", "gripper")] == [4, 5]
+        finally:
+            bus.close()
+
+
+def test_multi_turn_feedback_does_not_break_homing(tmp_path: Path) -> None:
+    truth = dict(DEFAULT_TRUTH["so101_follower"])
+    truth["shoulder_pan"] = JointTruth(4368, 3300, 5500)  # 4368 reads 4368 with Phase bit 4 set (#1296)
+    _, cals, _ = _run("so101_follower", tmp_path, truth=truth, eeprom={"shoulder_pan": {"Phase": 0x10}})
+    c = cals["shoulder_pan"]
+    assert c.homing_offset == 4368 - 4096 - 2047 and (c.range_min, c.range_max) == (
+        3300 - 4096 + 1775,
+        5500 - 4096 + 1775,
+    )
+
+
+def test_feetech_check_and_restore(tmp_path: Path) -> None:
+    _, cals, _ = _run("so101_follower", tmp_path)
+    with SimArm("so101_follower") as arm:
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            diffs = [str(d) for d in check(bus, arm.spec, cals)]
+            assert "motor 'wrist_flex' (id 4): homing_offset is 0 on the motor, -1943 in the file" in diffs
+            assert "motor 'gripper' (id 6): range_min is 0 on the motor, 1747 in the file" in diffs
+            assert not any("drive_mode" in d for d in diffs)  # Feetech drive_mode lives in the file only
+            restore(bus, arm.spec, cals)
+            assert check(bus, arm.spec, cals) == []
+            assert bus.read("Present_Position", 4) == 2047  # the mid pose reads the half turn again
+        finally:
+            bus.close()
+
+
+def test_simulator_thread_stops_cleanly() -> None:
+    sim = SimServoBus([SimServo(1, "sts3215")]).start()
+    thread = sim._thread
+    assert thread.is_alive()
+    sim.stop()
+    assert not thread.is_alive()
+    with pytest.raises(OSError):
+        import os
+
+        os.fstat(sim._master)

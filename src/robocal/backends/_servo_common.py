@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -35,6 +36,28 @@ class SdkBusBase:
             )
         return table[register]
 
+    _port_handler: Any
+
+    def _drain(self) -> None:
+        """Drop late bytes of a failed transfer so a retry cannot read a stale status packet."""
+        ser = getattr(self._port_handler, "ser", None)
+        if ser is not None:
+            with contextlib.suppress(Exception):
+                ser.reset_input_buffer()
+
+    def _install_timeout(self, packet_timeout_ms: float | None) -> None:
+        """Raise the SDK's per-packet timeout to at least ``packet_timeout_ms`` (on this port object only)."""
+        if packet_timeout_ms is None:
+            return
+        handler = self._port_handler
+        original = handler.setPacketTimeout
+
+        def set_packet_timeout(packet_length: int) -> None:
+            original(packet_length)
+            handler.packet_timeout = max(handler.packet_timeout, float(packet_timeout_ms))
+
+        handler.setPacketTimeout = set_packet_timeout
+
     def has_register(self, motor_id: int, register: str) -> bool:
         """Whether that motor's control table has the register."""
         return motor_id in self.motors and register in self._tables[self.motors[motor_id]]
@@ -45,7 +68,9 @@ class SdkBusBase:
         """Run an SDK call with retries; map failures to DeviceError / CalibTimeoutError / ProtocolError."""
         result, error, value = COMM_SUCCESS, 0, None
         who = f"motor {motor_id}" if motor_id is not None else "motors"
-        for _ in range(self.retries + 1):
+        for attempt in range(self.retries + 1):
+            if attempt:
+                self._drain()
             value, result, error = fn()
             if result == COMM_SUCCESS and error == 0:
                 return value

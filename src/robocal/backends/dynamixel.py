@@ -96,6 +96,8 @@ class DynamixelBus(SdkBusBase):
         motors: Motor id → model (``"xl330-m288"``, ...).
         baudrate: Bus speed, default 1 Mbit/s.
         retries: Extra attempts after a failed transfer.
+        packet_timeout_ms: Minimum wait for a status packet (the SDK's own is ~34 ms at 1 Mbit/s); None keeps
+            the SDK's.
 
     Raises:
         BackendNotAvailableError: ``dynamixel_sdk`` is not installed.
@@ -105,7 +107,13 @@ class DynamixelBus(SdkBusBase):
     vendor = "dynamixel"
 
     def __init__(
-        self, port: str, motors: Mapping[int, str], *, baudrate: int = 1_000_000, retries: int = 3
+        self,
+        port: str,
+        motors: Mapping[int, str],
+        *,
+        baudrate: int = 1_000_000,
+        retries: int = 3,
+        packet_timeout_ms: float | None = 100.0,
     ) -> None:
         sdk = require("dynamixel_sdk", "the Dynamixel backend")
         unknown = sorted({m for m in motors.values() if m not in DYNAMIXEL_MODELS})
@@ -126,6 +134,7 @@ class DynamixelBus(SdkBusBase):
             raise DeviceError(f"{port}: cannot open the serial port ({exc})") from None
         if not ok:
             raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
+        self._install_timeout(packet_timeout_ms)
 
     def resolution(self, motor_id: int) -> int:
         """Ticks per turn of that motor's model."""

@@ -117,6 +117,8 @@ class FeetechBus(SdkBusBase):
         motors: Motor id → model (``"sts3215"``, ``"scs0009"``, ...). All on one protocol.
         baudrate: Bus speed, default 1 Mbit/s.
         retries: Extra attempts after a failed transfer (LeRobot legacy: 20; current sync reads: 5).
+        packet_timeout_ms: Minimum wait for a status packet (the SDK's own is ~34 ms at 1 Mbit/s); None keeps
+            the SDK's.
 
     Raises:
         BackendNotAvailableError: ``scservo_sdk`` is not installed.
@@ -126,7 +128,13 @@ class FeetechBus(SdkBusBase):
     vendor = "feetech"
 
     def __init__(
-        self, port: str, motors: Mapping[int, str], *, baudrate: int = 1_000_000, retries: int = 3
+        self,
+        port: str,
+        motors: Mapping[int, str],
+        *,
+        baudrate: int = 1_000_000,
+        retries: int = 3,
+        packet_timeout_ms: float | None = 100.0,
     ) -> None:
         sdk = require("scservo_sdk", "the Feetech backend")
         unknown = sorted({m for m in motors.values() if m not in FEETECH_MODELS})
@@ -151,6 +159,7 @@ class FeetechBus(SdkBusBase):
             raise DeviceError(f"{port}: cannot open the serial port ({exc})") from None
         if not ok:
             raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
+        self._install_timeout(packet_timeout_ms)
 
     def resolution(self, motor_id: int) -> int:
         """Ticks per turn of that motor's model."""

@@ -43,6 +43,8 @@ __all__ = [
     "SweepView",
     "calibrate",
     "check",
+    "clear_phase_bit4",
+    "configure",
     "export_joint_map",
     "legacy_to_current",
     "open_bus",
@@ -135,6 +137,57 @@ def _disable_torque(bus: ServoBus, spec: RobotSpec) -> None:
             bus.write("Lock", m.motor_id, 0)
 
 
+def clear_phase_bit4(bus: ServoBus, spec: RobotSpec) -> list[int]:
+    """Clear bit 4 of Phase on sts3215 motors (single-turn angle feedback; huggingface/lerobot#3373).
+
+    Writes only where the bit is set (0b00010000 → 0, 0xFF → 0b11101111, 0 → no write).
+
+    Returns:
+        Ids of the motors written.
+    """
+    written = []
+    for m in spec.motors:
+        if m.model != "sts3215":
+            continue
+        phase = bus.read("Phase", m.motor_id)
+        if phase & 0x10:
+            bus.write("Phase", m.motor_id, phase & ~0x10 & 0xFF)
+            written.append(m.motor_id)
+    return written
+
+
+def configure(bus: ServoBus, spec: RobotSpec) -> None:
+    """LeRobot's ``configure()`` presets (torque stays off).
+
+    Feetech: Return_Delay_Time 0, Maximum_Acceleration and Acceleration 254, Phase bit 4 cleared on sts3215,
+    Operating_Mode 0, P/I/D 16/0/32, gripper Max_Torque_Limit 500, Protection_Current 250, Overload_Torque 25.
+    Dynamixel (Koch): Return_Delay_Time 0, extended position (4) except the gripper current-based position (5).
+    """
+    _disable_torque(bus, spec)
+    for m in spec.motors:
+        bus.write("Return_Delay_Time", m.motor_id, 0)
+    if spec.vendor == "feetech":
+        clear_phase_bit4(bus, spec)
+        for m in spec.motors:
+            i = m.motor_id
+            for reg, value in (
+                ("Maximum_Acceleration", 254),
+                ("Acceleration", 254),
+                ("Operating_Mode", 0),
+                ("P_Coefficient", 16),
+                ("I_Coefficient", 0),
+                ("D_Coefficient", 32),
+            ):
+                bus.write(reg, i, value)
+            if m.name == "gripper":
+                bus.write("Max_Torque_Limit", i, 500)
+                bus.write("Protection_Current", i, 250)
+                bus.write("Overload_Torque", i, 25)
+    else:
+        for m in spec.motors:
+            bus.write("Operating_Mode", m.motor_id, 5 if m.name == "gripper" else 4)
+
+
 def _normalise_feetech_offset(offset: int, lo: int, hi: int, res: int) -> tuple[int, int, int]:
     """Bring a Feetech offset into ±(res/2 − 1) (Present wraps modulo a turn); adjust the range if clamped."""
     half = res // 2
@@ -182,6 +235,8 @@ def calibrate(
     notes: list[str] = []
     try:
         _disable_torque(bus, spec)
+        if spec.vendor == "feetech":
+            clear_phase_bit4(bus, spec)  # multi-turn feedback would break the half-turn homing (#1296)
         for m in spec.motors:
             bus.write("Operating_Mode", m.motor_id, spec.operating_mode)
             if spec.vendor == "dynamixel":
