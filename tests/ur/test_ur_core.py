@@ -380,3 +380,16 @@ def test_hypothesis_realistic_calibrations_correct_exactly(params: tuple) -> Non
     T = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
     assert np.max(np.abs(T[:, :3, 3] - T_dh[:, :3, 3])) < 1e-10
     assert np.max(rotation_angle_between(T[:, :3, :3], T_dh[:, :3, :3])) < 1e-10
+
+
+@given(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3), st.floats(0.0, math.pi - 1e-6))
+def test_rotvec_round_trip(axis: list[float], angle: float) -> None:
+    from robocal.core.se3 import matrix_from_rotvec, rotvec_from_matrix
+
+    a = np.array(axis)
+    if np.linalg.norm(a) < 1e-3:
+        a = np.array([0.0, 0.0, 1.0])
+    v = a / np.linalg.norm(a) * angle
+    R = matrix_from_rotvec(v)
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-14)
+    np.testing.assert_allclose(rotvec_from_matrix(R), v, atol=1e-9)

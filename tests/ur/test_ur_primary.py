@@ -6,6 +6,7 @@ import socket
 import struct
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from robocal.backends import load_backend
@@ -184,3 +185,38 @@ def test_extract_checks_out_dir_before_connecting(tmp_path: Path, capsys: pytest
         assert main(["ur", "extract", "--host", host, "--port", str(port), "--out", str(out)]) == 2
         assert sim.connections == 0
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_verify_against_controller_pose(
+    tmp_path: Path, dh_sets: dict[int, DHParameters], capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.core.ur import correct_kinematics
+    from robocal.formats.ur_kinematics import write_kinematics
+
+    good, upstream = tmp_path / "good.yaml", tmp_path / "upstream.yaml"
+    write_kinematics(good, correct_kinematics(dh_sets[3], "urdf"))
+    write_kinematics(upstream, correct_kinematics(dh_sets[3], "upstream"))
+    with SimUrController(dh_sets[3], rate_hz=100) as sim:
+        host, port = sim.address
+        base = ["--host", host, "--port", str(port), "--timeout", "5", "--controller-samples", "10"]
+        assert main(["ur", "verify", str(good), *base]) == 0
+        assert "controller" in capsys.readouterr().out
+        assert main(["ur", "verify", str(upstream), *base]) == 1
+    err = capsys.readouterr().err
+    assert f"warning: controller {host}:{port} vs {upstream}: FK differs" in err
+
+
+def test_pose_samples_decode() -> None:
+    from robocal.backends.ur_primary import parse_pose_sample
+    from robocal.core.dh import fk_dh
+    from robocal.core.se3 import matrix_from_rotvec, rotation_angle_between
+
+    dh = nominal_dh("ur5e")
+    q = (0.1, -1.2, 1.3, -0.4, 0.5, 2.9)
+    sample = parse_pose_sample(build_robot_state(dh, q_rad=q)[5:])
+    assert sample is not None and sample.q_rad == q
+    T = fk_dh(dh, list(q))
+    assert np.max(np.abs(np.array(sample.tcp_xyz_m) - T[:3, 3])) == 0.0
+    assert rotation_angle_between(matrix_from_rotvec(sample.tcp_rotvec_rad), T[:3, :3]) < 1e-15
+    assert sample.tcp_offset == (0.0,) * 6
+    assert parse_pose_sample(build_robot_state(dh)[5:]) is not None  # zero-filled joints still decode

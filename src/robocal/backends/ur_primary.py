@@ -34,12 +34,16 @@ __all__ = [
     "MSG_ROBOT_STATE",
     "SUB_KINEMATICS_INFO",
     "KinematicsInfo",
+    "PoseSample",
     "PrimaryClient",
+    "encode_cartesian_info",
+    "encode_joint_data",
     "encode_kinematics_info",
     "encode_message",
     "encode_subpackage",
     "iter_subpackages",
     "parse_kinematics_info",
+    "parse_pose_sample",
 ]
 
 DEFAULT_PORT = 30001
@@ -56,6 +60,62 @@ CALIBRATION_LINEARISED = 2
 _HEADER = struct.Struct(">iB")
 _SUB_HEADER = struct.Struct(">IB")
 _KIN_BODY = struct.Struct(">6I6d6d6d6dI")
+_JOINT = struct.Struct(">dddffffB")  # q_actual, q_target, qd_actual, I, V, T_motor, T_micro, mode (41 bytes)
+_CARTESIAN = struct.Struct(">6d6d")  # x, y, z, rx, ry, rz (base → TCP), then the TCP offset (96 bytes)
+SUB_JOINT_DATA = 1
+SUB_CARTESIAN_INFO = 4
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """One controller sample: joint positions and the controller's own base → TCP pose.
+
+    Attributes:
+        q_rad: Actual joint positions, radians.
+        tcp_xyz_m: TCP position in the base frame, metres.
+        tcp_rotvec_rad: TCP orientation as a rotation vector (Rx, Ry, Rz), radians.
+        tcp_offset: The active TCP offset (x, y, z, rx, ry, rz); all zero means TCP = flange.
+    """
+
+    q_rad: tuple[float, ...]
+    tcp_xyz_m: tuple[float, float, float]
+    tcp_rotvec_rad: tuple[float, float, float]
+    tcp_offset: tuple[float, ...]
+
+
+def encode_joint_data(q_rad: tuple[float, ...] | list[float]) -> bytes:
+    """Encode a Joint sub-package (type 1, 251 bytes) with ``q_actual = q_target = q_rad``."""
+    body = b"".join(_JOINT.pack(float(q), float(q), 0.0, 0.0, 48.0, 30.0, 0.0, 253) for q in q_rad)
+    return encode_subpackage(SUB_JOINT_DATA, body)
+
+
+def encode_cartesian_info(xyz_m: tuple[float, ...], rotvec_rad: tuple[float, ...]) -> bytes:
+    """Encode a CartesianInfo sub-package (type 4, 101 bytes) with a zero TCP offset."""
+    return encode_subpackage(SUB_CARTESIAN_INFO, _CARTESIAN.pack(*xyz_m, *rotvec_rad, *([0.0] * 6)))
+
+
+def parse_pose_sample(payload: bytes) -> PoseSample | None:
+    """Joint positions + CartesianInfo from one RobotState payload (None when either is absent).
+
+    Raises:
+        ProtocolError: A Joint or CartesianInfo sub-package is truncated or holds a non-finite value.
+    """
+    q: tuple[float, ...] | None = None
+    cart: tuple[float, ...] | None = None
+    for sub_type, sub in iter_subpackages(payload):
+        if sub_type == SUB_JOINT_DATA:
+            if len(sub) < 5 + 6 * _JOINT.size:
+                raise ProtocolError(f"Joint data: {len(sub)} bytes, expected {5 + 6 * _JOINT.size}")
+            q = tuple(_JOINT.unpack_from(sub, 5 + i * _JOINT.size)[0] for i in range(6))
+        elif sub_type == SUB_CARTESIAN_INFO:
+            if len(sub) < 5 + _CARTESIAN.size:
+                raise ProtocolError(f"CartesianInfo: {len(sub)} bytes, expected {5 + _CARTESIAN.size}")
+            cart = _CARTESIAN.unpack_from(sub, 5)
+    if q is None or cart is None:
+        return None
+    if not all(math.isfinite(v) for v in (*q, *cart)):
+        raise ProtocolError("Joint data / CartesianInfo: non-finite value")
+    return PoseSample(q, (cart[0], cart[1], cart[2]), (cart[3], cart[4], cart[5]), tuple(cart[6:12]))
 
 
 @dataclass(frozen=True)
@@ -292,6 +352,27 @@ class PrimaryClient:
                     "(linearised); the DH may be nominal rather than the robot's calibration"
                 )
             return info
+
+    def read_pose_samples(self, count: int) -> list[PoseSample]:
+        """Collect ``count`` (joint positions, base → TCP pose) samples from consecutive RobotStates.
+
+        The controller streams at ~10 Hz, so ``count`` samples take about ``count / 10`` s; the overall
+        ``timeout_s`` deadline applies.
+        """
+        self.connect()
+        self._deadline = time.monotonic() + self.timeout_s
+        samples: list[PoseSample] = []
+        while len(samples) < count:
+            msg_type, payload = self.read_message()
+            if msg_type != MSG_ROBOT_STATE:
+                continue
+            try:
+                sample = parse_pose_sample(payload)
+            except ProtocolError as exc:
+                raise ProtocolError(f"{self._where}: {exc}") from None
+            if sample is not None:
+                samples.append(sample)
+        return samples
 
     @staticmethod
     def _find_kinematics(payload: bytes) -> tuple[KinematicsInfo, int] | None:

@@ -11,6 +11,7 @@ import typer
 from rich.table import Table
 
 from ..core.ur import RPY_CONVENTIONS, TEST_SET_3_DELTAS, UR_MODELS, deviation_from_nominal, nominal_dh
+from ..errors import UsageError
 from ..workflows import ur as wf
 from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
 
@@ -125,10 +126,27 @@ def verify(
     urdf: Annotated[Path | None, typer.Option("--urdf", help="Also check this expanded URDF.")] = None,
     samples: Annotated[int, typer.Option("--samples", help="Random joint vectors in [-2π, 2π].")] = 1000,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
+    host: Annotated[str | None, typer.Option("--host", help="Also compare with this controller's pose.")] = None,
+    port: Annotated[int, typer.Option("--port", help="Primary interface port.")] = 30001,
+    timeout: Annotated[float, typer.Option("--timeout", help="Seconds per controller read.")] = 10.0,
+    controller_samples: Annotated[int, typer.Option("--controller-samples", help="States to compare.")] = 20,
 ) -> None:
-    """Compare the FK of the YAML (built like ur_description does) and/or a URDF with the DH FK."""
-    params = wf.load_dh_input(dh, model, deltas)
-    raise typer.Exit(_print_reports(wf.verify(file, params, urdf_path=urdf, samples=samples, seed=seed)))
+    """Compare the FK of the YAML (built like ur_description does) and/or a URDF with the DH FK.
+
+    With --host, also compare the YAML's FK with the controller's own base→flange pose for live joint states
+    (the DH then defaults to the controller's).
+    """
+    reports: list[wf.VerifyReport] = []
+    if host is not None:
+        if file is None:
+            raise UsageError("--host needs the kinematics FILE to compare")
+        reports.append(
+            wf.verify_controller(file, host, port=port, timeout_s=timeout, samples=controller_samples)
+        )
+    if dh is not None or model is not None or deltas is not None or host is None:
+        params = wf.load_dh_input(dh, model, deltas)
+        reports.extend(wf.verify(file, params, urdf_path=urdf, samples=samples, seed=seed))
+    raise typer.Exit(_print_reports(reports))
 
 
 @app.command("plot")

@@ -21,11 +21,13 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "eigen_euler_xyz",
     "homogeneous",
+    "matrix_from_rotvec",
     "matrix_from_rpy_urdf",
     "rot_x",
     "rot_y",
     "rot_z",
     "rotation_angle_between",
+    "rotvec_from_matrix",
     "rpy_urdf_from_matrix",
     "transform_from_xyz_rpy_urdf",
 ]
@@ -194,3 +196,58 @@ def rotation_angle_between(R_a: ArrayLike, R_b: ArrayLike) -> FloatArray:
     diff = np.asarray(R_a, dtype=np.float64) - np.asarray(R_b, dtype=np.float64)
     norm = np.sqrt(np.sum(diff * diff, axis=(-2, -1)))
     return np.asarray(2.0 * np.arcsin(np.clip(norm / (2.0 * math.sqrt(2.0)), 0.0, 1.0)), dtype=np.float64)
+
+
+def matrix_from_rotvec(rotvec_rad: ArrayLike) -> FloatArray:
+    """Rotation vector (axis · angle, as the UR controller reports Rx, Ry, Rz) → rotation matrix.
+
+    Args:
+        rotvec_rad: ``(..., 3)`` rotation vectors, radians.
+
+    Returns:
+        ``(..., 3, 3)`` rotation matrices (Rodrigues' formula, exact near zero).
+    """
+    v = np.asarray(rotvec_rad, dtype=np.float64)
+    theta = np.linalg.norm(v, axis=-1)
+    small = theta < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(theta) / safe)
+    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(theta)) / (safe * safe))
+    K = np.zeros((*v.shape[:-1], 3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return np.asarray(eye + a[..., None, None] * K + b[..., None, None] * (K @ K), dtype=np.float64)
+
+
+def rotvec_from_matrix(R: ArrayLike) -> FloatArray:
+    """Rotation matrix → rotation vector (angle in ``[0, π]``), via a unit quaternion for full precision.
+
+    Args:
+        R: One rotation matrix, shape ``(3, 3)``.
+
+    Returns:
+        ``(3,)`` rotation vector, radians.
+    """
+    M = np.asarray(R, dtype=np.float64)
+    tr = M[0, 0] + M[1, 1] + M[2, 2]
+    if tr > 0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        w, x, y, z = 0.25 * s, (M[2, 1] - M[1, 2]) / s, (M[0, 2] - M[2, 0]) / s, (M[1, 0] - M[0, 1]) / s
+    elif M[0, 0] >= M[1, 1] and M[0, 0] >= M[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + M[0, 0] - M[1, 1] - M[2, 2])
+        w, x, y, z = (M[2, 1] - M[1, 2]) / s, 0.25 * s, (M[0, 1] + M[1, 0]) / s, (M[0, 2] + M[2, 0]) / s
+    elif M[1, 1] >= M[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + M[1, 1] - M[0, 0] - M[2, 2])
+        w, x, y, z = (M[0, 2] - M[2, 0]) / s, (M[0, 1] + M[1, 0]) / s, 0.25 * s, (M[1, 2] + M[2, 1]) / s
+    else:
+        s = 2.0 * math.sqrt(1.0 + M[2, 2] - M[0, 0] - M[1, 1])
+        w, x, y, z = (M[1, 0] - M[0, 1]) / s, (M[0, 2] + M[2, 0]) / s, (M[1, 2] + M[2, 1]) / s, 0.25 * s
+    if w < 0:
+        w, x, y, z = -w, -x, -y, -z
+    vnorm = math.sqrt(x * x + y * y + z * z)
+    if vnorm == 0.0:
+        return np.zeros(3)
+    angle = 2.0 * math.atan2(vnorm, w)
+    return np.array([x, y, z]) * (angle / vnorm)

@@ -54,6 +54,7 @@ __all__ = [
     "plot",
     "urdf_fk",
     "verify",
+    "verify_controller",
 ]
 
 DEFAULT_TOLERANCE_M = 1e-9
@@ -323,6 +324,67 @@ def verify(
     if urdf_path is not None:
         reports.append(_report(f"URDF {urdf_path}", urdf_fk(urdf_path, q), T_dh, None, dh, tol))
     return reports
+
+
+def verify_controller(
+    kinematics_path: str | os.PathLike[str],
+    host: str,
+    *,
+    port: int = 30001,
+    timeout_s: float = 10.0,
+    samples: int = 20,
+    tolerance_m: float = 1e-6,
+    tolerance_rad: float = 1e-6,
+) -> VerifyReport:
+    """Compare the YAML's FK with the controller's own base → TCP pose (CartesianInfo) for live joint states.
+
+    The TCP offset must be zero (then TCP = flange = ``tool0``); a non-zero offset is refused. The controller
+    streams about 10 states per second, so ``samples`` states take ``samples / 10`` s. The default tolerance
+    (1 µm / 1 µrad) allows for the controller's own rounding.
+
+    Args:
+        kinematics_path: ur_description kinematics YAML.
+        host: Controller address.
+        port: Primary interface port.
+        timeout_s: Deadline for the KinematicsInfo and again for the samples.
+        samples: Number of RobotState samples to compare.
+        tolerance_m: Position tolerance for the warning.
+        tolerance_rad: Rotation tolerance for the warning.
+
+    Returns:
+        One report (its ``dh_hash`` is the live controller's hash).
+    """
+    if samples < 1:
+        raise UsageError(f"--samples {samples}: expected at least 1")
+    if not (timeout_s > 0 and math.isfinite(timeout_s)):
+        raise UsageError(f"--timeout {timeout_s}: expected a positive number of seconds")
+    kin = read_kinematics(kinematics_path)
+    from ..backends.ur_primary import PrimaryClient
+    from ..core.se3 import matrix_from_rotvec
+
+    with PrimaryClient(host, port, timeout_s) as client:
+        info = client.read_kinematics()
+        got = client.read_pose_samples(samples)
+        warnings = list(client.warnings)
+    if any(any(v != 0.0 for v in s.tcp_offset) for s in got):
+        raise UsageError(
+            f"UR controller {host}:{port}: the active TCP offset is not zero; set an empty TCP to verify the flange"
+        )
+    q = np.array([s.q_rad for s in got])
+    T_ctrl = homogeneous(matrix_from_rotvec(np.array([s.tcp_rotvec_rad for s in got])), np.array([s.tcp_xyz_m for s in got]))
+    T_file = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
+    report = _report(
+        f"controller {host}:{port} vs {kinematics_path}", T_file, T_ctrl, kin.hash, info.dh, (tolerance_m, tolerance_rad)
+    )
+    return VerifyReport(
+        report.source,
+        report.samples,
+        report.max_position_error_m,
+        report.max_rotation_error_rad,
+        report.file_hash,
+        report.dh_hash,
+        tuple(warnings) + report.warnings,
+    )
 
 
 def _frame_origins(mats: FloatArray) -> FloatArray:

@@ -11,13 +11,21 @@ truncated, garbage or oversized packets, or nothing.
 from __future__ import annotations
 
 import contextlib
+import math
 import socket
 import struct
 import threading
 import time
 
-from ...core.dh import DHParameters
-from ..ur_primary import encode_kinematics_info, encode_message, encode_subpackage
+from ...core.dh import DHParameters, fk_dh
+from ...core.se3 import rotvec_from_matrix
+from ..ur_primary import (
+    encode_cartesian_info,
+    encode_joint_data,
+    encode_kinematics_info,
+    encode_message,
+    encode_subpackage,
+)
 
 __all__ = [
     "FAULT_MODES",
@@ -78,6 +86,7 @@ def build_robot_state(
     *,
     include_kinematics: bool = True,
     kinematics_size: int = 225,
+    q_rad: tuple[float, ...] | None = None,
 ) -> bytes:
     """A complete RobotState message (type 16) with the URSim sub-package sequence.
 
@@ -86,6 +95,8 @@ def build_robot_state(
         calibration_status: KinematicsInfo ``calibration_status``.
         include_kinematics: Leave KinematicsInfo out (pre-3.6 CB3 software).
         kinematics_size: Size of the KinematicsInfo sub-package (< 225 makes it truncated, > 225 over-long).
+        q_rad: Joint positions to report; Joint data and CartesianInfo (base → flange from the DH FK, zero
+            TCP offset) are then filled in, otherwise they are zero-filled.
 
     Returns:
         The framed message (1386 bytes for the default layout).
@@ -101,6 +112,13 @@ def build_robot_state(
             else:
                 body = kin[5:] + bytes(kinematics_size - len(kin))
             subs.append(encode_subpackage(5, body))
+        elif sub_type == 1 and q_rad is not None:
+            subs.append(encode_joint_data(q_rad))
+        elif sub_type == 4 and q_rad is not None:
+            T = fk_dh(dh, list(q_rad))
+            xyz = (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]))
+            rv = rotvec_from_matrix(T[:3, :3])
+            subs.append(encode_cartesian_info(xyz, (float(rv[0]), float(rv[1]), float(rv[2]))))
         else:
             subs.append(encode_subpackage(sub_type, bytes(size - 5)))
     return encode_message(16, b"".join(subs))
@@ -120,6 +138,8 @@ class SimUrController:
         rate_hz: RobotState rate (10 Hz like the real controller).
         host: Bind address (loopback by default).
         port: Bind port (0 = a free port; see :attr:`address`).
+        moving: Report a different joint configuration in every RobotState (with the matching base → flange
+            CartesianInfo from the DH FK), for ``robocal ur verify --host``.
     """
 
     def __init__(
@@ -131,12 +151,14 @@ class SimUrController:
         rate_hz: float = 10.0,
         host: str = "127.0.0.1",
         port: int = 0,
+        moving: bool = True,
     ) -> None:
         if mode not in FAULT_MODES:
             raise ValueError(f"unknown simulator mode {mode!r}; valid: {', '.join(FAULT_MODES)}")
         self.dh = dh
         self.calibration_status = calibration_status
         self.mode = mode
+        self.moving = moving
         self.period_s = 1.0 / rate_hz
         self._stop = threading.Event()
         self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -238,7 +260,12 @@ class SimUrController:
                 state = bytes(bad)
             modbus = encode_message(5, bytes(12))  # top-level type 5 (MODBUS_INFO), not KinematicsInfo
             next_t = time.monotonic()
+            tick = 0
             while not self._stop.is_set():
+                if mode == "normal" and self.moving:
+                    q = tuple(1.5 * math.sin(0.37 * tick + 1.1 * i) for i in range(6))
+                    state = build_robot_state(self.dh, self.calibration_status, q_rad=q)
+                tick += 1
                 if not self._send(conn, modbus + state):
                     return
                 next_t += self.period_s
