@@ -223,3 +223,37 @@ def test_run_demo_recovers_offsets(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "true vs recovered homing_offset" in out and "left_elbow_pitch" in out
     assert (tmp_path / "calibration.yaml").exists() and (tmp_path / "sweep_report.json").exists()
     assert main(["demo"]) == 0
+
+
+def test_cli_second_ctrl_c_exit_130_writes_nothing(
+    urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.backends.sim.lite import SimLite
+    from robocal.workflows import sweep as wf
+
+    out = tmp_path / "cal.yaml"
+    out.write_text("# keep me\n")
+    opener, _ = h.recording_opener(SimLite(31), interrupt_at=20, interrupt_close=True)
+    monkeypatch.setattr(wf, "open_source", opener)
+    rc = main(["sweep", "--urdf", str(urdf), "--source", "sim:lite", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 130
+    assert [ln for ln in err.splitlines() if ln.startswith("error:")] == [
+        "error: sweep aborted by a second Ctrl-C; nothing was written"
+    ]
+    assert out.read_text() == "# keep me\n" and not (tmp_path / "cal.yaml.bak").exists()
+
+
+def test_cli_first_ctrl_c_writes(
+    urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.backends.sim.lite import SimLite
+    from robocal.workflows import sweep as wf
+
+    out = tmp_path / "cal.yaml"
+    opener, _ = h.recording_opener(SimLite(32), interrupt_at=250)
+    monkeypatch.setattr(wf, "open_source", opener)
+    rc = main(["sweep", "--urdf", str(urdf), "--source", "sim:lite", "--out", str(out)])
+    assert rc in (0, 1)
+    assert read_calibration(out).calibration.joint_names == tuple(h.names)
+    assert "wrote" in capsys.readouterr().out

@@ -268,7 +268,7 @@ def run_sweep(
     view: SweepView | None = None,
     stop: threading.Event | None = None,
     max_samples: int | None = None,
-    open_source_fn: Callable[..., Source] = open_source,
+    open_source_fn: Callable[..., Source] | None = None,
 ) -> SweepOutcome:
     """Run a whole sweep calibration and write the calibration file (and report).
 
@@ -287,7 +287,7 @@ def run_sweep(
         view: Live view.
         stop: Set to end the sweep (Enter).
         max_samples: Stop after this many samples (None: until the source ends or the user stops).
-        open_source_fn: Opens the source (tests inject one).
+        open_source_fn: Opens the source (default :func:`robocal.backends.sources.open_source`).
 
     Returns:
         The :class:`SweepOutcome`.
@@ -327,7 +327,7 @@ def run_sweep(
             prior_offsets = {}
 
     # ---- sample
-    src = open_source_fn(spec, joints, topic=topic, frame=frame)
+    src = (open_source_fn or open_source)(spec, joints, topic=topic, frame=frame)
     session = SweepSession(src, joints)
     interrupted = False
     checks: dict[str, int] | None = None
@@ -444,7 +444,7 @@ def check_source(
     topic: str = "/lite/joint_states",
     frame: str | None = None,
     margin_rad: float = 0.05,
-    open_source_fn: Callable[..., Source] = open_source,
+    open_source_fn: Callable[..., Source] | None = None,
 ) -> list[BranchCheck]:
     """Read the first sample after power-on and apply the 2π branch selection per joint.
 
@@ -469,7 +469,7 @@ def check_source(
     if missing:
         raise JointMismatchError(f"calibration {calibration_path}: no offset for {', '.join(missing)}")
     cal = cf.calibration.select(names).with_directions({j.name: j.direction for j in joints})
-    src = open_source_fn(spec, joints, topic=topic, frame=frame)
+    src = (open_source_fn or open_source)(spec, joints, topic=topic, frame=frame)
     try:
         sample = src.read()
         if sample is None:
