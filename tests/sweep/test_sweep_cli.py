@@ -257,3 +257,32 @@ def test_cli_first_ctrl_c_writes(
     assert rc in (0, 1)
     assert read_calibration(out).calibration.joint_names == tuple(h.names)
     assert "wrote" in capsys.readouterr().out
+
+
+def test_live_view_table_and_plain_lines(urdf: Path, tmp_path: Path, h: Any) -> None:
+    import io
+
+    from rich.console import Console
+
+    from robocal.backends.sources import ReplaySource
+    from robocal.cli.sweep import LiveView
+    from robocal.formats.urdf import read_urdf
+    from robocal.workflows.sweep import SweepSession, joints_from_urdf
+
+    joints = joints_from_urdf(read_urdf(urdf))
+    n = len(joints)
+    pos = np.zeros((3, n))
+    pos[:, 3] = [-3.356, -2.0, -1.0]  # elbow swept over its full span
+    src = ReplaySource([j.name for j in joints], np.arange(3.0), pos, "identity")
+    session = SweepSession(src, joints)
+    while session.step():
+        pass
+    buf = io.StringIO()
+    view = LiveView(Console(file=buf, force_terminal=False, width=140), period_s=0.0)
+    with view:
+        view.update(session)
+    assert buf.getvalue() == "sweep: 3 samples, 1/14 joints at full span\n"
+    table_buf = io.StringIO()
+    Console(file=table_buf, width=160).print(view.table(session))
+    text = table_buf.getvalue()
+    assert "left_elbow_pitch" in text and "100%" in text and "not_swept" in text

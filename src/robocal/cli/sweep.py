@@ -39,6 +39,7 @@ class LiveView:
         rate_hz: Table refresh rate on a terminal (5–10 Hz).
         period_s: Interval of plain progress lines without a terminal.
         threshold_rad: Sweep below which a joint shows as not swept yet.
+        span_tolerance_rad: A joint within this of its URDF span shows as ok.
     """
 
     def __init__(
@@ -48,8 +49,10 @@ class LiveView:
         rate_hz: float = 8.0,
         period_s: float = 1.0,
         threshold_rad: float = DEFAULT_THRESHOLD_RAD,
+        span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
     ) -> None:
         self.console = console or _common.err_console
+        self.span_tolerance_rad = span_tolerance_rad
         self.rate_hz = rate_hz
         self.period_s = period_s
         self.threshold_rad = threshold_rad
@@ -79,7 +82,9 @@ class LiveView:
         for i, name in enumerate(session.names):
             span = session.upper[i] - session.lower[i]
             status = (
-                "ok" if sw[i] >= span - 0.15 else ("sweeping" if sw[i] >= self.threshold_rad else "not_swept")
+                "ok"
+                if sw[i] >= span - self.span_tolerance_rad
+                else ("sweeping" if sw[i] >= self.threshold_rad else "not_swept")
             )
             style = STATUS_STYLE.get(status, "")
             t.add_row(
@@ -104,7 +109,7 @@ class LiveView:
             self._last = now
             sw = session.tracker.sweep
             span = session.upper - session.lower
-            done = int((sw >= span - 0.15).sum())
+            done = int((sw >= span - self.span_tolerance_rad).sum())
             self.console.print(
                 f"sweep: {session.samples} samples, {done}/{len(session.names)} joints at full span",
                 markup=False,
@@ -193,7 +198,7 @@ def sweep(
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     stop = threading.Event()
-    with _enter_finishes(stop), LiveView(threshold_rad=threshold) as view:
+    with _enter_finishes(stop), LiveView(threshold_rad=threshold, span_tolerance_rad=span_tolerance) as view:
         outcome = run_sweep(
             urdf,
             source,
