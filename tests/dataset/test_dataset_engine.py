@@ -193,6 +193,15 @@ def test_overwrite_replaces_only_at_the_end(src: Path, tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dst"]
 
 
+def _put_nan(root: Path) -> None:
+    path = root / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(path)
+    vals = column(path, "action").astype(np.float32)
+    vals[3, 2] = np.nan
+    col = pa.FixedSizeListArray.from_arrays(pa.array(vals.ravel()), 6)
+    pq.write_table(table.set_column(1, table.schema.field(1), col), path)
+
+
 @pytest.mark.parametrize(
     ("mutate", "exc", "message"),
     [
@@ -204,6 +213,17 @@ def test_overwrite_replaces_only_at_the_end(src: Path, tmp_path: Path) -> None:
             "only LeRobot v3",
         ),
         (lambda r: [p.unlink() for p in r.glob("data/*/*.parquet")], FileFormatError, "no data/chunk-"),
+        (
+            lambda r: (r / "meta/stats.json").write_text("[1, 2"),
+            FileFormatError,
+            "cannot read statistics JSON",
+        ),
+        (
+            lambda r: (r / "meta/episodes/chunk-000/file-000.parquet").write_bytes(b"junk"),
+            FileFormatError,
+            "episodes file meta/episodes/chunk-000/file-000.parquet: cannot read Parquet",
+        ),
+        (_put_nan, FileFormatError, r"data file data/chunk-000/file-000.parquet, row groups 0-0: .*NaN"),
     ],
 )
 def test_malformed_dataset(tmp_path: Path, mutate, exc: type[Exception], message: str) -> None:

@@ -107,6 +107,29 @@ def check_destination(src: Path, dst: Path, overwrite: bool) -> None:
         raise UsageError(f"destination {dst}: parent folder {dst.parent} does not exist")
 
 
+def check_metadata(layout: DatasetLayout) -> None:
+    """Check ``meta/stats.json`` and the episode files can be rewritten, before anything is written.
+
+    Raises:
+        FileFormatError: Naming the file.
+    """
+    stats = layout.root / "meta" / "stats.json"
+    if stats.is_file():
+        try:
+            data = json.loads(stats.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise FileFormatError(f"{stats}: cannot read statistics JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise FileFormatError(f"{stats}: expected a JSON object of features")
+    for rel in layout.episode_files:
+        try:
+            names = pq.read_schema(layout.root / rel).names
+        except (pa.ArrowException, OSError) as exc:
+            raise FileFormatError(f"episodes file {rel}: cannot read Parquet ({exc})") from None
+        if "episode_index" not in names:
+            raise FileFormatError(f"episodes file {rel}: no 'episode_index' column")
+
+
 def _link_or_copy(src: Path, dst: Path) -> None:
     dst.parent.mkdir(parents=True, exist_ok=True)
     try:
@@ -239,6 +262,7 @@ def recalibrate_dataset(
     layout = read_layout(src_p)
     plans = build_plans(layout, old, new, features)
     check_destination(src_p, dst_p, overwrite)
+    check_metadata(layout)
     keys = tuple(p.key for p in plans)
     report = DatasetReport(
         src=src_p, dst=dst_p, features=keys, joint_names={p.key: p.joint_names for p in plans}

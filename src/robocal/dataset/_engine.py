@@ -18,7 +18,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
-from ..errors import FileFormatError, ShapeMismatchError
+from ..errors import FileFormatError, InvalidCalibrationError, ShapeMismatchError
 from ._convention import BoolArray, FloatArray, ValueConvention, check_joint_names
 from ._stats import StatAccumulator, episode_stats
 
@@ -110,8 +110,15 @@ def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatA
     if flat.null_count:
         raise FileFormatError(f"column {key!r}: {flat.null_count} null entries; expected finite numbers")
     d = typ.list_size
-    np_flat = flat.to_numpy(zero_copy_only=False)
-    return np.asarray(np_flat, dtype=np.float64).reshape(-1, d), typ
+    values = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=np.float64).reshape(-1, d)
+    finite = np.isfinite(values)
+    if not finite.all():
+        row, col = np.argwhere(~finite)[0]
+        raise FileFormatError(
+            f"column {key!r}: {int((~finite).sum())} NaN or inf entries (first at row {row}, entry {col}); "
+            "expected finite numbers"
+        )
+    return values, typ
 
 
 def recalibrate_table_with_counts(
@@ -296,7 +303,7 @@ def recalibrate_file(
                 table = pf.read_row_groups(batch) if len(batch) > 1 else pf.read_row_group(batch[0])
                 try:
                     new_table, counts, stored = recalibrate_table_with_counts(table, plans)
-                except FileFormatError as exc:
+                except (FileFormatError, InvalidCalibrationError) as exc:
                     raise FileFormatError(f"data file {name}, row groups {batch[0]}-{batch[-1]}: {exc}") from None
                 if pending is not None:
                     pending.result()

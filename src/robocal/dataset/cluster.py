@@ -31,6 +31,7 @@ from ._driver import (
     DatasetReport,
     build_plans,
     check_destination,
+    check_metadata,
     finish_root,
     prepare_root,
     publish_root,
@@ -87,6 +88,7 @@ def prepare(
     layout = read_layout(src_p)
     plans = build_plans(layout, old, new, features)
     check_destination(src_p, dst_p, overwrite)
+    check_metadata(layout)
     tmp = Path(tempfile.mkdtemp(prefix=f".{dst_p.name}.robocal-", dir=dst_p.parent))
     work = Path(tempfile.mkdtemp(prefix=f".{dst_p.name}.robocal-work-", dir=dst_p.parent))
     try:
