@@ -307,3 +307,15 @@ def test_run_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str], robot: str
     }
     assert files == expected[robot]
     assert run_demo(robot, None) == 0
+
+
+def test_old_so101_folder_is_found(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert _calibrate(tmp_path) == 0
+    new = tmp_path / "robots" / "so_follower" / "arm1.json"
+    old = tmp_path / "robots" / "so101_follower" / "arm1.json"
+    old.parent.mkdir(parents=True)
+    new.rename(old)
+    capsys.readouterr()
+    args = ["lerobot", "show", "--robot", "so101_follower", "--port", "sim", "--id", "arm1"]
+    assert main([*args, "--calibration-dir", str(tmp_path)]) == 0
+    assert f"warning: using {old} (LeRobot < 0.4.3 folder)" in capsys.readouterr().err

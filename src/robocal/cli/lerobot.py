@@ -64,15 +64,27 @@ def _spec(robot: str) -> RobotSpec:
 
 
 def _cal_file(
-    spec: RobotSpec, robot_id: str | None, calibration_dir: pathlib.Path | None, file: pathlib.Path | None
+    spec: RobotSpec,
+    robot_id: str | None,
+    calibration_dir: pathlib.Path | None,
+    file: pathlib.Path | None,
+    *,
+    reading: bool = True,
 ) -> pathlib.Path:
+    """The calibration file: ``--file``, else LeRobot's path; when reading, fall back to the pre-v0.4.3 folder."""
     from ..lerobot import calibration_path
 
     if file is not None:
         return file
     if robot_id is None:
         raise UsageError("give --id (and optionally --calibration-dir) or --file")
-    return calibration_path(spec.kind, spec.device_name, robot_id, root=calibration_dir)
+    path = calibration_path(spec.kind, spec.device_name, robot_id, root=calibration_dir)
+    if reading and not path.exists() and spec.old_device_name != spec.device_name:
+        old = calibration_path(spec.kind, spec.old_device_name, robot_id, root=calibration_dir)
+        if old.exists():
+            _common.print_warning(f"using {old} (LeRobot < 0.4.3 folder); LeRobot now reads {path}")
+            return old
+    return path
 
 
 def _sweep_renderer() -> tuple[Callable[[object], None], Callable[[], None]]:
@@ -170,7 +182,7 @@ def calibrate(
     from ..workflows.lerobot import restore
 
     spec = _spec(robot)
-    path = _cal_file(spec, robot_id, calibration_dir, None)
+    path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file)
     if use_file:
         cals = read_calibration(path)
         with _arm_bus(spec, port) as (bus, _arm):
