@@ -360,3 +360,60 @@ def test_simulator_thread_stops_cleanly() -> None:
         import os
 
         os.fstat(sim._master)
+
+
+ZERO = [2048, 1000, 3100, 2000, 1020, 2040]
+ROTATED = [3080, 2010, 2060, 3050, 2030, 3070]
+
+
+@pytest.mark.parametrize(
+    ("robot", "homing", "modes"),
+    [
+        ("koch_follower", [-2048, -1024, 3072, -2048, -1024, -2048], ("DEGREE",) * 6),
+        ("so101_follower", [-2056, -986, 3084, -2026, -1006, -2046], ("DEGREE",) * 5 + ("LINEAR",)),
+    ],
+)
+def test_legacy_pose_calibration_through_the_sdk(
+    tmp_path: Path, robot: str, homing: list[int], modes: tuple[str, ...]
+) -> None:
+    from robocal.lerobot.legacy import apply_calibration, read_legacy
+    from robocal.workflows.lerobot import calibrate_legacy
+
+    names = list(DEFAULT_TRUTH[robot])
+    truth = {n: JointTruth(2048, 0, 4095) for n in names}
+    poses = {
+        "zero": dict(zip(names, map(float, ZERO), strict=True)),
+        "rotated": dict(zip(names, map(float, ROTATED), strict=True)),
+    }
+    with SimArm(robot, truth=truth) as arm:
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            op = SimOperator(arm, poses=poses)
+            cal = calibrate_legacy(bus, arm.spec, op, path=tmp_path / "main_follower.json")
+            assert op.prompts == ["zero", "rotated", "rest"]
+            raw_rot = [bus.read("Present_Position", i) for i in range(1, 7)]
+        finally:
+            bus.close()
+    assert cal.drive_mode.tolist() == [0, 0, 1, 0, 0, 0]
+    assert cal.homing_offset.tolist() == homing and cal.calib_mode == modes
+    assert cal.start_pos.tolist() == ZERO and cal.end_pos.tolist() == [3080, 2010, -2060, 3050, 2030, 3070]
+    assert read_legacy(tmp_path / "main_follower.json") == cal
+    if robot == "koch_follower":  # rounded homing: the rotated pose reads close to +90° on every joint
+        deg = apply_calibration(raw_rot, cal)
+        assert all(abs(d - 90) < 6 for d in deg)
+
+
+def test_legacy_calibration_requires_torque_off() -> None:
+    from robocal.errors import UsageError
+    from robocal.workflows.lerobot import calibrate_legacy
+
+    with SimArm("koch_follower") as arm:
+        arm.servo("elbow_flex").set_reg("Torque_Enable", 1)
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            with pytest.raises(
+                UsageError, match=r"torque must be disabled on all motors \(enabled on elbow_flex\)"
+            ):
+                calibrate_legacy(bus, arm.spec, SimOperator(arm))
+        finally:
+            bus.close()

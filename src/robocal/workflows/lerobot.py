@@ -27,14 +27,16 @@ from ..backends.servo_bus import ServoBus
 from ..core.jointmap import RobotCalibration
 from ..core.lerobot import (
     ROBOTS,
+    LegacyCalibration,
     MotorCalibration,
     RangeTracker,
     RobotSpec,
     centre_homing,
     half_turn_homing_offset,
+    legacy_calibration_from_poses,
 )
 from ..errors import CalibError, InvalidCalibrationError, UsageError
-from ..formats.lerobot import write_current
+from ..formats.lerobot import write_current, write_legacy
 
 __all__ = [
     "CalibrationResult",
@@ -42,6 +44,7 @@ __all__ = [
     "Operator",
     "SweepView",
     "calibrate",
+    "calibrate_legacy",
     "check",
     "clear_phase_bit4",
     "configure",
@@ -325,6 +328,54 @@ def calibrate(
             _write_eeprom(bus, spec, before)
         raise
     return CalibrationResult(ordered, written, tuple(notes), naive)
+
+
+def calibrate_legacy(
+    bus: ServoBus,
+    spec: RobotSpec,
+    operator: Operator,
+    *,
+    path: str | os.PathLike[str] | None = None,
+    aloha_gripper_linear: bool = False,
+) -> LegacyCalibration:
+    """LeRobot's legacy (2024) zero + rotated pose calibration; nothing is written to the motors.
+
+    Reads Present_Position at the zero pose ("straight horizontal, gripper upwards and closed") and at the
+    rotated pose (every joint +90°); ``drive_mode = rotated < zero``; Dynamixel rounds the drive-mode-applied
+    rotated pose to a quarter turn, Feetech uses it exactly; ``homing_offset = 1024 − value``. The Feetech
+    ``gripper`` is LINEAR (Dynamixel only with ``aloha_gripper_linear``). Writes the legacy JSON when ``path``
+    is given.
+
+    Raises:
+        UsageError: A Dynamixel motor has torque enabled (LeRobot's precondition).
+    """
+    ids = [m.motor_id for m in spec.motors]
+    if spec.vendor == "dynamixel":
+        on = [m.name for m in spec.motors if bus.read("Torque_Enable", m.motor_id) != 0]
+        if on:
+            raise UsageError(
+                f"To run calibration, the torque must be disabled on all motors (enabled on {', '.join(on)})."
+            )
+    operator.prompt("zero", "Move the arm to the zero position and press ENTER")
+    zero = bus.sync_read("Present_Position", ids)
+    operator.prompt("rotated", "Move the arm to the rotated position (every joint +90°) and press ENTER")
+    rotated = bus.sync_read("Present_Position", ids)
+    operator.prompt("rest", "Move the arm to the rest position and press ENTER")
+    modes = None
+    if spec.vendor == "dynamixel":
+        modes = [
+            "LINEAR" if (aloha_gripper_linear and m.name == "gripper") else "DEGREE" for m in spec.motors
+        ]
+    cal = legacy_calibration_from_poses(
+        spec.motor_names,
+        [zero[i] for i in ids],
+        [rotated[i] for i in ids],
+        vendor=spec.vendor,
+        calib_mode=modes,
+    )
+    if path is not None:
+        write_legacy(path, cal)
+    return cal
 
 
 def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> None:

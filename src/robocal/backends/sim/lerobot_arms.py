@@ -164,6 +164,7 @@ class SimOperator:
         interrupt_at_step: Raise ``KeyboardInterrupt`` at this sweep step (simulated Ctrl-C).
         interrupt_at_prompt: Raise ``KeyboardInterrupt`` when this prompt stage is shown.
         overshoot_ticks: How far past each stop the operator pushes (the hard stop holds the joint).
+        poses: Extra poses per prompt stage (e.g. the legacy ``"zero"`` and ``"rotated"`` poses), actual ticks.
     """
 
     def __init__(
@@ -175,7 +176,9 @@ class SimOperator:
         interrupt_at_step: int | None = None,
         interrupt_at_prompt: str | None = None,
         overshoot_ticks: float = 40.0,
+        poses: Mapping[str, Mapping[str, float]] | None = None,
     ) -> None:
+        self.poses = {k: dict(v) for k, v in (poses or {}).items()}
         self.arm = arm
         self.steps_per_segment = steps_per_segment
         self.mid_pose = {n: float(t.mid_ticks) for n, t in arm.truth.items()}
@@ -191,7 +194,9 @@ class SimOperator:
         self.prompts.append(stage)
         if stage == self.interrupt_at_prompt:
             raise KeyboardInterrupt
-        if stage == "middle":
+        if stage in self.poses:
+            self.arm.move(self.poses[stage])
+        elif stage == "middle":
             self.arm.move(self.mid_pose)
             self.step = 0
 
