@@ -6,6 +6,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from robocal.backends.dynamixel import DynamixelBus
 from robocal.backends.feetech import FeetechBus
@@ -417,3 +419,26 @@ def test_legacy_calibration_requires_torque_off() -> None:
                 calibrate_legacy(bus, arm.spec, SimOperator(arm))
         finally:
             bus.close()
+
+
+@settings(max_examples=40)
+@given(
+    offset=st.integers(-2047, 2047), actual=st.integers(0, 4095), dxl_offset=st.integers(-(2**31), 2**31 - 1)
+)
+def test_registers_round_trip_through_sdk(offset: int, actual: int, dxl_offset: int) -> None:
+    with SimServoBus([SimServo(1, "sts3215", float(actual))]) as sim:
+        bus = FeetechBus(sim.port, {1: "sts3215"})
+        try:
+            bus.write("Homing_Offset", 1, offset)
+            assert bus.read("Homing_Offset", 1) == offset
+            assert bus.read("Present_Position", 1) == (actual - offset) % 4096
+        finally:
+            bus.close()
+    with SimServoBus([SimServo(1, "xl330-m077", float(actual))]) as sim:
+        dbus = DynamixelBus(sim.port, {1: "xl330-m077"})
+        try:
+            dbus.write("Homing_Offset", 1, dxl_offset)
+            assert dbus.read("Homing_Offset", 1) == dxl_offset
+            assert dbus.sync_read("Homing_Offset", [1]) == {1: dxl_offset}
+        finally:
+            dbus.close()
