@@ -195,7 +195,7 @@ def _normalise_feetech_offset(offset: int, lo: int, hi: int, res: int) -> tuple[
     """Bring a Feetech offset into ±(res/2 − 1) (Present wraps modulo a turn); adjust the range if clamped."""
     half = res // 2
     off = (offset + half) % res - half
-    if off == -half:  # −2048 is not encodable; 2047 reads one tick lower... use −2047: Present one tick lower
+    if off == -half:  # −2048 is not encodable: use −2047, which makes every reading one tick lower
         off = -half + 1
         lo, hi = lo - 1, hi - 1
     return off, lo, hi
@@ -266,6 +266,8 @@ def calibrate(
 
         swept = [m for m in spec.motors if sweep_full_turn or m.name not in spec.full_turn]
         swept_ids = [m.motor_id for m in swept]
+        if not swept:
+            raise UsageError(f"{spec.name}: no motor to sweep")
         operator.prompt("sweep", "Move every joint through its whole range of motion, then press ENTER")
         first = bus.sync_read("Present_Position", swept_ids)
         tracker = RangeTracker.start([first[i] for i in swept_ids], resolution=res[swept[0].name])
