@@ -442,3 +442,11 @@ def test_registers_round_trip_through_sdk(offset: int, actual: int, dxl_offset: 
             assert dbus.sync_read("Homing_Offset", [1]) == {1: dxl_offset}
         finally:
             dbus.close()
+
+
+def test_home_after_sweep_offset_at_the_sign_magnitude_edge(tmp_path: Path) -> None:
+    truth = dict(DEFAULT_TRUTH["so101_follower"])
+    truth["elbow_flex"] = JointTruth(4095, 3095, 5095)  # travel centred on the seam: offset would be ±2048
+    arm, cals, _ = _run("so101_follower", tmp_path, truth=truth, home_after_sweep=True)
+    assert cals["elbow_flex"] == MotorCalibration(3, 0, -2047, 1046, 3046)
+    assert arm.eeprom()["elbow_flex"]["Homing_Offset"] == -2047
