@@ -319,3 +319,15 @@ def test_old_so101_folder_is_found(tmp_path: Path, capsys: pytest.CaptureFixture
     args = ["lerobot", "show", "--robot", "so101_follower", "--port", "sim", "--id", "arm1"]
     assert main([*args, "--calibration-dir", str(tmp_path)]) == 0
     assert f"warning: using {old} (LeRobot < 0.4.3 folder)" in capsys.readouterr().err
+
+
+def test_live_table_on_a_terminal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from robocal.cli import _common
+
+    monkeypatch.setattr(_common.err_console, "_force_terminal", True)
+    assert _common.err_console.is_terminal
+    assert _calibrate(tmp_path) == 0
+    err = capsys.readouterr().err
+    assert "range of motion (reading" in err and "shoulder_pan" in err and "reading 20:" not in err
