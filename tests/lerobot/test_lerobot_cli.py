@@ -113,6 +113,14 @@ def test_calibrate_ctrl_c_exit_130_no_file(
             "error: --sign 'elbow'",
         ),
         (
+            ["migrate", "GOOD", "--vendor", "feetech", "--out", "OUT"],
+            "error: GOOD: this is a current LeRobot",
+        ),
+        (
+            ["export-urdf", "--robot", "so101_follower", "--file", "LEGACY", "--out", "OUT"],
+            "error: LEGACY: this is a legacy LeRobot calibration",
+        ),
+        (
             ["check", "--robot", "koch_leader", "--port", "/nonexistent/tty", "--file", "GOOD"],
             "error: /nonexistent/tty: cannot open the serial port",
         ),
@@ -141,7 +149,8 @@ def test_malformed_cli_matrix(
     legacy.write_text(LEGACY)
     repl = {"BAD": str(bad), "GOOD": str(good), "LEGACY": str(legacy), "OUT": str(tmp_path / "out.yaml")}
     args = [repl.get(a, a) for a in args]
-    message = message.replace("BAD", str(bad))
+    for key in ("BAD", "GOOD", "LEGACY"):
+        message = message.replace(key, repl[key])
     before = sorted(p.name for p in tmp_path.iterdir())
     code = main(["lerobot", *args])
     err = capsys.readouterr().err.strip().splitlines()
