@@ -232,3 +232,13 @@ def test_dynamixel_drive_mode_flip_refused(tmp_path: Path) -> None:
     ):
         recalibrate_dataset(src, tmp_path / "dst", a, b)
     assert not (tmp_path / "dst").exists()
+
+
+def test_off_grid_large_batch_uses_tick_lookup_and_matches() -> None:
+    a, b = conv(HOMING_A, RANGE_A), conv(HOMING_B, RANGE_B)
+    rng = np.random.default_rng(11)
+    values = np.column_stack([rng.uniform(-60, 60, (20000, 5)), rng.uniform(5, 70, 20000)])  # all distinct
+    fast, fast_mask = recalibrate_values(values, a, b)
+    slow, slow_mask = b.from_actual(a.to_actual(values))
+    np.testing.assert_array_equal(fast, slow)
+    np.testing.assert_array_equal(fast_mask, slow_mask)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
@@ -82,7 +83,15 @@ def recalibrate_values(
     Returns:
         ``(new_values (N, D), out_of_range (N, D))``, the mask marks positions outside ``new``'s range.
     """
-    actual = old.to_actual(np.asarray(values, dtype=np.float64))
+    v = np.asarray(values, dtype=np.float64)
+    if v.ndim == 2 and v.shape[0] > _LUT_MIN_ROWS:
+        uniq = _unique_columns(v)
+        if uniq is not None:
+            # recorded values come from whole ticks: map each distinct value of a column once
+            table, idx = uniq
+            table_values, table_mask = new.from_actual(old.to_actual(table))
+            return np.take_along_axis(table_values, idx, axis=0), np.take_along_axis(table_mask, idx, axis=0)
+    actual = old.to_actual(v)
     if getattr(old, "integer_ticks", False) and actual.ndim == 2 and actual.shape[0] > _LUT_MIN_ROWS:
         lo = actual.min(axis=0)
         span = int((actual.max(axis=0) - lo).max()) + 1
@@ -97,6 +106,31 @@ def recalibrate_values(
 
 _LUT_MIN_ROWS = 8192
 _LUT_MAX_SPAN = 1 << 16
+
+
+def _unique_columns(values: FloatArray) -> tuple[FloatArray, NDArray[np.intp]] | None:
+    """Distinct values per column: ``(table (K, D), index (N, D))`` with ``values = table[index, column]``.
+
+    Conventions are per-joint maps, so mapping ``table`` and looking the frames up gives the same numbers as
+    mapping every frame. Distinct values are found with Arrow's hash-based ``dictionary_encode``. Returns
+    ``None`` when a column has too many distinct values for this to pay off.
+    """
+    n, d = values.shape
+    indices: list[NDArray[np.intp]] = []
+    uniques: list[FloatArray] = []
+    for j in range(d):
+        enc = pc.dictionary_encode(pa.array(values[:, j]))
+        dictionary = np.asarray(enc.dictionary.to_numpy(), dtype=np.float64)
+        if dictionary.size * 8 > n:
+            return None
+        uniques.append(dictionary)
+        indices.append(np.asarray(enc.indices.to_numpy(), dtype=np.intp))
+    k = max(u.size for u in uniques)
+    table = np.empty((k, d), dtype=np.float64)
+    for j, u in enumerate(uniques):
+        table[: u.size, j] = u
+        table[u.size :, j] = u[0]
+    return table, np.column_stack(indices)
 
 
 def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatArray, pa.DataType]:
