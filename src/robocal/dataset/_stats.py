@@ -118,6 +118,26 @@ class StatAccumulator:
         return None
 
 
+def _sorted_quantiles(srt: FloatArray, fractions: Sequence[float]) -> FloatArray:
+    """Quantiles of data sorted along axis 1 (``(E, L, D)`` → ``(Q, E, D)``), numpy's ``linear`` method.
+
+    Sorting once is much faster than ``np.quantile``'s partitions along a middle axis; the interpolation is
+    numpy's own formula, so the numbers equal ``np.quantile(..., axis=1)``.
+    """
+    n = srt.shape[1]
+    out = np.empty((len(fractions), srt.shape[0], srt.shape[2]), dtype=np.float64)
+    for i, f in enumerate(fractions):
+        pos = f * (n - 1)
+        lo = int(np.floor(pos))
+        hi = min(lo + 1, n - 1)
+        t = pos - lo
+        a = srt[:, lo, :].astype(np.float64)
+        b = srt[:, hi, :].astype(np.float64)
+        diff = b - a
+        out[i] = b - diff * (1 - t) if t >= 0.5 else a + diff * t
+    return out
+
+
 def _segment_stats(
     v: FloatArray, starts: NDArray[np.int64], lengths: NDArray[np.int64], fractions: Sequence[float]
 ) -> list[StatAccumulator]:
@@ -129,12 +149,13 @@ def _segment_stats(
     m2s = np.add.reduceat(dev * dev, starts, axis=0)
     fr = sorted(set(fractions))
     if fr and np.all(lengths == lengths[0]):
-        qs = np.quantile(v.reshape(len(starts), int(lengths[0]), v.shape[1]), fr, axis=1)  # (Q, E, D)
+        srt = np.sort(v.reshape(len(starts), int(lengths[0]), v.shape[1]), axis=1)  # (E, L, D)
+        qs = _sorted_quantiles(srt, fr)  # (Q, E, D)
         qlist = [{f: qs[i, e] for i, f in enumerate(fr)} for e in range(len(starts))]
     else:
         qlist = []
         for s0, n in zip(starts, lengths, strict=True):
-            q = np.quantile(v[s0 : s0 + n], fr, axis=0) if fr else np.empty((0, v.shape[1]))
+            q: FloatArray = _sorted_quantiles(np.sort(v[s0 : s0 + n], axis=0)[None], fr)[:, 0]
             qlist.append({f: q[i] for i, f in enumerate(fr)})
     return [
         StatAccumulator(
