@@ -138,3 +138,24 @@ def test_convert_lerobot_legacy_degree_exact(tmp_path: Path, capsys: pytest.Capt
     assert main(["convert", str(src), str(tmp_path / "y.yaml"), "--to", "robocal"]) == 2
     assert "LINEAR motor(s) c" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["legacy.json", "map.yaml"]
+
+
+def test_stray_ctrl_c_is_one_error_line(capsys: pytest.CaptureFixture[str]) -> None:
+    import typer
+
+    from robocal.cli import main as cli_main
+
+    sub = typer.Typer()
+
+    @sub.command("boom")
+    def boom() -> None:
+        raise KeyboardInterrupt
+
+    @sub.command("other")
+    def other() -> None:
+        pass
+
+    cli_main._wrap_commands(sub)
+    command = typer.main.get_command(sub)
+    with pytest.raises(cli_main.UserInterruptError, match="interrupted"):
+        command.main(args=["boom"], standalone_mode=False)

@@ -6,8 +6,10 @@ written), 3 device or communication failure, 130 interrupted.
 
 from __future__ import annotations
 
+import functools
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import typer
 
@@ -39,6 +41,34 @@ def _root(
     """Calibrate robots: Robstride joints, LeRobot arms, Universal Robots kinematics."""
 
 
+class UserInterruptError(CalibError):
+    """Ctrl-C reached the CLI without the command handling it."""
+
+    exit_code = 130
+
+
+def _interruptible(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Turn a stray KeyboardInterrupt into an ``error: interrupted`` line (typer would exit 130 silently)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except KeyboardInterrupt:
+            raise UserInterruptError("interrupted") from None
+
+    return wrapper
+
+
+def _wrap_commands(typer_app: typer.Typer) -> None:
+    for info in typer_app.registered_commands:
+        if info.callback is not None:
+            info.callback = _interruptible(info.callback)
+    for group in typer_app.registered_groups:
+        if group.typer_instance is not None:
+            _wrap_commands(group.typer_instance)
+
+
 def _register() -> None:
     from . import dataset, demo, files, lerobot, sweep, ur
 
@@ -48,6 +78,7 @@ def _register() -> None:
     app.add_typer(lerobot.app, name="lerobot")
     app.add_typer(ur.app, name="ur")
     app.add_typer(dataset.app, name="dataset")
+    _wrap_commands(app)
 
 
 _register()
