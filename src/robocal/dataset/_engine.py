@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -90,7 +91,12 @@ def recalibrate_values(
             # recorded values come from whole ticks: map each distinct value of a column once
             table, idx = uniq
             table_values, table_mask = new.from_actual(old.to_actual(table))
-            return np.take_along_axis(table_values, idx, axis=0), np.take_along_axis(table_mask, idx, axis=0)
+            out_values = np.empty(v.shape, dtype=np.float64)
+            out_mask = np.empty(v.shape, dtype=np.bool_)
+            for j, ix in enumerate(idx):
+                out_values[:, j] = np.take(table_values[:, j], ix)
+                out_mask[:, j] = np.take(table_mask[:, j], ix)
+            return out_values, out_mask
     actual = old.to_actual(v)
     if getattr(old, "integer_ticks", False) and actual.ndim == 2 and actual.shape[0] > _LUT_MIN_ROWS:
         lo = actual.min(axis=0)
@@ -108,8 +114,8 @@ _LUT_MIN_ROWS = 8192
 _LUT_MAX_SPAN = 1 << 16
 
 
-def _unique_columns(values: FloatArray) -> tuple[FloatArray, NDArray[np.intp]] | None:
-    """Distinct values per column: ``(table (K, D), index (N, D))`` with ``values = table[index, column]``.
+def _unique_columns(values: FloatArray) -> tuple[FloatArray, list[NDArray[np.intp]]] | None:
+    """Distinct values per column: ``(table (K, D), [index (N,)] * D)``, ``values[:, j] = table[index[j], j]``.
 
     Conventions are per-joint maps, so mapping ``table`` and looking the frames up gives the same numbers as
     mapping every frame. Distinct values are found with Arrow's hash-based ``dictionary_encode``. Returns
@@ -130,7 +136,7 @@ def _unique_columns(values: FloatArray) -> tuple[FloatArray, NDArray[np.intp]] |
     for j, u in enumerate(uniques):
         table[: u.size, j] = u
         table[u.size :, j] = u[0]
-    return table, np.column_stack(indices)
+    return table, indices
 
 
 def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatArray, pa.DataType]:
@@ -157,7 +163,7 @@ def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatA
 
 def recalibrate_table_with_counts(
     table: pa.Table, plans: Sequence[FeaturePlan]
-) -> tuple[pa.Table, dict[str, NDArrayInt], dict[str, FloatArray]]:
+) -> tuple[pa.Table, dict[str, NDArrayInt], dict[str, NDArray[Any]]]:
     """Re-calibrate the planned feature columns of one table.
 
     Args:
@@ -166,15 +172,15 @@ def recalibrate_table_with_counts(
 
     Returns:
         ``(table, out_of_range, new_values)``: the new table (same schema), per feature the count of values
-        outside the new calibrated range per joint (shape ``(D,)``), and per feature the stored new values as
-        float64 ``(N, D)`` (for statistics).
+        outside the new calibrated range per joint (shape ``(D,)``), and per feature the stored new values
+        ``(N, D)`` in the column's dtype (for statistics).
 
     Raises:
         FileFormatError: A column is missing, not a fixed-size list or has nulls.
         ShapeMismatchError: A column's width differs from the feature's number of joints.
     """
     counts: dict[str, NDArrayInt] = {}
-    stored: dict[str, FloatArray] = {}
+    stored: dict[str, NDArray[Any]] = {}
     out = table
     for plan in plans:
         idx = table.schema.get_field_index(plan.key)
@@ -193,7 +199,7 @@ def recalibrate_table_with_counts(
         new_col = pa.FixedSizeListArray.from_arrays(child, type=typ)
         out = out.set_column(idx, table.schema.field(idx), new_col)
         counts[plan.key] = mask.sum(axis=0).astype(np.int64)
-        stored[plan.key] = cast.astype(np.float64, copy=False)
+        stored[plan.key] = cast
     return out, counts, stored
 
 

@@ -141,10 +141,13 @@ def _sorted_quantiles(srt: FloatArray, fractions: Sequence[float]) -> FloatArray
 def _segment_stats(
     v: FloatArray, starts: NDArray[np.int64], lengths: NDArray[np.int64], fractions: Sequence[float]
 ) -> list[StatAccumulator]:
-    """Statistics of consecutive row segments of ``v`` ``(N, D)`` in a few vectorised calls."""
-    mins = np.minimum.reduceat(v, starts, axis=0)
-    maxs = np.maximum.reduceat(v, starts, axis=0)
-    means = np.add.reduceat(v, starts, axis=0) / lengths[:, None]
+    """Statistics of consecutive row segments of ``v`` ``(N, D)`` in a few vectorised calls.
+
+    ``v`` may be float32 (the stored values): order statistics are exact in it, sums are taken in float64.
+    """
+    mins = np.minimum.reduceat(v, starts, axis=0).astype(np.float64)
+    maxs = np.maximum.reduceat(v, starts, axis=0).astype(np.float64)
+    means = np.add.reduceat(v, starts, axis=0, dtype=np.float64) / lengths[:, None]
     dev = v - np.repeat(means, lengths, axis=0)
     m2s = np.add.reduceat(dev * dev, starts, axis=0)
     fr = sorted(set(fractions))
@@ -191,7 +194,7 @@ def episode_stats(
     lengths = np.diff(np.concatenate((starts, [n]))).astype(np.int64)
     eps = episode_index[starts]
     per_key = {
-        key: _segment_stats(np.asarray(v, dtype=np.float64), starts, lengths, fractions)
+        key: _segment_stats(np.asarray(v), starts, lengths, fractions)
         for key, v in values.items()
     }
     for i, ep in enumerate(eps.tolist()):
