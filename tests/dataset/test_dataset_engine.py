@@ -100,6 +100,8 @@ def test_round_trip_preserves_everything(src: Path, tmp_path: Path) -> None:
     np.testing.assert_allclose(
         all_values(mid, "action")[:, 0] - all_values(src, "action")[:, 0], 47 * TICK_RAD, atol=2e-6
     )
+    video = "videos/observation.images.front/chunk-000/file-000.mp4"
+    assert (back / video).stat().st_ino == (src / video).stat().st_ino  # hard-linked, not rewritten
     for rel in (
         "meta/info.json",
         "meta/tasks.parquet",

@@ -24,6 +24,8 @@ HOMING_A = [100, -40, 60, 0, -120, 0]
 HOMING_B = [-150, 30, -90, 200, 50, 500]
 RANGE_A = [(900, 2950), (1000, 3000), (950, 3100), (1000, 3000), (0, 4095), (1000, 3000)]
 RANGE_B = [(1200, 3100), (1050, 2900), (1000, 3050), (800, 2750), (0, 4095), (0, 2000)]
+LO = [1100, 1100, 1100, 1100, 200, 1100]
+HI = [2800, 2800, 2800, 2700, 3900, 2400]
 
 
 def cals(homing: list[int], ranges: list[tuple[int, int]], drive: list[int] | None = None) -> dict:
@@ -242,3 +244,29 @@ def test_off_grid_large_batch_uses_tick_lookup_and_matches() -> None:
     slow, slow_mask = b.from_actual(a.to_actual(values))
     np.testing.assert_array_equal(fast, slow)
     np.testing.assert_array_equal(fast_mask, slow_mask)
+
+
+def test_legacy_dataset_to_current_and_back(tmp_path: Path) -> None:
+    legacy = LegacyConvention(
+        LegacyCalibration(
+            SO_ARM_JOINTS,
+            [-2048, 1024, -2000, -2100, -2048, 0],
+            [0, 1, 0, 0, 0, 0],
+            [0] * 5 + [1100],
+            [1024] * 5 + [2500],
+            ["DEGREE"] * 5 + ["LINEAR"],
+        )
+    )
+    current = conv(HOMING_A, RANGE_A)
+    src = tmp_path / "legacy"
+    generate_dataset(src, n_episodes=2, frames_per_episode=50, convention=legacy, actual_lo=LO, actual_hi=HI)
+    rep = recalibrate_dataset(src, tmp_path / "current", legacy, current)
+    assert rep.out_of_range["action"] == dict.fromkeys(SO_ARM_JOINTS, 0)
+    recalibrate_dataset(tmp_path / "current", tmp_path / "back", current, legacy)
+    for key in ("observation.state", "action"):
+        np.testing.assert_array_equal(all_values(tmp_path / "back", key), all_values(src, key))
+    # legacy degrees of shoulder_pan: (raw − 2048)/2048·180 with raw = actual; current: degrees about mid 1925
+    leg = all_values(src, "observation.state")[:, 0]
+    cur = all_values(tmp_path / "current", "observation.state")[:, 0]
+    actual = np.round(leg / 180 * 2048 + 2048)
+    np.testing.assert_allclose(cur, (actual - 100 - 1925) * 360 / 4095, atol=1e-4)
