@@ -109,7 +109,7 @@ def test_current_malformed_matrix(tmp_path: Path, mutate, message: str) -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("{", "not valid JSON"),
+        ("{", "invalid JSON"),
         ("[1, 2]", "expected a JSON object of motors, got list"),
         ("{}", "no motors"),
         (ALOHA_LEFT_FOLLOWER, "legacy LeRobot calibration"),

@@ -33,6 +33,7 @@ from ..core.conventions import (
 from ..core.jointmap import RobotCalibration
 from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, read_bytes, read_text
+from ._json import load_json
 from ._numbers import format_float, parse_direction, parse_finite, parse_int
 from ._yaml import dump_yaml, load_yaml
 from .urdf import UrdfDocument, UrdfModel, _parse_tree
@@ -69,30 +70,6 @@ class CalibrationFile:
 
 
 # ------------------------------------------------------------------------------------------------- helpers
-def _json_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in pairs:
-        if k in out:
-            raise ValueError(f"duplicate key {k!r}")
-        out[k] = v
-    return out
-
-
-def _reject_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not valid JSON")
-
-
-def _load_json(text: str, source: str) -> Any:
-    try:
-        return json.loads(text, object_pairs_hook=_json_pairs, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(
-            f"{source}: invalid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}"
-        ) from None
-    except ValueError as exc:
-        raise FileFormatError(f"{source}: invalid JSON: {exc}") from None
-
-
 def _check_unique_ids(ids: Mapping[str, int], source: str) -> None:
     seen: dict[int, str] = {}
     for name, mid in ids.items():
@@ -154,7 +131,7 @@ def _parse_lite(data: Any, source: str, fmt: str) -> CalibrationFile:
 
 
 def _read_lite_json(path: Path, **_: Any) -> CalibrationFile:
-    return _parse_lite(_load_json(read_text(path, "calibration file"), str(path)), str(path), "lite-json")
+    return _parse_lite(load_json(read_text(path, "calibration file"), str(path)), str(path), "lite-json")
 
 
 def _read_lite_yaml(path: Path, **_: Any) -> CalibrationFile:

@@ -20,6 +20,7 @@ from typing import Any
 from ..core.lerobot import LegacyCalibration, MotorCalibration
 from ..errors import CalibError, FileFormatError
 from ..fileio import atomic_write_text, read_text
+from ._json import load_json
 
 __all__ = [
     "CURRENT_FIELDS",
@@ -66,10 +67,7 @@ def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibra
         FileFormatError: Not JSON, not an object of objects, a missing/extra/non-int field, duplicate ids,
             ``range_min >= range_max``, or a legacy array file. The message names the file, motor and field.
     """
-    try:
-        data = json.loads(text, object_pairs_hook=_no_duplicates(source))
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    data = load_json(text, source)
     if not isinstance(data, dict):
         raise FileFormatError(f"{source}: expected a JSON object of motors, got {type(data).__name__}")
     if data and all(isinstance(v, list) for v in data.values()):
@@ -119,18 +117,6 @@ def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibra
     return out
 
 
-def _no_duplicates(source: str) -> Any:
-    def hook(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for key, value in pairs:
-            if key in out:
-                raise FileFormatError(f"{source}: duplicate key {key!r}")
-            out[key] = value
-        return out
-
-    return hook
-
-
 def read_current(path: PathLike) -> dict[str, MotorCalibration]:
     """Read a current LeRobot calibration JSON file (see :func:`parse_current`)."""
     return parse_current(read_text(path, "LeRobot calibration"), str(path))
@@ -166,10 +152,7 @@ def parse_legacy(text: str, source: str = "<string>") -> LegacyCalibration:
         FileFormatError: Not JSON, a missing/extra key, a wrong element type, arrays of different lengths,
             or a current-format file; the message names the file and key.
     """
-    try:
-        data = json.loads(text, object_pairs_hook=_no_duplicates(source))
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{source}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    data = load_json(text, source)
     if not isinstance(data, dict):
         raise FileFormatError(f"{source}: expected a JSON object of arrays, got {type(data).__name__}")
     if data and all(isinstance(v, dict) for v in data.values()):
