@@ -282,3 +282,40 @@ def test_inspect(files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureF
     code, _, err = run(capsys, "dataset", "inspect", tmp_path)
     assert code == 2
     _one_error(err, "missing meta/info.json")
+
+
+def test_overwrite_and_joint_map_inspect(
+    files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    dst = tmp_path / "dst"
+    dst.mkdir()
+    (dst / "stale.txt").write_text("x")
+    args = ["dataset", "recalibrate", files["src"], dst, "--old", files["a"], "--new", files["b"]]
+    code, _, err = run(capsys, *args)
+    assert code == 2
+    _one_error(err, f"destination {dst} already exists; pass --overwrite to replace it")
+    code, _, err = run(capsys, *args, "--overwrite")
+    assert (code, err) == (0, "")
+    assert not (dst / "stale.txt").exists()
+    assert tree(dst) == tree(files["src"])
+    # a dataset in joint-frame radians inspected with its joint map: no jumps, no range known
+    tick = 2 * np.pi / 4096
+    jm = RobotCalibration(SO_ARM_JOINTS, [1] * 6, [2048] * 6, tick)
+    write_joint_map(tmp_path / "jm.yaml", jm, "robocal")
+    code, _, err = run(
+        capsys,
+        "dataset",
+        "recalibrate",
+        files["src"],
+        tmp_path / "rad",
+        "--old",
+        files["a"],
+        "--new",
+        tmp_path / "jm.yaml",
+    )
+    assert (code, err) == (0, "")
+    code, out, err = run(
+        capsys, "dataset", "inspect", tmp_path / "rad", "--calibration", tmp_path / "jm.yaml"
+    )
+    assert (code, err) == (0, "")
+    assert "95 frames" in out

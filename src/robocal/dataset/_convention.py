@@ -97,13 +97,14 @@ class JointMapConvention:
         calibration: The robot's canonical calibration (joint names, directions, offsets, scales).
         lower: Optional lower joint limits, shape ``(D,)``, joint units; values below are counted.
         upper: Optional upper joint limits, shape ``(D,)``, joint units; values above are counted.
-        turn_raw: Encoder period in raw units (2π for Robstride, 4096 for a 4096-tick servo).
+        turn_raw: Encoder period in raw units (2π for Robstride, 4096 for a 4096-tick servo); ``None``: one
+            encoder turn is one joint turn (2π rad), true for direct-drive servos and Robstride joints.
     """
 
     calibration: RobotCalibration
     lower: FloatArray | None = None
     upper: FloatArray | None = None
-    turn_raw: float = 2.0 * np.pi
+    turn_raw: float | None = None
 
     def __post_init__(self) -> None:
         n = self.calibration.n_joints
@@ -154,6 +155,8 @@ class JointMapConvention:
         return self.lower, self.upper
 
     def full_turn(self) -> FloatArray:
-        """One encoder turn in joint units: ``|scale|·turn_raw`` per joint."""
+        """One encoder turn in joint units: ``|scale|·turn_raw`` per joint (2π rad without ``turn_raw``)."""
+        if self.turn_raw is None:
+            return np.full(self.calibration.n_joints, 2.0 * np.pi)
         out: FloatArray = np.abs(self.calibration.scale) * self.turn_raw
         return out
