@@ -193,7 +193,7 @@ def recalibrate_table_with_counts(
                 f"expected {len(plan.joint_names)} ({', '.join(plan.joint_names)})"
             )
         new_values, mask = recalibrate_values(values, plan.old, plan.new)
-        np_type = typ.value_type.to_pandas_dtype()
+        np_type = pa.array([], type=typ.value_type).to_numpy(zero_copy_only=False).dtype  # no pandas needed
         cast = np.ascontiguousarray(new_values, dtype=np_type)
         child = pa.array(cast.reshape(-1), type=typ.value_type)
         new_col = pa.FixedSizeListArray.from_arrays(child, type=typ)
