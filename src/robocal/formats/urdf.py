@@ -31,6 +31,7 @@ __all__ = [
 ]
 
 Vec3 = tuple[float, float, float]
+XACRO_NS = "http://www.ros.org/wiki/xacro"
 
 
 @dataclass(frozen=True)
@@ -192,6 +193,11 @@ def _parse_tree(data: bytes, source: str) -> Any:
             raise FileFormatError(f"URDF {source}: unresolved entity reference &{el.name}; is not allowed")
     if root.tag != "robot":
         raise FileFormatError(f"URDF {source}: root element is <{root.tag}>, expected <robot>")
+    if any(ns == XACRO_NS for ns in root.nsmap.values()) or b"${" in etree.tostring(root):
+        raise FileFormatError(
+            f"URDF {source}: this is a xacro file (xacro namespace or ${{...}} expressions); "
+            "expand it first: xacro robot.urdf.xacro > robot.urdf"
+        )
     return tree
 
 
