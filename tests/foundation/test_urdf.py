@@ -113,7 +113,8 @@ def test_origin_write_read_identical(values: list[float]) -> None:
 
 def test_xacro_is_refused_with_a_hint() -> None:
     xacro = b'<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:property name="a" value="1"/></robot>'
-    with pytest.raises(FileFormatError, match="xacro robot.urdf.xacro > robot.urdf"):
+    with pytest.raises(FileFormatError, match=r"xacro robot\.urdf\.xacro > robot\.urdf"):
         parse_urdf(xacro)
     with pytest.raises(FileFormatError, match="xacro"):
         parse_urdf(b'<robot name="r"><link name="${prefix}base"/></robot>')
+    assert parse_urdf(b'<robot name="r"><!-- made from ${robot}.xacro --><link name="a"/></robot>').name == "r"

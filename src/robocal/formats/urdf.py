@@ -193,7 +193,9 @@ def _parse_tree(data: bytes, source: str) -> Any:
             raise FileFormatError(f"URDF {source}: unresolved entity reference &{el.name}; is not allowed")
     if root.tag != "robot":
         raise FileFormatError(f"URDF {source}: root element is <{root.tag}>, expected <robot>")
-    if any(ns == XACRO_NS for ns in root.nsmap.values()) or b"${" in etree.tostring(root):
+    if any(ns == XACRO_NS for ns in root.nsmap.values()) or any(
+        "${" in value for el in root.iter(tag=etree.Element) for value in el.attrib.values()
+    ):
         raise FileFormatError(
             f"URDF {source}: this is a xacro file (xacro namespace or ${{...}} expressions); "
             "expand it first: xacro robot.urdf.xacro > robot.urdf"
