@@ -19,11 +19,12 @@ import math
 import socket
 import struct
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 from ..core.dh import DHParameters
-from ..errors import CalibTimeoutError, DeviceError, ProtocolError
+from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 
 __all__ = [
     "CALIBRATION_LINEARISED",
@@ -36,6 +37,7 @@ __all__ = [
     "KinematicsInfo",
     "PoseSample",
     "PrimaryClient",
+    "check_connection_args",
     "encode_cartesian_info",
     "encode_joint_data",
     "encode_kinematics_info",
@@ -57,6 +59,7 @@ SUB_KINEMATICS_INFO = 5
 KINEMATICS_INFO_SIZE = 225
 CALIBRATION_LINEARISED = 2
 
+_T = TypeVar("_T")
 _HEADER = struct.Struct(">iB")
 _SUB_HEADER = struct.Struct(">IB")
 _KIN_BODY = struct.Struct(">6I6d6d6d6dI")
@@ -64,6 +67,20 @@ _JOINT = struct.Struct(">dddffffB")  # q_actual, q_target, qd_actual, I, V, T_mo
 _CARTESIAN = struct.Struct(">6d6d")  # x, y, z, rx, ry, rz (base → TCP), then the TCP offset (96 bytes)
 SUB_JOINT_DATA = 1
 SUB_CARTESIAN_INFO = 4
+
+
+def check_connection_args(host: str, port: int, timeout_s: float) -> None:
+    """Refuse an empty host, a port outside 1..65535 or a timeout that is not a positive finite number.
+
+    Raises:
+        UsageError: Names the flag (``--host``, ``--port``, ``--timeout``); exit code 2.
+    """
+    if not host.strip():
+        raise UsageError("--host: expected a controller address, got an empty string")
+    if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
+        raise UsageError(f"--port {port}: expected 1..65535")
+    if not (timeout_s > 0 and math.isfinite(timeout_s)):
+        raise UsageError(f"--timeout {timeout_s}: expected a positive number of seconds")
 
 
 @dataclass(frozen=True)
@@ -251,8 +268,7 @@ class PrimaryClient:
         """Open the TCP connection (bounded by the timeout)."""
         if self._sock is not None:
             return
-        if not (self.timeout_s > 0):
-            raise DeviceError(f"{self._where}: timeout must be positive, got {self.timeout_s}")
+        check_connection_args(self.host, self.port, self.timeout_s)  # getaddrinfo would wrap port 70000
         self._deadline = time.monotonic() + self.timeout_s
         try:
             self._sock = socket.create_connection(
@@ -329,29 +345,18 @@ class PrimaryClient:
             ProtocolError: Truncated, garbage or oversized packets.
             DeviceError: Connection refused or closed.
         """
-        self.connect()
-        while True:
-            msg_type, payload = self.read_message()
-            if msg_type != MSG_ROBOT_STATE:
-                continue
-            try:
-                found = self._find_kinematics(payload)
-            except ProtocolError as exc:
-                raise ProtocolError(f"{self._where}: {exc}") from None
-            if found is None:
-                continue
-            info, size = found
-            if size > KINEMATICS_INFO_SIZE:
-                self.warnings.append(
-                    f"{self._where}: KinematicsInfo is {size} bytes (expected "
-                    f"{KINEMATICS_INFO_SIZE}); extra bytes ignored"
-                )
-            if not info.linearised:
-                self.warnings.append(
-                    f"{self._where}: calibration_status is {info.calibration_status}, not 2 "
-                    "(linearised); the DH may be nominal rather than the robot's calibration"
-                )
-            return info
+        info, size = next(self._robot_states(self._find_kinematics))
+        if size > KINEMATICS_INFO_SIZE:
+            self.warnings.append(
+                f"{self._where}: KinematicsInfo is {size} bytes (expected "
+                f"{KINEMATICS_INFO_SIZE}); extra bytes ignored"
+            )
+        if not info.linearised:
+            self.warnings.append(
+                f"{self._where}: calibration_status is {info.calibration_status}, not 2 "
+                "(linearised); the DH may be nominal rather than the robot's calibration"
+            )
+        return info
 
     def read_pose_samples(self, count: int) -> list[PoseSample]:
         """Collect ``count`` (joint positions, base → TCP pose) samples from consecutive RobotStates.
@@ -362,17 +367,30 @@ class PrimaryClient:
         self.connect()
         self._deadline = time.monotonic() + self.timeout_s
         samples: list[PoseSample] = []
-        while len(samples) < count:
+        if count < 1:
+            return samples
+        for sample in self._robot_states(parse_pose_sample):
+            samples.append(sample)
+            if len(samples) == count:
+                break
+        return samples
+
+    def _robot_states(self, decode: Callable[[bytes], _T | None]) -> Iterator[_T]:
+        """Decode every RobotState payload with ``decode`` (other messages skipped); yield the non-None results.
+
+        Protocol errors raised by ``decode`` are re-raised naming the controller.
+        """
+        self.connect()
+        while True:
             msg_type, payload = self.read_message()
             if msg_type != MSG_ROBOT_STATE:
                 continue
             try:
-                sample = parse_pose_sample(payload)
+                found = decode(payload)
             except ProtocolError as exc:
                 raise ProtocolError(f"{self._where}: {exc}") from None
-            if sample is not None:
-                samples.append(sample)
-        return samples
+            if found is not None:
+                yield found
 
     @staticmethod
     def _find_kinematics(payload: bytes) -> tuple[KinematicsInfo, int] | None:

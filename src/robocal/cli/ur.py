@@ -26,12 +26,7 @@ DELTAS_HELP = "Calibration deltas (delta_theta/a/d/alpha)."
 DEFAULTS_RPY_HELP = "'upstream' (default) reproduces ur_description's files; 'urdf' = URDF angles."
 
 
-def _note_overwrite(path: Path) -> None:
-    if path.exists():
-        err_console.print(f"note: replacing {path} (previous file kept as {path.name}.bak)")
-
-
-def _print_result(result: wf.CorrectionResult) -> int:
+def _print_result(result: wf.CorrectionResult, replaced: bool) -> int:
     table = Table("link", "x", "y", "z", "roll", "pitch", "yaw", box=None, pad_edge=False)
     for link in result.kinematics.links:
         table.add_row(link.name, *(f"{v:.9g}" for v in (*link.xyz_m, *link.rpy_rad)))
@@ -43,6 +38,8 @@ def _print_result(result: wf.CorrectionResult) -> int:
         f"{dev.angle_rad * 1e3:.3f} mrad"
     )
     console.print(f"wrote {result.out_path}")
+    if replaced:  # said only once the new file is in place; a failed run leaves the old one untouched
+        err_console.print(f"note: replaced {result.out_path} (previous file kept as {result.out_path.name}.bak)")
     if result.urdf_out is not None:
         console.print(f"wrote {result.urdf_out} (six joint origins updated)")
     for w in result.warnings:
@@ -61,9 +58,9 @@ def extract(
     urdf_out: Annotated[Path | None, typer.Option("--urdf-out", help="Updated URDF to write.")] = None,
 ) -> None:
     """Read the calibrated DH from a controller, correct it and write ur_description's kinematics YAML."""
-    _note_overwrite(out)
+    replaced = out.is_file()
     result = wf.extract(host, out, port=port, timeout_s=timeout, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out)
-    raise typer.Exit(_print_result(result))
+    raise typer.Exit(_print_result(result, replaced))
 
 
 @app.command("correct")
@@ -78,9 +75,9 @@ def correct(
 ) -> None:
     """Correct DH parameters offline (no robot) and write ur_description's kinematics YAML."""
     params = wf.load_dh_input(dh, model, deltas)
-    _note_overwrite(out)
+    replaced = out.is_file()
     result = wf.correct(params, out, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out)
-    raise typer.Exit(_print_result(result))
+    raise typer.Exit(_print_result(result, replaced))
 
 
 @app.command("defaults")
@@ -90,8 +87,8 @@ def defaults(
     rpy: Annotated[str, typer.Option("--rpy", help=DEFAULTS_RPY_HELP)] = "upstream",
 ) -> None:
     """Regenerate ur_description's default_kinematics.yaml for a model from URSim's nominal DH."""
-    _note_overwrite(out)
-    raise typer.Exit(_print_result(wf.defaults(model, out, rpy=rpy)))
+    replaced = out.is_file()
+    raise typer.Exit(_print_result(wf.defaults(model, out, rpy=rpy), replaced))
 
 
 def _print_reports(reports: list[wf.VerifyReport]) -> int:

@@ -27,7 +27,7 @@ def _tuple6(values: Sequence[float] | ArrayLike, name: str, n: int) -> tuple[flo
     if not np.all(np.isfinite(arr)):
         bad = int(np.flatnonzero(~np.isfinite(arr))[0])
         raise InvalidCalibrationError(f"DH parameter {name}[{bad}] is {arr[bad]}; expected a finite number")
-    return tuple(float(v) + 0.0 for v in arr)
+    return tuple(float(v) for v in arr)  # raw values, signed zeros included (the calib_ hash prints "-0")
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,9 @@ class DHParameters:
         a_m: Link lengths a_i along x, metres.
         d_m: Link offsets d_i along z, metres.
         alpha_rad: Link twists α_i about x, radians.
+
+    Values are kept exactly as given (a ``-0.0`` from the controller stays ``-0.0``, because the driver's
+    ``calib_`` hash prints it as ``-0``); output files never contain ``-0``.
     """
 
     theta_rad: tuple[float, ...]

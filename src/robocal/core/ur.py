@@ -47,6 +47,7 @@ __all__ = [
     "LinkOrigin",
     "NominalDeviation",
     "UrKinematics",
+    "check_rpy_convention",
     "correct_chain",
     "correct_kinematics",
     "default_kinematics",
@@ -316,6 +317,12 @@ class UrKinematics:
         return np.array([lk.rpy_rad for lk in self.links], dtype=np.float64)
 
 
+def check_rpy_convention(rpy: str) -> None:
+    """Refuse an rpy convention other than :data:`RPY_CONVENTIONS` (``UsageError`` naming ``--rpy``)."""
+    if rpy not in RPY_CONVENTIONS:
+        raise UsageError(f"--rpy {rpy!r}: expected one of {', '.join(RPY_CONVENTIONS)}")
+
+
 def _clean(v: float) -> float:
     return float(v) + 0.0  # -0.0 → 0.0
 
@@ -330,8 +337,7 @@ def origins_from_transforms(transforms: ArrayLike, rpy: str = "urdf") -> tuple[L
     Returns:
         The six link origins.
     """
-    if rpy not in RPY_CONVENTIONS:
-        raise UsageError(f"--rpy {rpy!r}: expected one of {', '.join(RPY_CONVENTIONS)}")
+    check_rpy_convention(rpy)
     T = np.asarray(transforms, dtype=np.float64)
     out: list[LinkOrigin] = []
     for name, Tk in zip(LINK_NAMES, T, strict=True):
@@ -354,8 +360,7 @@ def correct_kinematics(dh: DHParameters, rpy: str = "urdf") -> UrKinematics:
     Returns:
         The kinematics file content.
     """
-    if rpy not in RPY_CONVENTIONS:
-        raise UsageError(f"--rpy {rpy!r}: expected one of {', '.join(RPY_CONVENTIONS)}")
+    check_rpy_convention(rpy)
     links = origins_from_transforms(six_transforms(correct_chain(dh)), rpy)
     h = calib_hash(dh.theta_rad, dh.d_m, dh.a_m, dh.alpha_rad)
     return UrKinematics(links=links, hash=h, rpy_convention=rpy)

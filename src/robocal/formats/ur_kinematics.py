@@ -43,7 +43,7 @@ from ..core.ur import JOINT_NAMES, LINK_NAMES, LinkOrigin, UrKinematics
 from ..errors import FileFormatError, JointMismatchError
 from ..fileio import atomic_write_text, read_text
 from ._yaml import load_yaml, yaml_float
-from .urdf import UrdfDocument
+from .urdf import UrdfDocument, UrdfModel
 
 __all__ = [
     "DELTA_KEYS",
@@ -52,6 +52,7 @@ __all__ = [
     "read_deltas",
     "read_dh",
     "read_kinematics",
+    "require_ur_joints",
     "update_urdf_origins",
     "write_kinematics",
 ]
@@ -63,7 +64,8 @@ DELTA_KEYS: tuple[str, ...] = ("delta_theta", "delta_a", "delta_d", "delta_alpha
 """Keys of a calibration deltas file (added to the nominal DH)."""
 
 _FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
-_HASH_RE = re.compile(r"^calib_[0-9]{1,20}$")
+_HASH_RE = re.compile(r"calib_[0-9]{1,20}")
+_UINT64_MAX = (1 << 64) - 1
 
 
 def kinematics_to_text(kin: UrKinematics) -> str:
@@ -147,8 +149,8 @@ def read_kinematics(path: str | os.PathLike[str]) -> UrKinematics:
             vals.append(_number(entry[key], f"kinematics YAML {path}: kinematics.{name}.{key}"))
         links.append(LinkOrigin(name, (vals[0], vals[1], vals[2]), (vals[3], vals[4], vals[5])))
     h = kin.get("hash")
-    if not isinstance(h, str) or not _HASH_RE.match(h):
-        raise FileFormatError(f"kinematics YAML {path}: kinematics.hash is {h!r}; expected calib_<digits>")
+    if not isinstance(h, str) or not _HASH_RE.fullmatch(h) or int(h[6:]) > _UINT64_MAX:
+        raise FileFormatError(f"kinematics YAML {path}: kinematics.hash is {h!r}; expected calib_<uint64>")
     convention = "upstream" if "rpy convention: upstream" in text.split("\n", 1)[0] else "urdf"
     return UrKinematics(links=tuple(links), hash=h, rpy_convention=convention)
 
@@ -196,8 +198,22 @@ def _load_mapping(path: str | os.PathLike[str], what: str, keys: tuple[str, ...]
         raise FileFormatError(f"{source}: expected a mapping with keys {', '.join(keys)}")
     missing = [k for k in keys if k not in data]
     if missing:
-        raise FileFormatError(f"{source}: missing key {missing[0]} (expected {', '.join(keys)})")
+        hint = ""
+        if "kinematics" in data:
+            hint = "; this is a kinematics YAML (robocal ur correct output), not DH parameters"
+        elif keys == DH_KEYS and all(k in data for k in DELTA_KEYS):
+            hint = "; this is a deltas file: use --model MODEL --deltas FILE"
+        elif keys == DELTA_KEYS and all(k in data for k in DH_KEYS):
+            hint = "; this is a DH file: use --dh FILE"
+        raise FileFormatError(f"{source}: missing key {missing[0]} (expected {', '.join(keys)}){hint}")
     return dict(data)
+
+
+def _read_four(path: str | os.PathLike[str], what: str, keys: tuple[str, ...]) -> DHParameters:
+    """Read four six-number lists (θ, a, d, α in ``keys`` order) from a YAML or ``.conf`` file."""
+    data = _load_mapping(path, what, keys)
+    th, a, d, al = (_six(data[k], f"{what} {path}: {k}") for k in keys)
+    return DHParameters(theta_rad=th, a_m=a, d_m=d, alpha_rad=al)
 
 
 def read_dh(path: str | os.PathLike[str]) -> DHParameters:
@@ -206,10 +222,7 @@ def read_dh(path: str | os.PathLike[str]) -> DHParameters:
     Raises:
         FileFormatError: Missing key, wrong length, NaN/inf or a non-number; names the file and key.
     """
-    data = _load_mapping(path, "DH file", DH_KEYS)
-    src = f"DH file {path}"
-    th, a, d, al = (_six(data[k], f"{src}: {k}") for k in DH_KEYS)
-    return DHParameters(theta_rad=th, a_m=a, d_m=d, alpha_rad=al)
+    return _read_four(path, "DH file", DH_KEYS)
 
 
 def read_deltas(path: str | os.PathLike[str]) -> DHParameters:
@@ -218,10 +231,19 @@ def read_deltas(path: str | os.PathLike[str]) -> DHParameters:
     Raises:
         FileFormatError: Missing key, wrong length, NaN/inf or a non-number; names the file and key.
     """
-    data = _load_mapping(path, "deltas file", DELTA_KEYS)
-    src = f"deltas file {path}"
-    th, a, d, al = (_six(data[k], f"{src}: {k}") for k in DELTA_KEYS)
-    return DHParameters(theta_rad=th, a_m=a, d_m=d, alpha_rad=al)
+    return _read_four(path, "deltas file", DELTA_KEYS)
+
+
+def require_ur_joints(model: UrdfModel, source: str | os.PathLike[str]) -> None:
+    """Refuse a URDF that lacks one of the six UR joints (``shoulder_pan_joint`` … ``wrist_3_joint``).
+
+    Raises:
+        JointMismatchError: Lists the missing joints and names the file.
+    """
+    names = set(model.joint_names)
+    missing = [j for j in JOINT_NAMES if j not in names]
+    if missing:
+        raise JointMismatchError(f"URDF {source}: missing UR joint(s) {', '.join(missing)}")
 
 
 def update_urdf_origins(
@@ -241,10 +263,7 @@ def update_urdf_origins(
         The written path.
     """
     doc = UrdfDocument.load(urdf_in)
-    names = set(doc.model().joint_names)
-    missing = [j for j in JOINT_NAMES if j not in names]
-    if missing:
-        raise JointMismatchError(f"URDF {urdf_in}: missing UR joint(s) {', '.join(missing)}")
+    require_ur_joints(doc.model(), urdf_in)
     for joint, link in zip(JOINT_NAMES, kin.links, strict=True):
         doc.set_origin(joint, link.xyz_m, link.rpy_rad)
     return doc.write(urdf_out)

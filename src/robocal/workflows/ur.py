@@ -7,9 +7,10 @@ URDF forward kinematics (origin ``T(xyz)·Rz(y)Ry(p)Rx(r)``, then the joint's ro
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +21,8 @@ from ..core.dh import DHParameters, fk_dh
 from ..core.se3 import homogeneous, rot_z, rotation_angle_between, transform_from_xyz_rpy_urdf
 from ..core.ur import (
     JOINT_NAMES,
-    RPY_CONVENTIONS,
     UrKinematics,
+    check_rpy_convention,
     correct_chain,
     correct_kinematics,
     default_kinematics,
@@ -36,14 +37,16 @@ from ..formats.ur_kinematics import (
     read_deltas,
     read_dh,
     read_kinematics,
+    require_ur_joints,
     update_urdf_origins,
     write_kinematics,
 )
-from ..formats.urdf import UrdfDocument, read_urdf
+from ..formats.urdf import UrdfDocument, UrdfJoint, UrdfModel, read_urdf
 
 __all__ = [
     "DEFAULT_TOLERANCE_M",
     "DEFAULT_TOLERANCE_RAD",
+    "MAX_VERIFY_SAMPLES",
     "CorrectionResult",
     "VerifyReport",
     "check_out_path",
@@ -61,6 +64,8 @@ DEFAULT_TOLERANCE_M = 1e-9
 """verify: largest position error accepted without a warning (metres)."""
 DEFAULT_TOLERANCE_RAD = 1e-9
 """verify: largest rotation error accepted without a warning (radians)."""
+MAX_VERIFY_SAMPLES = 1_000_000
+"""verify: most random joint vectors (bounds memory to a few hundred MB)."""
 
 FloatArray = NDArray[np.float64]
 
@@ -141,21 +146,32 @@ def load_dh_input(
     return nominal + read_deltas(deltas_path)
 
 
-def _check_rpy(rpy: str) -> None:
-    if rpy not in RPY_CONVENTIONS:
-        raise UsageError(f"--rpy {rpy!r}: expected one of {', '.join(RPY_CONVENTIONS)}")
-
-
-def _check_urdf_pair(urdf_in: str | os.PathLike[str] | None, urdf_out: str | os.PathLike[str] | None) -> None:
+def _check_urdf_pair(
+    urdf_in: str | os.PathLike[str] | None,
+    urdf_out: str | os.PathLike[str] | None,
+    out: str | os.PathLike[str],
+) -> None:
     if (urdf_in is None) != (urdf_out is None):
         raise UsageError("--urdf-in and --urdf-out must be given together")
     if urdf_in is not None and urdf_out is not None:
         check_out_path(urdf_out, "--urdf-out")
+        if Path(urdf_out).resolve() == Path(out).resolve():
+            raise UsageError(f"--urdf-out {urdf_out} is the same file as --out; give the URDF its own path")
         doc = UrdfDocument.load(urdf_in)  # parse + validate before anything is written
-        names = set(doc.model().joint_names)
-        missing = [j for j in JOINT_NAMES if j not in names]
-        if missing:
-            raise JointMismatchError(f"URDF {urdf_in}: missing UR joint(s) {', '.join(missing)}")
+        require_ur_joints(doc.model(), urdf_in)
+
+
+def _check_connection(host: str, port: int, timeout_s: float) -> None:
+    from ..backends.ur_primary import check_connection_args
+
+    check_connection_args(host, port, timeout_s)
+
+
+def _check_samples(samples: int, flag: str, most: int) -> None:
+    if samples < 1:
+        raise UsageError(f"{flag} {samples}: expected at least 1")
+    if samples > most:
+        raise UsageError(f"{flag} {samples}: expected at most {most}")
 
 
 def correct(
@@ -171,9 +187,9 @@ def correct(
 
     Everything is validated (paths, URDF joints, finite values) before the first byte is written.
     """
-    _check_rpy(rpy)
+    check_rpy_convention(rpy)
     out_path = check_out_path(out)
-    _check_urdf_pair(urdf_in, urdf_out)
+    _check_urdf_pair(urdf_in, urdf_out, out_path)
     kin = correct_kinematics(dh, rpy)
     urdf_kin = kin if rpy == "urdf" else correct_kinematics(dh, "urdf")
     written = write_kinematics(out_path, kin)
@@ -197,13 +213,10 @@ def extract(
 
     Paths are checked before connecting, so a typo costs no robot time.
     """
-    _check_rpy(rpy)
-    if not (timeout_s > 0 and math.isfinite(timeout_s)):
-        raise UsageError(f"--timeout {timeout_s}: expected a positive number of seconds")
-    if not 1 <= port <= 65535:
-        raise UsageError(f"--port {port}: expected 1..65535")
+    check_rpy_convention(rpy)
+    _check_connection(host, port, timeout_s)
     check_out_path(out)
-    _check_urdf_pair(urdf_in, urdf_out)
+    _check_urdf_pair(urdf_in, urdf_out, out)
     from ..backends.ur_primary import PrimaryClient
 
     with PrimaryClient(host, port, timeout_s) as client:
@@ -214,7 +227,7 @@ def extract(
 
 def defaults(model: str, out: str | os.PathLike[str], *, rpy: str = "upstream") -> CorrectionResult:
     """Regenerate ur_description's ``default_kinematics.yaml`` for ``model`` (URSim nominal DH)."""
-    _check_rpy(rpy)
+    check_rpy_convention(rpy)
     out_path = check_out_path(out)
     kin = default_kinematics(model, rpy)
     return CorrectionResult(nominal_dh(model), kin, write_kinematics(out_path, kin))
@@ -235,28 +248,74 @@ def _rotation_about(axis: tuple[float, float, float], q_rad: FloatArray) -> Floa
     return np.asarray(np.eye(3) + s * K + (1.0 - c) * (K @ K), dtype=np.float64)
 
 
+FLANGE_LINK = "tool0"
+"""ur_description's flange frame (wrist_3_link → flange → tool0, fixed joints composing to identity)."""
+
+_REVOLUTE = ("revolute", "continuous")
+
+
+def _ur_chain(model: UrdfModel, source: str | os.PathLike[str]) -> tuple[list[UrdfJoint], list[UrdfJoint]]:
+    """The six UR joints in series and the fixed joints from ``wrist_3_joint``'s child down to ``tool0``.
+
+    Raises:
+        JointMismatchError: A UR joint is missing, not revolute, or not attached to the previous one's child;
+            or a joint between wrist_3's link and ``tool0`` moves.
+    """
+    require_ur_joints(model, source)
+    arm = [model.joint(name) for name in JOINT_NAMES]
+    for prev, j in itertools.pairwise(arm):
+        if j.parent != prev.child:
+            raise JointMismatchError(
+                f"URDF {source}: {j.name}'s parent is {j.parent}; expected {prev.child} (child of {prev.name})"
+            )
+    for j in arm:
+        if j.type not in _REVOLUTE:
+            raise JointMismatchError(f"URDF {source}: {j.name} is {j.type}; expected revolute")
+    by_child = {j.child: j for j in model.joints}
+    tail: list[UrdfJoint] = []
+    link = FLANGE_LINK
+    while link != arm[-1].child and link in by_child and len(tail) <= len(by_child):  # walk up from tool0
+        tail.append(by_child[link])
+        link = by_child[link].parent
+    if link != arm[-1].child:
+        return arm, []  # no tool0 below wrist_3: end at wrist_3's link (the same frame in ur_description)
+    tail.reverse()
+    for j in tail:
+        if j.type != "fixed":
+            raise JointMismatchError(
+                f"URDF {source}: joint {j.name} between {arm[-1].child} and {FLANGE_LINK} is {j.type}; "
+                "expected fixed"
+            )
+    return arm, tail
+
+
 def urdf_fk(urdf_path: str | os.PathLike[str], q_rad: FloatArray) -> FloatArray:
-    """FK over the six UR joints of an expanded URDF: ``Π origin_k · Rot(axis_k, q_k)``.
+    """FK of an expanded URDF the way ur_description builds it, from ``base_link_inertia`` to ``tool0``.
+
+    ``Π origin_k · Rot(axis_k, q_k)`` over the six UR joints, then the fixed joints down to ``tool0``
+    (wrist_3_link → flange → tool0).
 
     Args:
-        urdf_path: Expanded URDF with ``shoulder_pan_joint`` … ``wrist_3_joint``.
+        urdf_path: Expanded URDF with ``shoulder_pan_joint`` … ``wrist_3_joint`` in series.
         q_rad: ``(N, 6)`` joint positions.
 
     Returns:
-        ``(N, 4, 4)`` transforms from ``shoulder_pan_joint``'s parent frame to ``wrist_3_link``.
+        ``(N, 4, 4)`` transforms from ``shoulder_pan_joint``'s parent frame (``base_link_inertia``) to ``tool0``
+        (to ``wrist_3_joint``'s child when the URDF has no ``tool0`` below it).
+
+    Raises:
+        JointMismatchError: Missing, disconnected or non-revolute UR joints, or a moving joint before tool0.
     """
     model = read_urdf(urdf_path)
-    names = set(model.joint_names)
-    missing = [j for j in JOINT_NAMES if j not in names]
-    if missing:
-        raise JointMismatchError(f"URDF {urdf_path}: missing UR joint(s) {', '.join(missing)}")
+    arm, tail = _ur_chain(model, urdf_path)
     n = q_rad.shape[0]
     T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for k, name in enumerate(JOINT_NAMES):
-        j = model.joint(name)
+    for k, j in enumerate(arm):
         origin = transform_from_xyz_rpy_urdf(np.array(j.origin_xyz), np.array(j.origin_rpy))
         Rq = homogeneous(_rotation_about(j.axis, q_rad[:, k]), np.zeros(3))
         T = T @ origin @ Rq
+    for j in tail:
+        T = T @ transform_from_xyz_rpy_urdf(np.array(j.origin_xyz), np.array(j.origin_rpy))
     return np.asarray(T, dtype=np.float64)
 
 
@@ -308,8 +367,7 @@ def verify(
     Returns:
         One report per checked source.
     """
-    if samples < 1:
-        raise UsageError(f"--samples {samples}: expected at least 1")
+    _check_samples(samples, "--samples", MAX_VERIFY_SAMPLES)
     if kinematics_path is None and urdf_path is None:
         raise UsageError("nothing to verify: give a kinematics FILE and/or --urdf")
     rng = np.random.default_rng(seed)
@@ -354,10 +412,8 @@ def verify_controller(
     Returns:
         One report (its ``dh_hash`` is the live controller's hash).
     """
-    if samples < 1:
-        raise UsageError(f"--samples {samples}: expected at least 1")
-    if not (timeout_s > 0 and math.isfinite(timeout_s)):
-        raise UsageError(f"--timeout {timeout_s}: expected a positive number of seconds")
+    _check_connection(host, port, timeout_s)
+    _check_samples(samples, "--controller-samples", 10_000)
     kin = read_kinematics(kinematics_path)
     from ..backends.ur_primary import PrimaryClient
     from ..core.se3 import matrix_from_rotvec
@@ -376,15 +432,7 @@ def verify_controller(
     report = _report(
         f"controller {host}:{port} vs {kinematics_path}", T_file, T_ctrl, kin.hash, info.dh, (tolerance_m, tolerance_rad)
     )
-    return VerifyReport(
-        report.source,
-        report.samples,
-        report.max_position_error_m,
-        report.max_rotation_error_rad,
-        report.file_hash,
-        report.dh_hash,
-        tuple(warnings) + report.warnings,
-    )
+    return replace(report, warnings=tuple(warnings) + report.warnings)
 
 
 def _frame_origins(mats: FloatArray) -> FloatArray:
@@ -417,15 +465,31 @@ def plot(dh: DHParameters, out: str | os.PathLike[str], *, title: str | None = N
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    fmt = out_path.suffix.lstrip(".").lower() or "png"
     fig = plt.figure(figsize=(11, 5))
+    supported = fig.canvas.get_supported_filetypes()
+    if fmt not in supported:
+        plt.close(fig)
+        raise UsageError(
+            f"--out {out_path}: unsupported figure format {fmt!r}; use one of {', '.join(sorted(supported))}"
+        )
+    far_m = float(np.max(np.linalg.norm(split_pts, axis=1)))
     panels = (
-        (split_pts, "split DH model (D/A segments)", "tab:red"),
-        (corr_pts, "corrected model (ur_description)", "tab:blue"),
+        (split_pts, f"split DH model (D/A segments)\nframes up to {far_m:.3g} m from the base", "tab:red", False),
+        (corr_pts, "corrected model (ur_description)\nequal axis scales", "tab:blue", True),
     )
-    for idx, (pts, label, color) in enumerate(panels, start=1):
+    for idx, (pts, label, color, equal) in enumerate(panels, start=1):
         ax = fig.add_subplot(1, 2, idx, projection="3d")
         ax.plot(pts[:, 0], pts[:, 1], pts[:, 2], "-o", color=color, markersize=3)
+        ax.scatter([pts[0, 0]], [pts[0, 1]], [pts[0, 2]], color="tab:green", marker="s", s=40, label="base")
         ax.scatter([pts[-1, 0]], [pts[-1, 1]], [pts[-1, 2]], color="black", marker="*", s=60, label="flange")
+        if equal:  # a cube around the arm, so the corrected links keep their real proportions
+            centre = (pts.max(axis=0) + pts.min(axis=0)) / 2.0
+            half = max(float(np.max(pts.max(axis=0) - pts.min(axis=0))) / 2.0, 1e-3)
+            ax.set_xlim(centre[0] - half, centre[0] + half)
+            ax.set_ylim(centre[1] - half, centre[1] + half)
+            ax.set_zlim(centre[2] - half, centre[2] + half)
+            ax.set_box_aspect((1.0, 1.0, 1.0))
         ax.set_title(label)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
@@ -436,7 +500,7 @@ def plot(dh: DHParameters, out: str | os.PathLike[str], *, title: str | None = N
     import io
 
     buf = io.BytesIO()
-    fig.savefig(buf, format=out_path.suffix.lstrip(".") or "png", dpi=100)
+    fig.savefig(buf, format=fmt, dpi=100)
     plt.close(fig)
     from ..fileio import atomic_write_bytes
 
