@@ -130,7 +130,7 @@ def test_missing_file_is_file_format_error(tmp_path: Path) -> None:
 
 
 def test_calibration_path(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    for var in ("HF_LEROBOT_CALIBRATION", "HF_LEROBOT_HOME", "HF_HOME"):
+    for var in ("HF_LEROBOT_CALIBRATION", "HF_LEROBOT_HOME", "HF_HOME", "XDG_CACHE_HOME"):
         monkeypatch.delenv(var, raising=False)
     monkeypatch.setenv("HOME", str(tmp_path))
     assert calibration_path("robots", "so_follower", "arm1") == (

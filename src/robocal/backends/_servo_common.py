@@ -1,10 +1,14 @@
-"""Shared machinery of the vendor-SDK servo buses: retries and error mapping."""
+"""Shared machinery of the vendor-SDK servo buses.
+
+Port opening, register access, sync transfers, retries and error mapping. :class:`FeetechBus` and
+:class:`DynamixelBus` only add their control tables and sign encodings.
+"""
 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Mapping
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypeVar
 
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 
@@ -12,38 +16,65 @@ __all__ = ["SdkBusBase"]
 
 COMM_SUCCESS = 0
 
+_Bus = TypeVar("_Bus", bound="SdkBusBase")
+
 
 class SdkBusBase:
-    """Register lookup, retries and error mapping shared by :class:`FeetechBus` and :class:`DynamixelBus`."""
+    """Everything :class:`FeetechBus` and :class:`DynamixelBus` share; subclasses set the tables and codecs.
+
+    Subclass hooks: ``_encode`` / ``_decode`` (sign encodings), ``_select_protocol`` (called before every
+    transfer), ``_big_endian`` (byte order of SYNC_WRITE data), ``_resolutions`` (model → ticks per turn).
+    """
 
     vendor = ""
     port: str
     motors: Mapping[int, str]
     retries: int
     _tables: Mapping[str, Mapping[str, tuple[int, int]]]
+    _resolutions: Mapping[str, int]
+    _big_endian = False
     _ph: Any
     _sdk: Any
-
-    def _entry(self, motor_id: int, register: str) -> tuple[int, int]:
-        if motor_id not in self.motors:
-            raise UsageError(
-                f"{self.port}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
-            )
-        table = self._tables[self.motors[motor_id]]
-        if register not in table:
-            raise UsageError(
-                f"{self.port}: motor {motor_id} ({self.motors[motor_id]}) has no register {register!r}"
-            )
-        return table[register]
-
     _port_handler: Any
 
-    def _drain(self) -> None:
-        """Drop late bytes of a failed transfer so a retry cannot read a stale status packet."""
-        ser = getattr(self._port_handler, "ser", None)
-        if ser is not None:
-            with contextlib.suppress(Exception):
-                ser.reset_input_buffer()
+    # ------------------------------------------------------------------------------------------- set-up
+    def _setup(
+        self,
+        sdk: Any,
+        port: str,
+        motors: Mapping[int, str],
+        known_models: Mapping[str, object],
+        protocol: float,
+        *,
+        baudrate: int,
+        retries: int,
+        packet_timeout_ms: float | None,
+    ) -> None:
+        """Check the models, open ``port`` through the SDK and install the packet timeout.
+
+        Raises:
+            UsageError: An unknown model.
+            DeviceError: The port cannot be opened (exit 3).
+        """
+        unknown = sorted({m for m in motors.values() if m not in known_models})
+        if unknown:
+            raise UsageError(
+                f"unknown {self.vendor.capitalize()} model(s) {', '.join(unknown)}; "
+                f"known: {', '.join(known_models)}"
+            )
+        self.port = port
+        self.motors = dict(motors)
+        self.retries = retries
+        self._sdk = sdk
+        self._port_handler = sdk.PortHandler(port)
+        self._ph = sdk.PacketHandler(protocol)
+        try:
+            ok = self._port_handler.openPort() and self._port_handler.setBaudRate(baudrate)
+        except Exception as exc:  # pyserial raises SerialException (an OSError) or ValueError
+            raise DeviceError(f"{port}: cannot open the serial port ({exc})") from None
+        if not ok:
+            raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
+        self._install_timeout(packet_timeout_ms)
 
     def _install_timeout(self, packet_timeout_ms: float | None) -> None:
         """Raise the SDK's per-packet timeout to at least ``packet_timeout_ms`` (on this port object only)."""
@@ -58,9 +89,57 @@ class SdkBusBase:
 
         handler.setPacketTimeout = set_packet_timeout
 
-    def has_register(self, motor_id: int, register: str) -> bool:
-        """Whether that motor's control table has the register."""
-        return motor_id in self.motors and register in self._tables[self.motors[motor_id]]
+    # ------------------------------------------------------------------------------------ subclass hooks
+    def _encode(self, motor_id: int, register: str, value: int) -> int:
+        """Register value → unsigned wire value (sign encoding)."""
+        return int(value)
+
+    def _decode(self, motor_id: int, register: str, raw: int) -> int:
+        """Unsigned wire value → register value."""
+        return int(raw)
+
+    def _select_protocol(self) -> None:
+        """Called before every transfer (Feetech: the SDK's global byte order)."""
+
+    # ------------------------------------------------------------------------------------------ helpers
+    def _entry(self, motor_id: int, register: str) -> tuple[int, int]:
+        if motor_id not in self.motors:
+            raise UsageError(
+                f"{self.port}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
+            )
+        table = self._tables[self.motors[motor_id]]
+        if register not in table:
+            raise UsageError(
+                f"{self.port}: motor {motor_id} ({self.motors[motor_id]}) has no register {register!r}"
+            )
+        return table[register]
+
+    def _shared_entry(self, motor_ids: Sequence[int], register: str) -> tuple[int, int]:
+        """The (address, size) of ``register``, which must be the same on every motor of a sync transfer."""
+        if not motor_ids:
+            raise UsageError(f"{self.port}: sync transfer of {register!r} with no motor ids")
+        entries = {self._entry(i, register) for i in motor_ids}
+        if len(entries) != 1:
+            raise UsageError(
+                f"{self.port}: register {register!r} differs between the models of {list(motor_ids)}"
+            )
+        return entries.pop()
+
+    def _wire_value(self, motor_id: int, register: str, value: int, size: int) -> int:
+        """Encoded value, checked to fit the register (before anything is sent)."""
+        data = self._encode(motor_id, register, value)
+        if not 0 <= data < (1 << (8 * size)):
+            raise UsageError(
+                f"{self.port}: motor {motor_id}: value {value} does not fit register {register!r}"
+            )
+        return data
+
+    def _drain(self) -> None:
+        """Drop late bytes of a failed transfer so a retry cannot read a stale status packet."""
+        ser = getattr(self._port_handler, "ser", None)
+        if ser is not None:
+            with contextlib.suppress(Exception):
+                ser.reset_input_buffer()
 
     def _call(
         self, what: str, motor_id: int | None, register: str, fn: Callable[[], tuple[Any, int, int]]
@@ -87,3 +166,90 @@ class SdkBusBase:
         if result == self._sdk.COMM_RX_CORRUPT:
             raise ProtocolError(msg)
         raise DeviceError(msg)
+
+    # --------------------------------------------------------------------------------------- public API
+    def resolution(self, motor_id: int) -> int:
+        """Ticks per turn of that motor's model."""
+        if motor_id not in self.motors:
+            raise UsageError(
+                f"{self.port}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
+            )
+        return self._resolutions[self.motors[motor_id]]
+
+    def has_register(self, motor_id: int, register: str) -> bool:
+        """Whether that motor's control table has the register."""
+        return motor_id in self.motors and register in self._tables[self.motors[motor_id]]
+
+    def ping(self, motor_id: int) -> int:
+        """Model number reported by the motor."""
+        self._select_protocol()
+        return int(
+            self._call("ping", motor_id, "Model_Number", lambda: self._ph.ping(self._port_handler, motor_id))
+        )
+
+    def read(self, register: str, motor_id: int) -> int:
+        """Read and decode one register of one motor."""
+        addr, size = self._entry(motor_id, register)
+        self._select_protocol()
+        fn = {1: self._ph.read1ByteTxRx, 2: self._ph.read2ByteTxRx, 4: self._ph.read4ByteTxRx}[size]
+        raw = self._call("read", motor_id, register, lambda: fn(self._port_handler, motor_id, addr))
+        return self._decode(motor_id, register, int(raw))
+
+    def write(self, register: str, motor_id: int, value: int) -> None:
+        """Encode and write one register of one motor, waiting for its status packet."""
+        addr, size = self._entry(motor_id, register)
+        data = self._wire_value(motor_id, register, value, size)
+        self._select_protocol()
+        fn = {1: self._ph.write1ByteTxRx, 2: self._ph.write2ByteTxRx, 4: self._ph.write4ByteTxRx}[size]
+
+        def call() -> tuple[Any, int, int]:
+            result, error = fn(self._port_handler, motor_id, addr, data)
+            return None, result, error
+
+        self._call("write", motor_id, register, call)
+
+    def sync_read(self, register: str, motor_ids: Sequence[int]) -> dict[int, int]:
+        """Read one register of several motors with one SYNC_READ instruction."""
+        addr, size = self._shared_entry(motor_ids, register)
+        self._select_protocol()
+        group = self._sdk.GroupSyncRead(self._port_handler, self._ph, addr, size)
+        for i in motor_ids:
+            group.addParam(i)
+
+        def call() -> tuple[Any, int, int]:
+            result = group.txRxPacket()
+            if result != COMM_SUCCESS:
+                return None, result, 0
+            for i in motor_ids:
+                if not group.isAvailable(i, addr, size):
+                    return None, self._sdk.COMM_RX_CORRUPT, 0
+            return {i: int(group.getData(i, addr, size)) for i in motor_ids}, result, 0
+
+        raw = self._call("sync read", None, register, call)
+        return {i: self._decode(i, register, v) for i, v in raw.items()}
+
+    def sync_write(self, register: str, values: Mapping[int, int]) -> None:
+        """Write one register of several motors with one SYNC_WRITE instruction (no status packets)."""
+        addr, size = self._shared_entry(list(values), register)
+        data = {i: self._wire_value(i, register, v, size) for i, v in values.items()}
+        order = range(size - 1, -1, -1) if self._big_endian else range(size)
+        self._select_protocol()
+        group = self._sdk.GroupSyncWrite(self._port_handler, self._ph, addr, size)
+        for i, d in data.items():
+            group.addParam(i, [(d >> (8 * k)) & 0xFF for k in order])
+
+        def call() -> tuple[Any, int, int]:
+            return None, group.txPacket(), 0
+
+        self._call("sync write", None, register, call)
+
+    def close(self) -> None:
+        """Close the port."""
+        if self._port_handler.is_open:
+            self._port_handler.closePort()
+
+    def __enter__(self: _Bus) -> _Bus:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

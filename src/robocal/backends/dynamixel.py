@@ -6,13 +6,11 @@ firmware ``Present = Actual + Homing_Offset``; ``Drive_Mode`` bit 0 reverses the
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Mapping
 
 from ..core.lerobot import decode_twos_complement, encode_twos_complement
-from ..errors import DeviceError, UsageError
 from . import require
-from ._servo_common import COMM_SUCCESS, SdkBusBase
+from ._servo_common import SdkBusBase
 
 __all__ = ["DYNAMIXEL_MODELS", "SIGNED_BYTES", "X_TABLE", "DynamixelBus"]
 
@@ -116,114 +114,25 @@ class DynamixelBus(SdkBusBase):
         packet_timeout_ms: float | None = 100.0,
     ) -> None:
         sdk = require("dynamixel_sdk", "the Dynamixel backend")
-        unknown = sorted({m for m in motors.values() if m not in DYNAMIXEL_MODELS})
-        if unknown:
-            raise UsageError(
-                f"unknown Dynamixel model(s) {', '.join(unknown)}; known: {', '.join(DYNAMIXEL_MODELS)}"
-            )
-        self.port = port
-        self.motors = dict(motors)
-        self.retries = retries
         self._tables = dict.fromkeys(DYNAMIXEL_MODELS, X_TABLE)
-        self._sdk = sdk
-        self._port_handler = sdk.PortHandler(port)
-        self._ph = sdk.PacketHandler(2.0)
-        try:
-            ok = self._port_handler.openPort() and self._port_handler.setBaudRate(baudrate)
-        except Exception as exc:
-            raise DeviceError(f"{port}: cannot open the serial port ({exc})") from None
-        if not ok:
-            raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
-        self._install_timeout(packet_timeout_ms)
+        self._resolutions = {m: spec[1] for m, spec in DYNAMIXEL_MODELS.items()}
+        self._setup(
+            sdk,
+            port,
+            motors,
+            DYNAMIXEL_MODELS,
+            2.0,
+            baudrate=baudrate,
+            retries=retries,
+            packet_timeout_ms=packet_timeout_ms,
+        )
 
-    def resolution(self, motor_id: int) -> int:
-        """Ticks per turn of that motor's model."""
-        return DYNAMIXEL_MODELS[self.motors[motor_id]][1]
-
-    @staticmethod
-    def _encode(register: str, value: int, size: int) -> int:
+    def _encode(self, motor_id: int, register: str, value: int) -> int:
         if register in SIGNED_BYTES:
             return encode_twos_complement(value, SIGNED_BYTES[register])
         return int(value)
 
-    @staticmethod
-    def _decode(register: str, raw: int) -> int:
+    def _decode(self, motor_id: int, register: str, raw: int) -> int:
         if register in SIGNED_BYTES:
             return decode_twos_complement(raw, SIGNED_BYTES[register])
         return int(raw)
-
-    def ping(self, motor_id: int) -> int:
-        """Model number reported by the motor."""
-        return int(
-            self._call("ping", motor_id, "Model_Number", lambda: self._ph.ping(self._port_handler, motor_id))
-        )
-
-    def read(self, register: str, motor_id: int) -> int:
-        """Read and decode one register of one motor."""
-        addr, size = self._entry(motor_id, register)
-        fn = {1: self._ph.read1ByteTxRx, 2: self._ph.read2ByteTxRx, 4: self._ph.read4ByteTxRx}[size]
-        raw = self._call("read", motor_id, register, lambda: fn(self._port_handler, motor_id, addr))
-        return self._decode(register, int(raw))
-
-    def write(self, register: str, motor_id: int, value: int) -> None:
-        """Encode and write one register of one motor, waiting for its status packet."""
-        addr, size = self._entry(motor_id, register)
-        data = self._encode(register, value, size)
-        if not 0 <= data < (1 << (8 * size)):
-            raise UsageError(
-                f"{self.port}: motor {motor_id}: value {value} does not fit register {register!r}"
-            )
-        fn = {1: self._ph.write1ByteTxRx, 2: self._ph.write2ByteTxRx, 4: self._ph.write4ByteTxRx}[size]
-
-        def call() -> tuple[Any, int, int]:
-            result, error = fn(self._port_handler, motor_id, addr, data)
-            return None, result, error
-
-        self._call("write", motor_id, register, call)
-
-    def sync_read(self, register: str, motor_ids: Sequence[int]) -> dict[int, int]:
-        """Read one register of several motors with one SYNC_READ instruction."""
-        addr, size = self._entry(motor_ids[0], register)
-        for i in motor_ids:
-            self._entry(i, register)
-        group = self._sdk.GroupSyncRead(self._port_handler, self._ph, addr, size)
-        for i in motor_ids:
-            group.addParam(i)
-
-        def call() -> tuple[Any, int, int]:
-            result = group.txRxPacket()
-            if result != COMM_SUCCESS:
-                return None, result, 0
-            for i in motor_ids:
-                if not group.isAvailable(i, addr, size):
-                    return None, self._sdk.COMM_RX_CORRUPT, 0
-            return {i: int(group.getData(i, addr, size)) for i in motor_ids}, result, 0
-
-        raw = self._call("sync read", None, register, call)
-        return {i: self._decode(register, v) for i, v in raw.items()}
-
-    def sync_write(self, register: str, values: Mapping[int, int]) -> None:
-        """Write one register of several motors with one SYNC_WRITE instruction."""
-        ids = list(values)
-        addr, size = self._entry(ids[0], register)
-        group = self._sdk.GroupSyncWrite(self._port_handler, self._ph, addr, size)
-        for i, v in values.items():
-            self._entry(i, register)
-            data = self._encode(register, v, size)
-            group.addParam(i, [(data >> (8 * k)) & 0xFF for k in range(size)])
-
-        def call() -> tuple[Any, int, int]:
-            return None, group.txPacket(), 0
-
-        self._call("sync write", None, register, call)
-
-    def close(self) -> None:
-        """Close the port."""
-        if self._port_handler.is_open:
-            self._port_handler.closePort()
-
-    def __enter__(self) -> DynamixelBus:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -7,13 +7,12 @@ Note: ``scservo_sdk`` keeps the byte order in a module global, so one process ta
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Mapping
 
 from ..core.lerobot import decode_sign_magnitude, encode_sign_magnitude
-from ..errors import DeviceError, UsageError
+from ..errors import UsageError
 from . import require
-from ._servo_common import COMM_SUCCESS, SdkBusBase
+from ._servo_common import SdkBusBase
 
 __all__ = ["FEETECH_MODELS", "SCS_TABLE", "SIGN_BITS", "STS_TABLE", "FeetechBus"]
 
@@ -137,33 +136,23 @@ class FeetechBus(SdkBusBase):
         packet_timeout_ms: float | None = 100.0,
     ) -> None:
         sdk = require("scservo_sdk", "the Feetech backend")
-        unknown = sorted({m for m in motors.values() if m not in FEETECH_MODELS})
-        if unknown:
-            raise UsageError(
-                f"unknown Feetech model(s) {', '.join(unknown)}; known: {', '.join(FEETECH_MODELS)}"
-            )
-        protocols = {FEETECH_MODELS[m][2] for m in motors.values()}
-        if len(protocols) != 1:
+        protocols = {FEETECH_MODELS[m][2] for m in motors.values() if m in FEETECH_MODELS}
+        if len(protocols) > 1:
             raise UsageError("Feetech motors of protocol 0 (STS/SMS) and 1 (SCS) cannot share one bus object")
-        self.protocol = protocols.pop()
-        self.port = port
-        self.motors = dict(motors)
-        self.retries = retries
-        self._tables = {m: FEETECH_MODELS[m][3] for m in FEETECH_MODELS}
-        self._sdk = sdk
-        self._port_handler = sdk.PortHandler(port)
-        self._ph = sdk.PacketHandler(self.protocol)
-        try:
-            ok = self._port_handler.openPort() and self._port_handler.setBaudRate(baudrate)
-        except Exception as exc:  # pyserial raises SerialException (an OSError) or ValueError
-            raise DeviceError(f"{port}: cannot open the serial port ({exc})") from None
-        if not ok:
-            raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
-        self._install_timeout(packet_timeout_ms)
-
-    def resolution(self, motor_id: int) -> int:
-        """Ticks per turn of that motor's model."""
-        return FEETECH_MODELS[self.motors[motor_id]][1]
+        self.protocol = protocols.pop() if protocols else 0
+        self._big_endian = self.protocol == 1
+        self._tables = {m: spec[3] for m, spec in FEETECH_MODELS.items()}
+        self._resolutions = {m: spec[1] for m, spec in FEETECH_MODELS.items()}
+        self._setup(
+            sdk,
+            port,
+            motors,
+            FEETECH_MODELS,
+            self.protocol,
+            baudrate=baudrate,
+            retries=retries,
+            packet_timeout_ms=packet_timeout_ms,
+        )
 
     def _encode(self, motor_id: int, register: str, value: int) -> int:
         if self.protocol == 0 and register in SIGN_BITS:
@@ -177,99 +166,3 @@ class FeetechBus(SdkBusBase):
 
     def _select_protocol(self) -> None:
         self._sdk.scservo_def.SCS_SETEND(self.protocol)
-
-    def ping(self, motor_id: int) -> int:
-        """Model number reported by the motor."""
-        self._select_protocol()
-        return int(
-            self._call("ping", motor_id, "Model_Number", lambda: self._ph.ping(self._port_handler, motor_id))
-        )
-
-    def read(self, register: str, motor_id: int) -> int:
-        """Read and decode one register of one motor."""
-        addr, size = self._entry(motor_id, register)
-        self._select_protocol()
-        fn = {
-            1: self._ph.read1ByteTxRx,
-            2: self._ph.read2ByteTxRx,
-            4: self._ph.read4ByteTxRx,
-        }[size]
-        raw = self._call("read", motor_id, register, lambda: fn(self._port_handler, motor_id, addr))
-        return self._decode(motor_id, register, int(raw))
-
-    def write(self, register: str, motor_id: int, value: int) -> None:
-        """Encode and write one register of one motor, waiting for its status packet."""
-        addr, size = self._entry(motor_id, register)
-        data = self._encode(motor_id, register, value)
-        if not 0 <= data < (1 << (8 * size)):
-            raise UsageError(
-                f"{self.port}: motor {motor_id}: value {value} does not fit register {register!r}"
-            )
-        self._select_protocol()
-        fn = {1: self._ph.write1ByteTxRx, 2: self._ph.write2ByteTxRx, 4: self._ph.write4ByteTxRx}[size]
-
-        def call() -> tuple[Any, int, int]:
-            result, error = fn(self._port_handler, motor_id, addr, data)
-            return None, result, error
-
-        self._call("write", motor_id, register, call)
-
-    def sync_read(self, register: str, motor_ids: Sequence[int]) -> dict[int, int]:
-        """Read one register of several motors with one SYNC_READ instruction."""
-        entries = {self._entry(i, register) for i in motor_ids}
-        if len(entries) != 1:
-            raise UsageError(
-                f"{self.port}: register {register!r} differs between the models of {list(motor_ids)}"
-            )
-        addr, size = entries.pop()
-        self._select_protocol()
-        group = self._sdk.GroupSyncRead(self._port_handler, self._ph, addr, size)
-        for i in motor_ids:
-            group.addParam(i)
-
-        def call() -> tuple[Any, int, int]:
-            result = group.txRxPacket()
-            if result != COMM_SUCCESS:
-                return None, result, 0
-            for i in motor_ids:
-                if not group.isAvailable(i, addr, size):
-                    return None, self._sdk.COMM_RX_CORRUPT, 0
-            return {i: int(group.getData(i, addr, size)) for i in motor_ids}, result, 0
-
-        raw = self._call("sync read", None, register, call)
-        return {i: self._decode(i, register, v) for i, v in raw.items()}
-
-    def sync_write(self, register: str, values: Mapping[int, int]) -> None:
-        """Write one register of several motors with one SYNC_WRITE instruction."""
-        entries = {self._entry(i, register) for i in values}
-        if len(entries) != 1:
-            raise UsageError(
-                f"{self.port}: register {register!r} differs between the models of {list(values)}"
-            )
-        addr, size = entries.pop()
-        self._select_protocol()
-        group = self._sdk.GroupSyncWrite(self._port_handler, self._ph, addr, size)
-        for i, v in values.items():
-            data = self._encode(i, register, v)
-            group.addParam(
-                i,
-                [(data >> (8 * k)) & 0xFF for k in range(size)]
-                if self.protocol == 0
-                else [(data >> (8 * (size - 1 - k))) & 0xFF for k in range(size)],
-            )
-
-        def call() -> tuple[Any, int, int]:
-            return None, group.txPacket(), 0
-
-        self._call("sync write", None, register, call)
-
-    def close(self) -> None:
-        """Close the port."""
-        if self._port_handler.is_open:
-            self._port_handler.closePort()
-
-    def __enter__(self) -> FeetechBus:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

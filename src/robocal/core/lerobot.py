@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -152,8 +152,33 @@ def _params(
     return lo, hi, dm, mc
 
 
+def _check_resolution(resolution: int) -> int:
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or resolution < 2:
+        raise InvalidCalibrationError(f"resolution {resolution!r}: expected ticks per turn, an int >= 2")
+    return int(resolution)
+
+
+def _as_float_array(x: npt.ArrayLike, what: str) -> FloatArray:
+    """``x`` as float64, or an InvalidCalibrationError naming ``what`` (strings, ragged lists, complex)."""
+    try:
+        with np.errstate(invalid="ignore"):
+            arr: FloatArray = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidCalibrationError(f"{what} is not an array of numbers: {x!r:.80}") from None
+    return arr
+
+
+def _to_ticks(x: npt.NDArray[np.floating[Any]], what: str) -> IntArray:
+    """Whole-valued float ticks → int64, refusing values an int64 cannot hold (instead of wrapping)."""
+    if np.any(np.abs(x) >= 2.0**63):
+        raise InvalidCalibrationError(
+            f"{what}: the resulting ticks exceed the int64 range (largest |value| {np.max(np.abs(x)):g})"
+        )
+    return x.astype(np.int64)
+
+
 def _check_values(x: npt.ArrayLike, n: int, what: str) -> FloatArray:
-    arr = np.asarray(x, dtype=np.float64)
+    arr = _as_float_array(x, what)
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise ShapeMismatchError(f"{what} has shape {arr.shape}; expected (..., {n}) for {n} motor(s)")
     if not np.all(np.isfinite(arr)):
@@ -188,6 +213,7 @@ def normalize_array(
         Shape ``(..., n)`` float64: −100..100, 0..100 or degrees.
     """
     lo, hi, dm_in, mc = _params(range_min, range_max, drive_mode, mode_codes)
+    resolution = _check_resolution(resolution)
     x = _check_values(raw_ticks, lo.shape[0], "raw")
     dm = dm_in & bool(apply_drive_mode)
     bounded = np.minimum(hi, np.maximum(lo, x))
@@ -227,6 +253,7 @@ def unnormalize_array(
         Shape ``(..., n)`` int64 ticks (DEGREES is not clamped and may be negative).
     """
     lo, hi, dm_in, mc = _params(range_min, range_max, drive_mode, mode_codes)
+    resolution = _check_resolution(resolution)
     v = _check_values(values, lo.shape[0], "values")
     dm = dm_in & bool(apply_drive_mode)
     vm = np.where(dm, -v, v)
@@ -237,12 +264,12 @@ def unnormalize_array(
     if compat == "lerobot":
         deg = v * (resolution - 1) / 360 + mid
         out = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
-        return np.trunc(out).astype(np.int64)
+        return _to_ticks(np.trunc(out), "values")
     if compat == "exact":
         vd = np.where(dm, -v, v)
         deg = vd * resolution / 360 + mid
         out = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
-        return (np.sign(out) * np.floor(np.abs(out) + 0.5)).astype(np.int64)
+        return _to_ticks(np.sign(out) * np.floor(np.abs(out) + 0.5), "values")
     raise InvalidCalibrationError(f"compat {compat!r}: expected 'lerobot' or 'exact'")
 
 
@@ -548,7 +575,7 @@ def revert_legacy(values: npt.ArrayLike, cal: LegacyCalibration, *, resolution: 
     steps = v / HALF_TURN_DEGREE * half - cal.homing_offset
     steps = np.where(cal.drive_mode.astype(bool), -steps, steps)
     lin = v / 100 * (cal.end_pos - cal.start_pos) + cal.start_pos
-    return np.round(np.where(linear, lin, steps)).astype(np.int64)
+    return _to_ticks(np.round(np.where(linear, lin, steps)), "values")
 
 
 def autocorrect_legacy(

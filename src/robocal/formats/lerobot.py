@@ -18,13 +18,14 @@ from pathlib import Path
 from typing import Any
 
 from ..core.lerobot import LegacyCalibration, MotorCalibration
-from ..errors import CalibError, FileFormatError
+from ..errors import CalibError, FileFormatError, UsageError
 from ..fileio import atomic_write_text, read_text
 from ._json import load_json
 
 __all__ = [
     "CURRENT_FIELDS",
     "LEGACY_KEYS",
+    "check_output_path",
     "dumps_current",
     "dumps_legacy",
     "parse_current",
@@ -122,13 +123,38 @@ def read_current(path: PathLike) -> dict[str, MotorCalibration]:
     return parse_current(read_text(path, "LeRobot calibration"), str(path))
 
 
+def check_output_path(path: PathLike) -> Path:
+    """Refuse, before anything is done, an output file that cannot be created (missing folders may be).
+
+    Raises:
+        UsageError: ``path`` is a directory, or one of its existing parents is not a folder.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise UsageError(f"cannot write {p}: it is a directory")
+    for parent in p.parents:
+        if parent.exists() or parent.is_symlink():
+            if not parent.is_dir():
+                raise UsageError(f"cannot write {p}: {parent} is not a folder")
+            break
+    return p
+
+
 def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_dirs: bool = True) -> Path:
-    """Write a current LeRobot calibration JSON atomically (keeps ``NAME.bak``); validates first."""
+    """Write a current LeRobot calibration JSON atomically (keeps ``NAME.bak``); validates first.
+
+    Raises:
+        FileFormatError: The calibration would not read back (duplicate ids, ``range_min >= range_max``, ...).
+        UsageError: The file cannot be created there (see :func:`check_output_path`).
+    """
     text = dumps_current(cals)
     parse_current(text, str(path))
-    p = Path(path)
+    p = check_output_path(path)
     if make_dirs:
-        p.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UsageError(f"cannot write {p}: cannot create folder {p.parent} ({exc.strerror})") from None
     return atomic_write_text(p, text)
 
 
@@ -182,6 +208,8 @@ def parse_legacy(text: str, source: str = "<string>") -> LegacyCalibration:
             raise FileFormatError(
                 f"{source}: key {key} has {len(arr)} entries; expected {n} like homing_offset"
             )
+    if not n:
+        raise FileFormatError(f"{source}: no motors (the arrays are empty)")
     for i, m in enumerate(data["calib_mode"]):
         if m not in ("DEGREE", "LINEAR"):
             raise FileFormatError(f"{source}: key calib_mode[{i}] is {m!r}; expected 'DEGREE' or 'LINEAR'")

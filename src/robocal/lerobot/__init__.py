@@ -11,14 +11,22 @@ is the identity (see ``docs/lerobot.md``).
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from enum import Enum
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ..core.lerobot import MODE_CODES, Compat, MotorCalibration, normalize_array, unnormalize_array
+from ..core.lerobot import (
+    MODE_CODES,
+    Compat,
+    MotorCalibration,
+    _as_float_array,
+    normalize_array,
+    unnormalize_array,
+)
 from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
 from ..formats import lerobot as _fmt
 
@@ -41,11 +49,11 @@ class NormMode(str, Enum):
     DEGREES = "degrees"
 
 
-CalibrationArg = MotorCalibration | Sequence[MotorCalibration]
+CalibrationArg = MotorCalibration | Sequence[MotorCalibration] | Mapping[str, MotorCalibration]
 ModeArg = NormMode | str | Sequence[NormMode | str]
 
 
-def _mode_code(mode: NormMode | str) -> int:
+def _mode_code(mode: object) -> int:
     value = mode.value if isinstance(mode, NormMode) else mode
     if not isinstance(value, str) or value not in MODE_CODES:
         raise InvalidCalibrationError(f"norm mode {mode!r}: expected one of {', '.join(MODE_CODES)}")
@@ -53,8 +61,19 @@ def _mode_code(mode: NormMode | str) -> int:
 
 
 def _unpack(calibration: CalibrationArg, mode: ModeArg) -> tuple[bool, list[MotorCalibration], list[int]]:
+    """``(one motor, calibrations, mode codes)``; a Mapping (as read from a file) is taken in its order."""
     single = isinstance(calibration, MotorCalibration)
-    cals = [calibration] if isinstance(calibration, MotorCalibration) else list(calibration)
+    if isinstance(calibration, MotorCalibration):
+        cals = [calibration]
+    elif isinstance(calibration, Mapping):
+        cals = list(calibration.values())
+    elif isinstance(calibration, (str, bytes)):
+        cals = []
+    else:
+        try:
+            cals = list(calibration)
+        except TypeError:
+            cals = []
     if not cals or not all(isinstance(c, MotorCalibration) for c in cals):
         raise InvalidCalibrationError(
             "calibration: expected a MotorCalibration or a non-empty sequence of them"
@@ -62,12 +81,43 @@ def _unpack(calibration: CalibrationArg, mode: ModeArg) -> tuple[bool, list[Moto
     if isinstance(mode, (str, NormMode)):
         codes = [_mode_code(mode)] * len(cals)
     else:
-        codes = [_mode_code(m) for m in mode]
+        try:
+            modes = list(mode)
+        except TypeError:
+            raise InvalidCalibrationError(
+                f"norm mode {mode!r}: expected one of {', '.join(MODE_CODES)} or one per motor"
+            ) from None
+        codes = [_mode_code(m) for m in modes]
         if len(codes) != len(cals):
             raise ShapeMismatchError(
                 f"{len(codes)} modes for {len(cals)} motors; expected one mode per motor"
             )
     return single, cals, codes
+
+
+def _per_motor(
+    kernel: Callable[..., npt.NDArray[Any]],
+    what: str,
+    x_in: npt.ArrayLike,
+    calibration: CalibrationArg,
+    mode: ModeArg,
+    **options: Any,
+) -> npt.NDArray[Any]:
+    """Run a vectorised kernel over the motor axis; one motor (or a scalar for one motor) gets its own."""
+    single, cals, codes = _unpack(calibration, mode)
+    x = _as_float_array(x_in, what)
+    add_axis = single or (len(cals) == 1 and x.ndim == 0)
+    if add_axis:
+        x = x[..., np.newaxis]
+    out = kernel(
+        x,
+        [c.range_min for c in cals],
+        [c.range_max for c in cals],
+        [c.drive_mode for c in cals],
+        codes,
+        **options,
+    )
+    return out[..., 0] if add_axis else out
 
 
 def normalize(
@@ -82,9 +132,10 @@ def normalize(
     """Raw ``Present_Position`` ticks → LeRobot normalised values (LeRobot's ``_normalize``).
 
     Args:
-        raw: Decoded ticks, shape ``(..., n_motors)``; with a single ``MotorCalibration`` any shape (each
-            element is that motor).
-        calibration: One ``MotorCalibration`` or one per motor.
+        raw: Decoded ticks, shape ``(..., n_motors)``, or a scalar for one motor; with a single
+            ``MotorCalibration`` any shape (each element is that motor).
+        calibration: One ``MotorCalibration``, a sequence of one per motor, or a motor name → calibration
+            mapping (as :func:`read_calibration` returns; taken in its order).
         mode: One mode for all motors or one per motor (``NormMode`` or its string value).
         apply_drive_mode: True for Feetech (software inversion), False for Dynamixel (hardware Drive_Mode).
         compat: ``"lerobot"`` bit-identical to LeRobot 0.6.1, ``"exact"`` lossless.
@@ -93,21 +144,16 @@ def normalize(
     Returns:
         Float64 array of ``raw``'s shape: −100..100, 0..100 or degrees.
     """
-    single, cals, codes = _unpack(calibration, mode)
-    x = np.asarray(raw, dtype=np.float64)
-    if single:
-        x = x[..., np.newaxis]
-    out = normalize_array(
-        x,
-        [c.range_min for c in cals],
-        [c.range_max for c in cals],
-        [c.drive_mode for c in cals],
-        codes,
+    return _per_motor(
+        normalize_array,
+        "raw",
+        raw,
+        calibration,
+        mode,
         apply_drive_mode=apply_drive_mode,
         compat=compat,
         resolution=resolution,
     )
-    return out[..., 0] if single else out
 
 
 def unnormalize(
@@ -125,21 +171,16 @@ def unnormalize(
         Int64 array of ``values``' shape (truncated like ``int()`` with ``compat="lerobot"``, rounded with
         ``"exact"``).
     """
-    single, cals, codes = _unpack(calibration, mode)
-    x = np.asarray(values, dtype=np.float64)
-    if single:
-        x = x[..., np.newaxis]
-    out = unnormalize_array(
-        x,
-        [c.range_min for c in cals],
-        [c.range_max for c in cals],
-        [c.drive_mode for c in cals],
-        codes,
+    return _per_motor(
+        unnormalize_array,
+        "values",
+        values,
+        calibration,
+        mode,
         apply_drive_mode=apply_drive_mode,
         compat=compat,
         resolution=resolution,
     )
-    return out[..., 0] if single else out
 
 
 def read_calibration(path: str | os.PathLike[str]) -> dict[str, MotorCalibration]:
@@ -170,17 +211,20 @@ KINDS = {
 def default_calibration_root() -> Path:
     """LeRobot's calibration root folder.
 
-    ``$HF_LEROBOT_CALIBRATION``, else ``$HF_LEROBOT_HOME/calibration``, else ``$HF_HOME/lerobot/calibration``,
-    else ``~/.cache/huggingface/lerobot/calibration``.
+    ``$HF_LEROBOT_CALIBRATION``, else ``$HF_LEROBOT_HOME/calibration``, else ``$HF_HOME/lerobot/calibration``
+    where ``HF_HOME`` defaults like ``huggingface_hub`` to ``$XDG_CACHE_HOME/huggingface``, else
+    ``~/.cache/huggingface`` (so ``~/.cache/huggingface/lerobot/calibration``). Empty variables count as unset.
     """
     env = os.environ
     if env.get("HF_LEROBOT_CALIBRATION"):
         return Path(env["HF_LEROBOT_CALIBRATION"]).expanduser()
     if env.get("HF_LEROBOT_HOME"):
         return Path(env["HF_LEROBOT_HOME"]).expanduser() / "calibration"
-    hf_home = (
-        Path(env["HF_HOME"]).expanduser() if env.get("HF_HOME") else Path.home() / ".cache" / "huggingface"
-    )
+    if env.get("HF_HOME"):
+        hf_home = Path(os.path.expandvars(os.path.expanduser(env["HF_HOME"])))
+    else:
+        cache = Path(env["XDG_CACHE_HOME"]) if env.get("XDG_CACHE_HOME") else Path.home() / ".cache"
+        hf_home = Path(os.path.expandvars(os.path.expanduser(cache / "huggingface")))
     return hf_home / "lerobot" / "calibration"
 
 

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -48,18 +50,34 @@ def write_legacy(path: str | os.PathLike[str], cal: LegacyCalibration) -> Path:
     return _fmt.write_legacy(path, cal)
 
 
+def _one_motor(
+    kernel: Callable[[npt.ArrayLike, LegacyCalibration], npt.NDArray[Any]],
+    x: npt.ArrayLike,
+    cal: LegacyCalibration,
+) -> npt.NDArray[Any]:
+    """A scalar for a one-motor calibration is that motor's value (result of shape ``()``)."""
+    if not isinstance(cal, LegacyCalibration):
+        raise InvalidCalibrationError(
+            f"cal is a {type(cal).__name__}; expected a LegacyCalibration (see read_legacy)"
+        )
+    if len(cal.motor_names) == 1 and np.ndim(x) == 0:
+        one: npt.NDArray[Any] = kernel(np.asarray(x)[np.newaxis], cal)[..., 0]
+        return one
+    return kernel(x, cal)
+
+
 def apply_calibration(raw: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.float64]:
-    """Raw ticks ``(..., n_motors)`` → degrees (DEGREE) / percent (LINEAR).
+    """Raw ticks ``(..., n_motors)`` (a scalar for one motor) → degrees (DEGREE) / percent (LINEAR).
 
     Raises:
         JointOutOfRangeError: With LeRobot's message, outside ±270° / −10..110 %.
     """
-    return apply_legacy(raw, cal)
+    return _one_motor(apply_legacy, raw, cal)
 
 
 def revert_calibration(values: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.int64]:
-    """Degrees / percent ``(..., n_motors)`` → raw ticks, rounded half to even like ``np.round``."""
-    return revert_legacy(values, cal)
+    """Degrees / percent ``(..., n_motors)`` (a scalar for one motor) → raw ticks, ``np.round`` (half to even)."""
+    return _one_motor(revert_legacy, values, cal)
 
 
 def to_robot_calibration(cal: LegacyCalibration) -> RobotCalibration:

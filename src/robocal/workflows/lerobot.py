@@ -36,7 +36,7 @@ from ..core.lerobot import (
     legacy_calibration_from_poses,
 )
 from ..errors import CalibError, InvalidCalibrationError, UsageError
-from ..formats.lerobot import write_current, write_legacy
+from ..formats.lerobot import check_output_path, write_current, write_legacy
 
 __all__ = [
     "CalibrationResult",
@@ -231,6 +231,8 @@ def calibrate(
         DeviceError: Bus failure (EEPROM restored as far as the bus allows).
         KeyboardInterrupt: Re-raised after the EEPROM was restored; no file written.
     """
+    if path is not None:
+        check_output_path(path)  # refuse an impossible output before any EEPROM write or sweep
     ids = [m.motor_id for m in spec.motors]
     names = [m.name for m in spec.motors]
     res = {m.name: bus.resolution(m.motor_id) for m in spec.motors}
@@ -358,6 +360,8 @@ def calibrate_legacy(
             raise UsageError(
                 f"To run calibration, the torque must be disabled on all motors (enabled on {', '.join(on)})."
             )
+    if path is not None:
+        check_output_path(path)
     operator.prompt("zero", "Move the arm to the zero position and press ENTER")
     zero = bus.sync_read("Present_Position", ids)
     operator.prompt("rotated", "Move the arm to the rotated position (every joint +90°) and press ENTER")
@@ -476,6 +480,13 @@ def legacy_to_current(
     motor_ids = list(ids) if ids is not None else list(range(1, n + 1))
     if len(motor_ids) != n:
         raise UsageError(f"{len(motor_ids)} ids for {n} motors")
+    seen: set[int] = set()
+    for i in motor_ids:
+        if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i <= 253:
+            raise UsageError(f"--ids: motor id {i} is outside 0..253")
+        if i in seen:
+            raise UsageError(f"--ids: motor id {i} is given twice")
+        seen.add(i)
     out: dict[str, MotorCalibration] = {}
     warnings: list[str] = []
     for k, name in enumerate(legacy_cal.motor_names):
