@@ -77,7 +77,8 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, backup: boo
         The destination path.
 
     Raises:
-        UsageError: The folder does not exist or the destination is a directory.
+        UsageError: The folder does not exist, is not writable, the disk is full, or the destination is a
+            directory. Nothing is changed then.
     """
     p = Path(path)
     parent = p.parent if str(p.parent) else Path(".")
@@ -85,7 +86,10 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, backup: boo
         raise UsageError(f"cannot write {p}: folder {parent} does not exist")
     if p.is_dir():
         raise UsageError(f"cannot write {p}: it is a directory")
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
+    except OSError as exc:
+        raise UsageError(f"cannot write {p}: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -97,9 +101,11 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, backup: boo
             if backup:
                 shutil.copy2(p, backup_path(p))
         os.replace(tmp_name, p)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp_name)
+        if isinstance(exc, OSError):
+            raise UsageError(f"cannot write {p}: {exc.strerror or exc}") from None
         raise
     with contextlib.suppress(OSError):  # make the rename durable where the OS allows it
         dir_fd = os.open(parent, os.O_RDONLY)
