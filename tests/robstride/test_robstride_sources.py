@@ -36,6 +36,9 @@ def test_parse_source_forms() -> None:
         ("can:socketcan:can0,", "expected can:<interface>"),
         ("sim:lite?noise=-1", "noise must be a number >= 0"),
         ("sim:lite?seed", "malformed options"),
+        ("sim:lite?seed=\u00b2", "seed must be a non-negative integer"),  # str.isdigit() is True for '²'
+        ("sim:lite?zero_sta=2", "zero_sta must be 0 or 1, got '2'"),
+        ("sim:lite?single_turn=7", "single_turn must be 0 or 1"),
     ]:
         with pytest.raises(UsageError, match=msg):
             parse_source(bad)
@@ -148,3 +151,10 @@ def test_check_cli_with_source(tmp_path: Path, capsys: pytest.CaptureFixture[str
     out = capsys.readouterr().out
     assert rc in (0, 1)
     assert "left_elbow_pitch: q = " in out and out.count(": q = ") == 14
+
+
+def test_can_source_unknown_interface_is_bad_input() -> None:
+    with pytest.raises(
+        UsageError, match=r"CAN interface 'bogus' is unknown to python-can; expected one of .*virtual"
+    ):
+        open_source("can:bogus:can0", JOINTS)

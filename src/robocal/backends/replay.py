@@ -28,6 +28,8 @@ __all__ = ["read_csv_recording", "read_recording", "read_rosbag_recording"]
 
 FloatArray = npt.NDArray[np.float64]
 MAX_ROWS = 50_000_000
+MAX_ABS_POSITION_RAD = 1.0e4
+"""Largest joint position accepted from a recording, rad (beyond it the unwrapping loses all precision)."""
 
 
 def _check_matched(found: Sequence[str], joint_names: Sequence[str], where: str) -> None:
@@ -81,6 +83,12 @@ def read_csv_recording(path: Path, joint_names: Sequence[str]) -> tuple[FloatArr
         bad = [header[i] for i, v in enumerate(values) if not math.isfinite(v)]
         if bad:
             raise FileFormatError(f"recording {path}: line {r + 2}: {bad[0]} is not finite")
+        big = [header[c] for c in cols if c >= 0 and abs(values[c]) > MAX_ABS_POSITION_RAD]
+        if big:
+            raise FileFormatError(
+                f"recording {path}: line {r + 2}: {big[0]} is {values[header.index(big[0])]:g} rad; "
+                f"expected a joint position within ±{MAX_ABS_POSITION_RAD:g} rad"
+            )
         t[r] = values[0]
         for j, c in enumerate(cols):
             if c >= 0:
@@ -131,6 +139,11 @@ def read_rosbag_recording(
                     seen.add(name)
                     i = index.get(name)
                     if i is not None and math.isfinite(p):
+                        if abs(p) > MAX_ABS_POSITION_RAD:
+                            raise FileFormatError(
+                                f"recording {path}: joint {name} is {p:g} rad at t = {stamp_ns * 1e-9:.9f} s; "
+                                f"expected a joint position within ±{MAX_ABS_POSITION_RAD:g} rad"
+                            )
                         row[i] = p
                 hs = msg.header.stamp
                 ts = hs.sec + hs.nanosec * 1e-9 if (hs.sec or hs.nanosec) else stamp_ns * 1e-9

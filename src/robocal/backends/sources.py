@@ -137,11 +137,11 @@ def parse_source(text: str) -> SourceSpec:
                         f"--source {text!r}: unknown option {key!r}; valid: {', '.join(SIM_OPTIONS)}"
                     )
                 opts[key] = values[-1]
-        for key in ("seed", "zero_sta", "single_turn"):
-            if key in opts and not opts[key].isdigit():
-                raise UsageError(
-                    f"--source {text!r}: {key} must be a non-negative integer, got {opts[key]!r}"
-                )
+        if "seed" in opts and not (opts["seed"].isascii() and opts["seed"].isdigit()):
+            raise UsageError(f"--source {text!r}: seed must be a non-negative integer, got {opts['seed']!r}")
+        for key in ("zero_sta", "single_turn"):
+            if key in opts and opts[key] not in ("0", "1"):
+                raise UsageError(f"--source {text!r}: {key} must be 0 or 1, got {opts[key]!r}")
         if "noise" in opts:
             try:
                 noise = float(opts["noise"])
@@ -390,7 +390,7 @@ def _sim_lite(spec: SourceSpec, joints: Sequence[JointSpec]) -> SimLiteSource:
         noise_rad=float(o.get("noise", "3e-4")),
         flip=names_of("flip"),
         zero_sta=int(o.get("zero_sta", "1")),
-        single_turn=o.get("single_turn", "0") not in ("0", ""),
+        single_turn=o.get("single_turn", "0") == "1",
         skip=names_of("skip"),
         short_rad=short,
     )

@@ -57,6 +57,10 @@ def check(
     frame: str | None = typer.Option(None, "--frame", help="Replay positions: identity (default) or motor."),
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
+    if source is not None:  # a malformed --source / --frame fails before anything is printed
+        from ..workflows.sweep import check_source_options
+
+        check_source_options(source, frame)
     model = read_urdf(urdf)
     cf = read_calibration(calibration, fmt, urdf=model)
     report = check_calibration(cf, model)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -20,7 +21,15 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from ..backends.sources import FRAMES, JointSpec, ReplaySource, Source, open_source, parse_source
+from ..backends.sources import (
+    FRAMES,
+    JointSpec,
+    ReplaySource,
+    Source,
+    SourceSpec,
+    open_source,
+    parse_source,
+)
 from ..core.jointmap import RobotCalibration
 from ..core.sweep import (
     DEFAULT_SPAN_TOLERANCE_RAD,
@@ -31,7 +40,7 @@ from ..core.sweep import (
     direction_from_motion,
 )
 from ..errors import CalibError, FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_write_text, read_text
 from ..formats import CalibrationFile, read_calibration, write_calibration
 from ..formats.urdf import UrdfModel, read_urdf
 
@@ -43,6 +52,7 @@ __all__ = [
     "SweepSession",
     "SweepView",
     "check_source",
+    "check_source_options",
     "joints_from_urdf",
     "run_direction_check",
     "run_sweep",
@@ -73,6 +83,12 @@ def joints_from_urdf(urdf: UrdfModel) -> list[JointSpec]:
         out.append(JointSpec(name, urdf.motor_id(name) or 0, urdf.param(name, "model") or "rs-00", d, lo, up))
     if not out:
         raise FileFormatError(f"URDF {urdf.source}: no joints to calibrate")
+    owner: dict[int, str] = {}
+    for j in out:
+        if j.can_id > 0 and owner.setdefault(j.can_id, j.name) != j.name:
+            raise FileFormatError(
+                f"URDF {urdf.source}: joints {owner[j.can_id]!r} and {j.name!r} share CAN id {j.can_id}"
+            )
     return out
 
 
@@ -240,8 +256,7 @@ class SweepOutcome:
     interrupted: bool
 
 
-def _prior_offsets(path: Path, urdf: UrdfModel) -> dict[str, float]:
-    cf = read_calibration(path, urdf=urdf)
+def _offsets(cf: CalibrationFile) -> dict[str, float]:
     cal = cf.calibration
     return {n: float(h) for n, h in zip(cal.joint_names, cal.homing_offset, strict=True)}
 
@@ -250,6 +265,48 @@ def _check_number(value: float, flag: str) -> float:
     if not (math.isfinite(value) and value >= 0):
         raise UsageError(f"{flag} {value}: expected a finite number of rad >= 0")
     return float(value)
+
+
+def _check_writable(path: Path, flag: str) -> None:
+    folder = path.parent
+    if path.is_dir() or not folder.is_dir():
+        raise UsageError(f"{flag} {path}: expected a file in an existing folder")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise UsageError(f"{flag} {path}: permission denied (cannot write there)")
+
+
+def _existing_output(
+    out: Path, fmt: str, urdf: UrdfModel, joints: Sequence[JointSpec]
+) -> CalibrationFile | None:
+    """The calibration already in ``--out`` (updated in place), or None for a missing or empty file.
+
+    A file holding only comments counts as empty.
+
+    Raises:
+        FileFormatError: ``--out`` holds something else than a ``fmt`` calibration, or one whose other joints
+            use a CAN id of a URDF joint (it would be replaced or made inconsistent; nothing is written).
+    """
+    if not out.exists():
+        return None
+    text = read_text(out, "--out")
+    if all(not ln.strip() or ln.lstrip().startswith("#") for ln in text.splitlines()):
+        return None  # empty, or only comments: nothing to update
+    try:
+        cf = read_calibration(out, fmt, urdf=urdf)
+    except CalibError as exc:
+        raise FileFormatError(
+            f"--out {out}: exists but is not a {fmt} calibration file ({exc}); "
+            "move it away or choose another --out"
+        ) from None
+    ours = {j.can_id: j.name for j in joints}
+    names = set(ours.values())
+    for name, can_id in cf.ids.items():
+        if name not in names and can_id in ours:
+            raise FileFormatError(
+                f"--out {out}: joint {name!r} (not in the URDF) has CAN id {can_id}, "
+                f"the id of URDF joint {ours[can_id]!r}"
+            )
+    return cf
 
 
 def run_sweep(
@@ -305,26 +362,29 @@ def run_sweep(
         fmt = "lite-json" if out_path.suffix.lower() == ".json" else "lite-yaml"
     if fmt not in OUTPUT_FORMATS:
         raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
-    if frame is not None and frame not in FRAMES:
-        raise UsageError(f"--frame {frame!r}: expected one of {', '.join(FRAMES)}")
-    if out_path.is_dir() or not out_path.parent.is_dir():
-        raise UsageError(f"--out {out_path}: expected a file in an existing folder")
+    _check_writable(out_path, "--out")
     report_path = Path(report) if report is not None else None
-    if report_path is not None and (report_path.is_dir() or not report_path.parent.is_dir()):
-        raise UsageError(f"--report {report_path}: expected a file in an existing folder")
-    spec = parse_source(source)
+    if report_path is not None:
+        _check_writable(report_path, "--report")
+        if report_path.resolve() == out_path.resolve():
+            raise UsageError(f"--report {report_path}: is the same file as --out")
+    spec = check_source_options(source, frame)
     if direction_check and spec.kind == "replay":
         raise UsageError("--direction-check needs a live or simulated source, not a replay")
     urdf = read_urdf(urdf_path)
     joints = joints_from_urdf(urdf)
+    no_id = [j.name for j in joints if j.can_id <= 0]
+    if no_id:
+        raise FileFormatError(
+            f"URDF {urdf.source}: no <param name='can_id'> for {', '.join(no_id)}; "
+            f"{fmt} needs an id per joint"
+        )
+    existing = _existing_output(out_path, fmt, urdf, joints)
     prior_offsets: dict[str, float] = {}
     if prior is not None:
-        prior_offsets = _prior_offsets(Path(prior), urdf)
-    elif out_path.exists():
-        try:
-            prior_offsets = _prior_offsets(out_path, urdf)
-        except CalibError:
-            prior_offsets = {}
+        prior_offsets = _offsets(read_calibration(Path(prior), urdf=urdf))
+    elif existing is not None:
+        prior_offsets = _offsets(existing)
 
     # ---- sample
     src = (open_source_fn or open_source)(spec, joints, topic=topic, frame=frame)
@@ -363,7 +423,7 @@ def run_sweep(
             )
             if view is not None:
                 view.finish(result)
-            _write(result, urdf, joints, out_path, fmt, report_path)
+            _write(result, urdf, joints, out_path, fmt, report_path, existing)
         except KeyboardInterrupt:
             raise SweepAbortedError("sweep aborted by a second Ctrl-C; nothing was written") from None
     finally:
@@ -380,6 +440,7 @@ def _write(
     out: Path,
     fmt: str,
     report: Path | None,
+    existing: CalibrationFile | None = None,
 ) -> None:
     missing = [j for j in result.joints if not j.has_offset]
     if missing:
@@ -388,16 +449,26 @@ def _write(
             f"not swept and no prior offset: {detail}; threshold {result.threshold_rad:g} rad. "
             "Sweep them or pass --prior FILE; nothing was written"
         )
-    cal = RobotCalibration(
-        [j.name for j in joints],
-        [j.direction for j in joints],
-        [result[j.name].homing_offset for j in joints],
-    )
-    ids = {j.name: j.can_id for j in joints if j.can_id > 0}
+    # the URDF joints (id and direction copied from the URDF), in the existing file's order, which keeps its
+    # other joints unchanged; new joints go last
+    rows = {j.name: (j.direction, result[j.name].homing_offset, j.can_id) for j in joints}
+    if existing is not None:
+        old = existing.calibration
+        kept = {
+            n: (int(d), float(h), existing.ids.get(n, 0))
+            for n, d, h in zip(old.joint_names, old.direction, old.homing_offset, strict=True)
+            if n not in rows
+        }
+        rows = {n: rows.get(n) or kept[n] for n in (*old.joint_names, *rows)}
+    cal = RobotCalibration(list(rows), [r[0] for r in rows.values()], [r[1] for r in rows.values()])
+    ids = {n: r[2] for n, r in rows.items() if r[2] > 0}
     text = json.dumps(result.to_report(), indent=2) + "\n" if report is not None else ""
-    write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf)
-    if report is not None:
-        atomic_write_text(report, text)
+    try:
+        write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf)
+        if report is not None:
+            atomic_write_text(report, text)
+    except OSError as exc:
+        raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") from None
 
 
 # ------------------------------------------------------------------------------------------ power-on check
@@ -436,6 +507,17 @@ class BranchCheck:
         return None
 
 
+def check_source_options(source: str, frame: str | None = None) -> SourceSpec:
+    """Validate ``--source`` and ``--frame`` (before anything is read or printed).
+
+    Raises:
+        UsageError: Malformed source string or unknown frame.
+    """
+    if frame is not None and frame not in FRAMES:
+        raise UsageError(f"--frame {frame!r}: expected one of {', '.join(FRAMES)}")
+    return parse_source(source)
+
+
 def check_source(
     urdf_path: str | Path,
     calibration_path: str | Path,
@@ -458,24 +540,27 @@ def check_source(
         open_source_fn: Opens the source.
 
     Returns:
-        One :class:`BranchCheck` per joint in URDF order.
+        One :class:`BranchCheck` per URDF joint the calibration has, in URDF order (``robocal check`` reports
+        the joints it lacks).
     """
-    spec = parse_source(source)
+    spec = check_source_options(source, frame)
     urdf = read_urdf(urdf_path)
-    joints = joints_from_urdf(urdf)
+    all_joints = joints_from_urdf(urdf)
     cf = read_calibration(calibration_path, urdf=urdf)
+    keep = [i for i, j in enumerate(all_joints) if j.name in cf.calibration]
+    if not keep:
+        raise JointMismatchError(f"calibration {calibration_path}: no offset for any joint of the URDF")
+    joints = [all_joints[i] for i in keep]
     names = [j.name for j in joints]
-    missing = [n for n in names if n not in cf.calibration]
-    if missing:
-        raise JointMismatchError(f"calibration {calibration_path}: no offset for {', '.join(missing)}")
     cal = cf.calibration.select(names).with_directions({j.name: j.direction for j in joints})
-    src = (open_source_fn or open_source)(spec, joints, topic=topic, frame=frame)
+    src = (open_source_fn or open_source)(spec, all_joints, topic=topic, frame=frame)
     try:
         sample = src.read()
         if sample is None:
             raise FileFormatError(f"source {source}: no samples")
         d = np.array([j.direction for j in joints], dtype=np.float64)
-        raw = sample.position_rad if src.frame == "motor" else d * sample.position_rad
+        pos = sample.position_rad[keep]
+        raw = pos if src.frame == "motor" else d * pos
     finally:
         src.close()
     if not np.all(np.isfinite(raw)):

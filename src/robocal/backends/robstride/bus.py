@@ -99,6 +99,11 @@ class RobstrideBus:
         self._owns_bus = bus is None
         self._bus = bus
         if bus is None:
+            valid = sorted(getattr(self._can, "VALID_INTERFACES", ()))
+            if valid and interface not in valid:
+                raise UsageError(
+                    f"CAN interface {interface!r} is unknown to python-can; expected one of {', '.join(valid)}"
+                )
             try:
                 self._bus = self._can.Bus(channel=channel, interface=interface, receive_own_messages=False)
             except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface

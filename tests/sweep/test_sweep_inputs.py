@@ -1,0 +1,214 @@
+"""`robocal sweep` and `robocal check --source` on inputs a user can get wrong: nothing written, one error line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from robocal.backends.sim.lite import LITE_JOINTS
+from robocal.cli.main import main
+from robocal.formats import read_calibration
+
+FULL_CSV = "full.csv"
+
+
+def _full_sweep(tmp: Path) -> Path:
+    """Identity-frame CSV sweeping every joint over its URDF span around dir·h = 0.3."""
+    cols = [
+        0.3 + np.concatenate([np.linspace(j.lower, j.upper, 50), np.linspace(j.upper, j.lower, 50)])
+        for j in LITE_JOINTS
+    ]
+    rows = ["t," + ",".join(j.name for j in LITE_JOINTS)]
+    rows += [",".join(repr(float(x)) for x in (0.02 * i, *(c[i] for c in cols))) for i in range(100)]
+    p = tmp / FULL_CSV
+    p.write_text("\n".join(rows) + "\n")
+    return p
+
+
+def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return rc, err
+
+
+def _one_error(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    ("content", "fmt", "message"),
+    [
+        ('{"position_offsets": [0.1, 0.2]}\n', None, "is not a lite-yaml calibration file"),
+        ("garbage: [\n", None, "is not a lite-yaml calibration file"),
+        (
+            "left_elbow_pitch:\n  id: 14\n  direction: -1\n  homing_offset: 0.0\n",
+            "lite-json",
+            "not a lite-json",
+        ),
+    ],
+    ids=["berkeley", "malformed", "yaml-as-json"],
+)
+def test_out_existing_in_another_format_is_left_alone(
+    content: str, fmt: str | None, message: str, urdf: Path, tmp_path: Path, capsys: Any
+) -> None:
+    rec = _full_sweep(tmp_path)
+    out = tmp_path / "calibration.yaml"
+    out.write_text(content)
+    extra = ["--format", fmt] if fmt else []
+    rc, err = _run(
+        ["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out), *extra], capsys
+    )
+    assert rc == 2 and message in _one_error(err) and str(out) in _one_error(err)
+    assert out.read_text() == content and not (tmp_path / "calibration.yaml.bak").exists()
+
+
+def test_out_with_only_comments_counts_as_new(urdf: Path, tmp_path: Path, capsys: Any) -> None:
+    rec = _full_sweep(tmp_path)
+    out = tmp_path / "calibration.yaml"
+    out.write_text("# to be filled by robocal sweep\n")
+    rc, _ = _run(["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out)], capsys)
+    assert rc in (0, 1) and read_calibration(out).calibration.joint_names == tuple(
+        j.name for j in LITE_JOINTS
+    )
+
+
+def test_lite_json_in_place_keeps_order_and_other_joints(urdf: Path, tmp_path: Path, capsys: Any) -> None:
+    rec = _full_sweep(tmp_path)
+    out = tmp_path / "calibration.json"
+    old = {"neck_yaw": {"id": 31, "direction": 1, "homing_offset": 0.5}}
+    old.update(
+        {j.name: {"id": j.can_id, "direction": j.direction, "homing_offset": 0.0} for j in LITE_JOINTS[::-1]}
+    )
+    out.write_text(json.dumps(old, indent=4) + "\n")
+    rc, _ = _run(["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out)], capsys)
+    assert rc in (0, 1)
+    new = json.loads(out.read_text())
+    assert list(new) == list(old)  # same joints, same order
+    assert new["neck_yaw"] == {"id": 31, "direction": 1, "homing_offset": 0.5}
+    elbow = new["left_elbow_pitch"]
+    assert elbow["id"] == 14 and elbow["direction"] == -1 and elbow["homing_offset"] == pytest.approx(-0.3)
+
+
+def test_out_with_other_joint_on_a_urdf_can_id_is_refused(urdf: Path, tmp_path: Path, capsys: Any) -> None:
+    rec = _full_sweep(tmp_path)
+    out = tmp_path / "calibration.yaml"
+    text = "neck_yaw:\n  id: 14\n  direction: 1\n  homing_offset: 0.5\n"
+    out.write_text(text)
+    rc, err = _run(["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out)], capsys)
+    assert rc == 2 and "'neck_yaw' (not in the URDF) has CAN id 14" in _one_error(err)
+    assert out.read_text() == text
+
+
+def test_report_same_file_as_out(urdf: Path, tmp_path: Path, capsys: Any) -> None:
+    rec = _full_sweep(tmp_path)
+    out = tmp_path / "c.yaml"
+    rc, err = _run(
+        ["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out), "--report", str(out)],
+        capsys,
+    )
+    assert rc == 2 and "is the same file as --out" in _one_error(err) and not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (('<param name="can_id">14</param>', '<param name="can_id">13</param>'), "share CAN id 13"),
+        (('<param name="can_id">14</param>', ""), "no <param name='can_id'> for left_elbow_pitch"),
+    ],
+    ids=["duplicate-id", "missing-id"],
+)
+def test_urdf_ids_checked_before_sampling(
+    edit: tuple[str, str],
+    message: str,
+    urdf: Path,
+    tmp_path: Path,
+    capsys: Any,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from robocal.workflows import sweep as wf
+
+    bad = tmp_path / "bad.urdf"
+    bad.write_text(urdf.read_text().replace(*edit))
+    opened: list[Any] = []
+    monkeypatch.setattr(wf, "open_source", lambda *a, **k: opened.append(a))
+    rc, err = _run(
+        ["sweep", "--urdf", str(bad), "--source", "sim:lite", "--out", str(tmp_path / "c.yaml")], capsys
+    )
+    assert rc == 2 and message in _one_error(err)
+    assert opened == [] and not (tmp_path / "c.yaml").exists()  # no sweep was wasted
+
+
+def test_unwritable_out_folder_is_refused_up_front(
+    urdf: Path, tmp_path: Path, capsys: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import os
+
+    rec = _full_sweep(tmp_path)
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, m: False if Path(p) == locked else real(p, m))
+    out = locked / "c.yaml"
+    rc, err = _run(["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out)], capsys)
+    assert rc == 2 and "permission denied" in _one_error(err) and not out.exists()
+
+
+def test_write_failure_is_one_error_line(
+    urdf: Path, tmp_path: Path, capsys: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from robocal.workflows import sweep as wf
+
+    rec = _full_sweep(tmp_path)
+
+    def fail(*_: Any, **__: Any) -> None:
+        raise PermissionError(13, "Permission denied", str(tmp_path / "c.yaml"))
+
+    monkeypatch.setattr(wf, "write_calibration", fail)
+    rc, err = _run(
+        ["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(tmp_path / "c.yaml")], capsys
+    )
+    assert rc == 2 and _one_error(err) == f"error: cannot write {tmp_path / 'c.yaml'}: Permission denied"
+
+
+def test_recording_with_absurd_position(urdf: Path, tmp_path: Path, capsys: Any) -> None:
+    rec = tmp_path / "r.csv"
+    rec.write_text("t,left_elbow_pitch\n0,1e308\n1,-1e308\n")
+    rc, err = _run(
+        ["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(tmp_path / "c.yaml")], capsys
+    )
+    assert rc == 2 and "line 2: left_elbow_pitch is 1e+308 rad" in _one_error(err)
+    assert "RuntimeWarning" not in err
+
+
+def test_check_bad_source_fails_before_printing(urdf: Path, tmp_path: Path, capsys: Any) -> None:
+    rec = _full_sweep(tmp_path)
+    cal = tmp_path / "c.yaml"
+    assert main(["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(cal)]) in (0, 1)
+    capsys.readouterr()
+    for extra, message in (
+        (["--source", "bogus"], "--source 'bogus'"),
+        (["--source", "sim:lite", "--frame", "x"], "--frame 'x'"),
+    ):
+        rc = main(["check", "--urdf", str(urdf), "--calibration", str(cal), *extra])
+        captured = capsys.readouterr()
+        assert rc == 2 and message in _one_error(captured.err)
+        assert captured.out == ""
+
+
+def test_check_source_with_a_partial_calibration(urdf: Path, tmp_path: Path, capsys: Any) -> None:
+    cal = tmp_path / "c.yaml"
+    cal.write_text("left_elbow_pitch:\n  id: 14\n  direction: -1\n  homing_offset: 0.0\n")
+    rc = main(
+        ["check", "--urdf", str(urdf), "--calibration", str(cal), "--source", "sim:lite?seed=3&noise=0"]
+    )
+    captured = capsys.readouterr()
+    assert rc == 1 and "error:" not in captured.err
+    assert "joints missing from the calibration file" in captured.err
+    assert captured.out.count(": q = ") == 1 and "left_elbow_pitch: q = " in captured.out
