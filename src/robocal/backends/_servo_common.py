@@ -180,6 +180,15 @@ class SdkBusBase:
         """Whether that motor's control table has the register."""
         return motor_id in self.motors and register in self._tables[self.motors[motor_id]]
 
+    def check_write(self, register: str, motor_id: int, value: int) -> None:
+        """Raise what :meth:`write` would raise for this value, without sending anything.
+
+        Raises:
+            UsageError: Unknown motor or register, or the value does not fit the register.
+            InvalidCalibrationError: The sign encoding cannot hold the value.
+        """
+        self._wire_value(motor_id, register, value, self._entry(motor_id, register)[1])
+
     def ping(self, motor_id: int) -> int:
         """Model number reported by the motor."""
         self._select_protocol()

@@ -37,6 +37,10 @@ class ServoBus(Protocol):
         """Read and decode one register of one motor."""
         ...
 
+    def check_write(self, register: str, motor_id: int, value: int) -> None:
+        """Raise what :meth:`write` would raise for this value (unknown register, does not fit), sending nothing."""
+        ...
+
     def write(self, register: str, motor_id: int, value: int) -> None:
         """Encode and write one register of one motor (waits for the status packet)."""
         ...

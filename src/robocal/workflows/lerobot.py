@@ -393,15 +393,23 @@ def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]
     missing = [m.name for m in spec.motors if m.name not in cals]
     if missing:
         raise InvalidCalibrationError(f"calibration has no entry for motor(s) {', '.join(missing)}")
-    _disable_torque(bus, spec)
+    plan: list[tuple[str, str, int, int]] = []
     for m in spec.motors:
         c = cals[m.name]
         if spec.vendor == "dynamixel":
-            bus.write("Drive_Mode", m.motor_id, c.drive_mode)
+            plan.append((m.name, "Drive_Mode", m.motor_id, c.drive_mode))
         if bus.has_register(m.motor_id, "Homing_Offset"):
-            bus.write("Homing_Offset", m.motor_id, c.homing_offset)
-        bus.write("Min_Position_Limit", m.motor_id, c.range_min)
-        bus.write("Max_Position_Limit", m.motor_id, c.range_max)
+            plan.append((m.name, "Homing_Offset", m.motor_id, c.homing_offset))
+        plan.append((m.name, "Min_Position_Limit", m.motor_id, c.range_min))
+        plan.append((m.name, "Max_Position_Limit", m.motor_id, c.range_max))
+    for name, register, motor_id, value in plan:  # every value must fit before anything is written
+        try:
+            bus.check_write(register, motor_id, value)
+        except CalibError as exc:
+            raise type(exc)(f"motor {name!r}: {register}: {exc}") from None
+    _disable_torque(bus, spec)
+    for _name, register, motor_id, value in plan:
+        bus.write(register, motor_id, value)
 
 
 @dataclass(frozen=True)
