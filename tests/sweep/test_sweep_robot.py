@@ -90,3 +90,37 @@ def test_open_robot_from_source_string(urdf: Path, tmp_path: Path) -> None:
         assert np.all(state.position_rad >= lo - 0.05)
     with pytest.raises(UsageError, match="not a replay"):
         open_robot(urdf, cal_path, "replay:x.csv")
+
+
+def test_read_after_write_holds_the_targets(urdf: Path, tmp_path: Path, h: Any) -> None:
+    # a read between two writes must not replace the running targets with the zero-torque frame
+    sim = SimLite(23, noise_rad=0.0)
+    cal_path = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    with _robot(urdf, cal_path, sim) as robot:
+        assert robot.read().position_rad.shape == (14,)
+        first = {n: m.last_command for n, m in sim.motors.items()}
+        assert all(c is not None and c[2] == 0.0 and c[3] == 0.0 for c in first.values())  # passive poll
+        q = np.linspace(-0.2, 0.1, 14)
+        robot.write(q, kp=20.0, kd=1.0, torque_nm=0.5)
+        written = {n: m.last_command for n, m in sim.motors.items()}
+        state = robot.read()
+        for name, motor in sim.motors.items():
+            assert motor.last_command == written[name], name
+            assert motor.last_command is not None and motor.last_command[2] == pytest.approx(20.0, abs=0.01)
+        assert np.all(np.isfinite(state.position_rad))
+
+
+def test_write_rejects_bad_gains_and_types(urdf: Path, tmp_path: Path, h: Any) -> None:
+    sim = SimLite(24, noise_rad=0.0)
+    cal_path = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    with _robot(urdf, cal_path, sim) as robot:
+        q = robot.read().position_rad
+        with pytest.raises(UsageError, match=r"joint 'left_shoulder_pitch' \(RS02\): kp -1 / kd 0 outside"):
+            robot.write(q, kp=-1.0)
+        with pytest.raises(UsageError, match=r"kp 600 / kd 1 outside 0\.\.500 / 0\.\.5"):
+            robot.write(q, kp=600.0, kd=1.0)
+        with pytest.raises(ShapeMismatchError, match="velocity must be 14 finite numbers, got 'fast'"):
+            robot.write(q, velocity_rad_s="fast")  # type: ignore[arg-type]
+        assert all(m.last_command is None or m.last_command[2] == 0.0 for m in sim.motors.values())

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..backends.robstride.protocol import model_limits
 from ..backends.sources import RobstrideSource, open_source, parse_source
 from ..core.jointmap import RobotCalibration
 from ..errors import JointMismatchError, ShapeMismatchError, UsageError
@@ -64,6 +65,8 @@ class CalibratedRobot:
         self.upper = np.asarray(upper, dtype=np.float64)
         self.source = source
         self._shift_rad: FloatArray | None = None  # whole turns added on the first read after power-on
+        self._index = {name: i for i, name in enumerate(self.joint_names)}
+        self._held: list[dict[str, tuple[float, float, float, float, float]]] | None = None  # per bus
 
     @property
     def branch_shift_rad(self) -> FloatArray | None:
@@ -79,10 +82,25 @@ class CalibratedRobot:
         )
 
     def read(self) -> JointState:
-        """Poll every joint (zero-torque MIT frame) and return the joint-frame state."""
-        s = self.source.read()
-        assert s.velocity_rad_s is not None and s.effort_nm is not None
-        return self._to_state(s.position_rad, s.velocity_rad_s, s.effort_nm)
+        """Poll every joint and return the joint-frame state.
+
+        Before the first :meth:`write` the poll is the passive zero-torque MIT frame; afterwards it repeats the
+        last targets written, so reading never drops the gains or the feed-forward torque of a running loop.
+        """
+        if self._held is None:
+            s = self.source.read()
+            assert s.velocity_rad_s is not None and s.effort_nm is not None
+            return self._to_state(s.position_rad, s.velocity_rad_s, s.effort_nm)
+        return self._send(self._held)
+
+    def _send(self, commands: list[dict[str, tuple[float, float, float, float, float]]]) -> JointState:
+        n = len(self.joint_names)
+        raw, vel, eff = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        for bus, cmds in zip(self.source.buses, commands, strict=True):
+            for name, fb in bus.mit_many(cmds).items():
+                i = self._index[name]
+                raw[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
+        return self._to_state(raw, vel, eff)
 
     def write(
         self,
@@ -93,6 +111,8 @@ class CalibratedRobot:
         torque_nm: npt.ArrayLike = 0.0,
     ) -> JointState:
         """Send joint-frame MIT targets to every joint and return the joint-frame feedback.
+
+        The targets are held: later :meth:`read` calls repeat them until the next write.
 
         Args:
             position_rad: Target joint positions, shape ``(N,)``, rad.
@@ -112,11 +132,14 @@ class CalibratedRobot:
         cal = self.calibration
 
         def vec(x: npt.ArrayLike, what: str) -> FloatArray:
-            a = (
-                np.broadcast_to(np.asarray(x, dtype=np.float64), (n,))
-                if np.ndim(x) == 0
-                else np.asarray(x, float)
-            )
+            try:
+                a = np.asarray(x, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ShapeMismatchError(
+                    f"robot.write: {what} must be {n} finite numbers, got {x!r}"
+                ) from None
+            if a.ndim == 0:
+                a = np.broadcast_to(a, (n,))
             if a.shape != (n,) or not np.all(np.isfinite(a)):
                 raise ShapeMismatchError(
                     f"robot.write: {what} must be {n} finite numbers, got shape {a.shape}"
@@ -127,25 +150,21 @@ class CalibratedRobot:
         v_raw = cal.velocity_to_raw(vec(velocity_rad_s, "velocity"))
         t_raw = cal.effort_to_raw(vec(torque_nm, "torque"))
         kp_v, kd_v = vec(kp, "kp"), vec(kd, "kd")
-        index = {name: i for i, name in enumerate(self.joint_names)}
-        raw = np.full(n, np.nan)
-        vel = np.full(n, np.nan)
-        eff = np.full(n, np.nan)
         for bus in self.source.buses:
-            cmds = {
-                name: (
-                    p_raw[index[name]],
-                    v_raw[index[name]],
-                    kp_v[index[name]],
-                    kd_v[index[name]],
-                    t_raw[index[name]],
-                )
-                for name in bus.motors
-            }
-            for name, fb in bus.mit_many(cmds).items():
-                i = index[name]
-                raw[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
-        return self._to_state(raw, vel, eff)
+            for name, motor in bus.motors.items():
+                lim = model_limits(motor.model)
+                i = self._index[name]
+                if not (0 <= kp_v[i] <= lim.kp_max and 0 <= kd_v[i] <= lim.kd_max):
+                    raise UsageError(
+                        f"robot.write: joint {name!r} ({lim.name}): kp {kp_v[i]:g} / kd {kd_v[i]:g} outside "
+                        f"0..{lim.kp_max:g} / 0..{lim.kd_max:g}"
+                    )
+        rows = np.stack([p_raw, v_raw, kp_v, kd_v, t_raw], axis=1).tolist()
+        commands = [
+            {name: tuple(rows[self._index[name]]) for name in bus.motors} for bus in self.source.buses
+        ]
+        self._held = commands
+        return self._send(self._held)
 
     def close(self) -> None:
         """Close the buses."""
