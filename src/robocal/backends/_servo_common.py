@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
 
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
+from . import require
 
 __all__ = ["SdkBusBase"]
 
@@ -38,29 +39,34 @@ class SdkBusBase:
     _port_handler: Any
 
     # ------------------------------------------------------------------------------------------- set-up
-    def _setup(
+    _sdk_module = ""
+    """Import name of the vendor SDK (``scservo_sdk`` / ``dynamixel_sdk``)."""
+    _models: Mapping[str, object] = {}
+    """Known model names (for the error message)."""
+
+    def __init__(
         self,
-        sdk: Any,
         port: str,
         motors: Mapping[int, str],
-        known_models: Mapping[str, object],
-        protocol: float,
         *,
-        baudrate: int,
-        retries: int,
-        packet_timeout_ms: float | None,
+        baudrate: int = 1_000_000,
+        retries: int = 3,
+        packet_timeout_ms: float | None = 100.0,
     ) -> None:
         """Check the models, open ``port`` through the SDK and install the packet timeout.
 
         Raises:
-            UsageError: An unknown model.
+            BackendNotAvailableError: The vendor SDK is not installed.
+            UsageError: An unknown model (or, on Feetech, mixed protocols).
             DeviceError: The port cannot be opened (exit 3).
         """
-        unknown = sorted({m for m in motors.values() if m not in known_models})
+        sdk = require(self._sdk_module, f"the {self.vendor.capitalize()} backend")
+        protocol = self._protocol(motors)
+        unknown = sorted({m for m in motors.values() if m not in self._models})
         if unknown:
             raise UsageError(
                 f"unknown {self.vendor.capitalize()} model(s) {', '.join(unknown)}; "
-                f"known: {', '.join(known_models)}"
+                f"known: {', '.join(self._models)}"
             )
         self.port = port
         self.motors = dict(motors)
@@ -75,6 +81,10 @@ class SdkBusBase:
         if not ok:
             raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
         self._install_timeout(packet_timeout_ms)
+
+    def _protocol(self, motors: Mapping[int, str]) -> float:
+        """The SDK's PacketHandler protocol version for these motors."""
+        raise NotImplementedError
 
     def _install_timeout(self, packet_timeout_ms: float | None) -> None:
         """Raise the SDK's per-packet timeout to at least ``packet_timeout_ms`` (on this port object only)."""

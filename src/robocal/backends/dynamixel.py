@@ -7,9 +7,9 @@ firmware ``Present = Actual + Homing_Offset``; ``Drive_Mode`` bit 0 reverses the
 from __future__ import annotations
 
 from collections.abc import Mapping
+from types import MappingProxyType
 
 from ..core.lerobot import decode_twos_complement, encode_twos_complement
-from . import require
 from ._servo_common import SdkBusBase
 
 __all__ = ["DYNAMIXEL_MODELS", "SIGNED_BYTES", "X_TABLE", "DynamixelBus"]
@@ -103,29 +103,13 @@ class DynamixelBus(SdkBusBase):
     """
 
     vendor = "dynamixel"
+    _sdk_module = "dynamixel_sdk"
+    _models = DYNAMIXEL_MODELS
+    _tables = MappingProxyType(dict.fromkeys(DYNAMIXEL_MODELS, X_TABLE))
+    _resolutions = MappingProxyType({m: spec[1] for m, spec in DYNAMIXEL_MODELS.items()})
 
-    def __init__(
-        self,
-        port: str,
-        motors: Mapping[int, str],
-        *,
-        baudrate: int = 1_000_000,
-        retries: int = 3,
-        packet_timeout_ms: float | None = 100.0,
-    ) -> None:
-        sdk = require("dynamixel_sdk", "the Dynamixel backend")
-        self._tables = dict.fromkeys(DYNAMIXEL_MODELS, X_TABLE)
-        self._resolutions = {m: spec[1] for m, spec in DYNAMIXEL_MODELS.items()}
-        self._setup(
-            sdk,
-            port,
-            motors,
-            DYNAMIXEL_MODELS,
-            2.0,
-            baudrate=baudrate,
-            retries=retries,
-            packet_timeout_ms=packet_timeout_ms,
-        )
+    def _protocol(self, motors: Mapping[int, str]) -> float:
+        return 2.0
 
     def _encode(self, motor_id: int, register: str, value: int) -> int:
         if register in SIGNED_BYTES:

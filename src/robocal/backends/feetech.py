@@ -8,10 +8,10 @@ Note: ``scservo_sdk`` keeps the byte order in a module global, so one process ta
 from __future__ import annotations
 
 from collections.abc import Mapping
+from types import MappingProxyType
 
 from ..core.lerobot import decode_sign_magnitude, encode_sign_magnitude
 from ..errors import UsageError
-from . import require
 from ._servo_common import SdkBusBase
 
 __all__ = ["FEETECH_MODELS", "SCS_TABLE", "SIGN_BITS", "STS_TABLE", "FeetechBus"]
@@ -125,34 +125,18 @@ class FeetechBus(SdkBusBase):
     """
 
     vendor = "feetech"
+    _sdk_module = "scservo_sdk"
+    _models = FEETECH_MODELS
+    _tables = MappingProxyType({m: spec[3] for m, spec in FEETECH_MODELS.items()})
+    _resolutions = MappingProxyType({m: spec[1] for m, spec in FEETECH_MODELS.items()})
 
-    def __init__(
-        self,
-        port: str,
-        motors: Mapping[int, str],
-        *,
-        baudrate: int = 1_000_000,
-        retries: int = 3,
-        packet_timeout_ms: float | None = 100.0,
-    ) -> None:
-        sdk = require("scservo_sdk", "the Feetech backend")
+    def _protocol(self, motors: Mapping[int, str]) -> float:
         protocols = {FEETECH_MODELS[m][2] for m in motors.values() if m in FEETECH_MODELS}
         if len(protocols) > 1:
             raise UsageError("Feetech motors of protocol 0 (STS/SMS) and 1 (SCS) cannot share one bus object")
         self.protocol = protocols.pop() if protocols else 0
         self._big_endian = self.protocol == 1
-        self._tables = {m: spec[3] for m, spec in FEETECH_MODELS.items()}
-        self._resolutions = {m: spec[1] for m, spec in FEETECH_MODELS.items()}
-        self._setup(
-            sdk,
-            port,
-            motors,
-            FEETECH_MODELS,
-            self.protocol,
-            baudrate=baudrate,
-            retries=retries,
-            packet_timeout_ms=packet_timeout_ms,
-        )
+        return self.protocol
 
     def _encode(self, motor_id: int, register: str, value: int) -> int:
         if self.protocol == 0 and register in SIGN_BITS:
