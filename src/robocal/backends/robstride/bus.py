@@ -10,7 +10,7 @@ with ``confirm=True``.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -144,24 +144,26 @@ class RobstrideBus:
         except Exception as exc:
             raise DeviceError(f"CAN {self.interface}:{self.channel}: send failed ({exc})") from None
 
+    def _receive(self, deadline: float) -> Iterator[tuple[int, int, int, Any]]:
+        """Extended frames received before ``deadline``, as ``(comm_type, motor_id, low8, message)``."""
+        while (remaining := deadline - time.monotonic()) > 0:
+            msg = self._bus.recv(timeout=remaining)
+            if msg is None:
+                return
+            if msg.is_extended_id:
+                comm, data16, low = split_id(msg.arbitration_id)
+                yield comm, data16 & 0xFF, low, msg  # every reply carries the motor id in bits 15..8
+
     def _collect(self, want: dict[int, set[int]], deadline: float) -> dict[int, tuple[int, bytes]]:
         """Receive until each motor in ``want`` (id → accepted types) answered or the deadline passed."""
         got: dict[int, tuple[int, bytes]] = {}
-        while len(got) < len(want):
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                break
-            msg = self._bus.recv(timeout=remaining)
-            if msg is None:
-                break
-            if not msg.is_extended_id:
-                continue
-            comm, data16, low = split_id(msg.arbitration_id)
-            motor_id = data16 & 0xFF  # every reply carries the motor id in bits 15..8
+        for comm, motor_id, low, msg in self._receive(deadline) if want else ():
             if comm != CommType.GET_ID and low != self.host_id:
                 continue  # addressed to another host
             if motor_id in want and comm in want[motor_id] and motor_id not in got:
                 got[motor_id] = (msg.arbitration_id, bytes(msg.data))
+                if len(got) == len(want):
+                    break
         missing = [self._by_id[i] for i in want if i not in got]
         if missing:
             names = ", ".join(self._where(m) for m in missing)
@@ -198,17 +200,11 @@ class RobstrideBus:
         for i in ids:
             self._send(make_id(CommType.GET_ID, self.host_id, i), bytes(8))
         found: set[int] = set()
-        deadline = time.monotonic() + self.timeout_s
-        while len(found) < len(ids):
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                break
-            msg = self._bus.recv(timeout=remaining)
-            if msg is None:
-                break
-            comm, data16, _low = split_id(msg.arbitration_id) if msg.is_extended_id else (-1, 0, 0)
-            if comm == CommType.GET_ID and (data16 & 0xFF) in ids:
-                found.add(data16 & 0xFF)
+        for comm, motor_id, _low, _msg in self._receive(time.monotonic() + self.timeout_s) if ids else ():
+            if comm == CommType.GET_ID and motor_id in ids:
+                found.add(motor_id)
+                if len(found) == len(ids):
+                    break
         return found
 
     def enable(self, motor: str | int) -> Feedback:
