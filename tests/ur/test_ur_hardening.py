@@ -209,3 +209,49 @@ def test_simulator_serves_after_a_client_left() -> None:
             with PrimaryClient(*sim.address, timeout_s=5.0) as client:
                 assert client.read_kinematics().dh == nominal_dh("ur3e")
         assert sim.connections == 2
+
+
+def test_rotations_are_exactly_the_textbook_matrices() -> None:
+    from robocal.core.se3 import rot_x, rot_y, rot_z
+
+    a = 0.3
+    c, s = math.cos(a), math.sin(a)
+    assert rot_x(a).tolist() == [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
+    assert rot_y(a).tolist() == [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+    assert rot_z(a).tolist() == [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    assert rot_z(np.zeros((2, 5))).shape == (2, 5, 3, 3)
+
+
+def test_conf_with_a_key_twice_is_refused(tmp_path: Path) -> None:
+    from robocal.formats.ur_kinematics import read_deltas
+
+    conf = tmp_path / "calibration.conf"
+    zeros = "[0, 0, 0, 0, 0, 0]"
+    conf.write_text(f"[mounting]\ndelta_theta = {zeros}\ndelta_a = {zeros}\ndelta_d = {zeros}\n"
+                    f"delta_alpha = {zeros}\ndelta_d = [0, 1, 0, 0, 0, 0]\n")
+    with pytest.raises(FileFormatError, match=rf"deltas file {conf} line 6: delta_d appears twice \(first on line 4\)"):
+        read_deltas(conf)
+
+
+def test_huge_next_d_is_corrected_not_a_zero_division() -> None:
+    # d3 = 1e300: |d3·u|² overflowed, the normalised axis became 0 and the division raised ZeroDivisionError
+    n = nominal_dh("ur10e")
+    dh = DHParameters(n.theta_rad, n.a_m, (0.1807, 1.0, 1e300, 0.17415, 0.11985, 0.11655),
+                      (1.570796327, 0.01, 0.0, 1.570796327, -1.570796327, 0.0))
+    kin = correct_kinematics(dh)
+    forearm = kin.links[2]
+    assert forearm.xyz_m[0] == pytest.approx(-math.hypot(-0.6127, math.tan(0.01)), abs=1e-15)
+    assert kin.links[3].xyz_m[2] == 1e300
+
+
+def test_deviation_of_absurd_lengths_does_not_overflow() -> None:
+    import warnings
+
+    from robocal.core.ur import deviation_from_nominal
+
+    n = nominal_dh("ur10e")
+    kin = correct_kinematics(DHParameters(n.theta_rad, (0.0, -1e300, -0.5, 0.0, 0.0, 0.0), n.d_m, n.alpha_rad))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's overflow RuntimeWarning would print on the CLI's stderr
+        dev = deviation_from_nominal(kin)
+    assert dev.length_m == 1e300 and dev.length_field == "a2"

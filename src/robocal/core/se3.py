@@ -39,6 +39,20 @@ def _angles(angle_rad: ArrayLike) -> FloatArray:
     return np.asarray(angle_rad, dtype=np.float64)
 
 
+def _rotation_about_axis(angle_rad: ArrayLike, k: int) -> FloatArray:
+    """Right-handed rotations about coordinate axis ``k`` (0 = x, 1 = y, 2 = z), shape ``S + (3, 3)``."""
+    a = _angles(angle_rad)
+    c, s = np.cos(a), np.sin(a)
+    i, j = (k + 1) % 3, (k + 2) % 3
+    out = np.zeros((*a.shape, 3, 3))
+    out[..., k, k] = 1.0
+    out[..., i, i] = c
+    out[..., i, j] = -s
+    out[..., j, i] = s
+    out[..., j, j] = c
+    return out
+
+
 def rot_x(angle_rad: ArrayLike) -> FloatArray:
     """Rotation about x.
 
@@ -48,41 +62,17 @@ def rot_x(angle_rad: ArrayLike) -> FloatArray:
     Returns:
         Rotation matrices, shape ``S + (3, 3)``.
     """
-    a = _angles(angle_rad)
-    c, s = np.cos(a), np.sin(a)
-    out = np.zeros((*a.shape, 3, 3))
-    out[..., 0, 0] = 1.0
-    out[..., 1, 1] = c
-    out[..., 1, 2] = -s
-    out[..., 2, 1] = s
-    out[..., 2, 2] = c
-    return out
+    return _rotation_about_axis(angle_rad, 0)
 
 
 def rot_y(angle_rad: ArrayLike) -> FloatArray:
     """Rotation about y; shapes as in :func:`rot_x`."""
-    a = _angles(angle_rad)
-    c, s = np.cos(a), np.sin(a)
-    out = np.zeros((*a.shape, 3, 3))
-    out[..., 0, 0] = c
-    out[..., 0, 2] = s
-    out[..., 1, 1] = 1.0
-    out[..., 2, 0] = -s
-    out[..., 2, 2] = c
-    return out
+    return _rotation_about_axis(angle_rad, 1)
 
 
 def rot_z(angle_rad: ArrayLike) -> FloatArray:
     """Rotation about z; shapes as in :func:`rot_x`."""
-    a = _angles(angle_rad)
-    c, s = np.cos(a), np.sin(a)
-    out = np.zeros((*a.shape, 3, 3))
-    out[..., 0, 0] = c
-    out[..., 0, 1] = -s
-    out[..., 1, 0] = s
-    out[..., 1, 1] = c
-    out[..., 2, 2] = 1.0
-    return out
+    return _rotation_about_axis(angle_rad, 2)
 
 
 def homogeneous(R: ArrayLike, p_m: ArrayLike) -> FloatArray:

@@ -208,16 +208,22 @@ def _correct_axis(chain: list[Mat], dh: DHParameters, i: int) -> None:
     e = [E[0][3], E[1][3], E[2][3]]
     diff = [e[0] - p[0], e[1] - p[1], e[2] - p[2]]
     sq = _dot3(diff, diff)
-    if sq > 0.0:
+    if 0.0 < sq < math.inf:
         nrm = math.sqrt(sq)
         direction = [diff[0] / nrm, diff[1] / nrm, diff[2] / nrm]
         sigma = 1.0 if chain[2 * i + 2][2][3] > 0.0 else -1.0  # direction = sigma * next joint's z axis
-    else:  # next joint's d is 0: take its axis (z of the frame after A_i) directly
+    else:  # next joint's d is 0 (or its square under/overflows): take its axis (z after A_i) directly
         direction = [M[0][2], M[1][2], M[2][2]]
         sigma = 1.0
     normal = (0.0, 0.0, 1.0)
     offset = -0.0  # Hyperplane(normal, point = 0): -normal.dot(0)
-    t = -(offset + _dot3(normal, p)) / _dot3(normal, direction)
+    dir_z = _dot3(normal, direction)
+    if dir_z == 0.0 or not math.isfinite(dir_z):
+        raise InvalidCalibrationError(
+            f"DH joint {i + 1}: joint {i + 2}'s axis does not cross joint {i + 1}'s XY plane "
+            f"(d{i + 2} = {chain[2 * i + 2][2][3]!r} m)"
+        )
+    t = -(offset + _dot3(normal, p)) / dir_z
     inter = [p[0] + direction[0] * t, p[1] + direction[1] * t, p[2] + direction[2] * t]
     new_theta = math.atan2(inter[1], inter[0]) - math.pi
     new_length = -1.0 * math.sqrt(_dot3(inter, inter))
@@ -485,8 +491,8 @@ def deviation_from_nominal(kin: UrKinematics, model: str | None = None) -> Nomin
         a2, a3, d1, d4, d5, d6 = UR_MODELS[m]
         return {"d1": d1, "a2": a2, "a3": a3, "d4": d4, "d5": d5, "d6": d6}
 
-    if model is None:
-        model = min(UR_MODELS, key=lambda m: sum((measured[k] - v) ** 2 for k, v in lengths(m).items()))
+    if model is None:  # hypot: the Euclidean distance without overflow for absurd inputs
+        model = min(UR_MODELS, key=lambda m: math.hypot(*(float(measured[k]) - v for k, v in lengths(m).items())))
     nominal = lengths(model.strip().lower()) if model.strip().lower() in UR_MODELS else None
     if nominal is None:
         raise UsageError(f"unknown UR model {model!r}; valid: {', '.join(UR_MODELS)}")

@@ -169,10 +169,16 @@ _CONF_LINE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*\[(.*)\]\s*$")
 def _parse_conf(text: str, source: str) -> dict[str, Any]:
     """Parse ``key = [v, v, ...]`` lines of a controller ``calibration.conf`` (other lines ignored)."""
     out: dict[str, Any] = {}
+    first_line: dict[str, int] = {}
     for lineno, line in enumerate(text.splitlines(), 1):
         m = _CONF_LINE.match(line)
         if not m:
             continue
+        if m.group(1) in first_line:
+            raise FileFormatError(
+                f"{source} line {lineno}: {m.group(1)} appears twice (first on line {first_line[m.group(1)]})"
+            )
+        first_line[m.group(1)] = lineno
         items = [s for s in re.split(r"[,\s]+", m.group(2).strip()) if s]
         values: list[Any] = []
         for s in items:
