@@ -224,3 +224,33 @@ def test_restore_validates_every_value_before_writing_any(
             bus.close()
         assert arm.eeprom() == before
         assert {m.name: arm.servo(m.name).get_reg("Torque_Enable") for m in arm.spec.motors} == torque
+
+
+# --------------------------------------------------------------------------------------- writers, extras
+def test_writers_refuse_wrong_types_with_calib_errors(tmp_path: Path) -> None:
+    from robocal.lerobot import write_calibration
+
+    with pytest.raises(InvalidCalibrationError, match="motor 'a': expected a MotorCalibration"):
+        write_calibration(tmp_path / "w.json", {"a": {"id": 1}})  # type: ignore[dict-item]
+    with pytest.raises(InvalidCalibrationError, match="expected a mapping of motor name"):
+        write_calibration(tmp_path / "w.json", [CAL])  # type: ignore[arg-type]
+    with pytest.raises(InvalidCalibrationError, match="expected a LegacyCalibration"):
+        legacy.write_legacy(tmp_path / "l.json", {"homing_offset": [0]})  # type: ignore[arg-type]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_convert_degrees_to_steps_truncates_like_lerobot() -> None:
+    out = legacy.convert_degrees_to_steps([0, 90, 180, -90, 45.5, -45.5])
+    assert out.tolist() == [0, 1024, 2048, -1024, 517, -517]
+
+
+@pytest.mark.parametrize(("module", "extra"), [("scservo_sdk", "feetech"), ("dynamixel_sdk", "dynamixel")])
+def test_missing_sdk_names_the_extra(monkeypatch: pytest.MonkeyPatch, module: str, extra: str) -> None:
+    import sys
+
+    from robocal.errors import BackendNotAvailableError
+
+    monkeypatch.setitem(sys.modules, module, None)
+    bus_cls = FeetechBus if extra == "feetech" else DynamixelBus
+    with pytest.raises(BackendNotAvailableError, match=rf"pip install 'robocal\[{extra}\]'"):
+        bus_cls("/dev/null", {1: "sts3215" if extra == "feetech" else "xl330-m288"})

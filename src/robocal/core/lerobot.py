@@ -38,6 +38,7 @@ __all__ = [
     "centre_homing",
     "decode_sign_magnitude",
     "decode_twos_complement",
+    "degrees_to_steps",
     "encode_sign_magnitude",
     "encode_twos_complement",
     "half_turn_homing_offset",
@@ -651,6 +652,18 @@ def avoid_rotation_reset(raw_ticks: npt.ArrayLike, resolution: int = 4096) -> In
         out[t] = np.where(jump, np.where(prev < raw, raw - resolution, raw + resolution), raw)
     result: IntArray = out.reshape(arr.shape)
     return result
+
+
+def degrees_to_steps(degrees: npt.ArrayLike, resolution: int = 4096) -> IntArray:
+    """Legacy ``convert_degrees_to_steps``: ``deg / 180 · res / 2`` truncated toward zero (``astype(int)``).
+
+    90 → 1024, 45.5 → 517, −45.5 → −517.
+    """
+    resolution = _check_resolution(resolution)
+    d = _as_float_array(degrees, "degrees")
+    if not np.all(np.isfinite(d)):
+        raise InvalidCalibrationError("degrees contains NaN or inf; expected finite numbers")
+    return _to_ticks(np.trunc(d / HALF_TURN_DEGREE * resolution / 2), "degrees")
 
 
 def nearest_rounded_position(ticks: npt.ArrayLike, resolution: int = 4096) -> IntArray:

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.lerobot import LegacyCalibration, MotorCalibration
-from ..errors import CalibError, FileFormatError, UsageError
+from ..errors import CalibError, FileFormatError, InvalidCalibrationError, UsageError
 from ..fileio import atomic_write_text, read_text
 from ._json import load_json
 
@@ -45,7 +45,20 @@ PathLike = str | os.PathLike[str]
 
 
 def dumps_current(cals: Mapping[str, MotorCalibration]) -> str:
-    """Serialise like ``draccus.dump(..., indent=4)``: 4-space indent, bus order, ints, no final newline."""
+    """Serialise like ``draccus.dump(..., indent=4)``: 4-space indent, bus order, ints, no final newline.
+
+    Raises:
+        InvalidCalibrationError: ``cals`` is not a mapping of motor name → ``MotorCalibration``.
+    """
+    if not isinstance(cals, Mapping):
+        raise InvalidCalibrationError(
+            f"calibration is a {type(cals).__name__}; expected a mapping of motor name → MotorCalibration"
+        )
+    for name, c in cals.items():
+        if not isinstance(name, str) or not isinstance(c, MotorCalibration):
+            raise InvalidCalibrationError(
+                f"motor {name!r}: expected a MotorCalibration keyed by its name, got {type(c).__name__}"
+            )
     data = {name: {f: int(getattr(c, f)) for f in CURRENT_FIELDS} for name, c in cals.items()}
     return json.dumps(data, indent=4)
 
@@ -160,6 +173,10 @@ def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_
 
 def dumps_legacy(cal: LegacyCalibration) -> str:
     """Serialise like LeRobot's legacy ``json.dump(calibration, f)`` (no indent, default separators)."""
+    if not isinstance(cal, LegacyCalibration):
+        raise InvalidCalibrationError(
+            f"calibration is a {type(cal).__name__}; expected a LegacyCalibration (see read_legacy)"
+        )
     data = {
         "homing_offset": [int(v) for v in cal.homing_offset],
         "drive_mode": [int(v) for v in cal.drive_mode],

@@ -19,6 +19,7 @@ from ..core.lerobot import (
     LegacyCalibration,
     apply_legacy,
     autocorrect_legacy,
+    degrees_to_steps,
     legacy_calibration_from_poses,
     revert_legacy,
 )
@@ -30,6 +31,7 @@ __all__ = [
     "apply_calibration",
     "autocorrect_calibration",
     "calibration_from_poses",
+    "convert_degrees_to_steps",
     "read_legacy",
     "revert_calibration",
     "to_robot_calibration",
@@ -38,6 +40,7 @@ __all__ = [
 
 calibration_from_poses = legacy_calibration_from_poses
 autocorrect_calibration = autocorrect_legacy
+convert_degrees_to_steps = degrees_to_steps
 
 
 def read_legacy(path: str | os.PathLike[str]) -> LegacyCalibration:
