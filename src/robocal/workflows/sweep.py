@@ -92,6 +92,14 @@ def joints_from_urdf(urdf: UrdfModel) -> list[JointSpec]:
     return out
 
 
+def _identity(frame: str, direction: FloatArray, positions: FloatArray) -> FloatArray:
+    """Positions in ``frame`` → identity frame ``direction·raw`` (the map is its own inverse), ``(..., N)``."""
+    if frame == "motor":
+        out: FloatArray = positions * direction
+        return out
+    return positions
+
+
 class SweepView(Protocol):
     """What the sweep loop reports to (the CLI's live table; tests use a recorder)."""
 
@@ -129,10 +137,7 @@ class SweepSession:
 
     def to_identity(self, positions: FloatArray) -> FloatArray:
         """Source frame → identity frame ``direction·raw``, shape ``(..., N)``."""
-        if self.source.frame == "motor":
-            out: FloatArray = positions * self.direction
-            return out
-        return positions
+        return _identity(self.source.frame, self.direction, positions)
 
     @property
     def exhausted(self) -> bool:
@@ -215,7 +220,7 @@ def run_direction_check(
         if first is None:
             out[j.name] = 0
             continue
-        start = float((d * first.position_rad if source.frame == "motor" else first.position_rad)[i])
+        start = float(_identity(source.frame, d, first.position_rad)[i])
         tracker = RangeTracker(1)
         tracker.update([start])
         verdict = 0
@@ -224,8 +229,7 @@ def run_direction_check(
             s = source.read()
             if s is None or time.monotonic() > deadline:
                 break
-            pos = d * s.position_rad if source.frame == "motor" else s.position_rad
-            tracker.update([float(pos[i])])
+            tracker.update([float(_identity(source.frame, d, s.position_rad)[i])])
             verdict = direction_from_motion(float(tracker.current[0]) - start, min_motion_rad)
             if verdict:
                 break
@@ -560,7 +564,7 @@ def check_source(
             raise FileFormatError(f"source {source}: no samples")
         d = np.array([j.direction for j in joints], dtype=np.float64)
         pos = sample.position_rad[keep]
-        raw = pos if src.frame == "motor" else d * pos
+        raw = pos if src.frame == "motor" else d * pos  # identity → raw is d·s as well (d² = 1)
     finally:
         src.close()
     if not np.all(np.isfinite(raw)):
