@@ -158,3 +158,15 @@ def test_can_source_unknown_interface_is_bad_input() -> None:
         UsageError, match=r"CAN interface 'bogus' is unknown to python-can; expected one of .*virtual"
     ):
         open_source("can:bogus:can0", JOINTS)
+
+
+def test_can_source_single_channel_uses_the_timeout_and_names_a_bad_model() -> None:
+    ch = f"src-test-{next(_n)}"
+    src = open_source(f"can:virtual:{ch}", JOINTS[:2], timeout_s=0.37)
+    try:
+        assert [b.timeout_s for b in src.buses] == [0.37]
+    finally:
+        src.close()
+    bad = [JointSpec("left_elbow_pitch", 14, "rs-99")]
+    with pytest.raises(UsageError, match=r"joint 'left_elbow_pitch': unknown Robstride model 'rs-99'"):
+        open_source(f"can:virtual:{ch}", bad)

@@ -404,13 +404,20 @@ def _sim_lite(spec: SourceSpec, joints: Sequence[JointSpec]) -> SimLiteSource:
 
 def _can(spec: SourceSpec, joints: Sequence[JointSpec], timeout_s: float) -> RobstrideSource:
     from .robstride import MotorSpec, RobstrideBus
+    from .robstride.protocol import model_limits
 
     missing_ids = [j.name for j in joints if j.can_id <= 0]
     if missing_ids:
         raise UsageError(f"joints without a can_id param in the URDF: {', '.join(missing_ids)}")
+    for j in joints:
+        try:
+            model_limits(j.model)
+        except UsageError as exc:
+            raise UsageError(f"joint {j.name!r}: {exc}") from None
     if len(spec.channels) == 1:
         specs = [MotorSpec(j.name, j.can_id, j.model) for j in joints]
-        return RobstrideSource(joints, [RobstrideBus(spec.channels[0], specs, interface=spec.interface)])
+        bus = RobstrideBus(spec.channels[0], specs, interface=spec.interface, timeout_s=timeout_s)
+        return RobstrideSource(joints, [bus])
     # several channels: find each joint where its CAN id answers a (harmless) type-0 device-id request
     probes = [RobstrideBus(ch, [], interface=spec.interface, timeout_s=timeout_s) for ch in spec.channels]
     try:
