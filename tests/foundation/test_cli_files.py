@@ -159,3 +159,9 @@ def test_stray_ctrl_c_is_one_error_line(capsys: pytest.CaptureFixture[str]) -> N
     command = typer.main.get_command(sub)
     with pytest.raises(cli_main.UserInterruptError, match="interrupted"):
         command.main(args=["boom"], standalone_mode=False)
+
+
+def test_demo_robot_names(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--robot", "atlas"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: unknown demo robot 'atlas'; valid: lite, so101, koch, ur3") and err.count("\n") == 1

@@ -33,6 +33,7 @@ def demo(
     ),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
+    robot = robot.strip().lower()
     if robot not in ROBOTS:
         raise UsageError(f"unknown demo robot {robot!r}; valid: {', '.join(ROBOTS)}")
     if out is not None:
