@@ -21,6 +21,12 @@ MAX_FILE_BYTES = 256 * 1024 * 1024
 """Refuse to read calibration or description files larger than this (256 MiB)."""
 
 
+def _current_umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def backup_path(path: str | os.PathLike[str]) -> Path:
     """Return the backup path ``NAME.bak`` used for ``path``."""
     p = Path(path)
@@ -98,6 +104,9 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, backup: boo
         if p.exists():
             with contextlib.suppress(OSError):
                 os.chmod(tmp_name, p.stat().st_mode & 0o7777)
+        else:  # mkstemp creates 0600; a new file gets the usual 0666 & ~umask
+            with contextlib.suppress(OSError):
+                os.chmod(tmp_name, 0o666 & ~_current_umask())
             if backup:
                 shutil.copy2(p, backup_path(p))
         os.replace(tmp_name, p)

@@ -11,7 +11,12 @@ from robocal.fileio import atomic_write_text, backup_path, read_text
 
 def test_atomic_write_keeps_backup_and_mode(tmp_path: Path) -> None:
     path = tmp_path / "f.yaml"
-    atomic_write_text(path, "one\n")
+    old_mask = os.umask(0o022)
+    try:
+        atomic_write_text(path, "one\n")
+    finally:
+        os.umask(old_mask)
+    assert (path.stat().st_mode & 0o777) == 0o644  # a new file gets 0666 & ~umask, not mkstemp's 0600
     assert not backup_path(path).exists()
     os.chmod(path, 0o640)
     atomic_write_text(path, "two\n")
