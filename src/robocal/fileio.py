@@ -104,11 +104,11 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, backup: boo
         if p.exists():
             with contextlib.suppress(OSError):
                 os.chmod(tmp_name, p.stat().st_mode & 0o7777)
+            if backup:
+                shutil.copy2(p, backup_path(p))
         else:  # mkstemp creates 0600; a new file gets the usual 0666 & ~umask
             with contextlib.suppress(OSError):
                 os.chmod(tmp_name, 0o666 & ~_current_umask())
-            if backup:
-                shutil.copy2(p, backup_path(p))
         os.replace(tmp_name, p)
     except BaseException as exc:
         with contextlib.suppress(OSError):
