@@ -183,3 +183,13 @@ def test_firmware_and_fault_frames() -> None:
     assert decode_fault_report(bytes([1, 0, 0, 0, 2, 0, 0, 0])) == (1, 2)
     with pytest.raises(ProtocolError, match="expected 8"):
         decode_fault_report(b"\x00")
+
+
+@pytest.mark.parametrize("x", [math.nan, math.inf, -math.inf])
+def test_encoders_refuse_non_finite(x: float) -> None:
+    with pytest.raises(UsageError, match="expected a finite number"):
+        float_to_uint(x, -1.0, 1.0)
+    with pytest.raises(UsageError, match="expected a finite number"):
+        float_to_uint_7fff(x, 1.0)
+    with pytest.raises(UsageError, match="expected a finite number"):
+        encode_mit_command(14, x, 0.0, 0.0, 0.0, 0.0, model_limits("rs-00"))

@@ -170,3 +170,10 @@ def test_can_source_single_channel_uses_the_timeout_and_names_a_bad_model() -> N
     bad = [JointSpec("left_elbow_pitch", 14, "rs-99")]
     with pytest.raises(UsageError, match=r"joint 'left_elbow_pitch': unknown Robstride model 'rs-99'"):
         open_source(f"can:virtual:{ch}", bad)
+
+
+def test_csv_with_a_byte_order_mark(tmp_path: Path) -> None:
+    p = tmp_path / "excel.csv"
+    p.write_bytes("\ufefft,a\r\n0,0.5\r\n".encode())
+    s = open_source(f"replay:{p}", [JointSpec("a")]).read()
+    assert s is not None and s.position_rad[0] == 0.5

@@ -183,7 +183,13 @@ def split_id(arbitration_id: int) -> tuple[int, int, int]:
 
 # --------------------------------------------------------------------------------------------------- scaling
 def float_to_uint(x: float, x_min: float, x_max: float, bits: int = 16) -> int:
-    """The manual's encoder: ``(x − min)·(2^bits − 1)/(max − min)``, clamped and truncated."""
+    """The manual's encoder: ``(x − min)·(2^bits − 1)/(max − min)``, clamped and truncated.
+
+    Raises:
+        UsageError: ``x`` is not a finite number.
+    """
+    if not math.isfinite(x):
+        raise UsageError(f"cannot encode {x} into a {bits}-bit field; expected a finite number")
     span = x_max - x_min
     x = min(max(x, x_min), x_max)
     return int((x - x_min) * ((1 << bits) - 1) / span)
@@ -196,6 +202,8 @@ def uint_to_float(u: int, x_min: float, x_max: float, bits: int = 16) -> float:
 
 def float_to_uint_7fff(x: float, limit: float) -> int:
     """The ``0x7FFF`` variant (Actuator-Control, robstride-dynamics): ``(x/limit + 1)·0x7FFF``, 16 bit."""
+    if not math.isfinite(x):
+        raise UsageError(f"cannot encode {x} into a 16-bit field; expected a finite number")
     x = min(max(x, -limit), limit)
     return min(int((x / limit + 1.0) * 0x7FFF), 0xFFFF)
 
