@@ -25,6 +25,7 @@ def test_parse_source_forms() -> None:
         "lite",
         {"seed": "4", "noise": "0.001", "skip": "a,b"},
     )
+    assert parse_source("sim:lite?skip=a&skip=b,c").options["skip"] == "a,b,c"
     c = parse_source("can:socketcan:can0,can1")
     assert (c.kind, c.interface, c.channels) == ("can", "socketcan", ("can0", "can1"))
     r = parse_source("replay:/tmp/x.mcap")
@@ -38,6 +39,7 @@ def test_parse_source_forms() -> None:
         ("sim:lite?seed", "malformed options"),
         ("sim:lite?seed=\u00b2", "seed must be a non-negative integer"),  # str.isdigit() is True for '²'
         ("sim:lite?zero_sta=2", "zero_sta must be 0 or 1, got '2'"),
+        ("sim:lite?seed=1&seed=2", "option 'seed' is given 2 times"),
         ("sim:lite?single_turn=7", "single_turn must be 0 or 1"),
     ]:
         with pytest.raises(UsageError, match=msg):

@@ -136,7 +136,12 @@ def parse_source(text: str) -> SourceSpec:
                     raise UsageError(
                         f"--source {text!r}: unknown option {key!r}; valid: {', '.join(SIM_OPTIONS)}"
                     )
-                opts[key] = values[-1]
+                if key in ("skip", "short", "flip"):
+                    opts[key] = ",".join(values)  # skip=a&skip=b means skip=a,b
+                elif len(values) > 1:
+                    raise UsageError(f"--source {text!r}: option {key!r} is given {len(values)} times")
+                else:
+                    opts[key] = values[0]
         if "seed" in opts and not (opts["seed"].isascii() and opts["seed"].isdigit()):
             raise UsageError(f"--source {text!r}: seed must be a non-negative integer, got {opts['seed']!r}")
         for key in ("zero_sta", "single_turn"):
