@@ -176,3 +176,19 @@ def test_negative_zero_and_tiny_floats_written_safely(tmp_path: Path) -> None:
     import yaml  # PyYAML (YAML 1.1) must also read the value as a float
 
     assert yaml.safe_load(text)["b"]["homing_offset"] == 1e-20
+
+
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    cf=calibration_files(),
+    scales=st.lists(st.floats(1e-6, 1e3, allow_nan=False), min_size=10, max_size=10),
+)
+def test_robocal_format_keeps_any_scale(tmp_path: Path, cf: CalibrationFile, scales: list[float]) -> None:
+    cal = cf.calibration
+    scaled = RobotCalibration(cal.joint_names, cal.direction, cal.homing_offset, scales[: cal.n_joints])
+    path = tmp_path / "map.yaml"
+    write_calibration(path, CalibrationFile(scaled, cf.ids), "robocal")
+    back = read_calibration(path)
+    assert back.calibration.is_close(scaled, 0.0)
+    raw = np.linspace(-100, 100, cal.n_joints)
+    np.testing.assert_array_equal(back.calibration.to_joint(raw), scaled.to_joint(raw))
