@@ -159,7 +159,9 @@ def test_first_ctrl_c_writes_a_complete_file(urdf: Path, tmp_path: Path, h: Any)
     after = read_calibration(out).calibration
     assert after.joint_names == tuple(h.names)  # complete: every joint present
     kept = [j.name for j in outcome.result.joints if j.kept_prior]
-    assert kept == ["left_wrist_pitch"]  # joints not yet swept at the interrupt kept the previous file's offset
+    assert kept == [
+        "left_wrist_pitch"
+    ]  # joints not yet swept at the interrupt kept the previous file's offset
     for name in kept:
         assert after.homing_offset[after.index(name)] == before.homing_offset[before.index(name)]
     assert (tmp_path / "cal.yaml.bak").exists()
