@@ -165,3 +165,11 @@ def test_demo_robot_names(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--robot", "atlas"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: unknown demo robot 'atlas'; valid: lite, so101, koch, ur3") and err.count("\n") == 1
+
+
+def test_demo_out_must_be_a_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert main(["demo", "--out", str(f)]) == 2
+    assert capsys.readouterr().err.startswith("error: --out ")
+    assert f.read_text() == "x"

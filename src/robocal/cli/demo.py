@@ -37,7 +37,12 @@ def demo(
     if robot not in ROBOTS:
         raise UsageError(f"unknown demo robot {robot!r}; valid: {', '.join(ROBOTS)}")
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
+        if out.exists() and not out.is_dir():
+            raise UsageError(f"--out {out} is a file; give a folder for the demo's files")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UsageError(f"cannot create --out folder {out}: {exc.strerror or exc}") from None
     module = importlib.import_module(ROBOTS[robot])
     run = getattr(module, "run_demo", None)
     if run is None:

@@ -52,7 +52,9 @@ def check(
     calibration: Path = typer.Option(..., "--calibration", help="Calibration file to check."),
     urdf: Path = typer.Option(..., "--urdf", help="The robot's URDF (expanded, not xacro)."),
     fmt: str | None = typer.Option(None, "--format", help="Calibration format (detected when omitted)."),
-    source: str | None = typer.Option(None, "--source", help="Also read the robot once (sim:, can:, replay:)."),
+    source: str | None = typer.Option(
+        None, "--source", help="Also read the robot once (sim:, can:, replay:)."
+    ),
     topic: str = typer.Option("/lite/joint_states", "--topic", help="JointState topic of a rosbag2 replay."),
     frame: str | None = typer.Option(None, "--frame", help="Replay positions: identity (default) or motor."),
 ) -> None:
@@ -84,7 +86,9 @@ def check(
         for w in j.warnings:
             print_warning(f"{j.name}: {w}")
     ok = report.ok
-    if source is not None:  # first reading after power-on, with the 2π branch selection (robocal.workflows.sweep)
+    if (
+        source is not None
+    ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.sweep)
         from ..workflows.sweep import check_source
 
         for c in check_source(urdf, calibration, source, topic=topic, frame=frame):
