@@ -124,3 +124,19 @@ def test_write_rejects_bad_gains_and_types(urdf: Path, tmp_path: Path, h: Any) -
         with pytest.raises(ShapeMismatchError, match="velocity must be 14 finite numbers, got 'fast'"):
             robot.write(q, velocity_rad_s="fast")  # type: ignore[arg-type]
         assert all(m.last_command is None or m.last_command[2] == 0.0 for m in sim.motors.values())
+
+
+def test_enable_disable_and_close_stops_enabled_motors(urdf: Path, tmp_path: Path, h: Any) -> None:
+    sim = SimLite(29, noise_rad=0.0)
+    cal_path = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    with _robot(urdf, cal_path, sim) as robot:
+        robot.read()
+        assert {m.mode for m in sim.motors.values()} == {0}  # never enabled by reading
+        state = robot.enable()
+        assert state.position_rad.shape == (14,)
+        assert {m.mode for m in sim.motors.values()} == {2}
+        robot.disable()
+        assert {m.mode for m in sim.motors.values()} == {0}
+        robot.enable()
+    assert {m.mode for m in sim.motors.values()} == {0}  # close() stopped what it had enabled

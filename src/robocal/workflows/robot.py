@@ -10,8 +10,11 @@ limits (:meth:`robocal.core.RobotCalibration.unwrap_to_limits`) and keeps that s
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -19,7 +22,7 @@ import numpy.typing as npt
 from ..backends.robstride.protocol import model_limits
 from ..backends.sources import RobstrideSource, open_source, parse_source
 from ..core.jointmap import RobotCalibration
-from ..errors import JointMismatchError, ShapeMismatchError, UsageError
+from ..errors import CalibError, JointMismatchError, ShapeMismatchError, UsageError
 from ..formats import read_calibration
 from ..formats.urdf import read_urdf
 from .sweep import joints_from_urdf
@@ -67,6 +70,7 @@ class CalibratedRobot:
         self._shift_rad: FloatArray | None = None  # whole turns added on the first read after power-on
         self._index = {name: i for i, name in enumerate(self.joint_names)}
         self._held: list[dict[str, tuple[float, float, float, float, float]]] | None = None  # per bus
+        self._enabled = False
 
     @property
     def branch_shift_rad(self) -> FloatArray | None:
@@ -166,9 +170,41 @@ class CalibratedRobot:
         self._held = commands
         return self._send(self._held)
 
+    def enable(self) -> JointState:
+        """Enable every motor (type 3) so that :meth:`write` targets act; returns the replies' state.
+
+        Read once first (the branch selection needs it); the motors then hold the targets of the next
+        :meth:`write` — until then they are sent the passive zero-torque frame.
+        """
+        state = self._each_motor(lambda bus, name: bus.enable(name))
+        self._enabled = True
+        return state
+
+    def disable(self) -> JointState:
+        """Stop every motor (type 4, reset mode): torque off. Called by :meth:`close` after :meth:`enable`."""
+        self._held = None
+        state = self._each_motor(lambda bus, name: bus.stop(name))
+        self._enabled = False
+        return state
+
+    def _each_motor(self, call: Callable[[Any, str], Any]) -> JointState:
+        n = len(self.joint_names)
+        raw, vel, eff = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        for bus in self.source.buses:
+            for name in bus.motors:
+                fb = call(bus, name)
+                i = self._index[name]
+                raw[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
+        return self._to_state(raw, vel, eff)
+
     def close(self) -> None:
-        """Close the buses."""
-        self.source.close()
+        """Stop the motors if this object enabled them, then close the buses."""
+        try:
+            if self._enabled:
+                with contextlib.suppress(CalibError):
+                    self.disable()
+        finally:
+            self.source.close()
 
     def __enter__(self) -> CalibratedRobot:
         return self
