@@ -143,7 +143,7 @@ def inspect(
         root, calibration=calibration, features=_common.parse_csv_list(features, "--features"), options=opts
     )
     table = Table(title=f"{report.root}: {report.frames} frames")
-    for col in ("feature", "joint", "min", "max", "mean", "range", "jumps", "out of range"):
+    for col in ("feature", "joint", "min", "max", "mean", "range", "jumps", "out of range", "NaN/inf"):
         table.add_column(col, justify="right" if col not in ("feature", "joint") else "left")
     for j in report.joints:
         rng = "-" if j.range_lo is None or j.range_hi is None else f"{j.range_lo:.3f}..{j.range_hi:.3f}"
@@ -156,6 +156,7 @@ def inspect(
             rng,
             str(j.jumps),
             str(j.out_of_range),
+            str(j.non_finite),
         )
     out = _common.console if _common.console.is_terminal else Console(highlight=False, width=160)
     out.print(table)
@@ -165,5 +166,7 @@ def inspect(
             parts.append(f"{j.jumps} full-turn jump(s) between frames")
         if j.out_of_range:
             parts.append(f"{j.out_of_range} value(s) outside the calibrated range")
+        if j.non_finite:
+            parts.append(f"{j.non_finite} NaN or infinite value(s)")
         _common.print_warning(f"{j.feature} {j.joint}: {'; '.join(parts)} — check the calibration")
     raise typer.Exit(_common.EXIT_WARNINGS if report.flagged else _common.EXIT_OK)

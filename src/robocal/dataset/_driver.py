@@ -15,7 +15,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import FIRST_EXCEPTION, Future, ProcessPoolExecutor, wait
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,9 +26,9 @@ import pyarrow.parquet as pq
 
 from ..errors import FileFormatError, UsageError
 from ._convention import ValueConvention
-from ._engine import FeaturePlan, FileResult, recalibrate_file
+from ._engine import FeaturePlan, FileResult, feature_convention, recalibrate_file
 from ._layout import DatasetLayout, read_layout
-from ._stats import StatAccumulator, is_known_stat, merge_all
+from ._stats import StatAccumulator, is_known_stat, merge_all, merge_into
 
 __all__ = [
     "DatasetReport",
@@ -79,15 +79,18 @@ def build_plans(
     """Resolve features and match their joint names against both calibrations.
 
     Raises:
-        UsageError: A feature is unknown or not a named float vector.
+        UsageError: A feature is unknown or not a named float vector, or a per-feature mapping lacks it.
         JointMismatchError: A feature's joints differ from a calibration's.
     """
-    plans = []
-    for feat in layout.select(features):
-        o = old[feat.key] if isinstance(old, Mapping) else old
-        n = new[feat.key] if isinstance(new, Mapping) else new
-        plans.append(FeaturePlan.build(feat.key, feat.joint_names, o, n))
-    return plans
+    return [
+        FeaturePlan.build(
+            feat.key,
+            feat.joint_names,
+            feature_convention(old, feat.key, "old"),
+            feature_convention(new, feat.key, "new"),
+        )
+        for feat in layout.select(features)
+    ]
 
 
 def check_destination(src: Path, dst: Path, overwrite: bool) -> None:
@@ -103,6 +106,8 @@ def check_destination(src: Path, dst: Path, overwrite: bool) -> None:
         raise UsageError(f"destination {dst} already exists; pass --overwrite to replace it")
     if dst.exists() and not dst.is_dir():
         raise UsageError(f"destination {dst} exists and is not a folder")
+    if dst.is_symlink() and not dst.exists():
+        raise UsageError(f"destination {dst} is a broken symbolic link; remove it or choose another folder")
     if not dst.parent.is_dir():
         raise UsageError(f"destination {dst}: parent folder {dst.parent} does not exist")
 
@@ -115,12 +120,7 @@ def check_metadata(layout: DatasetLayout) -> None:
     """
     stats = layout.root / "meta" / "stats.json"
     if stats.is_file():
-        try:
-            data = json.loads(stats.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise FileFormatError(f"{stats}: cannot read statistics JSON ({exc})") from None
-        if not isinstance(data, dict):
-            raise FileFormatError(f"{stats}: expected a JSON object of features")
+        _read_stats(stats)
     for rel in layout.episode_files:
         try:
             names = pq.read_schema(layout.root / rel).names
@@ -130,12 +130,27 @@ def check_metadata(layout: DatasetLayout) -> None:
             raise FileFormatError(f"episodes file {rel}: no 'episode_index' column")
 
 
-def _link_or_copy(src: Path, dst: Path) -> None:
-    dst.parent.mkdir(parents=True, exist_ok=True)
+def _read_stats(path: Path) -> dict[str, Any]:
     try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copy2(src, dst)
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise FileFormatError(f"{path}: expected a JSON object of features")
+    return data
+
+
+def _carry(src: Path, dst: Path, link: bool) -> None:
+    """Hard-link (``link``, copy where the file system cannot) or copy the file ``src`` is or points to."""
+    real = Path(os.path.realpath(src))  # a relative symbolic link would break in another folder
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    if link:
+        try:
+            os.link(real, dst)
+            return
+        except OSError:
+            pass
+    shutil.copy2(real, dst)
 
 
 def _work(args: tuple[str, str, str, list[FeaturePlan]]) -> FileResult:
@@ -200,12 +215,7 @@ def write_dataset_stats(
         Warnings (statistics kept from the source because they cannot be recomputed).
     """
     warnings: list[str] = []
-    try:
-        stats = json.loads(src.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FileFormatError(f"{src}: cannot read statistics JSON ({exc})") from None
-    if not isinstance(stats, dict):
-        raise FileFormatError(f"{src}: expected a JSON object of features")
+    stats = _read_stats(src)
     for key in features:
         total = totals.get(key)
         if total is None:
@@ -257,7 +267,7 @@ def recalibrate_dataset(
         FileFormatError: A malformed dataset file (then no ``dst`` exists, or the old one is kept).
     """
     src_p, dst_p = Path(src), Path(dst)
-    if workers < 1:
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise UsageError(f"--workers {workers}: expected a positive number of processes")
     layout = read_layout(src_p)
     plans = build_plans(layout, old, new, features)
@@ -267,7 +277,7 @@ def recalibrate_dataset(
     report = DatasetReport(
         src=src_p, dst=dst_p, features=keys, joint_names={p.key: p.joint_names for p in plans}
     )
-    tmp = Path(tempfile.mkdtemp(prefix=f".{dst_p.name}.robocal-", dir=dst_p.parent))
+    tmp = make_temp_root(dst_p)
     try:
         _build(layout, tmp, plans, workers, report, on_file_done)
         publish_root(tmp, dst_p)
@@ -277,23 +287,50 @@ def recalibrate_dataset(
     return report
 
 
+def _source_files(root: Path) -> list[tuple[str, Path]]:
+    """Every file under ``root`` as (relative POSIX path, path), following symbolic links to folders.
+
+    Raises:
+        FileFormatError: A broken symbolic link (naming it).
+    """
+    out: list[tuple[str, Path]] = []
+    seen: set[str] = set()
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
+        real = os.path.realpath(dirpath)
+        if real in seen:  # a link loop
+            dirnames.clear()
+            continue
+        seen.add(real)
+        for name in filenames:
+            path = Path(dirpath) / name
+            rel = path.relative_to(root).as_posix()
+            if not path.exists():
+                raise FileFormatError(f"dataset {root}: {rel} is a broken symbolic link")
+            out.append((rel, path))
+    return sorted(out)
+
+
 def prepare_root(layout: DatasetLayout, tmp: Path) -> None:
-    """Carry every file that is not re-calibrated into ``tmp`` (videos linked) and create the data folders."""
+    """Carry every file that is not re-calibrated into ``tmp`` (videos linked) and create the data folders.
+
+    Symbolic links (to files or folders) are followed: the new root holds the files themselves.
+
+    Raises:
+        FileFormatError: A broken symbolic link or a file that cannot be read or written.
+    """
     root = layout.root
     special = set(layout.data_files) | set(layout.episode_files) | {"meta/stats.json"}
-    for path in sorted(root.rglob("*")):
-        if path.is_dir():
-            continue
-        rel = path.relative_to(root).as_posix()
-        if rel in special:
-            continue
-        if rel.startswith("videos/") or path.suffix in (".mp4", ".mkv", ".avi"):
-            _link_or_copy(path, tmp / rel)
-        else:
+    try:
+        for rel, path in _source_files(root):
+            if rel not in special:
+                _carry(path, tmp / rel, link=rel.startswith("videos/") or path.suffix in _VIDEO_SUFFIXES)
+        for rel in layout.data_files:
             (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(path, tmp / rel)
-    for rel in layout.data_files:
-        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FileFormatError(f"dataset {root}: cannot copy {exc.filename or ''} ({exc.strerror})") from None
+
+
+_VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi")
 
 
 def _build(
@@ -308,7 +345,7 @@ def _build(
     prepare_root(layout, tmp)
     jobs = [(str(root / rel), str(tmp / rel), rel, plans) for rel in layout.data_files]
     results: list[FileResult] = []
-    if workers == 1 or len(jobs) == 1:
+    if workers == 1 or len(jobs) <= 1:
         for job in jobs:
             res = _work(job)
             results.append(res)
@@ -317,18 +354,15 @@ def _build(
     else:
         with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
             futures: list[Future[FileResult]] = [pool.submit(_work, job) for job in jobs]
-            pending: set[Future[FileResult]] = set(futures)
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
-                for fut in done:
-                    exc = fut.exception()
-                    if exc is not None:
-                        for other in pending:
-                            other.cancel()
-                        raise exc
-                    res = fut.result()
+            try:
+                for fut in as_completed(futures):
+                    res = fut.result()  # a worker's exception is raised here
                     if on_file_done is not None:
                         on_file_done(res.path, res.frames)
+            except BaseException:
+                # an error or Ctrl-C: drop the queued files, wait only for the ones being written
+                pool.shutdown(wait=True, cancel_futures=True)
+                raise
             results = [f.result() for f in futures]
     finish_root(layout, tmp, plans, results, report)
 
@@ -348,10 +382,7 @@ def finish_root(
         report.frames += res.frames
         report.files += 1
         report.row_groups += res.row_groups
-        for ep, accs in res.episode_stats.items():
-            dest = episode_acc.setdefault(ep, {})
-            for key, a in accs.items():
-                dest[key] = dest[key].merge(a) if key in dest else a
+        merge_into(episode_acc, res.episode_stats)
     for plan in plans:
         total = np.zeros(len(plan.joint_names), dtype=np.int64)
         for res in results:
@@ -378,12 +409,33 @@ def finish_root(
         shutil.copystat(root, tmp)
 
 
+def make_temp_root(dst: Path, kind: str = "robocal") -> Path:
+    """Create an empty temporary folder beside ``dst`` (same file system, so the final rename is atomic)."""
+    final = Path(os.path.abspath(dst))  # "." or "out/.." have no usable name or parent otherwise
+    return Path(tempfile.mkdtemp(prefix=f".{final.name}.{kind}-", dir=final.parent))
+
+
 def publish_root(tmp: Path, dst: Path) -> None:
-    """Rename the finished ``tmp`` root to ``dst``, replacing an existing ``dst`` only now."""
-    if dst.exists():
-        old_dir = Path(tempfile.mkdtemp(prefix=f".{dst.name}.old-", dir=dst.parent))
-        os.replace(dst, old_dir / "root")
-        os.replace(tmp, dst)
+    """Rename the finished ``tmp`` root to ``dst``, replacing an existing ``dst`` only now.
+
+    Raises:
+        FileFormatError: The rename failed; an existing ``dst`` is put back.
+    """
+    final = Path(os.path.abspath(dst))
+    try:
+        if not final.exists():
+            os.replace(tmp, final)
+            return
+        old_dir = make_temp_root(final, "old")
+        os.replace(final, old_dir / "root")
+        try:
+            os.replace(tmp, final)
+        except OSError:
+            os.replace(old_dir / "root", final)
+            os.rmdir(old_dir)
+            raise
         shutil.rmtree(old_dir, ignore_errors=True)
-    else:
-        os.replace(tmp, dst)
+    except OSError as exc:
+        raise FileFormatError(
+            f"destination {dst}: cannot move the new dataset into place ({exc.strerror})"
+        ) from None

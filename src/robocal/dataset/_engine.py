@@ -20,9 +20,10 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
-from ..errors import FileFormatError, InvalidCalibrationError, ShapeMismatchError
+from ..errors import FileFormatError, InvalidCalibrationError, ShapeMismatchError, UsageError
 from ._convention import BoolArray, FloatArray, ValueConvention, check_joint_names
-from ._stats import StatAccumulator, episode_stats
+from ._layout import DEFAULT_FEATURES
+from ._stats import StatAccumulator, episode_stats, merge_into
 
 NDArrayInt = NDArray[np.int64]
 
@@ -69,6 +70,27 @@ class FeaturePlan:
         if callable(check):
             check(n)
         return cls(key=key, joint_names=names, old=o, new=n)
+
+
+def feature_convention(
+    conv: ValueConvention | Mapping[str, ValueConvention], key: str, role: str
+) -> ValueConvention:
+    """The convention for feature ``key``: ``conv`` itself, or its entry when it is a per-feature mapping.
+
+    Raises:
+        UsageError: The mapping has no entry for ``key``, or the convention is not a ``ValueConvention``.
+    """
+    if isinstance(conv, Mapping):
+        if key not in conv:
+            given = ", ".join(map(str, conv)) or "none"
+            raise UsageError(f"feature {key!r}: no {role} calibration for it (given for: {given})")
+        conv = conv[key]
+    if not isinstance(conv, ValueConvention):
+        raise UsageError(
+            f"feature {key!r}: the {role} calibration is a {type(conv).__name__}; expected a "
+            "ValueConvention (e.g. robocal.dataset.lerobot.LeRobotConvention)"
+        )
+    return conv
 
 
 def recalibrate_values(
@@ -142,7 +164,7 @@ def _unique_columns(values: FloatArray) -> tuple[FloatArray, list[NDArray[np.int
 def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatArray, pa.DataType]:
     arr = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
     typ = arr.type
-    if not pa.types.is_fixed_size_list(typ):
+    if not (pa.types.is_fixed_size_list(typ) and pa.types.is_floating(typ.value_type)):
         raise FileFormatError(f"column {key!r}: expected fixed_size_list<float>, found {typ}")
     if arr.null_count:
         raise FileFormatError(f"column {key!r}: {arr.null_count} null rows; expected a value in every frame")
@@ -203,7 +225,6 @@ def recalibrate_table_with_counts(
     return out, counts, stored
 
 
-
 def recalibrate_table(
     table: pa.Table,
     old: ValueConvention | Mapping[str, ValueConvention],
@@ -222,20 +243,28 @@ def recalibrate_table(
 
     Returns:
         A table with the same schema and the converted feature columns.
+
+    Raises:
+        UsageError: ``table`` is not a table, a calibration is not a convention or lacks a feature, or no
+            feature is given and neither default column exists.
+        JointMismatchError: A feature's joints differ from a calibration's.
+        FileFormatError: A feature column is missing, not a ``fixed_size_list<float>`` or holds NaN.
     """
+    if not isinstance(table, pa.Table):
+        raise UsageError(f"recalibrate_table: expected a pyarrow.Table, got {type(table).__name__}")
     if features is None:
         if isinstance(old, Mapping):
-            features = {k: old[k].joint_names for k in old}
+            features = {k: feature_convention(old, k, "old").joint_names for k in old}
         else:
-            keys = [k for k in ("observation.state", "action") if k in table.schema.names]
-            features = dict.fromkeys(keys, old.joint_names)
+            keys = [k for k in DEFAULT_FEATURES if k in table.schema.names]
+            if not keys:
+                raise UsageError(
+                    f"recalibrate_table: the table has none of the columns {', '.join(DEFAULT_FEATURES)}; "
+                    f"name the features (columns: {', '.join(table.schema.names) or 'none'})"
+                )
+            features = dict.fromkeys(keys, feature_convention(old, keys[0], "old").joint_names)
     plans = [
-        FeaturePlan.build(
-            k,
-            names,
-            old[k] if isinstance(old, Mapping) else old,
-            new[k] if isinstance(new, Mapping) else new,
-        )
+        FeaturePlan.build(k, names, feature_convention(old, k, "old"), feature_convention(new, k, "new"))
         for k, names in features.items()
     ]
     out, _, _ = recalibrate_table_with_counts(table, plans)
@@ -344,7 +373,9 @@ def recalibrate_file(
                 try:
                     new_table, counts, stored = recalibrate_table_with_counts(table, plans)
                 except (FileFormatError, InvalidCalibrationError) as exc:
-                    raise FileFormatError(f"data file {name}, row groups {batch[0]}-{batch[-1]}: {exc}") from None
+                    raise FileFormatError(
+                        f"data file {name}, row groups {batch[0]}-{batch[-1]}: {exc}"
+                    ) from None
                 if pending is not None:
                     pending.result()
                 pending = write_thread.submit(write, new_table, batch)
@@ -354,10 +385,14 @@ def recalibrate_file(
                     result.out_of_range[key] += c
                 if has_episode and new_table.num_rows:
                     episodes = np.asarray(new_table.column("episode_index").to_numpy(), dtype=np.int64)
-                    for ep, acc in episode_stats(episodes, stored).items():
-                        dest = result.episode_stats.setdefault(ep, {})
-                        for key, a in acc.items():
-                            dest[key] = dest[key].merge(a) if key in dest else a
+                    merge_into(result.episode_stats, episode_stats(episodes, stored, keep_edges=True))
+                    # an episode may continue in the next batch or file: keep the frames of the file's
+                    # first and of the latest episode only (exact quantiles when the parts are joined)
+                    edges = {int(episodes[-1]), next(iter(result.episode_stats))}
+                    for ep, accs in result.episode_stats.items():
+                        if ep not in edges:
+                            for key, a in accs.items():
+                                accs[key] = a.without_samples()
             if pending is not None:
                 pending.result()
     except (pa.ArrowException, OSError) as exc:

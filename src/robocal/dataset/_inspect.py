@@ -41,6 +41,8 @@ class JointSummary:
         out_of_range: Values outside the calibrated range (0 when no range is known).
         range_lo: Lower end of the calibrated range used, or ``None``.
         range_hi: Upper end of the calibrated range used, or ``None``.
+        non_finite: NaN or infinite values (left out of min, max and mean; those are NaN without any
+            finite value).
     """
 
     feature: str
@@ -52,11 +54,12 @@ class JointSummary:
     out_of_range: int
     range_lo: float | None
     range_hi: float | None
+    non_finite: int = 0
 
     @property
     def flagged(self) -> bool:
-        """Whether this joint shows a sign of a wrong calibration."""
-        return self.jumps > 0 or self.out_of_range > 0
+        """Whether this joint shows a sign of a wrong calibration (or holds NaN / infinite values)."""
+        return self.jumps > 0 or self.out_of_range > 0 or self.non_finite > 0
 
 
 @dataclass(frozen=True)
@@ -140,6 +143,7 @@ def inspect_dataset(
             "sum": np.zeros(f.size),
             "jumps": np.zeros(f.size),
             "oor": np.zeros(f.size),
+            "finite": np.zeros(f.size),
         }
         for f in feats
     }
@@ -171,9 +175,11 @@ def inspect_dataset(
                     if v.shape[0] == 0:
                         continue
                     a = acc[feat.key]
-                    a["min"] = np.minimum(a["min"], v.min(axis=0))
-                    a["max"] = np.maximum(a["max"], v.max(axis=0))
-                    a["sum"] += v.sum(axis=0)
+                    finite = np.isfinite(v)
+                    a["finite"] += finite.sum(axis=0)
+                    a["min"] = np.minimum(a["min"], np.where(finite, v, np.inf).min(axis=0))
+                    a["max"] = np.maximum(a["max"], np.where(finite, v, -np.inf).max(axis=0))
+                    a["sum"] += np.where(finite, v, 0.0).sum(axis=0)
                     jump = (np.abs(np.diff(v, axis=0)) > 0.5 * turn) & same_ep[:, None]
                     a["jumps"] += jump.sum(axis=0)
                     if lo is not None and hi is not None:
@@ -184,17 +190,19 @@ def inspect_dataset(
     for feat, lo, hi, _ in plans:
         a = acc[feat.key]
         for i, name in enumerate(feat.joint_names):
+            n_finite = int(a["finite"][i])
             out.append(
                 JointSummary(
                     feature=feat.key,
                     joint=name,
-                    min=float(a["min"][i]),
-                    max=float(a["max"][i]),
-                    mean=float(a["sum"][i] / frames) if frames else float("nan"),
+                    min=float(a["min"][i]) if n_finite else float("nan"),
+                    max=float(a["max"][i]) if n_finite else float("nan"),
+                    mean=float(a["sum"][i] / n_finite) if n_finite else float("nan"),
                     jumps=int(a["jumps"][i]),
                     out_of_range=int(a["oor"][i]),
                     range_lo=None if lo is None or not np.isfinite(lo[i]) else float(lo[i]),
                     range_hi=None if hi is None or not np.isfinite(hi[i]) else float(hi[i]),
+                    non_finite=frames - n_finite,
                 )
             )
     return InspectReport(root=layout.root, frames=frames, joints=tuple(out))

@@ -172,7 +172,8 @@ def read_layout(root: str | Path) -> DatasetLayout:
 
     Raises:
         UsageError: ``root`` is not a folder.
-        FileFormatError: ``meta/info.json`` is missing or malformed, or there are no data files.
+        FileFormatError: ``meta/info.json`` is missing or malformed, or there are no data files although
+            ``total_frames`` is not 0.
     """
     r = Path(root)
     if not r.is_dir():
@@ -192,8 +193,11 @@ def read_layout(root: str | Path) -> DatasetLayout:
             f"{info_path}: codebase_version {version!r}; only LeRobot v3 datasets are supported"
         )
     data_files = tuple(sorted(p.relative_to(r).as_posix() for p in r.glob("data/chunk-*/file-*.parquet")))
-    if not data_files:
-        raise FileFormatError(f"dataset {r}: no data/chunk-*/file-*.parquet files")
+    if not data_files and info.get("total_frames") != 0:  # an empty dataset (no episode yet) has none
+        raise FileFormatError(
+            f"dataset {r}: no data/chunk-*/file-*.parquet files "
+            f"(meta/info.json total_frames {info.get('total_frames')!r}, expected 0 for an empty dataset)"
+        )
     episode_files = tuple(
         sorted(p.relative_to(r).as_posix() for p in r.glob("meta/episodes/chunk-*/file-*.parquet"))
     )

@@ -339,25 +339,22 @@ class LegacyConvention:
     def from_actual(self, actual: FloatArray) -> tuple[FloatArray, BoolArray]:
         """Ticks ``(N, D)`` → legacy values and the mask of values where LeRobot's legacy read would raise.
 
-        Values in range come from LeRobot's ``apply_calibration``; the affine formula is used only to find
-        (and still convert) out-of-range values instead of raising.
+        The values are LeRobot's ``apply_calibration`` formula (bit for bit); out-of-range values are converted
+        too, instead of raising, and counted.
         """
         cal = self.calibration
         raw = np.asarray(actual, dtype=np.float64)
-        half = self.resolution // 2
-        signed = np.where(cal.drive_mode.astype(bool), -raw, raw)
-        deg = (signed + cal.homing_offset) / half * 180.0
-        span = (cal.end_pos - cal.start_pos).astype(np.float64)
-        if np.any(span == 0):
-            raise InvalidCalibrationError("legacy calibration: start_pos equals end_pos for a LINEAR motor")
-        pct = (raw - cal.start_pos) / span * 100.0
         linear = np.array([m == "LINEAR" for m in cal.calib_mode])
+        span = (cal.end_pos - cal.start_pos).astype(np.float64)
+        if np.any(linear & (span == 0)):
+            raise InvalidCalibrationError("legacy calibration: start_pos equals end_pos for a LINEAR motor")
+        signed = np.where(cal.drive_mode.astype(bool), -raw, raw)
+        deg = (signed + cal.homing_offset) / (self.resolution // 2) * 180.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pct = (raw - cal.start_pos) / span * 100.0
         values: FloatArray = np.where(linear, pct, deg)
         lo, hi = self._bounds()
-        mask = (values < lo) | (values > hi)
-        if not np.any(mask):
-            values = _legacy.apply_calibration(raw, cal)
-        return values, mask
+        return values, (values < lo) | (values > hi)
 
     def value_range(self) -> tuple[FloatArray, FloatArray] | None:
         """Legacy bounds: ±270° (DEGREE), −10..110 % (LINEAR)."""
@@ -382,8 +379,11 @@ def _json_kind(path: Path) -> str | None:
         return None
     if isinstance(data, dict) and "motor_names" in data:
         return "legacy"
-    if isinstance(data, dict) and data and all(isinstance(v, dict) and "range_min" in v
-                                                  for v in data.values()):
+    if (
+        isinstance(data, dict)
+        and data
+        and all(isinstance(v, dict) and "range_min" in v for v in data.values())
+    ):
         return "current"
     return None
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +23,7 @@ __all__ = [
     "episode_stats",
     "is_known_stat",
     "merge_all",
+    "merge_into",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -50,6 +51,8 @@ class StatAccumulator:
         mean: Shape ``(D,)``.
         m2: Sum of squared deviations from the mean, shape ``(D,)``.
         quantiles: Fraction → quantile values ``(D,)``; exact for one chunk, count-weighted after merges.
+        samples: The frames themselves ``(N, D)``, kept for a part of an episode that may continue in the
+            next batch or file, so that :meth:`join` gives the whole episode's exact quantiles.
     """
 
     count: int
@@ -58,6 +61,7 @@ class StatAccumulator:
     mean: FloatArray
     m2: FloatArray
     quantiles: Mapping[float, FloatArray]
+    samples: FloatArray | None = None
 
     @classmethod
     def of(cls, values: FloatArray, fractions: Iterable[float] = QUANTILES.values()) -> StatAccumulator:
@@ -74,6 +78,17 @@ class StatAccumulator:
             m2=((v - mean) ** 2).sum(axis=0),
             quantiles={f: qs[i] for i, f in enumerate(fr)},
         )
+
+    def join(self, other: StatAccumulator) -> StatAccumulator:
+        """Combine two parts of one episode: exact (samples kept) when both kept their samples, else :meth:`merge`."""
+        if self.samples is None or other.samples is None:
+            return self.merge(other)
+        samples = np.concatenate((self.samples, other.samples))
+        return replace(StatAccumulator.of(samples, self.quantiles), samples=samples)
+
+    def without_samples(self) -> StatAccumulator:
+        """The same statistics without the kept frames."""
+        return self if self.samples is None else replace(self, samples=None)
 
     def merge(self, other: StatAccumulator) -> StatAccumulator:
         """Combine with the statistics of a disjoint set of frames (Chan's parallel variance)."""
@@ -172,14 +187,18 @@ def episode_stats(
     episode_index: NDArray[np.int64],
     values: Mapping[str, FloatArray],
     fractions: Sequence[float] = tuple(QUANTILES.values()),
+    *,
+    keep_edges: bool = False,
 ) -> dict[int, dict[str, StatAccumulator]]:
     """Statistics per episode and feature.
 
     Args:
         episode_index: Shape ``(N,)``, the episode of each frame (frames of one episode may be split in
-            several runs; their statistics are merged).
+            several runs; their statistics are joined).
         values: Feature → values ``(N, D)``.
         fractions: Quantile fractions to compute.
+        keep_edges: Keep the frames of the first and the last episode run (they may continue in the
+            previous or next batch), so that joining the parts gives exact quantiles.
 
     Returns:
         Episode → feature → statistics.
@@ -193,15 +212,25 @@ def episode_stats(
     )
     lengths = np.diff(np.concatenate((starts, [n]))).astype(np.int64)
     eps = episode_index[starts]
-    per_key = {
-        key: _segment_stats(np.asarray(v), starts, lengths, fractions)
-        for key, v in values.items()
-    }
-    for i, ep in enumerate(eps.tolist()):
-        dest = out.setdefault(int(ep), {})
+    per_key = {key: _segment_stats(np.asarray(v), starts, lengths, fractions) for key, v in values.items()}
+    if keep_edges:
         for key, accs in per_key.items():
-            dest[key] = dest[key].merge(accs[i]) if key in dest else accs[i]
+            for i in {0, len(starts) - 1}:
+                seg = np.array(values[key][starts[i] : starts[i] + lengths[i]])  # a copy, not a view
+                accs[i] = replace(accs[i], samples=seg)
+    for i, ep in enumerate(eps.tolist()):
+        merge_into(out, {int(ep): {key: accs[i] for key, accs in per_key.items()}})
     return out
+
+
+def merge_into(
+    dest: dict[int, dict[str, StatAccumulator]], parts: Mapping[int, Mapping[str, StatAccumulator]]
+) -> None:
+    """Join per-episode statistics ``parts`` into ``dest`` (episode → feature → statistics), in order."""
+    for ep, accs in parts.items():
+        d = dest.setdefault(ep, {})
+        for key, a in accs.items():
+            d[key] = d[key].join(a) if key in d else a
 
 
 def merge_all(accs: Iterable[StatAccumulator]) -> StatAccumulator | None:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import pickle
 import shutil
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +32,7 @@ from ._driver import (
     check_destination,
     check_metadata,
     finish_root,
+    make_temp_root,
     prepare_root,
     publish_root,
 )
@@ -89,8 +89,8 @@ def prepare(
     plans = build_plans(layout, old, new, features)
     check_destination(src_p, dst_p, overwrite)
     check_metadata(layout)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{dst_p.name}.robocal-", dir=dst_p.parent))
-    work = Path(tempfile.mkdtemp(prefix=f".{dst_p.name}.robocal-work-", dir=dst_p.parent))
+    tmp = make_temp_root(dst_p)
+    work = make_temp_root(dst_p, "robocal-work")
     try:
         prepare_root(layout, tmp)
     except BaseException:
