@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from dataset_testutil import all_values, tree
+from dataset_testutil import HI, HOMING_A, HOMING_B, LO, RANGE_A, RANGE_B, all_values, cals, tree
 
 from robocal.cli.main import main
 from robocal.core.jointmap import RobotCalibration
@@ -15,17 +15,6 @@ from robocal.dataset.lerobot import LeRobotConvention, preset_modes
 from robocal.formats import write_calibration as write_joint_map
 from robocal.lerobot import MotorCalibration, write_calibration
 from robocal.lerobot.legacy import write_legacy
-
-HOMING_A = [100, -40, 60, 0, -120, 0]
-HOMING_B = [-150, 30, -90, 200, 50, 500]
-RANGE_A = [(900, 2950), (1000, 3000), (950, 3100), (1000, 3000), (0, 4095), (1000, 3000)]
-RANGE_B = [(1200, 3100), (1050, 2900), (1000, 3050), (800, 2750), (0, 4095), (0, 2000)]
-LO = [1100, 1100, 1100, 1100, 200, 1100]
-HI = [2800, 2800, 2800, 2700, 3900, 2400]
-
-
-def cals(homing, ranges) -> dict[str, MotorCalibration]:
-    return {n: MotorCalibration(i + 1, 0, homing[i], *ranges[i]) for i, n in enumerate(SO_ARM_JOINTS)}
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from dataset_testutil import all_values, tree
+from dataset_testutil import HI, HOMING_A, HOMING_B, LO, RANGE_A, RANGE_B, all_values, cals, tree
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -19,21 +19,6 @@ from robocal.dataset.lerobot import (
 )
 from robocal.errors import UsageError
 from robocal.lerobot import MotorCalibration, unnormalize
-
-HOMING_A = [100, -40, 60, 0, -120, 0]
-HOMING_B = [-150, 30, -90, 200, 50, 500]
-RANGE_A = [(900, 2950), (1000, 3000), (950, 3100), (1000, 3000), (0, 4095), (1000, 3000)]
-RANGE_B = [(1200, 3100), (1050, 2900), (1000, 3050), (800, 2750), (0, 4095), (0, 2000)]
-LO = [1100, 1100, 1100, 1100, 200, 1100]
-HI = [2800, 2800, 2800, 2700, 3900, 2400]
-
-
-def cals(homing: list[int], ranges: list[tuple[int, int]], drive: list[int] | None = None) -> dict:
-    drive = drive or [0] * 6
-    return {
-        n: MotorCalibration(i + 1, drive[i], homing[i], ranges[i][0], ranges[i][1])
-        for i, n in enumerate(SO_ARM_JOINTS)
-    }
 
 
 def conv(homing, ranges, *, use_degrees=True, compat="lerobot", robot="so101_follower", drive=None):

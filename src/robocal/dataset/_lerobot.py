@@ -19,7 +19,7 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -159,6 +159,14 @@ class LeRobotConvention:
     def _homing_sign(self) -> float:
         return 1.0 if self.family == "feetech" else -1.0
 
+    def _norm_options(self) -> dict[str, Any]:
+        """Keyword arguments of ``robocal.lerobot.normalize`` / ``unnormalize`` for this convention."""
+        return {
+            "apply_drive_mode": self._apply_drive_mode,
+            "compat": self.compat,
+            "resolution": self.resolution,
+        }
+
     def _homing(self) -> FloatArray:
         return np.array([c.homing_offset for c in self.calibrations], dtype=np.float64)
 
@@ -226,14 +234,7 @@ class LeRobotConvention:
         v = np.asarray(values, dtype=np.float64)
         if self.compat == "lerobot":
             v = v + self._half_tick()
-        present = unnormalize(
-            v,
-            self.calibrations,
-            self.modes,
-            apply_drive_mode=self._apply_drive_mode,
-            compat=self.compat,
-            resolution=self.resolution,
-        ).astype(np.float64)
+        present = unnormalize(v, self.calibrations, self.modes, **self._norm_options()).astype(np.float64)
         actual: FloatArray = present + self._homing_sign * self._homing()
         return actual
 
@@ -245,31 +246,13 @@ class LeRobotConvention:
         lo = np.array([c.range_min for c in self.calibrations], dtype=np.float64)
         hi = np.array([c.range_max for c in self.calibrations], dtype=np.float64)
         mask = (present < lo) | (present > hi)
-        values = normalize(
-            present,
-            self.calibrations,
-            self.modes,
-            apply_drive_mode=self._apply_drive_mode,
-            compat=self.compat,
-            resolution=self.resolution,
-        )
-        return values, mask
+        return normalize(present, self.calibrations, self.modes, **self._norm_options()), mask
 
     def value_range(self) -> tuple[FloatArray, FloatArray] | None:
         """Normalised values of ``range_min`` and ``range_max`` per joint (sorted)."""
         lo = np.array([[c.range_min for c in self.calibrations]], dtype=np.float64)
         hi = np.array([[c.range_max for c in self.calibrations]], dtype=np.float64)
-        a, b = (
-            normalize(
-                x,
-                self.calibrations,
-                self.modes,
-                apply_drive_mode=self._apply_drive_mode,
-                compat=self.compat,
-                resolution=self.resolution,
-            )[0]
-            for x in (lo, hi)
-        )
+        a, b = (normalize(x, self.calibrations, self.modes, **self._norm_options())[0] for x in (lo, hi))
         return np.minimum(a, b), np.maximum(a, b)
 
     def full_turn(self) -> FloatArray:
