@@ -254,3 +254,21 @@ def test_relative_paths_and_dot_destination(
     monkeypatch.chdir(tmp_path)
     np.testing.assert_array_equal(all_values(tmp_path / "out", "action"), all_values(src, "action"))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.yaml", "b.yaml", "out", "src"]
+
+
+
+def _dying_work(args: object) -> object:
+    os._exit(1)  # a worker killed mid-file (e.g. by the OOM killer)
+
+
+def test_dead_worker_is_one_error_not_a_traceback(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = tmp_path / "src"
+    generate_dataset(src, n_episodes=4, frames_per_episode=5, episodes_per_file=1, convention=A)
+    monkeypatch.setattr(_driver, "_work", _dying_work)
+    with pytest.raises(_driver.DatasetWorkerError, match="worker process died") as info:
+        recalibrate_dataset(src, tmp_path / "dst", A, B, workers=2)
+    assert info.value.exit_code == 3
+    assert multiprocessing.active_children() == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]

@@ -16,6 +16,7 @@ import shutil
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +25,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..errors import FileFormatError, UsageError
+from ..errors import CalibError, FileFormatError, UsageError
 from ._convention import ValueConvention
 from ._engine import FeaturePlan, FileResult, feature_convention, recalibrate_file
 from ._layout import DatasetLayout, read_layout
@@ -41,6 +42,12 @@ __all__ = [
 
 ProgressCallback = Callable[[str, int], None]
 """Called after each data file with (relative path, frames in it)."""
+
+
+class DatasetWorkerError(CalibError, RuntimeError):
+    """A worker process of the pool died (killed, out of memory); nothing was written. Exit code 3."""
+
+    exit_code = 3
 
 
 @dataclass
@@ -356,7 +363,13 @@ def _build(
             futures: list[Future[FileResult]] = [pool.submit(_work, job) for job in jobs]
             try:
                 for fut in as_completed(futures):
-                    res = fut.result()  # a worker's exception is raised here
+                    try:
+                        res = fut.result()  # a worker's exception is raised here
+                    except BrokenProcessPool:
+                        raise DatasetWorkerError(
+                            f"a worker process died while converting {root} (out of memory or killed); "
+                            "nothing was written — retry with fewer --workers"
+                        ) from None
                     if on_file_done is not None:
                         on_file_done(res.path, res.frames)
             except BaseException:
