@@ -600,7 +600,8 @@ def detect_format(path: str | os.PathLike[str]) -> str:
         )
     if fmt is None:
         raise FileFormatError(
-            f"{source}: unrecognised calibration format; pass --from ({', '.join(FORMATS)})"
+            f"{source}: unrecognised calibration format (known: {', '.join(FORMATS)}); "
+            "name it explicitly if it is one of them (robocal convert --from)"
         )
     return fmt
 
