@@ -248,7 +248,9 @@ class RobotCalibration:
     def __repr__(self) -> str:
         rows = ", ".join(
             f"{n}: d={int(d):+d} h={h:.6g} s={s:.6g}"
-            for n, d, h, s in zip(self.joint_names, self.direction, self.homing_offset, self.scale, strict=False)
+            for n, d, h, s in zip(
+                self.joint_names, self.direction, self.homing_offset, self.scale, strict=True
+            )
         )
         return f"RobotCalibration({rows})"
 

@@ -79,7 +79,7 @@ def _check_unique_ids(ids: Mapping[str, int], source: str) -> None:
 
 
 def _require_rad(cal: RobotCalibration, fmt: str) -> None:
-    bad = [n for n, s in zip(cal.joint_names, cal.scale, strict=False) if s != 1.0]
+    bad = [n for n, s in zip(cal.joint_names, cal.scale, strict=True) if s != 1.0]
     if bad:
         raise UsageError(
             f"format {fmt} stores offsets in the motor's rad frame (scale 1); joints {', '.join(bad)} have a "
@@ -150,7 +150,7 @@ def _lite_entries(cf: CalibrationFile, urdf: UrdfModel | None, fmt: str) -> dict
     _check_unique_ids(ids, f"calibration for {fmt}")
     return {
         n: {"id": ids[n], "direction": int(d), "homing_offset": float(h)}
-        for n, d, h in zip(cal.joint_names, cal.direction, cal.homing_offset, strict=False)
+        for n, d, h in zip(cal.joint_names, cal.direction, cal.homing_offset, strict=True)
     }
 
 
@@ -247,7 +247,7 @@ def _write_robocal(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_:
     ]
     from ._yaml import yaml_float
 
-    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=False):
+    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=True):
         lines.append(f"  {json.dumps(n)}:")
         if n in ids:
             lines.append(f"    id: {ids[n]}")
@@ -461,7 +461,7 @@ def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None,
         kind = _child_text(tr, "plugin", "type") or ""
         if j is not None and j.get("name") and kind.endswith(_SIMPLE):
             by_joint[j.get("name")] = tr
-    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=False):
+    for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=True):
         reduction = float(d) / float(s)
         offset = -float(h) / reduction
         tr = by_joint.get(n)
@@ -482,10 +482,8 @@ def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None,
 
 # -------------------------------------------------------------------------------------- lerobot-legacy
 def _read_lerobot_legacy(path: Path, **_: Any) -> CalibrationFile:
-    try:
-        from ..lerobot import legacy
-    except ImportError as exc:  # pragma: no cover - the module ships with robocal
-        raise UsageError(f"lerobot-legacy support is not available: {exc}") from None
+    from ..lerobot import legacy  # the public LeRobot facade (lazy: it is only needed for this format)
+
     cal = legacy.read_legacy(path)
     rc = legacy.to_robot_calibration(cal)
     return CalibrationFile(rc, MappingProxyType({}), "lerobot-legacy", str(path))
