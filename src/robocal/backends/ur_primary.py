@@ -10,7 +10,8 @@ Wire format (all big-endian):
 
 Every other message type (20 version/robot messages, 5 MODBUS_INFO, 22, 23, 24, 25, …) and sub-package
 is skipped by its length. Lengths are bounded (:data:`MAX_MESSAGE_BYTES`), so a bogus size field cannot
-allocate gigabytes, and every read is bounded by one overall deadline (default 10 s).
+allocate gigabytes, and every read is bounded by one overall deadline (default 10 s), host-name resolution
+included.
 """
 
 from __future__ import annotations
@@ -18,10 +19,11 @@ from __future__ import annotations
 import math
 import socket
 import struct
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from ..core.dh import DHParameters
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
@@ -46,6 +48,7 @@ __all__ = [
     "iter_subpackages",
     "parse_kinematics_info",
     "parse_pose_sample",
+    "resolve_host",
 ]
 
 DEFAULT_PORT = 30001
@@ -60,6 +63,7 @@ KINEMATICS_INFO_SIZE = 225
 CALIBRATION_LINEARISED = 2
 
 _T = TypeVar("_T")
+_AddrInfo = tuple[socket.AddressFamily, socket.SocketKind, int, str, Any]
 _HEADER = struct.Struct(">iB")
 _SUB_HEADER = struct.Struct(">IB")
 _KIN_BODY = struct.Struct(">6I6d6d6d6dI")
@@ -81,6 +85,49 @@ def check_connection_args(host: str, port: int, timeout_s: float) -> None:
         raise UsageError(f"--port {port}: expected 1..65535")
     if not (timeout_s > 0 and math.isfinite(timeout_s)):
         raise UsageError(f"--timeout {timeout_s}: expected a positive number of seconds")
+
+
+def resolve_host(host: str, port: int, timeout_s: float) -> list[_AddrInfo]:
+    """Resolve ``host`` for a TCP connection, waiting at most ``timeout_s`` seconds.
+
+    A numeric address is returned at once. A host name is looked up in a daemon thread, because
+    ``getaddrinfo`` has no timeout of its own (a dead DNS server can block it for much longer than
+    ``--timeout``); the thread is left to finish on its own when the deadline passes.
+
+    Raises:
+        DeviceError: The name cannot be resolved (exit code 3).
+        CalibTimeoutError: No answer within ``timeout_s`` (exit code 3).
+    """
+    try:
+        numeric: list[_AddrInfo] = list(
+            socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_NUMERICHOST)
+        )
+        return numeric
+    except (socket.gaierror, UnicodeError):
+        pass
+    where = f"UR controller {host}:{port}"
+    found: list[_AddrInfo] = []
+    failed: list[BaseException] = []
+    done = threading.Event()
+
+    def lookup() -> None:
+        try:
+            found.extend(socket.getaddrinfo(host, port, type=socket.SOCK_STREAM))
+        except BaseException as exc:  # handed to the caller
+            failed.append(exc)
+        finally:
+            done.set()
+
+    threading.Thread(target=lookup, name=f"robocal-resolve-{host}", daemon=True).start()
+    if not done.wait(timeout_s):
+        raise CalibTimeoutError(f"{where}: cannot resolve host name {host!r} within {timeout_s:g} s")
+    if failed:
+        exc = failed[0]
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise DeviceError(f"{where}: cannot resolve host name {host!r} ({reason})")
+    if not found:
+        raise DeviceError(f"{where}: cannot resolve host name {host!r} (no address)")
+    return found
 
 
 @dataclass(frozen=True)
@@ -270,16 +317,29 @@ class PrimaryClient:
             return
         check_connection_args(self.host, self.port, self.timeout_s)  # getaddrinfo would wrap port 70000
         self._deadline = time.monotonic() + self.timeout_s
-        try:
-            self._sock = socket.create_connection(
-                (self.host, self.port), timeout=self._remaining("connecting")
-            )
-        except TimeoutError:
-            raise CalibTimeoutError(
-                f"{self._where}: connection timed out after {self.timeout_s:g} s"
-            ) from None
-        except OSError as exc:
-            raise DeviceError(f"{self._where}: cannot connect ({exc.strerror or exc})") from None
+        addresses = resolve_host(self.host, self.port, self.timeout_s)
+        last: OSError | None = None
+        for family, sock_type, proto, _, address in addresses:
+            sock = socket.socket(family, sock_type, proto)
+            try:
+                sock.settimeout(self._remaining("connecting"))
+                sock.connect(address)
+            except TimeoutError:
+                sock.close()
+                raise CalibTimeoutError(
+                    f"{self._where}: connection timed out after {self.timeout_s:g} s"
+                ) from None
+            except OSError as exc:
+                sock.close()
+                last = exc
+                continue
+            except BaseException:
+                sock.close()
+                raise
+            self._sock = sock
+            return
+        reason = (last.strerror or str(last)) if last is not None else "no address"
+        raise DeviceError(f"{self._where}: cannot connect ({reason})")
 
     def close(self) -> None:
         """Close the connection (idempotent)."""

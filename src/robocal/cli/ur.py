@@ -20,10 +20,13 @@ app = typer.Typer(
     no_args_is_help=True,
 )
 
-RPY_HELP = "Angle convention: 'urdf' (correct, default) or 'upstream' (ur_calibration's Eigen angles)."
+RPY_HELP = "Angle convention (any case): 'urdf' (correct, default) or 'upstream' (ur_calibration's Eigen angles)."
 MODELS = ", ".join(UR_MODELS)
 DELTAS_HELP = "Calibration deltas (delta_theta/a/d/alpha)."
-DEFAULTS_RPY_HELP = "'upstream' (default) reproduces ur_description's files; 'urdf' = URDF angles."
+DEFAULTS_RPY_HELP = (
+    "Angle convention (any case): 'upstream' (default) writes ur_calibration's Eigen angles, as in the "
+    "checked-in default_kinematics.yaml files; 'urdf' writes URDF-convention angles."
+)
 
 
 def _print_result(result: wf.CorrectionResult, replaced: bool) -> int:
@@ -74,9 +77,12 @@ def correct(
     urdf_out: Annotated[Path | None, typer.Option("--urdf-out", help="Updated URDF to write.")] = None,
 ) -> None:
     """Correct DH parameters offline (no robot) and write ur_description's kinematics YAML."""
-    params = wf.load_dh_input(dh, model, deltas)
+    input_warnings: list[str] = []
+    params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
     replaced = out.is_file()
-    result = wf.correct(params, out, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out)
+    result = wf.correct(
+        params, out, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out, warnings=tuple(input_warnings)
+    )
     raise typer.Exit(_print_result(result, replaced))
 
 
@@ -86,17 +92,22 @@ def defaults(
     out: Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")],
     rpy: Annotated[str, typer.Option("--rpy", help=DEFAULTS_RPY_HELP)] = "upstream",
 ) -> None:
-    """Regenerate ur_description's default_kinematics.yaml for a model from URSim's nominal DH."""
+    """Regenerate ur_description's default_kinematics.yaml for a model from URSim's nominal DH.
+
+    By default the angles are written in upstream mode (ur_calibration's Eigen eulerAngles), exactly as the
+    checked-in default files; --rpy urdf writes URDF-convention angles instead (the same rotations for
+    nominal models).
+    """
     replaced = out.is_file()
     raise typer.Exit(_print_result(wf.defaults(model, out, rpy=rpy), replaced))
 
 
-def _print_reports(reports: list[wf.VerifyReport]) -> int:
+def _print_reports(reports: list[wf.VerifyReport], input_warnings: list[str] | None = None) -> int:
     table = Table(box=None)
     table.add_column("source", overflow="fold")
     for col in ("samples", "max Δp (m)", "max Δrot (rad)", "hash"):
         table.add_column(col)
-    warnings: list[str] = []
+    warnings: list[str] = list(input_warnings or ())
     for r in reports:
         hash_state = "-" if r.file_hash is None else ("match" if r.file_hash == r.dh_hash else "MISMATCH")
         kind, _, path = r.source.rpartition(" ")
@@ -134,6 +145,7 @@ def verify(
     (the DH then defaults to the controller's).
     """
     reports: list[wf.VerifyReport] = []
+    input_warnings: list[str] = []
     if host is not None:
         if file is None:
             raise UsageError("--host needs the kinematics FILE to compare")
@@ -141,9 +153,9 @@ def verify(
             wf.verify_controller(file, host, port=port, timeout_s=timeout, samples=controller_samples)
         )
     if dh is not None or model is not None or deltas is not None or host is None:
-        params = wf.load_dh_input(dh, model, deltas)
+        params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
         reports.extend(wf.verify(file, params, urdf_path=urdf, samples=samples, seed=seed))
-    raise typer.Exit(_print_reports(reports))
+    raise typer.Exit(_print_reports(reports, input_warnings))
 
 
 @app.command("plot")
@@ -154,9 +166,12 @@ def plot(
     deltas: Annotated[Path | None, typer.Option("--deltas", help="Calibration deltas.")] = None,
 ) -> None:
     """Plot the split DH model (arm links far away) next to the corrected model."""
-    params = wf.load_dh_input(dh, model, deltas)
+    input_warnings: list[str] = []
+    params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
     console.print(f"wrote {wf.plot(params, out)}")
-    raise typer.Exit(EXIT_OK)
+    for w in input_warnings:
+        print_warning(w)
+    raise typer.Exit(EXIT_WARNINGS if input_warnings else EXIT_OK)
 
 
 def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:

@@ -323,10 +323,19 @@ class UrKinematics:
         return np.array([lk.rpy_rad for lk in self.links], dtype=np.float64)
 
 
-def check_rpy_convention(rpy: str) -> None:
-    """Refuse an rpy convention other than :data:`RPY_CONVENTIONS` (``UsageError`` naming ``--rpy``)."""
-    if rpy not in RPY_CONVENTIONS:
-        raise UsageError(f"--rpy {rpy!r}: expected one of {', '.join(RPY_CONVENTIONS)}")
+def check_rpy_convention(rpy: str) -> str:
+    """Normalise an rpy convention name (any case, surrounding spaces ignored, like ``--model``).
+
+    Returns:
+        ``"urdf"`` or ``"upstream"``.
+
+    Raises:
+        UsageError: Not one of :data:`RPY_CONVENTIONS`; names ``--rpy``.
+    """
+    key = rpy.strip().lower()
+    if key not in RPY_CONVENTIONS:
+        raise UsageError(f"--rpy {rpy!r}: expected one of {', '.join(RPY_CONVENTIONS)} (any case)")
+    return key
 
 
 def _clean(v: float) -> float:
@@ -343,7 +352,7 @@ def origins_from_transforms(transforms: ArrayLike, rpy: str = "urdf") -> tuple[L
     Returns:
         The six link origins.
     """
-    check_rpy_convention(rpy)
+    rpy = check_rpy_convention(rpy)
     T = np.asarray(transforms, dtype=np.float64)
     out: list[LinkOrigin] = []
     for name, Tk in zip(LINK_NAMES, T, strict=True):
@@ -366,7 +375,7 @@ def correct_kinematics(dh: DHParameters, rpy: str = "urdf") -> UrKinematics:
     Returns:
         The kinematics file content.
     """
-    check_rpy_convention(rpy)
+    rpy = check_rpy_convention(rpy)
     links = origins_from_transforms(six_transforms(correct_chain(dh)), rpy)
     h = calib_hash(dh.theta_rad, dh.d_m, dh.a_m, dh.alpha_rad)
     return UrKinematics(links=links, hash=h, rpy_convention=rpy)

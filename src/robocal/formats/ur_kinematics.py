@@ -25,12 +25,16 @@ DH inputs:
 * a DH YAML with ``dh_theta``, ``dh_a``, ``dh_d``, ``dh_alpha`` (six numbers each, radians and metres), the
   layout ur_calibration logs;
 * a deltas file with ``delta_theta``, ``delta_a``, ``delta_d``, ``delta_alpha``, either YAML or the
-  controller's ``calibration.conf`` (``delta_theta = [ ... ]`` lines under ``[mounting]``), to be added to a
-  model's nominal DH.
+  controller's ``calibration.conf`` (``delta_theta = [ ... ]`` under ``[mounting]``, a list possibly spanning
+  several lines), to be added to a model's nominal DH.
+
+Unknown keys in a YAML input (e.g. a misspelt ``dh_alhpa``) are reported as warnings; a
+``calibration.conf``'s other entries (``joint_checksum``, ``calibration_status``, ...) are ignored.
 """
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import re
@@ -41,7 +45,7 @@ from typing import Any
 from ..core.dh import DHParameters
 from ..core.ur import JOINT_NAMES, LINK_NAMES, LinkOrigin, UrKinematics
 from ..errors import FileFormatError, JointMismatchError
-from ..fileio import atomic_write_text, read_text
+from ..fileio import atomic_write_bytes, atomic_write_text, read_text
 from ._yaml import load_yaml, yaml_float
 from .urdf import UrdfDocument, UrdfModel
 
@@ -54,6 +58,7 @@ __all__ = [
     "read_kinematics",
     "require_ur_joints",
     "update_urdf_origins",
+    "urdf_with_origins",
     "write_kinematics",
 ]
 
@@ -163,81 +168,182 @@ def _six(value: Any, where: str) -> tuple[float, ...]:
     return tuple(_number(v, f"{where}[{i}]") for i, v in enumerate(value))
 
 
-_CONF_LINE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*\[(.*)\]\s*$")
+_CONF_SECTION = re.compile(r"^\[\s*[A-Za-z_][\w .-]*\]$")
+_CONF_ASSIGN = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.*)$")
+_CONF_TOKEN = re.compile(r",|[^,\s]+")
 
 
-def _parse_conf(text: str, source: str) -> dict[str, Any]:
-    """Parse ``key = [v, v, ...]`` lines of a controller ``calibration.conf`` (other lines ignored)."""
-    out: dict[str, Any] = {}
+def _conf_code(line: str) -> str:
+    """A ``calibration.conf`` line without its comment (``# ...`` anywhere, ``;`` at the start) or spaces."""
+    code = line.split("#", 1)[0].strip()
+    return "" if code.startswith(";") else code
+
+
+def _conf_items(key: str, start_line: int, body: str, source: str) -> list[tuple[int, str]]:
+    """Split the inside of ``[ ... ]`` (possibly several lines joined by newlines) into ``(line, entry)``.
+
+    Entries are separated by commas (the controller's syntax) or whitespace; an empty entry (``1,,2``, a
+    leading or trailing comma) is refused.
+    """
+    items: list[tuple[int, str]] = []
+    after_comma = True  # a comma before the first entry is an empty entry too
+    commas = 0
+    for m in _CONF_TOKEN.finditer(body):
+        lineno = start_line + body.count("\n", 0, m.start())
+        if m.group() == ",":
+            if after_comma:
+                raise FileFormatError(f"{source} line {lineno}: {key} has an empty entry (stray comma)")
+            after_comma = True
+            commas += 1
+        else:
+            items.append((lineno, m.group()))
+            after_comma = False
+    if commas and after_comma:
+        last = start_line + body.count("\n")
+        raise FileFormatError(f"{source} line {last}: {key} ends with a comma (empty entry)")
+    return items
+
+
+def _parse_conf(text: str, source: str, keys: tuple[str, ...]) -> dict[str, Any]:
+    """Parse a controller ``calibration.conf`` (INI-like, as the controller writes it).
+
+    Understood: ``[section]`` headers (ignored), ``key = value`` lines, ``key = [v, v, ...]`` lists that may
+    span several lines until the closing ``]``, ``# comments`` (also after a value) and blank lines. Only the
+    ``keys`` asked for are converted to numbers, so other entries such as ``joint_checksum = [ 0xb3241580, ...]``
+    or ``calibration_status = 2 # ...`` do not matter.
+
+    Raises:
+        FileFormatError: A line that is none of the above, a list with no closing ``]``, text after ``]``,
+            an empty entry, a requested key given twice, or a non-number in a requested list (names the line).
+    """
+    raw: dict[str, Any] = {}
     first_line: dict[str, int] = {}
-    for lineno, line in enumerate(text.splitlines(), 1):
-        m = _CONF_LINE.match(line)
-        if not m:
+    lines = text.splitlines()
+    i = 0
+    while i < len(lines):
+        lineno = i + 1
+        code = _conf_code(lines[i])
+        i += 1
+        if not code or _CONF_SECTION.fullmatch(code):
             continue
-        if m.group(1) in first_line:
+        m = _CONF_ASSIGN.fullmatch(code)
+        if m is None:
             raise FileFormatError(
-                f"{source} line {lineno}: {m.group(1)} appears twice (first on line {first_line[m.group(1)]})"
+                f"{source} line {lineno}: expected 'key = value', 'key = [ ... ]' or a [section]; got {code!r}"
             )
-        first_line[m.group(1)] = lineno
-        items = [s for s in re.split(r"[,\s]+", m.group(2).strip()) if s]
-        values: list[Any] = []
-        for s in items:
-            try:
-                values.append(float(s))
-            except ValueError:
+        key, value = m.group(1), m.group(2)
+        if key in keys and key in first_line:
+            raise FileFormatError(f"{source} line {lineno}: {key} appears twice (first on line {first_line[key]})")
+        first_line.setdefault(key, lineno)
+        if not value.startswith("["):
+            raw[key] = value  # a scalar (e.g. calibration_status = 2); a requested key is refused by _six
+            continue
+        parts = [value[1:]]
+        while "]" not in parts[-1]:
+            if "[" in parts[-1]:
+                raise FileFormatError(f"{source} line {i}: {key} has a '[' inside its list")
+            if i >= len(lines):
                 raise FileFormatError(
-                    f"{source} line {lineno}: {m.group(1)} entry {s!r} is not a number"
-                ) from None
-        out[m.group(1)] = values
-    return out
+                    f"{source} line {lineno}: the list of {key} is not closed with ']' before the end of the file"
+                )
+            nxt = _conf_code(lines[i])
+            if _CONF_ASSIGN.fullmatch(nxt) or _CONF_SECTION.fullmatch(nxt):
+                raise FileFormatError(
+                    f"{source} line {lineno}: the list of {key} is not closed with ']' before line {i + 1}"
+                )
+            parts.append(nxt)
+            i += 1
+        body, _, rest = "\n".join(parts).partition("]")
+        if "[" in body:
+            raise FileFormatError(f"{source} line {lineno}: {key} has a '[' inside its list")
+        if rest.strip():
+            raise FileFormatError(f"{source} line {i}: unexpected {rest.strip()!r} after the list of {key}")
+        if key not in keys:
+            raw[key] = body
+            continue
+        values: list[Any] = []
+        for item_line, item in _conf_items(key, lineno, body, source):
+            try:
+                values.append(float(item))
+            except ValueError:
+                raise FileFormatError(f"{source} line {item_line}: {key} entry {item!r} is not a number") from None
+        raw[key] = values
+    return raw
 
 
-def _load_mapping(path: str | os.PathLike[str], what: str, keys: tuple[str, ...]) -> dict[str, Any]:
+def _close_key(name: str, candidates: list[str]) -> str | None:
+    match = difflib.get_close_matches(name, candidates, n=1, cutoff=0.75)
+    return match[0] if match else None
+
+
+def _load_mapping(
+    path: str | os.PathLike[str], what: str, keys: tuple[str, ...], warnings: list[str] | None
+) -> dict[str, Any]:
     text = read_text(path, what)
     source = f"{what} {path}"
     stripped = text.lstrip()
-    if stripped.startswith("[") or re.search(r"^\s*\w+\s*=\s*\[", text, re.MULTILINE):
-        data: Any = _parse_conf(text, source)
-    else:
-        data = load_yaml(text, source)
+    is_conf = stripped.startswith("[") or re.search(r"^\s*\w+\s*=\s*\[", text, re.MULTILINE) is not None
+    data: Any = _parse_conf(text, source, keys) if is_conf else load_yaml(text, source)
     if not isinstance(data, Mapping):
         raise FileFormatError(f"{source}: expected a mapping with keys {', '.join(keys)}")
+    present = [str(k) for k in data]
+    unknown = [k for k in present if k not in keys]
     missing = [k for k in keys if k not in data]
     if missing:
         hint = ""
+        typo = _close_key(missing[0], unknown)
         if "kinematics" in data:
             hint = "; this is a kinematics YAML (robocal ur correct output), not DH parameters"
         elif keys == DH_KEYS and all(k in data for k in DELTA_KEYS):
             hint = "; this is a deltas file: use --model MODEL --deltas FILE"
         elif keys == DELTA_KEYS and all(k in data for k in DH_KEYS):
             hint = "; this is a DH file: use --dh FILE"
+        elif typo is not None:
+            hint = f"; found {typo!r} instead (a typo?)"
         raise FileFormatError(f"{source}: missing key {missing[0]} (expected {', '.join(keys)}){hint}")
+    if not is_conf and warnings is not None:  # a calibration.conf has many other entries; a YAML should not
+        for k in unknown:
+            near = _close_key(k, list(keys))
+            hint = f" (did you mean {near}?)" if near is not None else ""
+            warnings.append(f"{source}: unknown key {k!r} ignored{hint}; expected only {', '.join(keys)}")
     return dict(data)
 
 
-def _read_four(path: str | os.PathLike[str], what: str, keys: tuple[str, ...]) -> DHParameters:
+def _read_four(
+    path: str | os.PathLike[str], what: str, keys: tuple[str, ...], warnings: list[str] | None
+) -> DHParameters:
     """Read four six-number lists (θ, a, d, α in ``keys`` order) from a YAML or ``.conf`` file."""
-    data = _load_mapping(path, what, keys)
+    data = _load_mapping(path, what, keys, warnings)
     th, a, d, al = (_six(data[k], f"{what} {path}: {k}") for k in keys)
     return DHParameters(theta_rad=th, a_m=a, d_m=d, alpha_rad=al)
 
 
-def read_dh(path: str | os.PathLike[str]) -> DHParameters:
+def read_dh(path: str | os.PathLike[str], *, warnings: list[str] | None = None) -> DHParameters:
     """Read a DH YAML (``dh_theta``, ``dh_a``, ``dh_d``, ``dh_alpha``; six numbers each).
 
+    Args:
+        path: The file.
+        warnings: When given, a warning naming each unknown key (e.g. a misspelt ``dh_alhpa``) is appended.
+
     Raises:
         FileFormatError: Missing key, wrong length, NaN/inf or a non-number; names the file and key.
     """
-    return _read_four(path, "DH file", DH_KEYS)
+    return _read_four(path, "DH file", DH_KEYS, warnings)
 
 
-def read_deltas(path: str | os.PathLike[str]) -> DHParameters:
+def read_deltas(path: str | os.PathLike[str], *, warnings: list[str] | None = None) -> DHParameters:
     """Read calibration deltas (``delta_theta``, ``delta_a``, ``delta_d``, ``delta_alpha``), YAML or .conf.
 
+    Args:
+        path: A YAML file or the controller's ``calibration.conf``.
+        warnings: When given, a warning naming each unknown key of a YAML file is appended (a
+            ``calibration.conf`` has many other entries, which are ignored silently).
+
     Raises:
-        FileFormatError: Missing key, wrong length, NaN/inf or a non-number; names the file and key.
+        FileFormatError: Missing key, wrong length, NaN/inf, a non-number or a malformed ``.conf`` line;
+            names the file, line and key.
     """
-    return _read_four(path, "deltas file", DELTA_KEYS)
+    return _read_four(path, "deltas file", DELTA_KEYS, warnings)
 
 
 def require_ur_joints(model: UrdfModel, source: str | os.PathLike[str]) -> None:
@@ -268,8 +374,19 @@ def update_urdf_origins(
     Returns:
         The written path.
     """
+    data = urdf_with_origins(urdf_in, kin)
+    return atomic_write_bytes(urdf_out, data)
+
+
+def urdf_with_origins(urdf_in: str | os.PathLike[str], kin: UrKinematics) -> bytes:
+    """The bytes of ``urdf_in`` with its six UR joint origins set from ``kin`` (nothing is written).
+
+    Raises:
+        FileFormatError: The URDF cannot be read or parsed.
+        JointMismatchError: One of the six UR joints is missing.
+    """
     doc = UrdfDocument.load(urdf_in)
     require_ur_joints(doc.model(), urdf_in)
     for joint, link in zip(JOINT_NAMES, kin.links, strict=True):
         doc.set_origin(joint, link.xyz_m, link.rpy_rad)
-    return doc.write(urdf_out)
+    return doc.to_bytes()

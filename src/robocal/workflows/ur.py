@@ -33,12 +33,14 @@ from ..core.ur import (
 )
 from ..core.urhash import calib_hash
 from ..errors import JointMismatchError, UsageError
+from ..fileio import atomic_write_bytes, atomic_write_text, backup_path, read_bytes
 from ..formats.ur_kinematics import (
+    kinematics_to_text,
     read_deltas,
     read_dh,
     read_kinematics,
     require_ur_joints,
-    update_urdf_origins,
+    urdf_with_origins,
     write_kinematics,
 )
 from ..formats.urdf import UrdfDocument, UrdfJoint, UrdfModel, read_urdf
@@ -127,8 +129,17 @@ def load_dh_input(
     dh_path: str | os.PathLike[str] | None,
     model: str | None,
     deltas_path: str | os.PathLike[str] | None,
+    *,
+    warnings: list[str] | None = None,
 ) -> DHParameters:
     """The DH to work on: ``--dh FILE``, or ``--model MODEL`` (+ ``--deltas FILE``) = nominal + deltas.
+
+    Args:
+        dh_path: DH YAML.
+        model: UR model for the nominal DH.
+        deltas_path: Calibration deltas (YAML or ``calibration.conf``) added to the model's nominal DH.
+        warnings: When given, warnings about the input (unknown YAML keys) are appended; the CLI turns
+            them into ``warning:`` lines and exit code 1.
 
     Raises:
         UsageError: Neither or both forms given, or ``--deltas`` without ``--model``.
@@ -137,13 +148,13 @@ def load_dh_input(
     if dh_path is not None and (model is not None or deltas_path is not None):
         raise UsageError("give either --dh FILE or --model MODEL [--deltas FILE], not both")
     if dh_path is not None:
-        return read_dh(dh_path)
+        return read_dh(dh_path, warnings=warnings)
     if model is None:
         raise UsageError("missing DH input: give --dh FILE or --model MODEL [--deltas FILE]")
     nominal = nominal_dh(model)
     if deltas_path is None:
         return nominal
-    return nominal + read_deltas(deltas_path)
+    return nominal + read_deltas(deltas_path, warnings=warnings)
 
 
 def _check_urdf_pair(
@@ -185,18 +196,54 @@ def correct(
 ) -> CorrectionResult:
     """Correct a DH set and write the kinematics YAML (and optionally the URDF origins).
 
-    Everything is validated (paths, URDF joints, finite values) before the first byte is written.
+    Everything is validated (paths, URDF joints, finite values) and both files' contents are prepared before
+    the first byte is written. With ``--urdf-in/--urdf-out`` the pair is all-or-nothing: the URDF is written
+    first, then the YAML; if the YAML cannot be written, the URDF (and its ``.bak``) are put back as they were.
     """
-    check_rpy_convention(rpy)
+    rpy = check_rpy_convention(rpy)
     out_path = check_out_path(out)
     _check_urdf_pair(urdf_in, urdf_out, out_path)
     kin = correct_kinematics(dh, rpy)
+    yaml_text = kinematics_to_text(kin)  # raises (non-finite values) before anything is written
+    if urdf_in is None or urdf_out is None:
+        return CorrectionResult(dh, kin, atomic_write_text(out_path, yaml_text), None, warnings)
     urdf_kin = kin if rpy == "urdf" else correct_kinematics(dh, "urdf")
-    written = write_kinematics(out_path, kin)
-    urdf_written = None
-    if urdf_in is not None and urdf_out is not None:
-        urdf_written = update_urdf_origins(urdf_in, urdf_out, urdf_kin)
-    return CorrectionResult(dh, kin, written, urdf_written, warnings)
+    urdf_bytes = urdf_with_origins(urdf_in, urdf_kin)
+    kinematics_to_text(urdf_kin)  # the URDF's values are finite too
+    urdf_written = _write_pair(Path(urdf_out), urdf_bytes, out_path, yaml_text)
+    return CorrectionResult(dh, kin, out_path, urdf_written, warnings)
+
+
+def _snapshot(path: Path) -> bytes | None:
+    """The current bytes of ``path`` (None when it does not exist)."""
+    if not path.exists():
+        return None
+    return read_bytes(path, "file to replace")
+
+
+def _write_pair(urdf_out: Path, urdf_bytes: bytes, out_path: Path, yaml_text: str) -> Path:
+    """Write the URDF, then the YAML; if the YAML fails, restore the URDF and its ``.bak`` and re-raise."""
+    saved = {p: _snapshot(p) for p in (urdf_out, backup_path(urdf_out))}
+    atomic_write_bytes(urdf_out, urdf_bytes)
+    try:
+        atomic_write_text(out_path, yaml_text)
+    except BaseException as exc:
+        problems: list[str] = []
+        for p, old in saved.items():
+            try:
+                if old is None:
+                    p.unlink(missing_ok=True)
+                else:
+                    atomic_write_bytes(p, old, backup=False)
+            except (OSError, UsageError) as restore_exc:
+                problems.append(f"{p}: {restore_exc}")
+        if problems and isinstance(exc, Exception):
+            raise UsageError(
+                f"{exc}; and restoring the URDF failed ({'; '.join(problems)}): "
+                f"{urdf_out} holds the new origins"
+            ) from None
+        raise
+    return urdf_out
 
 
 def extract(
@@ -213,7 +260,7 @@ def extract(
 
     Paths are checked before connecting, so a typo costs no robot time.
     """
-    check_rpy_convention(rpy)
+    rpy = check_rpy_convention(rpy)
     _check_connection(host, port, timeout_s)
     check_out_path(out)
     _check_urdf_pair(urdf_in, urdf_out, out)
@@ -227,7 +274,7 @@ def extract(
 
 def defaults(model: str, out: str | os.PathLike[str], *, rpy: str = "upstream") -> CorrectionResult:
     """Regenerate ur_description's ``default_kinematics.yaml`` for ``model`` (URSim nominal DH)."""
-    check_rpy_convention(rpy)
+    rpy = check_rpy_convention(rpy)
     out_path = check_out_path(out)
     kin = default_kinematics(model, rpy)
     return CorrectionResult(nominal_dh(model), kin, write_kinematics(out_path, kin))
@@ -502,6 +549,4 @@ def plot(dh: DHParameters, out: str | os.PathLike[str], *, title: str | None = N
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt, dpi=100)
     plt.close(fig)
-    from ..fileio import atomic_write_bytes
-
     return atomic_write_bytes(out_path, buf.getvalue())
