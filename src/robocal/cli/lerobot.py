@@ -1,4 +1,4 @@
-"""``robocal lerobot`` commands: calibrate, check, migrate, show, export-urdf (and the demo runner)."""
+"""``robocal lerobot`` commands: calibrate, configure, check, migrate, show, export-urdf (and the demo runner)."""
 
 from __future__ import annotations
 
@@ -20,13 +20,46 @@ from ..core.lerobot import ROBOTS, MotorCalibration, RobotSpec
 from ..errors import UsageError
 from . import _common
 
-app = typer.Typer(help="LeRobot arms: calibrate, check, migrate, show, export-urdf.", no_args_is_help=True)
+app = typer.Typer(
+    help="LeRobot arms: calibrate, configure, check, migrate, show, export-urdf.", no_args_is_help=True
+)
 
 ROBOT_HELP = "so101_follower | so101_leader | koch_follower | koch_leader"
 CalDir = Annotated[
     pathlib.Path | None, typer.Option("--calibration-dir", help="Calibration root (default: LeRobot's).")
 ]
 CalFile = Annotated[pathlib.Path | None, typer.Option("--file", help="Calibration JSON (instead of --id).")]
+UseDegrees = Annotated[
+    bool | None,
+    typer.Option(
+        "--use-degrees/--no-use-degrees",
+        help="LeRobot's use_degrees: joints in DEGREES or RANGE_M100_100 (gripper RANGE_0_100). "
+        "Default as LeRobot: SO arms degrees, Koch not.",
+    ),
+]
+Modes = Annotated[
+    str | None,
+    typer.Option(
+        "--modes",
+        help="Norm mode per joint, overriding the rest: name=degrees|range_m100_100|range_0_100,...",
+    ),
+]
+
+
+def _modes(spec: RobotSpec, use_degrees: bool | None, modes: str | None) -> tuple[str, ...]:
+    from ..workflows.lerobot import norm_modes
+
+    return norm_modes(spec, use_degrees=use_degrees, overrides=_common.parse_assignments(modes, "--modes"))
+
+
+def _interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") -> typer.Exit:
+    """Print the one ``error: interrupted`` line; exit 130.
+
+    The workflows re-raise Ctrl-C with the motors they could not restore as its argument; then that is shown.
+    """
+    what = f"{exc}{not_restored}" if exc.args else restored
+    _common.print_error(f"interrupted: {what}")
+    return typer.Exit(130)
 
 
 class ConsoleOperator:
@@ -186,7 +219,11 @@ def calibrate(
     if use_file:
         cals = read_calibration(path)
         with _arm_bus(spec, port) as (bus, _arm):
-            restore(bus, spec, cals)  # type: ignore[arg-type]
+            try:
+                restore(bus, spec, cals)  # type: ignore[arg-type]
+            except KeyboardInterrupt as exc:
+                raise _interrupted(exc, "the motors' previous EEPROM was written back") from None
+        _print_calibration(cals)
         _common.console.print(f"wrote {path} to the motors")
         raise typer.Exit(_common.EXIT_OK)
     update, close = _sweep_renderer()
@@ -208,10 +245,13 @@ def calibrate(
                 sweep_full_turn=sweep_full_turn,
                 on_sweep=update,
             )
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             close()
-            _common.print_error("interrupted: every motor's EEPROM was restored and no file was written")
-            raise typer.Exit(130) from None
+            raise _interrupted(
+                exc,
+                "every motor's EEPROM was restored and no file was written",
+                "; no file was written",
+            ) from None
         finally:
             close()
     _print_calibration(result.calibration)
@@ -219,6 +259,53 @@ def calibrate(
         _common.print_warning(note)
     _common.console.print(f"calibration saved to {result.path}")
     raise typer.Exit(_common.exit_code_for(result.notes))
+
+
+@app.command()
+def configure(
+    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
+    port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim'."),
+    robot_id: str | None = typer.Option(None, "--id", help="Robot id (Koch leader: gripper trigger)."),
+    calibration_dir: CalDir = None,
+    file: CalFile = None,
+    gripper_open_pos: float = typer.Option(
+        50.0, "--gripper-open-pos", min=0.0, max=100.0, help="Koch leader trigger goal, 0..100 (LeRobot: 50)."
+    ),
+) -> None:
+    """Apply LeRobot's motor presets: return delay, acceleration, PID, operating modes, gripper limits/trigger."""
+    from ..lerobot import read_calibration
+    from ..workflows.lerobot import configure as run
+
+    spec = _spec(robot)
+    warnings: list[str] = []
+    cals = None
+    if spec.name == "koch_leader":
+        if robot_id is None and file is None:
+            warnings.append(
+                "gripper trigger not set: give --id or --file (its goal is a calibrated position)"
+            )
+        else:
+            cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
+    with _arm_bus(spec, port) as (bus, arm):
+        if arm is not None and cals is not None:
+            from ..workflows.lerobot import restore
+
+            restore(bus, spec, cals)  # type: ignore[arg-type]
+        written = run(bus, spec, calibration=cals, gripper_open_pos=gripper_open_pos)  # type: ignore[arg-type]
+    t = Table(title=f"{spec.name}: registers written")
+    t.add_column("motor")
+    t.add_column("registers")
+    per_motor: dict[str, list[str]] = {}
+    for name, register, value in written:
+        per_motor.setdefault(name, []).append(f"{register}={value}")
+    for name, regs in per_motor.items():
+        t.add_row(name, ", ".join(regs))
+    _common.console.print(t)
+    if any(r == "Goal_Position" for _n, r, _v in written):
+        _common.console.print(f"gripper trigger: torque on, held at {gripper_open_pos:g} % open")
+    for w in warnings:
+        _common.print_warning(w)
+    raise typer.Exit(_common.exit_code_for(warnings))
 
 
 @app.command()
@@ -295,6 +382,8 @@ def show(
     file: CalFile = None,
     samples: int = typer.Option(1, "--samples", min=1, max=100000, help="Readings to print."),
     compat: str = typer.Option("lerobot", "--compat", help="lerobot | exact"),
+    use_degrees: UseDegrees = None,
+    modes_opt: Modes = None,
 ) -> None:
     """Print live normalised positions (LeRobot's units) of every motor."""
     from ..lerobot import normalize, read_calibration
@@ -302,12 +391,13 @@ def show(
     if compat not in ("lerobot", "exact"):
         raise UsageError(f"--compat {compat!r}: expected lerobot or exact")
     spec = _spec(robot)
+    _modes(spec, use_degrees, modes_opt)  # bad --modes is refused before any file or bus I/O
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
     missing = [n for n in spec.motor_names if n not in cals]
     if missing:
         raise UsageError(f"calibration has no entry for motor(s) {', '.join(missing)}")
     order = [cals[n] for n in spec.motor_names]
-    modes = [m.norm_mode for m in spec.motors]
+    modes = list(_modes(spec, use_degrees, modes_opt))
     ids = [m.motor_id for m in spec.motors]
     with _arm_bus(spec, port) as (bus, _arm):
         if _arm is not None:
@@ -339,6 +429,8 @@ def export_urdf(
     sign: str | None = typer.Option(None, "--sign", help="URDF sign per joint: name=-1,..."),
     offset_deg: str | None = typer.Option(None, "--offset-deg", help="URDF offset per joint: name=90,..."),
     compat: str = typer.Option("lerobot", "--compat", help="lerobot (360/4095, no drive_mode) | exact"),
+    use_degrees: UseDegrees = None,
+    modes_opt: Modes = None,
 ) -> None:
     """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints (#4442)."""
     from ..formats import write_calibration
@@ -360,8 +452,9 @@ def export_urdf(
             offsets[k] = float(v)
         except ValueError:
             raise UsageError(f"--offset-deg {k}={v}: expected a number of degrees") from None
+    modes = _modes(spec, use_degrees, modes_opt)
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
-    rc, skipped = export_joint_map(spec, cals, signs=signs, offsets_deg=offsets, compat=compat)
+    rc, skipped = export_joint_map(spec, cals, signs=signs, offsets_deg=offsets, compat=compat, modes=modes)
     ids = {n: cals[n].id for n in rc.joint_names}
     write_calibration(out, rc, "robocal", ids=ids)
     _common.console.print(f"wrote {out} ({len(rc.joint_names)} joints)")

@@ -15,7 +15,6 @@ EEPROM → range-of-motion sweep → limits in EEPROM → JSON file), with roboc
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
@@ -50,6 +49,7 @@ __all__ = [
     "configure",
     "export_joint_map",
     "legacy_to_current",
+    "norm_modes",
     "open_bus",
     "read_eeprom",
     "restore",
@@ -126,11 +126,40 @@ def read_eeprom(bus: ServoBus, spec: RobotSpec) -> dict[str, dict[str, int]]:
     return out
 
 
-def _write_eeprom(bus: ServoBus, spec: RobotSpec, values: Mapping[str, Mapping[str, int]]) -> None:
+def _rollback(bus: ServoBus, spec: RobotSpec, before: Mapping[str, Mapping[str, int]]) -> list[str]:
+    """Write a :func:`read_eeprom` snapshot back, motor by motor, as far as the bus allows.
+
+    A motor that fails (silent, error status) is skipped after its first failed write so the others are still
+    restored.
+
+    Returns:
+        ``"motor 'name' (id N)"`` for every motor that could not be restored (empty: all restored).
+    """
+    failed: list[str] = []
     for m in spec.motors:
-        for f, v in values.get(m.name, {}).items():
-            if bus.has_register(m.motor_id, f):
-                bus.write(f, m.motor_id, v)
+        try:
+            for f, v in before.get(m.name, {}).items():
+                if bus.has_register(m.motor_id, f):
+                    bus.write(f, m.motor_id, v)
+        except CalibError:
+            failed.append(f"motor {m.name!r} (id {m.motor_id})")
+    return failed
+
+
+def _reraise_after_rollback(exc: BaseException, failed: Sequence[str]) -> None:
+    """Re-raise ``exc`` with what the rollback did (one message line); other exceptions pass unchanged.
+
+    A CalibError keeps its type (so its exit code) and gains ``"; previous EEPROM written back"`` or the motors
+    that could not be restored; a KeyboardInterrupt gains those motors as its argument.
+    """
+    if failed:
+        note = f"could not write the previous EEPROM back to {', '.join(failed)}"
+        if isinstance(exc, KeyboardInterrupt):
+            raise KeyboardInterrupt(note) from None
+    else:
+        note = "previous EEPROM values written back"
+    if isinstance(exc, CalibError):
+        raise type(exc)(f"{exc}; {note}") from exc
 
 
 def _disable_torque(bus: ServoBus, spec: RobotSpec) -> None:
@@ -159,36 +188,116 @@ def clear_phase_bit4(bus: ServoBus, spec: RobotSpec) -> list[int]:
     return written
 
 
-def configure(bus: ServoBus, spec: RobotSpec) -> None:
-    """LeRobot's ``configure()`` presets (torque stays off).
+def configure(
+    bus: ServoBus,
+    spec: RobotSpec,
+    *,
+    calibration: Mapping[str, MotorCalibration] | None = None,
+    gripper_open_pos: float = 50.0,
+) -> list[tuple[str, str, int]]:
+    """LeRobot's ``configure()`` presets (torque stays off, except the Koch leader's gripper trigger).
 
-    Feetech: Return_Delay_Time 0, Maximum_Acceleration and Acceleration 254, Phase bit 4 cleared on sts3215,
-    Operating_Mode 0, P/I/D 16/0/32, gripper Max_Torque_Limit 500, Protection_Current 250, Overload_Torque 25.
-    Dynamixel (Koch): Return_Delay_Time 0, extended position (4) except the gripper current-based position (5).
+    Every arm: torque off (Feetech also Lock 0), Return_Delay_Time 0. Feetech (SO): Maximum_Acceleration and
+    Acceleration 254, Phase bit 4 cleared on sts3215, Operating_Mode 0; the follower also P/I/D 16/0/32 and
+    gripper Max_Torque_Limit 500, Protection_Current 250, Overload_Torque 25. Dynamixel (Koch): extended position
+    (4) except the gripper current-based position (5); the follower's elbow_flex Position P/I/D 1500/0/600.
+
+    Koch leader gripper trigger (LeRobot's order): with ``calibration`` given, the gripper's torque is enabled
+    and ``Goal_Position = gripper_open_pos`` written (RANGE_0_100, unnormalised like LeRobot), so the gripper
+    springs back open when squeezed. LeRobot also enables the torque without a calibration (holding whatever
+    goal the motor has); robocal then skips the trigger. LeRobot's followers re-enable torque afterwards;
+    robocal leaves it off.
+
+    Returns:
+        ``(motor, register, value)`` for every register written, in order (Phase only where changed).
     """
-    _disable_torque(bus, spec)
+    written: list[tuple[str, str, int]] = []
+
+    def put(name: str, motor_id: int, register: str, value: int) -> None:
+        bus.write(register, motor_id, value)
+        written.append((name, register, value))
+
+    for m in spec.motors:  # torque off first (EEPROM writes)
+        put(m.name, m.motor_id, "Torque_Enable", 0)
+        if bus.has_register(m.motor_id, "Lock"):
+            put(m.name, m.motor_id, "Lock", 0)
     for m in spec.motors:
-        bus.write("Return_Delay_Time", m.motor_id, 0)
+        put(m.name, m.motor_id, "Return_Delay_Time", 0)
+    follower = spec.kind == "robots"
     if spec.vendor == "feetech":
-        clear_phase_bit4(bus, spec)
+        by_id = {m.motor_id: m.name for m in spec.motors}
+        for i in clear_phase_bit4(bus, spec):
+            written.append((by_id[i], "Phase", bus.read("Phase", i)))
         for m in spec.motors:
-            i = m.motor_id
-            for reg, value in (
-                ("Maximum_Acceleration", 254),
-                ("Acceleration", 254),
-                ("Operating_Mode", 0),
-                ("P_Coefficient", 16),
-                ("I_Coefficient", 0),
-                ("D_Coefficient", 32),
-            ):
-                bus.write(reg, i, value)
-            if m.name == "gripper":
-                bus.write("Max_Torque_Limit", i, 500)
-                bus.write("Protection_Current", i, 250)
-                bus.write("Overload_Torque", i, 25)
-    else:
-        for m in spec.motors:
-            bus.write("Operating_Mode", m.motor_id, 5 if m.name == "gripper" else 4)
+            presets = [("Maximum_Acceleration", 254), ("Acceleration", 254), ("Operating_Mode", 0)]
+            if follower:
+                presets += [("P_Coefficient", 16), ("I_Coefficient", 0), ("D_Coefficient", 32)]
+                if m.name == "gripper":
+                    presets += [
+                        ("Max_Torque_Limit", 500),
+                        ("Protection_Current", 250),
+                        ("Overload_Torque", 25),
+                    ]
+            for reg, value in presets:
+                put(m.name, m.motor_id, reg, value)
+        return written
+    for m in spec.motors:
+        put(m.name, m.motor_id, "Operating_Mode", 5 if m.name == "gripper" else 4)
+    if follower:
+        elbow = next(m for m in spec.motors if m.name == "elbow_flex")
+        for reg, value in (("Position_P_Gain", 1500), ("Position_I_Gain", 0), ("Position_D_Gain", 600)):
+            put(elbow.name, elbow.motor_id, reg, value)
+    elif calibration is not None:
+        gripper = next(m for m in spec.motors if m.name == "gripper")
+        if gripper.name not in calibration:
+            raise InvalidCalibrationError("calibration has no entry for motor 'gripper'")
+        from ..lerobot import unnormalize
+
+        goal = int(
+            unnormalize(
+                float(gripper_open_pos), calibration[gripper.name], "range_0_100", apply_drive_mode=False
+            )
+        )
+        put(gripper.name, gripper.motor_id, "Torque_Enable", 1)
+        put(gripper.name, gripper.motor_id, "Goal_Position", goal)
+    return written
+
+
+def norm_modes(
+    spec: RobotSpec, *, use_degrees: bool | None = None, overrides: Mapping[str, str] | None = None
+) -> tuple[str, ...]:
+    """LeRobot's norm mode per motor (bus order) for a ``use_degrees`` setting, with per-joint overrides.
+
+    ``use_degrees=None`` keeps LeRobot's default for the robot (SO arms DEGREES since v0.4.4, Koch
+    RANGE_M100_100). True: every motor but the gripper in DEGREES; False: RANGE_M100_100. The gripper stays
+    RANGE_0_100 (LeRobot refuses DEGREES there). ``overrides`` (motor → mode) win over all of that.
+
+    Raises:
+        UsageError: An override names an unknown motor or mode.
+    """
+    from ..lerobot import NormMode
+
+    valid = {v.value for v in NormMode}
+    over = dict(overrides or {})
+    unknown = sorted(set(over) - set(spec.motor_names))
+    if unknown:
+        raise UsageError(
+            f"--modes: unknown motor(s) {', '.join(unknown)} on a {spec.name}; valid: {', '.join(spec.motor_names)}"
+        )
+    out = []
+    for m in spec.motors:
+        if m.name in over:
+            mode = over[m.name].strip().lower()
+            if mode not in valid:
+                raise UsageError(
+                    f"--modes {m.name}={over[m.name]}: expected one of {', '.join(sorted(valid))}"
+                )
+        elif use_degrees is None or m.name == "gripper":
+            mode = m.norm_mode
+        else:
+            mode = "degrees" if use_degrees else "range_m100_100"
+        out.append(mode)
+    return tuple(out)
 
 
 def _normalise_feetech_offset(offset: int, lo: int, hi: int, res: int) -> tuple[int, int, int]:
@@ -325,11 +434,10 @@ def calibrate(
                 dm = 1 if (spec.vendor == "dynamixel" and m.name in spec.inverted) else 0
                 cals[m.name] = MotorCalibration(m.motor_id, dm, offsets[m.name], 0, res[m.name] - 1)
         ordered = {n: cals[n] for n in names}
-        restore(bus, spec, ordered)
+        _write_plan(bus, spec, _restore_plan(bus, spec, ordered))
         written = write_current(path, ordered) if path is not None else None
-    except BaseException:
-        with contextlib.suppress(CalibError):
-            _write_eeprom(bus, spec, before)
+    except BaseException as exc:
+        _reraise_after_rollback(exc, _rollback(bus, spec, before))
         raise
     return CalibrationResult(ordered, written, tuple(notes), naive)
 
@@ -384,12 +492,10 @@ def calibrate_legacy(
     return cal
 
 
-def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> None:
-    """Write a calibration to the motors: Homing_Offset, limits and (Dynamixel) Drive_Mode.
-
-    LeRobot's Dynamixel ``write_calibration`` omits Drive_Mode, so a restored Koch leader stayed uncalibrated;
-    robocal writes it. Torque is disabled first (EEPROM writes).
-    """
+def _restore_plan(
+    bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]
+) -> list[tuple[str, str, int, int]]:
+    """(motor, register, id, value) writes of a calibration, each checked to fit its register (no bus I/O)."""
     missing = [m.name for m in spec.motors if m.name not in cals]
     if missing:
         raise InvalidCalibrationError(f"calibration has no entry for motor(s) {', '.join(missing)}")
@@ -407,9 +513,37 @@ def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]
             bus.check_write(register, motor_id, value)
         except CalibError as exc:
             raise type(exc)(f"motor {name!r}: {register}: {exc}") from None
+    return plan
+
+
+def _write_plan(bus: ServoBus, spec: RobotSpec, plan: Sequence[tuple[str, str, int, int]]) -> None:
     _disable_torque(bus, spec)
     for _name, register, motor_id, value in plan:
         bus.write(register, motor_id, value)
+
+
+def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> None:
+    """Write a calibration to the motors, all or nothing: Homing_Offset, limits and (Dynamixel) Drive_Mode.
+
+    Every value is checked to fit its register before anything is sent; then the registers about to be written
+    are read (the snapshot), torque is disabled (EEPROM writes) and the calibration is written. On a device
+    error or Ctrl-C midway the snapshot is written back to every motor that still answers, so the motors are
+    left as they were (torque stays off); the error then says so, or names the motors that could not be
+    restored. LeRobot's Dynamixel ``write_calibration`` omits Drive_Mode, so a restored Koch leader stayed
+    uncalibrated; robocal writes it.
+
+    Raises:
+        InvalidCalibrationError: A motor is missing from ``cals`` or a value does not fit (nothing sent).
+        DeviceError: Bus failure (snapshot written back; the message says what was restored).
+        KeyboardInterrupt: Re-raised after the snapshot was written back (argument: motors not restored).
+    """
+    plan = _restore_plan(bus, spec, cals)
+    before = read_eeprom(bus, spec)
+    try:
+        _write_plan(bus, spec, plan)
+    except BaseException as exc:
+        _reraise_after_rollback(exc, _rollback(bus, spec, before))
+        raise
 
 
 @dataclass(frozen=True)
@@ -529,6 +663,7 @@ def export_joint_map(
     signs: Mapping[str, int] | None = None,
     offsets_deg: Mapping[str, float] | None = None,
     compat: str = "lerobot",
+    modes: Sequence[str] | None = None,
 ) -> tuple[RobotCalibration, list[str]]:
     """Exact canonical joint map ``q_urdf = sign·q_lerobot + offset`` of the DEGREES joints (#4442).
 
@@ -536,6 +671,8 @@ def export_joint_map(
     (``"exact"``), ``mid = (range_min + range_max)/2``. Canonical form ``q_rad = d·k·(present − h)`` with
     ``d = sign·(−1 if exact and drive_mode else 1)``, ``k = 2π/4095`` (or ``2π/4096``) rad/tick and
     ``h = mid − offset_rad/(d·k)``. ``present`` is the Present_Position register (EEPROM homing applied).
+
+    ``modes`` is the norm mode per motor in bus order (default: the robot's, see :func:`norm_modes`).
 
     Returns:
         The joint map (radians) of the DEGREES motors and the names of the skipped (range-mode) motors.
@@ -548,11 +685,12 @@ def export_joint_map(
     for name, value in signs.items():
         if value not in (-1, 1):
             raise UsageError(f"--sign {name}={value}: expected -1 or 1")
+    mode_of = dict(zip(spec.motor_names, modes if modes is not None else norm_modes(spec), strict=True))
     names, dirs, homes, scales, skipped = [], [], [], [], []
     for m in spec.motors:
         if m.name not in cals:
             raise InvalidCalibrationError(f"calibration has no entry for motor {m.name!r}")
-        if m.norm_mode != "degrees":
+        if mode_of[m.name] != "degrees":
             skipped.append(m.name)
             continue
         c = cals[m.name]
