@@ -286,3 +286,126 @@ def test_live_view_table_and_plain_lines(urdf: Path, tmp_path: Path, h: Any) -> 
     Console(file=table_buf, width=160).print(view.table(session))
     text = table_buf.getvalue()
     assert "left_elbow_pitch" in text and "100%" in text and "not_swept" in text
+
+
+class _StillSource:
+    """A 1 kHz source (source clock 1 ms per read) whose joint 0 starts moving + at ``move_at_s``."""
+
+    frame = "identity"
+    exhausted = False
+
+    def __init__(self, move_at_s: float) -> None:
+        self.joint_names = ("j",)
+        self.move_at_s = move_at_s
+        self.reads = 0
+
+    def read(self) -> Any:
+        from robocal.backends.sources import Sample
+
+        t = self.reads * 1e-3
+        self.reads += 1
+        return Sample(t, np.array([0.2 + max(0.0, t - self.move_at_s)]))
+
+    def prompt_positive(self, joint: str) -> None:
+        pass
+
+
+def test_direction_check_waits_by_time_not_samples() -> None:
+    from robocal.backends.sources import JointSpec
+    from robocal.workflows.sweep import run_direction_check
+
+    j = [JointSpec("j", 1, "rs-00", 1, -1.0, 1.0)]
+    # a person who starts moving 2.5 s after the prompt on a 1 kHz bus (2,500 samples) is still seen
+    late = _StillSource(move_at_s=2.5)
+    results: list[tuple[str, int]] = []
+    assert run_direction_check(late, j, step_s=5.0, on_result=lambda n, v: results.append((n, v))) == {"j": 1}
+    assert results == [("j", 1)] and late.reads > 2000
+    # a joint that never moves: the wait ends after step_s of source time, verdict 0 (not verified)
+    still = _StillSource(move_at_s=1e9)
+    assert run_direction_check(still, j, step_s=3.0) == {"j": 0}
+    assert still.reads == 3002  # the start sample, 3 s at 1 kHz, and the first sample past the budget
+
+
+class _Deaf:
+    """Wraps a sim source; the simulated operator ignores the direction-check prompt for ``joint``."""
+
+    def __init__(self, inner: Any, joint: str) -> None:
+        self.inner, self.joint = inner, joint
+        self.joint_names, self.frame = inner.joint_names, inner.frame
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+    @property
+    def exhausted(self) -> bool:
+        return bool(self.inner.exhausted)
+
+    def prompt_positive(self, joint: str) -> None:
+        if joint != self.joint:
+            self.inner.prompt_positive(joint)
+
+
+def test_direction_unknown_is_reported_when_a_joint_does_not_move(
+    urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.backends.sim.lite import SimLite
+    from robocal.workflows import sweep as wf
+
+    base = h.sim_opener(SimLite(45, noise_rad=0.0))
+    monkeypatch.setattr(wf, "open_source", lambda *a, **k: _Deaf(base(*a, **k), ELBOW))
+    out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
+    args = ["--urdf", str(urdf), "--source", "sim:lite", "--out", str(out), "--report", str(rep)]
+    rc = main(["sweep", *args, "--direction-check", "--direction-time", "0.5"])
+    joints = json.loads(rep.read_text())["joints"]
+    assert joints[ELBOW]["warnings"] == ["direction_unknown"]
+    others = [set(v["warnings"]) for k, v in joints.items() if k != ELBOW]
+    assert all(not {"direction_unknown", "direction_flipped"} & w for w in others)  # the others moved right
+    assert rc == 1 and out.exists()
+    err = capsys.readouterr().err
+    assert f"direction check: {ELBOW} did not move; its direction was NOT verified (direction_unknown)" in err
+    assert f"warning: {ELBOW}: direction_unknown (did not move during the direction check; " in err
+    # without --direction-check nothing claims a verified or unverified direction
+    main(["sweep", *args])
+    assert json.loads(rep.read_text())["joints"][ELBOW]["warnings"] == []
+
+
+def test_direction_time_must_be_positive(
+    urdf: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "c.yaml"
+    args = ["sweep", "--urdf", str(urdf), "--source", "sim:lite", "--out", str(out), "--direction-time", "0"]
+    assert main(args) == 2 and not out.exists()
+    assert "error: --direction-time 0.0: expected a finite number of seconds > 0" in capsys.readouterr().err
+
+
+def test_cli_second_ctrl_c_after_the_report_names_it(
+    urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.backends.sim.lite import SimLite
+    from robocal.workflows import sweep as wf
+
+    out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
+    monkeypatch.setattr(wf, "open_source", h.sim_opener(SimLite(46, noise_rad=0.0)))
+    monkeypatch.setattr(wf, "write_calibration", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    rc = main(["sweep", "--urdf", str(urdf), "--source", "sim:lite", "--out", str(out), "--report", str(rep)])
+    err = capsys.readouterr().err
+    assert rc == 130 and not out.exists() and rep.exists()
+    assert [ln for ln in err.splitlines() if ln.startswith("error:")] == [
+        f"error: sweep aborted by a second Ctrl-C after writing {rep} (complete); {out} not written (unchanged)"
+    ]
+
+
+def test_cli_notes_skipped_nan_samples(
+    urdf: Path, tmp_path: Path, h: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = tmp_path / "sweep.csv"
+    samples = elbow(-3.356, -1.0)
+    samples[[7, 50, 120]] = np.nan
+    csv_sweep(rec, h.names, h.dirs, {ELBOW: samples})
+    out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
+    args = ["--source", f"replay:{rec}", "--out", str(out), "--report", str(rep)]
+    main(["sweep", "--urdf", str(urdf), *args])
+    assert json.loads(rep.read_text())["joints"][ELBOW]["warnings"] == []  # a skipped NaN is not a warning
+    assert read_calibration(out).calibration.homing_offset[3] == pytest.approx(1.0, abs=1e-9)
+    err = capsys.readouterr().err
+    assert f"note: {ELBOW}: 3 of 200 samples had no position (NaN) and were skipped" in err

@@ -32,6 +32,7 @@ def test_codes_are_stable() -> None:
         "offset_large",
         "wrap_in_travel",
         "direction_flipped",
+        "direction_unknown",  # appended: the codes keep their strings and order
     )
 
 

@@ -140,3 +140,37 @@ def test_enable_disable_and_close_stops_enabled_motors(urdf: Path, tmp_path: Pat
         assert {m.mode for m in sim.motors.values()} == {0}
         robot.enable()
     assert {m.mode for m in sim.motors.values()} == {0}  # close() stopped what it had enabled
+
+
+def test_read_follows_the_four_pi_feedback_wrap(urdf: Path, tmp_path: Path) -> None:
+    # a joint turned far past ±4π of raw travel (a continuous joint, stops removed in the simulator): the
+    # type-2 position loops within ±4π, and the runtime robot must keep the joint position continuous
+    sim = SimLite(25, noise_rad=0.0)
+    name = "left_shoulder_yaw"  # direction +1
+    motor = sim.motors[name]
+    motor.stop_lower_rad, motor.stop_upper_rad = -40.0, 40.0
+    truth = sim.true_offsets()
+    cal_path = tmp_path / "cal.yaml"
+    cal_path.write_text(
+        "".join(
+            f"{j.name}:\n  id: {j.can_id}\n  direction: {j.direction}\n  homing_offset: {truth[j.name]!r}\n"
+            for j in sim.joints
+        )
+    )
+    with _robot(urdf, cal_path, sim) as robot:
+        i = robot.joint_names.index(name)
+        path = [*np.arange(0.0, 30.0, 0.5), *np.arange(30.0, -30.0, -0.5), -30.0]  # past +4π twice, then −4π
+        seen = []
+        for q in path:
+            motor.set_position(float(q))
+            state = robot.read()
+            seen.append(state.position_rad[i])
+            assert state.position_rad[i] == pytest.approx(q, abs=1e-3), q
+            assert abs(motor.reading_rad(noisy=False)) <= 4 * math.pi  # the motor itself did wrap
+        assert np.max(np.abs(np.diff(seen))) == pytest.approx(0.5, abs=1e-3)  # no 8π jump anywhere
+        wraps = robot.wrap_shift_rad[i] / (8 * math.pi)
+        assert wraps == round(wraps) and wraps != 0  # whole 8π loops only
+        # a write at the current joint position targets the motor's own (wrapped) reading: it holds still
+        robot.write(state.position_rad, kp=20.0, kd=1.0)
+        assert motor.last_command is not None
+        assert motor.last_command[0] == pytest.approx(motor.reading_rad(noisy=False), abs=1e-3)  # 2 LSB

@@ -209,3 +209,93 @@ def test_report_json_exact_shape(urdf: Path, tmp_path: Path, h: Any) -> None:
         "homing_offset": 0.125,
     }
     assert outcome.exit_code == 1
+
+
+def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
+    urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the report is written first, the calibration last; a Ctrl-C between the two names the report as written
+    # and the calibration as unchanged
+    from robocal.workflows import sweep as wf
+
+    out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
+    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(SimLite(41, noise_rad=0.0)))
+    old = out.read_bytes()
+
+    def interrupted_before(*a: Any, **k: Any) -> None:
+        assert rep.exists()  # the report is already complete when the calibration is written
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(wf, "write_calibration", interrupted_before)
+    with pytest.raises(SweepAbortedError) as exc:
+        run_sweep(urdf, "sim:lite", out, report=rep, open_source_fn=h.sim_opener(SimLite(42, noise_rad=0.0)))
+    assert str(exc.value) == (
+        f"sweep aborted by a second Ctrl-C after writing {rep} (complete); {out} not written (unchanged)"
+    )
+    assert out.read_bytes() == old and list(json.loads(rep.read_text())) == ["joints"]
+
+
+def test_second_ctrl_c_after_the_calibration_was_written_says_so(
+    urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from robocal.workflows import sweep as wf
+
+    real = wf.write_calibration
+    out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
+
+    def interrupted_after(*a: Any, **k: Any) -> None:
+        real(*a, **k)
+        raise KeyboardInterrupt  # lands after the rename, before run_sweep returns
+
+    monkeypatch.setattr(wf, "write_calibration", interrupted_after)
+    with pytest.raises(SweepAbortedError) as exc:
+        run_sweep(urdf, "sim:lite", out, report=rep, open_source_fn=h.sim_opener(SimLite(43, noise_rad=0.0)))
+    assert str(exc.value) == f"sweep aborted by a second Ctrl-C after writing {out} and {rep} (complete)"
+    assert read_calibration(out).calibration.joint_names == tuple(h.names)
+    # without a report, an interrupt before the calibration is written leaves nothing
+    monkeypatch.setattr(wf, "write_calibration", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    out2 = tmp_path / "other.yaml"
+    with pytest.raises(SweepAbortedError, match=r"^sweep aborted by a second Ctrl-C; nothing was written$"):
+        run_sweep(urdf, "sim:lite", out2, open_source_fn=h.sim_opener(SimLite(44, noise_rad=0.0)))
+    assert not out2.exists()
+
+
+def test_nan_positions_are_skipped_alike_in_csv_and_rosbag(urdf: Path, tmp_path: Path, h: Any) -> None:
+    # NaN = no reading of that joint in that sample (legal in a JointState): both replays skip and count it
+    sim = SimLite(17, noise_rad=0.0)
+    opener, made = h.recording_opener(sim)
+    live = run_sweep(urdf, "sim:lite", tmp_path / "live.yaml", open_source_fn=opener)
+    rec = made[0]
+    t = np.array([s.t_s for s in rec.samples])
+    d = np.array([h.dirs[n] for n in h.names], dtype=float)
+    ident = np.vstack([s.position_rad for s in rec.samples]) * d
+    el = h.names.index("left_elbow_pitch")
+    rows = np.arange(10, len(t), 37)  # interior samples, away from the dwell at the stops
+    ident[rows, el] = np.nan
+    ident[5, 0] = np.nan
+    _write_csv(tmp_path / "nan.csv", h.names, t, ident)
+    assert ",nan," in (tmp_path / "nan.csv").read_text()
+    _write_bag(tmp_path / "nan_bag", h.names, t, ident, "mcap", "/lite/joint_states")
+    want = {"left_shoulder_pitch": 1, "left_elbow_pitch": len(rows)}
+    for i, src in enumerate((tmp_path / "nan.csv", tmp_path / "nan_bag")):
+        res = run_sweep(urdf, f"replay:{src}", tmp_path / f"n{i}.yaml")
+        assert dict(res.missing_samples) == want, src
+        assert res.samples == len(t)
+        for name, off in live.result.offsets().items():
+            assert res.result[name].homing_offset == pytest.approx(off, abs=1e-9), (src, name)
+    assert live.missing_samples == {}
+
+
+def test_infinite_positions_are_refused_alike_in_csv_and_rosbag(urdf: Path, tmp_path: Path, h: Any) -> None:
+    from robocal.errors import FileFormatError
+
+    t = np.array([0.0, 0.01])
+    s = np.zeros((2, len(h.names)))
+    s[1, 3] = np.inf
+    _write_csv(tmp_path / "inf.csv", h.names, t, s)
+    _write_bag(tmp_path / "inf_bag", h.names, t, s, "sqlite3", "/lite/joint_states")
+    with pytest.raises(FileFormatError, match=r"line 3: left_elbow_pitch is not finite"):
+        run_sweep(urdf, f"replay:{tmp_path / 'inf.csv'}", tmp_path / "a.yaml")
+    with pytest.raises(FileFormatError, match=r"joint left_elbow_pitch is inf at t = 1\.01.* not finite"):
+        run_sweep(urdf, f"replay:{tmp_path / 'inf_bag'}", tmp_path / "b.yaml")
+    assert not (tmp_path / "a.yaml").exists() and not (tmp_path / "b.yaml").exists()

@@ -6,6 +6,11 @@ joints robocal does not know are ignored; a known joint without a column has no 
 rosbag2: a bag folder (with ``metadata.yaml``) or a single ``.db3`` / ``.mcap`` file, read with the
 ``rosbags`` library; ``sensor_msgs/msg/JointState`` messages on ``topic`` are matched to joints by name.
 The time stamp is the message header's.
+
+Missing positions, the same for both: a NaN position (legal in a ROS ``JointState``; written as ``nan`` in a
+CSV) means "no reading of this joint in this sample" and is kept as NaN, so the sweep skips that joint's sample
+and counts it; a joint absent from a message or without a CSV column is NaN too. An infinite position is never
+a reading and is refused (``FileFormatError`` naming the line or time stamp), in both formats.
 """
 
 from __future__ import annotations
@@ -51,7 +56,8 @@ def read_csv_recording(path: Path, joint_names: Sequence[str]) -> tuple[FloatArr
         ``(t (T,), positions (T, N))``; missing joints are NaN columns.
 
     Raises:
-        FileFormatError: No ``t`` column, a non-numeric or non-finite cell, a short row, no rows.
+        FileFormatError: No ``t`` column, a non-numeric cell, a non-finite time, an infinite position, a short
+            row, no rows. A NaN position (``nan``) is kept as NaN: no reading of that joint in that row.
         JointMismatchError: None of the joints has a column.
     """
     text = read_text(path, "recording")
@@ -80,9 +86,12 @@ def read_csv_recording(path: Path, joint_names: Sequence[str]) -> tuple[FloatArr
             values = [float(c) for c in row]
         except ValueError:
             raise FileFormatError(f"recording {path}: line {r + 2}: a cell is not a number") from None
-        bad = [header[i] for i, v in enumerate(values) if not math.isfinite(v)]
+        bad = [header[i] for i, v in enumerate(values) if math.isinf(v) or (i == 0 and math.isnan(v))]
         if bad:
-            raise FileFormatError(f"recording {path}: line {r + 2}: {bad[0]} is not finite")
+            raise FileFormatError(
+                f"recording {path}: line {r + 2}: {bad[0]} is not finite "
+                "(a missing position may be nan; infinity is never one)"
+            )
         big = [header[c] for c in cols if c >= 0 and abs(values[c]) > MAX_ABS_POSITION_RAD]
         if big:
             raise FileFormatError(
@@ -104,10 +113,11 @@ def read_rosbag_recording(
     """Read ``sensor_msgs/msg/JointState`` messages on ``topic`` from a rosbag2 (sqlite3 or mcap).
 
     Returns:
-        ``(t (T,), positions (T, N))``; a joint absent from a message is NaN in that row.
+        ``(t (T,), positions (T, N))``; a joint absent from a message, or published as NaN, is NaN in that row.
 
     Raises:
-        FileFormatError: Not a readable bag, or no such topic (the message lists the topics).
+        FileFormatError: Not a readable bag, no such topic (the message lists the topics), an infinite or
+            too large position.
         JointMismatchError: No message names any of the joints.
     """
     require("rosbags", "reading rosbag2 recordings")
@@ -138,7 +148,12 @@ def read_rosbag_recording(
                 for name, p in zip(msg.name, msg.position, strict=False):
                     seen.add(name)
                     i = index.get(name)
-                    if i is not None and math.isfinite(p):
+                    if i is not None and not math.isnan(p):
+                        if math.isinf(p):
+                            raise FileFormatError(
+                                f"recording {path}: joint {name} is {p:g} at t = {stamp_ns * 1e-9:.9f} s; "
+                                "not finite (a missing position may be NaN; infinity is never one)"
+                            )
                         if abs(p) > MAX_ABS_POSITION_RAD:
                             raise FileFormatError(
                                 f"recording {path}: joint {name} is {p:g} rad at t = {stamp_ns * 1e-9:.9f} s; "

@@ -18,10 +18,15 @@ from rich.live import Live
 from rich.table import Table
 
 from ..core.sweep import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
-from ..workflows.sweep import SweepSession, run_sweep
+from ..workflows.sweep import DEFAULT_DIRECTION_STEP_S, SweepSession, run_sweep
 from . import _common
 
 STATUS_STYLE = {"ok": "green", "not_swept": "yellow", "sweeping": "cyan"}
+CODE_TEXT = {
+    "direction_unknown": "did not move during the direction check; its direction was NOT verified",
+    "direction_flipped": "moved the wrong way during the direction check; fix the URDF direction",
+}
+"""Explanations printed after a warning code (the code itself stays the stable string)."""
 
 
 def _bar(fraction: float, width: int = 12) -> str:
@@ -58,6 +63,7 @@ class LiveView:
         self.threshold_rad = threshold_rad
         self.live: Live | None = None
         self._last = -math.inf
+        self.direction: dict[str, int] = {}
 
     def __enter__(self) -> LiveView:
         if self.console.is_terminal:
@@ -87,6 +93,10 @@ class LiveView:
                 else ("sweeping" if sw[i] >= self.threshold_rad else "not_swept")
             )
             style = STATUS_STYLE.get(status, "")
+            verdict = self.direction.get(name)
+            if verdict is not None and verdict <= 0:
+                status += ", direction_unknown" if verdict == 0 else ", direction_flipped"
+                style = "yellow"
             t.add_row(
                 name,
                 f"{cur[i]:+.3f}",
@@ -118,6 +128,19 @@ class LiveView:
     def prompt(self, joint: str) -> None:
         """Direction check instruction."""
         self.console.print(f"direction check: move {joint} toward its + limit", markup=False)
+
+    def direction_result(self, joint: str, verdict: int) -> None:
+        """Direction check verdict: a joint that did not move is said to be not verified, at once."""
+        self.direction[joint] = verdict
+        if verdict == 0:
+            self.console.print(
+                f"direction check: {joint} did not move; its direction was NOT verified (direction_unknown)",
+                markup=False,
+            )
+        elif verdict < 0:
+            self.console.print(
+                f"direction check: {joint} moved the wrong way (direction_flipped)", markup=False
+            )
 
     def finish(self, result: SweepResult) -> None:
         """Nothing more to draw here (the command prints the summary after writing)."""
@@ -189,6 +212,10 @@ def sweep(
     direction_check: Annotated[
         bool, typer.Option("--direction-check", help="Guided 'move toward +' check first.")
     ] = False,
+    direction_time: Annotated[
+        float,
+        typer.Option("--direction-time", help="Seconds the direction check waits per joint for the motion."),
+    ] = DEFAULT_DIRECTION_STEP_S,
     topic: Annotated[str, typer.Option("--topic", help="JointState topic of a rosbag2 replay.")] = (
         "/lite/joint_states"
     ),
@@ -209,6 +236,7 @@ def sweep(
             report=report,
             fmt=fmt,
             direction_check=direction_check,
+            direction_step_s=direction_time,
             topic=topic,
             frame=frame,
             view=view,
@@ -217,7 +245,13 @@ def sweep(
     _common.console.print(result_table(outcome.result))
     for j in outcome.result.joints:
         for code in j.warnings:
-            _common.print_warning(f"{j.name}: {code}")
+            extra = CODE_TEXT.get(code)
+            _common.print_warning(f"{j.name}: {code}" + (f" ({extra})" if extra else ""))
+    for name, count in outcome.missing_samples.items():  # informational: NaN is legal in a JointState
+        _common.err_console.print(
+            f"note: {name}: {count} of {outcome.samples} samples had no position (NaN) and were skipped",
+            markup=False,
+        )
     _common.console.print(f"wrote {outcome.out} ({outcome.fmt})", markup=False)
     if outcome.report is not None:
         _common.console.print(f"wrote {outcome.report}", markup=False)

@@ -19,6 +19,8 @@ Diagnostic codes (stable, used in reports and the live view):
 * ``wrap_in_travel`` — the joint's raw travel contains the motor's power-on wrap point, so after a power cycle
   the raw reading can be off by 2π; :meth:`robocal.core.RobotCalibration.unwrap_to_limits` fixes it at load.
 * ``direction_flipped`` — the guided direction check saw the joint move the wrong way.
+* ``direction_unknown`` — the guided direction check ran but the joint did not move enough within its time, so
+  its direction was not verified.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ WARNING_CODES: tuple[str, ...] = (
     "offset_large",
     "wrap_in_travel",
     "direction_flipped",
+    "direction_unknown",
 )
 """Every warning code, in display order."""
 CODES: tuple[str, ...] = ("ok", *WARNING_CODES)
@@ -399,6 +402,7 @@ def analyse_sweep(
         span_tolerance_rad: Allowed ``|sweep − (upper − lower)|``.
         zero_sta: Power-on range per joint (0: ``[0, 2π)``, 1: ``[−π, π)``), shape ``(N,)`` or scalar.
         direction_check: Result of the guided direction check per joint (+1 right, −1 flipped, 0 unknown).
+            When given, a joint with 0 or no entry gets ``direction_unknown``; None: no check was run.
 
     Returns:
         The :class:`SweepResult`.
@@ -442,8 +446,12 @@ def analyse_sweep(
                 warnings.add("offset_large")
         if math.isfinite(h) and bool(wrap_in_travel(h, d[i], lo[i], up[i], zs[i])):
             warnings.add("wrap_in_travel")
-        if checks.get(name, 0) < 0:
-            warnings.add("direction_flipped")
+        if direction_check is not None:
+            verdict = checks.get(name, 0)
+            if verdict < 0:
+                warnings.add("direction_flipped")
+            elif verdict == 0:
+                warnings.add("direction_unknown")
         joints.append(
             JointSweep(
                 name=name,

@@ -6,11 +6,17 @@ for every joint in one call; :meth:`CalibratedRobot.write` takes joint-frame MIT
 frames (position through the full map, velocity and feed-forward torque through the direction only, gains
 unchanged). The first read after power-on picks, per joint, the 2π branch that puts the joint inside its
 limits (:meth:`robocal.core.RobotCalibration.unwrap_to_limits`) and keeps that shift for later ticks.
+
+Later reads follow the ±4π wrap of the type-2 position: a sample-to-sample jump of more than 4π (half the 8π
+period) is a wrap, and whole 8π turns are added so the joint position stays continuous over long runs.
+:meth:`CalibratedRobot.write` sends positions in the motor's own counting frame (the reading's), so a target
+just past the wrap is clamped to ±4π by the encoder instead of landing on the far side of the wrap.
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,9 +33,11 @@ from ..formats import read_calibration
 from ..formats.urdf import read_urdf
 from .sweep import joints_from_urdf
 
-__all__ = ["CalibratedRobot", "JointState", "open_robot"]
+__all__ = ["FEEDBACK_WRAP_PERIOD_RAD", "CalibratedRobot", "JointState", "open_robot"]
 
 FloatArray = npt.NDArray[np.float64]
+FEEDBACK_WRAP_PERIOD_RAD = 8.0 * math.pi
+"""Period of the type-2 feedback position, which loops within ±4π, rad."""
 
 
 @dataclass(frozen=True)
@@ -68,6 +76,8 @@ class CalibratedRobot:
         self.upper = np.asarray(upper, dtype=np.float64)
         self.source = source
         self._shift_rad: FloatArray | None = None  # whole turns added on the first read after power-on
+        self._wrap_rad = np.zeros(len(self.joint_names))  # whole 8π loops of the ±4π feedback since then
+        self._last_raw = np.full(len(self.joint_names), np.nan)  # last finite raw reading per joint
         self._index = {name: i for i, name in enumerate(self.joint_names)}
         self._held: list[dict[str, tuple[float, float, float, float, float]]] | None = None  # per bus
         self._enabled = False
@@ -77,12 +87,27 @@ class CalibratedRobot:
         """Raw shift (multiples of 2π) chosen on the first read, shape ``(N,)``; None before it."""
         return None if self._shift_rad is None else self._shift_rad.copy()
 
+    @property
+    def wrap_shift_rad(self) -> FloatArray:
+        """Raw shift (multiples of 8π) added since the first read for the ±4π feedback wrap, shape ``(N,)``."""
+        out: FloatArray = self._wrap_rad.copy()
+        return out
+
     def _to_state(self, raw: FloatArray, vel: FloatArray, eff: FloatArray) -> JointState:
         cal = self.calibration
         if self._shift_rad is None:
             self._shift_rad = cal.unwrap_to_limits(raw, self.lower, self.upper) - raw
+        else:  # follow the ±4π loop sample to sample (a joint with no reading keeps its last one)
+            loops = np.round((raw - self._last_raw) * (1.0 / FEEDBACK_WRAP_PERIOD_RAD))
+            if loops.any():  # a loop, or a NaN (NaN is truthy): rare, so the common tick stays cheap
+                loops[np.isnan(loops)] = 0.0
+                self._wrap_rad -= FEEDBACK_WRAP_PERIOD_RAD * loops
+        finite = np.isfinite(raw)
+        self._last_raw = raw.copy() if finite.all() else np.where(finite, raw, self._last_raw)
         return JointState(
-            cal.to_joint(raw + self._shift_rad), cal.velocity_to_joint(vel), cal.effort_to_joint(eff)
+            cal.to_joint(raw + self._shift_rad + self._wrap_rad),
+            cal.velocity_to_joint(vel),
+            cal.effort_to_joint(eff),
         )
 
     def read(self) -> JointState:
@@ -150,7 +175,7 @@ class CalibratedRobot:
                 )
             return a
 
-        p_raw = cal.to_raw(vec(position_rad, "position")) - self._shift_rad
+        p_raw = cal.to_raw(vec(position_rad, "position")) - self._shift_rad - self._wrap_rad
         v_raw = cal.velocity_to_raw(vec(velocity_rad_s, "velocity"))
         t_raw = cal.effort_to_raw(vec(torque_nm, "torque"))
         kp_v, kd_v = vec(kp, "kp"), vec(kd, "kd")

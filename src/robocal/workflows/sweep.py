@@ -14,7 +14,7 @@ import os
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
@@ -45,6 +45,7 @@ from ..formats import CalibrationFile, read_calibration, write_calibration
 from ..formats.urdf import UrdfModel, read_urdf
 
 __all__ = [
+    "DEFAULT_DIRECTION_STEP_S",
     "OUTPUT_FORMATS",
     "BranchCheck",
     "SweepAbortedError",
@@ -111,6 +112,10 @@ class SweepView(Protocol):
         """The direction check asks the operator to move ``joint`` toward its + limit."""
         ...
 
+    def direction_result(self, joint: str, verdict: int) -> None:
+        """The direction check's verdict for ``joint``: +1 right, −1 flipped, 0 not verified (no motion)."""
+        ...
+
     def finish(self, result: SweepResult) -> None:
         """Called once with the final result, before anything is written."""
         ...
@@ -143,6 +148,12 @@ class SweepSession:
     def exhausted(self) -> bool:
         """True when the source has nothing more."""
         return self.source.exhausted
+
+    @property
+    def missing(self) -> dict[str, int]:
+        """Joint → samples that had no position for it (NaN, e.g. in a JointState), skipped; only joints with some."""
+        gaps = self.samples - self.tracker.count
+        return {n: int(g) for n, g in zip(self.names, gaps, strict=True) if g > 0}
 
     def step(self) -> bool:
         """Read one sample (a replay: a block) into the tracker; False when the source is exhausted."""
@@ -188,28 +199,41 @@ class SweepSession:
         )
 
 
+DEFAULT_DIRECTION_STEP_S = 5.0
+"""Time the guided direction check waits per joint for the motion, s (source clock)."""
+
+
 def run_direction_check(
     source: Source,
     joints: Sequence[JointSpec],
     *,
     on_prompt: Callable[[str], None] | None = None,
+    on_result: Callable[[str, int], None] | None = None,
     min_motion_rad: float = 0.1,
-    max_samples: int = 2000,
-    timeout_s: float = 30.0,
+    step_s: float = DEFAULT_DIRECTION_STEP_S,
+    timeout_s: float = 60.0,
 ) -> dict[str, int]:
     """Guided direction check: per joint, ask for a move toward the + limit and watch the sign of motion.
+
+    The wait per joint is measured on the source's clock (sample time stamps: wall-clock time on a live bus,
+    simulated time on ``sim:``), so a live bus gets ``step_s`` seconds per joint whatever its poll rate;
+    ``timeout_s`` of wall-clock time is a guard for a source whose clock stops.
 
     Args:
         source: A live or simulated source.
         joints: Joints in the source's order.
         on_prompt: Shows the instruction (called before the source is told).
+        on_result: Called with each joint's verdict as soon as it is known (+1, −1 or 0: not verified).
         min_motion_rad: Motion that counts, rad.
-        max_samples: Samples to wait at most per joint.
+        step_s: Time to wait at most per joint, s, on the source's clock.
         timeout_s: Wall-clock time to wait at most per joint, s.
 
     Returns:
-        Joint → +1 (URDF direction right), −1 (flipped) or 0 (the joint did not move enough).
+        Joint → +1 (URDF direction right), −1 (flipped) or 0 (the joint did not move enough within
+        ``step_s``: its direction is not verified).
     """
+    if not (math.isfinite(step_s) and step_s > 0):
+        raise UsageError(f"direction check time {step_s}: expected a finite number of seconds > 0")
     d = np.array([j.direction for j in joints], dtype=np.float64)
     out: dict[str, int] = {}
     for i, j in enumerate(joints):
@@ -217,23 +241,25 @@ def run_direction_check(
             on_prompt(j.name)
         first = source.read()
         source.prompt_positive(j.name)
-        if first is None:
-            out[j.name] = 0
-            continue
-        start = float(_identity(source.frame, d, first.position_rad)[i])
-        tracker = RangeTracker(1)
-        tracker.update([start])
         verdict = 0
-        deadline = time.monotonic() + timeout_s
-        for _ in range(max_samples):
-            s = source.read()
-            if s is None or time.monotonic() > deadline:
-                break
-            tracker.update([float(_identity(source.frame, d, s.position_rad)[i])])
-            verdict = direction_from_motion(float(tracker.current[0]) - start, min_motion_rad)
-            if verdict:
-                break
+        if first is not None:
+            start = float(_identity(source.frame, d, first.position_rad)[i])
+            tracker = RangeTracker(1)
+            tracker.update([start])
+            t_end = first.t_s + step_s
+            deadline = time.monotonic() + timeout_s
+            while True:
+                s = source.read()
+                if s is None or s.t_s > t_end or time.monotonic() > deadline:
+                    break
+                tracker.update([float(_identity(source.frame, d, s.position_rad)[i])])
+                start = start if math.isfinite(start) else float(tracker.current[0])
+                verdict = direction_from_motion(float(tracker.current[0]) - start, min_motion_rad)
+                if verdict:
+                    break
         out[j.name] = verdict
+        if on_result is not None:
+            on_result(j.name, verdict)
     return out
 
 
@@ -249,6 +275,7 @@ class SweepOutcome:
         exit_code: 0 every joint ok, 1 warnings.
         samples: Samples read.
         interrupted: True when the sweep was ended by Ctrl-C or Enter.
+        missing_samples: Joint → samples without a position for it (NaN), skipped; joints with none left out.
     """
 
     result: SweepResult
@@ -258,6 +285,7 @@ class SweepOutcome:
     exit_code: int
     samples: int
     interrupted: bool
+    missing_samples: Mapping[str, int] = field(default_factory=dict)
 
 
 def _offsets(cf: CalibrationFile) -> dict[str, float]:
@@ -324,6 +352,7 @@ def run_sweep(
     report: str | Path | None = None,
     fmt: str | None = None,
     direction_check: bool = False,
+    direction_step_s: float = DEFAULT_DIRECTION_STEP_S,
     topic: str = "/lite/joint_states",
     frame: str | None = None,
     view: SweepView | None = None,
@@ -343,6 +372,7 @@ def run_sweep(
         report: JSON report to write.
         fmt: ``lite-yaml`` or ``lite-json`` (default: from ``out``'s name, ``lite-yaml`` otherwise).
         direction_check: Run the guided direction check before the sweep.
+        direction_step_s: Time the direction check waits per joint for the motion, s (source clock).
         topic: JointState topic of a rosbag2 replay.
         frame: Frame of a replay (``identity`` or ``motor``).
         view: Live view.
@@ -356,11 +386,14 @@ def run_sweep(
     Raises:
         UsageError, FileFormatError, InvalidCalibrationError: bad input; nothing written.
         DeviceError: a bus failed; nothing written.
-        SweepAbortedError: a second Ctrl-C; nothing written.
+        SweepAbortedError: a second Ctrl-C; the message says which files were already written (the
+            report is written before the calibration, so a calibration is never newer than its report).
     """
     # ---- validate everything before touching a device or a file
     threshold_rad = _check_number(threshold_rad, "--threshold")
     span_tolerance_rad = _check_number(span_tolerance_rad, "--span-tolerance")
+    if not (math.isfinite(direction_step_s) and direction_step_s > 0):
+        raise UsageError(f"--direction-time {direction_step_s}: expected a finite number of seconds > 0")
     out_path = Path(out)
     if fmt is None:
         fmt = "lite-json" if out_path.suffix.lower() == ".json" else "lite-yaml"
@@ -399,7 +432,13 @@ def run_sweep(
     try:
         try:
             if direction_check:
-                checks = run_direction_check(src, joints, on_prompt=view.prompt if view else None)
+                checks = run_direction_check(
+                    src,
+                    joints,
+                    on_prompt=view.prompt if view else None,
+                    on_result=view.direction_result if view else None,
+                    step_s=direction_step_s,
+                )
             zero_sta = src.zero_sta()
             src.begin_sweep()
             while not (stop is not None and stop.is_set()):
@@ -415,7 +454,8 @@ def run_sweep(
             interrupted = True  # first Ctrl-C: finish and write
         if stop is not None and stop.is_set():
             interrupted = True
-        # ---- finish: a second Ctrl-C from here on aborts without writing
+        # ---- finish: a second Ctrl-C from here on aborts; the files not yet written stay as they were
+        before = {p: _file_id(p) for p in (out_path, report_path) if p is not None}
         try:
             src.close()
             result = session.result(
@@ -429,12 +469,37 @@ def run_sweep(
                 view.finish(result)
             _write(result, urdf, joints, out_path, fmt, report_path, existing)
         except KeyboardInterrupt:
-            raise SweepAbortedError("sweep aborted by a second Ctrl-C; nothing was written") from None
+            raise SweepAbortedError(_aborted_message(before, out_path, report_path)) from None
     finally:
         with contextlib.suppress(Exception, KeyboardInterrupt):
             src.close()
     code = 0 if result.ok else 1
-    return SweepOutcome(result, out_path, fmt, report_path, code, session.samples, interrupted)
+    return SweepOutcome(
+        result, out_path, fmt, report_path, code, session.samples, interrupted, session.missing
+    )
+
+
+def _file_id(path: Path) -> tuple[int, int, int] | None:
+    """Identity of the file at ``path`` (inode, size, mtime); an atomic write always changes it."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return (st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _aborted_message(
+    before: Mapping[Path, tuple[int, int, int] | None], out: Path, report: Path | None
+) -> str:
+    """What a second Ctrl-C left behind, by comparing the files with their state before writing."""
+    written = [p for p, ident in before.items() if _file_id(p) != ident]
+    if not written:
+        return "sweep aborted by a second Ctrl-C; nothing was written"
+    kept = [str(p) for p in before if p not in written]
+    msg = f"sweep aborted by a second Ctrl-C after writing {' and '.join(str(p) for p in written)} (complete)"
+    if kept:
+        msg += f"; {' and '.join(kept)} not written (unchanged)"
+    return msg
 
 
 def _write(
@@ -467,10 +532,10 @@ def _write(
     cal = RobotCalibration(list(rows), [r[0] for r in rows.values()], [r[1] for r in rows.values()])
     ids = {n: r[2] for n, r in rows.items() if r[2] > 0}
     text = json.dumps(result.to_report(), indent=2) + "\n" if report is not None else ""
-    try:
-        write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf)
-        if report is not None:
+    try:  # the report first, the calibration last: an interrupted write never leaves a calibration behind
+        if report is not None:  # without the report that describes it
             atomic_write_text(report, text)
+        write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf)
     except OSError as exc:
         raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") from None
 
