@@ -187,7 +187,7 @@ def _one_error(err: str, needle: str) -> None:
             "unknown_feature",
             "unknown feature 'observation.effort'; float vector features: observation.state, action",
         ),
-        ("joint_mismatch", "joint names do not match (not in the calibration: gripper)"),
+        ("joint_mismatch", "joint-position entry 'gripper.pos' not in the new calibration"),
         ("dst_exists", "already exists; pass --overwrite"),
         (
             "bad_mode",

@@ -249,8 +249,8 @@ def test_unknown_feature_and_joint_mismatch(src: Path, tmp_path: Path) -> None:
     assert five.joint_names == SO_ARM_JOINTS[:5]
     with pytest.raises(
         JointMismatchError,
-        match=r"feature 'observation.state' vs the new calibration: joint "
-        r"names do not match \(not in the calibration: gripper\)",
+        match=r"feature 'observation.state': joint-position entry 'gripper.pos' not in the new "
+        r"calibration \(its motors: shoulder_pan, ",
     ):
         recalibrate_dataset(src, tmp_path / "d", A, type(A)(five.calibration))
     with pytest.raises(UsageError, match="overlaps the source"):

@@ -58,11 +58,13 @@ class DatasetReport:
         src: Source root.
         dst: Destination root.
         features: Converted feature keys.
-        joint_names: Per feature, joint names in column order.
+        joint_names: Per feature, the converted joints in column order (entries that are not joint
+            positions, e.g. ``x.vel``, are passed through and not listed).
         frames: Total frames converted.
         files: Number of data files.
         row_groups: Number of row groups written.
-        out_of_range: Per feature, per joint count of values outside the new calibrated range.
+        out_of_range: Per feature, per converted joint, count of values outside the new calibrated range
+            or that cannot come from one encoder turn (Feetech).
         warnings: Human-readable warnings (out-of-range joints, statistics not recomputed).
     """
 
@@ -87,12 +89,12 @@ def build_plans(
 
     Raises:
         UsageError: A feature is unknown or not a named float vector, or a per-feature mapping lacks it.
-        JointMismatchError: A feature's joints differ from a calibration's.
+        JointMismatchError: A joint-position entry (``"<motor>.pos"``) has no motor in a calibration.
     """
     return [
         FeaturePlan.build(
             feat.key,
-            feat.joint_names,
+            feat.names,
             feature_convention(old, feat.key, "old"),
             feature_convention(new, feat.key, "new"),
         )
@@ -171,17 +173,29 @@ def rewrite_episode_stats(
     episode_stats: Mapping[int, Mapping[str, StatAccumulator]],
     features: Sequence[str],
     rel: str = "",
+    *,
+    keep_missing: bool = False,
 ) -> list[str]:
     """Copy an episodes metadata file, replacing ``stats/<feature>/<stat>`` columns of ``features``.
 
     Row groups, schema and metadata are kept; statistics robocal cannot compute are left out of the
     replacement and reported.
 
+    Args:
+        src: Source episodes file.
+        dst: Destination file.
+        episode_stats: Episode → feature → statistics of the new values.
+        features: Converted feature keys.
+        rel: Path used in messages.
+        keep_missing: An episode without statistics keeps its source values (reported) instead of being an
+            error; used when some data files have no ``episode_index`` column.
+
     Returns:
         Warnings (statistics kept from the source because they cannot be recomputed).
     """
     name = rel or str(src)
     warnings: list[str] = []
+    kept: set[int] = set()
     try:
         pf = pq.ParquetFile(src)
         schema = pf.schema_arrow
@@ -200,16 +214,30 @@ def rewrite_episode_stats(
                         warnings.append(f"{name}: statistic {col_name!r} cannot be recomputed; kept as is")
                         continue
                     values: list[Any] = []
-                    for e in eps:
+                    source = table.column(i).to_pylist() if keep_missing else []
+                    for row, e in enumerate(eps):
                         acc = episode_stats.get(e, {}).get(key)
                         if acc is None:
-                            raise FileFormatError(f"episodes file {name}: episode {e} has no frames in data/")
+                            if not keep_missing:
+                                raise FileFormatError(
+                                    f"episodes file {name}: episode {e} has no frames in data/"
+                                )
+                            kept.add(e)
+                            values.append(source[row])
+                            continue
                         values.append(acc.get(stat))
                     field_ = table.schema.field(i)
                     table = table.set_column(i, field_, pa.array(values, type=field_.type))
                 writer.write_table(table, row_group_size=max(table.num_rows, 1))
     except (pa.ArrowException, OSError) as exc:
         raise FileFormatError(f"episodes file {name}: cannot read or write Parquet ({exc})") from None
+    if kept:
+        listed = ", ".join(str(e) for e in sorted(kept)[:10]) + (", ..." if len(kept) > 10 else "")
+        warnings.append(
+            f"{name}: per-episode statistics of {', '.join(features)} for {len(kept)} episode(s) "
+            f"({listed}) could not be updated (their frames are in data files without 'episode_index'); "
+            "they still describe the old calibration"
+        )
     return warnings
 
 
@@ -391,11 +419,18 @@ def finish_root(
     root = layout.root
     keys = [p.key for p in plans]
     episode_acc: dict[int, dict[str, StatAccumulator]] = {}
+    unindexed: list[FileResult] = []
     for res in results:
         report.frames += res.frames
         report.files += 1
         report.row_groups += res.row_groups
         merge_into(episode_acc, res.episode_stats)
+        if not res.has_episode_index:
+            unindexed.append(res)
+            report.warnings.append(
+                f"data file {res.path} has no 'episode_index' column: meta/stats.json is recomputed from "
+                f"its {res.frames} frames, but per-episode statistics cannot be updated for them"
+            )
     for plan in plans:
         total = np.zeros(len(plan.joint_names), dtype=np.int64)
         for res in results:
@@ -409,12 +444,16 @@ def finish_root(
             )
     for rel in layout.episode_files:
         (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        report.warnings += rewrite_episode_stats(root / rel, tmp / rel, episode_acc, keys, rel)
+        report.warnings += rewrite_episode_stats(
+            root / rel, tmp / rel, episode_acc, keys, rel, keep_missing=bool(unindexed)
+        )
     stats_src = root / "meta" / "stats.json"
     if stats_src.is_file():
         totals: dict[str, StatAccumulator] = {}
         for key in keys:
-            t = merge_all(accs[key] for accs in episode_acc.values() if key in accs)
+            parts = [accs[key] for accs in episode_acc.values() if key in accs]
+            parts += [res.file_stats[key] for res in unindexed if key in res.file_stats]
+            t = merge_all(parts)
             if t is not None:
                 totals[key] = t
         report.warnings += write_dataset_stats(stats_src, tmp / "meta" / "stats.json", totals, keys)

@@ -20,9 +20,15 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 from numpy.typing import NDArray
 
-from ..errors import FileFormatError, InvalidCalibrationError, ShapeMismatchError, UsageError
-from ._convention import BoolArray, FloatArray, ValueConvention, check_joint_names
-from ._layout import DEFAULT_FEATURES
+from ..errors import (
+    FileFormatError,
+    InvalidCalibrationError,
+    JointMismatchError,
+    ShapeMismatchError,
+    UsageError,
+)
+from ._convention import BoolArray, FloatArray, ValueConvention
+from ._layout import DEFAULT_FEATURES, is_position_entry, joint_name
 from ._stats import StatAccumulator, episode_stats, merge_into
 
 NDArrayInt = NDArray[np.int64]
@@ -43,33 +49,85 @@ class FeaturePlan:
 
     Attributes:
         key: Column name, e.g. ``"action"``.
-        joint_names: Joint names in column order, length ``D``.
-        old: Convention the values were recorded with, in column order.
-        new: Convention to convert to, in column order.
+        joint_names: Names of the converted joints, in column order (the joint-position entries).
+        old: Convention the values were recorded with, restricted to ``joint_names`` in that order.
+        new: Convention to convert to, restricted to ``joint_names`` in that order.
+        columns: Index in the feature vector of each converted joint; ``None``: every entry is converted
+            (then ``joint_names`` is the whole vector).
+        width: Entries per frame ``D`` of the feature; ``None``: ``len(joint_names)``.
+        passthrough: Names of the entries copied bit for bit (not joint positions, e.g. ``"x.vel"``).
     """
 
     key: str
     joint_names: tuple[str, ...]
     old: ValueConvention
     new: ValueConvention
+    columns: tuple[int, ...] | None = None
+    width: int | None = None
+    passthrough: tuple[str, ...] = ()
+
+    @property
+    def size(self) -> int:
+        """Entries per frame ``D`` of the feature column."""
+        return len(self.joint_names) if self.width is None else self.width
 
     @classmethod
     def build(
-        cls, key: str, joint_names: Sequence[str], old: ValueConvention, new: ValueConvention
+        cls, key: str, entry_names: Sequence[str], old: ValueConvention, new: ValueConvention
     ) -> FeaturePlan:
-        """Select and reorder ``old`` and ``new`` to the feature's joints.
+        """Match the feature's entries to the calibrated motors and select ``old`` and ``new`` to them.
+
+        Entries that are joint positions (``"<motor>.pos"`` or a bare motor name, LeRobot's convention) are
+        converted; every other entry (``"x.vel"``, ``"theta.vel"``, ...) is passed through unchanged.
+        Calibrated motors that the feature does not hold are ignored.
+
+        Args:
+            key: Feature key.
+            entry_names: The feature's entry names in column order (``"shoulder_pan.pos"`` or
+                ``"shoulder_pan"``).
+            old: The recording's convention (may hold more motors).
+            new: The target convention (may hold more motors).
 
         Raises:
-            JointMismatchError: A calibration does not hold exactly the feature's joints.
+            JointMismatchError: A joint-position entry has no motor in a calibration (naming the entry), a
+                joint appears twice, or the feature has no joint-position entry.
         """
-        names = tuple(joint_names)
-        check_joint_names(names, list(old.joint_names), f"feature {key!r} vs the old calibration")
-        check_joint_names(names, list(new.joint_names), f"feature {key!r} vs the new calibration")
-        o, n = old.select(names), new.select(names)
+        names = tuple(entry_names)
+        columns = [i for i, e in enumerate(names) if is_position_entry(e)]
+        joints = tuple(joint_name(names[i]) for i in columns)
+        passthrough = tuple(e for e in names if not is_position_entry(e))
+        if not joints:
+            raise JointMismatchError(
+                f"feature {key!r}: no joint-position entry ('<motor>.pos') to re-calibrate; "
+                f"entries: {', '.join(names) or 'none'}"
+            )
+        dup = sorted({j for j in joints if joints.count(j) > 1})
+        if dup:
+            raise JointMismatchError(f"feature {key!r}: joint(s) {', '.join(dup)} appear twice")
+        for conv, role in ((old, "old"), (new, "new")):
+            available = set(conv.joint_names)
+            missing = [names[i] for i, j in zip(columns, joints, strict=True) if j not in available]
+            if missing:
+                raise JointMismatchError(
+                    f"feature {key!r}: joint-position entr{'y' if len(missing) == 1 else 'ies'} "
+                    f"{', '.join(map(repr, missing))} not in the {role} calibration (its motors: "
+                    f"{', '.join(conv.joint_names) or 'none'})"
+                )
+        o, n = old.select(joints), new.select(joints)
         check = getattr(o, "check_target", None)
         if callable(check):
             check(n)
-        return cls(key=key, joint_names=names, old=o, new=n)
+        if len(joints) == len(names):
+            return cls(key=key, joint_names=joints, old=o, new=n)
+        return cls(
+            key=key,
+            joint_names=joints,
+            old=o,
+            new=n,
+            columns=tuple(columns),
+            width=len(names),
+            passthrough=passthrough,
+        )
 
 
 def feature_convention(
@@ -104,7 +162,9 @@ def recalibrate_values(
         new: Convention to convert to (same joint order).
 
     Returns:
-        ``(new_values (N, D), out_of_range (N, D))``, the mask marks positions outside ``new``'s range.
+        ``(new_values (N, D), out_of_range (N, D))``; the mask marks positions outside ``new``'s range and,
+        when ``old`` has an ``unrecordable(actual)`` method, positions ``old`` cannot have recorded (a
+        Feetech value that does not come from one encoder turn).
     """
     v = np.asarray(values, dtype=np.float64)
     if v.ndim == 2 and v.shape[0] > _LUT_MIN_ROWS:
@@ -112,7 +172,7 @@ def recalibrate_values(
         if uniq is not None:
             # recorded values come from whole ticks: map each distinct value of a column once
             table, idx = uniq
-            table_values, table_mask = new.from_actual(old.to_actual(table))
+            table_values, table_mask = _map_actual(old.to_actual(table), old, new)
             out_values = np.empty(v.shape, dtype=np.float64)
             out_mask = np.empty(v.shape, dtype=np.bool_)
             for j, ix in enumerate(idx):
@@ -126,10 +186,21 @@ def recalibrate_values(
         if span <= _LUT_MAX_SPAN:
             # whole ticks: map each distinct tick once and look the frames up (same values, fewer ops)
             grid = lo[None, :] + np.arange(span, dtype=np.float64)[:, None]
-            grid_values, grid_mask = new.from_actual(grid)
+            grid_values, grid_mask = _map_actual(grid, old, new)
             idx = (actual - lo).astype(np.intp)
             return np.take_along_axis(grid_values, idx, axis=0), np.take_along_axis(grid_mask, idx, axis=0)
-    return new.from_actual(actual)
+    return _map_actual(actual, old, new)
+
+
+def _map_actual(
+    actual: FloatArray, old: ValueConvention, new: ValueConvention
+) -> tuple[FloatArray, BoolArray]:
+    """``new.from_actual(actual)``, with positions ``old`` cannot have recorded added to the mask."""
+    values, mask = new.from_actual(actual)
+    unrecordable = getattr(old, "unrecordable", None)
+    if callable(unrecordable):
+        mask = mask | np.asarray(unrecordable(actual), dtype=np.bool_)
+    return values, mask
 
 
 _LUT_MIN_ROWS = 8192
@@ -161,7 +232,8 @@ def _unique_columns(values: FloatArray) -> tuple[FloatArray, list[NDArray[np.int
     return table, indices
 
 
-def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatArray, pa.DataType]:
+def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[NDArray[Any], pa.DataType]:
+    """The column as a numpy ``(N, D)`` array in its stored dtype (no conversion, so entries keep their bits)."""
     arr = column.combine_chunks() if isinstance(column, pa.ChunkedArray) else column
     typ = arr.type
     if not (pa.types.is_fixed_size_list(typ) and pa.types.is_floating(typ.value_type)):
@@ -172,15 +244,19 @@ def _column_values(column: pa.ChunkedArray | pa.Array, key: str) -> tuple[FloatA
     if flat.null_count:
         raise FileFormatError(f"column {key!r}: {flat.null_count} null entries; expected finite numbers")
     d = typ.list_size
-    values = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=np.float64).reshape(-1, d)
+    values: NDArray[Any] = np.asarray(flat.to_numpy(zero_copy_only=False)).reshape(-1, d)
+    return values, typ
+
+
+def _check_finite(values: FloatArray, key: str, columns: Sequence[int]) -> None:
+    """Refuse NaN or inf in the converted entries (``values`` holds them, ``columns`` their positions)."""
     finite = np.isfinite(values)
     if not finite.all():
         row, col = np.argwhere(~finite)[0]
         raise FileFormatError(
-            f"column {key!r}: {int((~finite).sum())} NaN or inf entries (first at row {row}, entry {col}); "
-            "expected finite numbers"
+            f"column {key!r}: {int((~finite).sum())} NaN or inf entries (first at row {row}, entry "
+            f"{columns[col]}); expected finite numbers"
         )
-    return values, typ
 
 
 def recalibrate_table_with_counts(
@@ -194,12 +270,14 @@ def recalibrate_table_with_counts(
 
     Returns:
         ``(table, out_of_range, new_values)``: the new table (same schema), per feature the count of values
-        outside the new calibrated range per joint (shape ``(D,)``), and per feature the stored new values
-        ``(N, D)`` in the column's dtype (for statistics).
+        outside the new calibrated range per converted joint (shape ``(len(plan.joint_names),)``), and per
+        feature the stored new values ``(N, D)`` in the column's dtype, passed-through entries included
+        (for statistics).
 
     Raises:
-        FileFormatError: A column is missing, not a fixed-size list or has nulls.
-        ShapeMismatchError: A column's width differs from the feature's number of joints.
+        FileFormatError: A column is missing, not a fixed-size list, has nulls, or NaN/inf in a converted
+            entry (NaN in a passed-through entry is kept).
+        ShapeMismatchError: A column's width differs from the feature's number of entries.
     """
     counts: dict[str, NDArrayInt] = {}
     stored: dict[str, NDArray[Any]] = {}
@@ -208,15 +286,22 @@ def recalibrate_table_with_counts(
         idx = table.schema.get_field_index(plan.key)
         if idx < 0:
             raise FileFormatError(f"column {plan.key!r} is missing from the data table")
-        values, typ = _column_values(table.column(idx), plan.key)
-        if values.shape[1] != len(plan.joint_names):
+        raw, typ = _column_values(table.column(idx), plan.key)
+        if raw.shape[1] != plan.size:
+            entries = plan.joint_names if plan.columns is None else (*plan.joint_names, *plan.passthrough)
             raise ShapeMismatchError(
-                f"column {plan.key!r} has {values.shape[1]} entries per frame; "
-                f"expected {len(plan.joint_names)} ({', '.join(plan.joint_names)})"
+                f"column {plan.key!r} has {raw.shape[1]} entries per frame; "
+                f"expected {plan.size} ({', '.join(entries)})"
             )
+        columns = list(range(plan.size)) if plan.columns is None else list(plan.columns)
+        values = np.asarray(raw if plan.columns is None else raw[:, columns], dtype=np.float64)
+        _check_finite(values, plan.key, columns)
         new_values, mask = recalibrate_values(values, plan.old, plan.new)
-        np_type = pa.array([], type=typ.value_type).to_numpy(zero_copy_only=False).dtype  # no pandas needed
-        cast = np.ascontiguousarray(new_values, dtype=np_type)
+        if plan.columns is None:
+            cast = np.ascontiguousarray(new_values, dtype=raw.dtype)
+        else:
+            cast = np.array(raw, copy=True, order="C")  # passed-through entries keep their exact bits
+            cast[:, columns] = new_values.astype(raw.dtype)
         child = pa.array(cast.reshape(-1), type=typ.value_type)
         new_col = pa.FixedSizeListArray.from_arrays(child, type=typ)
         out = out.set_column(idx, table.schema.field(idx), new_col)
@@ -238,8 +323,10 @@ def recalibrate_table(
         table: Frames (e.g. one row group of a LeRobot data file).
         old: The recording's convention, one for all features or one per feature key.
         new: The target convention, one for all features or one per feature key.
-        features: Feature key → joint names in column order. Default: every key of ``old`` when it is a
-            mapping, else ``observation.state`` and ``action`` (those present) with ``old.joint_names``.
+        features: Feature key → entry names in column order, as in ``info.json`` (``"<motor>.pos"`` or a
+            bare motor name; other entries such as ``"x.vel"`` are copied bit for bit). Default: every key
+            of ``old`` when it is a mapping, else ``observation.state`` and ``action`` (those present), with
+            ``old.joint_names``.
 
     Returns:
         A table with the same schema and the converted feature columns.
@@ -247,8 +334,10 @@ def recalibrate_table(
     Raises:
         UsageError: ``table`` is not a table, a calibration is not a convention or lacks a feature, or no
             feature is given and neither default column exists.
-        JointMismatchError: A feature's joints differ from a calibration's.
-        FileFormatError: A feature column is missing, not a ``fixed_size_list<float>`` or holds NaN.
+        JointMismatchError: A joint-position entry has no motor in a calibration (extra calibrated motors
+            are fine).
+        FileFormatError: A feature column is missing, not a ``fixed_size_list<float>`` or holds NaN in a
+            converted entry.
     """
     if not isinstance(table, pa.Table):
         raise UsageError(f"recalibrate_table: expected a pyarrow.Table, got {type(table).__name__}")
@@ -281,6 +370,10 @@ class FileResult:
         row_groups: Number of row groups written (equal to the source's).
         out_of_range: Per feature, count per joint of values outside the new calibrated range, shape ``(D,)``.
         episode_stats: Episode index → feature → accumulated statistics of the new values.
+        has_episode_index: Whether the file has an ``episode_index`` column. Without one,
+            ``episode_stats`` stays empty and ``file_stats`` holds the statistics of its frames.
+        file_stats: Feature → statistics of the new values of a file without ``episode_index`` (merged
+            from one accumulator per row group, like LeRobot's ``aggregate_stats`` over episodes).
     """
 
     path: str
@@ -288,6 +381,8 @@ class FileResult:
     row_groups: int = 0
     out_of_range: dict[str, NDArrayInt] = field(default_factory=dict)
     episode_stats: dict[int, dict[str, StatAccumulator]] = field(default_factory=dict)
+    has_episode_index: bool = True
+    file_stats: dict[str, StatAccumulator] = field(default_factory=dict)
 
 
 def _compression_of(meta: pq.FileMetaData) -> str:
@@ -312,6 +407,19 @@ def _batches(sizes: Sequence[int], batch_rows: int) -> list[list[int]]:
     if cur:
         out.append(cur)
     return out
+
+
+def _add_file_stats(
+    dest: dict[str, StatAccumulator], stored: Mapping[str, NDArray[Any]], sizes: Sequence[int]
+) -> None:
+    """Merge the statistics of each row group (``sizes`` rows each, consecutive) of ``stored`` into ``dest``."""
+    for key, values in stored.items():
+        offset = 0
+        for n in sizes:
+            if n:
+                acc = StatAccumulator.of(np.asarray(values[offset : offset + n], dtype=np.float64))
+                dest[key] = dest[key].merge(acc) if key in dest else acc
+            offset += n
 
 
 def recalibrate_file(
@@ -353,6 +461,7 @@ def recalibrate_file(
             raise FileFormatError(f"data file {name}: column {plan.key!r} is missing")
         result.out_of_range[plan.key] = np.zeros(len(plan.joint_names), dtype=np.int64)
     has_episode = schema.get_field_index("episode_index") >= 0
+    result.has_episode_index = has_episode
     meta = pf.metadata
     sizes = [meta.row_group(g).num_rows for g in range(meta.num_row_groups)]
     try:
@@ -393,6 +502,9 @@ def recalibrate_file(
                         if ep not in edges:
                             for key, a in accs.items():
                                 accs[key] = a.without_samples()
+                elif new_table.num_rows:
+                    # no episode_index: the dataset statistics are still recomputed from the frames
+                    _add_file_stats(result.file_stats, stored, [sizes[g] for g in batch])
             if pending is not None:
                 pending.result()
     except (pa.ArrowException, OSError) as exc:

@@ -18,7 +18,7 @@ import pyarrow.parquet as pq
 
 from ..errors import FileFormatError
 from ._convention import FloatArray, ValueConvention
-from ._layout import read_layout
+from ._layout import is_position_entry, read_layout
 
 __all__ = ["InspectReport", "JointSummary", "inspect_dataset"]
 
@@ -90,11 +90,15 @@ def _limits(
     lo: FloatArray | None = None
     hi: FloatArray | None = None
     if conv is not None:
-        sel = conv.select(names)
-        turn = np.asarray(sel.full_turn(), dtype=np.float64)
+        # entries that are not joint positions (e.g. "x.vel") get no range and no turn
+        idx = [i for i, n in enumerate(names) if n in conv.joint_names or is_position_entry(n)]
+        sel = conv.select([names[i] for i in idx])
+        turn[idx] = np.asarray(sel.full_turn(), dtype=np.float64)
         rng = sel.value_range()
         if rng is not None:
-            lo, hi = np.asarray(rng[0], dtype=np.float64), np.asarray(rng[1], dtype=np.float64)
+            lo, hi = np.full(d, -np.inf), np.full(d, np.inf)
+            lo[idx] = np.asarray(rng[0], dtype=np.float64)
+            hi[idx] = np.asarray(rng[1], dtype=np.float64)
     elif modes:
         lo_l, hi_l = [], []
         for i, n in enumerate(names):

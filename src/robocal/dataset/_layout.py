@@ -28,6 +28,7 @@ __all__ = [
     "DEFAULT_FEATURES",
     "DatasetLayout",
     "VectorFeature",
+    "is_position_entry",
     "joint_name",
     "read_layout",
 ]
@@ -41,6 +42,15 @@ _POSITION_SUFFIX = ".pos"
 def joint_name(feature_name: str) -> str:
     """Joint name of one entry of a feature's ``names`` (LeRobot writes ``"<motor>.pos"``)."""
     return feature_name[: -len(_POSITION_SUFFIX)] if feature_name.endswith(_POSITION_SUFFIX) else feature_name
+
+
+def is_position_entry(feature_name: str) -> bool:
+    """Whether a feature entry is a joint position: ``"<motor>.pos"`` or a bare motor name (no ``.``).
+
+    Other entries (``"x.vel"``, ``"theta.vel"``, ``"<motor>.effort"``, ...) are not joint positions; they are
+    passed through unchanged by a re-calibration.
+    """
+    return feature_name.endswith(_POSITION_SUFFIX) or "." not in feature_name
 
 
 @dataclass(frozen=True)
@@ -61,6 +71,11 @@ class VectorFeature:
     def joint_names(self) -> tuple[str, ...]:
         """Joint names in column order (``.pos`` suffix removed)."""
         return tuple(joint_name(n) for n in self.names)
+
+    @property
+    def position_joint_names(self) -> tuple[str, ...]:
+        """Joint names of the joint-position entries only (see :func:`is_position_entry`), column order."""
+        return tuple(joint_name(n) for n in self.names if is_position_entry(n))
 
     @property
     def size(self) -> int:

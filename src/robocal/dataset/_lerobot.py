@@ -70,7 +70,8 @@ def preset_modes(robot: str, joint_names: Sequence[str], use_degrees: bool | Non
 
     SO-100/101 and Koch followers: arm joints ``degrees`` when recorded with ``use_degrees`` (SO default
     True since LeRobot 0.4.4, Koch default False), else ``range_m100_100``; the Koch leader always uses
-    ``range_m100_100``; every ``gripper`` uses ``range_0_100``.
+    ``range_m100_100``; every ``gripper`` (and ``*_gripper``, e.g. LeKiwi's ``arm_gripper``) uses
+    ``range_0_100``.
 
     Args:
         robot: LeRobot robot type, e.g. ``"so101_follower"``, ``"koch_leader"``.
@@ -86,7 +87,10 @@ def preset_modes(robot: str, joint_names: Sequence[str], use_degrees: bool | Non
         default = False
     degrees = default if use_degrees is None else use_degrees
     arm = NormMode.DEGREES.value if degrees else NormMode.RANGE_M100_100.value
-    return {n: (NormMode.RANGE_0_100.value if n == "gripper" else arm) for n in joint_names}
+    return {
+        n: (NormMode.RANGE_0_100.value if n == "gripper" or n.endswith("_gripper") else arm)
+        for n in joint_names
+    }
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,14 +243,37 @@ class LeRobotConvention:
         return actual
 
     def from_actual(self, actual: FloatArray) -> tuple[FloatArray, BoolArray]:
-        """Actual ticks ``(N, D)`` → normalised values and the outside-``[range_min, range_max]`` mask."""
+        """Actual ticks ``(N, D)`` → normalised values and the out-of-range mask.
+
+        The mask marks present positions outside ``[range_min, range_max]`` and, for a single-turn (Feetech)
+        motor, positions more than one turn outside ``[0, resolution)`` before wrapping (no pair of
+        calibrations with homing offsets within one turn produces those; they are wrapped like the others
+        but counted).
+        """
         present = np.asarray(actual, dtype=np.float64) - self._homing_sign * self._homing()
+        far = np.zeros(present.shape, dtype=np.bool_)
         if self._wraps:
+            far = (present < -self.resolution) | (present >= 2 * self.resolution)
             present = np.mod(present, self.resolution)
         lo = np.array([c.range_min for c in self.calibrations], dtype=np.float64)
         hi = np.array([c.range_max for c in self.calibrations], dtype=np.float64)
-        mask = (present < lo) | (present > hi)
+        mask = (present < lo) | (present > hi) | far
         return normalize(present, self.calibrations, self.modes, **self._norm_options()), mask
+
+    def unrecordable(self, actual: FloatArray) -> BoolArray:
+        """Mask of actual positions ``(N, D)`` whose present position no single-turn reading gives.
+
+        A Feetech STS servo reports ``Present_Position`` in ``[0, resolution)``; a stored value whose
+        present position (after ``_unnormalize``) lies outside cannot come from one encoder turn (e.g.
+        ``1e6`` in degrees mode). The engine counts those as out of range instead of letting the new
+        calibration wrap them silently. Always ``False`` for motors that are not wrapped (Dynamixel).
+        """
+        a = np.asarray(actual, dtype=np.float64)
+        if not self._wraps:
+            return np.zeros(a.shape, dtype=np.bool_)
+        present = a - self._homing_sign * self._homing()
+        out: BoolArray = (present < 0) | (present >= self.resolution)
+        return out
 
     def value_range(self) -> tuple[FloatArray, FloatArray] | None:
         """Normalised values of ``range_min`` and ``range_max`` per joint (sorted)."""
@@ -339,6 +366,14 @@ class LegacyConvention:
         lo, hi = self._bounds()
         return values, (values < lo) | (values > hi)
 
+    def unrecordable(self, actual: FloatArray) -> BoolArray:
+        """Mask of tick positions ``(N, D)`` LeRobot's legacy read would have refused.
+
+        Beyond ±270° (DEGREE) or −10..110 % (LINEAR): values that cannot come from a recording with this
+        calibration.
+        """
+        return self.from_actual(actual)[1]
+
     def value_range(self) -> tuple[FloatArray, FloatArray] | None:
         """Legacy bounds: ±270° (DEGREE), −10..110 % (LINEAR)."""
         return self._bounds()
@@ -388,7 +423,8 @@ def load_convention(
 
     Args:
         path: The calibration file.
-        joint_names: The dataset's joints (used to pick modes).
+        joint_names: The dataset's joint-position joints (used to pick modes; motors of a LeRobot current
+            file that are not among them are left out).
         modes: Joint → mode for LeRobot current files.
         family: Motor family for LeRobot current files.
         compat: LeRobot compatibility mode.
@@ -405,7 +441,8 @@ def load_convention(
     if kind == "current":
         from ..lerobot import read_calibration as read_current
 
-        cals = read_current(p)
+        # motors the dataset does not hold (e.g. LeKiwi's base wheels) are not needed and have no mode
+        cals = {n: c for n, c in read_current(p).items() if n in joint_names}
         if family is None:
             raise UsageError(f"{what} {p} is a LeRobot calibration: pass --robot or --motor-family")
         if modes is None:

@@ -101,8 +101,8 @@ def _conventions(
     layout = read_layout(root)
     feats = layout.select(features)
     joints: list[str] = []
-    for f in feats:
-        joints += [j for j in f.joint_names if j not in joints]
+    for f in feats:  # joint-position entries only; "x.vel" and the like are passed through
+        joints += [j for j in f.position_joint_names if j not in joints]
     robot = opts.robot or layout.robot_type
     compat = _compat(opts.compat)
     if opts.robot is None and robot is not None and opts.motor_family is None:
@@ -183,7 +183,7 @@ def inspect(
         layout = read_layout(root)
         joints: list[str] = []
         for f in layout.select(keys):
-            joints += [j for j in f.joint_names if j not in joints]
+            joints += [j for j in f.position_joint_names if j not in joints]
         robot = opts.robot or layout.robot_type
         try:
             _, modes = resolve_modes(joints, opts, robot)
