@@ -15,7 +15,7 @@ from pathlib import Path
 
 from .errors import FileFormatError, UsageError
 
-__all__ = ["atomic_write_bytes", "atomic_write_text", "backup_path", "read_bytes", "read_text"]
+__all__ = ["atomic_write_bytes", "atomic_write_text", "backup_path", "check_output_path", "read_bytes", "read_text"]
 
 MAX_FILE_BYTES = 256 * 1024 * 1024
 """Refuse to read calibration or description files larger than this (256 MiB)."""
@@ -71,6 +71,28 @@ def read_text(path: str | os.PathLike[str], what: str = "file") -> str:
         raise FileFormatError(f"{what} {path}: not UTF-8 text (byte {exc.start})") from None
 
 
+def check_output_path(path: str | os.PathLike[str], what: str = "output") -> Path:
+    """Refuse an output path whose folder does not exist or that is a directory, before any work is done.
+
+    Args:
+        path: The file that will be written.
+        what: How the message names it (e.g. ``"--out"``).
+
+    Returns:
+        The path (its parent is ``.`` when it has none).
+
+    Raises:
+        UsageError: The folder is missing, or the path is a directory.
+    """
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise UsageError(f"{what} {p}: folder {parent} does not exist")
+    if p.is_dir():
+        raise UsageError(f"{what} {p}: it is a directory")
+    return p
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, backup: bool = True) -> Path:
     """Write ``data`` to ``path`` atomically, keeping the previous file as ``NAME.bak``.
 
@@ -86,12 +108,8 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, backup: boo
         UsageError: The folder does not exist, is not writable, the disk is full, or the destination is a
             directory. Nothing is changed then.
     """
-    p = Path(path)
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise UsageError(f"cannot write {p}: folder {parent} does not exist")
-    if p.is_dir():
-        raise UsageError(f"cannot write {p}: it is a directory")
+    p = check_output_path(path, "cannot write")
+    parent = p.parent
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=parent)
     except OSError as exc:

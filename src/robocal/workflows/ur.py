@@ -33,7 +33,7 @@ from ..core.ur import (
 )
 from ..core.urhash import calib_hash
 from ..errors import JointMismatchError, UsageError
-from ..fileio import atomic_write_bytes, atomic_write_text, backup_path, read_bytes
+from ..fileio import atomic_write_bytes, atomic_write_text, backup_path, check_output_path, read_bytes
 from ..formats.ur_kinematics import (
     kinematics_to_text,
     read_deltas,
@@ -116,13 +116,7 @@ class VerifyReport:
 
 def check_out_path(path: str | os.PathLike[str], what: str = "--out") -> Path:
     """Refuse an output path whose folder does not exist or that is a directory (exit 2, nothing written)."""
-    p = Path(path)
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise UsageError(f"{what} {p}: folder {parent} does not exist")
-    if p.is_dir():
-        raise UsageError(f"{what} {p}: is a directory")
-    return p
+    return check_output_path(path, what)
 
 
 def load_dh_input(
