@@ -89,7 +89,10 @@ class JointMap:
 
 
 def _vector(values: ArrayLike, n: int, field: str) -> FloatArray:
-    arr = np.array(values, dtype=np.float64)
+    raw = np.asarray(values)
+    if raw.dtype == np.bool_:
+        raise InvalidCalibrationError(f"{field} holds booleans; expected numbers")
+    arr = np.array(raw, dtype=np.float64)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
     if arr.shape != (n,):
@@ -126,6 +129,10 @@ class RobotCalibration:
         homing_offset: ArrayLike,
         scale: ArrayLike = 1.0,
     ) -> None:
+        if isinstance(joint_names, str):
+            raise InvalidCalibrationError(
+                f"joint_names {joint_names!r} is one string; expected a sequence of joint names"
+            )
         names = tuple(joint_names)
         for name in names:
             if not isinstance(name, str) or not name:
@@ -256,7 +263,12 @@ class RobotCalibration:
 
     # --------------------------------------------------------------------------------------------- mapping
     def _check(self, x: ArrayLike, what: str) -> FloatArray:
-        arr = np.asarray(x, dtype=np.float64)
+        try:
+            arr = np.asarray(x, dtype=np.float64)
+        except (TypeError, ValueError) as exc:  # ragged nesting, strings, objects
+            raise ShapeMismatchError(
+                f"{what} is not a numeric array of shape (..., {self.n_joints}): {exc}"
+            ) from None
         if arr.ndim == 0:
             if self.n_joints != 1:
                 raise ShapeMismatchError(f"{what} is a scalar; expected shape (..., {self.n_joints})")
@@ -285,11 +297,15 @@ class RobotCalibration:
                 res: FloatArray = self._gain * (r - self.homing_offset)
                 return res.reshape(r.shape)
             out = np.empty(r.shape, dtype=np.float64)
+        if not isinstance(out, np.ndarray):
+            raise ShapeMismatchError(
+                f"out is a {type(out).__name__}; expected a {r.shape} float64 numpy array"
+            )
         if out.shape != r.shape or out.dtype != np.float64:
             raise ShapeMismatchError(
                 f"out has shape {out.shape} and dtype {out.dtype}; expected {r.shape} float64"
             )
-        if r.ndim == 0 or not (r.flags.c_contiguous and out.flags.c_contiguous):
+        if r.ndim == 0 or r.size == 0 or not (r.flags.c_contiguous and out.flags.c_contiguous):
             np.multiply(self._gain, r - self.homing_offset, out=out)
             return out
         # Contiguous recording: work on flat blocks against tiled per-joint constants, so every ufunc runs one
@@ -368,8 +384,8 @@ class RobotCalibration:
         period = np.broadcast_to(np.asarray(period_raw, dtype=np.float64), r.shape)
         if not (np.all(np.isfinite(r)) and np.all(np.isfinite(lo)) and np.all(np.isfinite(up))):
             raise InvalidCalibrationError("unwrap_to_limits: raw positions and limits must be finite")
-        if np.any(period <= 0):
-            raise InvalidCalibrationError("unwrap_to_limits: the encoder period must be > 0")
+        if not np.all(np.isfinite(period) & (period > 0)):
+            raise InvalidCalibrationError("unwrap_to_limits: the encoder period must be finite and > 0")
         mid_joint = 0.5 * (lo + up)
         mid_raw = self._inv_gain * mid_joint + self.homing_offset
         k = np.round((mid_raw - r) / period)

@@ -47,8 +47,9 @@ def parse_int(value: Any, where: str, field: str) -> int:
             return int(value)
         raise FileFormatError(f"{where}: {field} {value!r} is not an integer")
     if isinstance(value, str):
+        text = value.strip()
         try:
-            return int(value.strip(), 0)
+            return int(text, 10) if text.lstrip("+-").isdigit() else int(text, 0)  # "011" is 11; "0x1B" hex
         except ValueError:
             raise FileFormatError(f"{where}: {field} {value!r} is not an integer") from None
     raise FileFormatError(f"{where}: {field} has type {type(value).__name__}; expected an integer")

@@ -36,7 +36,7 @@ from ..fileio import atomic_write_bytes, atomic_write_text, read_bytes, read_tex
 from ._json import load_json
 from ._numbers import format_float, parse_direction, parse_finite, parse_int
 from ._yaml import dump_yaml, load_yaml
-from .urdf import UrdfDocument, UrdfModel, _parse_tree
+from .urdf import UrdfDocument, UrdfModel, _model_from_tree, _parse_tree
 
 __all__ = [
     "FORMATS",
@@ -175,6 +175,9 @@ def _write_lite_yaml(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **
         from ruamel.yaml.comments import CommentedMap
 
         doc = CommentedMap()
+    # the file holds exactly the calibration written, so reading it back gives the same joints
+    for name in [k for k in doc if k not in entries]:
+        del doc[name]
     for name, entry in entries.items():
         if name in doc:
             node = doc[name]
@@ -318,7 +321,25 @@ def _write_berkeley(
     joint_order: Sequence[str] | None = None,
     **_: Any,
 ) -> None:
-    cal = cf.calibration if joint_order is None else cf.calibration.select(joint_order)
+    cal = cf.calibration
+    if joint_order is None and urdf is not None:
+        # the file is positional and is read back in the URDF's order: write it in that order
+        order = urdf.calibration_joint_names()
+        missing = [n for n in order if n not in cal.joint_names]
+        extra = [n for n in cal.joint_names if n not in order]
+        if missing or extra:
+            detail = "; ".join(
+                f"{what}: {', '.join(names)}"
+                for what, names in (("not in the calibration", missing), ("not in the URDF", extra))
+                if names
+            )
+            raise JointMismatchError(
+                f"berkeley-offsets is positional in the order of URDF {urdf.source}, but the joints differ "
+                f"({detail}); pass --joints for the order"
+            )
+        joint_order = order
+    if joint_order is not None:
+        cal = cal.select(joint_order)
     _require_rad(cal, "berkeley-offsets")
     offs = berkeley_offset_from_homing(cal.direction, cal.homing_offset)
     body = ", ".join(format_float(v) for v in offs)
@@ -334,19 +355,46 @@ def _write_berkeley(
 _SIMPLE = "SimpleTransmission"
 
 
-def _child_text(el: Any, *tags: str) -> str | None:
+_REDUCTION_TAGS = ("mechanical_reduction", "mechanicalReduction")  # ros2_control, ROS 1
+
+
+def _child_el(el: Any, *tags: str) -> Any:
+    """The first child with one of ``tags`` and non-blank text, or None."""
     for tag in tags:
         c = el.find(tag)
         if c is not None and c.text is not None and c.text.strip():
-            return str(c.text.strip())
+            return c
     return None
 
 
+def _child_text(el: Any, *tags: str) -> str | None:
+    c = _child_el(el, *tags)
+    return None if c is None else str(c.text.strip())
+
+
 def _transmissions(root: Any) -> list[Any]:
-    found = list(root.findall("transmission"))
-    for sys_el in root.findall("ros2_control"):
-        found.extend(sys_el.findall("transmission"))
+    """``<transmission>`` elements under ``<robot>`` and inside ``<ros2_control>``, in document order."""
+    found: list[Any] = []
+    for el in root:
+        if el.tag == "transmission":
+            found.append(el)
+        elif el.tag == "ros2_control":
+            found.extend(el.findall("transmission"))
     return found
+
+
+def _is_simple(tr: Any) -> bool:
+    return (_child_text(tr, "plugin", "type") or "").endswith(_SIMPLE)
+
+
+def _reduction_el(tr: Any, joint: Any) -> Any:
+    """The element holding the reduction: the joint's (ros2_control) or else the actuator's (ROS 1 style)."""
+    el = _child_el(joint, *_REDUCTION_TAGS)
+    if el is None:
+        actuator = tr.find("actuator")
+        if actuator is not None:
+            el = _child_el(actuator, *_REDUCTION_TAGS)
+    return el
 
 
 def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
@@ -357,8 +405,7 @@ def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
     skipped: list[str] = []
     for tr in _transmissions(root):
         tname = tr.get("name") or f"line {tr.sourceline}"
-        kind = _child_text(tr, "plugin", "type") or ""
-        if not kind.endswith(_SIMPLE):
+        if not _is_simple(tr):
             skipped.append(tname)
             continue
         joint = tr.find("joint")
@@ -366,12 +413,9 @@ def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
             raise FileFormatError(f"{source}: transmission {tname!r} has no <joint name=...>")
         jname = joint.get("name")
         where = f"{source}: transmission {tname!r} joint {jname!r}"
-        red_text = _child_text(joint, "mechanical_reduction", "mechanicalReduction")
-        if red_text is None:
-            actuator = tr.find("actuator")
-            if actuator is not None:
-                red_text = _child_text(actuator, "mechanical_reduction", "mechanicalReduction")
-        reduction = parse_finite(red_text if red_text is not None else "1", where, "mechanical_reduction")
+        red_el = _reduction_el(tr, joint)
+        red_text = "1" if red_el is None else red_el.text.strip()
+        reduction = parse_finite(red_text, where, "mechanical_reduction")
         if reduction == 0.0:
             raise FileFormatError(f"{where}: mechanical_reduction is 0")
         offset = parse_finite(_child_text(joint, "offset") or "0", where, "offset")
@@ -386,12 +430,11 @@ def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
     notes = (f"skipped non-SimpleTransmission transmissions: {', '.join(skipped)}",) if skipped else ()
     model_ids: dict[str, int] = {}
     try:
-        from .urdf import _model_from_tree
-
         model = _model_from_tree(tree, source)
         for n in names:
-            if n in model.joint_params and model.motor_id(n) is not None:
-                model_ids[n] = int(model.motor_id(n))  # type: ignore[arg-type]
+            mid = model.motor_id(n) if n in model.joint_params else None
+            if mid is not None:
+                model_ids[n] = mid
     except FileFormatError:
         pass
     return CalibrationFile(
@@ -403,8 +446,18 @@ def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
     )
 
 
-def _set_child(parent: Any, tag: str, text: str, indent: str) -> None:
+def _same_number(el: Any, value: float) -> bool:
+    """True when ``el`` already holds ``value`` (so an unchanged value keeps its spelling)."""
+    try:
+        return el is not None and float((el.text or "").strip()) == value
+    except ValueError:
+        return False
+
+
+def _set_child(parent: Any, tag: str, value: float, indent: str) -> None:
     el = parent.find(tag)
+    if _same_number(el, value) or (el is None and tag == "offset" and value == 0.0):
+        return  # unchanged, or an absent <offset> that stays 0
     if el is None:
         el = etree.SubElement(parent, tag)
         children = list(parent)
@@ -413,7 +466,7 @@ def _set_child(parent: Any, tag: str, text: str, indent: str) -> None:
             children[-2].tail = indent
         else:
             parent.text = indent
-    el.text = text
+    el.text = format_float(value)
 
 
 def _append_transmission(host: Any, joint: str, reduction: float, offset: float) -> None:
@@ -458,8 +511,7 @@ def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None,
     by_joint = {}
     for tr in _transmissions(root):
         j = tr.find("joint")
-        kind = _child_text(tr, "plugin", "type") or ""
-        if j is not None and j.get("name") and kind.endswith(_SIMPLE):
+        if j is not None and j.get("name") and _is_simple(tr):
             by_joint[j.get("name")] = tr
     for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=True):
         reduction = float(d) / float(s)
@@ -475,8 +527,12 @@ def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None,
         else:
             jel = tr.find("joint")
             indent = (jel.text or "\n        ") if jel is not None else "\n"
-            _set_child(jel, "mechanical_reduction", format_float(reduction), indent)
-            _set_child(jel, "offset", format_float(offset), indent)
+            red_el = _reduction_el(tr, jel)
+            if red_el is None:
+                _set_child(jel, "mechanical_reduction", reduction, indent)
+            elif not _same_number(red_el, reduction):  # where it is (a ROS 1 file keeps it on the actuator)
+                red_el.text = format_float(reduction)
+            _set_child(jel, "offset", offset, indent)
     atomic_write_bytes(path, doc.to_bytes())
 
 
@@ -570,7 +626,9 @@ def _sniff(text: str, source: str) -> str | None:
     try:
         data = load_yaml(text, source)
     except FileFormatError:
-        return None
+        if stripped.startswith(("{", "[")):
+            load_json(stripped, source)  # raises: report the JSON syntax error (line, column)
+        raise  # a YAML syntax error is reported as such (line, column), not as an unknown format
     if isinstance(data, Mapping):
         if data.get("format") == ROBOCAL_FORMAT_TAG:
             return "robocal"

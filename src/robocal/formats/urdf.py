@@ -124,8 +124,14 @@ class UrdfModel:
         return self.joint_params.get(joint, {}).get(name)
 
     def calibration_joint_names(self) -> tuple[str, ...]:
-        """The joint order for calibration files: ``<ros2_control>`` joints if any, else movable joints."""
-        return self.ros2_control_joint_names or self.movable_joint_names
+        """The joint order for calibration files.
+
+        The ``<ros2_control>`` joints if there are any, else the movable joints that have their own motor
+        (mimic joints follow another joint and are left out).
+        """
+        return self.ros2_control_joint_names or tuple(
+            j.name for j in self.joints if j.is_movable and j.mimic is None
+        )
 
     def direction(self, joint: str) -> int | None:
         """The ``direction`` parameter of a joint (±1), None when absent; bad values raise FileFormatError."""

@@ -122,7 +122,7 @@ def check_calibration(cf: CalibrationFile, urdf: UrdfModel) -> CheckReport:
         u_dir = urdf.direction(name)  # a malformed param is bad input (FileFormatError), not a warning
         u_id = urdf.motor_id(name)
         file_id = cf.ids.get(name)
-        if u_dir is not None and cf.fmt in ("lite-json", "lite-yaml") and u_dir != jm.direction:
+        if u_dir is not None and u_dir != jm.direction:  # berkeley-offsets takes its directions from the URDF
             warnings.append(
                 f"direction {jm.direction:+d} in the file disagrees with {u_dir:+d} in the URDF "
                 "(the robot uses the URDF's)"
