@@ -175,3 +175,9 @@ def test_blocked_batch_path_is_bit_identical() -> None:
     np.testing.assert_array_equal(cal.to_joint(raw[:, ::1].T.copy().T), expected)  # non-contiguous input
     with pytest.raises(ShapeMismatchError, match="out has shape"):
         cal.to_joint(raw, out=np.empty((3, 14)))
+
+
+def test_unwrap_to_limits_refuses_inverted_limits() -> None:
+    cal = RobotCalibration(["a", "b"], [1, 1], [0.0, 0.0])
+    with pytest.raises(InvalidCalibrationError, match="lower limit above upper limit for b"):
+        cal.unwrap_to_limits([0.0, 0.0], [-1.0, 1.0], [1.0, -1.0])

@@ -386,6 +386,11 @@ class RobotCalibration:
             raise InvalidCalibrationError("unwrap_to_limits: raw positions and limits must be finite")
         if not np.all(np.isfinite(period) & (period > 0)):
             raise InvalidCalibrationError("unwrap_to_limits: the encoder period must be finite and > 0")
+        inverted = np.broadcast_to(lo > up, r.shape).reshape(-1, self.n_joints).any(axis=0)
+        bad = np.flatnonzero(inverted)
+        if bad.size:
+            names = ", ".join(self.joint_names[i] for i in bad)
+            raise InvalidCalibrationError(f"unwrap_to_limits: lower limit above upper limit for {names}")
         mid_joint = 0.5 * (lo + up)
         mid_raw = self._inv_gain * mid_joint + self.homing_offset
         k = np.round((mid_raw - r) / period)
