@@ -515,7 +515,8 @@ def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
                         f"{c.range_min}..{c.range_max}",
                     )
                 _common.console.print(t)
-                _common.console.print(f"wrote {result.path}")
+                where = " (temporary folder, removed on exit; keep it with --out DIR)" if tmp is not None else ""
+                _common.console.print(f"wrote {result.path}{where}", markup=False)
                 data = json.loads(pathlib.Path(str(result.path)).read_text())
                 _common.console.print(f"{len(data)} motors in LeRobot's format", markup=False)
     finally:
