@@ -16,7 +16,7 @@ import typer
 from rich.live import Live
 from rich.table import Table
 
-from ..core.lerobot import ROBOTS, MotorCalibration, RobotSpec
+from ..core.lerobot import ROBOTS, MotorCalibration, RobotSpec, parse_compat
 from ..errors import UsageError
 from . import _common
 
@@ -388,8 +388,7 @@ def show(
     """Print live normalised positions (LeRobot's units) of every motor."""
     from ..lerobot import normalize, read_calibration
 
-    if compat not in ("lerobot", "exact"):
-        raise UsageError(f"--compat {compat!r}: expected lerobot or exact")
+    compat_mode = parse_compat(compat)
     spec = _spec(robot)
     _modes(spec, use_degrees, modes_opt)  # bad --modes is refused before any file or bus I/O
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
@@ -412,7 +411,7 @@ def show(
                 order,
                 modes,
                 apply_drive_mode=spec.vendor == "feetech",
-                compat=compat,  # type: ignore[arg-type]
+                compat=compat_mode,
             )
             _common.console.print(f"{k:>7}  " + "  ".join(f"{v:9.3f}" for v in vals))
 
@@ -437,8 +436,7 @@ def export_urdf(
     from ..lerobot import read_calibration
     from ..workflows.lerobot import export_joint_map
 
-    if compat not in ("lerobot", "exact"):
-        raise UsageError(f"--compat {compat!r}: expected lerobot or exact")
+    compat_mode = parse_compat(compat)
     spec = _spec(robot)
     signs: dict[str, int] = {}
     for k, v in _common.parse_assignments(sign, "--sign").items():
@@ -454,7 +452,7 @@ def export_urdf(
             raise UsageError(f"--offset-deg {k}={v}: expected a number of degrees") from None
     modes = _modes(spec, use_degrees, modes_opt)
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
-    rc, skipped = export_joint_map(spec, cals, signs=signs, offsets_deg=offsets, compat=compat, modes=modes)
+    rc, skipped = export_joint_map(spec, cals, signs=signs, offsets_deg=offsets, compat=compat_mode, modes=modes)
     ids = {n: cals[n].id for n in rc.joint_names}
     write_calibration(out, rc, "robocal", ids=ids)
     _common.console.print(f"wrote {out} ({len(rc.joint_names)} joints)")

@@ -22,7 +22,7 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError
+from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError, UsageError
 
 __all__ = [
     "MODE_CODES",
@@ -52,6 +52,19 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 Compat = Literal["lerobot", "exact"]
+
+
+def parse_compat(value: str, what: str = "--compat") -> Compat:
+    """Check a compat name: ``"lerobot"`` (bit-identical to LeRobot) or ``"exact"`` (lossless).
+
+    Raises:
+        UsageError: Any other value (the message names ``what``).
+    """
+    if value == "lerobot":
+        return "lerobot"
+    if value == "exact":
+        return "exact"
+    raise UsageError(f"{what} {value!r}: expected lerobot or exact")
 
 MODE_CODES: dict[str, int] = {"range_m100_100": 0, "range_0_100": 1, "degrees": 2}
 """LeRobot norm-mode value → integer code used in the vectorised kernels."""

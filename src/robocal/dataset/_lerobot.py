@@ -23,7 +23,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..core.lerobot import Compat, LegacyCalibration, MotorCalibration
+from ..core.lerobot import Compat, LegacyCalibration, MotorCalibration, parse_compat
 from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import read_text
 from ..lerobot import NormMode, normalize, unnormalize
@@ -128,8 +128,7 @@ class LeRobotConvention:
                 raise UsageError(f"joint {name!r}: mode {mode!r} is not one of {', '.join(valid)}")
         if self.family not in ("feetech", "dynamixel"):
             raise UsageError(f"motor family {self.family!r}: expected feetech or dynamixel")
-        if self.compat not in ("lerobot", "exact"):
-            raise UsageError(f"compat {self.compat!r}: expected lerobot or exact")
+        parse_compat(self.compat, "compat")
 
     @classmethod
     def from_calibrations(

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
+from ..core.lerobot import parse_compat
 from ..errors import JointMismatchError, UsageError
 
 if TYPE_CHECKING:
@@ -86,12 +87,6 @@ def _family(opts: DatasetOptions, robot: str | None) -> Literal["feetech", "dyna
     return motor_family_for_robot(robot) if robot else None
 
 
-def _compat(value: str) -> Literal["lerobot", "exact"]:
-    if value not in ("lerobot", "exact"):
-        raise UsageError(f"--compat {value!r}: expected lerobot or exact")
-    return "lerobot" if value == "lerobot" else "exact"
-
-
 def _conventions(
     root: Path, old: Path | None, new: Path | None, features: Sequence[str] | None, opts: DatasetOptions
 ) -> tuple[list[str], ValueConvention | None, ValueConvention | None]:
@@ -104,7 +99,7 @@ def _conventions(
     for f in feats:  # joint-position entries only; "x.vel" and the like are passed through
         joints += [j for j in f.position_joint_names if j not in joints]
     robot = opts.robot or layout.robot_type
-    compat = _compat(opts.compat)
+    compat = parse_compat(opts.compat)
     if opts.robot is None and robot is not None and opts.motor_family is None:
         # info.json's robot_type only helps when it names a known robot
         try:
