@@ -331,29 +331,27 @@ class RobotCalibration:
         out: FloatArray = self._inv_gain * qq + self.homing_offset
         return out.reshape(qq.shape)
 
+    def _scaled(self, gain: FloatArray, x: ArrayLike, what: str) -> FloatArray:
+        """``gain·x`` over the joint axis (velocity and effort carry no offset)."""
+        arr = self._check(x, what)
+        out: FloatArray = gain * arr
+        return out.reshape(arr.shape)
+
     def velocity_to_joint(self, v_raw: ArrayLike) -> FloatArray:
         """Raw velocities → joint velocities: ``direction·scale·v`` (no offset), shape ``(..., N)``."""
-        x = self._check(v_raw, "raw velocity")
-        out: FloatArray = self._gain * x
-        return out.reshape(x.shape)
+        return self._scaled(self._gain, v_raw, "raw velocity")
 
     def velocity_to_raw(self, v_joint: ArrayLike) -> FloatArray:
         """Joint velocities → raw velocities: ``direction·v/scale``, shape ``(..., N)``."""
-        x = self._check(v_joint, "joint velocity")
-        out: FloatArray = self._inv_gain * x
-        return out.reshape(x.shape)
+        return self._scaled(self._inv_gain, v_joint, "joint velocity")
 
     def effort_to_joint(self, e_raw: ArrayLike) -> FloatArray:
         """Raw efforts → joint efforts: ``direction·scale·e`` (no offset), shape ``(..., N)``."""
-        x = self._check(e_raw, "raw effort")
-        out: FloatArray = self._gain * x
-        return out.reshape(x.shape)
+        return self._scaled(self._gain, e_raw, "raw effort")
 
     def effort_to_raw(self, e_joint: ArrayLike) -> FloatArray:
         """Joint efforts → raw efforts: ``direction·e/scale``, shape ``(..., N)``."""
-        x = self._check(e_joint, "joint effort")
-        out: FloatArray = self._inv_gain * x
-        return out.reshape(x.shape)
+        return self._scaled(self._inv_gain, e_joint, "joint effort")
 
     def unwrap_to_limits(
         self,
