@@ -19,6 +19,7 @@ __all__ = [
     "CalibTimeoutError",
     "DeviceError",
     "FileFormatError",
+    "FileWriteError",
     "InvalidCalibrationError",
     "JointMismatchError",
     "JointOutOfRangeError",
@@ -59,6 +60,14 @@ class JointOutOfRangeError(CalibError, ValueError):
 
 class FileFormatError(CalibError, ValueError):
     """A file cannot be parsed or does not follow its format; the message names the file and field."""
+
+
+class FileWriteError(UsageError):
+    """An output file cannot be written; the message names the path and why, and nothing was changed.
+
+    For example its folder is missing or read-only, the disk is full, a name is too long, or the destination
+    is a directory.
+    """
 
 
 class BackendNotAvailableError(CalibError, ImportError):

@@ -256,7 +256,6 @@ def test_relative_paths_and_dot_destination(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.yaml", "b.yaml", "out", "src"]
 
 
-
 def _dying_work(args: object) -> object:
     os._exit(1)  # a worker killed mid-file (e.g. by the OOM killer)
 

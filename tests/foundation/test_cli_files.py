@@ -164,7 +164,10 @@ def test_stray_ctrl_c_is_one_error_line(capsys: pytest.CaptureFixture[str]) -> N
 def test_demo_robot_names(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--robot", "atlas"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: unknown demo robot 'atlas'; valid: lite, so101, koch, ur3") and err.count("\n") == 1
+    assert (
+        err.startswith("error: unknown demo robot 'atlas'; valid: lite, so101, koch, ur3")
+        and err.count("\n") == 1
+    )
 
 
 def test_demo_out_must_be_a_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -29,7 +29,9 @@ def calibration_files(draw: st.DrawFn) -> CalibrationFile:
     dirs = draw(st.lists(st.sampled_from([-1, 1]), min_size=n, max_size=n))
     offs = draw(st.lists(offsets, min_size=n, max_size=n))
     ids = draw(st.lists(st.integers(0, 255), min_size=n, max_size=n, unique=True))
-    return CalibrationFile(RobotCalibration(joint_names, dirs, offs), dict(zip(joint_names, ids, strict=False)))
+    return CalibrationFile(
+        RobotCalibration(joint_names, dirs, offs), dict(zip(joint_names, ids, strict=False))
+    )
 
 
 @pytest.mark.parametrize("fmt", ["lite-json", "lite-yaml", "robocal", "ros2-transmission"])

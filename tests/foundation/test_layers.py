@@ -9,8 +9,21 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "robocal"
 LAYERS = ["core", "backends", "formats", "workflows", "cli"]  # imports point down (left) only
-HEAVY = ["typer", "rich", "click", "can", "lxml", "ruamel", "pyarrow", "matplotlib", "scservo_sdk",
-         "dynamixel_sdk", "serial", "rosbags", "scipy"]
+HEAVY = [
+    "typer",
+    "rich",
+    "click",
+    "can",
+    "lxml",
+    "ruamel",
+    "pyarrow",
+    "matplotlib",
+    "scservo_sdk",
+    "dynamixel_sdk",
+    "serial",
+    "rosbags",
+    "scipy",
+]
 
 
 def test_core_imports_with_numpy_alone() -> None:
@@ -21,8 +34,13 @@ def test_core_imports_with_numpy_alone() -> None:
         + f"heavy = [m for m in {HEAVY!r} if m in sys.modules]\n"
         + "print(','.join(heavy))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         env={"PYTHONPATH": str(SRC.parent)})
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"PYTHONPATH": str(SRC.parent)},
+    )
     assert out.stdout.strip() == "", f"robocal.core pulled in: {out.stdout.strip()}"
     assert "jointmap" in modules
 

@@ -117,4 +117,6 @@ def test_xacro_is_refused_with_a_hint() -> None:
         parse_urdf(xacro)
     with pytest.raises(FileFormatError, match="xacro"):
         parse_urdf(b'<robot name="r"><link name="${prefix}base"/></robot>')
-    assert parse_urdf(b'<robot name="r"><!-- made from ${robot}.xacro --><link name="a"/></robot>').name == "r"
+    assert (
+        parse_urdf(b'<robot name="r"><!-- made from ${robot}.xacro --><link name="a"/></robot>').name == "r"
+    )

@@ -160,7 +160,9 @@ def test_calibrate_into_a_file_as_folder_is_one_error_line_and_no_bus_io(
     assert blocker.read_text() == "x"
 
 
-def test_migrate_out_under_a_file_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_migrate_out_under_a_file_is_one_error_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     src = tmp_path / "legacy.json"
     src.write_text(LEGACY)
     blocker = tmp_path / "blocker"
@@ -210,9 +212,7 @@ def test_restore_validates_every_value_before_writing_any(
     from robocal.workflows.lerobot import open_bus, restore
 
     with SimArm(robot) as arm:
-        cals = {
-            m.name: MotorCalibration(m.motor_id, 0, 7, 100, 4000) for m in arm.spec.motors
-        }
+        cals = {m.name: MotorCalibration(m.motor_id, 0, 7, 100, 4000) for m in arm.spec.motors}
         cals[motor] = replace(cals[motor], **{field: value})
         before = arm.eeprom()
         torque = {m.name: arm.servo(m.name).get_reg("Torque_Enable") for m in arm.spec.motors}

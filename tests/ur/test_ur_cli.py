@@ -57,8 +57,10 @@ def test_verify_hash_mismatch_and_model_deltas(
     assert main(["ur", "defaults", "--model", "ur10e", "--out", str(out), "--rpy", "urdf"]) == 0
     assert main(["ur", "verify", str(out), "--model", "ur10e"]) == 0
     deltas = tmp_path / "d.yaml"
-    deltas.write_text("delta_theta: [0, 0, 0, 0, 0, 0]\ndelta_a: [0, 0, 0, 0, 0, 0]\n"
-                      "delta_d: [0, 0, 0, 0, 0, 0.001]\ndelta_alpha: [0, 0, 0, 0, 0, 0]\n")
+    deltas.write_text(
+        "delta_theta: [0, 0, 0, 0, 0, 0]\ndelta_a: [0, 0, 0, 0, 0, 0]\n"
+        "delta_d: [0, 0, 0, 0, 0, 0.001]\ndelta_alpha: [0, 0, 0, 0, 0, 0]\n"
+    )
     capsys.readouterr()
     assert main(["ur", "verify", str(out), "--model", "ur10e", "--deltas", str(deltas)]) == 1
     err = capsys.readouterr().err
@@ -74,8 +76,22 @@ def test_correct_updates_urdf_and_verify_urdf(
     urdf_in.write_text(ur_urdf_text(default_kinematics("ur10e", "urdf")))
     urdf_out = tmp_path / "ur_cal.urdf"
     out = tmp_path / "k.yaml"
-    code = main(["ur", "correct", "--dh", str(dh), "--out", str(out), "--rpy", "upstream",
-                 "--urdf-in", str(urdf_in), "--urdf-out", str(urdf_out)])
+    code = main(
+        [
+            "ur",
+            "correct",
+            "--dh",
+            str(dh),
+            "--out",
+            str(out),
+            "--rpy",
+            "upstream",
+            "--urdf-in",
+            str(urdf_in),
+            "--urdf-out",
+            str(urdf_out),
+        ]
+    )
     assert code == 0
     # the URDF always gets URDF-convention angles, whatever --rpy the YAML uses
     assert main(["ur", "verify", "--dh", str(dh), "--urdf", str(urdf_out)]) == 0
@@ -136,7 +152,10 @@ def test_deviation_from_nominal_values(dh_sets: dict[int, DHParameters]) -> None
 
 @pytest.mark.parametrize(
     ("args", "message"),
-    [(["--timeout", "0"], "--timeout 0.0: expected a positive number"), (["--port", "70000"], "--port 70000")],
+    [
+        (["--timeout", "0"], "--timeout 0.0: expected a positive number"),
+        (["--port", "70000"], "--port 70000"),
+    ],
 )
 def test_extract_bad_timeout_or_port_exit_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str

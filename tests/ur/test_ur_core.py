@@ -83,8 +83,17 @@ def test_hash_of_test_sets(dh_sets: dict[int, DHParameters]) -> None:
 
 @pytest.mark.parametrize(
     ("value", "text"),
-    [(0.0, "0"), (-0.0, "-0"), (0.1625, "0.1625"), (1.570796327, "1.5708"), (-0.3922, "-0.3922"),
-     (1e-5, "1e-05"), (439.140974079901, "439.141"), (123456789.0, "1.23457e+08"), (math.inf, "inf")],
+    [
+        (0.0, "0"),
+        (-0.0, "-0"),
+        (0.1625, "0.1625"),
+        (1.570796327, "1.5708"),
+        (-0.3922, "-0.3922"),
+        (1e-5, "1e-05"),
+        (439.140974079901, "439.141"),
+        (123456789.0, "1.23457e+08"),
+        (math.inf, "inf"),
+    ],
 )
 def test_cpp_ostream_format(value: float, text: str) -> None:
     assert cpp_ostream_format(value) == text
@@ -101,14 +110,30 @@ def test_hash_bytes_tail_lengths_differ() -> None:
 
 URSIM_CASES = [
     (
-        (-1.6007002035724084976209269370884, -1.7271001974688928726209269370884, -2.2029998938189905288709269370884,
-         -0.80799991289247685699592693708837, 1.59510004520416259765625, -0.03099996248354131012092693708837),
+        (
+            -1.6007002035724084976209269370884,
+            -1.7271001974688928726209269370884,
+            -2.2029998938189905288709269370884,
+            -0.80799991289247685699592693708837,
+            1.59510004520416259765625,
+            -0.03099996248354131012092693708837,
+        ),
         (-0.179925914147547, -0.606869755162764, 0.230789102067257),
     ),
     (
-        (1.32645022869110107421875, 2.426007747650146484375, 5.951572895050048828125, 1.27409040927886962890625,
-         -0.54105216661562138824592693708837, 0.122173048555850982666015625),
-        (0.39922988003280424074148413637886, 0.59688365069340565405298093537567, -0.6677819040276375961440180617501),
+        (
+            1.32645022869110107421875,
+            2.426007747650146484375,
+            5.951572895050048828125,
+            1.27409040927886962890625,
+            -0.54105216661562138824592693708837,
+            0.122173048555850982666015625,
+        ),
+        (
+            0.39922988003280424074148413637886,
+            0.59688365069340565405298093537567,
+            -0.6677819040276375961440180617501,
+        ),
     ),
 ]
 
@@ -176,10 +201,17 @@ def test_corrected_d_values_follow_closed_form(test_set: tuple[int, DHParameters
     assert chain[2, 2, 3] == 0.0 and chain[4, 2, 3] == 0.0  # d2' = d3' = 0
     assert chain[6, 2, 3] == pytest.approx(d4 + d3p / math.cos(al3), abs=1e-9)
     assert chain[3, 0, 3] == pytest.approx(-math.hypot(a2, d2 * math.tan(al2)), abs=1e-12)
-    theta2p = math.atan2(math.sin(th2) * a2 + math.cos(th2) * d2 * math.tan(al2),
-                         math.cos(th2) * a2 - math.sin(th2) * d2 * math.tan(al2)) - math.pi
+    theta2p = (
+        math.atan2(
+            math.sin(th2) * a2 + math.cos(th2) * d2 * math.tan(al2),
+            math.cos(th2) * a2 - math.sin(th2) * d2 * math.tan(al2),
+        )
+        - math.pi
+    )
     R = chain[2, :3, :3]
-    assert math.atan2(R[1, 0], R[0, 0]) == pytest.approx(math.atan2(math.sin(theta2p), math.cos(theta2p)), abs=1e-12)
+    assert math.atan2(R[1, 0], R[0, 0]) == pytest.approx(
+        math.atan2(math.sin(theta2p), math.cos(theta2p)), abs=1e-12
+    )
 
 
 def test_set3_corrected_arm_is_physical(dh_sets: dict[int, DHParameters]) -> None:
@@ -229,7 +261,9 @@ def test_defaults_have_no_negative_zero_and_exact_fk(model: str) -> None:
 UPSTREAM_ERROR_BOUNDS = {1: (4.3e-5, 6.3e-5), 2: (6.6e-6, 7.4e-6), 3: (3.3e-6, 3.1e-6)}
 
 
-def test_upstream_rpy_mode_reproduces_upstream_error_urdf_mode_exact(test_set: tuple[int, DHParameters]) -> None:
+def test_upstream_rpy_mode_reproduces_upstream_error_urdf_mode_exact(
+    test_set: tuple[int, DHParameters],
+) -> None:
     set_id, dh = test_set
     q = np.random.default_rng(7).uniform(-2 * math.pi, 2 * math.pi, (1000, 6))
     T_dh = fk_dh(dh, q)
@@ -251,8 +285,12 @@ def test_upstream_rpy_mode_reproduces_upstream_error_urdf_mode_exact(test_set: t
 def test_set1_upstream_angles_pinned(dh_sets: dict[int, DHParameters]) -> None:
     up = {lk.name: lk.rpy_rad for lk in correct_kinematics(dh_sets[1], "upstream").links}
     # Eigen's eulerAngles(0,1,2) returns the alternate (≈π, ≈π, ≈π) triple for near-identity forearm/wrist_1
-    assert up["forearm"] == pytest.approx((3.1343383537539844, 3.1414684740475196, -3.1415039327216476), abs=1e-13)
-    assert up["wrist_1"] == pytest.approx((3.128129279851486, 3.140861213894874, -3.141584670903837), abs=1e-13)
+    assert up["forearm"] == pytest.approx(
+        (3.1343383537539844, 3.1414684740475196, -3.1415039327216476), abs=1e-13
+    )
+    assert up["wrist_1"] == pytest.approx(
+        (3.128129279851486, 3.140861213894874, -3.141584670903837), abs=1e-13
+    )
     assert up["wrist_3"][1] == math.pi
 
 
@@ -301,35 +339,48 @@ def _assert_exact(dh: DHParameters) -> None:
 
 def test_next_d_exactly_zero_is_handled_exactly() -> None:
     # upstream normalises a zero vector here and writes NaN (d2 = 0.5, d3 = 0)
-    dh = _ur10e_with(d_m=(0.1807, 0.5, 0.0, 0.17415, 0.11985, 0.11655), alpha_rad=(PI_2, 0.01, 0.0, PI_2, -PI_2, 0))
+    dh = _ur10e_with(
+        d_m=(0.1807, 0.5, 0.0, 0.17415, 0.11985, 0.11655), alpha_rad=(PI_2, 0.01, 0.0, PI_2, -PI_2, 0)
+    )
     _assert_exact(dh)
     assert correct_chain(dh)[4, 2, 3] == 0.0  # d3 absorbed d2 and was then moved on to joint 4
 
 
 def test_a_exactly_zero_is_handled_exactly() -> None:
     # upstream omits the −π when a == 0 and lands 2‖I‖ (2 cm) away: a2 = 0, d2 = 1, α2 = 0.01
-    dh = _ur10e_with(a_m=(0, 0.0, -0.57155, 0, 0, 0), d_m=(0.1807, 1.0, -1.0, 0.17415, 0.11985, 0.11655),
-                     alpha_rad=(PI_2, 0.01, 0.0, PI_2, -PI_2, 0))
+    dh = _ur10e_with(
+        a_m=(0, 0.0, -0.57155, 0, 0, 0),
+        d_m=(0.1807, 1.0, -1.0, 0.17415, 0.11985, 0.11655),
+        alpha_rad=(PI_2, 0.01, 0.0, PI_2, -PI_2, 0),
+    )
     _assert_exact(dh)
 
 
 def test_negative_cos_alpha_is_handled_exactly() -> None:
     # upstream corrects d with the wrong sign when |α| > π/2
-    dh = _ur10e_with(d_m=(0.1807, 0.3, -0.2, 0.17415, 0.11985, 0.11655),
-                     alpha_rad=(PI_2, math.pi - 0.05, 0.02, PI_2, -PI_2, 0))
+    dh = _ur10e_with(
+        d_m=(0.1807, 0.3, -0.2, 0.17415, 0.11985, 0.11655),
+        alpha_rad=(PI_2, math.pi - 0.05, 0.02, PI_2, -PI_2, 0),
+    )
     _assert_exact(dh)
     assert correct_chain(dh)[4, 2, 3] == 0.0
 
 
 def test_seed_exaggerated_example_is_exact() -> None:
-    dh = DHParameters(theta_rad=(0,) * 6, a_m=(0, -0.6127, -0.57155, 0, 0, 0),
-                      d_m=(0.1807, 1, 0.5, -1.32585, 0.11985, 0.11655), alpha_rad=(PI_2, 0.2, 0, PI_2, -PI_2, 0))
+    dh = DHParameters(
+        theta_rad=(0,) * 6,
+        a_m=(0, -0.6127, -0.57155, 0, 0, 0),
+        d_m=(0.1807, 1, 0.5, -1.32585, 0.11985, 0.11655),
+        alpha_rad=(PI_2, 0.2, 0, PI_2, -PI_2, 0),
+    )
     _assert_exact(dh)
 
 
 @pytest.mark.parametrize("alpha2", [PI_2, -PI_2, math.pi / 2, math.pi / 2 + 1e-4])
 def test_alpha_half_pi_is_refused(alpha2: float) -> None:
-    dh = _ur10e_with(d_m=(0.1807, 0.5, -0.5, 0.17415, 0.11985, 0.11655), alpha_rad=(PI_2, alpha2, 0, PI_2, -PI_2, 0))
+    dh = _ur10e_with(
+        d_m=(0.1807, 0.5, -0.5, 0.17415, 0.11985, 0.11655), alpha_rad=(PI_2, alpha2, 0, PI_2, -PI_2, 0)
+    )
     with pytest.raises(InvalidCalibrationError, match=r"DH joint 2: alpha = .* parallel"):
         correct_kinematics(dh)
 

@@ -37,7 +37,12 @@ def test_yaml_layout_key_order_hash_last_no_negative_zero(dh_sets: dict[int, DHP
     lines = text.splitlines()
     assert lines[1] == "kinematics:"
     assert [ln.strip()[:-1] for ln in lines if ln.startswith("  ") and not ln.startswith("    ")][:6] == [
-        "shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"
+        "shoulder",
+        "upper_arm",
+        "forearm",
+        "wrist_1",
+        "wrist_2",
+        "wrist_3",
     ]
     assert lines[2:9] == [
         "  shoulder:",
@@ -87,14 +92,19 @@ def test_read_dh_and_deltas(tmp_path: Path, dh_sets: dict[int, DHParameters]) ->
     deltas = read_deltas(conf)
     assert deltas.theta_rad[0] == 0.1 and deltas.a_m[1] == 0.001 and deltas.d_m[5] == 0.002
     y = tmp_path / "deltas.yaml"
-    y.write_text("delta_theta: [0, 0, 0, 0, 0, 0]\ndelta_a: [0, 0, 0, 0, 0, 0]\n"
-                 "delta_d: [0, 1.5, -1.5, 0, 0, 0]\ndelta_alpha: [0, 0, 0, 0, 0, 0]\n")
+    y.write_text(
+        "delta_theta: [0, 0, 0, 0, 0, 0]\ndelta_a: [0, 0, 0, 0, 0, 0]\n"
+        "delta_d: [0, 1.5, -1.5, 0, 0, 0]\ndelta_alpha: [0, 0, 0, 0, 0, 0]\n"
+    )
     assert read_deltas(y).d_m == (0.0, 1.5, -1.5, 0.0, 0.0, 0.0)
 
 
-GOOD = {"dh_theta": "[0, 0, 0, 0, 0, 0]", "dh_a": "[0, -0.6127, -0.57155, 0, 0, 0]",
-        "dh_d": "[0.1807, 1.0, -1.0, 0.17415, 0.11985, 0.11655]",
-        "dh_alpha": "[1.570796327, 0.001, 0, 1.570796327, -1.570796327, 0]"}
+GOOD = {
+    "dh_theta": "[0, 0, 0, 0, 0, 0]",
+    "dh_a": "[0, -0.6127, -0.57155, 0, 0, 0]",
+    "dh_d": "[0.1807, 1.0, -1.0, 0.17415, 0.11985, 0.11655]",
+    "dh_alpha": "[1.570796327, 0.001, 0, 1.570796327, -1.570796327, 0]",
+}
 
 
 def _dh_text(**override: str | None) -> str:
@@ -112,8 +122,11 @@ MALFORMED = [
     ("scalar", _dh_text(dh_a="0.5"), r"dh_a is 0.5; expected a list of 6 numbers"),
     ("not_mapping", "- 1\n- 2\n", r"expected a mapping"),
     ("bad_yaml", "dh_theta: [0, 0\n", r"invalid YAML"),
-    ("half_pi", _dh_text(dh_alpha="[1.570796327, 1.5707963267948966, 0, 1.570796327, -1.570796327, 0]"),
-     r"DH joint 2: alpha = .* parallel"),
+    (
+        "half_pi",
+        _dh_text(dh_alpha="[1.570796327, 1.5707963267948966, 0, 1.570796327, -1.570796327, 0]"),
+        r"DH joint 2: alpha = .* parallel",
+    ),
 ]
 
 

@@ -77,7 +77,10 @@ def test_verify_host_validates_port_and_counts(tmp_path: Path, capsys: pytest.Ca
     assert main(["ur", "verify", str(f), "--host", "127.0.0.1", "--port", "70000", "--timeout", "0.5"]) == 2
     assert "--port 70000: expected 1..65535" in _one_error_line(capsys.readouterr().err)
     port = str(_free_port())
-    assert main(["ur", "verify", str(f), "--host", "127.0.0.1", "--port", port, "--controller-samples", "0"]) == 2
+    assert (
+        main(["ur", "verify", str(f), "--host", "127.0.0.1", "--port", port, "--controller-samples", "0"])
+        == 2
+    )
     assert "--controller-samples 0: expected at least 1" in _one_error_line(capsys.readouterr().err)
 
 
@@ -90,7 +93,10 @@ def test_failed_extract_leaves_existing_file_alone_one_error_line(
     out = tmp_path / "k.yaml"
     out.write_text("keep me\n")
     port = str(_free_port())
-    assert main(["ur", "extract", "--host", "127.0.0.1", "--port", port, "--out", str(out), "--timeout", "0.5"]) == 3
+    assert (
+        main(["ur", "extract", "--host", "127.0.0.1", "--port", port, "--out", str(out), "--timeout", "0.5"])
+        == 3
+    )
     assert "cannot connect" in _one_error_line(capsys.readouterr().err)
     assert out.read_text() == "keep me\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k.yaml"]
@@ -110,8 +116,20 @@ def test_urdf_out_must_differ_from_out(tmp_path: Path, capsys: pytest.CaptureFix
     urdf = tmp_path / "ur.urdf"
     urdf.write_text(ur_urdf_text(default_kinematics("ur5e", "urdf")))
     out = tmp_path / "k.yaml"
-    code = main(["ur", "correct", "--model", "ur5e", "--out", str(out), "--urdf-in", str(urdf),
-                 "--urdf-out", str(tmp_path / "." / "k.yaml")])
+    code = main(
+        [
+            "ur",
+            "correct",
+            "--model",
+            "ur5e",
+            "--out",
+            str(out),
+            "--urdf-in",
+            str(urdf),
+            "--urdf-out",
+            str(tmp_path / "." / "k.yaml"),
+        ]
+    )
     assert code == 2
     assert "--urdf-out" in _one_error_line(capsys.readouterr().err)
     assert not out.exists()
@@ -120,7 +138,9 @@ def test_urdf_out_must_differ_from_out(tmp_path: Path, capsys: pytest.CaptureFix
 # --- plot ---------------------------------------------------------------------------------------------------------
 
 
-def test_plot_unknown_format_exit_2_nothing_written(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_plot_unknown_format_exit_2_nothing_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     fig = tmp_path / "fig.xyz"
     assert main(["ur", "plot", "--model", "ur10e", "--out", str(fig)]) == 2
     assert "fig.xyz: unsupported figure format 'xyz'" in _one_error_line(capsys.readouterr().err)
@@ -164,12 +184,17 @@ def test_urdf_fk_runs_to_tool0_through_fixed_frames(tmp_path: Path, dh_sets: dic
     np.testing.assert_allclose(urdf_fk(good, q), pytransform3d_fk(kin, q), rtol=0, atol=1e-12)
     # a tool0 that is not the flange is caught
     bad = tmp_path / "bad.urdf"
-    bad.write_text(_urdf_with(ur_urdf_text(kin), 'rpy="1.5707963267948966 0 1.5707963267948966"',
-                              'rpy="1.5707963267948966 0 0"'))
+    bad.write_text(
+        _urdf_with(
+            ur_urdf_text(kin), 'rpy="1.5707963267948966 0 1.5707963267948966"', 'rpy="1.5707963267948966 0 0"'
+        )
+    )
     dh_file = tmp_path / "dh.yaml"
     dh = dh_sets[3]
-    dh_file.write_text(f"dh_theta: {list(dh.theta_rad)}\ndh_a: {list(dh.a_m)}\n"
-                       f"dh_d: {list(dh.d_m)}\ndh_alpha: {list(dh.alpha_rad)}\n")
+    dh_file.write_text(
+        f"dh_theta: {list(dh.theta_rad)}\ndh_a: {list(dh.a_m)}\n"
+        f"dh_d: {list(dh.d_m)}\ndh_alpha: {list(dh.alpha_rad)}\n"
+    )
     assert main(["ur", "verify", "--dh", str(dh_file), "--urdf", str(good), "--samples", "50"]) == 0
     assert main(["ur", "verify", "--dh", str(dh_file), "--urdf", str(bad), "--samples", "50"]) == 1
 
@@ -177,17 +202,30 @@ def test_urdf_fk_runs_to_tool0_through_fixed_frames(tmp_path: Path, dh_sets: dic
 def test_urdf_fk_refuses_a_broken_chain(tmp_path: Path) -> None:
     text = ur_urdf_text(default_kinematics("ur5e", "urdf"))
     p = tmp_path / "ur.urdf"
-    p.write_text(_urdf_with(text, '<joint name="wrist_1_joint" type="revolute"><parent link="forearm_link"/>',
-                            '<joint name="wrist_1_joint" type="revolute"><parent link="upper_arm_link"/>'))
-    with pytest.raises(JointMismatchError, match=r"wrist_1_joint's parent is upper_arm_link; expected forearm_link"):
+    p.write_text(
+        _urdf_with(
+            text,
+            '<joint name="wrist_1_joint" type="revolute"><parent link="forearm_link"/>',
+            '<joint name="wrist_1_joint" type="revolute"><parent link="upper_arm_link"/>',
+        )
+    )
+    with pytest.raises(
+        JointMismatchError, match=r"wrist_1_joint's parent is upper_arm_link; expected forearm_link"
+    ):
         urdf_fk(p, np.zeros((1, 6)))
 
 
 def test_urdf_fk_refuses_moving_joint_after_wrist_3(tmp_path: Path) -> None:
     text = ur_urdf_text(default_kinematics("ur5e", "urdf"))
     p = tmp_path / "ur.urdf"
-    p.write_text(_urdf_with(text, '<joint name="flange-tool0" type="fixed">', '<joint name="flange-tool0" '
-                            'type="revolute"><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>'))
+    p.write_text(
+        _urdf_with(
+            text,
+            '<joint name="flange-tool0" type="fixed">',
+            '<joint name="flange-tool0" '
+            'type="revolute"><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>',
+        )
+    )
     with pytest.raises(JointMismatchError, match=r"flange-tool0 .* is revolute; expected fixed"):
         urdf_fk(p, np.zeros((1, 6)))
 
@@ -227,17 +265,25 @@ def test_conf_with_a_key_twice_is_refused(tmp_path: Path) -> None:
 
     conf = tmp_path / "calibration.conf"
     zeros = "[0, 0, 0, 0, 0, 0]"
-    conf.write_text(f"[mounting]\ndelta_theta = {zeros}\ndelta_a = {zeros}\ndelta_d = {zeros}\n"
-                    f"delta_alpha = {zeros}\ndelta_d = [0, 1, 0, 0, 0, 0]\n")
-    with pytest.raises(FileFormatError, match=rf"deltas file {conf} line 6: delta_d appears twice \(first on line 4\)"):
+    conf.write_text(
+        f"[mounting]\ndelta_theta = {zeros}\ndelta_a = {zeros}\ndelta_d = {zeros}\n"
+        f"delta_alpha = {zeros}\ndelta_d = [0, 1, 0, 0, 0, 0]\n"
+    )
+    with pytest.raises(
+        FileFormatError, match=rf"deltas file {conf} line 6: delta_d appears twice \(first on line 4\)"
+    ):
         read_deltas(conf)
 
 
 def test_huge_next_d_is_corrected_not_a_zero_division() -> None:
     # d3 = 1e300: |d3·u|² overflowed, the normalised axis became 0 and the division raised ZeroDivisionError
     n = nominal_dh("ur10e")
-    dh = DHParameters(n.theta_rad, n.a_m, (0.1807, 1.0, 1e300, 0.17415, 0.11985, 0.11655),
-                      (1.570796327, 0.01, 0.0, 1.570796327, -1.570796327, 0.0))
+    dh = DHParameters(
+        n.theta_rad,
+        n.a_m,
+        (0.1807, 1.0, 1e300, 0.17415, 0.11985, 0.11655),
+        (1.570796327, 0.01, 0.0, 1.570796327, -1.570796327, 0.0),
+    )
     kin = correct_kinematics(dh)
     forearm = kin.links[2]
     assert forearm.xyz_m[0] == pytest.approx(-math.hypot(-0.6127, math.tan(0.01)), abs=1e-15)
@@ -250,7 +296,9 @@ def test_deviation_of_absurd_lengths_does_not_overflow() -> None:
     from robocal.core.ur import deviation_from_nominal
 
     n = nominal_dh("ur10e")
-    kin = correct_kinematics(DHParameters(n.theta_rad, (0.0, -1e300, -0.5, 0.0, 0.0, 0.0), n.d_m, n.alpha_rad))
+    kin = correct_kinematics(
+        DHParameters(n.theta_rad, (0.0, -1e300, -0.5, 0.0, 0.0, 0.0), n.d_m, n.alpha_rad)
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # numpy's overflow RuntimeWarning would print on the CLI's stderr
         dev = deviation_from_nominal(kin)

@@ -32,7 +32,9 @@ def ursim_fixture_bytes(dh: DHParameters, status: int) -> bytes:
     subs = b""
     for sub_type, size in [(0, 47), (1, 251), (4, 101)]:
         subs += struct.pack(">IB", size, sub_type) + bytes([0xAB]) * (size - 5)
-    body = struct.pack(">6I6d6d6d6dI", *[0xFFFFFFFF] * 6, *dh.theta_rad, *dh.a_m, *dh.d_m, *dh.alpha_rad, status)
+    body = struct.pack(
+        ">6I6d6d6d6dI", *[0xFFFFFFFF] * 6, *dh.theta_rad, *dh.a_m, *dh.d_m, *dh.alpha_rad, status
+    )
     subs += struct.pack(">IB", 225, 5) + body
     for sub_type, size in [(9, 53), (3, 75), (2, 37), (6, 445), (7, 61), (8, 9), (10, 43), (11, 26), (12, 8)]:
         # other sub-packages may contain anything, even a byte pattern that looks like a KinematicsInfo header
@@ -52,7 +54,10 @@ def test_fixture_layout_and_decode() -> None:
     assert info.dh == dh
     assert info.calibration_status == 0 and not info.linearised
     assert info.checksum == (0xFFFFFFFF,) * 6
-    assert calib_hash(info.dh.theta_rad, info.dh.d_m, info.dh.a_m, info.dh.alpha_rad) == "calib_12788084448423163542"
+    assert (
+        calib_hash(info.dh.theta_rad, info.dh.d_m, info.dh.a_m, info.dh.alpha_rad)
+        == "calib_12788084448423163542"
+    )
     # the simulator produces the same layout
     assert [(t, len(s)) for t, s in iter_subpackages(build_robot_state(dh)[5:])] == list(ROBOT_STATE_LAYOUT)
 
@@ -147,8 +152,22 @@ def test_extract_gives_the_same_file_as_correct(
         extracted, corrected = tmp_path / f"extracted_{rpy}.yaml", tmp_path / f"corrected_{rpy}.yaml"
         with SimUrController(dh) as sim:
             host, port = sim.address
-            code = main(["ur", "extract", "--host", host, "--port", str(port), "--out", str(extracted),
-                         "--timeout", "5", "--rpy", rpy])
+            code = main(
+                [
+                    "ur",
+                    "extract",
+                    "--host",
+                    host,
+                    "--port",
+                    str(port),
+                    "--out",
+                    str(extracted),
+                    "--timeout",
+                    "5",
+                    "--rpy",
+                    rpy,
+                ]
+            )
         assert code == 0
         assert main(["ur", "correct", "--dh", str(dh_file), "--out", str(corrected), "--rpy", rpy]) == 0
         assert extracted.read_bytes() == corrected.read_bytes()
@@ -159,7 +178,10 @@ def test_extract_status_warning_exit_1(tmp_path: Path, capsys: pytest.CaptureFix
     out = tmp_path / "k.yaml"
     with SimUrController(nominal_dh("ur5e"), calibration_status=0) as sim:
         host, port = sim.address
-        assert main(["ur", "extract", "--host", host, "--port", str(port), "--out", str(out), "--timeout", "5"]) == 1
+        assert (
+            main(["ur", "extract", "--host", host, "--port", str(port), "--out", str(out), "--timeout", "5"])
+            == 1
+        )
     assert out.exists()
     assert "warning: " in capsys.readouterr().err
 
@@ -171,7 +193,9 @@ def test_extract_failures_exit_3_nothing_written(
     out = tmp_path / "k.yaml"
     with SimUrController(nominal_dh("ur5e"), mode=mode) as sim:
         host, port = sim.address
-        code = main(["ur", "extract", "--host", host, "--port", str(port), "--out", str(out), "--timeout", "0.5"])
+        code = main(
+            ["ur", "extract", "--host", host, "--port", str(port), "--out", str(out), "--timeout", "0.5"]
+        )
     assert code == 3
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: UR controller {host}:{port}")

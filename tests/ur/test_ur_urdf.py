@@ -19,17 +19,31 @@ from robocal.workflows.ur import urdf_fk
 
 from .test_ur_core import make_realistic, realistic
 
-LINKS = ("base_link_inertia", "shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link",
-         "wrist_3_link")
+LINKS = (
+    "base_link_inertia",
+    "shoulder_link",
+    "upper_arm_link",
+    "forearm_link",
+    "wrist_1_link",
+    "wrist_2_link",
+    "wrist_3_link",
+)
 
 
 def ur_urdf_text(kin: UrKinematics) -> str:
     """An expanded URDF laid out like ur_description's ur_macro.xacro, origins from the kinematics YAML."""
-    parts = ['<?xml version="1.0"?>', "<!-- UR arm (test) -->", '<robot name="ur">', '  <link name="base_link"/>']
+    parts = [
+        '<?xml version="1.0"?>',
+        "<!-- UR arm (test) -->",
+        '<robot name="ur">',
+        '  <link name="base_link"/>',
+    ]
     parts += [f'  <link name="{name}"/>' for name in LINKS]
     parts += ['  <link name="flange"/>', '  <link name="tool0"/>']
-    parts.append('  <joint name="base_link-base_link_inertia" type="fixed"><parent link="base_link"/>'
-                 '<child link="base_link_inertia"/><origin xyz="0 0 0" rpy="0 0 3.141592653589793"/></joint>')
+    parts.append(
+        '  <joint name="base_link-base_link_inertia" type="fixed"><parent link="base_link"/>'
+        '<child link="base_link_inertia"/><origin xyz="0 0 0" rpy="0 0 3.141592653589793"/></joint>'
+    )
     for k, (joint, link) in enumerate(zip(JOINT_NAMES, kin.links, strict=True)):
         xyz = " ".join(repr(v) for v in link.xyz_m)
         rpy = " ".join(repr(v) for v in link.rpy_rad)
@@ -38,12 +52,18 @@ def ur_urdf_text(kin: UrKinematics) -> str:
             f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="0 0 1"/>'
             '<limit lower="-7.0" upper="7.0" effort="1" velocity="1"/></joint>'
         )
-    parts.append('  <joint name="wrist_3-flange" type="fixed"><parent link="wrist_3_link"/><child link="flange"/>'
-                 '<origin xyz="0 0 0" rpy="0 -1.5707963267948966 -1.5707963267948966"/></joint>')
-    parts.append('  <joint name="flange-tool0" type="fixed"><parent link="flange"/><child link="tool0"/>'
-                 '<origin xyz="0 0 0" rpy="1.5707963267948966 0 1.5707963267948966"/></joint>')
-    parts.append('  <ros2_control name="UR" type="system"><hardware><plugin>ur/UR</plugin></hardware>'
-                 '<joint name="elbow_joint"><param name="initial_position">0.0</param></joint></ros2_control>')
+    parts.append(
+        '  <joint name="wrist_3-flange" type="fixed"><parent link="wrist_3_link"/><child link="flange"/>'
+        '<origin xyz="0 0 0" rpy="0 -1.5707963267948966 -1.5707963267948966"/></joint>'
+    )
+    parts.append(
+        '  <joint name="flange-tool0" type="fixed"><parent link="flange"/><child link="tool0"/>'
+        '<origin xyz="0 0 0" rpy="1.5707963267948966 0 1.5707963267948966"/></joint>'
+    )
+    parts.append(
+        '  <ros2_control name="UR" type="system"><hardware><plugin>ur/UR</plugin></hardware>'
+        '<joint name="elbow_joint"><param name="initial_position">0.0</param></joint></ros2_control>'
+    )
     parts.append("</robot>")
     return "\n".join(parts) + "\n"
 
@@ -118,8 +138,10 @@ def test_update_urdf_origins_in_place_keeps_comments_and_ros2_control(
 
 def test_update_urdf_missing_joint_writes_nothing(tmp_path: Path, dh_sets: dict[int, DHParameters]) -> None:
     src = tmp_path / "bad.urdf"
-    src.write_text('<robot name="x"><link name="a"/><link name="b"/><joint name="shoulder_pan_joint" '
-                   'type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>')
+    src.write_text(
+        '<robot name="x"><link name="a"/><link name="b"/><joint name="shoulder_pan_joint" '
+        'type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/></joint></robot>'
+    )
     dst = tmp_path / "out.urdf"
     with pytest.raises(Exception, match="missing UR joint"):
         update_urdf_origins(src, dst, correct_kinematics(dh_sets[1]))

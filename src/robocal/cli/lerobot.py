@@ -452,7 +452,9 @@ def export_urdf(
             raise UsageError(f"--offset-deg {k}={v}: expected a number of degrees") from None
     modes = _modes(spec, use_degrees, modes_opt)
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
-    rc, skipped = export_joint_map(spec, cals, signs=signs, offsets_deg=offsets, compat=compat_mode, modes=modes)
+    rc, skipped = export_joint_map(
+        spec, cals, signs=signs, offsets_deg=offsets, compat=compat_mode, modes=modes
+    )
     ids = {n: cals[n].id for n in rc.joint_names}
     write_calibration(out, rc, "robocal", ids=ids)
     _common.console.print(f"wrote {out} ({len(rc.joint_names)} joints)")
@@ -513,7 +515,9 @@ def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
                         f"{c.range_min}..{c.range_max}",
                     )
                 _common.console.print(t)
-                where = " (temporary folder, removed on exit; keep it with --out DIR)" if tmp is not None else ""
+                where = (
+                    " (temporary folder, removed on exit; keep it with --out DIR)" if tmp is not None else ""
+                )
                 _common.console.print(f"wrote {result.path}{where}", markup=False)
                 data = json.loads(pathlib.Path(str(result.path)).read_text())
                 _common.console.print(f"{len(data)} motors in LeRobot's format", markup=False)

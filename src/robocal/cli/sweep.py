@@ -316,8 +316,12 @@ def run_demo(robot: str, out_dir: Path | None) -> int:
                 ", ".join(j.warnings) or "ok",
             )
         con.print(t)
-        where = " (temporary folder, removed on exit; keep the files with --out DIR)" if tmp is not None else ""
-        con.print(f"largest error {worst:.1e} rad; wrote {outcome.out} and {outcome.report}{where}", markup=False)
+        where = (
+            " (temporary folder, removed on exit; keep the files with --out DIR)" if tmp is not None else ""
+        )
+        con.print(
+            f"largest error {worst:.1e} rad; wrote {outcome.out} and {outcome.report}{where}", markup=False
+        )
         if any("wrap_in_travel" in j.warnings for j in outcome.result.joints):
             con.print(
                 "wrap_in_travel: after a power cycle those joints can read 2π off; the runtime robot and "

@@ -20,7 +20,9 @@ app = typer.Typer(
     no_args_is_help=True,
 )
 
-RPY_HELP = "Angle convention (any case): 'urdf' (correct, default) or 'upstream' (ur_calibration's Eigen angles)."
+RPY_HELP = (
+    "Angle convention (any case): 'urdf' (correct, default) or 'upstream' (ur_calibration's Eigen angles)."
+)
 MODELS = ", ".join(UR_MODELS)
 DELTAS_HELP = "Calibration deltas (delta_theta/a/d/alpha)."
 DEFAULTS_RPY_HELP = (
@@ -42,7 +44,9 @@ def _print_result(result: wf.CorrectionResult, replaced: bool) -> int:
     )
     console.print(f"wrote {result.out_path}")
     if replaced:  # said only once the new file is in place; a failed run leaves the old one untouched
-        err_console.print(f"note: replaced {result.out_path} (previous file kept as {result.out_path.name}.bak)")
+        err_console.print(
+            f"note: replaced {result.out_path} (previous file kept as {result.out_path.name}.bak)"
+        )
     if result.urdf_out is not None:
         console.print(f"wrote {result.urdf_out} (six joint origins updated)")
     for w in result.warnings:
@@ -134,7 +138,9 @@ def verify(
     urdf: Annotated[Path | None, typer.Option("--urdf", help="Also check this expanded URDF.")] = None,
     samples: Annotated[int, typer.Option("--samples", help="Random joint vectors in [-2π, 2π].")] = 1000,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
-    host: Annotated[str | None, typer.Option("--host", help="Also compare with this controller's pose.")] = None,
+    host: Annotated[
+        str | None, typer.Option("--host", help="Also compare with this controller's pose.")
+    ] = None,
     port: Annotated[int, typer.Option("--port", help="Primary interface port.")] = 30001,
     timeout: Annotated[float, typer.Option("--timeout", help="Seconds per controller read.")] = 10.0,
     controller_samples: Annotated[int, typer.Option("--controller-samples", help="States to compare.")] = 20,

@@ -67,6 +67,7 @@ class DHParameters:
         """Element-wise sum (nominal parameters + controller calibration deltas)."""
         if other.n_joints != self.n_joints:
             raise ShapeMismatchError(f"DH sum: {self.n_joints} joints + {other.n_joints} joints")
+
         def add(u: tuple[float, ...], v: tuple[float, ...]) -> tuple[float, ...]:
             return tuple(x + y for x, y in zip(u, v, strict=True))
 

@@ -66,6 +66,7 @@ def parse_compat(value: str, what: str = "--compat") -> Compat:
         return "exact"
     raise UsageError(f"{what} {value!r}: expected lerobot or exact")
 
+
 MODE_CODES: dict[str, int] = {"range_m100_100": 0, "range_0_100": 1, "degrees": 2}
 """LeRobot norm-mode value → integer code used in the vectorised kernels."""
 

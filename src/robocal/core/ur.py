@@ -439,20 +439,36 @@ def split_chain(dh: DHParameters) -> FloatArray:
 
 TEST_SET_3_DELTAS = DHParameters(
     theta_rad=(
-        -2.41478068943590252e-07, 1.60233952386694556, -1.68607190752171299,
-        0.0837331147700118711, -1.01260355871157781e-07, 3.91986209186123702e-08,
+        -2.41478068943590252e-07,
+        1.60233952386694556,
+        -1.68607190752171299,
+        0.0837331147700118711,
+        -1.01260355871157781e-07,
+        3.91986209186123702e-08,
     ),
     a_m=(
-        2.12234865571205891e-05, 0.632017132627700651, 0.00229833638891230319,
-        -4.61409023720933908e-05, -6.39280053471801522e-05, 0.0,
+        2.12234865571205891e-05,
+        0.632017132627700651,
+        0.00229833638891230319,
+        -4.61409023720933908e-05,
+        -6.39280053471801522e-05,
+        0.0,
     ),
     d_m=(
-        -0.000160188285741325043, 439.140974079900957, -446.027059806332147,
-        6.88618689642360149, -3.86588496858186748e-05, -0.00087908274257374186,
+        -0.000160188285741325043,
+        439.140974079900957,
+        -446.027059806332147,
+        6.88618689642360149,
+        -3.86588496858186748e-05,
+        -0.00087908274257374186,
     ),
     alpha_rad=(
-        -0.000650246557584166496, 0.00139416666825590402, 0.00693818880325995126,
-        -0.000811641562390219562, 0.000411120504570705592, 0.0,
+        -0.000650246557584166496,
+        0.00139416666825590402,
+        0.00693818880325995126,
+        -0.000811641562390219562,
+        0.000411120504570705592,
+        0.0,
     ),
 )
 """Calibration deltas of a real UR10e (ur_calibration's test set 3; d2 = 439 m once added to nominal)."""
@@ -493,7 +509,12 @@ def deviation_from_nominal(kin: UrKinematics, model: str | None = None) -> Nomin
 
     xyz = kin.xyz_array()
     measured = {
-        "d1": xyz[0, 2], "a2": xyz[2, 0], "a3": xyz[3, 0], "d4": xyz[3, 2], "d5": -xyz[4, 1], "d6": xyz[5, 1],
+        "d1": xyz[0, 2],
+        "a2": xyz[2, 0],
+        "a3": xyz[3, 0],
+        "d4": xyz[3, 2],
+        "d5": -xyz[4, 1],
+        "d6": xyz[5, 1],
     }
 
     def lengths(m: str) -> dict[str, float]:
@@ -501,7 +522,9 @@ def deviation_from_nominal(kin: UrKinematics, model: str | None = None) -> Nomin
         return {"d1": d1, "a2": a2, "a3": a3, "d4": d4, "d5": d5, "d6": d6}
 
     if model is None:  # hypot: the Euclidean distance without overflow for absurd inputs
-        model = min(UR_MODELS, key=lambda m: math.hypot(*(float(measured[k]) - v for k, v in lengths(m).items())))
+        model = min(
+            UR_MODELS, key=lambda m: math.hypot(*(float(measured[k]) - v for k, v in lengths(m).items()))
+        )
     nominal = lengths(model.strip().lower()) if model.strip().lower() in UR_MODELS else None
     if nominal is None:
         raise UsageError(f"unknown UR model {model!r}; valid: {', '.join(UR_MODELS)}")

@@ -32,6 +32,8 @@ def load_json(text: str, source: str) -> Any:
     try:
         return json.loads(text, object_pairs_hook=pairs, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{source}: invalid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from None
+        raise FileFormatError(
+            f"{source}: invalid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}"
+        ) from None
     except ValueError as exc:
         raise FileFormatError(f"{source}: invalid JSON: {exc}") from None

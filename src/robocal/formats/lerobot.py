@@ -20,6 +20,7 @@ from typing import Any
 from ..core.lerobot import LegacyCalibration, MotorCalibration
 from ..errors import CalibError, FileFormatError, InvalidCalibrationError, UsageError
 from ..fileio import atomic_write_text, read_text
+from ..fileio import check_output_path as _check_output_path
 from ._json import load_json
 
 __all__ = [
@@ -139,18 +140,14 @@ def read_current(path: PathLike) -> dict[str, MotorCalibration]:
 def check_output_path(path: PathLike) -> Path:
     """Refuse, before anything is done, an output file that cannot be created (missing folders may be).
 
+    The generic preflight of :func:`robocal.fileio.check_output_path` with ``create_dirs=True``: the nearest
+    existing folder must be writable, names within the limits, the disk not full.
+
     Raises:
-        UsageError: ``path`` is a directory, or one of its existing parents is not a folder.
+        FileWriteError: ``path`` is a directory, one of its existing parents is not a folder, the folder is
+            not writable, ... (a ``UsageError``).
     """
-    p = Path(path)
-    if p.is_dir():
-        raise UsageError(f"cannot write {p}: it is a directory")
-    for parent in p.parents:
-        if parent.exists() or parent.is_symlink():
-            if not parent.is_dir():
-                raise UsageError(f"cannot write {p}: {parent} is not a folder")
-            break
-    return p
+    return _check_output_path(path, "cannot write", create_dirs=True)
 
 
 def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_dirs: bool = True) -> Path:

@@ -233,7 +233,9 @@ def _parse_conf(text: str, source: str, keys: tuple[str, ...]) -> dict[str, Any]
             )
         key, value = m.group(1), m.group(2)
         if key in keys and key in first_line:
-            raise FileFormatError(f"{source} line {lineno}: {key} appears twice (first on line {first_line[key]})")
+            raise FileFormatError(
+                f"{source} line {lineno}: {key} appears twice (first on line {first_line[key]})"
+            )
         first_line.setdefault(key, lineno)
         if not value.startswith("["):
             raw[key] = value  # a scalar (e.g. calibration_status = 2); a requested key is refused by _six
@@ -266,7 +268,9 @@ def _parse_conf(text: str, source: str, keys: tuple[str, ...]) -> dict[str, Any]
             try:
                 values.append(float(item))
             except ValueError:
-                raise FileFormatError(f"{source} line {item_line}: {key} entry {item!r} is not a number") from None
+                raise FileFormatError(
+                    f"{source} line {item_line}: {key} entry {item!r} is not a number"
+                ) from None
         raw[key] = values
     return raw
 

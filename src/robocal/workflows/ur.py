@@ -33,7 +33,7 @@ from ..core.ur import (
 )
 from ..core.urhash import calib_hash
 from ..errors import JointMismatchError, UsageError
-from ..fileio import atomic_write_bytes, atomic_write_text, backup_path, check_output_path, read_bytes
+from ..fileio import atomic_write_bytes, atomic_write_text, backup_paths, check_output_path, read_bytes
 from ..formats.ur_kinematics import (
     kinematics_to_text,
     read_deltas,
@@ -217,7 +217,7 @@ def _snapshot(path: Path) -> bytes | None:
 
 def _write_pair(urdf_out: Path, urdf_bytes: bytes, out_path: Path, yaml_text: str) -> Path:
     """Write the URDF, then the YAML; if the YAML fails, restore the URDF and its ``.bak`` and re-raise."""
-    saved = {p: _snapshot(p) for p in (urdf_out, backup_path(urdf_out))}
+    saved = {p: _snapshot(p) for p in (urdf_out, *backup_paths(urdf_out))}
     atomic_write_bytes(urdf_out, urdf_bytes)
     try:
         atomic_write_text(out_path, yaml_text)
@@ -468,10 +468,17 @@ def verify_controller(
             f"UR controller {host}:{port}: the active TCP offset is not zero; set an empty TCP to verify the flange"
         )
     q = np.array([s.q_rad for s in got])
-    T_ctrl = homogeneous(matrix_from_rotvec(np.array([s.tcp_rotvec_rad for s in got])), np.array([s.tcp_xyz_m for s in got]))
+    T_ctrl = homogeneous(
+        matrix_from_rotvec(np.array([s.tcp_rotvec_rad for s in got])), np.array([s.tcp_xyz_m for s in got])
+    )
     T_file = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
     report = _report(
-        f"controller {host}:{port} vs {kinematics_path}", T_file, T_ctrl, kin.hash, info.dh, (tolerance_m, tolerance_rad)
+        f"controller {host}:{port} vs {kinematics_path}",
+        T_file,
+        T_ctrl,
+        kin.hash,
+        info.dh,
+        (tolerance_m, tolerance_rad),
     )
     return replace(report, warnings=tuple(warnings) + report.warnings)
 
@@ -516,7 +523,12 @@ def plot(dh: DHParameters, out: str | os.PathLike[str], *, title: str | None = N
         )
     far_m = float(np.max(np.linalg.norm(split_pts, axis=1)))
     panels = (
-        (split_pts, f"split DH model (D/A segments)\nframes up to {far_m:.3g} m from the base", "tab:red", False),
+        (
+            split_pts,
+            f"split DH model (D/A segments)\nframes up to {far_m:.3g} m from the base",
+            "tab:red",
+            False,
+        ),
         (corr_pts, "corrected model (ur_description)\nequal axis scales", "tab:blue", True),
     )
     for idx, (pts, label, color, equal) in enumerate(panels, start=1):
