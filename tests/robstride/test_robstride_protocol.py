@@ -129,7 +129,7 @@ def test_feedback_decode_rs05_scaling_and_fields() -> None:
     # mode 2 (run), fault bit 21 (uncalibrated), motor 0x0F, host 0xFD
     arb = make_id(2, (2 << 14) | (0x20 << 8) | 0x0F, 0xFD)
     data = struct.pack(">HHHH", 35985, 65535, 0, 315)
-    fb = decode_feedback(arb, data, MODELS["RS05"])
+    fb = decode_feedback(arb, data, MODELS["RS05"], centred=False)  # the manual's decoder
     assert fb.motor_id == 0x0F and fb.host_id == 0xFD and fb.mode == 2 and fb.faults == 0x20
     assert fb.position_rad == pytest.approx(1.2339146, abs=1e-7)
     assert fb.velocity_rad_s == pytest.approx(50.0)
@@ -137,6 +137,26 @@ def test_feedback_decode_rs05_scaling_and_fields() -> None:
     assert fb.temperature_c == pytest.approx(31.5)
     # the same frame read with the wrong (SDK) RS00 range would report 50 rad/s: with the manual's, 33
     assert decode_feedback(arb, data, MODELS["RS00"]).velocity_rad_s == pytest.approx(33.0)
+
+
+def test_feedback_decodes_to_the_centre_of_the_truncation_cell() -> None:
+    # the manual's encoder truncates: u = 35985 stands for [35985, 35986)·LSB − 4π, centre 1.2339146 + LSB/2
+    arb = make_id(2, (2 << 14) | 0x0F, 0xFD)
+    lsb = 2 * P / 65535
+    fb = decode_feedback(arb, struct.pack(">HHHH", 35985, 65535, 0, 32767), MODELS["RS05"])
+    assert fb.position_rad == pytest.approx(1.2339146 + lsb / 2, abs=1e-7)
+    assert fb.velocity_rad_s == 50.0 and fb.torque_nm == pytest.approx(-5.5 + 11.0 / 65535 / 2)  # clamped top
+    rest = decode_feedback(arb, struct.pack(">HHHH", 32767, 32767, 32767, 0), MODELS["RS05"])
+    assert rest.position_rad == pytest.approx(0.0, abs=1e-12)  # a joint at 0 reads 0, not -1.9175e-4
+    assert rest.velocity_rad_s == pytest.approx(0.0, abs=1e-12)
+    assert rest.torque_nm == pytest.approx(0.0, abs=1e-12)
+
+
+@given(x=st.floats(-P + 1e-3, P - 1e-3))
+def test_feedback_position_error_is_centred(x: float) -> None:
+    arb, data = encode_feedback(Feedback(1, 0xFD, 0, 0, x, 0.0, 0.0, 25.0), MODELS["RS00"])
+    err = decode_feedback(arb, data, MODELS["RS00"]).position_rad - x
+    assert abs(err) <= P / 65535 + 1e-12  # within half an LSB either side (the manual's decoder: [-1, 0] LSB)
 
 
 def test_feedback_round_trip_and_malformed() -> None:

@@ -52,6 +52,7 @@ __all__ = [
     "split_id",
     "uint_to_float",
     "uint_to_float_7fff",
+    "uint_to_float_centred",
     "unpack_param_value",
 ]
 
@@ -200,6 +201,18 @@ def uint_to_float(u: int, x_min: float, x_max: float, bits: int = 16) -> float:
     return u / ((1 << bits) - 1) * (x_max - x_min) + x_min
 
 
+def uint_to_float_centred(u: int, x_min: float, x_max: float, bits: int = 16) -> float:
+    """Unbiased decoder for values the manual's truncating encoder wrote: the centre of ``u``'s cell.
+
+    :func:`float_to_uint` truncates, so ``u`` stands for every ``x`` in ``[u, u + 1)·LSB + min``; the manual's
+    decoder :func:`uint_to_float` returns the cell's bottom edge, on average half an LSB (1.9e-4 rad for a
+    position) below the true value. This returns ``(u + ½)·LSB + min``, clamped to ``[min, max]`` (so the
+    midpoint 0x7FFF decodes to 0.0 exactly, as the ``0x7FFF`` variant does).
+    """
+    x = (u + 0.5) / ((1 << bits) - 1) * (x_max - x_min) + x_min
+    return min(max(x, x_min), x_max)
+
+
 def float_to_uint_7fff(x: float, limit: float) -> int:
     """The ``0x7FFF`` variant (Actuator-Control, robstride-dynamics): ``(x/limit + 1)·0x7FFF``, 16 bit."""
     if not math.isfinite(x):
@@ -256,8 +269,14 @@ def encode_feedback(fb: Feedback, model: ModelLimits) -> tuple[int, bytes]:
     return arb, struct.pack(">HHHH", p, v, t, temp)
 
 
-def decode_feedback(arbitration_id: int, data: bytes, model: ModelLimits) -> Feedback:
+def decode_feedback(
+    arbitration_id: int, data: bytes, model: ModelLimits, *, centred: bool = True
+) -> Feedback:
     """Decode a type-2 (or type-24 active report) feedback frame with ``model``'s ranges.
+
+    Position, velocity and torque are decoded to the centre of their quantisation cell
+    (:func:`uint_to_float_centred`): the motor's encoder truncates, so the manual's decoder
+    (``centred=False``) reads on average half an LSB low, which biased every sweep offset by −1.9e-4 rad.
 
     Raises:
         ProtocolError: Not a type-2/24 frame, or the payload is not 8 bytes.
@@ -266,14 +285,15 @@ def decode_feedback(arbitration_id: int, data: bytes, model: ModelLimits) -> Fee
     if comm not in (CommType.FEEDBACK, 24):
         raise ProtocolError(f"frame {arbitration_id:#010x} is type {comm}; expected feedback (type 2)")
     p, v, t, temp = struct.unpack(">HHHH", _check_data(data, "type-2 feedback"))
+    dec = uint_to_float_centred if centred else uint_to_float
     return Feedback(
         motor_id=data16 & 0xFF,
         host_id=host,
         mode=(data16 >> 14) & 0x3,
         faults=(data16 >> 8) & 0x3F,
-        position_rad=uint_to_float(p, -model.p_max_rad, model.p_max_rad),
-        velocity_rad_s=uint_to_float(v, -model.v_max_rad_s, model.v_max_rad_s),
-        torque_nm=uint_to_float(t, -model.t_max_nm, model.t_max_nm),
+        position_rad=dec(p, -model.p_max_rad, model.p_max_rad),
+        velocity_rad_s=dec(v, -model.v_max_rad_s, model.v_max_rad_s),
+        torque_nm=dec(t, -model.t_max_nm, model.t_max_nm),
         temperature_c=temp / 10.0,
     )
 
