@@ -7,6 +7,7 @@ written), 3 device or communication failure, 130 interrupted.
 from __future__ import annotations
 
 import functools
+import logging
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -84,6 +85,22 @@ def _register() -> None:
 _register()
 
 
+class _NoteHandler(logging.Handler):
+    """Print library notes (e.g. a write through a symbolic link) as ``note:`` lines on standard error."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        sys.stderr.write(f"note: {record.getMessage()}\n")
+        sys.stderr.flush()
+
+
+def _install_note_handler() -> None:
+    logger = logging.getLogger("robocal.fileio")
+    if not any(isinstance(h, _NoteHandler) for h in logger.handlers):
+        logger.addHandler(_NoteHandler(logging.INFO))
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI and return its exit code (also used as the console-script entry point).
 
@@ -93,6 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns:
         The process exit code.
     """
+    _install_note_handler()
     command = typer.main.get_command(app)
     args = list(sys.argv[1:] if argv is None else argv)
     try:
