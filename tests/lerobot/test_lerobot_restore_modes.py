@@ -141,7 +141,13 @@ def test_restore_ctrl_c_with_a_dead_motor_names_it(arm: SimArm) -> None:
             restore(bus, arm.spec, _new_cals(arm))  # type: ignore[arg-type]
     finally:
         bus.close()
-    assert str(info.value) == "could not write the previous EEPROM back to motor 'wrist_roll' (id 5)"
+    regs = "Homing_Offset, Min_Position_Limit, Max_Position_Limit" + (
+        ", Drive_Mode" if robot == "koch_leader" else ""
+    )
+    assert str(info.value) == (  # exactly which motor and registers were not restored, and which motors were
+        f"could not write the previous EEPROM back to motor 'wrist_roll' (id 5): {regs} "
+        "(restored: shoulder_pan, shoulder_lift, elbow_flex, wrist_flex, gripper)"
+    )
     after = arm.eeprom()
     assert {n: v for n, v in after.items() if n != "wrist_roll"} == {
         n: v for n, v in before.items() if n != "wrist_roll"
@@ -171,7 +177,10 @@ def test_use_file_ctrl_c_exit_130_eeprom_restored(
     _patch_bus(monkeypatch, lambda b: FaultyBus(b, _midway(arm.spec.name, 4), _ctrl_c))
     assert main(args) == 130
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["error: interrupted: the motors' previous EEPROM was written back"]
+    assert err == [
+        "restoring the previous EEPROM of every motor…",
+        "error: interrupted: the motors' previous EEPROM was written back",
+    ]
     assert arm.eeprom() == before
 
 
@@ -190,8 +199,12 @@ def test_use_file_silent_motor_exit_3_one_error_line(
     assert main(args) == 3
     cap = capsys.readouterr()
     err = cap.err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"error: {arm.port}: motor 6: write ")
-    assert err[0].endswith("; previous EEPROM values written back")
+    assert (
+        len(err) == 2
+        and err[0] == "restoring the previous EEPROM of every motor…"
+        and err[1].startswith(f"error: {arm.port}: motor 6: write ")
+    )
+    assert err[1].endswith("; previous EEPROM values written back")
     assert "wrote" not in cap.out
     assert arm.eeprom() == before
     # without a fault the same command writes the file and prints it
@@ -220,7 +233,9 @@ def test_calibrate_rollback_skips_a_dead_motor_and_restores_the_others(tmp_path:
             bus.close()
         assert ("Homing_Offset", 1, 2100 - 2047) in bus.writes
         assert str(info.value).endswith(
-            "; could not write the previous EEPROM back to motor 'shoulder_lift' (id 2)"
+            "; could not write the previous EEPROM back to motor 'shoulder_lift' (id 2): Homing_Offset, "
+            "Min_Position_Limit, Max_Position_Limit (restored: shoulder_pan, elbow_flex, wrist_flex, wrist_roll, "
+            "gripper)"
         )
         after = arm.eeprom()
         assert {n: v for n, v in after.items() if n != "shoulder_lift"} == {
@@ -243,7 +258,10 @@ def test_use_file_ctrl_c_with_a_dead_motor_names_it(
         _patch_bus(monkeypatch, lambda b: FaultyBus(b, _midway("koch_leader", 3), die_then_interrupt))
         assert main(args) == 130
         assert capsys.readouterr().err.strip().splitlines() == [
-            "error: interrupted: could not write the previous EEPROM back to motor 'shoulder_lift' (id 2)"
+            "restoring the previous EEPROM of every motor…",
+            "error: interrupted: could not write the previous EEPROM back to motor 'shoulder_lift' (id 2): "
+            "Homing_Offset, Min_Position_Limit, Max_Position_Limit, Drive_Mode (restored: shoulder_pan, "
+            "elbow_flex, wrist_flex, wrist_roll, gripper)",
         ]
 
 

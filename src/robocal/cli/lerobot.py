@@ -62,6 +62,12 @@ def _interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") 
     return typer.Exit(130)
 
 
+def _status(message: str) -> None:
+    """One plain status line on standard error (e.g. while the EEPROM is being restored)."""
+    sys.stderr.write(message + "\n")
+    sys.stderr.flush()
+
+
 class ConsoleOperator:
     """A human at a terminal: ``input()`` for prompts; the sweep ends when ENTER is pressed."""
 
@@ -152,14 +158,16 @@ def _sweep_renderer() -> tuple[Callable[[object], None], Callable[[], None]]:
             _common.err_console.print(f"reading {view.step}: " + ", ".join(parts))
 
     def close() -> None:
+        """Stop the live table or print the last plain line; idempotent (nothing is printed twice)."""
         nonlocal live
         if live is not None:
             live.stop()
             live = None
         elif last:
-            v = last.pop()
+            v = last[0]
             parts = [f"{n} {lo}..{hi}" for n, lo, hi in zip(v.names, v.minimum, v.maximum, strict=True)]
             _common.err_console.print(f"reading {v.step}: " + ", ".join(parts))
+        last.clear()
 
     return update, close
 
@@ -210,9 +218,10 @@ def calibrate(
     use_file: bool = typer.Option(False, "--use-file", help="Write the existing file to the motors instead."),
 ) -> None:
     """Calibrate a LeRobot arm (mid pose, then sweep every joint) and write LeRobot's JSON."""
+    from ..formats.lerobot import dumps_current
     from ..lerobot import read_calibration
+    from ..workflows.lerobot import CalibrationNotSavedError, restore
     from ..workflows.lerobot import calibrate as run
-    from ..workflows.lerobot import restore
 
     spec = _spec(robot)
     path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file)
@@ -220,7 +229,7 @@ def calibrate(
         cals = read_calibration(path)
         with _arm_bus(spec, port) as (bus, _arm):
             try:
-                restore(bus, spec, cals)  # type: ignore[arg-type]
+                restore(bus, spec, cals, on_status=_status)  # type: ignore[arg-type]
             except KeyboardInterrupt as exc:
                 raise _interrupted(exc, "the motors' previous EEPROM was written back") from None
         _print_calibration(cals)
@@ -235,6 +244,10 @@ def calibrate(
             operator: object = SimOperator(arm)
         else:
             operator = ConsoleOperator()
+        def status(message: str) -> None:
+            close()  # the live table ends before the first status line
+            _status(message)
+
         try:
             result = run(
                 bus,  # type: ignore[arg-type]
@@ -244,6 +257,7 @@ def calibrate(
                 home_after_sweep=home_after_sweep,
                 sweep_full_turn=sweep_full_turn,
                 on_sweep=update,
+                on_status=status,
             )
         except KeyboardInterrupt as exc:
             close()
@@ -251,6 +265,13 @@ def calibrate(
                 exc,
                 "every motor's EEPROM was restored and no file was written",
                 "; no file was written",
+            ) from None
+        except CalibrationNotSavedError as exc:
+            close()
+            _common.console.print(dumps_current(exc.calibration), markup=False)
+            raise UsageError(
+                f"{exc}; the calibration is printed above as LeRobot JSON: save it and write it to the motors "
+                "with `robocal lerobot calibrate --use-file`"
             ) from None
         finally:
             close()

@@ -15,9 +15,14 @@ EEPROM → range-of-motion sweep → limits in EEPROM → JSON file), with roboc
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+import shutil
+import signal
+import tempfile
+import threading
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -35,12 +40,15 @@ from ..core.lerobot import (
     legacy_calibration_from_poses,
 )
 from ..errors import CalibError, InvalidCalibrationError, UsageError
-from ..formats.lerobot import check_output_path, write_current, write_legacy
+from ..fileio import check_output_path
+from ..formats.lerobot import write_current, write_legacy
 
 __all__ = [
+    "CalibrationNotSavedError",
     "CalibrationResult",
     "Difference",
     "Operator",
+    "RollbackReport",
     "SweepView",
     "calibrate",
     "calibrate_legacy",
@@ -51,6 +59,7 @@ __all__ = [
     "legacy_to_current",
     "norm_modes",
     "open_bus",
+    "preflight_output",
     "read_eeprom",
     "restore",
     "robot_spec",
@@ -99,6 +108,59 @@ class CalibrationResult:
     naive_ranges: dict[str, tuple[int, int]] = field(default_factory=dict)
 
 
+class CalibrationNotSavedError(UsageError):
+    """The calibration was computed but its file could not be written (full disk, read-only folder, ...).
+
+    The motors' previous EEPROM was written back. ``calibration`` holds the result so the caller can show it
+    (``robocal lerobot calibrate`` prints it as LeRobot JSON) and nothing the user did is lost.
+    """
+
+    def __init__(self, message: str, calibration: Mapping[str, MotorCalibration]) -> None:
+        super().__init__(message)
+        self.calibration = dict(calibration)
+
+
+MIN_FREE_BYTES = 64 * 1024
+"""``calibrate`` refuses to start when the calibration folder's file system has less room than this."""
+
+
+def preflight_output(path: str | os.PathLike[str]) -> Path:
+    """Check, before any motor is touched, that the calibration file can be written at ``path``.
+
+    The folder may not exist yet (it is created when the file is written): then its nearest existing
+    ancestor is checked. A temporary file is created and removed there (so a read-only folder or file
+    system is found even when running as root), and at least :data:`MIN_FREE_BYTES` must be free.
+
+    Raises:
+        UsageError: The path is a directory, lies under a file, or the folder is not writable or full.
+    """
+    p = Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        if existing.is_symlink():
+            raise UsageError(f"cannot write {p}: {existing} is a broken symbolic link")
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UsageError(f"cannot write {p}: {existing} is not a folder")
+    if existing == folder:
+        check_output_path(p, "calibration file")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".robocal-probe-", dir=existing)
+    except OSError as exc:
+        raise UsageError(f"cannot write {p}: folder {existing} is not writable ({exc.strerror or exc})") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+    try:
+        free = shutil.disk_usage(existing).free
+    except OSError:
+        free = MIN_FREE_BYTES
+    if free < MIN_FREE_BYTES:
+        raise UsageError(f"cannot write {p}: only {free} bytes free on the file system of {existing}")
+    return p
+
+
 def robot_spec(robot: str) -> RobotSpec:
     """The :class:`RobotSpec` of a robot name (``so101_follower``, ...)."""
     if robot not in ROBOTS:
@@ -126,38 +188,123 @@ def read_eeprom(bus: ServoBus, spec: RobotSpec) -> dict[str, dict[str, int]]:
     return out
 
 
-def _rollback(bus: ServoBus, spec: RobotSpec, before: Mapping[str, Mapping[str, int]]) -> list[str]:
-    """Write a :func:`read_eeprom` snapshot back, motor by motor, as far as the bus allows.
+@dataclass(frozen=True)
+class RollbackReport:
+    """What writing a :func:`read_eeprom` snapshot back achieved, per motor and register.
 
-    A motor that fails (silent, error status) is skipped after its first failed write so the others are still
-    restored.
+    Attributes:
+        restored: Names of the motors whose registers were all written back and read
+            back equal (or, where the read-back failed, acknowledged).
+        not_restored: ``"motor 'name' (id N)"`` → registers that were not written back (or read back
+            different), in write order.
+        deferred_interrupts: Ctrl-C presses received (and deferred) while restoring.
+    """
+
+    restored: tuple[str, ...]
+    not_restored: dict[str, tuple[str, ...]]
+    deferred_interrupts: int = 0
+
+    def summary(self) -> str:
+        """One clause: everything restored, or exactly which motors and registers were and were not."""
+        if not self.not_restored:
+            return "previous EEPROM values written back"
+        bad = "; ".join(f"{motor}: {', '.join(regs)}" for motor, regs in self.not_restored.items())
+        good = ", ".join(self.restored) if self.restored else "no motor"
+        return f"could not write the previous EEPROM back to {bad} (restored: {good})"
+
+
+@contextlib.contextmanager
+def _defer_sigint(on_status: Callable[[str], None] | None) -> Iterator[list[int]]:
+    """Hold off Ctrl-C (SIGINT) while the block runs; yields a one-element list counting deferred presses.
+
+    Only the main thread can install a handler; elsewhere the block runs unchanged (the rollback then catches a
+    KeyboardInterrupt per write and carries on).
+    """
+    count = [0]
+    installed = False
+    previous: object = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.getsignal(signal.SIGINT)
+        if previous is not None:
+
+            def deferred(signum: int, frame: object) -> None:
+                count[0] += 1
+                if on_status is not None:
+                    on_status("still restoring the previous EEPROM; Ctrl-C is ignored until it is done")
+
+            signal.signal(signal.SIGINT, deferred)
+            installed = True
+    try:
+        yield count
+    finally:
+        if installed:
+            signal.signal(signal.SIGINT, previous)  # type: ignore[arg-type]
+
+
+def _rollback(
+    bus: ServoBus,
+    spec: RobotSpec,
+    before: Mapping[str, Mapping[str, int]],
+    on_status: Callable[[str], None] | None = None,
+) -> RollbackReport:
+    """Write a :func:`read_eeprom` snapshot back, motor by motor, as far as the bus allows, and check it.
+
+    Ctrl-C is deferred until every motor has been tried (a second Ctrl-C no longer stops the rollback half
+    way); a KeyboardInterrupt raised inside a write (outside the main thread) retries that write. A motor that
+    fails (silent, error status) is skipped after its first failed write so the others are still restored.
+    Every restored motor is then read back and compared with the snapshot.
 
     Returns:
-        ``"motor 'name' (id N)"`` for every motor that could not be restored (empty: all restored).
+        Which motors were restored and which registers of which motors were not.
     """
-    failed: list[str] = []
-    for m in spec.motors:
-        try:
-            for f, v in before.get(m.name, {}).items():
-                if bus.has_register(m.motor_id, f):
-                    bus.write(f, m.motor_id, v)
-        except CalibError:
-            failed.append(f"motor {m.name!r} (id {m.motor_id})")
-    return failed
+    label = {m.name: f"motor {m.name!r} (id {m.motor_id})" for m in spec.motors}
+    restored: list[str] = []
+    not_restored: dict[str, tuple[str, ...]] = {}
+    if on_status is not None:
+        on_status("restoring the previous EEPROM of every motor…")
+    with _defer_sigint(on_status) as deferred:
+        interrupts = 0
+        for m in spec.motors:
+            regs = [(f, v) for f, v in before.get(m.name, {}).items() if bus.has_register(m.motor_id, f)]
+            done: list[str] = []
+            try:
+                for f, v in regs:
+                    for attempt in range(3):
+                        try:
+                            bus.write(f, m.motor_id, v)
+                            break
+                        except KeyboardInterrupt:
+                            interrupts += 1
+                            if attempt == 2:
+                                raise CalibError("interrupted three times") from None
+                    done.append(f)
+                try:
+                    now = {f: bus.read(f, m.motor_id) for f, _v in regs}
+                except CalibError:
+                    now = dict(regs)  # acknowledged writes; the read-back itself failed
+                done = [f for f in done if now[f] == dict(regs)[f]]
+            except CalibError:
+                pass
+            missing = tuple(f for f, _v in regs if f not in done)
+            if missing:
+                not_restored[label[m.name]] = missing
+            else:
+                restored.append(m.name)
+    return RollbackReport(tuple(restored), not_restored, deferred[0] + interrupts)
 
 
-def _reraise_after_rollback(exc: BaseException, failed: Sequence[str]) -> None:
+def _reraise_after_rollback(exc: BaseException, report: RollbackReport) -> None:
     """Re-raise ``exc`` with what the rollback did (one message line); other exceptions pass unchanged.
 
-    A CalibError keeps its type (so its exit code) and gains ``"; previous EEPROM written back"`` or the motors
-    that could not be restored; a KeyboardInterrupt gains those motors as its argument.
+    A CalibError keeps its type (so its exit code) and gains ``"; previous EEPROM values written back"`` or
+    exactly which motors and registers could not be restored; a KeyboardInterrupt gains the latter as its
+    argument (no argument: everything was restored).
     """
-    if failed:
-        note = f"could not write the previous EEPROM back to {', '.join(failed)}"
-        if isinstance(exc, KeyboardInterrupt):
-            raise KeyboardInterrupt(note) from None
-    else:
-        note = "previous EEPROM values written back"
+    note = report.summary()
+    if report.not_restored and isinstance(exc, KeyboardInterrupt):
+        raise KeyboardInterrupt(note) from None
+    if isinstance(exc, CalibrationNotSavedError):
+        raise CalibrationNotSavedError(f"{exc}; {note}", exc.calibration) from exc
     if isinstance(exc, CalibError):
         raise type(exc)(f"{exc}; {note}") from exc
 
@@ -320,6 +467,7 @@ def calibrate(
     sweep_full_turn: bool = False,
     on_sweep: Callable[[SweepView], None] | None = None,
     max_steps: int | None = None,
+    on_status: Callable[[str], None] | None = None,
 ) -> CalibrationResult:
     """Run LeRobot's current calibration with robocal's fixes and write the JSON file.
 
@@ -332,16 +480,21 @@ def calibrate(
         sweep_full_turn: Also sweep the joints LeRobot forces to 0..4095 (#4583).
         on_sweep: Called after each reading of the sweep (live table).
         max_steps: Stop the sweep after this many readings (None: until the operator finishes).
+        on_status: Called with a one-line status while the previous EEPROM is being restored (and for each
+            Ctrl-C deferred meanwhile).
 
     Returns:
         The calibration, the file written and notes.
 
     Raises:
+        UsageError: The file cannot be written there (checked before any motor is touched).
+        CalibrationNotSavedError: The file write failed at the end; EEPROM restored, the result attached.
         DeviceError: Bus failure (EEPROM restored as far as the bus allows).
-        KeyboardInterrupt: Re-raised after the EEPROM was restored; no file written.
+        KeyboardInterrupt: Re-raised after the EEPROM was restored (Ctrl-C is deferred while restoring); no
+            file written. Its argument names the motors and registers that could not be restored.
     """
     if path is not None:
-        check_output_path(path)  # refuse an impossible output before any EEPROM write or sweep
+        preflight_output(path)  # refuse an impossible output before any EEPROM write or sweep
     ids = [m.motor_id for m in spec.motors]
     names = [m.name for m in spec.motors]
     res = {m.name: bus.resolution(m.motor_id) for m in spec.motors}
@@ -435,9 +588,14 @@ def calibrate(
                 cals[m.name] = MotorCalibration(m.motor_id, dm, offsets[m.name], 0, res[m.name] - 1)
         ordered = {n: cals[n] for n in names}
         _write_plan(bus, spec, _restore_plan(bus, spec, ordered))
-        written = write_current(path, ordered) if path is not None else None
+        written = None
+        if path is not None:
+            try:
+                written = write_current(path, ordered)
+            except CalibError as exc:
+                raise CalibrationNotSavedError(str(exc), ordered) from None
     except BaseException as exc:
-        _reraise_after_rollback(exc, _rollback(bus, spec, before))
+        _reraise_after_rollback(exc, _rollback(bus, spec, before, on_status))
         raise
     return CalibrationResult(ordered, written, tuple(notes), naive)
 
@@ -469,7 +627,7 @@ def calibrate_legacy(
                 f"To run calibration, the torque must be disabled on all motors (enabled on {', '.join(on)})."
             )
     if path is not None:
-        check_output_path(path)
+        preflight_output(path)
     operator.prompt("zero", "Move the arm to the zero position and press ENTER")
     zero = bus.sync_read("Present_Position", ids)
     operator.prompt("rotated", "Move the arm to the rotated position (every joint +90°) and press ENTER")
@@ -522,7 +680,13 @@ def _write_plan(bus: ServoBus, spec: RobotSpec, plan: Sequence[tuple[str, str, i
         bus.write(register, motor_id, value)
 
 
-def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> None:
+def restore(
+    bus: ServoBus,
+    spec: RobotSpec,
+    cals: Mapping[str, MotorCalibration],
+    *,
+    on_status: Callable[[str], None] | None = None,
+) -> None:
     """Write a calibration to the motors, all or nothing: Homing_Offset, limits and (Dynamixel) Drive_Mode.
 
     Every value is checked to fit its register before anything is sent; then the registers about to be written
@@ -542,7 +706,7 @@ def restore(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]
     try:
         _write_plan(bus, spec, plan)
     except BaseException as exc:
-        _reraise_after_rollback(exc, _rollback(bus, spec, before))
+        _reraise_after_rollback(exc, _rollback(bus, spec, before, on_status))
         raise
 
 
