@@ -263,7 +263,7 @@ def test_calibrate_into_read_only_folder_fails_before_any_motor_write(readonly_d
         bus.armed = True
         op = SimOperator(arm)
         try:
-            with pytest.raises(UsageError, match="is not writable"):
+            with pytest.raises(UsageError, match="cannot create folders in"):
                 calibrate(bus, arm.spec, op, path=readonly_dir / "robots" / "so_follower" / "a.json")  # type: ignore[arg-type]
         finally:
             bus.close()
@@ -277,8 +277,8 @@ def test_cli_calibrate_read_only_folder_one_error_line_exit_2(
     assert main(_args(readonly_dir)) == 2
     cap = capsys.readouterr()
     assert cap.err.strip().splitlines() == [
-        f"error: cannot write {readonly_dir}/robots/so_follower/a.json: folder {readonly_dir} is not writable "
-        "(Read-only file system)"
+        f"error: cannot write {readonly_dir}/robots/so_follower/a.json: cannot create folders in {readonly_dir} "
+        "(permission denied)"
     ]
     assert "reading" not in cap.err
 
@@ -302,23 +302,11 @@ def test_calibrate_final_write_failure_prints_the_calibration(
     path = tmp_path / "robots" / "so_follower" / "a.json"
     err = cap.err.strip().splitlines()
     assert err[-1] == (
-        f"error: cannot write {path}: No space left on device; previous EEPROM values written back; "
+        f"error: cannot write {path}: No space left on device; the file and its backups are unchanged; "
+        "previous EEPROM values written back; "
         "the calibration is printed above as LeRobot JSON: save it and write it to the motors with "
         "`robocal lerobot calibrate --use-file`"
     )
     cals = {n: MotorCalibration(**v) for n, v in json.loads(cap.out).items()}
     assert cals["shoulder_pan"] == MotorCalibration(1, 0, 53, 847, 3247)  # what a good run writes
     assert not path.exists()
-
-
-def test_preflight_refuses_a_file_as_folder_and_accepts_a_missing_folder(tmp_path: Path) -> None:
-    (tmp_path / "f").write_text("x")
-    with pytest.raises(UsageError, match="is not a folder"):
-        wf.preflight_output(tmp_path / "f" / "robots" / "a.json")
-    with pytest.raises(CalibError, match="directory"):
-        wf.preflight_output(tmp_path)
-    assert (
-        wf.preflight_output(tmp_path / "new" / "deeper" / "a.json") == tmp_path / "new" / "deeper" / "a.json"
-    )
-    assert not (tmp_path / "new").exists()  # the preflight creates nothing
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]  # and leaves no probe behind

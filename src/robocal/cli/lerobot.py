@@ -244,6 +244,7 @@ def calibrate(
             operator: object = SimOperator(arm)
         else:
             operator = ConsoleOperator()
+
         def status(message: str) -> None:
             close()  # the live table ends before the first status line
             _status(message)

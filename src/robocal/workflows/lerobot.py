@@ -18,9 +18,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import shutil
 import signal
-import tempfile
 import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -59,7 +57,6 @@ __all__ = [
     "legacy_to_current",
     "norm_modes",
     "open_bus",
-    "preflight_output",
     "read_eeprom",
     "restore",
     "robot_spec",
@@ -118,47 +115,6 @@ class CalibrationNotSavedError(UsageError):
     def __init__(self, message: str, calibration: Mapping[str, MotorCalibration]) -> None:
         super().__init__(message)
         self.calibration = dict(calibration)
-
-
-MIN_FREE_BYTES = 64 * 1024
-"""``calibrate`` refuses to start when the calibration folder's file system has less room than this."""
-
-
-def preflight_output(path: str | os.PathLike[str]) -> Path:
-    """Check, before any motor is touched, that the calibration file can be written at ``path``.
-
-    The folder may not exist yet (it is created when the file is written): then its nearest existing
-    ancestor is checked. A temporary file is created and removed there (so a read-only folder or file
-    system is found even when running as root), and at least :data:`MIN_FREE_BYTES` must be free.
-
-    Raises:
-        UsageError: The path is a directory, lies under a file, or the folder is not writable or full.
-    """
-    p = Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    existing = folder
-    while not existing.exists() and existing != existing.parent:
-        if existing.is_symlink():
-            raise UsageError(f"cannot write {p}: {existing} is a broken symbolic link")
-        existing = existing.parent
-    if not existing.is_dir():
-        raise UsageError(f"cannot write {p}: {existing} is not a folder")
-    if existing == folder:
-        check_output_path(p, "calibration file")
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".robocal-probe-", dir=existing)
-    except OSError as exc:
-        raise UsageError(f"cannot write {p}: folder {existing} is not writable ({exc.strerror or exc})") from None
-    os.close(fd)
-    with contextlib.suppress(OSError):
-        os.unlink(probe)
-    try:
-        free = shutil.disk_usage(existing).free
-    except OSError:
-        free = MIN_FREE_BYTES
-    if free < MIN_FREE_BYTES:
-        raise UsageError(f"cannot write {p}: only {free} bytes free on the file system of {existing}")
-    return p
 
 
 def robot_spec(robot: str) -> RobotSpec:
@@ -494,7 +450,8 @@ def calibrate(
             file written. Its argument names the motors and registers that could not be restored.
     """
     if path is not None:
-        preflight_output(path)  # refuse an impossible output before any EEPROM write or sweep
+        # refuse an impossible output (read-only folder, full disk, ...) before any EEPROM write or sweep
+        check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
     ids = [m.motor_id for m in spec.motors]
     names = [m.name for m in spec.motors]
     res = {m.name: bus.resolution(m.motor_id) for m in spec.motors}
@@ -627,7 +584,7 @@ def calibrate_legacy(
                 f"To run calibration, the torque must be disabled on all motors (enabled on {', '.join(on)})."
             )
     if path is not None:
-        preflight_output(path)
+        check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
     operator.prompt("zero", "Move the arm to the zero position and press ENTER")
     zero = bus.sync_read("Present_Position", ids)
     operator.prompt("rotated", "Move the arm to the rotated position (every joint +90°) and press ENTER")
