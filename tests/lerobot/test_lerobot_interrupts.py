@@ -22,7 +22,7 @@ from robocal.backends.sim import lerobot_arms
 from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, SimArm, SimOperator
 from robocal.cli import _common
 from robocal.cli.main import main
-from robocal.errors import CalibError, UsageError
+from robocal.errors import UsageError
 from robocal.lerobot import MotorCalibration
 from robocal.workflows.lerobot import calibrate, open_bus
 
