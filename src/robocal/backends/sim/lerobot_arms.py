@@ -8,14 +8,19 @@ stop to stop during range recording, and can raise ``KeyboardInterrupt`` at a ch
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import threading
+import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+
+import numpy as np
 
 from ...core.lerobot import ROBOTS, MotorCalibration, RobotSpec
 from ...errors import UsageError
+from .operator import JointView
 from .servo import SimServo, SimServoBus
 
-__all__ = ["DEFAULT_TRUTH", "JointTruth", "SimArm", "SimOperator"]
+__all__ = ["DEFAULT_TRUTH", "ArmHands", "JointTruth", "SimArm", "SimOperator", "seeded_truth"]
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,33 @@ DEFAULT_TRUTH: dict[str, dict[str, JointTruth]] = {
 """Default physical truth of each simulated arm."""
 
 
+def seeded_truth(robot: str, seed: int | None) -> dict[str, JointTruth]:
+    """The physical truth of a simulated arm: :data:`DEFAULT_TRUTH`, or a seeded variation of it.
+
+    Args:
+        robot: ``so101_follower``, ``so101_leader``, ``koch_follower`` or ``koch_leader``.
+        seed: None for the default truth; otherwise every joint is shifted by up to ±150 ticks and each
+            stop moved by up to ±60 ticks, reproducibly for that seed.
+
+    Returns:
+        Joint name → truth (actual ticks).
+    """
+    if robot not in DEFAULT_TRUTH:
+        raise UsageError(f"unknown robot {robot!r}; valid: {', '.join(DEFAULT_TRUTH)}")
+    base = DEFAULT_TRUTH[robot]
+    if seed is None:
+        return dict(base)
+    rng = np.random.default_rng(seed)
+    out = {}
+    for name, t in base.items():
+        shift = int(rng.integers(-150, 151))
+        lo_d, hi_d = (int(v) for v in rng.integers(-60, 61, size=2))
+        out[name] = JointTruth(
+            t.mid_ticks + shift, t.stop_low_ticks + shift + lo_d, t.stop_high_ticks + shift + hi_d
+        )
+    return out
+
+
 class SimArm:
     """A simulated LeRobot arm on a pseudo-terminal.
 
@@ -84,6 +116,8 @@ class SimArm:
         seed: Noise seed.
         eeprom: Initial EEPROM per motor name (``Homing_Offset``, ``Min_Position_Limit``, ... ), e.g. a
             previous calibration.
+        factory: Servos as shipped: every one at id 1 and the vendor's default baud rate, no calibration
+            (for LeRobot's ``setup_motors``; plug them in one at a time with :meth:`SimServoBus.attach`).
     """
 
     def __init__(
@@ -94,6 +128,7 @@ class SimArm:
         noise_ticks: int = 0,
         seed: int = 0,
         eeprom: Mapping[str, Mapping[str, int]] | None = None,
+        factory: bool = False,
     ) -> None:
         if robot not in ROBOTS:
             raise UsageError(f"unknown robot {robot!r}; valid: {', '.join(ROBOTS)}")
@@ -105,6 +140,8 @@ class SimArm:
             servo = SimServo(
                 m.motor_id, m.model, float(t.mid_ticks), float(t.stop_low_ticks), float(t.stop_high_ticks)
             )
+            if factory:
+                servo.factory_reset()
             for reg, value in (eeprom or {}).get(m.name, {}).items():
                 servo.set_reg(reg, value)
             servos.append(servo)
@@ -152,6 +189,50 @@ class SimArm:
                 lo, hi = min(a, b), max(a, b)
             out[name] = (lo, hi)
         return out
+
+
+class ArmHands:
+    """The hand-movable view of a :class:`SimArm` (a :class:`~robocal.backends.sim.operator.HandDevice`).
+
+    Positions are actual ticks (the frame of the hard stops).
+    """
+
+    unit = "ticks"
+    step = 20.0
+
+    def __init__(self, arm: SimArm) -> None:
+        self.arm = arm
+        self.lock: threading.RLock = arm.bus.lock
+
+    def joint_names(self) -> Sequence[str]:
+        """The arm's motors in LeRobot's order."""
+        return self.arm.spec.motor_names
+
+    def view(self, name: str) -> JointView:
+        """One joint: physical position, stops, torque, Present_Position, last client write, id/baud."""
+        servo = self.arm.servo(name)
+        t = self.arm.truth[name]
+        return JointView(
+            name=name,
+            position=servo.actual_ticks,
+            low=t.stop_low_ticks,
+            high=t.stop_high_ticks,
+            mid=t.mid_ticks,
+            torque=bool(servo.get_reg("Torque_Enable")),
+            reading=float(servo.present_ticks()),
+            last_write=servo.last_write,
+            last_write_age_s=(time.monotonic() - servo.last_write_time) if servo.last_write else None,
+            extra={
+                "id": servo.bus_id,
+                "baudrate": servo.baudrate,
+                "attached": servo.attached,
+                **servo.eeprom_snapshot(),
+            },
+        )
+
+    def place(self, name: str, position: float) -> None:
+        """Put the shaft at ``position`` actual ticks; the hard stops hold it."""
+        self.arm.servo(name).move_to(position)
 
 
 class SimOperator:

@@ -12,14 +12,23 @@ the firmware's homing semantics:
 
 Dynamixel EEPROM (addresses < 64) is read-only while torque is on (Access error); Feetech EEPROM writes are
 refused with Lock = 1 only when ``enforce_lock`` is set.
+
+Bus behaviour as on hardware: a servo answers the id in its ``ID`` register (not the one it was built with),
+only while it is plugged in (:attr:`SimServo.attached`) and only at its own baud rate (``Baud_Rate`` register).
+A pty carries no baud rate, so the simulator reads the speed the client set on the terminal (``TCGETS2``) and
+ignores packets sent at another speed. A write to ``ID`` or ``Baud_Rate`` is acknowledged with the old id at
+the old speed, then takes effect. Broadcast PING (id 0xFE) is answered by every servo on the bus, in id order.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import select
+import struct
 import threading
+import time
 import tty
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -37,9 +46,41 @@ from ...errors import UsageError
 from ..dynamixel import DYNAMIXEL_MODELS, X_TABLE
 from ..feetech import FEETECH_MODELS, SIGN_BITS
 
-__all__ = ["SimServo", "SimServoBus", "dxl_crc16"]
+__all__ = ["BAUD_RATES", "BROADCAST_ID", "SimServo", "SimServoBus", "dxl_crc16"]
 
 Vendor = Literal["feetech", "dynamixel"]
+
+BROADCAST_ID = 0xFE
+"""Packets to this id reach every servo; only PING is answered (by each servo)."""
+
+BAUD_RATES: dict[Vendor, dict[int, int]] = {
+    "feetech": {
+        0: 1_000_000,
+        1: 500_000,
+        2: 250_000,
+        3: 128_000,
+        4: 115_200,
+        5: 57_600,
+        6: 38_400,
+        7: 19_200,
+    },
+    "dynamixel": {
+        0: 9_600,
+        1: 57_600,
+        2: 115_200,
+        3: 1_000_000,
+        4: 2_000_000,
+        5: 3_000_000,
+        6: 4_000_000,
+        7: 4_500_000,
+    },
+}
+"""``Baud_Rate`` register value → bit/s (Feetech STS/SCS; Dynamixel X series)."""
+
+FACTORY_BAUD: dict[Vendor, int] = {"feetech": 0, "dynamixel": 1}
+"""``Baud_Rate`` as shipped: Feetech 1 Mbit/s, Dynamixel X 57600 bit/s."""
+
+_TCGETS2 = 0x802C542A  # _IOR('T', 0x2A, struct termios2) on x86 and the generic ioctl ABI (arm, arm64, riscv)
 
 
 def _crc_table() -> list[int]:
@@ -82,6 +123,12 @@ class SimServo:
     stop_low_ticks: float = -1e9
     stop_high_ticks: float = 1e9
     regs: bytearray = field(default_factory=lambda: bytearray(256))
+    attached: bool = True
+    """Plugged into the bus (an unplugged servo hears nothing)."""
+    last_write: str = ""
+    """What the last client wrote to this servo (``"Goal_Position=2048"``), for the live view."""
+    last_write_time: float = 0.0
+    """``time.monotonic()`` of :attr:`last_write`."""
 
     @property
     def vendor(self) -> Vendor:
@@ -101,6 +148,10 @@ class SimServo:
             self.set_reg("ID", self.motor_id)
             self.set_reg("Max_Position_Limit", res - 1)
             self.set_reg("Lock", 1)
+            self.set_reg("Baud_Rate", FACTORY_BAUD["feetech"])
+            if "Firmware_Major_Version" in table:
+                self.set_reg("Firmware_Major_Version", 3)
+                self.set_reg("Firmware_Minor_Version", 10)
             if "Phase" in table:
                 self.set_reg("Phase", 0)
         else:
@@ -112,6 +163,8 @@ class SimServo:
             self.set_reg("ID", self.motor_id)
             self.set_reg("Operating_Mode", 3)
             self.set_reg("Max_Position_Limit", res - 1)
+            self.set_reg("Baud_Rate", 3)  # 1 Mbit/s, as LeRobot's setup leaves it
+            self.set_reg("Firmware_Version", 52)
 
     # ---------------------------------------------------------------------------------- register access
     def _pack(self, value: int, size: int) -> bytes:
@@ -146,6 +199,25 @@ class SimServo:
         ):
             return decode_twos_complement(raw, size)
         return raw
+
+    @property
+    def bus_id(self) -> int:
+        """The id the servo answers to now (its ``ID`` register)."""
+        return self.regs[self.table["ID"][0]]
+
+    @property
+    def baudrate(self) -> int:
+        """Bit/s the servo listens at now (its ``Baud_Rate`` register; unknown values read as 1 Mbit/s)."""
+        return BAUD_RATES[self.vendor].get(self.get_reg("Baud_Rate"), 1_000_000)
+
+    def factory_reset(self) -> None:
+        """ID 1, the vendor's shipping baud rate, no homing offset, full-turn limits (a new servo)."""
+        self.set_reg("ID", 1)
+        self.set_reg("Baud_Rate", FACTORY_BAUD[self.vendor])
+        if "Homing_Offset" in self.table:
+            self.set_reg("Homing_Offset", 0)
+        self.set_reg("Min_Position_Limit", 0)
+        self.set_reg("Max_Position_Limit", self.resolution - 1)
 
     def eeprom_snapshot(self) -> dict[str, int]:
         """Calibration-relevant EEPROM values (Homing_Offset, limits, Drive_Mode where present)."""
@@ -401,24 +473,56 @@ class SimServoBus:
             servo.move_to(servo.goal_to_actual(servo.get_reg("Goal_Position")))
         return 0
 
+    def client_baudrate(self) -> int | None:
+        """Bit/s the client last set on the terminal (``TCGETS2``), or None where it cannot be read."""
+        buf = bytearray(44)
+        try:
+            fcntl.ioctl(self._slave, _TCGETS2, buf)
+        except (OSError, ValueError):
+            return None
+        return int(struct.unpack_from("<I", buf, 40)[0])
+
+    def on_bus(self, motor_id: int) -> list[SimServo]:
+        """Servos that hear a packet for ``motor_id`` now: plugged in, at the client's speed, with that id."""
+        speed = self.client_baudrate()
+        return [
+            s
+            for s in self.servos.values()
+            if s.attached
+            and (speed is None or s.baudrate == speed)
+            and (motor_id == BROADCAST_ID or s.bus_id == motor_id)
+        ]
+
     def _handle(self, motor_id: int, inst: int, params: bytes) -> None:
         try:
             self._handle_unchecked(motor_id, inst, params)
         except (IndexError, ValueError):  # a malformed instruction gets no answer, like a real servo
             return
 
+    def _ping_params(self, servo: SimServo) -> bytes:
+        if servo.vendor == "dynamixel":
+            number = servo.get_reg("Model_Number")
+            return bytes([number & 0xFF, number >> 8, servo.get_reg("Firmware_Version")])
+        return b""
+
+    def _note_write(self, servo: SimServo, addr: int, size: int) -> None:
+        names = [n for n, (a, k) in servo.table.items() if addr <= a and a + k <= addr + size]
+        servo.last_write = ", ".join(f"{n}={servo.get_reg(n)}" for n in names) or f"{size} byte(s) at {addr}"
+        servo.last_write_time = time.monotonic()
+
     def _handle_unchecked(self, motor_id: int, inst: int, params: bytes) -> None:
         dxl = self.vendor == "dynamixel"
         with self._lock:
+            listening = self.on_bus(BROADCAST_ID)
             if inst == 0x82:  # SYNC_READ
                 if dxl:
                     addr, size, ids = params[0] | params[1] << 8, params[2] | params[3] << 8, params[4:]
                 else:
                     addr, size, ids = params[0], params[1], params[2:]
                 for i in ids:
-                    servo = self.servos.get(i)
-                    if servo is not None and i not in self.silent_ids:
-                        self._send(self._status(i, 0, self._read(servo, addr, size)))
+                    for servo in listening:
+                        if servo.bus_id == i and i not in self.silent_ids:
+                            self._send(self._status(i, 0, self._read(servo, addr, size)))
                 return
             if inst == 0x83:  # SYNC_WRITE
                 if dxl:
@@ -426,31 +530,41 @@ class SimServoBus:
                 else:
                     addr, size, rest = params[0], params[1], params[2:]
                 for k in range(0, len(rest) - size + 1 if size else 0, size + 1):
-                    servo = self.servos.get(rest[k])
-                    if servo is not None:
-                        self._write(servo, addr, rest[k + 1 : k + 1 + size])
+                    for servo in [s for s in listening if s.bus_id == rest[k]]:
+                        if not self._write(servo, addr, rest[k + 1 : k + 1 + size]):
+                            self._note_write(servo, addr, size)
                 return
-            servo = self.servos.get(motor_id)
-            if servo is None or motor_id in self.silent_ids:
+            if motor_id == BROADCAST_ID:
+                if inst == 0x01:  # every servo answers a broadcast PING, lowest id first
+                    for servo in sorted(listening, key=lambda s: s.bus_id):
+                        if servo.bus_id not in self.silent_ids:
+                            self._send(self._status(servo.bus_id, 0, self._ping_params(servo)))
+                elif inst == 0x03:  # broadcast WRITE: applied by all, answered by none
+                    addr, data = (params[0] | params[1] << 8, params[2:]) if dxl else (params[0], params[1:])
+                    for servo in listening:
+                        if not self._write(servo, addr, data):
+                            self._note_write(servo, addr, len(data))
                 return
-            if inst == 0x01:  # PING
-                if dxl:
-                    number = servo.get_reg("Model_Number")
-                    self._send(self._status(motor_id, 0, bytes([number & 0xFF, number >> 8, 52])))
+            targets = [s for s in listening if s.bus_id == motor_id]
+            if not targets or motor_id in self.silent_ids:
+                return
+            for servo in targets:  # two servos sharing an id both answer (and collide), as on hardware
+                if inst == 0x01:  # PING
+                    self._send(self._status(motor_id, 0, self._ping_params(servo)))
+                elif inst == 0x02:  # READ
+                    if dxl:
+                        addr, size = params[0] | params[1] << 8, params[2] | params[3] << 8
+                    else:
+                        addr, size = params[0], params[1]
+                    self._send(self._status(motor_id, 0, self._read(servo, addr, size)))
+                elif inst == 0x03:  # WRITE: acknowledged with the old id at the old speed, then applied
+                    addr, data = (params[0] | params[1] << 8, params[2:]) if dxl else (params[0], params[1:])
+                    error = self._write(servo, addr, data)
+                    if not error:
+                        self._note_write(servo, addr, len(data))
+                    self._send(self._status(motor_id, error))
                 else:
-                    self._send(self._status(motor_id, 0))
-            elif inst == 0x02:  # READ
-                if dxl:
-                    addr, size = params[0] | params[1] << 8, params[2] | params[3] << 8
-                else:
-                    addr, size = params[0], params[1]
-                self._send(self._status(motor_id, 0, self._read(servo, addr, size)))
-            elif inst == 0x03:  # WRITE
-                addr, data = (params[0] | params[1] << 8, params[2:]) if dxl else (params[0], params[1:])
-                error = self._write(servo, addr, data)
-                self._send(self._status(motor_id, error))
-            else:
-                self._send(self._status(motor_id, 2 if dxl else 0))
+                    self._send(self._status(motor_id, 2 if dxl else 0))
 
     # ------------------------------------------------------------------------------------- helpers
     def move(self, positions: Mapping[int, float]) -> None:
@@ -458,6 +572,16 @@ class SimServoBus:
         with self._lock:
             for i, pos in positions.items():
                 self.servos[i].move_to(pos)
+
+    def attach(self, slots: Iterable[int] | None) -> None:
+        """Plug in exactly these servos (by the id they were built with); None plugs in every servo."""
+        with self._lock:
+            keep = set(self.servos) if slots is None else set(slots)
+            unknown = keep - set(self.servos)
+            if unknown:
+                raise UsageError(f"no simulated servo {sorted(unknown)}; servos: {sorted(self.servos)}")
+            for i, servo in self.servos.items():
+                servo.attached = i in keep
 
     def snapshot(self) -> dict[int, dict[str, int]]:
         """EEPROM calibration registers of every servo."""

@@ -1,0 +1,141 @@
+"""Running ``robocal sim`` as a separate process, as a person would in a second terminal."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+
+class SimProcess:
+    """A ``robocal sim ...`` child process and the lines it printed at start."""
+
+    def __init__(self, args: list[str], cwd: Path) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "robocal", "sim", *args, "--no-view"],
+            cwd=cwd,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        self.info: dict[str, str] = {}
+        assert self.proc.stdout is not None
+        deadline = time.monotonic() + 30
+        while "control" not in self.info:
+            line = self.proc.stdout.readline()
+            if not line:
+                err = self.proc.stderr.read() if self.proc.stderr else ""
+                raise AssertionError(f"robocal sim exited early ({self.proc.wait()}): {err}")
+            key, sep, value = line.rstrip("\n").partition(": ")
+            if sep:
+                self.info[key] = value
+            assert time.monotonic() < deadline
+
+    def stop(self) -> tuple[int, str]:
+        """Ctrl-C; returns exit code and standard error."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        try:
+            _, err = self.proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            _, err = self.proc.communicate()
+        return self.proc.returncode, err
+
+
+@pytest.fixture
+def sim_process(tmp_path: Path) -> Iterator[type[SimProcess]]:
+    started: list[SimProcess] = []
+
+    class Tracked(SimProcess):
+        def __init__(self, args: list[str], cwd: Path = tmp_path) -> None:
+            super().__init__(args, cwd)
+            started.append(self)
+
+    yield Tracked
+    for p in started:
+        p.stop()
+
+
+def robocal(
+    *args: str, cwd: Path, stdin: str | None = None, timeout: float = 120
+) -> subprocess.CompletedProcess[str]:
+    """Run the robocal CLI in a child process."""
+    env = dict(os.environ, COLUMNS="200")
+    return subprocess.run(
+        [sys.executable, "-m", "robocal", *args],
+        cwd=cwd,
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=env,
+    )
+
+
+class Interactive:
+    """A child process whose prompts are answered as a person would: wait for the text, then type."""
+
+    def __init__(self, argv: list[str], cwd: Path) -> None:
+        import threading
+
+        self.proc = subprocess.Popen(
+            argv,
+            cwd=cwd,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            env=dict(os.environ, COLUMNS="200"),
+        )
+        self.output = b""
+        self._lock = threading.Lock()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        while True:
+            chunk = self.proc.stdout.read1(4096)
+            if not chunk:
+                return
+            with self._lock:
+                self.output += chunk
+
+    def text(self) -> str:
+        with self._lock:
+            return self.output.decode(errors="replace")
+
+    def expect(self, needle: str, timeout: float = 60.0, after: int = 0) -> int:
+        """Wait until ``needle`` appears in the output (at or after ``after``); returns the end of the match."""
+        deadline = time.monotonic() + timeout
+        while True:
+            text = self.text()
+            k = text.find(needle, after)
+            if k >= 0:
+                return k + len(needle)
+            if self.proc.poll() is not None and not self._reader.is_alive():
+                raise AssertionError(f"exited {self.proc.returncode} before {needle!r}:\n{text[-3000:]}")
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no {needle!r} within {timeout} s:\n{text[-3000:]}")
+            time.sleep(0.02)
+
+    def send(self, line: str = "") -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(line.encode() + b"\n")
+        self.proc.stdin.flush()
+
+    def finish(self, timeout: float = 120.0) -> tuple[int, str]:
+        try:
+            self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        self._reader.join(timeout=5)
+        return self.proc.returncode, self.text()

@@ -1,0 +1,73 @@
+"""The live view of ``robocal sim`` in a real terminal (tmux): read the screen, press keys as a person would."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from robocal.backends.sim.control import SimControl
+
+pytestmark = [
+    pytest.mark.timeout(90),
+    pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed"),
+]
+
+
+def _tmux(*args: str) -> str:
+    return subprocess.run(["tmux", *args], check=True, capture_output=True, text=True).stdout
+
+
+@pytest.fixture
+def session(tmp_path: Path) -> Iterator[str]:
+    name = f"robocal-sim-{time.monotonic_ns()}"
+    cmd = f"cd {tmp_path} && {sys.executable} -m robocal sim so101_follower --link arm.port; echo EXITED $?; sleep 30"
+    _tmux("new-session", "-d", "-s", name, "-x", "200", "-y", "40", cmd)
+    yield name
+    subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
+
+
+def _screen(name: str) -> str:
+    return _tmux("capture-pane", "-p", "-t", name)
+
+
+def _wait_for(name: str, needle: str, timeout: float = 20.0) -> str:
+    deadline = time.monotonic() + timeout
+    while True:
+        screen = _screen(name)
+        if needle in screen:
+            return screen
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{needle!r} not on screen:\n{screen}")
+        time.sleep(0.1)
+
+
+def _row(screen: str, joint: str) -> str:
+    return next(line for line in screen.splitlines() if f" {joint} (id" in line)
+
+
+def test_keys_select_move_and_push_joints_and_q_quits(session: str, tmp_path: Path) -> None:
+    screen = _wait_for(session, "shoulder_pan (id 1)")
+    assert "port: /dev/pts/" in screen
+    assert f"control: {tmp_path}/arm.port.control" in screen
+    assert "▶" in _row(screen, "shoulder_pan")
+    _tmux("send-keys", "-t", session, "Down")
+    screen = _wait_for(session, "▶ │ shoulder_lift")
+    _tmux("send-keys", "-t", session, "[")  # push shoulder_lift into its low stop (780 ticks)
+    time.sleep(0.5)
+    row = _row(_screen(session), "shoulder_lift")
+    assert "│ 780 " in row.replace("  ", " ") or " 780 " in row
+    _tmux("send-keys", "-t", session, "Right", "Right")  # two steps of 20 ticks off the stop
+    time.sleep(0.5)
+    with SimControl(tmp_path / "arm.port.control") as ctl:
+        state = ctl.state()
+    assert state["shoulder_lift"]["position"] == 820.0
+    assert state["shoulder_pan"]["position"] == 2100.0
+    _tmux("send-keys", "-t", session, "q")
+    screen = _wait_for(session, "EXITED 0")
+    assert not (tmp_path / "arm.port").exists()
