@@ -78,7 +78,7 @@ def test_berkeley_values_are_joint_frame(tmp_path: Path) -> None:
     # left_shoulder_pitch has direction -1: homing_offset = direction * off = -0.5
     assert back.calibration.joint_map("left_shoulder_pitch").homing_offset == -0.5
     assert back.calibration.joint_map("left_shoulder_yaw").homing_offset == 0.5
-    with pytest.raises(UsageError, match="pass --joints or --urdf"):
+    with pytest.raises(UsageError, match=r"positional .*pass --joints .*--robot NAME"):
         read_calibration(path)
     with pytest.raises(JointMismatchError, match="14 offsets but 2 joints"):
         read_calibration(path, urdf=urdf, joint_order=["left_shoulder_pitch", "left_shoulder_roll"])

@@ -95,7 +95,7 @@ def test_berkeley_written_with_urdf_is_in_urdf_order(tmp_path: Path) -> None:
 
 def test_berkeley_write_with_urdf_refuses_other_joints(tmp_path: Path) -> None:
     cal = RobotCalibration(["left_elbow_pitch", "nope"], [-1, 1], [0.1, 0.2])
-    with pytest.raises(JointMismatchError, match=r"not in the URDF: nope\).*pass --joints"):
+    with pytest.raises(JointMismatchError, match=r"not in robot bhl_arms: nope\).*pass --joints"):
         write_calibration(tmp_path / "b.yaml", cal, "berkeley-offsets", urdf=read_urdf(LITE_URDF))
     assert not (tmp_path / "b.yaml").exists()
 

@@ -120,12 +120,16 @@ def test_report_same_file_as_out(urdf: Path, tmp_path: Path, capsys: Any) -> Non
     ("edit", "message"),
     [
         (('<param name="can_id">14</param>', '<param name="can_id">13</param>'), "share CAN id 13"),
-        (('<param name="can_id">14</param>', ""), "no <param name='can_id'> for left_elbow_pitch"),
+        # renamed so that no robot profile (bhl_arms would give id 14) is recognised
+        (
+            ('<param name="can_id">14</param>', "", '"left_elbow_pitch"', '"left_elbow"'),
+            "no <param name='can_id'> for left_elbow",
+        ),
     ],
     ids=["duplicate-id", "missing-id"],
 )
 def test_urdf_ids_checked_before_sampling(
-    edit: tuple[str, str],
+    edit: tuple[str, ...],
     message: str,
     urdf: Path,
     tmp_path: Path,
@@ -135,7 +139,10 @@ def test_urdf_ids_checked_before_sampling(
     from robocal.workflows import sweep as wf
 
     bad = tmp_path / "bad.urdf"
-    bad.write_text(urdf.read_text().replace(*edit))
+    text = urdf.read_text()
+    for old, new in zip(edit[::2], edit[1::2], strict=True):
+        text = text.replace(old, new)
+    bad.write_text(text)
     opened: list[Any] = []
     monkeypatch.setattr(wf, "open_source", lambda *a, **k: opened.append(a))
     rc, err = _run(

@@ -8,11 +8,17 @@ import typer
 from rich.table import Table
 
 from ..formats import FORMATS, read_calibration
+from ..formats.profiles import builtin_profile_names, resolve_profile
 from ..formats.urdf import read_urdf
 from ..workflows.calibration import check_calibration, convert_file
 from ._common import EXIT_OK, EXIT_WARNINGS, console, parse_csv_list, print_warning
 
 FORMAT_HELP = "Format: " + ", ".join(FORMATS) + "."
+ROBOT_HELP = (
+    "Robot profile: a built-in name ("
+    + ", ".join(builtin_profile_names())
+    + ") or a profile YAML file (docs/profiles.md). Default: the built-in robot the URDF's joint names match."
+)
 
 
 def convert(
@@ -30,6 +36,7 @@ def convert(
     joints: str | None = typer.Option(
         None, "--joints", help="Comma-separated joint order (positional formats)."
     ),
+    robot: str | None = typer.Option(None, "--robot", help=ROBOT_HELP),
 ) -> None:
     """Convert a calibration file between formats, exactly."""
     result = convert_file(
@@ -39,12 +46,15 @@ def convert(
         dst_format=to_fmt,
         urdf_path=urdf,
         joints=parse_csv_list(joints, "--joints"),
+        robot=robot,
     )
     for note in result.notes:
         print_warning(note)
     console.print(
         f"wrote {dst} ({result.dst_format}) from {src} ({result.src_format}): {len(result.joints)} joints"
     )
+    if result.robot:
+        console.print(f"robot profile: {result.robot}", markup=False)
     raise typer.Exit(EXIT_WARNINGS if result.notes else EXIT_OK)
 
 
@@ -57,6 +67,7 @@ def check(
     ),
     topic: str = typer.Option("/lite/joint_states", "--topic", help="JointState topic of a rosbag2 replay."),
     frame: str | None = typer.Option(None, "--frame", help="Replay positions: identity (default) or motor."),
+    robot: str | None = typer.Option(None, "--robot", help=ROBOT_HELP),
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
     if source is not None:  # a malformed --source / --frame fails before anything is printed
@@ -64,9 +75,13 @@ def check(
 
         check_source_options(source, frame)
     model = read_urdf(urdf)
-    cf = read_calibration(calibration, fmt, urdf=model)
-    report = check_calibration(cf, model)
+    profile = resolve_profile(robot, model)
+    cf = read_calibration(calibration, fmt, urdf=model, robot=profile)
+    report = check_calibration(cf, model, profile)
     console.print(f"{calibration}: {len(report.matched)}/{report.n_expected} joints matched ({cf.fmt})")
+    if profile is not None:
+        how = "--robot" if robot is not None else "recognised from the URDF's joint names"
+        console.print(f"robot profile: {profile.name} ({how})", markup=False)
     table = Table("joint", "id", "direction", "homing_offset", "status", box=None, pad_edge=False)
     for j in report.joints:
         status = "[yellow]" + "; ".join(j.warnings) + "[/]" if j.warnings else "[green]ok[/]"
@@ -91,7 +106,7 @@ def check(
     ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.sweep)
         from ..workflows.sweep import check_source
 
-        for c in check_source(urdf, calibration, source, topic=topic, frame=frame):
+        for c in check_source(urdf, calibration, source, topic=topic, frame=frame, robot=profile):
             turns = f" ({c.turns:+d} turn)" if c.turns else ""
             console.print(f"{c.name}: q = {c.q_rad:+.4f} rad{turns}", markup=False)
             if c.problem:

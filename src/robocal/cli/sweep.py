@@ -222,6 +222,13 @@ def sweep(
     frame: Annotated[
         str | None, typer.Option("--frame", help="Replay positions: identity (default) or motor.")
     ] = None,
+    robot: Annotated[
+        str | None,
+        typer.Option(
+            "--robot",
+            help="Robot profile: built-in name or profile YAML (docs/profiles.md). Default: the URDF's robot.",
+        ),
+    ] = None,
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     stop = threading.Event()
@@ -241,6 +248,7 @@ def sweep(
             frame=frame,
             view=view,
             stop=stop,
+            robot=robot,
         )
     _common.console.print(result_table(outcome.result))
     for j in outcome.result.joints:

@@ -31,11 +31,13 @@ from ..core.conventions import (
     homing_from_berkeley_offset,
 )
 from ..core.jointmap import RobotCalibration
+from ..core.profile import RobotProfile
 from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, read_bytes, read_text
 from ._json import load_json
 from ._numbers import format_float, parse_direction, parse_finite, parse_int
 from ._yaml import dump_yaml, load_yaml
+from .profiles import profile_for_joints, resolve_profile
 from .urdf import UrdfDocument, UrdfModel, _model_from_tree, _parse_tree
 
 __all__ = [
@@ -87,13 +89,21 @@ def _require_rad(cal: RobotCalibration, fmt: str) -> None:
         )
 
 
-def _ids_from(cal: RobotCalibration, ids: Mapping[str, int], urdf: UrdfModel | None) -> dict[str, int]:
+def _ids_from(
+    cal: RobotCalibration,
+    ids: Mapping[str, int],
+    urdf: UrdfModel | None,
+    profile: RobotProfile | None = None,
+) -> dict[str, int]:
+    """Motor ids: the calibration's own, else the URDF's ``id``/``can_id`` params, else the profile's."""
     out: dict[str, int] = {}
     for name in cal.joint_names:
         if name in ids:
             out[name] = int(ids[name])
         elif urdf is not None and name in urdf.joint_params and urdf.motor_id(name) is not None:
             out[name] = int(urdf.motor_id(name))  # type: ignore[arg-type]
+        elif profile is not None and profile.motor_id(name) is not None:
+            out[name] = int(profile.motor_id(name))  # type: ignore[arg-type]
     return out
 
 
@@ -138,14 +148,24 @@ def _read_lite_yaml(path: Path, **_: Any) -> CalibrationFile:
     return _parse_lite(load_yaml(read_text(path, "calibration file"), str(path)), str(path), "lite-yaml")
 
 
-def _lite_entries(cf: CalibrationFile, urdf: UrdfModel | None, fmt: str) -> dict[str, dict[str, Any]]:
+def _lite_entries(
+    cf: CalibrationFile, urdf: UrdfModel | None, fmt: str, profile: RobotProfile | None = None
+) -> dict[str, dict[str, Any]]:
     cal = cf.calibration
     _require_rad(cal, fmt)
-    ids = _ids_from(cal, cf.ids, urdf)
+    ids = _ids_from(cal, cf.ids, urdf, profile)
     missing = [n for n in cal.joint_names if n not in ids]
     if missing:
+        if urdf is None and profile is None:
+            hint = "pass --urdf with id/can_id params, or --robot NAME"
+        elif urdf is None:
+            hint = f"profile {profile.name} has none for them; pass --urdf with id/can_id params"  # type: ignore[union-attr]
+        else:
+            where = f"URDF {urdf.source} has no id/can_id param for them"
+            where += f" and profile {profile.name} none either" if profile is not None else ""
+            hint = f"{where}; pass --robot NAME or a profile file (docs/profiles.md)"
         raise UsageError(
-            f"format {fmt} needs a motor id for every joint; missing for {', '.join(missing)} (pass --urdf)"
+            f"format {fmt} needs a motor id for every joint; missing for {', '.join(missing)} ({hint})"
         )
     _check_unique_ids(ids, f"calibration for {fmt}")
     return {
@@ -154,16 +174,20 @@ def _lite_entries(cf: CalibrationFile, urdf: UrdfModel | None, fmt: str) -> dict
     }
 
 
-def _write_lite_json(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
-    entries = _lite_entries(cf, urdf, "lite-json")
+def _write_lite_json(
+    path: Path, cf: CalibrationFile, urdf: UrdfModel | None, profile: RobotProfile | None = None, **_: Any
+) -> None:
+    entries = _lite_entries(cf, urdf, "lite-json", profile)
     for e in entries.values():
         if e["homing_offset"] == 0.0:
             e["homing_offset"] = 0.0  # normalise -0.0
     atomic_write_text(path, json.dumps(entries, indent=4) + "\n")
 
 
-def _write_lite_yaml(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
-    entries = _lite_entries(cf, urdf, "lite-yaml")
+def _write_lite_yaml(
+    path: Path, cf: CalibrationFile, urdf: UrdfModel | None, profile: RobotProfile | None = None, **_: Any
+) -> None:
+    entries = _lite_entries(cf, urdf, "lite-yaml", profile)
     doc: Any = None
     if path.exists():
         try:
@@ -238,9 +262,11 @@ def _read_robocal(path: Path, **_: Any) -> CalibrationFile:
     )
 
 
-def _write_robocal(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_: Any) -> None:
+def _write_robocal(
+    path: Path, cf: CalibrationFile, urdf: UrdfModel | None, profile: RobotProfile | None = None, **_: Any
+) -> None:
     cal = cf.calibration
-    ids = _ids_from(cal, cf.ids, urdf)
+    ids = _ids_from(cal, cf.ids, urdf, profile)
     lines = [
         "# robocal joint map: q_joint = direction * scale * (raw - homing_offset)",
         "# homing_offset is in the motor's raw unit; scale converts raw units to joint units (rad or m).",
@@ -261,41 +287,81 @@ def _write_robocal(path: Path, cf: CalibrationFile, urdf: UrdfModel | None, **_:
 
 
 # -------------------------------------------------------------------------------------- berkeley-offsets
-def _order_and_directions(
-    n: int, urdf: UrdfModel | None, joint_order: Sequence[str] | None, source: str
-) -> tuple[list[str], list[int]]:
+BERKELEY_ORDER_COMMENT = "# joint order: "
+
+
+def _no_order_message(what: str) -> str:
+    from .profiles import builtin_profile_names
+
+    return (
+        f"{what}: berkeley-offsets is positional (its reader takes the offsets by index, in the order of the "
+        "robot's low-level code, which is not the URDF's document order); pass --joints a,b,... for the order, "
+        f"or --robot NAME for a robot robocal knows ({', '.join(builtin_profile_names())}) or a profile file"
+    )
+
+
+def _order_from_comment(text: str) -> list[str] | None:
+    """The ``# joint order: a, b, ...`` line robocal writes at the top of a berkeley-offsets file, if any."""
+    for line in text.splitlines():
+        if line.startswith(BERKELEY_ORDER_COMMENT):
+            names = [n.strip() for n in line[len(BERKELEY_ORDER_COMMENT) :].split(",")]
+            return names if all(names) else None
+        if line.strip() and not line.lstrip().startswith("#"):
+            return None
+    return None
+
+
+def _berkeley_order(
+    joint_order: Sequence[str] | None, profile: RobotProfile | None, what: str
+) -> list[str] | None:
     if joint_order is not None:
-        order = list(joint_order)
-    elif urdf is not None:
-        order = list(urdf.calibration_joint_names())
-    else:
-        raise UsageError(
-            f"{source}: berkeley-offsets is positional; pass --joints or --urdf for the joint order"
-        )
-    if len(order) != n:
-        raise JointMismatchError(
-            f"{source}: {n} offsets but {len(order)} joints in the order ({', '.join(order)})"
-        )
-    if urdf is None:
-        raise UsageError(
-            f"{source}: berkeley-offsets holds joint-frame offsets; pass --urdf for the directions"
-        )
+        names = list(joint_order)
+        if profile is not None:  # upstream names (left_hip_roll_joint) are accepted for the URDF names
+            names = [profile.joint(n).name if n in profile.upstream_names else n for n in names]
+        return names
+    if profile is not None:
+        return list(profile.joint_names)
+    return None
+
+
+def _berkeley_directions(
+    order: Sequence[str], urdf: UrdfModel | None, profile: RobotProfile | None, source: str
+) -> list[int]:
+    """Directions by precedence: the URDF's ``direction`` param, else the profile's."""
     dirs = []
+    lacking = []
     for name in order:
-        if name not in urdf.joint_params and name not in urdf.joint_names:
+        if urdf is not None and name not in urdf.joint_names and name not in urdf.joint_params:
             raise JointMismatchError(f"{source}: joint {name!r} is not in URDF {urdf.source}")
-        d = urdf.direction(name)
+        d = urdf.direction(name) if urdf is not None else None
+        if d is None and profile is not None:
+            d = profile.direction(name)
         if d is None:
-            raise FileFormatError(f"URDF {urdf.source}: joint {name!r} has no <param name='direction'>")
+            lacking.append(name)
+            continue
         dirs.append(d)
-    return order, dirs
+    if lacking:
+        have = []
+        if urdf is not None:
+            have.append(f"URDF {urdf.source} has no <param name='direction'>")
+        have.append(f"profile {profile.name} has none" if profile is not None else "no robot profile")
+        raise UsageError(
+            f"{source}: berkeley-offsets holds joint-frame offsets and needs each joint's direction; none for "
+            f"{', '.join(lacking)} ({'; '.join(have)}); pass --robot NAME or a URDF with direction params"
+        )
+    return dirs
 
 
 def _read_berkeley(
-    path: Path, urdf: UrdfModel | None = None, joint_order: Sequence[str] | None = None, **_: Any
+    path: Path,
+    urdf: UrdfModel | None = None,
+    joint_order: Sequence[str] | None = None,
+    profile: RobotProfile | None = None,
+    **_: Any,
 ) -> CalibrationFile:
     source = str(path)
-    data = load_yaml(read_text(path, "calibration file"), source)
+    text = read_text(path, "calibration file")
+    data = load_yaml(text, source)
     if not isinstance(data, Mapping) or "position_offsets" not in data:
         raise FileFormatError(f"{source}: expected a mapping with key position_offsets")
     extra = [str(k) for k in data if k != "position_offsets"]
@@ -305,12 +371,34 @@ def _read_berkeley(
     if not isinstance(raw, Sequence) or isinstance(raw, str) or not raw:
         raise FileFormatError(f"{source}: position_offsets must be a non-empty list of numbers")
     offsets = [parse_finite(v, source, f"position_offsets[{i}]") for i, v in enumerate(raw)]
-    order, dirs = _order_and_directions(len(offsets), urdf, joint_order, source)
+    written = _order_from_comment(text)
+    order = _berkeley_order(joint_order, profile, source)
+    if order is None:
+        if written is None:
+            raise UsageError(_no_order_message(source))
+        order = written  # a file robocal wrote names its order
+        profile = profile_for_joints(order)  # and a known robot's joints give the directions
+    elif written is not None and written != order and len(written) == len(offsets):
+        raise JointMismatchError(
+            f"{source}: the file says its joint order is {', '.join(written)}, but "
+            f"{'--joints' if joint_order is not None else 'profile ' + profile.name} gives "  # type: ignore[union-attr]
+            f"{', '.join(order)}; the offsets would land on other joints"
+        )
+    if len(order) != len(offsets):
+        raise JointMismatchError(
+            f"{source}: {len(offsets)} offsets but {len(order)} joints in the order ({', '.join(order)})"
+        )
+    dirs = _berkeley_directions(order, urdf, profile, source)
     h = homing_from_berkeley_offset(np.array(dirs, float), np.array(offsets))
-    ids = {n: urdf.motor_id(n) for n in order} if urdf is not None else {}
-    clean_ids = {k: int(v) for k, v in ids.items() if v is not None}
+    ids: dict[str, int] = {}
+    for n in order:
+        mid = urdf.motor_id(n) if urdf is not None else None
+        if mid is None and profile is not None:
+            mid = profile.motor_id(n)
+        if mid is not None:
+            ids[n] = int(mid)
     return CalibrationFile(
-        RobotCalibration(order, dirs, h, 1.0), MappingProxyType(clean_ids), "berkeley-offsets", source
+        RobotCalibration(order, dirs, h, 1.0), MappingProxyType(ids), "berkeley-offsets", source
     )
 
 
@@ -319,33 +407,37 @@ def _write_berkeley(
     cf: CalibrationFile,
     urdf: UrdfModel | None,
     joint_order: Sequence[str] | None = None,
+    profile: RobotProfile | None = None,
     **_: Any,
 ) -> None:
     cal = cf.calibration
-    if joint_order is None and urdf is not None:
-        # the file is positional and is read back in the URDF's order: write it in that order
-        order = urdf.calibration_joint_names()
-        missing = [n for n in order if n not in cal.joint_names]
-        extra = [n for n in cal.joint_names if n not in order]
-        if missing or extra:
-            detail = "; ".join(
-                f"{what}: {', '.join(names)}"
-                for what, names in (("not in the calibration", missing), ("not in the URDF", extra))
-                if names
-            )
-            raise JointMismatchError(
-                f"berkeley-offsets is positional in the order of URDF {urdf.source}, but the joints differ "
-                f"({detail}); pass --joints for the order"
-            )
-        joint_order = order
-    if joint_order is not None:
-        cal = cal.select(joint_order)
+    if profile is None and joint_order is None:  # a calibration of exactly a known robot's joints
+        profile = profile_for_joints(cal.joint_names)
+    order = _berkeley_order(joint_order, profile, "berkeley-offsets")
+    if order is None:
+        raise UsageError(_no_order_message(f"cannot write {path}"))
+    missing = [n for n in order if n not in cal.joint_names]
+    extra = [n for n in cal.joint_names if n not in order]
+    if missing or extra:
+        by = "--joints" if joint_order is not None else f"robot {profile.name}"  # type: ignore[union-attr]
+        detail = "; ".join(
+            f"{what}: {', '.join(names)}"
+            for what, names in (("not in the calibration", missing), (f"not in {by}", extra))
+            if names
+        )
+        raise JointMismatchError(
+            f"berkeley-offsets is positional in the order of {by}, but the joints differ ({detail}); "
+            "pass --joints for the order"
+        )
+    cal = cal.select(order)
     _require_rad(cal, "berkeley-offsets")
     offs = berkeley_offset_from_homing(cal.direction, cal.homing_offset)
     body = ", ".join(format_float(v) for v in offs)
+    robot = f" (robot {profile.name})" if profile is not None and joint_order is None else ""
     text = (
         "# Berkeley-Humanoid-Lite-Lowlevel joint offsets (rad, joint frame): q = direction*raw - offset\n"
-        f"# joint order: {', '.join(cal.joint_names)}\n"
+        f"{BERKELEY_ORDER_COMMENT}{', '.join(cal.joint_names)}\n"
+        f"# read by index in this order{robot}\n"
         f"position_offsets: [{body}]\n"
     )
     atomic_write_text(path, text)
@@ -686,14 +778,18 @@ def read_calibration(
     *,
     urdf: UrdfModel | None = None,
     joint_order: Sequence[str] | None = None,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
 ) -> CalibrationFile:
     """Read a calibration file of any supported format into the canonical joint map.
 
     Args:
         path: The file.
         fmt: Format name (see :data:`FORMATS`); detected from the content when None.
-        urdf: Supplies directions, ids and joint order for formats that lack them (``berkeley-offsets``).
-        joint_order: Joint order for positional formats (overrides the URDF order).
+        urdf: Supplies directions and ids for formats that lack them (``berkeley-offsets``); its
+            ``direction``/``id`` params come before the profile's.
+        joint_order: Joint order for positional formats (overrides the profile's order).
+        robot: Robot profile (name, path or :class:`RobotProfile`); when None, the built-in profile the URDF's
+            joint names match, if any. Gives joint order, directions and ids where the file and URDF lack them.
 
     Returns:
         The calibration with the ids the file (or URDF) gave.
@@ -704,8 +800,9 @@ def read_calibration(
     """
     p = Path(path)
     spec = _check_fmt(fmt) if fmt is not None else FORMATS[detect_format(p)]
+    profile = resolve_profile(robot, urdf)
     try:
-        return spec.reader(p, urdf=urdf, joint_order=joint_order)
+        return spec.reader(p, urdf=urdf, joint_order=joint_order, profile=profile)
     except InvalidCalibrationError as exc:
         raise FileFormatError(f"{p}: {exc}") from None
 
@@ -718,6 +815,7 @@ def write_calibration(
     urdf: UrdfModel | None = None,
     ids: Mapping[str, int] | None = None,
     joint_order: Sequence[str] | None = None,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
 ) -> str:
     """Write a calibration atomically (keeping ``NAME.bak``), in place where the format allows.
 
@@ -730,7 +828,10 @@ def write_calibration(
         fmt: Format name; when None, the existing file's format, else the file suffix.
         urdf: Supplies ids (``id``/``can_id`` params) where ``data`` has none; base document for URDF output.
         ids: Extra motor ids, overriding those in ``data``.
-        joint_order: Order for positional formats.
+        joint_order: Order for positional formats (``berkeley-offsets``: else the profile's order; never the
+            URDF's document order).
+        robot: Robot profile (name, path or :class:`RobotProfile`); when None, the built-in profile the URDF's
+            joint names match, if any. Supplies the order of positional formats and ids the data and URDF lack.
 
     Returns:
         The format written.
@@ -746,5 +847,5 @@ def write_calibration(
             f"format {name} is read-only; valid output formats: "
             f"{', '.join(k for k, v in FORMATS.items() if v.writer is not None)}"
         )
-    spec.writer(p, cf, urdf, joint_order=joint_order)
+    spec.writer(p, cf, urdf, joint_order=joint_order, profile=resolve_profile(robot, urdf))
     return name

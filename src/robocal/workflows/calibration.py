@@ -8,8 +8,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..core.profile import RobotProfile
 from ..errors import UsageError
 from ..formats import CalibrationFile, read_calibration, write_calibration
+from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 
 __all__ = ["CheckReport", "JointCheck", "check_calibration", "convert_file"]
@@ -23,6 +25,7 @@ class ConvertResult:
     dst_format: str
     joints: tuple[str, ...]
     notes: tuple[str, ...]
+    robot: str | None = None
 
 
 def convert_file(
@@ -33,23 +36,29 @@ def convert_file(
     dst_format: str | None = None,
     urdf_path: str | os.PathLike[str] | None = None,
     joints: Sequence[str] | None = None,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
 ) -> ConvertResult:
     """Convert one calibration file to another format.
 
-    Directions, ids and joint order come from the URDF where the source format lacks them; ``joints`` selects
-    and orders joints (and is the order of positional formats). Everything is validated before anything is
+    Directions and ids come from the URDF's params where the source format lacks them, else from the robot
+    profile (``robot``, or the built-in one the URDF's joint names match). The order of positional formats
+    (``berkeley-offsets``) is ``joints``, else the profile's, never the URDF's document order; ``joints`` also
+    selects joints (URDF names, or a profile's upstream names). Everything is validated before anything is
     written; the destination is written atomically with a ``.bak``.
     """
     urdf = read_urdf(urdf_path) if urdf_path is not None else None
-    cf = read_calibration(src, src_format, urdf=urdf, joint_order=joints)
+    profile = resolve_profile(robot, urdf)
+    if joints is not None and profile is not None:
+        joints = [profile.joint(n).name if n in profile.upstream_names else n for n in joints]
+    cf = read_calibration(src, src_format, urdf=urdf, joint_order=joints, robot=profile)
     cal = cf.calibration
     if joints is not None and tuple(joints) != cal.joint_names:
         cal = cal.select(joints)
     out = CalibrationFile(cal, {k: v for k, v in cf.ids.items() if k in cal.joint_names}, cf.fmt, cf.source)
     if Path(src).resolve() == Path(dst).resolve() and (dst_format or cf.fmt) == cf.fmt:
         raise UsageError(f"source and destination are the same file ({src}) in the same format")
-    written = write_calibration(dst, out, dst_format, urdf=urdf, joint_order=joints)
-    return ConvertResult(cf.fmt, written, cal.joint_names, cf.notes)
+    written = write_calibration(dst, out, dst_format, urdf=urdf, joint_order=joints, robot=profile)
+    return ConvertResult(cf.fmt, written, cal.joint_names, cf.notes, profile.name if profile else None)
 
 
 @dataclass(frozen=True)
@@ -80,6 +89,7 @@ class CheckReport:
     missing: tuple[str, ...]
     extra: tuple[str, ...]
     joints: tuple[JointCheck, ...]
+    robot: str | None = None
 
     @property
     def n_expected(self) -> int:
@@ -104,36 +114,68 @@ class CheckReport:
         return not self.warnings
 
 
-def check_calibration(cf: CalibrationFile, urdf: UrdfModel) -> CheckReport:
-    """Match a calibration file's joints against a URDF and compare ``id`` / ``direction``.
+DIRECTION_FORMATS = ("lite-json", "lite-yaml", "robocal", "ros2-transmission", "lerobot-legacy")
+"""Formats that store a direction per joint (``berkeley-offsets`` takes it from the URDF or the profile)."""
+ID_FORMATS = ("lite-json", "lite-yaml", "robocal")
+"""Formats that store a motor id per joint."""
 
-    Only ``homing_offset`` is authoritative in a Lite calibration file; ``id`` and ``direction`` are copies of
-    the URDF's ``<ros2_control>`` params that the robot ignores, so any disagreement is a warning here.
+
+def check_calibration(
+    cf: CalibrationFile, urdf: UrdfModel, profile: RobotProfile | None = None
+) -> CheckReport:
+    """Match a calibration file's joints against a URDF (and robot profile) and compare ``id`` / ``direction``.
+
+    The joints expected are the URDF's ``<ros2_control>`` joints when it has any (the runtime drives those),
+    else the profile's (what the robot's own low-level code drives), else the URDF's movable joints. Directions
+    and ids can come from three places: the URDF's params, the calibration file (formats that store them) and
+    the profile. Every pair that disagrees is a warning naming the joint and both sources.
     """
-    expected = urdf.calibration_joint_names()
+    if urdf.ros2_control_joint_names or profile is None:
+        expected = urdf.calibration_joint_names()
+    else:
+        expected = profile.joint_names
     cal = cf.calibration
     matched = tuple(n for n in expected if n in cal.joint_names)
     missing = tuple(n for n in expected if n not in cal.joint_names)
     extra = tuple(n for n in cal.joint_names if n not in expected)
+    file_dirs = cf.fmt in DIRECTION_FORMATS
+    file_ids = cf.fmt in ID_FORMATS
+    pname = f"profile {profile.name}" if profile is not None else ""
     results = []
     for name in matched:
         warnings: list[str] = []
         jm = cal.joint_map(name)
         u_dir = urdf.direction(name)  # a malformed param is bad input (FileFormatError), not a warning
         u_id = urdf.motor_id(name)
-        file_id = cf.ids.get(name)
-        if u_dir is not None and u_dir != jm.direction:  # berkeley-offsets takes its directions from the URDF
+        p_dir = profile.direction(name) if profile is not None else None
+        p_id = profile.motor_id(name) if profile is not None else None
+        f_dir = jm.direction if file_dirs else None
+        file_id = cf.ids.get(name) if file_ids else None
+        if u_dir is not None and f_dir is not None and u_dir != f_dir:
             warnings.append(
-                f"direction {jm.direction:+d} in the file disagrees with {u_dir:+d} in the URDF "
+                f"direction {f_dir:+d} in the file disagrees with {u_dir:+d} in the URDF "
                 "(the robot uses the URDF's)"
             )
+        if p_dir is not None and f_dir is not None and p_dir != f_dir:
+            warnings.append(f"direction {f_dir:+d} in the file disagrees with {p_dir:+d} in {pname}")
+        if u_dir is not None and p_dir is not None and u_dir != p_dir:
+            warnings.append(f"direction {u_dir:+d} in the URDF disagrees with {p_dir:+d} in {pname}")
         if u_id is not None and file_id is not None and u_id != file_id:
             warnings.append(
                 f"id {file_id} in the file disagrees with can_id {u_id} in the URDF (the robot uses the URDF's)"
             )
+        if p_id is not None and file_id is not None and p_id != file_id:
+            warnings.append(f"id {file_id} in the file disagrees with id {p_id} in {pname}")
+        if u_id is not None and p_id is not None and u_id != p_id:
+            warnings.append(f"can_id {u_id} in the URDF disagrees with id {p_id} in {pname}")
         if jm.scale == 1.0 and abs(jm.homing_offset) > math.pi:
             warnings.append(
                 f"|homing_offset| = {abs(jm.homing_offset):.3f} rad > pi: direction flipped or zero off by a turn?"
             )
-        results.append(JointCheck(name, jm.homing_offset, jm.direction, file_id, tuple(warnings)))
-    return CheckReport(cf.source, urdf.source, matched, missing, extra, tuple(results))
+        shown_id = cf.ids.get(name)
+        if shown_id is None:
+            shown_id = u_id if u_id is not None else p_id
+        results.append(JointCheck(name, jm.homing_offset, jm.direction, shown_id, tuple(warnings)))
+    return CheckReport(
+        cf.source, urdf.source, matched, missing, extra, tuple(results), profile.name if profile else None
+    )

@@ -30,6 +30,7 @@ from ..backends.sources import RobstrideSource, open_source, parse_source
 from ..core.jointmap import RobotCalibration
 from ..errors import CalibError, JointMismatchError, ShapeMismatchError, UsageError
 from ..formats import read_calibration
+from ..formats.profiles import resolve_profile
 from ..formats.urdf import read_urdf
 from .sweep import joints_from_urdf
 
@@ -251,9 +252,10 @@ def open_robot(
     if spec.kind == "replay":
         raise UsageError("a robot needs sim: or can: buses, not a replay")
     urdf = read_urdf(urdf_path)
-    joints = joints_from_urdf(urdf)
+    profile = resolve_profile(None, urdf)
+    cf = read_calibration(calibration_path, urdf=urdf, robot=profile)
+    joints = joints_from_urdf(urdf, profile, cf)
     names = [j.name for j in joints]
-    cf = read_calibration(calibration_path, urdf=urdf)
     missing = [n for n in names if n not in cf.calibration]
     if missing:
         raise JointMismatchError(f"calibration {calibration_path}: no offset for {', '.join(missing)}")

@@ -31,6 +31,7 @@ from ..backends.sources import (
     parse_source,
 )
 from ..core.jointmap import RobotCalibration
+from ..core.profile import RobotProfile
 from ..core.sweep import (
     DEFAULT_SPAN_TOLERANCE_RAD,
     DEFAULT_THRESHOLD_RAD,
@@ -42,6 +43,7 @@ from ..core.sweep import (
 from ..errors import CalibError, FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import atomic_write_text, read_text
 from ..formats import CalibrationFile, read_calibration, write_calibration
+from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 
 __all__ = [
@@ -60,7 +62,7 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-OUTPUT_FORMATS = ("lite-yaml", "lite-json")
+OUTPUT_FORMATS = ("lite-yaml", "lite-json", "berkeley-offsets")
 
 
 class SweepAbortedError(CalibError):
@@ -69,19 +71,54 @@ class SweepAbortedError(CalibError):
     exit_code = 130
 
 
-def joints_from_urdf(urdf: UrdfModel) -> list[JointSpec]:
-    """The calibrated joints of a URDF with direction, limits, CAN id and model.
+def joints_from_urdf(
+    urdf: UrdfModel,
+    profile: RobotProfile | None = None,
+    calibration: CalibrationFile | None = None,
+) -> list[JointSpec]:
+    """The calibrated joints with direction, limits, CAN id and model.
+
+    The joints are the URDF's ``<ros2_control>`` joints when it has any, else the profile's (in the profile's
+    order), else the URDF's movable joints. A direction comes from the URDF's ``direction`` param, else the
+    calibration file (formats that store one), else the profile; CAN id and model from the URDF's params, else
+    the profile. Limits always come from the URDF.
 
     Raises:
-        FileFormatError: A joint has no ``direction`` param or no limits.
+        FileFormatError: A joint has no direction in any source, or no limits.
     """
+    if urdf.ros2_control_joint_names or profile is None:
+        names = list(urdf.calibration_joint_names())
+    else:
+        names = list(profile.joint_names)
+    file_dirs: dict[str, int] = {}
+    if calibration is not None and calibration.fmt != "berkeley-offsets":
+        cal = calibration.calibration
+        file_dirs = {n: int(d) for n, d in zip(cal.joint_names, cal.direction, strict=True)}
     out = []
-    for name in urdf.calibration_joint_names():
+    lacking = []
+    for name in names:
         d = urdf.direction(name)
         if d is None:
-            raise FileFormatError(f"URDF {urdf.source}: joint {name!r} has no <param name='direction'>")
+            d = file_dirs.get(name)
+        if d is None and profile is not None:
+            d = profile.direction(name)
+        if d is None:
+            lacking.append(name)
+            continue
         lo, up = urdf.limits(name)
-        out.append(JointSpec(name, urdf.motor_id(name) or 0, urdf.param(name, "model") or "rs-00", d, lo, up))
+        can_id = urdf.motor_id(name)
+        if can_id is None and profile is not None:
+            can_id = profile.motor_id(name)
+        model = urdf.param(name, "model") or (
+            profile.joint(name).model if profile and name in profile else None
+        )
+        out.append(JointSpec(name, can_id or 0, model or "rs-00", d, lo, up))
+    if lacking:
+        where = "no robot profile" if profile is None else f"profile {profile.name} has none"
+        raise FileFormatError(
+            f"URDF {urdf.source}: no direction for {', '.join(lacking)}: no <param name='direction'>, "
+            f"none in a calibration file, {where}; pass --robot NAME or a profile file (docs/profiles.md)"
+        )
     if not out:
         raise FileFormatError(f"URDF {urdf.source}: no joints to calibrate")
     owner: dict[int, str] = {}
@@ -308,15 +345,15 @@ def _check_writable(path: Path, flag: str) -> None:
 
 
 def _existing_output(
-    out: Path, fmt: str, urdf: UrdfModel, joints: Sequence[JointSpec]
+    out: Path, fmt: str, urdf: UrdfModel, profile: RobotProfile | None = None
 ) -> CalibrationFile | None:
     """The calibration already in ``--out`` (updated in place), or None for a missing or empty file.
 
     A file holding only comments counts as empty.
 
     Raises:
-        FileFormatError: ``--out`` holds something else than a ``fmt`` calibration, or one whose other joints
-            use a CAN id of a URDF joint (it would be replaced or made inconsistent; nothing is written).
+        FileFormatError: ``--out`` holds something else than a ``fmt`` calibration (it would be replaced;
+            nothing is written).
     """
     if not out.exists():
         return None
@@ -324,21 +361,24 @@ def _existing_output(
     if all(not ln.strip() or ln.lstrip().startswith("#") for ln in text.splitlines()):
         return None  # empty, or only comments: nothing to update
     try:
-        cf = read_calibration(out, fmt, urdf=urdf)
+        return read_calibration(out, fmt, urdf=urdf, robot=profile)
     except CalibError as exc:
         raise FileFormatError(
             f"--out {out}: exists but is not a {fmt} calibration file ({exc}); "
             "move it away or choose another --out"
         ) from None
+
+
+def _check_foreign_ids(out: Path, existing: CalibrationFile, joints: Sequence[JointSpec]) -> None:
+    """Refuse an ``--out`` whose other joints use a CAN id of a calibrated joint (it would be inconsistent)."""
     ours = {j.can_id: j.name for j in joints}
     names = set(ours.values())
-    for name, can_id in cf.ids.items():
+    for name, can_id in existing.ids.items():
         if name not in names and can_id in ours:
             raise FileFormatError(
                 f"--out {out}: joint {name!r} (not in the URDF) has CAN id {can_id}, "
                 f"the id of URDF joint {ours[can_id]!r}"
             )
-    return cf
 
 
 def run_sweep(
@@ -359,6 +399,7 @@ def run_sweep(
     stop: threading.Event | None = None,
     max_samples: int | None = None,
     open_source_fn: Callable[..., Source] | None = None,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
 ) -> SweepOutcome:
     """Run a whole sweep calibration and write the calibration file (and report).
 
@@ -379,6 +420,9 @@ def run_sweep(
         stop: Set to end the sweep (Enter).
         max_samples: Stop after this many samples (None: until the source ends or the user stops).
         open_source_fn: Opens the source (default :func:`robocal.backends.sources.open_source`).
+        robot: Robot profile (name, path or profile); default: the built-in robot the URDF's joint names match.
+            Gives directions and CAN ids the URDF lacks, the default output format and the joint order of
+            ``berkeley-offsets``.
 
     Returns:
         The :class:`SweepOutcome`.
@@ -395,9 +439,7 @@ def run_sweep(
     if not (math.isfinite(direction_step_s) and direction_step_s > 0):
         raise UsageError(f"--direction-time {direction_step_s}: expected a finite number of seconds > 0")
     out_path = Path(out)
-    if fmt is None:
-        fmt = "lite-json" if out_path.suffix.lower() == ".json" else "lite-yaml"
-    if fmt not in OUTPUT_FORMATS:
+    if fmt is not None and fmt not in OUTPUT_FORMATS:
         raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
     _check_writable(out_path, "--out")
     report_path = Path(report) if report is not None else None
@@ -409,17 +451,37 @@ def run_sweep(
     if direction_check and spec.kind == "replay":
         raise UsageError("--direction-check needs a live or simulated source, not a replay")
     urdf = read_urdf(urdf_path)
-    joints = joints_from_urdf(urdf)
+    profile = resolve_profile(robot, urdf)
+    if fmt is None:
+        if out_path.suffix.lower() == ".json":
+            fmt = "lite-json"
+        elif profile is not None and profile.file_format in OUTPUT_FORMATS:
+            fmt = profile.file_format
+        else:
+            fmt = "lite-yaml"
+    if fmt == "berkeley-offsets" and profile is None:
+        raise UsageError(
+            "--format berkeley-offsets is positional in the order of the robot's low-level code; "
+            "pass --robot NAME or a profile file"
+        )
+    if spec.kind == "can" and profile is not None and profile.actuator not in (None, "robstride"):
+        raise UsageError(
+            f"--source {source}: robot {profile.name} has {profile.actuator} actuators; a live sweep speaks "
+            "the Robstride protocol only. Record the joint positions (CSV or rosbag2) and use replay:FILE"
+        )
+    existing = _existing_output(out_path, fmt, urdf, profile)
+    joints = joints_from_urdf(urdf, profile, existing)
     no_id = [j.name for j in joints if j.can_id <= 0]
-    if no_id:
+    if no_id and fmt != "berkeley-offsets":
         raise FileFormatError(
             f"URDF {urdf.source}: no <param name='can_id'> for {', '.join(no_id)}; "
-            f"{fmt} needs an id per joint"
+            f"{fmt} needs an id per joint (pass --robot NAME for a robot robocal knows)"
         )
-    existing = _existing_output(out_path, fmt, urdf, joints)
+    if existing is not None:
+        _check_foreign_ids(out_path, existing, joints)
     prior_offsets: dict[str, float] = {}
     if prior is not None:
-        prior_offsets = _offsets(read_calibration(Path(prior), urdf=urdf))
+        prior_offsets = _offsets(read_calibration(Path(prior), urdf=urdf, robot=profile))
     elif existing is not None:
         prior_offsets = _offsets(existing)
 
@@ -467,7 +529,7 @@ def run_sweep(
             )
             if view is not None:
                 view.finish(result)
-            _write(result, urdf, joints, out_path, fmt, report_path, existing)
+            _write(result, urdf, joints, out_path, fmt, report_path, existing, profile)
         except KeyboardInterrupt:
             raise SweepAbortedError(_aborted_message(before, out_path, report_path)) from None
     finally:
@@ -510,6 +572,7 @@ def _write(
     fmt: str,
     report: Path | None,
     existing: CalibrationFile | None = None,
+    profile: RobotProfile | None = None,
 ) -> None:
     missing = [j for j in result.joints if not j.has_offset]
     if missing:
@@ -535,7 +598,7 @@ def _write(
     try:  # the report first, the calibration last: an interrupted write never leaves a calibration behind
         if report is not None:  # without the report that describes it
             atomic_write_text(report, text)
-        write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf)
+        write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf, robot=profile)
     except OSError as exc:
         raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") from None
 
@@ -596,6 +659,7 @@ def check_source(
     frame: str | None = None,
     margin_rad: float = 0.05,
     open_source_fn: Callable[..., Source] | None = None,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
 ) -> list[BranchCheck]:
     """Read the first sample after power-on and apply the 2π branch selection per joint.
 
@@ -607,6 +671,7 @@ def check_source(
         frame: Replay frame.
         margin_rad: Tolerance on the limits, rad.
         open_source_fn: Opens the source.
+        robot: Robot profile (default: the built-in robot the URDF's joint names match).
 
     Returns:
         One :class:`BranchCheck` per URDF joint the calibration has, in URDF order (``robocal check`` reports
@@ -614,8 +679,9 @@ def check_source(
     """
     spec = check_source_options(source, frame)
     urdf = read_urdf(urdf_path)
-    all_joints = joints_from_urdf(urdf)
-    cf = read_calibration(calibration_path, urdf=urdf)
+    profile = resolve_profile(robot, urdf)
+    cf = read_calibration(calibration_path, urdf=urdf, robot=profile)
+    all_joints = joints_from_urdf(urdf, profile, cf)
     keep = [i for i, j in enumerate(all_joints) if j.name in cf.calibration]
     if not keep:
         raise JointMismatchError(f"calibration {calibration_path}: no offset for any joint of the URDF")

@@ -1,0 +1,267 @@
+"""Robot profile files: read, validate, find by name, recognise from a URDF's joint names.
+
+A profile is a YAML file (schema in ``docs/profiles.md``); the built-in ones live in
+``robocal/data/profiles/NAME.yaml``. ``--robot`` takes a built-in name or the path of a profile file.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+from collections.abc import Iterable, Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from ..core.profile import METHODS, STOPS, ProfileJoint, RobotProfile
+from ..errors import FileFormatError, UsageError
+from ..fileio import read_text
+from ._numbers import parse_direction, parse_finite, parse_int
+from ._yaml import load_yaml
+from .urdf import UrdfModel
+
+__all__ = [
+    "PROFILE_FORMAT_TAG",
+    "builtin_profile_names",
+    "builtin_profiles",
+    "load_profile",
+    "parse_profile",
+    "profile_for_joints",
+    "recognise_profile",
+    "resolve_profile",
+]
+
+PROFILE_FORMAT_TAG = "robocal-robot-profile"
+_TOP_KEYS = (
+    "format",
+    "version",
+    "name",
+    "description",
+    "upstream",
+    "actuator",
+    "position_wraps",
+    "calibration",
+    "joints",
+)
+_CAL_KEYS = ("method", "file_format")
+_JOINT_KEYS = ("name", "upstream_name", "bus", "id", "direction", "model", "stop", "stop_deg")
+
+
+def _opt_str(entry: Mapping[str, Any], key: str, where: str) -> str | None:
+    value = entry.get(key)
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip():
+        raise FileFormatError(f"{where}: {key} {value!r} must be a non-empty string")
+    return value.strip()
+
+
+def _unknown(entry: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
+    extra = [str(k) for k in entry if k not in allowed]
+    if extra:
+        raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected {', '.join(allowed)}")
+
+
+def _joint(entry: Any, i: int, source: str) -> ProfileJoint:
+    where = f"profile {source}: joints[{i}]"
+    if not isinstance(entry, Mapping):
+        raise FileFormatError(f"{where}: expected a mapping with keys {', '.join(_JOINT_KEYS)}")
+    name = _opt_str(entry, "name", where)
+    if name is None:
+        raise FileFormatError(f"{where}: missing key name (the joint's URDF name)")
+    where = f"profile {source}: joint {name!r}"
+    _unknown(entry, _JOINT_KEYS, where)
+    stop = _opt_str(entry, "stop", where)
+    if stop is not None and stop not in STOPS:
+        raise FileFormatError(f"{where}: stop {stop!r}; expected {' or '.join(STOPS)}")
+    stop_deg = None if entry.get("stop_deg") is None else parse_finite(entry["stop_deg"], where, "stop_deg")
+    if (stop is None) != (stop_deg is None):
+        raise FileFormatError(f"{where}: stop and stop_deg go together (give both or neither)")
+    return ProfileJoint(
+        name=name,
+        upstream_name=_opt_str(entry, "upstream_name", where) or name,
+        bus=_opt_str(entry, "bus", where),
+        motor_id=None if entry.get("id") is None else parse_int(entry["id"], where, "id"),
+        direction=None if entry.get("direction") is None else parse_direction(entry["direction"], where),
+        model=_opt_str(entry, "model", where),
+        stop=stop,
+        stop_deg=stop_deg,
+    )
+
+
+def parse_profile(data: Any, source: str) -> RobotProfile:
+    """Validate a profile document (the YAML already loaded) into a :class:`RobotProfile`.
+
+    Raises:
+        FileFormatError: Naming the file, the joint and the field that is wrong.
+    """
+    if not isinstance(data, Mapping) or data.get("format") != PROFILE_FORMAT_TAG:
+        raise FileFormatError(
+            f"profile {source}: not a robot profile (expected 'format: {PROFILE_FORMAT_TAG}')"
+        )
+    if data.get("version") != 1:
+        raise FileFormatError(
+            f"profile {source}: version {data.get('version')!r} is not supported (expected 1)"
+        )
+    _unknown(data, _TOP_KEYS, f"profile {source}")
+    name = _opt_str(data, "name", f"profile {source}")
+    if name is None:
+        raise FileFormatError(f"profile {source}: missing key name")
+    cal = data.get("calibration") or {}
+    if not isinstance(cal, Mapping):
+        raise FileFormatError(f"profile {source}: calibration must be a mapping ({', '.join(_CAL_KEYS)})")
+    _unknown(cal, _CAL_KEYS, f"profile {source}: calibration")
+    method = _opt_str(cal, "method", f"profile {source}: calibration") or "two-sided"
+    if method not in METHODS:
+        raise FileFormatError(
+            f"profile {source}: calibration method {method!r}; expected {' or '.join(METHODS)}"
+        )
+    file_format = _opt_str(cal, "file_format", f"profile {source}: calibration")
+    wraps = data.get("position_wraps", True)
+    if not isinstance(wraps, bool):
+        raise FileFormatError(f"profile {source}: position_wraps {wraps!r}; expected true or false")
+    rows = data.get("joints")
+    if not isinstance(rows, list) or not rows:
+        raise FileFormatError(f"profile {source}: joints must be a non-empty list")
+    joints = tuple(_joint(e, i, source) for i, e in enumerate(rows))
+    for attr, what in (("name", "name"), ("upstream_name", "upstream_name")):
+        seen: set[str] = set()
+        for j in joints:
+            value = getattr(j, attr)
+            if value in seen:
+                raise FileFormatError(f"profile {source}: {what} {value!r} appears twice")
+            seen.add(value)
+    owners: dict[tuple[str | None, int], str] = {}
+    for j in joints:
+        if j.motor_id is not None:
+            other = owners.setdefault((j.bus, j.motor_id), j.name)
+            if other != j.name:
+                raise FileFormatError(
+                    f"profile {source}: joints {other!r} and {j.name!r} share id {j.motor_id} on bus {j.bus}"
+                )
+    profile = RobotProfile(
+        name=name,
+        description=_opt_str(data, "description", f"profile {source}") or "",
+        joints=joints,
+        method=method,
+        file_format=file_format,
+        actuator=_opt_str(data, "actuator", f"profile {source}"),
+        position_wraps=wraps,
+        upstream=_opt_str(data, "upstream", f"profile {source}") or "",
+        source=source,
+    )
+    if method == "one-sided" and profile.one_sided_ready():
+        raise FileFormatError(
+            f"profile {source}: method one-sided needs stop and stop_deg for every joint; missing for "
+            f"{', '.join(profile.one_sided_ready())}"
+        )
+    for j in joints:
+        if j.stop_deg is not None and not math.isfinite(
+            j.stop_deg
+        ):  # pragma: no cover - parse_finite refuses
+            raise FileFormatError(f"profile {source}: joint {j.name!r}: stop_deg must be finite")
+    return profile
+
+
+def _read_profile_file(path: Path) -> RobotProfile:
+    source = str(path)
+    return parse_profile(load_yaml(read_text(path, "robot profile"), source), source)
+
+
+def _builtin_dir() -> Any:
+    return resources.files("robocal").joinpath("data").joinpath("profiles")
+
+
+def builtin_profile_names() -> tuple[str, ...]:
+    """Names of the profiles shipped with robocal, sorted."""
+    return tuple(
+        sorted(p.name[: -len(".yaml")] for p in _builtin_dir().iterdir() if p.name.endswith(".yaml"))
+    )
+
+
+@functools.cache
+def _builtin(name: str) -> RobotProfile:
+    res = _builtin_dir().joinpath(f"{name}.yaml")
+    source = f"robocal:data/profiles/{name}.yaml"
+    profile = parse_profile(load_yaml(res.read_text(encoding="utf-8"), source), source)
+    if profile.name != name:  # pragma: no cover - a packaging mistake
+        raise FileFormatError(f"profile {source}: its name is {profile.name!r}, expected {name!r}")
+    return profile
+
+
+def builtin_profiles() -> tuple[RobotProfile, ...]:
+    """Every profile shipped with robocal."""
+    return tuple(_builtin(n) for n in builtin_profile_names())
+
+
+def load_profile(robot: str | os.PathLike[str]) -> RobotProfile:
+    """A profile by built-in name (``bhl_biped``) or by path of a profile YAML file.
+
+    Raises:
+        UsageError: Neither a built-in name nor an existing file (the message lists the built-in names).
+        FileFormatError: The file is not a valid profile.
+    """
+    text = os.fspath(robot)
+    names = builtin_profile_names()
+    if text in names:
+        return _builtin(text)
+    path = Path(text)
+    if path.is_file():
+        return _read_profile_file(path)
+    raise UsageError(
+        f"--robot {text!r}: not a built-in robot ({', '.join(names)}) and not a profile file; "
+        "see docs/profiles.md to write your own"
+    )
+
+
+def recognise_profile(urdf: UrdfModel) -> RobotProfile | None:
+    """The built-in profile whose joints are all in ``urdf`` (the one with most joints), or None.
+
+    Raises:
+        UsageError: Two profiles with the same number of joints both match (pass ``--robot``).
+    """
+    names = set(urdf.joint_names)
+    found = [p for p in builtin_profiles() if p.matches(names)]
+    if not found:
+        return None
+    found.sort(key=lambda p: len(p.joints), reverse=True)
+    if len(found) > 1 and len(found[0].joints) == len(found[1].joints):
+        raise UsageError(
+            f"URDF {urdf.source} matches robots {found[0].name} and {found[1].name}; pass --robot NAME"
+        )
+    return found[0]
+
+
+def profile_for_joints(joint_names: Iterable[str]) -> RobotProfile | None:
+    """The built-in profile with exactly these joints (in any order), or None."""
+    have = set(joint_names)
+    for p in builtin_profiles():
+        if set(p.joint_names) == have:
+            return p
+    return None
+
+
+def resolve_profile(
+    robot: str | os.PathLike[str] | RobotProfile | None, urdf: UrdfModel | None
+) -> RobotProfile | None:
+    """The profile in effect: ``robot`` (name, path or profile) if given, else the one the URDF matches.
+
+    An explicit profile must name joints the URDF has.
+
+    Raises:
+        UsageError, FileFormatError: see :func:`load_profile`.
+        JointMismatchError: ``--robot`` names joints the URDF lacks.
+    """
+    if robot is None:
+        return recognise_profile(urdf) if urdf is not None else None
+    profile = robot if isinstance(robot, RobotProfile) else load_profile(robot)
+    if urdf is not None:
+        lacking = [n for n in profile.joint_names if n not in urdf.joint_names]
+        if lacking:
+            from ..errors import JointMismatchError
+
+            raise JointMismatchError(
+                f"--robot {profile.name}: URDF {urdf.source} has no joint {', '.join(lacking)}"
+            )
+    return profile
