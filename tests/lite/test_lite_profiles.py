@@ -100,7 +100,11 @@ def _write_profile(tmp_path: Path, joints: str, extra: str = "") -> Path:
             "calibration: {method: one-sided}\n",
             "needs stop and stop_deg for every joint; missing for a",
         ),
-        ("  - {name: a, stop: lower, stop_deg: .nan}\n", "", "joint .a.: stop_deg is nan; expected a finite number"),
+        (
+            "  - {name: a, stop: lower, stop_deg: .nan}\n",
+            "",
+            "joint .a.: stop_deg is nan; expected a finite number",
+        ),
         ("  []\n", "", "joints must be a non-empty list"),
     ],
 )
