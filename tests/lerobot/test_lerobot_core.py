@@ -220,9 +220,19 @@ def test_exact_round_trip_is_lossless(
     assert unnormalize(norm, cal, mode, apply_drive_mode=dm_hw, compat="exact").tolist() == raws.tolist()
 
 
-def test_exact_degrees_uses_4096_and_drive_mode() -> None:
-    assert float(normalize(3000, CAL, "degrees", compat="exact")) == 1000 * 360 / 4096
-    assert float(normalize(3000, CAL_DM, "degrees", compat="exact")) == -1000 * 360 / 4096
+def test_physical_convention_degrees_uses_4096_and_drive_mode() -> None:
+    # This used to be compat="exact"; exact now changes rounding only (issue #9), the physical scale and sign
+    # are the separate, explicitly named convention="physical".
+    assert float(normalize(3000, CAL, "degrees", convention="physical")) == 1000 * 360 / 4096
+    assert float(normalize(3000, CAL_DM, "degrees", convention="physical")) == -1000 * 360 / 4096
+    for compat in ("lerobot", "exact"):
+        assert (
+            float(normalize(3000, CAL_DM, "degrees", compat=compat, convention="physical"))
+            == -1000 * 360 / 4096
+        )
+        assert (
+            unnormalize(-1000 * 360 / 4096, CAL_DM, "degrees", compat=compat, convention="physical") == 3000
+        )
 
 
 # ----------------------------------------------------------------------------------------- §4.4 homing

@@ -23,6 +23,7 @@ def _options(
     modes: str | None,
     old_modes: str | None,
     compat: str,
+    physical: bool = False,
 ) -> DatasetOptions:
     return DatasetOptions(
         robot=robot,
@@ -31,6 +32,7 @@ def _options(
         modes=_common.parse_assignments(modes, "--modes") or None,
         old_modes=_common.parse_assignments(old_modes, "--old-modes") or None,
         compat=compat,
+        convention="physical" if physical else "lerobot",
     )
 
 
@@ -53,7 +55,21 @@ Features = Annotated[
     str | None,
     typer.Option("--features", help="Comma-separated features (default observation.state,action)."),
 ]
-Compat = Annotated[str, typer.Option("--compat", help="lerobot (bit-identical) or exact (lossless).")]
+Compat = Annotated[
+    str,
+    typer.Option(
+        "--compat",
+        help="Rounding only: lerobot (truncating, bit-identical) or exact (nearest tick, lossless).",
+    ),
+]
+Physical = Annotated[
+    bool,
+    typer.Option(
+        "--physical",
+        help="Degrees are physical (4096 ticks per turn, drive_mode honoured) instead of LeRobot's "
+        "(4095, drive_mode ignored).",
+    ),
+]
 
 
 @app.command()
@@ -72,6 +88,7 @@ def recalibrate(
         str | None, typer.Option("--old-modes", help="Modes of the old calibration if different.")
     ] = None,
     compat: Compat = "lerobot",
+    physical: Physical = False,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace DST once the new root is complete.")
     ] = False,
@@ -80,7 +97,7 @@ def recalibrate(
     from ..workflows.dataset import recalibrate as run
 
     feats = _common.parse_csv_list(features, "--features")
-    opts = _options(robot, motor_family, use_degrees, modes, old_modes, compat)
+    opts = _options(robot, motor_family, use_degrees, modes, old_modes, compat, physical)
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -134,11 +151,12 @@ def inspect(
     use_degrees: Degrees = None,
     modes: Modes = None,
     compat: Compat = "lerobot",
+    physical: Physical = False,
 ) -> None:
     """Per-joint min/max/mean; flags full-turn jumps and values outside the calibrated range (exit 1)."""
     from ..workflows.dataset import inspect as run
 
-    opts = _options(robot, motor_family, use_degrees, modes, None, compat)
+    opts = _options(robot, motor_family, use_degrees, modes, None, compat, physical)
     report = run(
         root, calibration=calibration, features=_common.parse_csv_list(features, "--features"), options=opts
     )

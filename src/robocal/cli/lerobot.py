@@ -37,6 +37,14 @@ UseDegrees = Annotated[
         "Default as LeRobot: SO arms degrees, Koch not.",
     ),
 ]
+Physical = Annotated[
+    bool,
+    typer.Option(
+        "--physical",
+        help="Degrees as physical joint degrees (4096 ticks per turn, drive_mode honoured) instead of "
+        "LeRobot's (4095, drive_mode ignored).",
+    ),
+]
 Modes = Annotated[
     str | None,
     typer.Option(
@@ -403,9 +411,12 @@ def show(
     calibration_dir: CalDir = None,
     file: CalFile = None,
     samples: int = typer.Option(1, "--samples", min=1, max=100000, help="Readings to print."),
-    compat: str = typer.Option("lerobot", "--compat", help="lerobot | exact"),
+    compat: str = typer.Option(
+        "lerobot", "--compat", help="Rounding only: lerobot (truncating) | exact (nearest tick)."
+    ),
     use_degrees: UseDegrees = None,
     modes_opt: Modes = None,
+    physical: Physical = False,
 ) -> None:
     """Print live normalised positions (LeRobot's units) of every motor."""
     from ..lerobot import normalize, read_calibration
@@ -434,6 +445,7 @@ def show(
                 modes,
                 apply_drive_mode=spec.vendor == "feetech",
                 compat=compat_mode,
+                convention="physical" if physical else "lerobot",
             )
             _common.console.print(f"{k:>7}  " + "  ".join(f"{v:9.3f}" for v in vals))
 
@@ -449,9 +461,12 @@ def export_urdf(
     file: CalFile = None,
     sign: str | None = typer.Option(None, "--sign", help="URDF sign per joint: name=-1,..."),
     offset_deg: str | None = typer.Option(None, "--offset-deg", help="URDF offset per joint: name=90,..."),
-    compat: str = typer.Option("lerobot", "--compat", help="lerobot (360/4095, no drive_mode) | exact"),
+    compat: str = typer.Option(
+        "lerobot", "--compat", help="Rounding only (a joint map does not round): lerobot | exact."
+    ),
     use_degrees: UseDegrees = None,
     modes_opt: Modes = None,
+    physical: Physical = False,
 ) -> None:
     """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints (#4442)."""
     from ..formats import write_calibration
@@ -475,7 +490,13 @@ def export_urdf(
     modes = _modes(spec, use_degrees, modes_opt)
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
     rc, skipped = export_joint_map(
-        spec, cals, signs=signs, offsets_deg=offsets, compat=compat_mode, modes=modes
+        spec,
+        cals,
+        signs=signs,
+        offsets_deg=offsets,
+        compat=compat_mode,
+        modes=modes,
+        convention="physical" if physical else "lerobot",
     )
     ids = {n: cals[n].id for n in rc.joint_names}
     write_calibration(out, rc, "robocal", ids=ids)

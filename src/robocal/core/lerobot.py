@@ -3,13 +3,16 @@
 Everything is vectorised over a trailing motor axis: ``raw`` has shape ``(..., n_motors)`` and the per-motor
 parameters have shape ``(n_motors,)``. Positions are servo ticks (``raw_ticks``), 4096 per turn unless stated.
 
-Two compatibility levels:
+Two independent choices:
 
-* ``compat="lerobot"`` reproduces LeRobot 0.6.1's ``_normalize`` / ``_unnormalize`` bit for bit: the same
-  float operations in the same order, ``int()`` truncation toward zero, the ``resolution − 1`` (4095) degree
-  scale and DEGREES ignoring ``drive_mode``.
-* ``compat="exact"`` rounds to the nearest tick (so raw → normalised → raw is the identity for every tick in
-  range), uses ``resolution`` (4096) ticks per 360° and honours ``drive_mode`` in DEGREES.
+* ``compat`` changes rounding only. ``"lerobot"`` reproduces LeRobot 0.6.1's ``_normalize`` /
+  ``_unnormalize`` bit for bit: the same float operations in the same order and ``int()`` truncation toward
+  zero. ``"exact"`` rounds to the nearest tick instead (so raw → normalised → raw is the identity for every
+  tick in range); it gives LeRobot's values up to that truncation (the same scale and sign rules).
+* ``convention`` chooses the DEGREES scale and sign. ``"lerobot"`` (default) is LeRobot's: ``resolution − 1``
+  (4095) ticks per 360° and ``drive_mode`` ignored. ``"physical"`` uses ``resolution`` (4096) ticks per 360° and
+  honours ``drive_mode`` (with ``apply_drive_mode``), so degrees are true joint degrees; values then differ
+  from LeRobot's (a drive_mode-1 Feetech motor has the opposite sign).
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 Compat = Literal["lerobot", "exact"]
+Convention = Literal["lerobot", "physical"]
 
 
 def parse_compat(value: str, what: str = "--compat") -> Compat:
@@ -65,6 +69,19 @@ def parse_compat(value: str, what: str = "--compat") -> Compat:
     if value == "exact":
         return "exact"
     raise UsageError(f"{what} {value!r}: expected lerobot or exact")
+
+
+def parse_convention(value: str, what: str = "convention") -> Convention:
+    """Check a DEGREES convention name: ``"lerobot"`` (4095 ticks per turn, no drive_mode) or ``"physical"``.
+
+    Raises:
+        UsageError: Any other value (the message names ``what``).
+    """
+    if value == "lerobot":
+        return "lerobot"
+    if value == "physical":
+        return "physical"
+    raise UsageError(f"{what} {value!r}: expected lerobot or physical")
 
 
 MODE_CODES: dict[str, int] = {"range_m100_100": 0, "range_0_100": 1, "degrees": 2}
@@ -147,14 +164,24 @@ def decode_twos_complement(encoded: int, n_bytes: int) -> int:
 def _params(
     range_min: npt.ArrayLike, range_max: npt.ArrayLike, drive_mode: npt.ArrayLike, modes: npt.ArrayLike
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_], IntArray]:
-    lo = np.atleast_1d(np.asarray(range_min, dtype=np.float64))
-    hi = np.atleast_1d(np.asarray(range_max, dtype=np.float64))
-    dm = np.atleast_1d(np.asarray(drive_mode)).astype(bool)
+    lo = np.atleast_1d(_as_float_array(range_min, "range_min"))
+    hi = np.atleast_1d(_as_float_array(range_max, "range_max"))
+    dm_raw = np.atleast_1d(_as_float_array(drive_mode, "drive_mode"))
     mc = np.atleast_1d(np.asarray(modes, dtype=np.int64))
     n = lo.shape[0]
-    for name, arr in (("range_max", hi), ("drive_mode", dm), ("mode", mc)):
+    for name, arr in (("range_max", hi), ("drive_mode", dm_raw), ("mode", mc)):
         if arr.shape != (n,):
             raise ShapeMismatchError(f"{name} has shape {arr.shape}; expected ({n},) like range_min")
+    for name, arr in (("range_min", lo), ("range_max", hi)):
+        if not np.all(np.isfinite(arr)):
+            raise InvalidCalibrationError(f"{name} {arr.tolist()}: expected finite ticks")
+    bad_dm = [i for i in range(n) if dm_raw[i] not in (0.0, 1.0)]
+    if bad_dm:
+        i = bad_dm[0]
+        raise InvalidCalibrationError(
+            f"Invalid calibration for motor {i}: drive_mode is {dm_raw[i]:g}; expected 0 or 1"
+        )
+    dm = dm_raw.astype(bool)
     for i in range(n):
         if lo[i] == hi[i]:
             raise InvalidCalibrationError(f"Invalid calibration for motor {i}: min and max are equal.")
@@ -173,13 +200,51 @@ def _check_resolution(resolution: int) -> int:
     return int(resolution)
 
 
+_NUMERIC_KINDS = "iuf"
+_KIND_NAMES = {
+    "b": "booleans",
+    "c": "complex numbers",
+    "M": "datetime64 values",
+    "m": "timedelta64 values",
+    "U": "strings",
+    "S": "byte strings",
+    "V": "structured values",
+}
+
+
 def _as_float_array(x: npt.ArrayLike, what: str) -> FloatArray:
-    """``x`` as float64, or an InvalidCalibrationError naming ``what`` (strings, ragged lists, complex)."""
+    """``x`` as float64, or an InvalidCalibrationError naming ``what`` and what was found.
+
+    Only real numbers are taken (ints, floats, numpy integer/float arrays). Refused: strings (also number
+    strings such as ``"1500"``), booleans, complex numbers, datetime64/timedelta64, ``None`` (reported as a
+    missing value), ragged lists and any other object.
+    """
     try:
         with np.errstate(invalid="ignore"):
-            arr: FloatArray = np.asarray(x, dtype=np.float64)
+            probe = np.asarray(x)
     except (TypeError, ValueError, OverflowError):
         raise InvalidCalibrationError(f"{what} is not an array of numbers: {x!r:.80}") from None
+    kind = probe.dtype.kind
+    if kind == "O":
+        flat = probe.reshape(-1)
+        missing = [i for i, v in enumerate(flat) if v is None]
+        if missing:
+            where = f" (element {missing[0]})" if probe.ndim else ""
+            raise InvalidCalibrationError(f"{what} has a missing value (None){where}; expected numbers")
+        for v in flat:
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise InvalidCalibrationError(
+                    f"{what} contains {type(v).__name__} {v!r:.40}; expected real numbers"
+                )
+        try:
+            probe = probe.astype(np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise InvalidCalibrationError(f"{what} is not an array of numbers: {x!r:.80}") from None
+    elif kind not in _NUMERIC_KINDS:
+        name = _KIND_NAMES.get(kind, f"dtype {probe.dtype}")
+        raise InvalidCalibrationError(f"{what} contains {name} ({x!r:.60}); expected real numbers")
+    with np.errstate(invalid="ignore", over="ignore"):
+        arr: FloatArray = probe.astype(np.float64)
     return arr
 
 
@@ -201,6 +266,19 @@ def _check_values(x: npt.ArrayLike, n: int, what: str) -> FloatArray:
     return arr
 
 
+def _degrees_setup(
+    dm: npt.NDArray[np.bool_], compat: str, convention: str, resolution: int
+) -> tuple[int, npt.NDArray[np.bool_]]:
+    """Ticks per 360° and the DEGREES inversion mask of a convention (compat is only validated here)."""
+    if compat not in ("lerobot", "exact"):
+        raise InvalidCalibrationError(f"compat {compat!r}: expected 'lerobot' or 'exact'")
+    if convention == "lerobot":
+        return resolution - 1, np.zeros_like(dm)
+    if convention == "physical":
+        return resolution, dm
+    raise InvalidCalibrationError(f"convention {convention!r}: expected 'lerobot' or 'physical'")
+
+
 def normalize_array(
     raw_ticks: npt.ArrayLike,
     range_min: npt.ArrayLike,
@@ -211,6 +289,7 @@ def normalize_array(
     apply_drive_mode: bool = True,
     compat: Compat = "lerobot",
     resolution: int = 4096,
+    convention: Convention = "lerobot",
 ) -> FloatArray:
     """Raw ticks → LeRobot normalised values.
 
@@ -221,8 +300,10 @@ def normalize_array(
         drive_mode: Shape ``(n,)``, 0 or 1.
         mode_codes: Shape ``(n,)``, see :data:`MODE_CODES`.
         apply_drive_mode: LeRobot's bus attribute (True for Feetech, False for Dynamixel).
-        compat: ``"lerobot"`` (bit-identical) or ``"exact"``.
+        compat: ``"lerobot"`` or ``"exact"``; normalising does not round, so both give the same values.
         resolution: Ticks per turn (4096; scs0009 1024).
+        convention: DEGREES as LeRobot (``"lerobot"``: ``resolution − 1`` ticks per 360°, drive_mode
+            ignored) or ``"physical"`` (``resolution`` ticks per 360°, drive_mode honoured).
 
     Returns:
         Shape ``(..., n)`` float64: −100..100, 0..100 or degrees.
@@ -238,13 +319,9 @@ def normalize_array(
     p100 = frac * 100
     p100 = np.where(dm, 100 - p100, p100)
     mid = (lo + hi) / 2
-    if compat == "lerobot":
-        deg = (x - mid) * 360 / (resolution - 1)
-    elif compat == "exact":
-        deg = (x - mid) * 360 / resolution
-        deg = np.where(dm, -deg, deg)
-    else:
-        raise InvalidCalibrationError(f"compat {compat!r}: expected 'lerobot' or 'exact'")
+    per_turn, dm_deg = _degrees_setup(dm, compat, convention, resolution)
+    deg = (x - mid) * 360 / per_turn
+    deg = np.where(dm_deg, -deg, deg)
     out: FloatArray = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
     return out
 
@@ -259,10 +336,12 @@ def unnormalize_array(
     apply_drive_mode: bool = True,
     compat: Compat = "lerobot",
     resolution: int = 4096,
+    convention: Convention = "lerobot",
 ) -> IntArray:
     """LeRobot normalised values → raw ticks (inverse of :func:`normalize_array`).
 
-    ``compat="lerobot"`` truncates toward zero like ``int()``; ``"exact"`` rounds half away from zero.
+    ``compat="lerobot"`` truncates toward zero like ``int()``; ``"exact"`` rounds half away from zero. That is
+    the only difference; ``convention`` chooses the DEGREES scale and sign (see :func:`normalize_array`).
 
     Returns:
         Shape ``(..., n)`` int64 ticks (DEGREES is not clamped and may be negative).
@@ -276,16 +355,13 @@ def unnormalize_array(
     vp = np.where(dm, 100 - v, v)
     p100 = np.minimum(100.0, np.maximum(0.0, vp)) / 100 * (hi - lo) + lo
     mid = (lo + hi) / 2
+    per_turn, dm_deg = _degrees_setup(dm, compat, convention, resolution)
+    vd = np.where(dm_deg, -v, v)
+    deg = vd * per_turn / 360 + mid
+    out = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
     if compat == "lerobot":
-        deg = v * (resolution - 1) / 360 + mid
-        out = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
         return _to_ticks(np.trunc(out), "values")
-    if compat == "exact":
-        vd = np.where(dm, -v, v)
-        deg = vd * resolution / 360 + mid
-        out = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
-        return _to_ticks(np.sign(out) * np.floor(np.abs(out) + 0.5), "values")
-    raise InvalidCalibrationError(f"compat {compat!r}: expected 'lerobot' or 'exact'")
+    return _to_ticks(np.sign(out) * np.floor(np.abs(out) + 0.5), "values")
 
 
 def half_turn_homing_offset(

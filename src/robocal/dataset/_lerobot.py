@@ -23,7 +23,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..core.lerobot import Compat, LegacyCalibration, MotorCalibration, parse_compat
+from ..core.lerobot import (
+    Compat,
+    Convention,
+    LegacyCalibration,
+    MotorCalibration,
+    parse_compat,
+    parse_convention,
+)
 from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import read_text
 from ..lerobot import NormMode, normalize, unnormalize
@@ -102,9 +109,11 @@ class LeRobotConvention:
         calibrations: One :class:`MotorCalibration` per joint.
         modes: One mode value per joint (``"degrees"``, ``"range_m100_100"``, ``"range_0_100"``).
         family: ``"feetech"`` (drive mode in software, offset added) or ``"dynamixel"``.
-        compat: ``"lerobot"`` (bit-identical, truncating) or ``"exact"`` (rounding, lossless).
+        compat: ``"lerobot"`` (bit-identical, truncating) or ``"exact"`` (rounding, lossless); rounding only.
         resolution: Ticks per turn.
         wrap: Wrap present positions into ``[0, resolution)`` (default: Feetech yes, Dynamixel no).
+        convention: DEGREES as LeRobot records them (``"lerobot"``: 4095 ticks per 360°, drive_mode ignored)
+            or ``"physical"`` (4096 ticks per 360°, drive_mode honoured).
     """
 
     joint_names: tuple[str, ...]
@@ -114,6 +123,7 @@ class LeRobotConvention:
     compat: Compat = "lerobot"
     resolution: int = 4096
     wrap: bool | None = None
+    convention: Convention = "lerobot"
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -129,6 +139,7 @@ class LeRobotConvention:
         if self.family not in ("feetech", "dynamixel"):
             raise UsageError(f"motor family {self.family!r}: expected feetech or dynamixel")
         parse_compat(self.compat, "compat")
+        parse_convention(self.convention, "convention")
 
     @classmethod
     def from_calibrations(
@@ -137,6 +148,7 @@ class LeRobotConvention:
         modes: Mapping[str, str],
         family: MotorFamily,
         compat: Compat = "lerobot",
+        convention: Convention = "lerobot",
     ) -> LeRobotConvention:
         """Build from LeRobot's ``{motor: MotorCalibration}`` and ``{motor: mode}``.
 
@@ -148,7 +160,7 @@ class LeRobotConvention:
         if missing:
             raise UsageError(f"no normalisation mode for {', '.join(missing)}; pass --robot or --modes")
         cals = tuple(calibrations[n] for n in names)
-        return cls(names, cals, tuple(modes[n] for n in names), family, compat)
+        return cls(names, cals, tuple(modes[n] for n in names), family, compat, convention=convention)
 
     @property
     def _apply_drive_mode(self) -> bool:
@@ -168,7 +180,13 @@ class LeRobotConvention:
             "apply_drive_mode": self._apply_drive_mode,
             "compat": self.compat,
             "resolution": self.resolution,
+            "convention": self.convention,
         }
+
+    @property
+    def _ticks_per_turn_deg(self) -> int:
+        """Ticks per 360° of DEGREES values: LeRobot's ``resolution − 1`` or the physical ``resolution``."""
+        return self.resolution - 1 if self.convention == "lerobot" else self.resolution
 
     def _homing(self) -> FloatArray:
         return np.array([c.homing_offset for c in self.calibrations], dtype=np.float64)
@@ -187,6 +205,7 @@ class LeRobotConvention:
             self.compat,
             self.resolution,
             self.wrap,
+            self.convention,
         )
 
     @property
@@ -220,7 +239,8 @@ class LeRobotConvention:
             inverted = self._apply_drive_mode and bool(cal.drive_mode)
             span = float(cal.range_max - cal.range_min)
             if mode == NormMode.DEGREES.value:
-                out.append(0.5 * 360.0 / (self.resolution - 1))
+                sign = -1.0 if (inverted and self.convention == "physical") else 1.0
+                out.append(sign * 0.5 * 360.0 / self._ticks_per_turn_deg)
             elif mode == NormMode.RANGE_M100_100.value:
                 out.append((-1.0 if inverted else 1.0) * 0.5 * 200.0 / span)
             else:
@@ -287,7 +307,7 @@ class LeRobotConvention:
         for cal, mode in zip(self.calibrations, self.modes, strict=True):
             span = float(cal.range_max - cal.range_min)
             if mode == NormMode.DEGREES.value:
-                out.append(360.0)
+                out.append(360.0 * self.resolution / self._ticks_per_turn_deg)
             elif mode == NormMode.RANGE_M100_100.value:
                 out.append(200.0 * self.resolution / span)
             else:
@@ -413,6 +433,7 @@ def load_convention(
     family: MotorFamily | None = None,
     compat: Compat = "lerobot",
     what: str = "calibration",
+    convention: Convention = "lerobot",
 ) -> ValueConvention:
     """Read a calibration file as a dataset value convention.
 
@@ -426,8 +447,9 @@ def load_convention(
             file that are not among them are left out).
         modes: Joint → mode for LeRobot current files.
         family: Motor family for LeRobot current files.
-        compat: LeRobot compatibility mode.
+        compat: LeRobot rounding (``"lerobot"`` truncating, ``"exact"`` rounding).
         what: Role of the file for messages (``"--old"``).
+        convention: DEGREES convention of the values (``"lerobot"`` or ``"physical"``).
 
     Raises:
         FileFormatError: The file is malformed.
@@ -446,7 +468,7 @@ def load_convention(
             raise UsageError(f"{what} {p} is a LeRobot calibration: pass --robot or --motor-family")
         if modes is None:
             raise UsageError(f"{what} {p} is a LeRobot calibration: pass --robot or --modes")
-        return LeRobotConvention.from_calibrations(cals, modes, family, compat)
+        return LeRobotConvention.from_calibrations(cals, modes, family, compat, convention)
     if kind == "legacy":
         return LegacyConvention(_legacy.read_legacy(p))
     from ..formats import read_calibration

@@ -5,7 +5,8 @@
 -50.0
 
 ``compat="lerobot"`` is bit-identical to LeRobot 0.6.1; ``compat="exact"`` rounds so raw → normalised → raw
-is the identity (see ``docs/lerobot.md``).
+is the identity, and changes nothing else. ``convention="physical"`` (instead of LeRobot's default) makes
+DEGREES true joint degrees: 4096 ticks per turn and ``drive_mode`` honoured (see ``docs/lerobot.md``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy.typing as npt
 from ..core.lerobot import (
     MODE_CODES,
     Compat,
+    Convention,
     MotorCalibration,
     _as_float_array,
     normalize_array,
@@ -50,7 +52,7 @@ class NormMode(str, Enum):
 
 
 CalibrationArg = MotorCalibration | Sequence[MotorCalibration] | Mapping[str, MotorCalibration]
-ModeArg = NormMode | str | Sequence[NormMode | str]
+ModeArg = NormMode | str | Sequence[NormMode | str] | Mapping[str, NormMode | str]
 
 
 def _mode_code(mode: object) -> int:
@@ -80,6 +82,28 @@ def _unpack(calibration: CalibrationArg, mode: ModeArg) -> tuple[bool, list[Moto
         )
     if isinstance(mode, (str, NormMode)):
         codes = [_mode_code(mode)] * len(cals)
+    elif isinstance(mode, Mapping):
+        if not isinstance(calibration, Mapping):
+            raise InvalidCalibrationError(
+                "modes given by motor name need the calibration as a motor name → MotorCalibration mapping "
+                "(as read_calibration returns); with a sequence of calibrations give one mode per motor in order"
+            )
+        names = list(calibration)
+        missing = [n for n in names if n not in mode]
+        unknown = [str(n) for n in mode if n not in calibration]
+        if missing or unknown:
+            parts = []
+            if missing:
+                parts.append(f"no mode for motor(s) {', '.join(map(str, missing))}")
+            if unknown:
+                parts.append(f"mode(s) for unknown motor(s) {', '.join(unknown)}")
+            raise ShapeMismatchError(f"modes by motor name: {'; '.join(parts)}")
+        codes = []
+        for n in names:
+            try:
+                codes.append(_mode_code(mode[n]))
+            except InvalidCalibrationError as exc:
+                raise InvalidCalibrationError(f"motor {n!r}: {exc}") from None
     else:
         try:
             modes = list(mode)
@@ -128,6 +152,7 @@ def normalize(
     apply_drive_mode: bool = True,
     compat: Compat = "lerobot",
     resolution: int = 4096,
+    convention: Convention = "lerobot",
 ) -> npt.NDArray[np.float64]:
     """Raw ``Present_Position`` ticks → LeRobot normalised values (LeRobot's ``_normalize``).
 
@@ -136,13 +161,23 @@ def normalize(
             ``MotorCalibration`` any shape (each element is that motor).
         calibration: One ``MotorCalibration``, a sequence of one per motor, or a motor name → calibration
             mapping (as :func:`read_calibration` returns; taken in its order).
-        mode: One mode for all motors or one per motor (``NormMode`` or its string value).
+        mode: One mode for all motors, one per motor in order, or (with a name → calibration mapping) a
+            motor name → mode mapping naming every motor (``NormMode`` or its string value).
         apply_drive_mode: True for Feetech (software inversion), False for Dynamixel (hardware Drive_Mode).
-        compat: ``"lerobot"`` bit-identical to LeRobot 0.6.1, ``"exact"`` lossless.
+        compat: Rounding only: ``"lerobot"`` truncates like LeRobot 0.6.1, ``"exact"`` rounds (lossless).
+            Normalising does not round, so both give the same values here.
         resolution: Ticks per turn (4096; scs0009 1024).
+        convention: DEGREES scale and sign: ``"lerobot"`` (LeRobot's ``resolution − 1`` ticks per 360°,
+            drive_mode ignored) or ``"physical"`` (``resolution`` ticks per 360°, drive_mode honoured).
 
     Returns:
         Float64 array of ``raw``'s shape: −100..100, 0..100 or degrees.
+
+    Raises:
+        InvalidCalibrationError: Input that is not real numbers (strings, also number strings; booleans;
+            complex; datetime64; ``None``, reported as missing), NaN/inf, an unknown mode, a drive_mode other
+            than 0/1, ``range_min >= range_max``.
+        ShapeMismatchError: The last axis is not the number of motors, or the modes do not match the motors.
     """
     return _per_motor(
         normalize_array,
@@ -153,6 +188,7 @@ def normalize(
         apply_drive_mode=apply_drive_mode,
         compat=compat,
         resolution=resolution,
+        convention=convention,
     )
 
 
@@ -164,12 +200,13 @@ def unnormalize(
     apply_drive_mode: bool = True,
     compat: Compat = "lerobot",
     resolution: int = 4096,
+    convention: Convention = "lerobot",
 ) -> npt.NDArray[np.int64]:
     """Normalised values → raw ``Goal_Position`` ticks (LeRobot's ``_unnormalize``); see :func:`normalize`.
 
     Returns:
         Int64 array of ``values``' shape (truncated like ``int()`` with ``compat="lerobot"``, rounded with
-        ``"exact"``).
+        ``"exact"``; otherwise the same values).
     """
     return _per_motor(
         unnormalize_array,
@@ -180,6 +217,7 @@ def unnormalize(
         apply_drive_mode=apply_drive_mode,
         compat=compat,
         resolution=resolution,
+        convention=convention,
     )
 
 

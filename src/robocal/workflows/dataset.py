@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from ..core.lerobot import parse_compat
+from ..core.lerobot import parse_compat, parse_convention
 from ..errors import JointMismatchError, UsageError
 
 if TYPE_CHECKING:
@@ -33,7 +33,9 @@ class DatasetOptions:
         use_degrees: Whether arm joints were recorded in degrees; ``None``: the robot's default.
         modes: Joint → mode for the new calibration (overrides the preset).
         old_modes: Joint → mode for the old calibration (default: the new modes).
-        compat: ``lerobot`` (bit-identical normalisation) or ``exact`` (lossless).
+        compat: ``lerobot`` (bit-identical, truncating) or ``exact`` (rounding, lossless); rounding only.
+        convention: DEGREES values as LeRobot records them (``lerobot``: 4095 ticks per 360°, drive_mode
+            ignored) or ``physical`` (4096 ticks per 360°, drive_mode honoured).
     """
 
     robot: str | None = None
@@ -42,6 +44,7 @@ class DatasetOptions:
     modes: Mapping[str, str] | None = None
     old_modes: Mapping[str, str] | None = None
     compat: str = "lerobot"
+    convention: str = "lerobot"
 
 
 def _check_modes(modes: Mapping[str, str], joints: Sequence[str], flag: str) -> None:
@@ -100,6 +103,7 @@ def _conventions(
         joints += [j for j in f.position_joint_names if j not in joints]
     robot = opts.robot or layout.robot_type
     compat = parse_compat(opts.compat)
+    convention = parse_convention(opts.convention, "--convention")
     if opts.robot is None and robot is not None and opts.motor_family is None:
         # info.json's robot_type only helps when it names a known robot
         try:
@@ -110,12 +114,28 @@ def _conventions(
         family = _family(opts, robot)
     old_modes, new_modes = resolve_modes(joints, opts, robot)
     conv_old = (
-        load_convention(old, joint_names=joints, modes=old_modes, family=family, compat=compat, what="--old")
+        load_convention(
+            old,
+            joint_names=joints,
+            modes=old_modes,
+            family=family,
+            compat=compat,
+            what="--old",
+            convention=convention,
+        )
         if old is not None
         else None
     )
     conv_new = (
-        load_convention(new, joint_names=joints, modes=new_modes, family=family, compat=compat, what="--new")
+        load_convention(
+            new,
+            joint_names=joints,
+            modes=new_modes,
+            family=family,
+            compat=compat,
+            what="--new",
+            convention=convention,
+        )
         if new is not None
         else None
     )

@@ -785,19 +785,26 @@ def export_joint_map(
     offsets_deg: Mapping[str, float] | None = None,
     compat: str = "lerobot",
     modes: Sequence[str] | None = None,
+    convention: str = "lerobot",
 ) -> tuple[RobotCalibration, list[str]]:
     """Exact canonical joint map ``q_urdf = sign·q_lerobot + offset`` of the DEGREES joints (#4442).
 
-    LeRobot DEGREES: ``q = (present − mid)·360/4095`` (``compat="lerobot"``) or ``·360/4096`` with drive_mode
-    (``"exact"``), ``mid = (range_min + range_max)/2``. Canonical form ``q_rad = d·k·(present − h)`` with
-    ``d = sign·(−1 if exact and drive_mode else 1)``, ``k = 2π/4095`` (or ``2π/4096``) rad/tick and
-    ``h = mid − offset_rad/(d·k)``. ``present`` is the Present_Position register (EEPROM homing applied).
+    LeRobot DEGREES: ``q = (present − mid)·360/4095`` (``convention="lerobot"``) or ``·360/4096`` with
+    drive_mode (``"physical"``), ``mid = (range_min + range_max)/2``. Canonical form
+    ``q_rad = d·k·(present − h)`` with ``d = sign·(−1 if physical and drive_mode else 1)``, ``k = 2π/4095``
+    (or ``2π/4096``) rad/tick and ``h = mid − offset_rad/(d·k)``. ``present`` is the Present_Position register
+    (EEPROM homing applied). ``compat`` only changes rounding to whole ticks, which a joint map does not do, so
+    it does not change the map (it is still checked).
 
     ``modes`` is the norm mode per motor in bus order (default: the robot's, see :func:`norm_modes`).
 
     Returns:
         The joint map (radians) of the DEGREES motors and the names of the skipped (range-mode) motors.
     """
+    from ..core.lerobot import parse_compat, parse_convention
+
+    parse_compat(compat, "compat")
+    physical = parse_convention(convention, "convention") == "physical"
     signs = dict(signs or {})
     offsets_deg = dict(offsets_deg or {})
     unknown = sorted((set(signs) | set(offsets_deg)) - set(spec.motor_names))
@@ -816,8 +823,8 @@ def export_joint_map(
             continue
         c = cals[m.name]
         s = signs.get(m.name, 1)
-        ticks = 4095 if compat == "lerobot" else 4096
-        d = s * (-1 if (compat == "exact" and c.drive_mode and spec.vendor == "feetech") else 1)
+        ticks = 4096 if physical else 4095
+        d = s * (-1 if (physical and c.drive_mode and spec.vendor == "feetech") else 1)
         k = 2 * math.pi / ticks
         mid = (c.range_min + c.range_max) / 2
         off_rad = math.radians(offsets_deg.get(m.name, 0.0))
