@@ -181,3 +181,77 @@ def test_unwrap_to_limits_refuses_inverted_limits() -> None:
     cal = RobotCalibration(["a", "b"], [1, 1], [0.0, 0.0])
     with pytest.raises(InvalidCalibrationError, match="lower limit above upper limit for b"):
         cal.unwrap_to_limits([0.0, 0.0], [-1.0, 1.0], [1.0, -1.0])
+
+
+# ------------------------------------------------------------------------------ fused per-tick state map
+zero_signs = st.sampled_from([0.0, -0.0])
+
+
+@given(calibrations(), st.data())
+def test_state_map_is_bit_identical_to_the_separate_maps(cal: RobotCalibration, data: st.DataObject) -> None:
+    lead = data.draw(st.sampled_from([(), (2,), (2, 3)]))
+    elems = st.one_of(finite, zero_signs, st.just(math.nan))
+    raw = data.draw(hnp.arrays(np.float64, (*lead, 3, cal.n_joints), elements=elems))
+    joint = cal.state_to_joint(raw)
+    assert joint.shape == raw.shape
+    for row, fn in enumerate((cal.to_joint, cal.velocity_to_joint, cal.effort_to_joint)):
+        want = fn(raw[..., row, :])
+        np.testing.assert_array_equal(joint[..., row, :], want)
+        assert np.array_equal(np.signbit(joint[..., row, :]), np.signbit(want))  # -0.0 stays -0.0
+    back = cal.state_to_raw(joint)
+    for row, fn in enumerate((cal.to_raw, cal.velocity_to_raw, cal.effort_to_raw)):
+        want = fn(joint[..., row, :])
+        np.testing.assert_array_equal(back[..., row, :], want)
+        assert np.array_equal(np.signbit(back[..., row, :]), np.signbit(want))
+    finite_mask = np.isfinite(raw)
+    np.testing.assert_allclose(back[finite_mask], raw[finite_mask], rtol=0, atol=1e-12)  # apply∘invert = id
+
+
+def test_state_map_out_and_shape_errors() -> None:
+    cal = RobotCalibration(["a", "b"], [1, -1], [0.5, 0.25], [1.0, 0.5])
+    raw = np.array([[1.5, 0.25], [2.0, 2.0], [4.0, -4.0]])
+    out = np.empty((3, 2))
+    res = cal.state_to_joint(raw, out=out)
+    assert res is out
+    np.testing.assert_array_equal(out, [[1.0, 0.0], [2.0, -1.0], [4.0, 2.0]])
+    np.testing.assert_array_equal(cal.state_to_joint(raw.tolist()), out)  # lists are accepted
+    np.testing.assert_array_equal(cal.state_to_raw(out, out=np.empty((3, 2))), raw)
+    assert raw.tolist() == [[1.5, 0.25], [2.0, 2.0], [4.0, -4.0]]  # input untouched
+    with pytest.raises(ShapeMismatchError, match=r"expected \(3, 2\) rows position, velocity, effort"):
+        cal.state_to_joint(np.zeros((2, 2)))
+    with pytest.raises(ShapeMismatchError, match="last axis must have 2 joints"):
+        cal.state_to_joint(np.zeros((3, 3)))
+    with pytest.raises(ShapeMismatchError, match=r"out has shape \(2, 2\)"):
+        cal.state_to_joint(raw, out=np.empty((2, 2)))
+    with pytest.raises(ShapeMismatchError, match="out has list"):
+        cal.state_to_raw(raw, out=[0.0] * 6)  # type: ignore[arg-type]
+
+
+# --------------------------------------------------------------------------- linear in the joint count
+class _CountingName(str):
+    """A joint name that counts equality comparisons (a quadratic name search makes ~N²/2 of them)."""
+
+    comparisons = 0
+    __hash__ = str.__hash__
+
+    def __eq__(self, other: object) -> bool:
+        _CountingName.comparisons += 1
+        return str.__eq__(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self.__eq__(other)
+
+
+def test_joint_lookups_are_linear_in_the_joint_count() -> None:
+    n = 3000
+    names = [_CountingName(f"joint_{i}") for i in range(n)]
+    _CountingName.comparisons = 0
+    cal = RobotCalibration(names, 1.0, np.arange(n, dtype=float))
+    order = [_CountingName(f"joint_{i}") for i in reversed(range(n))]  # equal names, other objects
+    sel = cal.select(order)
+    assert all(name in cal for name in order)
+    assert [cal.index(name) for name in order[:3]] == [n - 1, n - 2, n - 3]
+    assert sel.homing_offset[0] == n - 1
+    assert _CountingName.comparisons < 10 * n  # a quadratic search makes ~4.5 million here
+    with pytest.raises(JointMismatchError, match="duplicate joint names: a, b"):
+        RobotCalibration(["b", "a", "b", "c", "a"], 1.0, 0.0)

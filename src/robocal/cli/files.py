@@ -5,13 +5,22 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..formats import FORMATS, read_calibration
 from ..formats.profiles import builtin_profile_names, resolve_profile
 from ..formats.urdf import read_urdf
 from ..workflows.calibration import check_calibration, convert_file
-from ._common import EXIT_OK, EXIT_WARNINGS, console, parse_csv_list, print_warning
+from ._common import (
+    EXIT_OK,
+    EXIT_WARNINGS,
+    PLAIN_TABLE_ROWS,
+    console,
+    parse_csv_list,
+    print_plain_table,
+    print_warning,
+)
 
 FORMAT_HELP = "Format: " + ", ".join(FORMATS) + "."
 ROBOT_HELP = (
@@ -82,17 +91,27 @@ def check(
     if profile is not None:
         how = "--robot" if robot is not None else "recognised from the URDF's joint names"
         console.print(f"robot profile: {profile.name} ({how})", markup=False)
-    table = Table("joint", "id", "direction", "homing_offset", "status", box=None, pad_edge=False)
-    for j in report.joints:
-        status = "[yellow]" + "; ".join(j.warnings) + "[/]" if j.warnings else "[green]ok[/]"
-        table.add_row(
+    headers = ("joint", "id", "direction", "homing_offset", "status")
+    rows = [
+        (
             j.name,
             str(j.motor_id if j.motor_id is not None else "-"),
             f"{j.direction:+d}" if j.direction else "-",
             f"{j.homing_offset:.6f}" if j.homing_offset is not None else "-",
-            status,
+            "; ".join(j.warnings) if j.warnings else "ok",
         )
-    console.print(table)
+        for j in report.joints
+    ]
+    if len(rows) > PLAIN_TABLE_ROWS:
+        print_plain_table(headers, rows)
+    else:
+        table = Table(*headers, box=None, pad_edge=False)
+        for row in rows:
+            table.add_row(
+                *(escape(c) for c in row[:-1]),
+                f"[{'green' if row[-1] == 'ok' else 'yellow'}]{escape(row[-1])}[/]",
+            )
+        console.print(table)
     if report.missing:
         print_warning(f"joints missing from the calibration file: {', '.join(report.missing)}")
     if report.extra:

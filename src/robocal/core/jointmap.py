@@ -15,8 +15,10 @@ of the scale.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, SupportsFloat
 
 import numpy as np
@@ -28,6 +30,7 @@ __all__ = ["TWO_PI", "FloatArray", "JointMap", "RobotCalibration"]
 
 FloatArray = NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
+_F64 = np.dtype(np.float64)
 _BLOCK_ELEMENTS = 16384  # 128 KiB of float64 per block: stays in L2 between the two passes
 
 
@@ -121,6 +124,11 @@ class RobotCalibration:
     scale: FloatArray
     _gain: FloatArray = field(init=False, repr=False, compare=False)
     _inv_gain: FloatArray = field(init=False, repr=False, compare=False)
+    _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
+    _state_offset: FloatArray = field(init=False, repr=False, compare=False)
+    _state_gain: FloatArray = field(init=False, repr=False, compare=False)
+    _state_inv_gain: FloatArray = field(init=False, repr=False, compare=False)
+    _state_inv_offset: FloatArray = field(init=False, repr=False, compare=False)
 
     def __init__(
         self,
@@ -137,8 +145,9 @@ class RobotCalibration:
         for name in names:
             if not isinstance(name, str) or not name:
                 raise InvalidCalibrationError(f"joint name {name!r} is not a non-empty string")
-        dupes = sorted({n for n in names if names.count(n) > 1})
-        if dupes:
+        index = {name: i for i, name in enumerate(names)}
+        if len(index) != len(names):
+            dupes = sorted(n for n, count in Counter(names).items() if count > 1)
             raise JointMismatchError(f"duplicate joint names: {', '.join(dupes)}")
         n = len(names)
         try:
@@ -149,7 +158,11 @@ class RobotCalibration:
             if isinstance(exc, InvalidCalibrationError):
                 raise
             raise InvalidCalibrationError(f"calibration arrays are not numeric: {exc}") from None
-        for i, name in enumerate(names):
+        # vectorised checks; the first offending joint (in order, direction before offset before scale) is named
+        bad = ~((d == 1.0) | (d == -1.0)) | ~np.isfinite(h) | ~(np.isfinite(s) & (s > 0.0))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            name = names[i]
             if d[i] not in (-1.0, 1.0):
                 raise InvalidCalibrationError(
                     f"joint {name!r}: direction {d[i]:g} is invalid; expected -1 or +1"
@@ -158,8 +171,7 @@ class RobotCalibration:
                 raise InvalidCalibrationError(
                     f"joint {name!r}: homing_offset is {h[i]}; expected a finite number"
                 )
-            if not (math.isfinite(s[i]) and s[i] > 0.0):
-                raise InvalidCalibrationError(f"joint {name!r}: scale {s[i]} must be finite and > 0")
+            raise InvalidCalibrationError(f"joint {name!r}: scale {s[i]} must be finite and > 0")
         object.__setattr__(self, "joint_names", names)
         object.__setattr__(self, "direction", d)
         object.__setattr__(self, "homing_offset", h)
@@ -170,6 +182,21 @@ class RobotCalibration:
         inv_gain.flags.writeable = False
         object.__setattr__(self, "_gain", gain)
         object.__setattr__(self, "_inv_gain", inv_gain)
+        object.__setattr__(self, "_index", MappingProxyType(index))
+        # (3, N) offsets of the fused state map: x − (+0.0) and x + (−0.0) leave every x (and its zero sign)
+        # unchanged, so velocity and effort rows stay bit-identical to gain·x and x/gain
+        state_offset = np.zeros((3, n))
+        state_offset[0] = h
+        state_inv_offset = np.full((3, n), -0.0)
+        state_inv_offset[0] = h
+        state_gain = np.tile(gain, (3, 1))
+        state_inv_gain = np.tile(inv_gain, (3, 1))
+        for a in (state_offset, state_inv_offset, state_gain, state_inv_gain):
+            a.flags.writeable = False
+        object.__setattr__(self, "_state_gain", state_gain)
+        object.__setattr__(self, "_state_inv_gain", state_inv_gain)
+        object.__setattr__(self, "_state_offset", state_offset)
+        object.__setattr__(self, "_state_inv_offset", state_inv_offset)
 
     # ----------------------------------------------------------------------------------------- constructors
     @classmethod
@@ -198,13 +225,16 @@ class RobotCalibration:
         return len(self.joint_names)
 
     def __contains__(self, name: object) -> bool:
-        return name in self.joint_names
+        try:
+            return name in self._index
+        except TypeError:  # unhashable
+            return False
 
     def index(self, name: str) -> int:
-        """Position of joint ``name``; :class:`JointMismatchError` naming the valid joints if unknown."""
+        """Position of joint ``name`` (O(1)); :class:`JointMismatchError` naming the valid joints if unknown."""
         try:
-            return self.joint_names.index(name)
-        except ValueError:
+            return self._index[name]
+        except (KeyError, TypeError):
             raise JointMismatchError(
                 f"unknown joint {name!r}; known joints: {', '.join(self.joint_names) or '(none)'}"
             ) from None
@@ -221,12 +251,13 @@ class RobotCalibration:
     def select(self, joint_names: Iterable[str]) -> RobotCalibration:
         """Reorder or subset the joints. Unknown names raise :class:`JointMismatchError` listing them."""
         names = list(joint_names)
-        missing = [n for n in names if n not in self.joint_names]
+        index = self._index
+        missing = [n for n in names if n not in index]
         if missing:
             raise JointMismatchError(
                 f"joints not in the calibration: {', '.join(missing)}; known: {', '.join(self.joint_names)}"
             )
-        idx = [self.joint_names.index(n) for n in names]
+        idx = [index[n] for n in names]
         return RobotCalibration(names, self.direction[idx], self.homing_offset[idx], self.scale[idx])
 
     def with_offsets(self, offsets: Mapping[str, SupportsFloat]) -> RobotCalibration:
@@ -263,6 +294,8 @@ class RobotCalibration:
 
     # --------------------------------------------------------------------------------------------- mapping
     def _check(self, x: ArrayLike, what: str) -> FloatArray:
+        if type(x) is np.ndarray and x.dtype is _F64 and x.ndim and x.shape[-1] == len(self.joint_names):
+            return x  # the per-tick fast path: already a float64 array over the joint axis
         try:
             arr = np.asarray(x, dtype=np.float64)
         except (TypeError, ValueError) as exc:  # ragged nesting, strings, objects
@@ -352,6 +385,70 @@ class RobotCalibration:
     def effort_to_raw(self, e_joint: ArrayLike) -> FloatArray:
         """Joint efforts → raw efforts: ``direction·e/scale``, shape ``(..., N)``."""
         return self._scaled(self._inv_gain, e_joint, "joint effort")
+
+    def state_to_joint(self, raw_state: ArrayLike, out: FloatArray | None = None) -> FloatArray:
+        """Raw position, velocity and effort → joint frame in one fused affine map (the per-tick hot path).
+
+        Row 0 is ``direction·scale·(raw − homing_offset)``, rows 1 and 2 are ``direction·scale·x``: the
+        same numbers, bit for bit, as :meth:`to_joint`, :meth:`velocity_to_joint` and
+        :meth:`effort_to_joint`, in two vectorised operations instead of six.
+
+        Args:
+            raw_state: Shape ``(3, N)`` or ``(..., 3, N)``: rows position, velocity, effort, raw units.
+            out: Optional float64 array of the same shape to write into (may be ``raw_state`` itself).
+
+        Returns:
+            Joint-frame state, same shape: rows position (rad), velocity (rad/s), effort (N·m).
+        """
+        x = self._check_state(raw_state, "raw state")
+        if out is None:
+            res: FloatArray = x - self._state_offset
+        else:
+            res = np.subtract(x, self._state_offset, out=self._check_out(out, x.shape))
+        res *= self._state_gain  # (3, N) like x: a same-shape multiply, much cheaper than a broadcast
+        return res
+
+    def state_to_raw(self, joint_state: ArrayLike, out: FloatArray | None = None) -> FloatArray:
+        """Joint-frame position, velocity and effort → raw (inverse of :meth:`state_to_joint`).
+
+        Bit for bit the same as :meth:`to_raw`, :meth:`velocity_to_raw` and :meth:`effort_to_raw`.
+
+        Args:
+            joint_state: Shape ``(3, N)`` or ``(..., 3, N)``: rows position, velocity, effort, joint units.
+            out: Optional float64 array of the same shape to write into.
+
+        Returns:
+            Raw state, same shape.
+        """
+        x = self._check_state(joint_state, "joint state")
+        if out is None:
+            res: FloatArray = x * self._state_inv_gain
+        else:
+            res = np.multiply(x, self._state_inv_gain, out=self._check_out(out, x.shape))
+        res += self._state_inv_offset
+        return res
+
+    def _check_state(self, x: ArrayLike, what: str) -> FloatArray:
+        n = len(self.joint_names)
+        if type(x) is np.ndarray and x.dtype is _F64 and x.shape[-2:] == (3, n):
+            return x
+        arr = self._check(x, what)
+        if arr.ndim < 2 or arr.shape[-2] != 3:
+            raise ShapeMismatchError(
+                f"{what} has shape {arr.shape}; expected (3, {n}) rows position, velocity, effort"
+            )
+        return arr
+
+    @staticmethod
+    def _check_out(out: Any, shape: tuple[int, ...]) -> FloatArray:
+        if not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float64:
+            got = (
+                f"shape {out.shape} and dtype {out.dtype}"
+                if isinstance(out, np.ndarray)
+                else type(out).__name__
+            )
+            raise ShapeMismatchError(f"out has {got}; expected a {shape} float64 numpy array")
+        return out
 
     def unwrap_to_limits(
         self,

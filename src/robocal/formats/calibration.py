@@ -144,8 +144,13 @@ def _read_lite_json(path: Path, **_: Any) -> CalibrationFile:
     return _parse_lite(load_json(read_text(path, "calibration file"), str(path)), str(path), "lite-json")
 
 
-def _read_lite_yaml(path: Path, **_: Any) -> CalibrationFile:
-    return _parse_lite(load_yaml(read_text(path, "calibration file"), str(path)), str(path), "lite-yaml")
+def _yaml_data(path: Path, parsed: Any) -> Any:
+    """The file's YAML document: ``parsed`` when format detection already parsed it (parse once), else load."""
+    return parsed if parsed is not None else load_yaml(read_text(path, "calibration file"), str(path))
+
+
+def _read_lite_yaml(path: Path, parsed_yaml: Any = None, **_: Any) -> CalibrationFile:
+    return _parse_lite(_yaml_data(path, parsed_yaml), str(path), "lite-yaml")
 
 
 def _lite_entries(
@@ -221,9 +226,9 @@ def _write_lite_yaml(
 
 
 # ----------------------------------------------------------------------------------------------- robocal
-def _read_robocal(path: Path, **_: Any) -> CalibrationFile:
+def _read_robocal(path: Path, parsed_yaml: Any = None, **_: Any) -> CalibrationFile:
     source = str(path)
-    data = load_yaml(read_text(path, "calibration file"), source)
+    data = _yaml_data(path, parsed_yaml)
     if not isinstance(data, Mapping) or data.get("format") != ROBOCAL_FORMAT_TAG:
         raise FileFormatError(f"{source}: not a robocal joint map (expected 'format: {ROBOCAL_FORMAT_TAG}')")
     version = data.get("version")
@@ -331,7 +336,7 @@ def _berkeley_directions(
     dirs = []
     lacking = []
     for name in order:
-        if urdf is not None and name not in urdf.joint_names and name not in urdf.joint_params:
+        if urdf is not None and not urdf.has_joint(name) and name not in urdf.joint_params:
             raise JointMismatchError(f"{source}: joint {name!r} is not in URDF {urdf.source}")
         d = urdf.direction(name) if urdf is not None else None
         if d is None and profile is not None:
@@ -357,11 +362,12 @@ def _read_berkeley(
     urdf: UrdfModel | None = None,
     joint_order: Sequence[str] | None = None,
     profile: RobotProfile | None = None,
+    parsed_yaml: Any = None,
     **_: Any,
 ) -> CalibrationFile:
     source = str(path)
-    text = read_text(path, "calibration file")
-    data = load_yaml(text, source)
+    text = read_text(path, "calibration file")  # also read for the joint-order comment
+    data = parsed_yaml if parsed_yaml is not None else load_yaml(text, source)
     if not isinstance(data, Mapping) or "position_offsets" not in data:
         raise FileFormatError(f"{source}: expected a mapping with key position_offsets")
     extra = [str(k) for k in data if k != "position_offsets"]
@@ -416,8 +422,9 @@ def _write_berkeley(
     order = _berkeley_order(joint_order, profile, "berkeley-offsets")
     if order is None:
         raise UsageError(_no_order_message(f"cannot write {path}"))
-    missing = [n for n in order if n not in cal.joint_names]
-    extra = [n for n in cal.joint_names if n not in order]
+    in_order = set(order)
+    missing = [n for n in order if n not in cal]
+    extra = [n for n in cal.joint_names if n not in in_order]
     if missing or extra:
         by = "--joints" if joint_order is not None else f"robot {profile.name}"  # type: ignore[union-attr]
         detail = "; ".join(
@@ -494,6 +501,7 @@ def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
     tree = _parse_tree(read_bytes(path, "URDF"), source)
     root = tree.getroot()
     names, dirs, offs, scales = [], [], [], []
+    seen: set[str] = set()
     skipped: list[str] = []
     for tr in _transmissions(root):
         tname = tr.get("name") or f"line {tr.sourceline}"
@@ -511,8 +519,9 @@ def _read_transmission(path: Path, **_: Any) -> CalibrationFile:
         if reduction == 0.0:
             raise FileFormatError(f"{where}: mechanical_reduction is 0")
         offset = parse_finite(_child_text(joint, "offset") or "0", where, "offset")
-        if jname in names:
+        if jname in seen:
             raise FileFormatError(f"{source}: joint {jname!r} has two transmissions")
+        seen.add(jname)
         names.append(jname)
         dirs.append(1 if reduction > 0 else -1)
         scales.append(1.0 / abs(reduction))
@@ -576,9 +585,11 @@ def _append_transmission(host: Any, joint: str, reduction: float, offset: float)
         f"{indent}</transmission>"
     )
     el = etree.fromstring(xml)
-    children = list(host)
-    if children:
-        last = children[-1]
+    try:
+        last = host[-1]  # O(1) in lxml; list(host) and len(host) walk every child
+    except IndexError:
+        last = None
+    if last is not None:
         el.tail = last.tail
         last.tail = "\n" + indent
         last.addnext(el)
@@ -605,17 +616,16 @@ def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None,
         j = tr.find("joint")
         if j is not None and j.get("name") and _is_simple(tr):
             by_joint[j.get("name")] = tr
+    host_of: dict[str, Any] = {}  # the first <ros2_control> listing a joint hosts its new transmission
+    for sys_el in root.findall("ros2_control"):
+        for j in sys_el.findall("joint"):
+            host_of.setdefault(j.get("name"), sys_el)
     for n, d, h, s in zip(cal.joint_names, cal.direction, cal.homing_offset, cal.scale, strict=True):
         reduction = float(d) / float(s)
         offset = -float(h) / reduction
         tr = by_joint.get(n)
         if tr is None:
-            host = root
-            for sys_el in root.findall("ros2_control"):
-                if any(j.get("name") == n for j in sys_el.findall("joint")):
-                    host = sys_el
-                    break
-            _append_transmission(host, n, reduction, offset)
+            _append_transmission(host_of.get(n, root), n, reduction, offset)
         else:
             jel = tr.find("joint")
             indent = (jel.text or "\n        ") if jel is not None else "\n"
@@ -695,10 +705,11 @@ def _check_fmt(fmt: str) -> FormatSpec:
     return FORMATS[fmt]
 
 
-def _sniff(text: str, source: str) -> str | None:
+def _sniff(text: str, source: str) -> tuple[str | None, Any]:
+    """The format of ``text`` and, when it was parsed as YAML to tell, the YAML document (else None)."""
     stripped = text.lstrip("\ufeff \t\r\n")
     if stripped.startswith("<"):
-        return "ros2-transmission"
+        return "ros2-transmission", None
     if stripped.startswith("{") or stripped.startswith("["):
         try:
             data = json.loads(stripped)
@@ -706,15 +717,15 @@ def _sniff(text: str, source: str) -> str | None:
             data = None
         if isinstance(data, dict):
             if "position_offsets" in data:
-                return "berkeley-offsets"
+                return "berkeley-offsets", None
             if "motor_names" in data and "homing_offset" in data:
-                return "lerobot-legacy"
+                return "lerobot-legacy", None
             first = next(iter(data.values()), None)
             if isinstance(first, dict) and "range_min" in first:
-                return "lerobot"
+                return "lerobot", None
             if isinstance(first, dict):
-                return "lite-json"
-            return None
+                return "lite-json", None
+            return None, None
     try:
         data = load_yaml(text, source)
     except FileFormatError:
@@ -723,13 +734,13 @@ def _sniff(text: str, source: str) -> str | None:
         raise  # a YAML syntax error is reported as such (line, column), not as an unknown format
     if isinstance(data, Mapping):
         if data.get("format") == ROBOCAL_FORMAT_TAG:
-            return "robocal"
+            return "robocal", data
         if "position_offsets" in data:
-            return "berkeley-offsets"
+            return "berkeley-offsets", data
         first = next(iter(data.values()), None)
         if isinstance(first, Mapping):
-            return "lite-yaml"
-    return None
+            return "lite-yaml", data
+    return None, None
 
 
 def detect_format(path: str | os.PathLike[str]) -> str:
@@ -738,9 +749,14 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     Raises:
         FileFormatError: The file cannot be read or matches no known format.
     """
+    return _detect(path)[0]
+
+
+def _detect(path: str | os.PathLike[str]) -> tuple[str, Any]:
+    """The format and, for YAML formats, the parsed document (so the reader does not parse it again)."""
     source = str(path)
     text = read_text(path, "calibration file")
-    fmt = _sniff(text, source)
+    fmt, data = _sniff(text, source)
     if fmt == "lerobot":
         raise FileFormatError(
             f"{source}: a current LeRobot calibration (range_min/range_max) is not a joint map; "
@@ -751,7 +767,7 @@ def detect_format(path: str | os.PathLike[str]) -> str:
             f"{source}: unrecognised calibration format (known: {', '.join(FORMATS)}); "
             "name it explicitly if it is one of them (robocal convert --from)"
         )
-    return fmt
+    return fmt, data
 
 
 def _format_for_output(path: Path) -> str:
@@ -799,9 +815,14 @@ def read_calibration(
         UsageError: Unknown format, or a positional format without a joint order.
     """
     p = Path(path)
-    spec = _check_fmt(fmt) if fmt is not None else FORMATS[detect_format(p)]
+    parsed: Any = None
+    if fmt is None:
+        fmt, parsed = _detect(p)
+    spec = _check_fmt(fmt)
     profile = resolve_profile(robot, urdf)
     try:
+        if parsed is not None:
+            return spec.reader(p, urdf=urdf, joint_order=joint_order, profile=profile, parsed_yaml=parsed)
         return spec.reader(p, urdf=urdf, joint_order=joint_order, profile=profile)
     except InvalidCalibrationError as exc:
         raise FileFormatError(f"{p}: {exc}") from None

@@ -94,6 +94,7 @@ class UrdfModel:
     joint_params: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     hardware_params: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     source: str = "<string>"
+    _by_name: Mapping[str, UrdfJoint] = field(init=False, repr=False, compare=False)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -110,11 +111,18 @@ class UrdfModel:
         """Joints listed in ``<ros2_control>`` blocks, in document order."""
         return tuple(self.joint_params)
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_by_name", {j.name: j for j in self.joints})
+
+    def has_joint(self, name: str) -> bool:
+        """True when the URDF has a robot joint called ``name`` (O(1))."""
+        return name in self._by_name
+
     def joint(self, name: str) -> UrdfJoint:
-        """The joint called ``name``; :class:`JointMismatchError` listing the valid names if absent."""
-        for j in self.joints:
-            if j.name == name:
-                return j
+        """The joint called ``name`` (O(1)); :class:`JointMismatchError` listing the valid names if absent."""
+        j = self._by_name.get(name)
+        if j is not None:
+            return j
         raise JointMismatchError(
             f"URDF {self.source}: no joint {name!r}; joints: {', '.join(self.joint_names)}"
         )

@@ -54,7 +54,7 @@ def convert_file(
     cal = cf.calibration
     if joints is not None and tuple(joints) != cal.joint_names:
         cal = cal.select(joints)
-    out = CalibrationFile(cal, {k: v for k, v in cf.ids.items() if k in cal.joint_names}, cf.fmt, cf.source)
+    out = CalibrationFile(cal, {k: v for k, v in cf.ids.items() if k in cal}, cf.fmt, cf.source)
     if Path(src).resolve() == Path(dst).resolve() and (dst_format or cf.fmt) == cf.fmt:
         raise UsageError(f"source and destination are the same file ({src}) in the same format")
     written = write_calibration(dst, out, dst_format, urdf=urdf, joint_order=joints, robot=profile)
@@ -135,9 +135,10 @@ def check_calibration(
     else:
         expected = profile.joint_names
     cal = cf.calibration
-    matched = tuple(n for n in expected if n in cal.joint_names)
-    missing = tuple(n for n in expected if n not in cal.joint_names)
-    extra = tuple(n for n in cal.joint_names if n not in expected)
+    expected_set = set(expected)
+    matched = tuple(n for n in expected if n in cal)
+    missing = tuple(n for n in expected if n not in cal)
+    extra = tuple(n for n in cal.joint_names if n not in expected_set)
     file_dirs = cf.fmt in DIRECTION_FORMATS
     file_ids = cf.fmt in ID_FORMATS
     pname = f"profile {profile.name}" if profile is not None else ""

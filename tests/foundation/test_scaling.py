@@ -1,0 +1,78 @@
+"""Joint-count scaling: lookups by name must be O(1), so file operations stay linear (benchmarks/bench_scaling.py
+measures the time; these tests count name comparisons, which a quadratic search multiplies by N)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from robocal.core import RobotCalibration
+from robocal.formats import CalibrationFile, read_calibration, write_calibration
+from robocal.formats.urdf import UrdfJoint, UrdfModel, read_urdf
+from robocal.workflows.calibration import check_calibration
+
+
+class _CountingName(str):
+    comparisons = 0
+    __hash__ = str.__hash__
+
+    def __eq__(self, other: object) -> bool:
+        _CountingName.comparisons += 1
+        return str.__eq__(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self.__eq__(other)
+
+
+def _names(n: int) -> list[str]:
+    return [_CountingName(f"joint_{i}") for i in range(n)]  # a new object per call: equal, not identical
+
+
+def test_check_compares_each_name_a_bounded_number_of_times() -> None:
+    n = 2000
+    joints = tuple(UrdfJoint(name, "revolute", f"l{i}", f"l{i + 1}") for i, name in enumerate(_names(n)))
+    params = {name: {"direction": "-1", "can_id": str(i + 1)} for i, name in enumerate(_names(n))}
+    model = UrdfModel("big", joints, params)
+    cal = RobotCalibration(_names(n)[::-1], -1.0, np.full(n, 0.5))
+    cf = CalibrationFile(cal, {name: n - i for i, name in enumerate(_names(n)[::-1])})
+    _CountingName.comparisons = 0
+    report = check_calibration(cf, model)
+    assert len(report.matched) == n and not report.missing and not report.extra
+    assert report.ok
+    assert model.joint("joint_1999").child == "l2000"
+    # a list/tuple membership test per joint makes ~N²/2 = 2 million comparisons
+    assert _CountingName.comparisons < 20 * n
+
+
+def _big_urdf(n: int) -> str:
+    joints = "\n".join(
+        f'  <joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i + 1}"/>'
+        f'<limit lower="-1" upper="1"/></joint>'
+        for i in range(n)
+    )
+    params = "\n".join(
+        f'    <joint name="j{i}"><param name="can_id">{i + 1}</param><param name="direction">1</param></joint>'
+        for i in range(n)
+    )
+    return (
+        f'<robot name="big">\n{joints}\n  <ros2_control name="sys" type="system">\n{params}\n'
+        "  </ros2_control>\n</robot>\n"
+    )
+
+
+def test_transmissions_appended_into_a_large_urdf_round_trip(tmp_path: Path) -> None:
+    n = 1500
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(_big_urdf(n))
+    model = read_urdf(urdf)
+    cal = RobotCalibration([f"j{i}" for i in range(n)], 1.0, np.linspace(-1, 1, n))
+    write_calibration(urdf, cal, "ros2-transmission", urdf=model)
+    back = read_calibration(urdf, "ros2-transmission").calibration
+    assert back.joint_names == cal.joint_names
+    np.testing.assert_allclose(back.homing_offset, cal.homing_offset, rtol=0, atol=1e-15)
+    text = urdf.read_text()
+    # every new transmission sits inside <ros2_control>, after its last joint, each on its own line
+    assert text.index("<transmission") > text.index("<ros2_control")
+    assert text.count("\n    <transmission name=") == n
+    assert text.rstrip().endswith("</ros2_control>\n</robot>")
