@@ -255,3 +255,11 @@ def test_joint_lookups_are_linear_in_the_joint_count() -> None:
     assert _CountingName.comparisons < 10 * n  # a quadratic search makes ~4.5 million here
     with pytest.raises(JointMismatchError, match="duplicate joint names: a, b"):
         RobotCalibration(["b", "a", "b", "c", "a"], 1.0, 0.0)
+
+
+def test_calibration_pickles_with_its_lookup_table() -> None:
+    import pickle
+
+    cal = RobotCalibration(["a", "b"], [1, -1], [0.5, 0.25])
+    back = pickle.loads(pickle.dumps(cal))
+    assert back.index("b") == 1 and "a" in back and back.is_close(cal)

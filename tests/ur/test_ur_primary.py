@@ -244,3 +244,63 @@ def test_pose_samples_decode() -> None:
     assert rotation_angle_between(matrix_from_rotvec(sample.tcp_rotvec_rad), T[:3, :3]) < 1e-15
     assert sample.tcp_offset == (0.0,) * 6
     assert parse_pose_sample(build_robot_state(dh)[5:]) is not None  # zero-filled joints still decode
+
+
+def test_verify_timeout_is_per_read_at_the_real_10_hz_rate(
+    tmp_path: Path, dh_sets: dict[int, DHParameters], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A healthy 10 Hz controller: 25 samples take ~2.5 s, yet --timeout 1 is enough (1 s per read)."""
+    import time
+
+    from robocal.core.ur import correct_kinematics
+    from robocal.formats.ur_kinematics import write_kinematics
+
+    good = tmp_path / "good.yaml"
+    write_kinematics(good, correct_kinematics(dh_sets[3], "urdf"))
+    with SimUrController(dh_sets[3], rate_hz=10) as sim:
+        host, port = sim.address
+        t0 = time.monotonic()
+        args = ["--host", host, "--port", str(port), "--timeout", "1", "--controller-samples", "25"]
+        code = main(["ur", "verify", str(good), *args])
+        elapsed = time.monotonic() - t0
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "error" not in captured.err
+    assert elapsed > 2.0  # the samples really took longer than --timeout all together
+
+
+def test_pose_sample_timeout_names_what_was_missing() -> None:
+    """RobotStates (with KinematicsInfo) keep arriving but lack CartesianInfo: the error says so."""
+    with SimUrController(nominal_dh("ur5e"), mode="no_cartesian", rate_hz=20) as sim:
+        host, port = sim.address
+        with PrimaryClient(host, port, timeout_s=SHORT) as client:
+            info = client.read_kinematics()  # the KinematicsInfo did arrive
+            assert info.linearised
+            with pytest.raises(CalibTimeoutError) as exc:
+                client.read_pose_samples(3)
+    msg = str(exc.value)
+    assert f"UR controller {host}:{port}: no RobotState with Joint data and CartesianInfo within {SHORT:g} s" in msg
+    assert "sample 1 of 3; the RobotStates that arrived lack CartesianInfo" in msg
+    assert "KinematicsInfo" not in msg
+
+
+def test_pose_sample_timeout_on_a_silent_stream_names_the_sample() -> None:
+    """The controller stops after the KinematicsInfo: the timeout names the sample, not the KinematicsInfo."""
+
+    class _StopAfterFirst(SimUrController):
+        def _send(self, conn: socket.socket, data: bytes) -> bool:
+            self._sent = getattr(self, "_sent", 0) + 1
+            if self._sent > 3:  # version message, then two RobotState rounds; then silence
+                self._stop.wait()
+                return False
+            return super()._send(conn, data)
+
+    with _StopAfterFirst(nominal_dh("ur5e"), rate_hz=20) as sim:
+        host, port = sim.address
+        with PrimaryClient(host, port, timeout_s=SHORT) as client:
+            client.read_kinematics()
+            with pytest.raises(CalibTimeoutError) as exc:
+                client.read_pose_samples(5)
+    msg = str(exc.value)
+    assert "no RobotState with Joint data and CartesianInfo within" in msg
+    assert "of 5" in msg and "KinematicsInfo" not in msg

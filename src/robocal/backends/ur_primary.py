@@ -10,8 +10,8 @@ Wire format (all big-endian):
 
 Every other message type (20 version/robot messages, 5 MODBUS_INFO, 22, 23, 24, 25, …) and sub-package
 is skipped by its length. Lengths are bounded (:data:`MAX_MESSAGE_BYTES`), so a bogus size field cannot
-allocate gigabytes, and every read is bounded by one overall deadline (default 10 s), host-name resolution
-included.
+allocate gigabytes. Connecting and the KinematicsInfo are bounded by one deadline (default 10 s, host-name
+resolution included); each pose sample of :meth:`PrimaryClient.read_pose_samples` gets the same time again.
 """
 
 from __future__ import annotations
@@ -294,6 +294,8 @@ class PrimaryClient:
     warnings: list[str] = field(default_factory=list)
     _sock: socket.socket | None = field(default=None, repr=False)
     _deadline: float = field(default=0.0, repr=False)
+    _awaiting: str = field(default="KinematicsInfo", repr=False)  # what a timeout message says was missing
+    _detail: str = field(default="", repr=False)  # and which sample / what the messages that came lacked
 
     def __enter__(self) -> PrimaryClient:
         return self
@@ -305,10 +307,14 @@ class PrimaryClient:
     def _where(self) -> str:
         return f"UR controller {self.host}:{self.port}"
 
+    def _timeout(self, what: str) -> CalibTimeoutError:
+        detail = f"{self._detail}; {what}" if self._detail else what
+        return CalibTimeoutError(f"{self._where}: no {self._awaiting} within {self.timeout_s:g} s ({detail})")
+
     def _remaining(self, what: str) -> float:
         left = self._deadline - time.monotonic()
         if left <= 0:
-            raise CalibTimeoutError(f"{self._where}: no KinematicsInfo within {self.timeout_s:g} s ({what})")
+            raise self._timeout(what)
         return left
 
     def connect(self) -> None:
@@ -357,9 +363,7 @@ class PrimaryClient:
             try:
                 chunk = self._sock.recv(min(n - len(buf), 65536))
             except TimeoutError:
-                raise CalibTimeoutError(
-                    f"{self._where}: no KinematicsInfo within {self.timeout_s:g} s (waiting for {what})"
-                ) from None
+                raise self._timeout(f"waiting for {what}") from None
             except OSError as exc:
                 raise DeviceError(f"{self._where}: connection lost ({exc.strerror or exc})") from None
             if not chunk:
@@ -405,6 +409,9 @@ class PrimaryClient:
             ProtocolError: Truncated, garbage or oversized packets.
             DeviceError: Connection refused or closed.
         """
+        if self._sock is not None:  # already connected (e.g. after samples): a fresh deadline for this read
+            self._deadline = time.monotonic() + self.timeout_s
+        self._awaiting, self._detail = "KinematicsInfo", ""
         info, size = next(self._robot_states(self._find_kinematics))
         if size > KINEMATICS_INFO_SIZE:
             self.warnings.append(
@@ -421,18 +428,20 @@ class PrimaryClient:
     def read_pose_samples(self, count: int) -> list[PoseSample]:
         """Collect ``count`` (joint positions, base → TCP pose) samples from consecutive RobotStates.
 
-        The controller streams at ~10 Hz, so ``count`` samples take about ``count / 10`` s; the overall
-        ``timeout_s`` deadline applies.
+        The controller streams at ~10 Hz, so ``count`` samples take about ``count / 10`` s. ``timeout_s``
+        applies to each sample (each read), not to all of them together.
+
+        Raises:
+            CalibTimeoutError: One sample did not arrive within ``timeout_s``; the message says which sample
+                and, when RobotStates did arrive, which sub-package (Joint data, CartesianInfo) they lacked.
         """
         self.connect()
-        self._deadline = time.monotonic() + self.timeout_s
         samples: list[PoseSample] = []
-        if count < 1:
-            return samples
-        for sample in self._robot_states(parse_pose_sample):
-            samples.append(sample)
-            if len(samples) == count:
-                break
+        self._awaiting = "RobotState with Joint data and CartesianInfo"
+        for k in range(1, count + 1):
+            self._detail = f"sample {k} of {count}"
+            self._deadline = time.monotonic() + self.timeout_s
+            samples.append(next(self._robot_states(self._decode_pose)))
         return samples
 
     def _robot_states(self, decode: Callable[[bytes], _T | None]) -> Iterator[_T]:
@@ -451,6 +460,20 @@ class PrimaryClient:
                 raise ProtocolError(f"{self._where}: {exc}") from None
             if found is not None:
                 yield found
+
+    def _decode_pose(self, payload: bytes) -> PoseSample | None:
+        """A pose sample, or None; then the timeout detail names the sub-packages the RobotState lacked."""
+        sample = parse_pose_sample(payload)
+        if sample is None:
+            present = {sub_type for sub_type, _ in iter_subpackages(payload)}
+            lacking = [
+                name
+                for sub_type, name in ((SUB_JOINT_DATA, "Joint data"), (SUB_CARTESIAN_INFO, "CartesianInfo"))
+                if sub_type not in present
+            ]
+            sample_k = self._detail.split(";")[0]
+            self._detail = f"{sample_k}; the RobotStates that arrived lack {' and '.join(lacking)}"
+        return sample
 
     @staticmethod
     def _find_kinematics(payload: bytes) -> tuple[KinematicsInfo, int] | None:

@@ -18,7 +18,6 @@ import math
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from types import MappingProxyType
 from typing import Any, SupportsFloat
 
 import numpy as np
@@ -124,7 +123,7 @@ class RobotCalibration:
     scale: FloatArray
     _gain: FloatArray = field(init=False, repr=False, compare=False)
     _inv_gain: FloatArray = field(init=False, repr=False, compare=False)
-    _index: Mapping[str, int] = field(init=False, repr=False, compare=False)
+    _index: dict[str, int] = field(init=False, repr=False, compare=False)
     _state_offset: FloatArray = field(init=False, repr=False, compare=False)
     _state_gain: FloatArray = field(init=False, repr=False, compare=False)
     _state_inv_gain: FloatArray = field(init=False, repr=False, compare=False)
@@ -182,7 +181,7 @@ class RobotCalibration:
         inv_gain.flags.writeable = False
         object.__setattr__(self, "_gain", gain)
         object.__setattr__(self, "_inv_gain", inv_gain)
-        object.__setattr__(self, "_index", MappingProxyType(index))
+        object.__setattr__(self, "_index", index)  # a dict: RobotCalibration must stay picklable
         # (3, N) offsets of the fused state map: x − (+0.0) and x + (−0.0) leave every x (and its zero sign)
         # unchanged, so velocity and effort rows stay bit-identical to gain·x and x/gain
         state_offset = np.zeros((3, n))

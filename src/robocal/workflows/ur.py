@@ -445,7 +445,7 @@ def verify_controller(
         kinematics_path: ur_description kinematics YAML.
         host: Controller address.
         port: Primary interface port.
-        timeout_s: Deadline for the KinematicsInfo and again for the samples.
+        timeout_s: Deadline for connecting and the KinematicsInfo, and again for each pose sample (per read).
         samples: Number of RobotState samples to compare.
         tolerance_m: Position tolerance for the warning.
         tolerance_rad: Rotation tolerance for the warning.

@@ -5,7 +5,7 @@ type 5, which a client must not confuse with sub-type 5) and a RobotState (type 
 sequence of a URSim 5.8 UR5e (RobotMode, Joint, CartesianInfo, KinematicsInfo, CalibrationData,
 Masterboard, Tool, Configuration, ForceMode, AdditionalInfo, Safety, ToolComm, ToolMode; 1386 bytes,
 KinematicsInfo at offset 404) with the KinematicsInfo built from a given DH set. Fault modes send
-truncated, garbage or oversized packets, or nothing.
+truncated, garbage or oversized packets, or nothing, or RobotStates without CartesianInfo.
 """
 
 from __future__ import annotations
@@ -62,6 +62,7 @@ FAULT_MODES: tuple[str, ...] = (
     "short_kinematics",
     "no_kinematics",
     "close",
+    "no_cartesian",
 )
 """Behaviours of :class:`SimUrController` (``normal`` is a healthy controller)."""
 
@@ -87,6 +88,7 @@ def build_robot_state(
     include_kinematics: bool = True,
     kinematics_size: int = 225,
     q_rad: tuple[float, ...] | None = None,
+    include_cartesian: bool = True,
 ) -> bytes:
     """A complete RobotState message (type 16) with the URSim sub-package sequence.
 
@@ -97,12 +99,15 @@ def build_robot_state(
         kinematics_size: Size of the KinematicsInfo sub-package (< 225 makes it truncated, > 225 over-long).
         q_rad: Joint positions to report; Joint data and CartesianInfo (base → flange from the DH FK, zero
             TCP offset) are then filled in, otherwise they are zero-filled.
+        include_cartesian: Leave CartesianInfo out (a fault: the pose a verification needs never arrives).
 
     Returns:
         The framed message (1386 bytes for the default layout).
     """
     subs = []
     for sub_type, size in ROBOT_STATE_LAYOUT:
+        if sub_type == 4 and not include_cartesian:
+            continue
         if sub_type == 5:
             if not include_kinematics:
                 continue
@@ -262,9 +267,11 @@ class SimUrController:
             next_t = time.monotonic()
             tick = 0
             while not self._stop.is_set():
-                if mode == "normal" and self.moving:
+                if mode in ("normal", "no_cartesian") and self.moving:
                     q = tuple(1.5 * math.sin(0.37 * tick + 1.1 * i) for i in range(6))
-                    state = build_robot_state(self.dh, self.calibration_status, q_rad=q)
+                    state = build_robot_state(
+                        self.dh, self.calibration_status, q_rad=q, include_cartesian=mode == "normal"
+                    )
                 tick += 1
                 if not self._send(conn, modbus + state):
                     return
