@@ -1,0 +1,248 @@
+"""Least-squares estimation of kinematic parameters (scipy ``least_squares``), validation and covariance.
+
+Only the identifiable base set (:func:`robocal.core.kinematic_problem.analyse`) is estimated; every other
+parameter stays nominal. Levenberg–Marquardt (``method="lm"``) on vector residuals by default; ``trf`` with a
+Huber loss when outliers are expected, or with a Gaussian prior pulling each parameter towards nominal when
+poses are few. scipy comes with the ``kinematics`` extra and is imported only here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..core.identifiability import Identifiability
+from ..core.kinematic_problem import Measurements, Problem, analyse
+from ..errors import BackendNotAvailableError, UsageError
+
+__all__ = ["FitResult", "PriorSigmas", "fit", "split_validation", "validation_errors"]
+
+FloatArray = NDArray[np.float64]
+
+
+def _least_squares() -> Any:
+    try:
+        from scipy.optimize import least_squares
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise BackendNotAvailableError(
+            "kinematic identification needs scipy: pip install 'robocal[kinematics]'"
+        ) from None
+    return least_squares
+
+
+@dataclass(frozen=True)
+class PriorSigmas:
+    """Prior standard deviations around nominal (a regulariser for few poses).
+
+    Attributes:
+        length_m: For translations and prismatic offsets.
+        angle_rad: For rotations and revolute offsets.
+        noise_m: Expected measurement noise; the prior rows are weighted ``noise_m / σ``.
+    """
+
+    length_m: float = 5e-3
+    angle_rad: float = math.radians(5.0)
+    noise_m: float = 0.5e-3
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """An identification result.
+
+    Attributes:
+        problem: The problem that was solved.
+        identifiability: Rank, base set and the unidentifiable parameters (at the nominal model).
+        theta: ``(n_theta,)`` unknowns after the fit (non-base entries stay at their initial values).
+        sigma: ``(n_theta,)`` one-σ uncertainty of each unknown (NaN for those not estimated).
+        covariance: ``(k, k)`` covariance of the base-set unknowns, in base-set order.
+        x: The full model parameter vector after the fit.
+        train_errors_m: Per-pose error norm on the poses used for the fit (m).
+        nominal_train_errors_m: The same for the nominal model (m).
+        method: scipy method used (``lm`` or ``trf``).
+        loss: ``linear`` or ``huber``.
+        iterations: Function evaluations.
+        success: Whether scipy reports convergence.
+    """
+
+    problem: Problem
+    identifiability: Identifiability
+    theta: FloatArray
+    sigma: FloatArray
+    covariance: FloatArray
+    x: FloatArray
+    train_errors_m: FloatArray
+    nominal_train_errors_m: FloatArray
+    method: str
+    loss: str
+    iterations: int
+    success: bool
+
+
+def _structural_rank(problem: Problem) -> int:
+    """Rank of the model's free parameters with point data from 60 spread configurations."""
+    lo, up = problem.model.chain.limits()
+    lo = np.where(np.isfinite(lo), lo, -math.pi)
+    up = np.where(np.isfinite(up), up, math.pi)
+    q = np.random.default_rng(0).uniform(lo, up, (60, lo.size))
+    data = Measurements("points", q, problem.model.points(q, problem.x_fixed))
+    return analyse(Problem(problem.model, data, problem.free, problem.x_fixed)).rank
+
+
+def _pose_errors(problem: Problem, theta: FloatArray) -> FloatArray:
+    r = problem.residuals(theta)[: 3 * problem.data.n_poses]
+    return np.asarray(np.linalg.norm(r.reshape(-1, 3), axis=1), dtype=np.float64)
+
+
+def fit(
+    problem: Problem,
+    *,
+    huber_m: float | None = None,
+    prior: PriorSigmas | None = None,
+    tolerance: float = 1e-8,
+    restrict: Sequence[int] | None = None,
+) -> FitResult:
+    """Estimate the identifiable unknowns of ``problem``.
+
+    Args:
+        problem: Model, measurements and free parameters.
+        huber_m: Use a Huber loss with this scale (m): residuals beyond it count linearly (robust to outliers).
+        prior: Add a Gaussian prior towards nominal (``trf``).
+        tolerance: Rank tolerance of the identifiability analysis.
+        restrict: Only these ``θ`` indices may be estimated (e.g. a DH-like subset); the base set is then
+            chosen among them.
+
+    Returns:
+        The :class:`FitResult`.
+
+    Raises:
+        UsageError: Too few residuals for the unknowns (names how many poses are needed).
+    """
+    least_squares = _least_squares()
+    theta0 = problem.initial_theta()
+    ident = analyse(problem, theta0, tolerance=tolerance)
+    base = list(ident.base)
+    if restrict is not None:
+        allowed = set(restrict)
+        base = [i for i in base if i in allowed]
+    n_res = problem.residuals(theta0).size
+    if n_res <= len(base):
+        full = _structural_rank(problem)
+        need = (full + 3 * len(problem.group_ids)) // 3 + 2
+        raise UsageError(
+            f"too few poses: {problem.data.n_poses} poses give {n_res} equations, not more than the "
+            f"{len(base)} parameters they could identify (the model has {full}); record at least {need} poses "
+            "(20 or more for a useful result)"
+        )
+    weights = None
+    if prior is not None:
+        is_len = [
+            problem.model.parameters[problem.free[i]].unit == "m" if i < len(problem.free) else True
+            for i in base
+        ]
+        sig = np.array([prior.length_m if m else prior.angle_rad for m in is_len])
+        weights = prior.noise_m / sig
+
+    def fun(t_b: FloatArray) -> FloatArray:
+        t = theta0.copy()
+        t[base] = t_b
+        r = problem.residuals(t)
+        if weights is not None:
+            r = np.concatenate([r, weights * (t_b - theta0[base])])
+        return r
+
+    def jac(t_b: FloatArray) -> FloatArray:
+        t = theta0.copy()
+        t[base] = t_b
+        _, J = problem.residuals_and_jacobian(t)
+        Jb = J[:, base]
+        if weights is not None:
+            Jb = np.concatenate([Jb, np.diag(weights)])
+        return Jb
+
+    method = "trf" if (huber_m is not None or prior is not None) else "lm"
+    loss = "huber" if huber_m is not None else "linear"
+    kwargs: dict[str, Any] = {"method": method, "jac": jac, "x_scale": "jac"}
+    if method == "lm":
+        kwargs.update(xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=100 * (len(base) + 1))
+    else:
+        kwargs.update(loss=loss, f_scale=huber_m or 1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400)
+    sol = least_squares(fun, theta0[base], **kwargs)
+    theta = theta0.copy()
+    theta[base] = sol.x
+    r, J = problem.residuals_and_jacobian(theta)
+    Jb = J[:, base]
+    dof = max(r.size - len(base), 1)
+    s2 = float(r @ r) / dof
+    try:
+        cov = s2 * np.linalg.inv(Jb.T @ Jb)
+    except np.linalg.LinAlgError:
+        cov = np.full((len(base), len(base)), np.nan)
+    sigma = np.full(theta.size, np.nan)
+    sigma[base] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return FitResult(
+        problem=problem,
+        identifiability=ident,
+        theta=theta,
+        sigma=sigma,
+        covariance=cov,
+        x=problem.x_of(theta),
+        train_errors_m=_pose_errors(problem, theta),
+        nominal_train_errors_m=_pose_errors(problem, theta0),
+        method=method,
+        loss=loss,
+        iterations=int(sol.nfev),
+        success=bool(sol.success),
+    )
+
+
+def split_validation(data: Measurements, fraction: float, seed: int = 0) -> tuple[FloatArray, FloatArray]:
+    """Row indices ``(train, validation)``: a seeded random ``fraction`` held out.
+
+    Touch and gauge groups keep at least three training poses each; ``fraction`` 0 holds nothing out.
+    """
+    if not 0.0 <= fraction < 1.0:
+        raise UsageError(f"--validate-fraction must be in [0, 1), got {fraction}")
+    n = data.n_poses
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(n)
+    n_val = round(fraction * n)
+    if data.group is None:
+        val = np.sort(order[:n_val])
+    else:
+        counts = {g: int(np.sum(data.group == g)) for g in data.groups()}
+        chosen: list[int] = []
+        for i in order:
+            if len(chosen) >= n_val:
+                break
+            g = int(data.group[i])
+            if counts[g] > 3:
+                counts[g] -= 1
+                chosen.append(int(i))
+        val = np.sort(np.asarray(chosen, dtype=np.int64))
+    train = np.setdiff1d(np.arange(n), val)
+    return train.astype(np.int64), val.astype(np.int64)
+
+
+def validation_errors(result: FitResult, data: Measurements, x: ArrayLike | None = None) -> FloatArray:
+    """Per-pose error norms (m) of held-out poses under the fitted (or given) parameters.
+
+    Points: distance between the predicted and the measured point. Touch/gauge: distance between the predicted
+    tool point and its group's fitted contact point.
+    """
+    xa = result.x if x is None else np.asarray(x, dtype=np.float64)
+    p = result.problem.model.points(data.q_rad, xa)
+    if data.kind == "points":
+        assert data.p_world_m is not None
+        return np.asarray(np.linalg.norm(p - data.p_world_m, axis=1), dtype=np.float64)
+    assert data.group is not None
+    ids = np.asarray(result.problem.group_ids)
+    unknown = sorted(set(data.groups()) - set(ids.tolist()))
+    if unknown:
+        raise UsageError(f"validation poses touch groups {unknown} that no training pose touched")
+    P = result.problem.points_of(result.theta)
+    return np.asarray(np.linalg.norm(p - P[np.searchsorted(ids, data.group)], axis=1), dtype=np.float64)
