@@ -16,9 +16,10 @@ import pytest
 class SimProcess:
     """A ``robocal sim ...`` child process and the lines it printed at start."""
 
-    def __init__(self, args: list[str], cwd: Path) -> None:
+    def __init__(self, args: list[str], cwd: Path, until: str = "control") -> None:
+        view = [] if args[:1] == ["ur"] else ["--no-view"]
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "robocal", "sim", *args, "--no-view"],
+            [sys.executable, "-m", "robocal", "sim", *args, *view],
             cwd=cwd,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
@@ -28,7 +29,7 @@ class SimProcess:
         self.info: dict[str, str] = {}
         assert self.proc.stdout is not None
         deadline = time.monotonic() + 30
-        while "control" not in self.info:
+        while until not in self.info:
             line = self.proc.stdout.readline()
             if not line:
                 err = self.proc.stderr.read() if self.proc.stderr else ""
@@ -55,8 +56,8 @@ def sim_process(tmp_path: Path) -> Iterator[type[SimProcess]]:
     started: list[SimProcess] = []
 
     class Tracked(SimProcess):
-        def __init__(self, args: list[str], cwd: Path = tmp_path) -> None:
-            super().__init__(args, cwd)
+        def __init__(self, args: list[str], cwd: Path = tmp_path, until: str = "control") -> None:
+            super().__init__(args, cwd, until)
             started.append(self)
 
     yield Tracked

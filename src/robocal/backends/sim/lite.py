@@ -14,14 +14,18 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from collections.abc import Iterable, Mapping
+import threading
+import time
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from ...errors import UsageError
+from .operator import JointView
 from .robstride import SimMotor, SimMotorBus
 
-__all__ = ["LITE_JOINTS", "LiteJoint", "SimLite", "SimOperator", "lite_urdf_text"]
+__all__ = ["LITE_JOINTS", "LiteHands", "LiteJoint", "SimLite", "SimOperator", "lite_urdf_text"]
 
 
 @dataclass(frozen=True)
@@ -157,6 +161,9 @@ class SimLite:
         silent: Joints whose motor never answers.
         channel_prefix: Prefix of the two ``virtual`` channel names (unique per instance by default).
         dt_s: Simulated time per tick.
+        interface: python-can interface of the two buses (``virtual`` by default; ``socketcan`` or
+            ``udp_multicast`` to serve other processes, see ``robocal sim lite``).
+        channels: The channel of ``can0`` and ``can1`` (required with any interface but ``virtual``).
     """
 
     def __init__(
@@ -174,12 +181,19 @@ class SimLite:
         dt_s: float = 0.01,
         skip: Iterable[str] = (),
         short_rad: Mapping[str, float] | None = None,
+        interface: str = "virtual",
+        channels: Mapping[str, str] | None = None,
     ) -> None:
         self.seed = seed
         self.dt_s = dt_s
         self.t_s = 0.0
+        self.interface = interface
         prefix = channel_prefix or f"robocal-sim-lite-{os.getpid()}-{next(_instances)}"
         self.channels = {"can0": f"{prefix}-can0", "can1": f"{prefix}-can1"}
+        if channels is not None:
+            if set(channels) != {"can0", "can1"} or channels["can0"] == channels["can1"]:
+                raise UsageError("the simulated Lite needs two different channels, for can0 and can1")
+            self.channels = dict(channels)
         rng = np.random.default_rng(seed)
         flip = set(flip)
         shifts = dict(stop_shift_rad or {})
@@ -208,16 +222,26 @@ class SimLite:
         silent_ids = {self.motors[n].can_id for n in silent}
         self.buses = {
             bus: SimMotorBus(
-                ch, [self.motors[j.name] for j in LITE_JOINTS if j.bus == bus], silent=silent_ids
+                ch,
+                [self.motors[j.name] for j in LITE_JOINTS if j.bus == bus],
+                silent=silent_ids,
+                interface=interface,
             )
             for bus, ch in self.channels.items()
         }
         self.operator = SimOperator(self, skip=skip, short_rad=short_rad)
 
     def start(self) -> SimLite:
-        """Start answering on both channels."""
-        for b in self.buses.values():
-            b.start()
+        """Start answering on both channels (both or neither: a failure closes the first)."""
+        started: list[SimMotorBus] = []
+        try:
+            for b in self.buses.values():
+                b.start()
+                started.append(b)
+        except BaseException:
+            for b in started:
+                b.stop()
+            raise
         return self
 
     def stop(self) -> None:
@@ -250,6 +274,61 @@ class SimLite:
     def joint_positions(self) -> dict[str, float]:
         """Joint → true joint position, rad."""
         return {n: m.q_rad for n, m in self.motors.items()}
+
+
+class LiteHands:
+    """The hand-movable view of a :class:`SimLite` in real time (a ``HandDevice``; positions in rad, joint frame).
+
+    A motor counts as holding its joint ("torque on") while enabled with a non-zero stiffness, damping or
+    feed-forward torque in its last MIT command; zero-torque polling (what ``robocal sweep`` does) leaves the
+    joints free.
+    """
+
+    unit = "rad"
+    step = 0.05
+
+    def __init__(self, robot: SimLite) -> None:
+        self.robot = robot
+        self.lock = threading.RLock()
+        self._last: dict[str, tuple[float, float]] = {}
+        self._bus_of = {j.name: j.bus for j in LITE_JOINTS}
+
+    def joint_names(self) -> Sequence[str]:
+        """The 14 joints in URDF order."""
+        return [j.name for j in LITE_JOINTS]
+
+    def view(self, name: str) -> JointView:
+        """One joint: position, stops, torque, the motor's reading, its last command, CAN id."""
+        m = self.robot.motors[name]
+        cmd = m.last_command
+        torque = m.mode == 2 and cmd is not None and any(abs(x) > 0 for x in cmd[2:])
+        last = ""
+        if cmd is not None:
+            last = "MIT p={:+.3f} v={:+.2f} kp={:g} kd={:g} t={:+.2f}".format(*cmd)
+        return JointView(
+            name=name,
+            position=m.q_rad,
+            low=m.stop_lower_rad,
+            high=m.stop_upper_rad,
+            mid=0.5 * (m.stop_lower_rad + m.stop_upper_rad),
+            torque=torque,
+            reading=m.reading_rad(noisy=False),
+            last_write=last,
+            last_write_age_s=None,
+            extra={"can_id": m.can_id, "bus": self._bus_of[name], "enabled": m.mode == 2},
+        )
+
+    def place(self, name: str, position: float) -> None:
+        """Move the joint (the stops hold it); its velocity follows from the previous placement."""
+        now = time.monotonic()
+        m = self.robot.motors[name]
+        with self.robot.buses[self._bus_of[name]].lock:
+            before = m.q_rad
+            t0, _ = self._last.get(name, (now, before))
+            m.set_position(position)
+            dt = now - t0
+            m.v_rad_s = (m.q_rad - before) / dt if 0 < dt < 0.5 else 0.0
+        self._last[name] = (now, m.q_rad)
 
 
 def lite_urdf_text() -> str:

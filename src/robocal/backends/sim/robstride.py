@@ -12,7 +12,9 @@ fast as the protocol allows, not in real time.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import socket
 import struct
 import threading
 from collections.abc import Iterable
@@ -21,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ...errors import DeviceError
 from .. import require
 from ..robstride.protocol import (
     FIRMWARE_QUERY,
@@ -212,19 +215,50 @@ class SimMotor:
         return None
 
 
+_IP_MULTICAST_ALL = 49  # Linux: deliver only the groups this socket joined (default: every group on the host)
+_IPV6_MULTICAST_ALL = 29
+
+
+def _only_own_group(bus: Any) -> None:
+    """Keep a udp_multicast channel from hearing the other channels' groups (they share one UDP port).
+
+    Linux delivers a datagram for any multicast group joined on the host to every socket bound to its port;
+    without this, the simulated ``can1`` motors would answer requests sent on ``can0``.
+    """
+    sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
+    if sock is None:
+        return
+    with contextlib.suppress(OSError):
+        if sock.family == socket.AF_INET:
+            sock.setsockopt(socket.IPPROTO_IP, _IP_MULTICAST_ALL, 0)
+        else:
+            sock.setsockopt(socket.IPPROTO_IPV6, _IPV6_MULTICAST_ALL, 0)
+
+
 class SimMotorBus:
     """A thread answering, on one ``virtual`` CAN channel, for every motor in ``motors``.
 
     Args:
-        channel: python-can ``virtual`` channel name (use a unique one per simulated robot).
+        channel: python-can channel (``virtual``: a name unique per simulated robot; ``socketcan``: ``vcan0``;
+            ``udp_multicast``: a multicast group address).
         motors: The simulated motors on this channel.
         silent: CAN ids that never answer (to test timeouts).
+        interface: python-can interface: ``virtual`` (in-process, default), or one shared with other
+            processes (``socketcan`` on a vcan interface, ``udp_multicast``).
 
     Use as a context manager, or call :meth:`start` and :meth:`stop`.
     """
 
-    def __init__(self, channel: str, motors: Iterable[SimMotor], silent: Iterable[int] = ()) -> None:
+    def __init__(
+        self,
+        channel: str,
+        motors: Iterable[SimMotor],
+        silent: Iterable[int] = (),
+        *,
+        interface: str = "virtual",
+    ) -> None:
         self.channel = channel
+        self.interface = interface
         self.motors: dict[int, SimMotor] = {m.can_id: m for m in motors}
         self.silent = set(silent)
         self.lock = threading.Lock()
@@ -235,7 +269,12 @@ class SimMotorBus:
     def start(self) -> SimMotorBus:
         """Open the channel and start answering."""
         can = require("can", "the simulated Robstride bus")
-        self._bus = can.Bus(channel=self.channel, interface="virtual", receive_own_messages=False)
+        try:
+            self._bus = can.Bus(channel=self.channel, interface=self.interface, receive_own_messages=False)
+        except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
+            raise DeviceError(f"cannot open CAN {self.interface}:{self.channel}: {exc}") from None
+        if self.interface == "udp_multicast":
+            _only_own_group(self._bus)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name=f"sim-robstride-{self.channel}", daemon=True)
         self._thread.start()

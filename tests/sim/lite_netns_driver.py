@@ -1,0 +1,64 @@
+"""Run inside a private network namespace: ``robocal sim lite`` on udp_multicast, ``robocal sweep`` against it.
+
+Usage: ``python lite_netns_driver.py WORKDIR SEED``; prints the sweep report's homing offsets as one JSON line.
+The multicast frames stay on the namespace's loopback (the test sets up the namespace and its route).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from conftest import Interactive, SimProcess
+from robocal.backends.sim.control import SimControl
+from robocal.backends.sim.lite import lite_urdf_text
+
+
+def main() -> None:
+    work, seed = Path(sys.argv[1]), sys.argv[2]
+    (work / "lite.urdf").write_text(lite_urdf_text())
+    sim = SimProcess(["lite", "--interface", "udp_multicast", "--seed", seed], work)
+    try:
+        source = sim.info["source"]
+        sweep = Interactive(
+            [
+                sys.executable,
+                "-m",
+                "robocal",
+                "sweep",
+                "--urdf",
+                "lite.urdf",
+                "--source",
+                source,
+                "--out",
+                "cal.yaml",
+                "--report",
+                "report.json",
+            ],
+            work,
+        )
+        with SimControl(sim.info["control"]) as ctl:
+            deadline = time.monotonic() + 30
+            while not all(j["last_write"].startswith("MIT") for j in ctl.state().values()):
+                assert time.monotonic() < deadline, "the sweep never polled every motor"
+                assert sweep.proc.poll() is None, sweep.text()
+                time.sleep(0.1)
+            ctl.sweep(seconds=3.0, dwell_s=0.3)
+            time.sleep(0.3)
+        sweep.proc.send_signal(signal.SIGINT)  # first Ctrl-C: finish and write
+        code, out = sweep.finish()
+        report = json.loads((work / "report.json").read_text())
+        offsets = {n: j["homing_offset"] for n, j in report["joints"].items()}
+        print(json.dumps({"code": code, "source": source, "offsets": offsets, "output": out[-2000:]}))
+    finally:
+        code, err = sim.stop()
+        assert code == 0, err
+
+
+if __name__ == "__main__":
+    main()
