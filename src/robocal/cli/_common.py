@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from rich.console import Console
+from rich.table import Table
 
 from ..errors import UsageError
 
@@ -14,9 +16,32 @@ EXIT_WARNINGS = 1
 EXIT_BAD_INPUT = 2
 EXIT_DEVICE = 3
 
-console = Console(highlight=False, soft_wrap=True)
+
+class FitConsole(Console):
+    """A console that, when it is not a terminal (piped, CI), prints tables at their full width.
+
+    rich lays out for 80 columns without a terminal and cuts cells (``left_s…``); a log must keep whole names.
+    On a terminal the terminal's width is used as usual.
+    """
+
+    def print(self, *objects: Any, **kwargs: Any) -> None:
+        tables = [o for o in objects if isinstance(o, Table)]
+        if not tables or self.is_terminal:
+            super().print(*objects, **kwargs)
+            return
+        wide = self.options.update_width(1 << 16)
+        need = max(self.measure(t, options=wide).maximum for t in tables)
+        saved = self._width
+        self.width = max(need, self.width)  # rich caps print(width=) at the console's width
+        try:
+            super().print(*objects, **kwargs)
+        finally:
+            self._width = saved
+
+
+console = FitConsole(highlight=False, soft_wrap=True)
 """Standard output console for results."""
-err_console = Console(stderr=True, highlight=False, soft_wrap=True)
+err_console = FitConsole(stderr=True, highlight=False, soft_wrap=True)
 """Standard error console for warnings and progress."""
 
 

@@ -46,6 +46,7 @@ __all__ = [
     "analyse_sweep",
     "bisect_homing_offset",
     "direction_from_motion",
+    "explain_warning",
     "wrap_in_travel",
 ]
 
@@ -274,6 +275,7 @@ class JointSweep:
         previous_homing_offset: The prior offset, or ``None``.
         kept_prior: True when the prior offset was kept because the joint was not swept.
         warnings: Warning codes, in :data:`WARNING_CODES` order.
+        zero_sta: Power-on range of the motor (0: ``[0, 2π)``, 1: ``[−π, π)``), for :func:`explain_warning`.
     """
 
     name: str
@@ -288,6 +290,7 @@ class JointSweep:
     previous_homing_offset: float | None
     kept_prior: bool
     warnings: tuple[str, ...]
+    zero_sta: int = 0
 
     @property
     def status(self) -> str:
@@ -360,9 +363,82 @@ class SweepResult:
         """Joint name → homing offset to write (joints without one are left out), motor frame, rad."""
         return {j.name: j.homing_offset for j in self.joints if j.has_offset}
 
+    def explain(self, name: str, code: str) -> str:
+        """One sentence for joint ``name``'s warning ``code``, with the measured numbers and the next step."""
+        return explain_warning(self[name], code, self.threshold_rad, self.span_tolerance_rad)
+
     def to_report(self) -> dict[str, Any]:
         """The report: ``{"joints": {name: {sampled_min, sampled_max, sweep, homing_offset, ...}}}``."""
         return {"joints": {j.name: j.to_report() for j in self.joints}}
+
+
+def explain_warning(
+    joint: JointSweep,
+    code: str,
+    threshold_rad: float = DEFAULT_THRESHOLD_RAD,
+    span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
+) -> str:
+    """One short sentence for a warning code: what was measured (numbers in rad) and what to do next.
+
+    Args:
+        joint: The joint's sweep outcome.
+        code: One of :data:`WARNING_CODES`.
+        threshold_rad: The not-swept threshold that was used, rad.
+        span_tolerance_rad: The span tolerance that was used, rad.
+
+    Returns:
+        The sentence, without the joint name or the code (callers print ``JOINT: code: sentence``).
+    """
+    j = joint
+    if code == "not_swept":
+        if j.kept_prior and j.previous_homing_offset is not None:
+            kept = f"the prior offset {j.previous_homing_offset:+.4f} rad was kept"
+        else:
+            kept = "there is no offset for it"
+        return (
+            f"swept only {j.sweep:.3f} rad (threshold {threshold_rad:g} rad), so {kept}; "
+            "move it into both stops and sweep again"
+        )
+    if code == "no_overlap":
+        return (
+            f"sampled range [{j.sampled_min:+.3f}, {j.sampled_max:+.3f}] rad does not overlap the URDF limits "
+            f"[{j.lower:+.3f}, {j.upper:+.3f}] rad; its URDF direction is probably flipped: "
+            "check it with --direction-check"
+        )
+    if code == "span_mismatch":
+        diff = j.sweep - j.span
+        return (
+            f"swept {j.sweep:.3f} rad but the URDF span is {j.span:.3f} rad ({diff:+.3f} rad, tolerance "
+            f"{span_tolerance_rad:g} rad); push it fully into both stops and sweep again, or correct the "
+            "URDF limits"
+        )
+    if code == "offset_large":
+        return (
+            f"homing_offset {j.homing_offset:+.3f} rad is beyond ±π; check the URDF limits and direction, "
+            "then sweep again"
+        )
+    if code == "wrap_in_travel":
+        h, d = j.homing_offset, j.direction
+        a = h + min(d * j.lower, d * j.upper)
+        b = h + max(d * j.lower, d * j.upper)
+        w = math.pi if j.zero_sta == 1 else 0.0
+        k = math.floor((a - w) / TWO_PI) + 1.0
+        return (
+            f"its raw travel [{a:+.3f}, {b:+.3f}] rad contains the power-on wrap point {w + k * TWO_PI:+.3f} rad, "
+            "so after a power cycle it can read 2π off; nothing to redo: the runtime robot and "
+            "`robocal check --source` pick the turn inside the limits"
+        )
+    if code == "direction_flipped":
+        return (
+            "moved toward − when asked to move toward its + limit during the direction check; "
+            f"flip its URDF direction (now {j.direction:+d}) and sweep again"
+        )
+    if code == "direction_unknown":
+        return (
+            "did not move 0.1 rad within the direction check's time, so its direction was NOT verified; "
+            "rerun with --direction-check (and a longer --direction-time) and move it toward its + limit"
+        )
+    return code
 
 
 def _vec(x: npt.ArrayLike, n: int, what: str) -> FloatArray:
@@ -466,6 +542,7 @@ def analyse_sweep(
                 previous_homing_offset=prev_f,
                 kept_prior=kept,
                 warnings=tuple(c for c in WARNING_CODES if c in warnings),
+                zero_sta=int(zs[i]),
             )
         )
     return SweepResult(tuple(joints), float(threshold_rad), float(span_tolerance_rad))
