@@ -18,7 +18,7 @@ from rich.live import Live
 from rich.table import Table
 
 from ..core.sweep import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
-from ..workflows.sweep import DEFAULT_DIRECTION_STEP_S, SweepSession, run_sweep
+from ..workflows.sweep import DEFAULT_DIRECTION_STEP_S, SweepNotSavedError, SweepSession, run_sweep
 from . import _common
 
 STATUS_STYLE = {"ok": "green", "not_swept": "yellow", "sweeping": "cyan"}
@@ -217,6 +217,24 @@ def _enter_finishes(stop: threading.Event) -> Iterator[None]:
     yield
 
 
+@contextlib.contextmanager
+def _not_lost() -> Iterator[None]:
+    """When the sweep's calibration could not be saved, show it (table, warnings, the file's text) first."""
+    try:
+        yield
+    except SweepNotSavedError as exc:
+        _common.console.print(result_table(exc.result))
+        print_warnings(exc.result)
+        if exc.calibration_text.strip() not in ("", "{}"):
+            _common.err_console.print(
+                f"the sweep's calibration was NOT saved; here it is ({exc.fmt}, on standard output):",
+                markup=False,
+            )
+            sys.stdout.write(exc.calibration_text)
+            sys.stdout.flush()
+        raise
+
+
 def sweep(
     urdf: Annotated[Path, typer.Option("--urdf", help="URDF with <ros2_control> joint params.")],
     source: Annotated[
@@ -260,7 +278,11 @@ def sweep(
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     stop = threading.Event()
-    with _enter_finishes(stop), LiveView(threshold_rad=threshold, span_tolerance_rad=span_tolerance) as view:
+    with (
+        _not_lost(),
+        _enter_finishes(stop),
+        LiveView(threshold_rad=threshold, span_tolerance_rad=span_tolerance) as view,
+    ):
         outcome = run_sweep(
             urdf,
             source,

@@ -40,8 +40,13 @@ from ..core.sweep import (
     analyse_sweep,
     direction_from_motion,
 )
-from ..errors import CalibError, FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
-from ..fileio import atomic_write_text, read_text
+from ..errors import (
+    CalibError,
+    FileFormatError,
+    JointMismatchError,
+    UsageError,
+)
+from ..fileio import atomic_write_text, check_output_path, read_text
 from ..formats import CalibrationFile, read_calibration, write_calibration
 from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
@@ -51,6 +56,7 @@ __all__ = [
     "OUTPUT_FORMATS",
     "BranchCheck",
     "SweepAbortedError",
+    "SweepNotSavedError",
     "SweepOutcome",
     "SweepSession",
     "SweepView",
@@ -69,6 +75,58 @@ class SweepAbortedError(CalibError):
     """A second Ctrl-C aborted the sweep; nothing was written (exit 130)."""
 
     exit_code = 130
+
+
+class SweepNotSavedError(CalibError):
+    """The sweep finished but its calibration was not saved; the computed offsets travel with the error.
+
+    Raised when a file cannot be written at the end (disk full, folder made read-only during the sweep...)
+    or when a joint has no offset at all. The CLI prints :attr:`calibration_text` so that nothing the person
+    did is lost: save it as the calibration (or pass it as ``--prior`` to the next sweep).
+
+    Attributes:
+        result: The sweep's offsets and diagnostics.
+        calibration_text: The joints that have an offset, in the output format (the file that would have
+            been written, without the existing file's other joints and comments).
+        fmt: That format.
+        written: Files that were written before the failure (the report, when the calibration failed).
+    """
+
+    exit_code = 2
+
+    def __init__(
+        self,
+        message: str,
+        result: SweepResult,
+        calibration_text: str,
+        fmt: str,
+        written: Sequence[Path] = (),
+    ) -> None:
+        super().__init__(message)
+        self.result = result
+        self.calibration_text = calibration_text
+        self.fmt = fmt
+        self.written = tuple(written)
+
+
+def calibration_text(result: SweepResult, joints: Sequence[JointSpec], fmt: str) -> str:
+    """The joints of ``result`` that have an offset as a ``lite-yaml`` or ``lite-json`` document.
+
+    Offsets are written with ``repr`` (every digit), so the text read back gives the same numbers.
+    """
+    entries = {
+        j.name: {"id": j.can_id, "direction": j.direction, "homing_offset": result[j.name].homing_offset}
+        for j in joints
+        if result[j.name].has_offset
+    }
+    if fmt == "lite-json":
+        return json.dumps(entries, indent=4) + "\n"
+    lines = []
+    for name, e in entries.items():
+        key = name if name.replace("_", "").isalnum() else json.dumps(name)
+        lines += [f"{key}:", f"  id: {e['id']}", f"  direction: {e['direction']}"]
+        lines.append(f"  homing_offset: {float(e['homing_offset'])!r}")
+    return "\n".join(lines) + "\n"
 
 
 def joints_from_urdf(
@@ -337,11 +395,8 @@ def _check_number(value: float, flag: str) -> float:
 
 
 def _check_writable(path: Path, flag: str) -> None:
-    folder = path.parent
-    if path.is_dir() or not folder.is_dir():
-        raise UsageError(f"{flag} {path}: expected a file in an existing folder")
-    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise UsageError(f"{flag} {path}: permission denied (cannot write there)")
+    """Refuse, before the sweep starts, an output the end of the sweep could not write (a real probe)."""
+    check_output_path(path, flag)
 
 
 def _existing_output(
@@ -577,9 +632,13 @@ def _write(
     missing = [j for j in result.joints if not j.has_offset]
     if missing:
         detail = ", ".join(f"{j.name} (swept {j.sweep:.3f} rad)" for j in missing)
-        raise InvalidCalibrationError(
+        raise SweepNotSavedError(
             f"not swept and no prior offset: {detail}; threshold {result.threshold_rad:g} rad. "
-            "Sweep them or pass --prior FILE; nothing was written"
+            "Sweep them or pass --prior FILE; nothing was written (the offsets of the other joints are "
+            "printed above: save them and pass them as --prior to the next sweep)",
+            result,
+            calibration_text(result, joints, fmt),
+            fmt,
         )
     # the URDF joints (id and direction copied from the URDF), in the existing file's order, which keeps its
     # other joints unchanged; new joints go last
@@ -595,12 +654,26 @@ def _write(
     cal = RobotCalibration(list(rows), [r[0] for r in rows.values()], [r[1] for r in rows.values()])
     ids = {n: r[2] for n, r in rows.items() if r[2] > 0}
     text = json.dumps(result.to_report(), indent=2) + "\n" if report is not None else ""
+    written: list[Path] = []
     try:  # the report first, the calibration last: an interrupted write never leaves a calibration behind
         if report is not None:  # without the report that describes it
             atomic_write_text(report, text)
+            written.append(report)
         write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf, robot=profile)
-    except OSError as exc:
-        raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") from None
+    except (CalibError, OSError) as exc:
+        if isinstance(exc, OSError):
+            reason = f"cannot write {exc.filename or out}: {exc.strerror or exc}"
+        else:
+            reason = str(exc)
+        done = f"{written[0]} was written; " if written else ""
+        raise SweepNotSavedError(
+            f"{reason}; {done}{out} was NOT written (unchanged). The computed calibration is printed above: "
+            f"save it as a {fmt} file so the sweep is not lost",
+            result,
+            calibration_text(result, joints, fmt),
+            fmt,
+            written,
+        ) from None
 
 
 # ------------------------------------------------------------------------------------------ power-on check
