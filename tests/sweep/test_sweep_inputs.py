@@ -155,16 +155,22 @@ def test_urdf_ids_checked_before_sampling(
 def test_unwritable_out_folder_is_refused_up_front(
     urdf: Path, tmp_path: Path, capsys: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import os
+    import robocal.fileio as fileio
 
     rec = _full_sweep(tmp_path)
     locked = tmp_path / "locked"
     locked.mkdir()
-    real = os.access
-    monkeypatch.setattr(os, "access", lambda p, m: False if Path(p) == locked else real(p, m))
+    real = fileio.tempfile.mkstemp
+
+    def mkstemp(*a: Any, **k: Any) -> Any:  # the preflight's probe file meets a folder it may not write in
+        if Path(str(k.get("dir", ""))) == locked:
+            raise PermissionError(13, "Permission denied")
+        return real(*a, **k)
+
+    monkeypatch.setattr(fileio.tempfile, "mkstemp", mkstemp)
     out = locked / "c.yaml"
     rc, err = _run(["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out)], capsys)
-    assert rc == 2 and "permission denied" in _one_error(err) and not out.exists()
+    assert rc == 2 and "permission denied" in _one_error(err).lower() and not out.exists()
 
 
 def test_write_failure_is_one_error_line(
@@ -181,7 +187,11 @@ def test_write_failure_is_one_error_line(
     rc, err = _run(
         ["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(tmp_path / "c.yaml")], capsys
     )
-    assert rc == 2 and _one_error(err) == f"error: cannot write {tmp_path / 'c.yaml'}: Permission denied"
+    out = tmp_path / "c.yaml"
+    assert rc == 2 and _one_error(err) == (
+        f"error: cannot write {out}: Permission denied; {out} was NOT written (unchanged). The computed "
+        "calibration is printed above: save it as a lite-yaml file so the sweep is not lost"
+    )
 
 
 def test_recording_with_absurd_position(urdf: Path, tmp_path: Path, capsys: Any) -> None:

@@ -120,6 +120,8 @@ def test_live_view_explains_a_warning_as_soon_as_it_shows(urdf: Path, tmp_path: 
     pos = np.zeros((2, n))
     k = h.names.index(ELBOW)
     pos[:, k] = [0.5, 2.856]  # identity frame: entirely above the elbow's URDF range [-2.356, 0]
+    w = h.names.index("left_wrist_yaw")  # [-1.571, 1.571], offset +0.5 with zero_sta 0: wrap_in_travel at
+    pos[:, w] = [-1.071, 2.071]  # the end, but the live view does not guess it from a moving estimate
     session = SweepSession(ReplaySource(h.names, np.array([0.0, 0.01]), pos, "identity"), joints)
     session.step()
     con = Console(record=True, width=200, force_terminal=True)

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import math
+import queue
 import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -18,12 +19,19 @@ from rich.live import Live
 from rich.table import Table
 
 from ..core.sweep import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
-from ..workflows.sweep import DEFAULT_DIRECTION_STEP_S, SweepNotSavedError, SweepSession, run_sweep
+from ..workflows.sweep import (
+    CONFIRM_CODES,
+    DEFAULT_DIRECTION_STEP_S,
+    SweepNotSavedError,
+    SweepSession,
+    run_sweep,
+)
 from . import _common
 
 STATUS_STYLE = {"ok": "green", "not_swept": "yellow", "sweeping": "cyan"}
-LIVE_WARNINGS = ("no_overlap", "offset_large", "wrap_in_travel")
-"""Warnings the live view explains as soon as a joint shows them (the others need the finished sweep)."""
+LIVE_WARNINGS = ("no_overlap", "offset_large")
+"""Warnings the live view explains as soon as a joint shows them: a flipped direction or a wrong URDF shows
+early. The others need the finished sweep (wrap_in_travel depends on the final offset and on ``zero_sta``)."""
 DEMO_SOURCE = "sim:lite?seed=8"
 """The demo's simulated robot (a seed whose sweep raises no warning, so the demo exits 0 like a clean sweep)."""
 
@@ -118,7 +126,7 @@ class LiveView:
         return t
 
     def live_notes(self, session: SweepSession) -> list[str]:
-        """``JOINT: code: sentence`` for warnings a joint shows already (no_overlap, offset_large, wrap_in_travel)."""
+        """``JOINT: code: sentence`` for warnings a swept joint shows already (no_overlap, offset_large)."""
         swept = session.tracker.sweep >= self.threshold_rad
         if not swept.any():
             return []
@@ -171,7 +179,8 @@ class LiveView:
             )
 
     def finish(self, result: SweepResult) -> None:
-        """Nothing more to draw here (the command prints the summary after writing)."""
+        """Stop the live table (a confirmation prompt may follow; the command prints the summary)."""
+        self.__exit__(None, None, None)
 
 
 def result_table(result: SweepResult) -> Table:
@@ -201,20 +210,126 @@ def result_table(result: SweepResult) -> Table:
     return t
 
 
-@contextlib.contextmanager
-def _enter_finishes(stop: threading.Event) -> Iterator[None]:
-    """On a terminal, a line on standard input (Enter) sets ``stop``."""
-    if not sys.stdin.isatty():
-        yield
-        return
+class StdinLines:
+    """The one reader of standard input on a terminal: a thread puts each line in a queue.
 
-    def wait() -> None:
-        with contextlib.suppress(Exception):
-            sys.stdin.readline()
-            stop.set()
+    During the sweep the first line (Enter) sets ``stop``; afterwards the confirmation prompt takes the lines
+    from the same queue, so no thread left blocked in ``readline`` swallows the person's answer.
+    """
 
-    threading.Thread(target=wait, name="robocal-enter", daemon=True).start()
-    yield
+    def __init__(self, stop: threading.Event) -> None:
+        self.stop = stop
+        self.lines: queue.Queue[str | None] = queue.Queue()
+        self.prompting = False
+        threading.Thread(target=self._run, name="robocal-stdin", daemon=True).start()
+
+    def _run(self) -> None:
+        while True:
+            try:
+                line = sys.stdin.readline()
+            except Exception:
+                line = ""
+            if not line:
+                self.lines.put(None)  # end of input
+                return
+            if self.prompting:
+                self.lines.put(line)
+            else:
+                self.stop.set()  # Enter during the sweep: finish
+
+    def ask(self, question: str) -> str | None:
+        """Print ``question`` and wait for a line (None at end of input); Ctrl-C stays possible while waiting."""
+        self.prompting = True
+        _common.console.print(question, end="", markup=False)
+        sys.stdout.flush()
+        while True:
+            try:
+                line = self.lines.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            return None if line is None else line.strip()
+
+
+def _stdin_is_terminal() -> bool:
+    try:
+        return sys.stdin.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def _terminal() -> bool:
+    """Whether a person is at a terminal (standard input and output both TTYs)."""
+    try:
+        return sys.stdin.isatty() and sys.stdout.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def confirm_table(result: SweepResult, names: Sequence[str]) -> Table:
+    """Old vs new offset of the joints whose change needs a yes, with the warning that makes it doubtful."""
+    t = Table(title="these joints have a warning; replace their previous offset? (rad, motor frame)")
+    for col in ("joint", "previous", "new", "change", "warning"):
+        t.add_column(col, justify="left" if col in ("joint", "warning") else "right")
+    for name in names:
+        j = result[name]
+        prev = float(j.previous_homing_offset) if j.previous_homing_offset is not None else math.nan
+        t.add_row(
+            name,
+            f"{prev:+.4f}",
+            f"{j.homing_offset:+.4f}",
+            f"{j.homing_offset - prev:+.4f}",
+            ", ".join(c for c in j.warnings if c in CONFIRM_CODES),
+        )
+    return t
+
+
+ANSWERS = {
+    "y": "yes",
+    "yes": "yes",
+    "n": "no",
+    "no": "no",
+    "": "no",
+    "a": "all",
+    "all": "all",
+    "none": "none",
+}
+
+
+def make_confirm(lines: StdinLines) -> Callable[[SweepResult, Sequence[str]], set[str]]:
+    """The terminal prompt: show old vs new, then ask per joint (y / n, or all / none for the rest)."""
+
+    def confirm(result: SweepResult, names: Sequence[str]) -> set[str]:
+        con = _common.console
+        con.print(confirm_table(result, names))
+        for name in names:
+            for code in result[name].warnings:
+                if code in CONFIRM_CODES:
+                    _common.print_warning(f"{name}: {code}: {result.explain(name, code)}")
+        accepted: set[str] = set()
+        for k, name in enumerate(names):
+            j = result[name]
+            question = (
+                f"{name}: replace {j.previous_homing_offset:+.4f} with {j.homing_offset:+.4f} rad? "
+                "[y]es / [n]o, keep it (default) / [a]ll / none: "
+            )
+            while True:
+                line = lines.ask(question)
+                answer = "none" if line is None else ANSWERS.get(line.lower())
+                if answer is not None:
+                    break
+                con.print("please answer y, n, all or none", markup=False)
+            if answer == "yes":
+                accepted.add(name)
+            elif answer in ("all", "none"):
+                if answer == "all":
+                    accepted.update(names[k:])
+                break
+        kept = [n for n in names if n not in accepted]
+        if kept:
+            con.print(f"keeping the previous offset of {', '.join(kept)}", markup=False)
+        return accepted
+
+    return confirm
 
 
 @contextlib.contextmanager
@@ -275,12 +390,22 @@ def sweep(
             help="Robot profile: built-in name or profile YAML (docs/profiles.md). Default: the URDF's robot.",
         ),
     ] = None,
+    yes: Annotated[
+        bool,
+        typer.Option(
+            "--yes",
+            "-y",
+            help="Write every new offset without asking (on a terminal, a changed offset of a joint with a "
+            "span_mismatch, no_overlap or offset_large warning is otherwise asked about).",
+        ),
+    ] = False,
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     stop = threading.Event()
+    lines = StdinLines(stop) if _stdin_is_terminal() else None  # Enter finishes the sweep
+    confirm = make_confirm(lines) if lines is not None and _terminal() and not yes else None
     with (
         _not_lost(),
-        _enter_finishes(stop),
         LiveView(threshold_rad=threshold, span_tolerance_rad=span_tolerance) as view,
     ):
         outcome = run_sweep(
@@ -299,6 +424,7 @@ def sweep(
             view=view,
             stop=stop,
             robot=robot,
+            confirm=confirm,
         )
     _common.console.print(result_table(outcome.result))
     print_warnings(outcome.result)

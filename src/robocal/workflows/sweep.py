@@ -13,8 +13,8 @@ import math
 import os
 import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Protocol
 
@@ -52,6 +52,7 @@ from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 
 __all__ = [
+    "CONFIRM_CODES",
     "DEFAULT_DIRECTION_STEP_S",
     "OUTPUT_FORMATS",
     "BranchCheck",
@@ -60,9 +61,11 @@ __all__ = [
     "SweepOutcome",
     "SweepSession",
     "SweepView",
+    "changes_to_confirm",
     "check_source",
     "check_source_options",
     "joints_from_urdf",
+    "keep_prior",
     "run_direction_check",
     "run_sweep",
 ]
@@ -75,6 +78,40 @@ class SweepAbortedError(CalibError):
     """A second Ctrl-C aborted the sweep; nothing was written (exit 130)."""
 
     exit_code = 130
+
+
+CONFIRM_CODES = ("span_mismatch", "no_overlap", "offset_large")
+"""Warnings that make a changed offset need the person's yes before it replaces the prior one."""
+
+ConfirmFn = Callable[[SweepResult, Sequence[str]], Collection[str]]
+"""``confirm(result, joints) -> accepted``: asks about ``joints`` and returns those whose new offset to write."""
+
+
+def changes_to_confirm(result: SweepResult) -> list[str]:
+    """Joints whose finished sweep would replace a prior offset while they carry a :data:`CONFIRM_CODES` warning.
+
+    A half-finished sweep (one Enter or Ctrl-C too early) gives ``span_mismatch`` offsets; written silently
+    they would replace a good calibration.
+    """
+    return [
+        j.name
+        for j in result.joints
+        if j.previous_homing_offset is not None
+        and not j.kept_prior
+        and any(c in CONFIRM_CODES for c in j.warnings)
+        and abs(j.homing_offset - j.previous_homing_offset) > 1e-12
+    ]
+
+
+def keep_prior(result: SweepResult, names: Collection[str]) -> SweepResult:
+    """``result`` with the prior offset kept (``kept_prior`` True) for the joints ``names`` (declined changes)."""
+    joints = tuple(
+        replace(j, homing_offset=float(j.previous_homing_offset), kept_prior=True)
+        if j.name in names and j.previous_homing_offset is not None
+        else j
+        for j in result.joints
+    )
+    return replace(result, joints=joints)
 
 
 class SweepNotSavedError(CalibError):
@@ -455,6 +492,7 @@ def run_sweep(
     max_samples: int | None = None,
     open_source_fn: Callable[..., Source] | None = None,
     robot: str | os.PathLike[str] | RobotProfile | None = None,
+    confirm: ConfirmFn | None = None,
 ) -> SweepOutcome:
     """Run a whole sweep calibration and write the calibration file (and report).
 
@@ -478,6 +516,10 @@ def run_sweep(
         robot: Robot profile (name, path or profile); default: the built-in robot the URDF's joint names match.
             Gives directions and CAN ids the URDF lacks, the default output format and the joint order of
             ``berkeley-offsets``.
+        confirm: Asked, before anything is written, about the joints of :func:`changes_to_confirm` (a prior
+            offset would be replaced while the joint has a span_mismatch, no_overlap or offset_large warning);
+            returns the joints whose new offset to write, the others keep their prior offset. None (no
+            terminal, ``--yes``): every new offset is written.
 
     Returns:
         The :class:`SweepOutcome`.
@@ -584,6 +626,10 @@ def run_sweep(
             )
             if view is not None:
                 view.finish(result)
+            risky = changes_to_confirm(result) if confirm is not None else []
+            if confirm is not None and risky:
+                accepted = set(confirm(result, tuple(risky)))
+                result = keep_prior(result, {n for n in risky if n not in accepted})
             _write(result, urdf, joints, out_path, fmt, report_path, existing, profile)
         except KeyboardInterrupt:
             raise SweepAbortedError(_aborted_message(before, out_path, report_path)) from None
