@@ -135,9 +135,11 @@ def test_convert_lerobot_legacy_degree_exact(tmp_path: Path, capsys: pytest.Capt
     linear = json.loads(src.read_text())
     linear["calib_mode"][2] = "LINEAR"
     src.write_text(json.dumps(linear))
-    assert main(["convert", str(src), str(tmp_path / "y.yaml"), "--to", "robocal"]) == 2
-    assert "LINEAR motor(s) c" in capsys.readouterr().err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["legacy.json", "map.yaml"]
+    # issue #15: the DEGREE motors are converted, the LINEAR one is named and left out (exit 1, warnings)
+    assert main(["convert", str(src), str(tmp_path / "y.yaml"), "--to", "robocal"]) == 1
+    assert "LINEAR motor(s) c left out" in capsys.readouterr().err
+    assert read_calibration(tmp_path / "y.yaml").calibration.joint_names == ("a", "b")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["legacy.json", "map.yaml", "y.yaml"]
 
 
 def test_stray_ctrl_c_is_one_error_line(capsys: pytest.CaptureFixture[str]) -> None:

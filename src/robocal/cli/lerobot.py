@@ -70,6 +70,16 @@ def _interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") 
     return typer.Exit(130)
 
 
+def _range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[str]:
+    """Print (and return) one warning per motor whose range lies beyond one turn (LeRobot accepts those)."""
+    from ..core.lerobot import ranges_beyond_one_turn
+
+    found = ranges_beyond_one_turn(cals, vendor=spec.vendor)
+    for w in found:
+        _common.print_warning(w)
+    return found
+
+
 def _status(message: str) -> None:
     """One plain status line on standard error (e.g. while the EEPROM is being restored)."""
     sys.stderr.write(message + "\n")
@@ -235,6 +245,7 @@ def calibrate(
     path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file)
     if use_file:
         cals = read_calibration(path)
+        beyond = _range_warnings(spec, cals)
         with _arm_bus(spec, port) as (bus, _arm):
             try:
                 restore(bus, spec, cals, on_status=_status)  # type: ignore[arg-type]
@@ -242,7 +253,7 @@ def calibrate(
                 raise _interrupted(exc, "the motors' previous EEPROM was written back") from None
         _print_calibration(cals)
         _common.console.print(f"wrote {path} to the motors")
-        raise typer.Exit(_common.EXIT_OK)
+        raise typer.Exit(_common.exit_code_for(beyond))
     update, close = _sweep_renderer()
     with _arm_bus(spec, port) as (bus, arm):
         if arm is not None:
@@ -353,13 +364,14 @@ def check(
     spec = _spec(robot)
     path = _cal_file(spec, robot_id, calibration_dir, file)
     cals = read_calibration(path)
+    beyond = _range_warnings(spec, cals)
     with _arm_bus(spec, port) as (bus, _arm):
         diffs = run(bus, spec, cals)  # type: ignore[arg-type]
     for d in diffs:
         _common.console.print(f"differs: {d}")
     if not diffs:
         _common.console.print(f"EEPROM matches {path}")
-    raise typer.Exit(_common.EXIT_WARNINGS if diffs else _common.EXIT_OK)
+    raise typer.Exit(_common.EXIT_WARNINGS if diffs or beyond else _common.EXIT_OK)
 
 
 @app.command()
@@ -392,12 +404,20 @@ def migrate(
         _common.console.print(f"wrote {out}")
     else:
         _common.console.print(dumps_current(cals), markup=False)
-    _common.console.print(
-        "old SO-100/SO-101 datasets (legacy degrees) → current DEGREES, LeRobot's documented transform: "
-        "key = name.removeprefix('main_') + '.pos'; shoulder_lift_new = -(old - 90); "
-        "elbow_flex_new = old - 90; other joints unchanged",
-        markup=False,
-    )
+    if vendor == "feetech":  # the SO-100/SO-101 family (Feetech); Koch arms are Dynamixel
+        _common.console.print(
+            "old SO-100/SO-101 datasets (legacy degrees) → current DEGREES, LeRobot's documented transform: "
+            "key = name.removeprefix('main_') + '.pos'; shoulder_lift_new = -(old - 90); "
+            "elbow_flex_new = old - 90; other joints unchanged",
+            markup=False,
+        )
+    else:
+        _common.console.print(
+            "old Koch datasets (legacy degrees): LeRobot documents no value transform for Koch arms (its "
+            "documented one is for SO-100/SO-101 only); key = name.removeprefix('main_') + '.pos'; convert the "
+            "values exactly with `robocal dataset recalibrate --old LEGACY.json --new CURRENT.json`",
+            markup=False,
+        )
     for w in warnings:
         _common.print_warning(w)
     raise typer.Exit(_common.exit_code_for(warnings))
@@ -428,6 +448,7 @@ def show(
     missing = [n for n in spec.motor_names if n not in cals]
     if missing:
         raise UsageError(f"calibration has no entry for motor(s) {', '.join(missing)}")
+    _range_warnings(spec, cals)
     order = [cals[n] for n in spec.motor_names]
     modes = list(_modes(spec, use_degrees, modes_opt))
     ids = [m.motor_id for m in spec.motors]
@@ -489,6 +510,7 @@ def export_urdf(
             raise UsageError(f"--offset-deg {k}={v}: expected a number of degrees") from None
     modes = _modes(spec, use_degrees, modes_opt)
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
+    beyond = _range_warnings(spec, cals)
     rc, skipped = export_joint_map(
         spec,
         cals,
@@ -503,7 +525,7 @@ def export_urdf(
     _common.console.print(f"wrote {out} ({len(rc.joint_names)} joints)")
     if skipped:
         _common.print_warning(f"not exported (range modes, no angle): {', '.join(skipped)}")
-    raise typer.Exit(_common.exit_code_for(skipped))
+    raise typer.Exit(_common.exit_code_for([*skipped, *beyond]))
 
 
 def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:

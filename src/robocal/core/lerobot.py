@@ -18,7 +18,7 @@ Two independent choices:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -48,6 +48,7 @@ __all__ = [
     "legacy_calibration_from_poses",
     "nearest_rounded_position",
     "normalize_array",
+    "ranges_beyond_one_turn",
     "revert_legacy",
     "unnormalize_array",
 ]
@@ -112,6 +113,44 @@ class MotorCalibration:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise InvalidCalibrationError(f"MotorCalibration.{field} is {value!r}; expected an int")
             object.__setattr__(self, field, int(value))
+
+
+def ranges_beyond_one_turn(
+    cals: Mapping[str, MotorCalibration], *, resolution: int = 4096, vendor: str = "feetech"
+) -> list[str]:
+    """One warning per motor whose ``range_min..range_max`` lies outside one turn ``0..resolution − 1``.
+
+    A single-turn servo (Feetech STS/SMS; Dynamixel X in position mode) never reports a Present_Position
+    outside ``0..resolution − 1``, and its Min/Max_Position_Limit registers hold positions of that turn. LeRobot
+    0.6.1 does not check this: it loads such a file, writes the values to the limit registers as they are and
+    normalises with them, so the part of the range beyond the turn is never reached (a RANGE_0_100 gripper with
+    range 3441..4837 tops out at 47 %). robocal accepts the file the same way but names every such motor.
+
+    Args:
+        cals: Motor name → calibration.
+        resolution: Ticks per turn (4096).
+        vendor: ``"feetech"`` or ``"dynamixel"`` (only used in the message).
+
+    Returns:
+        ``"motor 'NAME' (id N): range_min..range_max LO..HI is beyond one turn ..."`` per motor, in file order.
+    """
+    out = []
+    top = resolution - 1
+    for name, c in cals.items():
+        if c.range_min >= 0 and c.range_max <= top:
+            continue
+        span = c.range_max - c.range_min
+        reach = ""
+        if span > 0 and c.range_min <= top and c.range_max >= 0:
+            lo_pct = 100.0 * (max(c.range_min, 0) - c.range_min) / span
+            hi_pct = 100.0 * (min(c.range_max, top) - c.range_min) / span
+            reach = f"; positions of one turn only cover {lo_pct:.0f}..{hi_pct:.0f} % of it"
+        out.append(
+            f"motor {name!r} (id {c.id}): range_min..range_max {c.range_min}..{c.range_max} is beyond one turn "
+            f"of a {resolution}-tick {vendor} servo (0..{top}){reach}; LeRobot 0.6.1 accepts it unchecked; "
+            "recalibrate the motor (or re-home the range)"
+        )
+    return out
 
 
 # ------------------------------------------------------------------------------------------------ encodings

@@ -140,8 +140,27 @@ def _parse_lite(data: Any, source: str, fmt: str) -> CalibrationFile:
     return CalibrationFile(RobotCalibration(names, dirs, offs, 1.0), MappingProxyType(ids), fmt, source)
 
 
+_MOTOR_CONFIG_KEYS = ("position_controller", "current_controller", "powerstage")
+
+
+def _refuse_motor_configuration(data: object, source: str) -> None:
+    """A Lite ``robot_configuration.json`` (per-joint controller settings, ``Infinity`` limits) is no calibration."""
+    first = next(iter(data.values()), None) if isinstance(data, dict) else None
+    if isinstance(first, dict) and any(k in first for k in _MOTOR_CONFIG_KEYS):
+        raise FileFormatError(
+            f"{source}: this is a motor configuration (per-joint {', '.join(k for k in _MOTOR_CONFIG_KEYS if k in first)}"
+            " settings, like the Berkeley Humanoid Lite's robot_configuration.json), not a calibration"
+        )
+
+
 def _read_lite_json(path: Path, **_: Any) -> CalibrationFile:
-    return _parse_lite(load_json(read_text(path, "calibration file"), str(path)), str(path), "lite-json")
+    text = read_text(path, "calibration file")
+    try:  # before its Infinity values fail the strict JSON reader
+        loose = json.loads(text)
+    except (ValueError, RecursionError):
+        loose = None
+    _refuse_motor_configuration(loose, str(path))
+    return _parse_lite(load_json(text, str(path)), str(path), "lite-json")
 
 
 def _yaml_data(path: Path, parsed: Any) -> Any:
@@ -643,8 +662,13 @@ def _read_lerobot_legacy(path: Path, **_: Any) -> CalibrationFile:
     from ..lerobot import legacy  # the public LeRobot facade (lazy: it is only needed for this format)
 
     cal = legacy.read_legacy(path)
-    rc = legacy.to_robot_calibration(cal)
-    return CalibrationFile(rc, MappingProxyType({}), "lerobot-legacy", str(path))
+    rc, linear = legacy.degree_joint_map(cal)  # DEGREE joints exactly; LINEAR ones are named and left out
+    notes = (
+        (f"{path}: LINEAR motor(s) {', '.join(linear)} left out (percent of a span, not a joint angle)",)
+        if linear
+        else ()
+    )
+    return CalibrationFile(rc, MappingProxyType({}), "lerobot-legacy", str(path), notes)
 
 
 # ------------------------------------------------------------------------------------------- registry
@@ -720,6 +744,7 @@ def _sniff(text: str, source: str) -> tuple[str | None, Any]:
                 return "berkeley-offsets", None
             if "motor_names" in data and "homing_offset" in data:
                 return "lerobot-legacy", None
+            _refuse_motor_configuration(data, source)
             first = next(iter(data.values()), None)
             if isinstance(first, dict) and "range_min" in first:
                 return "lerobot", None

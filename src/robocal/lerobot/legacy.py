@@ -32,6 +32,7 @@ __all__ = [
     "autocorrect_calibration",
     "calibration_from_poses",
     "convert_degrees_to_steps",
+    "degree_joint_map",
     "read_legacy",
     "revert_calibration",
     "to_robot_calibration",
@@ -81,6 +82,37 @@ def apply_calibration(raw: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray
 def revert_calibration(values: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.int64]:
     """Degrees / percent ``(..., n_motors)`` (a scalar for one motor) → raw ticks, ``np.round`` (half to even)."""
     return _one_motor(revert_legacy, values, cal)
+
+
+def degree_joint_map(cal: LegacyCalibration) -> tuple[RobotCalibration, tuple[str, ...]]:
+    """The exact joint map of a legacy calibration's DEGREE motors, and the LINEAR motors left out.
+
+    A LeRobot SO-100 file has a LINEAR gripper next to five DEGREE joints; the joints convert exactly (see
+    :func:`to_robot_calibration`), the gripper (a percentage of a start..end span) has no joint angle.
+
+    Raises:
+        InvalidCalibrationError: Every motor is LINEAR (nothing to convert; all are named).
+    """
+    if not isinstance(cal, LegacyCalibration):
+        raise InvalidCalibrationError(
+            f"cal is a {type(cal).__name__}; expected a LegacyCalibration (see read_legacy)"
+        )
+    keep = [i for i, mode in enumerate(cal.calib_mode) if mode == "DEGREE"]
+    linear = tuple(cal.motor_names[i] for i, mode in enumerate(cal.calib_mode) if mode == "LINEAR")
+    if not keep:
+        raise InvalidCalibrationError(
+            f"LINEAR motor(s) {', '.join(linear)} are not convertible to a joint map "
+            "(percent of a start..end span, not an angle) and there is no DEGREE motor"
+        )
+    sub = LegacyCalibration(
+        [cal.motor_names[i] for i in keep],
+        cal.homing_offset[keep],
+        cal.drive_mode[keep],
+        cal.start_pos[keep],
+        cal.end_pos[keep],
+        [cal.calib_mode[i] for i in keep],
+    )
+    return to_robot_calibration(sub), linear
 
 
 def to_robot_calibration(cal: LegacyCalibration) -> RobotCalibration:

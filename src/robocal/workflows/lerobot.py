@@ -759,7 +759,25 @@ def legacy_to_current(
             lo, hi = sorted((int(legacy_cal.start_pos[k]), int(legacy_cal.end_pos[k])))
             if lo == hi:
                 raise InvalidCalibrationError(f"motor {name!r}: LINEAR start_pos equals end_pos ({lo})")
-            out[name] = MotorCalibration(motor_ids[k], 0, 0, lo, hi)
+            offset = 0
+            if lo < 0 or hi > 4095:  # legacy Feetech readings were unwrapped past the 0/4095 seam
+                if hi - lo >= 4095:
+                    raise InvalidCalibrationError(
+                        f"motor {name!r}: LINEAR start_pos..end_pos {lo}..{hi} spans {hi - lo} ticks, a full turn "
+                        "or more of a 4096-tick servo; no range of one turn holds it (recalibrate this motor)"
+                    )
+                shift, new_lo, new_hi = centre_homing(lo, hi, resolution=4096)
+                if vendor == "feetech":
+                    offset, new_lo, new_hi = _normalise_feetech_offset(shift, new_lo, new_hi, 4096)
+                else:
+                    offset = -shift
+                warnings.append(
+                    f"{name}: legacy LINEAR range {lo}..{hi} goes beyond one turn of a 4096-tick servo "
+                    f"(0..4095); re-homed to homing_offset {offset}, range {new_lo}..{new_hi} (the same travel; "
+                    "write it to the motor with `robocal lerobot calibrate --use-file`)"
+                )
+                lo, hi = new_lo, new_hi
+            out[name] = MotorCalibration(motor_ids[k], 0, offset, lo, hi)
             continue
         if vendor == "feetech":
             offset = (-h - 2047 + 2048) % 4096 - 2048
