@@ -212,7 +212,8 @@ def test_migrate_keeps_legacy_zero(tmp_path: Path, capsys: pytest.CaptureFixture
     out = tmp_path / "current.json"
     assert main(["lerobot", "migrate", str(legacy), "--vendor", "dynamixel", "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "shoulder_lift_new = -(old - 90); elbow_flex_new = old - 90" in text
+    # issue #15: a Dynamixel (Koch) migration no longer prints the SO-100/SO-101 transform
+    assert "shoulder_lift_new" not in text and "LeRobot documents no value transform for Koch arms" in text
     cals = read_calibration(out)
     assert cals["shoulder_pan"] == MotorCalibration(1, 1, 2048 + 2047, 0, 4094)
     assert cals["gripper"] == MotorCalibration(6, 0, 0, 2499, 3144)
@@ -221,6 +222,7 @@ def test_migrate_keeps_legacy_zero(tmp_path: Path, capsys: pytest.CaptureFixture
     assert float(normalize(present, cals["shoulder_pan"], "degrees", apply_drive_mode=False)) == 0.0
     assert main(["lerobot", "migrate", str(legacy), "--vendor", "feetech"]) == 1
     captured = capsys.readouterr()
+    assert "shoulder_lift_new = -(old - 90); elbow_flex_new = old - 90" in captured.out
     assert (
         "warning: shoulder_pan: inverted (drive_mode 1) but LeRobot's DEGREES ignores drive_mode"
         in captured.err
