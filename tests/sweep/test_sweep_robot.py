@@ -174,3 +174,61 @@ def test_read_follows_the_four_pi_feedback_wrap(urdf: Path, tmp_path: Path) -> N
         robot.write(state.position_rad, kp=20.0, kd=1.0)
         assert motor.last_command is not None
         assert motor.last_command[0] == pytest.approx(motor.reading_rad(noisy=False), abs=1e-3)  # 2 LSB
+
+
+def test_tick_frames_and_states_are_the_reference_formula_bit_for_bit(
+    urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The per-tick fast path (fused map, precomputed limits) sends and returns exactly the reference numbers,
+    and looks nothing up per tick (model limits are resolved once, when the robot is built)."""
+    import robocal.workflows.robot as robot_mod
+
+    sim = SimLite(23, noise_rad=0.0)
+    cal_path = tmp_path / "cal.yaml"
+    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    with _robot(urdf, cal_path, sim) as robot:
+        calls = {"model_limits": 0}
+        real = robot_mod.model_limits
+
+        def counting(model: str) -> Any:
+            calls["model_limits"] += 1
+            return real(model)
+
+        monkeypatch.setattr(robot_mod, "model_limits", counting)
+        cal: RobotCalibration = robot.calibration
+        robot.read()
+        sent: list[dict[str, tuple[float, ...]]] = []
+        replies: list[dict[str, Any]] = []
+        for bus in robot.source.buses:
+            orig = bus.mit_many
+
+            def spy(cmds: Any, orig: Any = orig) -> Any:
+                sent.append(dict(cmds))
+                out = orig(cmds)
+                replies.append(out)
+                return out
+
+            monkeypatch.setattr(bus, "mit_many", spy)
+        n = len(robot.joint_names)
+        q = np.linspace(-0.4, 0.3, n)
+        v = np.linspace(0.5, -0.5, n)
+        tau = np.linspace(-1.0, 1.0, n)
+        state = robot.write(q, v, kp=15.0, kd=0.5, torque_nm=tau)
+        shift, wrap = robot.branch_shift_rad, robot.wrap_shift_rad
+        assert shift is not None
+        p_ref = cal.to_raw(q) - shift - wrap
+        v_ref, t_ref = cal.velocity_to_raw(v), cal.effort_to_raw(tau)
+        frames = {name: cmd for bus_cmds in sent for name, cmd in bus_cmds.items()}
+        for i, name in enumerate(robot.joint_names):
+            assert frames[name] == (p_ref[i], v_ref[i], 15.0, 0.5, t_ref[i]), name
+        fb = {name: f for r in replies for name, f in r.items()}
+        raw = np.array([fb[name].position_rad for name in robot.joint_names])
+        vel = np.array([fb[name].velocity_rad_s for name in robot.joint_names])
+        eff = np.array([fb[name].torque_nm for name in robot.joint_names])
+        assert np.array_equal(state.position_rad, cal.to_joint(raw + shift + wrap))
+        assert np.array_equal(state.velocity_rad_s, cal.velocity_to_joint(vel))
+        assert np.array_equal(state.effort_nm, cal.effort_to_joint(eff))
+        for _ in range(3):
+            robot.read()
+            robot.write(q, v, kp=15.0, kd=0.5, torque_nm=tau)
+        assert calls["model_limits"] == 0

@@ -82,6 +82,15 @@ class CalibratedRobot:
         self._index = {name: i for i, name in enumerate(self.joint_names)}
         self._held: list[dict[str, tuple[float, float, float, float, float]]] | None = None  # per bus
         self._enabled = False
+        # per-tick constants, computed once: which array slot each bus's motor fills, and the gain limits
+        self._bus_slots = [[(name, self._index[name]) for name in bus.motors] for bus in source.buses]
+        limits = {
+            name: model_limits(motor.model) for bus in source.buses for name, motor in bus.motors.items()
+        }
+        self._limits = [limits[name] for name in self.joint_names]
+        self._gain_max = np.array(
+            [[lim.kp_max for lim in self._limits], [lim.kd_max for lim in self._limits]]
+        )
 
     @property
     def branch_shift_rad(self) -> FloatArray | None:
@@ -95,21 +104,31 @@ class CalibratedRobot:
         return out
 
     def _to_state(self, raw: FloatArray, vel: FloatArray, eff: FloatArray) -> JointState:
+        state = np.empty((3, len(self.joint_names)))
+        state[0], state[1], state[2] = raw, vel, eff
+        return self._state_to_joint(state)
+
+    def _state_to_joint(self, state: FloatArray) -> JointState:
+        """Raw ``(3, N)`` state (rows position, velocity, effort; modified in place) → joint frame."""
         cal = self.calibration
-        if self._shift_rad is None:
-            self._shift_rad = cal.unwrap_to_limits(raw, self.lower, self.upper) - raw
-        else:  # follow the ±4π loop sample to sample (a joint with no reading keeps its last one)
-            loops = np.round((raw - self._last_raw) * (1.0 / FEEDBACK_WRAP_PERIOD_RAD))
-            if loops.any():  # a loop, or a NaN (NaN is truthy): rare, so the common tick stays cheap
-                loops[np.isnan(loops)] = 0.0
-                self._wrap_rad -= FEEDBACK_WRAP_PERIOD_RAD * loops
-        finite = np.isfinite(raw)
-        self._last_raw = raw.copy() if finite.all() else np.where(finite, raw, self._last_raw)
-        return JointState(
-            cal.to_joint(raw + self._shift_rad + self._wrap_rad),
-            cal.velocity_to_joint(vel),
-            cal.effort_to_joint(eff),
-        )
+        raw = state[0]
+        step = np.abs(raw - self._last_raw).max()  # NaN when a reading (or the last one) is missing
+        if self._shift_rad is not None and step < 0.5 * FEEDBACK_WRAP_PERIOD_RAD:
+            self._last_raw = raw.copy()  # the common tick: every joint read, no loop (same as below, cheaper)
+        else:
+            if self._shift_rad is None:
+                self._shift_rad = cal.unwrap_to_limits(raw, self.lower, self.upper) - raw
+            else:  # follow the ±4π loop sample to sample (a joint with no reading keeps its last one)
+                loops = np.round((raw - self._last_raw) * (1.0 / FEEDBACK_WRAP_PERIOD_RAD))
+                if loops.any():  # a loop, or a NaN (NaN is truthy)
+                    loops[np.isnan(loops)] = 0.0
+                    self._wrap_rad -= FEEDBACK_WRAP_PERIOD_RAD * loops
+            finite = np.isfinite(raw)
+            self._last_raw = raw.copy() if finite.all() else np.where(finite, raw, self._last_raw)
+        raw += self._shift_rad
+        raw += self._wrap_rad
+        q, v, e = cal.state_to_joint(state, out=state)  # one fused map for all three rows
+        return JointState(q, v, e)
 
     def read(self) -> JointState:
         """Poll every joint and return the joint-frame state.
@@ -125,12 +144,13 @@ class CalibratedRobot:
 
     def _send(self, commands: list[dict[str, tuple[float, float, float, float, float]]]) -> JointState:
         n = len(self.joint_names)
-        raw, vel, eff = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        pos, vel, eff = [math.nan] * n, [math.nan] * n, [math.nan] * n  # lists: cheaper to fill than arrays
+        index = self._index
         for bus, cmds in zip(self.source.buses, commands, strict=True):
             for name, fb in bus.mit_many(cmds).items():
-                i = self._index[name]
-                raw[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
-        return self._to_state(raw, vel, eff)
+                i = index[name]
+                pos[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
+        return self._state_to_joint(np.array((pos, vel, eff)))
 
     def write(
         self,
@@ -160,39 +180,54 @@ class CalibratedRobot:
                 "robot.write before the first robot.read: read once after power-on to pick branches"
             )
         cal = self.calibration
-
-        def vec(x: npt.ArrayLike, what: str) -> FloatArray:
+        # rows position, velocity, torque (a (3, N) joint state, mapped in place), kp, kd
+        cmd = np.empty((5, n))
+        for row, (x, what) in enumerate(
+            (
+                (position_rad, "position"),
+                (velocity_rad_s, "velocity"),
+                (torque_nm, "torque"),
+                (kp, "kp"),
+                (kd, "kd"),
+            )
+        ):
+            if type(x) is float or type(x) is int:  # the common scalar argument: no array to build
+                cmd[row] = x
+                continue
             try:
                 a = np.asarray(x, dtype=np.float64)
             except (TypeError, ValueError):
                 raise ShapeMismatchError(
                     f"robot.write: {what} must be {n} finite numbers, got {x!r}"
                 ) from None
-            if a.ndim == 0:
-                a = np.broadcast_to(a, (n,))
-            if a.shape != (n,) or not np.all(np.isfinite(a)):
+            if a.ndim != 0 and a.shape != (n,):
                 raise ShapeMismatchError(
                     f"robot.write: {what} must be {n} finite numbers, got shape {a.shape}"
                 )
-            return a
-
-        p_raw = cal.to_raw(vec(position_rad, "position")) - self._shift_rad - self._wrap_rad
-        v_raw = cal.velocity_to_raw(vec(velocity_rad_s, "velocity"))
-        t_raw = cal.effort_to_raw(vec(torque_nm, "torque"))
-        kp_v, kd_v = vec(kp, "kp"), vec(kd, "kd")
-        for bus in self.source.buses:
-            for name, motor in bus.motors.items():
-                lim = model_limits(motor.model)
-                i = self._index[name]
-                if not (0 <= kp_v[i] <= lim.kp_max and 0 <= kd_v[i] <= lim.kd_max):
-                    raise UsageError(
-                        f"robot.write: joint {name!r} ({lim.name}): kp {kp_v[i]:g} / kd {kd_v[i]:g} outside "
-                        f"0..{lim.kp_max:g} / 0..{lim.kd_max:g}"
-                    )
-        rows = np.stack([p_raw, v_raw, kp_v, kd_v, t_raw], axis=1).tolist()
-        commands = [
-            {name: tuple(rows[self._index[name]]) for name in bus.motors} for bus in self.source.buses
-        ]
+            cmd[row] = a
+        if not np.isfinite(cmd).all():
+            row = int(np.flatnonzero(~np.isfinite(cmd).all(axis=1))[0])
+            what = ("position", "velocity", "torque", "kp", "kd")[row]
+            raise ShapeMismatchError(f"robot.write: {what} must be {n} finite numbers, got shape ({n},)")
+        gains = cmd[3:]
+        if not ((gains >= 0.0) & (gains <= self._gain_max)).all():
+            kp_v, kd_v = cmd[3], cmd[4]
+            bad = (kp_v < 0) | (kp_v > self._gain_max[0]) | (kd_v < 0) | (kd_v > self._gain_max[1])
+            i = int(np.flatnonzero(bad)[0])
+            lim = self._limits[i]
+            raise UsageError(
+                f"robot.write: joint {self.joint_names[i]!r} ({lim.name}): kp {kp_v[i]:g} / kd {kd_v[i]:g} "
+                f"outside 0..{lim.kp_max:g} / 0..{lim.kd_max:g}"
+            )
+        state = cmd[:3]  # a view: mapped in place
+        cal.state_to_raw(state, out=state)
+        p_raw = cmd[0]
+        p_raw -= self._shift_rad
+        p_raw -= self._wrap_rad
+        p, v, t, kp_l, kd_l = cmd.tolist()
+        # motor frame (position, velocity, kp, kd, torque) per joint
+        rows = list(zip(p, v, kp_l, kd_l, t, strict=True))
+        commands = [{name: rows[i] for name, i in slots} for slots in self._bus_slots]
         self._held = commands
         return self._send(self._held)
 
