@@ -33,6 +33,7 @@ def test_codes_are_stable() -> None:
         "wrap_in_travel",
         "direction_flipped",
         "direction_unknown",  # appended: the issue's codes keep their strings and order
+        "wrong_side",  # appended with the one-sided procedure (issue 15)
     )
 
 

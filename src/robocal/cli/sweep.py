@@ -18,7 +18,12 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
-from ..core.sweep import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
+from ..core.sweep import (
+    DEFAULT_ONE_SIDED_THRESHOLD_RAD,
+    DEFAULT_SPAN_TOLERANCE_RAD,
+    DEFAULT_THRESHOLD_RAD,
+    SweepResult,
+)
 from ..workflows.sweep import (
     CONFIRM_CODES,
     DEFAULT_DIRECTION_STEP_S,
@@ -28,7 +33,7 @@ from ..workflows.sweep import (
 )
 from . import _common
 
-STATUS_STYLE = {"ok": "green", "not_swept": "yellow", "sweeping": "cyan"}
+STATUS_STYLE = {"ok": "green", "not_swept": "yellow", "sweeping": "cyan", "moved": "green"}
 LIVE_WARNINGS = ("no_overlap", "offset_large")
 """Warnings the live view explains as soon as a joint shows them: a flipped direction or a wrong URDF shows
 early. The others need the finished sweep (wrap_in_travel depends on the final offset and on ``zero_sta``)."""
@@ -41,6 +46,13 @@ def print_warnings(result: SweepResult) -> None:
     for j in result.joints:
         for code in j.warnings:
             _common.print_warning(f"{j.name}: {code}: {result.explain(j.name, code)}")
+
+
+def _stop_text(stop: tuple[str, float] | None) -> str:
+    """``lower stop (-10.00°)`` for a one-sided stop, ``-`` for none."""
+    if stop is None:
+        return "-"
+    return f"{stop[0]} stop ({math.degrees(stop[1]):+.2f}°)"
 
 
 def _bar(fraction: float, width: int = 12) -> str:
@@ -57,7 +69,7 @@ class LiveView:
         console: Where to draw (standard error by default).
         rate_hz: Table refresh rate on a terminal (5–10 Hz).
         period_s: Interval of plain progress lines without a terminal.
-        threshold_rad: Sweep below which a joint shows as not swept yet.
+        threshold_rad: Sweep below which a joint shows as not swept yet (None: the method's default).
         span_tolerance_rad: A joint within this of its URDF span shows as ok.
     """
 
@@ -67,7 +79,7 @@ class LiveView:
         *,
         rate_hz: float = 8.0,
         period_s: float = 1.0,
-        threshold_rad: float = DEFAULT_THRESHOLD_RAD,
+        threshold_rad: float | None = None,
         span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
     ) -> None:
         self.console = console or _common.err_console
@@ -78,6 +90,7 @@ class LiveView:
         self.live: Live | None = None
         self._last = -math.inf
         self.direction: dict[str, int] = {}
+        self._told = False
 
     def __enter__(self) -> LiveView:
         if self.console.is_terminal:
@@ -90,29 +103,62 @@ class LiveView:
             self.live.__exit__(None, None, None)
             self.live = None
 
+    def _threshold(self, session: SweepSession) -> float:
+        if self.threshold_rad is not None:
+            return self.threshold_rad
+        return DEFAULT_ONE_SIDED_THRESHOLD_RAD if session.method == "one-sided" else DEFAULT_THRESHOLD_RAD
+
     def table(self, session: SweepSession) -> Table:
-        """The per-joint table: position, min, max, sweep vs URDF span, status."""
+        """The per-joint table: position, min, max, sweep vs URDF span, status (one-sided: the stop to push into)."""
+        one_sided = session.method == "one-sided"
+        what = "push each joint into the stop shown" if one_sided else "sweep each joint into both stops"
         t = Table(
-            title=f"sweep: {session.samples} samples, t = {session.t_s:.1f} s (Enter or Ctrl-C to finish)"
+            title=f"sweep ({session.method}: {what}): {session.samples} samples, t = {session.t_s:.1f} s "
+            "(Enter or Ctrl-C to finish)"
         )
-        for col in ("joint", "position", "min", "max", "sweep / span", "status"):
-            t.add_column(col, justify="left" if col in ("joint", "status", "sweep / span") else "right")
+        cols = [
+            "joint",
+            *(["push into"] if one_sided else []),
+            "position",
+            "min",
+            "max",
+            "sweep / span",
+            "status",
+        ]
+        for col in cols:
+            t.add_column(
+                col, justify="left" if col in ("joint", "status", "sweep / span", "push into") else "right"
+            )
         tr = session.tracker
         cur, lo, hi, sw = tr.current, tr.minimum, tr.maximum, tr.sweep
+        first = session.first
+        threshold = self._threshold(session)
         for i, name in enumerate(session.names):
             span = session.upper[i] - session.lower[i]
-            status = (
-                "ok"
-                if sw[i] >= span - self.span_tolerance_rad
-                else ("sweeping" if sw[i] >= self.threshold_rad else "not_swept")
-            )
-            style = STATUS_STYLE.get(status, "")
+            stop = session.stops[i]
+            if one_sided and stop is not None:
+                side = stop[0]
+                toward = first[i] - lo[i] if side == "lower" else hi[i] - first[i]
+                away = hi[i] - first[i] if side == "lower" else first[i] - lo[i]
+                if away >= threshold and toward < 0.1 * threshold:
+                    status = "wrong_side"
+                else:
+                    status = "moved" if sw[i] >= threshold else "not_swept"
+            else:
+                status = (
+                    "ok"
+                    if sw[i] >= span - self.span_tolerance_rad
+                    else ("sweeping" if sw[i] >= threshold else "not_swept")
+                )
+            style = STATUS_STYLE.get(status, "yellow")
             verdict = self.direction.get(name)
             if verdict is not None and verdict <= 0:
                 status += ", direction_unknown" if verdict == 0 else ", direction_flipped"
                 style = "yellow"
+            push = [_stop_text(stop)] if one_sided else []
             t.add_row(
                 name,
+                *push,
                 f"{cur[i]:+.3f}",
                 f"{lo[i]:+.3f}",
                 f"{hi[i]:+.3f}",
@@ -127,10 +173,12 @@ class LiveView:
 
     def live_notes(self, session: SweepSession) -> list[str]:
         """``JOINT: code: sentence`` for warnings a swept joint shows already (no_overlap, offset_large)."""
-        swept = session.tracker.sweep >= self.threshold_rad
+        swept = session.tracker.sweep >= self._threshold(session)
         if not swept.any():
             return []
-        result = session.result(threshold_rad=self.threshold_rad, span_tolerance_rad=self.span_tolerance_rad)
+        result = session.result(
+            threshold_rad=self._threshold(session), span_tolerance_rad=self.span_tolerance_rad
+        )
         return [
             f"{j.name}: {code}: {result.explain(j.name, code)}"
             for j, ok in zip(result.joints, swept, strict=True)
@@ -139,9 +187,22 @@ class LiveView:
             if code in LIVE_WARNINGS
         ]
 
+    def _instructions(self, session: SweepSession) -> None:
+        """Once, before the first progress line: which stop to push each joint into (one-sided)."""
+        self._told = True
+        if session.method != "one-sided":
+            return
+        self.console.print(
+            "one-sided sweep: push each joint into this stop (and hold it there a moment):", markup=False
+        )
+        for name, stop in zip(session.names, session.stops, strict=True):
+            self.console.print(f"  {name}: {_stop_text(stop)}", markup=False)
+
     def update(self, session: SweepSession) -> None:
         """Redraw at most ``rate_hz`` times a second (plain lines: every ``period_s``)."""
         now = time.monotonic()
+        if not self._told and self.live is None:
+            self._instructions(session)
         if self.live is not None:
             if now - self._last >= 1.0 / self.rate_hz:
                 self._last = now
@@ -150,6 +211,13 @@ class LiveView:
         if now - self._last >= self.period_s:
             self._last = now
             sw = session.tracker.sweep
+            if session.method == "one-sided":
+                moved = int((sw >= self._threshold(session)).sum())
+                self.console.print(
+                    f"sweep: {session.samples} samples, {moved}/{len(session.names)} joints moved",
+                    markup=False,
+                )
+                return
             span = session.upper - session.lower
             done = int((sw >= span - self.span_tolerance_rad).sum())
             self.console.print(
@@ -184,9 +252,18 @@ class LiveView:
 
 
 def result_table(result: SweepResult) -> Table:
-    """Final per-joint table: sampled range, sweep, offset (previous), warnings."""
+    """Final per-joint table: sampled range, sweep, offset (previous), warnings.
+
+    A one-sided sweep adds upstream's ``position_offset`` (joint frame); when some joint reached both stops,
+    a column gives the difference of the two rules (joint angle by the one-sided rule minus by bisection, rad).
+    """
+    one_sided = any(j.method == "one-sided" for j in result.joints)
+    both = any(math.isfinite(j.rule_difference) for j in result.joints)
     t = Table(title="sweep result (rad, identity frame; homing_offset in the motor frame)")
-    for col in ("joint", "min", "max", "sweep", "span", "homing_offset", "previous", "status"):
+    cols = ["joint", "min", "max", "sweep", "span", "homing_offset", "previous"]
+    cols += ["position_offset"] if one_sided else []
+    cols += ["one- vs two-sided"] if both else []
+    for col in (*cols, "status"):
         t.add_column(col, justify="left" if col in ("joint", "status") else "right")
 
     def f(x: float | None) -> str:
@@ -197,6 +274,8 @@ def result_table(result: SweepResult) -> Table:
         if j.kept_prior:
             status += " (prior kept)"
         style = "green" if not j.warnings else "yellow"
+        extra = [f(j.position_offset)] if one_sided else []
+        extra += [f(j.rule_difference)] if both else []
         t.add_row(
             j.name,
             f(j.sampled_min),
@@ -205,6 +284,7 @@ def result_table(result: SweepResult) -> Table:
             f(j.span),
             f(j.homing_offset),
             f(j.previous_homing_offset),
+            *extra,
             f"[{style}]{status}[/]",
         )
     return t
@@ -363,8 +443,9 @@ def sweep(
     ],
     prior: Annotated[Path | None, typer.Option("--prior", help="Offsets kept for joints not swept.")] = None,
     threshold: Annotated[
-        float, typer.Option("--threshold", help="Not-swept threshold, rad.")
-    ] = DEFAULT_THRESHOLD_RAD,
+        float | None,
+        typer.Option("--threshold", help="Not-swept threshold, rad (default 0.5 two-sided, 0.05 one-sided)."),
+    ] = None,
     span_tolerance: Annotated[
         float, typer.Option("--span-tolerance", help="Allowed |sweep - URDF span|, rad.")
     ] = DEFAULT_SPAN_TOLERANCE_RAD,
@@ -396,9 +477,17 @@ def sweep(
             "--yes",
             "-y",
             help="Write every new offset without asking (on a terminal, a changed offset of a joint with a "
-            "span_mismatch, no_overlap or offset_large warning is otherwise asked about).",
+            "span_mismatch, no_overlap, offset_large or wrong_side warning is otherwise asked about).",
         ),
     ] = False,
+    method: Annotated[
+        str | None,
+        typer.Option(
+            "--method",
+            help="one-sided (each joint into the profile's stop, as the robot's own procedure) or two-sided "
+            "(both stops, bisection). Default: the profile's procedure, else two-sided.",
+        ),
+    ] = None,
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     stop = threading.Event()
@@ -425,6 +514,7 @@ def sweep(
             stop=stop,
             robot=robot,
             confirm=confirm,
+            method=method,
         )
     _common.console.print(result_table(outcome.result))
     print_warnings(outcome.result)
@@ -433,6 +523,8 @@ def sweep(
             f"note: {name}: {count} of {outcome.samples} samples had no position (NaN) and were skipped",
             markup=False,
         )
+    robot_text = f", robot {outcome.robot}" if outcome.robot else ""
+    _common.console.print(f"method: {outcome.method}{robot_text}", markup=False)
     _common.console.print(f"wrote {outcome.out} ({outcome.fmt})", markup=False)
     if outcome.report is not None:
         _common.console.print(f"wrote {outcome.report}", markup=False)

@@ -21,6 +21,15 @@ Diagnostic codes (stable, used in reports and the live view):
 * ``direction_flipped`` — the guided direction check saw the joint move the wrong way.
 * ``direction_unknown`` — the guided direction check ran but the joint did not move enough within its time, so
   its direction was not verified.
+* ``wrong_side`` — one-sided procedure: the joint moved away from the stop it is to be pushed into and never
+  went past its first reading toward that stop (the other stop was reached: direction flipped, or the wrong stop).
+
+The one-sided rule (Berkeley-Humanoid-Lite-Lowlevel ``scripts/calibrate_joints.py``) pushes each joint into one
+stop only, whose joint angle ``stop`` is known, and keeps the extreme of ``s`` on that side::
+
+    limit_reading   = min(s) (lower stop) or max(s) (upper stop)        (identity frame, rad)
+    position_offset = limit_reading − stop                               (joint frame: q = s − position_offset)
+    homing_offset   = direction·position_offset                         (motor frame, exact: direction is ±1)
 """
 
 from __future__ import annotations
@@ -37,6 +46,7 @@ from ..errors import InvalidCalibrationError, ShapeMismatchError
 
 __all__ = [
     "CODES",
+    "DEFAULT_ONE_SIDED_THRESHOLD_RAD",
     "DEFAULT_SPAN_TOLERANCE_RAD",
     "DEFAULT_THRESHOLD_RAD",
     "WARNING_CODES",
@@ -47,6 +57,7 @@ __all__ = [
     "bisect_homing_offset",
     "direction_from_motion",
     "explain_warning",
+    "one_sided_position_offset",
     "wrap_in_travel",
 ]
 
@@ -55,6 +66,9 @@ FloatArray = npt.NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
 DEFAULT_THRESHOLD_RAD = 0.5
 """A joint swept less than this (rad) counts as not swept (the upstream tool's default)."""
+DEFAULT_ONE_SIDED_THRESHOLD_RAD = 0.05
+"""One-sided procedure: a joint that moved less than this (rad) counts as not moved. A joint is only pushed
+into one stop, often from close by (an ankle roll 0.26 rad from its stop), so the two-sided threshold is too big."""
 DEFAULT_SPAN_TOLERANCE_RAD = 0.15
 """Allowed difference between the sweep and the URDF span (rad)."""
 
@@ -66,6 +80,7 @@ WARNING_CODES: tuple[str, ...] = (
     "wrap_in_travel",
     "direction_flipped",
     "direction_unknown",
+    "wrong_side",
 )
 """Every warning code, in display order."""
 CODES: tuple[str, ...] = ("ok", *WARNING_CODES)
@@ -276,6 +291,13 @@ class JointSweep:
         kept_prior: True when the prior offset was kept because the joint was not swept.
         warnings: Warning codes, in :data:`WARNING_CODES` order.
         zero_sta: Power-on range of the motor (0: ``[0, 2π)``, 1: ``[−π, π)``), for :func:`explain_warning`.
+        method: ``one-sided`` or ``two-sided``: the rule that gave :attr:`homing_offset`.
+        stop: The stop of the one-sided rule (``lower``/``upper``), or None when the joint has none.
+        stop_angle: Joint angle of that stop, rad (NaN when none).
+        position_offset: The one-sided rule's joint-frame offset ``limit_reading − stop`` (upstream's
+            ``position_offsets`` entry; NaN when not swept or no stop).
+        one_sided_offset: The one-sided rule's homing offset ``direction·position_offset`` (NaN when none).
+        both_stops: True when the sweep reached both stops (within the span tolerance), so both rules apply.
     """
 
     name: str
@@ -291,6 +313,12 @@ class JointSweep:
     kept_prior: bool
     warnings: tuple[str, ...]
     zero_sta: int = 0
+    method: str = "two-sided"
+    stop: str | None = None
+    stop_angle: float = math.nan
+    position_offset: float = math.nan
+    one_sided_offset: float = math.nan
+    both_stops: bool = False
 
     @property
     def status(self) -> str:
@@ -307,13 +335,26 @@ class JointSweep:
         """Whether :attr:`homing_offset` is a usable number."""
         return math.isfinite(self.homing_offset)
 
+    @property
+    def rule_difference(self) -> float:
+        """Both stops reached: joint angle by the one-sided rule minus by the bisection rule, rad, else NaN.
+
+        ``direction·(bisection_offset − one_sided_offset)``, the same at every reading: how far the one-sided
+        stop angle (or the URDF limits) is off as this sweep sees it. NaN unless both rules have a value.
+        """
+        if not (
+            self.both_stops and math.isfinite(self.one_sided_offset) and math.isfinite(self.bisection_offset)
+        ):
+            return math.nan
+        return float(self.direction * (self.bisection_offset - self.one_sided_offset))
+
     def to_report(self) -> dict[str, Any]:
         """The joint's entry of the sweep report (JSON-ready; NaN becomes ``None``)."""
 
         def num(x: float | None) -> float | None:
             return None if x is None or not math.isfinite(x) else float(x)
 
-        return {
+        out: dict[str, Any] = {
             "sampled_min": num(self.sampled_min),
             "sampled_max": num(self.sampled_max),
             "sweep": num(self.sweep),
@@ -322,6 +363,19 @@ class JointSweep:
             "kept_prior": self.kept_prior,
             "warnings": list(self.warnings),
         }
+        if self.method == "one-sided" or self.stop is not None:
+            out["method"] = self.method
+        if self.stop is not None:
+            out["stop"] = self.stop
+            out["stop_angle"] = num(self.stop_angle)
+            out["position_offset"] = num(self.position_offset)
+        if self.both_stops and math.isfinite(self.rule_difference):
+            out["rules"] = {
+                "one_sided_homing_offset": num(self.one_sided_offset),
+                "two_sided_homing_offset": num(self.bisection_offset),
+                "difference": num(self.rule_difference),
+            }
+        return out
 
 
 @dataclass(frozen=True)
@@ -395,15 +449,24 @@ def explain_warning(
             kept = f"the prior offset {j.previous_homing_offset:+.4f} rad was kept"
         else:
             kept = "there is no offset for it"
-        return (
-            f"swept only {j.sweep:.3f} rad (threshold {threshold_rad:g} rad), so {kept}; "
-            "move it into both stops and sweep again"
+        todo = (
+            f"push it into its {j.stop} stop and sweep again"
+            if j.method == "one-sided"
+            else "move it into both stops and sweep again"
         )
+        return f"swept only {j.sweep:.3f} rad (threshold {threshold_rad:g} rad), so {kept}; {todo}"
     if code == "no_overlap":
         return (
             f"sampled range [{j.sampled_min:+.3f}, {j.sampled_max:+.3f}] rad does not overlap the URDF limits "
             f"[{j.lower:+.3f}, {j.upper:+.3f}] rad; its URDF direction is probably flipped: "
             "check it with --direction-check"
+        )
+    if code == "span_mismatch" and j.method == "one-sided":
+        q_lo, q_hi = j.sampled_min - j.position_offset, j.sampled_max - j.position_offset
+        return (
+            f"with its {j.stop} stop at {j.stop_angle:+.3f} rad it moved over [{q_lo:+.3f}, {q_hi:+.3f}] rad, "
+            f"past the URDF limits [{j.lower:+.3f}, {j.upper:+.3f}] (tolerance {span_tolerance_rad:g} rad); "
+            "check the profile's stop angle and the URDF limits"
         )
     if code == "span_mismatch":
         diff = j.sweep - j.span
@@ -438,7 +501,36 @@ def explain_warning(
             "did not move 0.1 rad within the direction check's time, so its direction was NOT verified; "
             "rerun with --direction-check (and a longer --direction-time) and move it toward its + limit"
         )
+    if code == "wrong_side":
+        return (
+            f"it was to be pushed into its {j.stop} stop ({j.stop_angle:+.3f} rad) but its reading only moved "
+            f"the other way (sampled [{j.sampled_min:+.3f}, {j.sampled_max:+.3f}] rad): its direction "
+            f"({j.direction:+d}) is probably flipped, or it went into the other stop; a joint that started at "
+            "its stop shows this too. Check and sweep again"
+        )
     return code
+
+
+def one_sided_position_offset(
+    sampled_min: npt.ArrayLike, sampled_max: npt.ArrayLike, stop: Sequence[str], stop_rad: npt.ArrayLike
+) -> FloatArray:
+    """The one-sided rule: ``limit_reading − stop_angle``, with the extreme on each joint's stop side.
+
+    Args:
+        sampled_min: Minimum of ``direction·raw``, shape ``(N,)``, rad.
+        sampled_max: Maximum of ``direction·raw``, shape ``(N,)``, rad.
+        stop: ``"lower"`` (keep the minimum) or ``"upper"`` (keep the maximum) per joint.
+        stop_rad: Joint angle of that stop per joint, shape ``(N,)``, rad.
+
+    Returns:
+        Upstream's ``position_offsets`` per joint, joint frame, shape ``(N,)``, rad (``q = s − offset``);
+        the homing offset is ``direction·offset``.
+    """
+    lo = np.asarray(sampled_min, dtype=np.float64)
+    hi = np.asarray(sampled_max, dtype=np.float64)
+    pick = np.array([side == "lower" for side in stop], dtype=bool)
+    out: FloatArray = np.where(pick, lo, hi) - np.asarray(stop_rad, dtype=np.float64)
+    return out
 
 
 def _vec(x: npt.ArrayLike, n: int, what: str) -> FloatArray:
@@ -463,8 +555,13 @@ def analyse_sweep(
     span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
     zero_sta: npt.ArrayLike = 0,
     direction_check: Mapping[str, int] | None = None,
+    method: str = "two-sided",
+    stops: Sequence[str | None] | None = None,
+    stop_rad: npt.ArrayLike | None = None,
+    first: npt.ArrayLike | None = None,
+    wraps: bool = True,
 ) -> SweepResult:
-    """Apply the bisection rule and every diagnostic to a finished sweep.
+    """Apply the bisection (or one-sided) rule and every diagnostic to a finished sweep.
 
     Args:
         joint_names: N joint names.
@@ -479,6 +576,13 @@ def analyse_sweep(
         zero_sta: Power-on range per joint (0: ``[0, 2π)``, 1: ``[−π, π)``), shape ``(N,)`` or scalar.
         direction_check: Result of the guided direction check per joint (+1 right, −1 flipped, 0 unknown).
             When given, a joint with 0 or no entry gets ``direction_unknown``; None: no check was run.
+        method: ``two-sided`` (bisection) or ``one-sided`` (each joint's ``stops`` side and ``stop_rad``).
+        stops: Per joint ``"lower"``, ``"upper"`` or None: the stop of the one-sided rule. With stops, a
+            joint that reached both stops gets both rules in the report, whatever the method.
+        stop_rad: Joint angle of each joint's stop, shape ``(N,)``, rad (NaN where none).
+        first: First finite ``direction·raw`` per joint, shape ``(N,)``, rad: lets the one-sided rule see a
+            joint that only moved away from its stop (``wrong_side``).
+        wraps: Whether the position reading wraps each motor turn (``wrap_in_travel`` is checked only then).
 
     Returns:
         The :class:`SweepResult`.
@@ -495,21 +599,58 @@ def analyse_sweep(
         raise InvalidCalibrationError(f"threshold {threshold_rad} must be a finite number >= 0 rad")
     if not (math.isfinite(span_tolerance_rad) and span_tolerance_rad >= 0):
         raise InvalidCalibrationError(f"span tolerance {span_tolerance_rad} must be a finite number >= 0 rad")
+    if method not in ("one-sided", "two-sided"):
+        raise InvalidCalibrationError(f"method {method!r}: expected one-sided or two-sided")
+    side = list(stops) if stops is not None else [None] * n
+    if len(side) != n:
+        raise ShapeMismatchError(f"analyse_sweep: stops has {len(side)} entries; expected {n}")
+    bad = [names[i] for i, x in enumerate(side) if x not in (None, "lower", "upper")]
+    if bad:
+        raise InvalidCalibrationError(f"analyse_sweep: stop of {', '.join(bad)} must be lower, upper or None")
+    angle = _vec(np.nan if stop_rad is None else stop_rad, n, "stop_rad")
+    if method == "one-sided":
+        lacking = [names[i] for i in range(n) if side[i] is None or not math.isfinite(angle[i])]
+        if lacking:
+            raise InvalidCalibrationError(
+                f"the one-sided rule needs a stop and its angle for every joint; none for {', '.join(lacking)}"
+            )
+    start = _vec(np.nan if first is None else first, n, "first")
     prior = dict(prior or {})
     checks = dict(direction_check or {})
     sweep = np.where(np.isfinite(smin) & np.isfinite(smax), smax - smin, 0.0)
     h_bis = bisect_homing_offset(smin, smax, lo, up, d)
+    p_off = one_sided_position_offset(smin, smax, [x or "lower" for x in side], angle)
     joints: list[JointSweep] = []
     for i, name in enumerate(names):
         warnings: set[str] = set()
         prev = prior.get(name)
         prev_f = None if prev is None else float(prev)
+        both = bool(sweep[i] >= (up[i] - lo[i]) - span_tolerance_rad)
+        has_stop = side[i] is not None and math.isfinite(angle[i])
         swept = bool(sweep[i] >= threshold_rad and np.isfinite(h_bis[i]))
+        pos_off = float(p_off[i]) if has_stop and swept else math.nan
+        h_one = float(d[i] * pos_off)
         if not swept:
             warnings.add("not_swept")
             h = prev_f if prev_f is not None else math.nan
             kept = prev_f is not None
             bis = math.nan
+        elif method == "one-sided":
+            h = h_one
+            bis = float(h_bis[i])
+            kept = False
+            q_lo, q_hi = smin[i] - pos_off, smax[i] - pos_off  # the sampled range in the new joint frame
+            if (side[i] == "lower" and q_hi > up[i] + span_tolerance_rad) or (
+                side[i] == "upper" and q_lo < lo[i] - span_tolerance_rad
+            ):
+                warnings.add("span_mismatch")  # the joint went past the URDF's other limit
+            if abs(h) > math.pi:
+                warnings.add("offset_large")
+            if math.isfinite(start[i]):
+                toward = start[i] - smin[i] if side[i] == "lower" else smax[i] - start[i]
+                away = smax[i] - start[i] if side[i] == "lower" else start[i] - smin[i]
+                if away >= threshold_rad and toward < 0.1 * threshold_rad:
+                    warnings.add("wrong_side")
         else:
             h = float(h_bis[i])
             bis = h
@@ -520,7 +661,7 @@ def analyse_sweep(
                 warnings.add("span_mismatch")
             if abs(h) > math.pi:
                 warnings.add("offset_large")
-        if math.isfinite(h) and bool(wrap_in_travel(h, d[i], lo[i], up[i], zs[i])):
+        if wraps and math.isfinite(h) and bool(wrap_in_travel(h, d[i], lo[i], up[i], zs[i])):
             warnings.add("wrap_in_travel")
         if direction_check is not None:
             verdict = checks.get(name, 0)
@@ -543,6 +684,12 @@ def analyse_sweep(
                 kept_prior=kept,
                 warnings=tuple(c for c in WARNING_CODES if c in warnings),
                 zero_sta=int(zs[i]),
+                method=method,
+                stop=side[i],
+                stop_angle=float(angle[i]),
+                position_offset=pos_off,
+                one_sided_offset=h_one,
+                both_stops=both and swept,
             )
         )
     return SweepResult(tuple(joints), float(threshold_rad), float(span_tolerance_rad))

@@ -31,8 +31,9 @@ from ..backends.sources import (
     parse_source,
 )
 from ..core.jointmap import RobotCalibration
-from ..core.profile import RobotProfile
+from ..core.profile import METHODS, RobotProfile
 from ..core.sweep import (
+    DEFAULT_ONE_SIDED_THRESHOLD_RAD,
     DEFAULT_SPAN_TOLERANCE_RAD,
     DEFAULT_THRESHOLD_RAD,
     RangeTracker,
@@ -80,7 +81,7 @@ class SweepAbortedError(CalibError):
     exit_code = 130
 
 
-CONFIRM_CODES = ("span_mismatch", "no_overlap", "offset_large")
+CONFIRM_CODES = ("span_mismatch", "no_overlap", "offset_large", "wrong_side")
 """Warnings that make a changed offset need the person's yes before it replaces the prior one."""
 
 ConfirmFn = Callable[[SweepResult, Sequence[str]], Collection[str]]
@@ -256,12 +257,26 @@ class SweepView(Protocol):
 class SweepSession:
     """The state of a running sweep: a wrap-aware range tracker over the identity frame.
 
+    Besides the wrap-aware range, the session keeps the extremes exactly as read (the one-sided rule of a
+    robot whose reading does not wrap uses them, as upstream does) and each joint's first reading.
+
     Args:
         source: Where samples come from.
         joints: Joints in URDF order (the source's order).
+        method: ``two-sided`` or ``one-sided`` (shown by the live view).
+        stops: Per joint, the stop of the one-sided procedure as ``(side, angle_rad)``, or None.
+        wraps: Whether the position reading wraps each motor turn.
     """
 
-    def __init__(self, source: Source, joints: Sequence[JointSpec]) -> None:
+    def __init__(
+        self,
+        source: Source,
+        joints: Sequence[JointSpec],
+        *,
+        method: str = "two-sided",
+        stops: Sequence[tuple[str, float] | None] | None = None,
+        wraps: bool = True,
+    ) -> None:
         self.source = source
         self.joints = tuple(joints)
         self.names = tuple(j.name for j in self.joints)
@@ -271,6 +286,45 @@ class SweepSession:
         self.tracker = RangeTracker(len(self.joints))
         self.samples = 0
         self.t_s = 0.0
+        self.method = method
+        self.stops: tuple[tuple[str, float] | None, ...] = (
+            tuple(stops) if stops is not None else (None,) * len(self.joints)
+        )
+        self.wraps = wraps
+        n = len(self.joints)
+        self._exact_min = np.full(n, np.inf)
+        self._exact_max = np.full(n, -np.inf)
+        self._first = np.full(n, np.nan)
+
+    def _observe(self, s: FloatArray) -> None:
+        """Exact extremes and first readings of a block ``(T, N)`` of identity-frame samples (NaN skipped)."""
+        if s.shape[0] == 0:
+            return
+        np.fmin(self._exact_min, np.fmin.reduce(s, axis=0), out=self._exact_min)
+        np.fmax(self._exact_max, np.fmax.reduce(s, axis=0), out=self._exact_max)
+        todo = np.isnan(self._first)
+        if todo.any():
+            finite = np.isfinite(s)
+            row = np.argmax(finite, axis=0)
+            val = s[row, np.arange(s.shape[1])]
+            take = todo & finite.any(axis=0)
+            self._first[take] = val[take]
+
+    @property
+    def first(self) -> FloatArray:
+        """First finite identity-frame reading per joint, shape ``(N,)``, rad (NaN before one)."""
+        out: FloatArray = self._first.copy()
+        return out
+
+    @property
+    def exact_minimum(self) -> FloatArray:
+        """Minimum of the readings exactly as read (no unwrapping), shape ``(N,)``, rad (NaN before one)."""
+        return np.where(np.isfinite(self._exact_min), self._exact_min, np.nan)
+
+    @property
+    def exact_maximum(self) -> FloatArray:
+        """Maximum of the readings exactly as read (no unwrapping), shape ``(N,)``, rad (NaN before one)."""
+        return np.where(np.isfinite(self._exact_max), self._exact_max, np.nan)
 
     def to_identity(self, positions: FloatArray) -> FloatArray:
         """Source frame → identity frame ``direction·raw``, shape ``(..., N)``."""
@@ -293,14 +347,18 @@ class SweepSession:
             t, pos = self.source.read_block(2000)
             if len(t) == 0:
                 return False
-            self.tracker.update_many(self.to_identity(pos))
+            block = self.to_identity(pos)
+            self.tracker.update_many(block)
+            self._observe(block)
             self.samples += len(t)
             self.t_s = float(t[-1])
             return True
         sample = self.source.read()
         if sample is None:
             return False
-        self.tracker.update(self.to_identity(sample.position_rad))
+        s = self.to_identity(sample.position_rad)
+        self.tracker.update(s)
+        self._observe(s[None, :])
         self.samples += 1
         self.t_s = sample.t_s
         return True
@@ -316,18 +374,24 @@ class SweepSession:
     ) -> SweepResult:
         """Bisection and diagnostics for what was sampled so far."""
         zs = np.array([(zero_sta or {}).get(n, 0) for n in self.names])
+        exact = not self.wraps  # a reading that does not wrap: the extremes exactly as read (as upstream)
         return analyse_sweep(
             self.names,
             self.direction,
             self.lower,
             self.upper,
-            self.tracker.minimum,
-            self.tracker.maximum,
+            self.exact_minimum if exact else self.tracker.minimum,
+            self.exact_maximum if exact else self.tracker.maximum,
             prior=prior,
             threshold_rad=threshold_rad,
             span_tolerance_rad=span_tolerance_rad,
             zero_sta=zs,
             direction_check=direction_check,
+            method=self.method,
+            stops=[None if x is None else x[0] for x in self.stops],
+            stop_rad=[math.nan if x is None else x[1] for x in self.stops],
+            first=self.first,
+            wraps=self.wraps,
         )
 
 
@@ -418,6 +482,8 @@ class SweepOutcome:
     samples: int
     interrupted: bool
     missing_samples: Mapping[str, int] = field(default_factory=dict)
+    method: str = "two-sided"
+    robot: str | None = None
 
 
 def _offsets(cf: CalibrationFile) -> dict[str, float]:
@@ -479,7 +545,7 @@ def run_sweep(
     out: str | Path,
     *,
     prior: str | Path | None = None,
-    threshold_rad: float = DEFAULT_THRESHOLD_RAD,
+    threshold_rad: float | None = None,
     span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
     report: str | Path | None = None,
     fmt: str | None = None,
@@ -493,6 +559,7 @@ def run_sweep(
     open_source_fn: Callable[..., Source] | None = None,
     robot: str | os.PathLike[str] | RobotProfile | None = None,
     confirm: ConfirmFn | None = None,
+    method: str | None = None,
 ) -> SweepOutcome:
     """Run a whole sweep calibration and write the calibration file (and report).
 
@@ -501,7 +568,7 @@ def run_sweep(
         source: ``--source`` string.
         out: Calibration file to write (updated in place when it exists).
         prior: Calibration whose offsets are kept for joints not swept (default: ``out`` if it exists).
-        threshold_rad: Sweeps below this count as not swept.
+        threshold_rad: Sweeps below this count as not swept (default 0.5 rad two-sided, 0.05 rad one-sided).
         span_tolerance_rad: Allowed ``|sweep − (upper − lower)|``.
         report: JSON report to write.
         fmt: ``lite-yaml`` or ``lite-json`` (default: from ``out``'s name, ``lite-yaml`` otherwise).
@@ -517,9 +584,12 @@ def run_sweep(
             Gives directions and CAN ids the URDF lacks, the default output format and the joint order of
             ``berkeley-offsets``.
         confirm: Asked, before anything is written, about the joints of :func:`changes_to_confirm` (a prior
-            offset would be replaced while the joint has a span_mismatch, no_overlap or offset_large warning);
+            offset would be replaced while the joint has a span_mismatch, no_overlap, offset_large or wrong_side warning);
             returns the joints whose new offset to write, the others keep their prior offset. None (no
             terminal, ``--yes``): every new offset is written.
+        method: ``one-sided`` (each joint pushed into the profile's stop: ``position_offset = limit_reading −
+            stop_angle``, as Berkeley-Humanoid-Lite-Lowlevel) or ``two-sided`` (bisection); default: the
+            profile's procedure, else ``two-sided``.
 
     Returns:
         The :class:`SweepOutcome`.
@@ -531,7 +601,10 @@ def run_sweep(
             report is written before the calibration, so a calibration is never newer than its report).
     """
     # ---- validate everything before touching a device or a file
-    threshold_rad = _check_number(threshold_rad, "--threshold")
+    if threshold_rad is not None:
+        threshold_rad = _check_number(threshold_rad, "--threshold")
+    if method is not None and method not in METHODS:
+        raise UsageError(f"--method {method!r}: expected one of {', '.join(METHODS)}")
     span_tolerance_rad = _check_number(span_tolerance_rad, "--span-tolerance")
     if not (math.isfinite(direction_step_s) and direction_step_s > 0):
         raise UsageError(f"--direction-time {direction_step_s}: expected a finite number of seconds > 0")
@@ -568,6 +641,24 @@ def run_sweep(
         )
     existing = _existing_output(out_path, fmt, urdf, profile)
     joints = joints_from_urdf(urdf, profile, existing)
+    if method is None:
+        method = profile.method if profile is not None else "two-sided"
+    stops: list[tuple[str, float] | None] = []
+    for j in joints:
+        pj = profile.get(j.name) if profile is not None else None
+        stops.append(None if pj is None or pj.stop is None or pj.stop_rad is None else (pj.stop, pj.stop_rad))
+    if method == "one-sided":
+        lacking = [j.name for j, st in zip(joints, stops, strict=True) if st is None]
+        if lacking:
+            who = "no robot profile" if profile is None else f"profile {profile.name} has none for them"
+            raise UsageError(
+                f"--method one-sided needs the stop each joint is pushed into and its angle; {who}: "
+                f"{', '.join(lacking)}. Pass --robot NAME (or a profile file with stop/stop_deg), "
+                "or --method two-sided"
+            )
+    if threshold_rad is None:
+        threshold_rad = DEFAULT_ONE_SIDED_THRESHOLD_RAD if method == "one-sided" else DEFAULT_THRESHOLD_RAD
+    wraps = profile.position_wraps if profile is not None else True
     no_id = [j.name for j in joints if j.can_id <= 0]
     if no_id and fmt != "berkeley-offsets":
         raise FileFormatError(
@@ -584,7 +675,7 @@ def run_sweep(
 
     # ---- sample
     src = (open_source_fn or open_source)(spec, joints, topic=topic, frame=frame)
-    session = SweepSession(src, joints)
+    session = SweepSession(src, joints, method=method, stops=stops, wraps=wraps)
     interrupted = False
     checks: dict[str, int] | None = None
     zero_sta: dict[str, int] = {}
@@ -638,7 +729,16 @@ def run_sweep(
             src.close()
     code = 0 if result.ok else 1
     return SweepOutcome(
-        result, out_path, fmt, report_path, code, session.samples, interrupted, session.missing
+        result,
+        out_path,
+        fmt,
+        report_path,
+        code,
+        session.samples,
+        interrupted,
+        session.missing,
+        method,
+        profile.name if profile is not None else None,
     )
 
 
