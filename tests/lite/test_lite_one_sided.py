@@ -149,7 +149,7 @@ def test_joint_not_moved_is_not_swept(tmp_path: Path, capsys: pytest.CaptureFixt
 def test_both_stops_report_both_rules_and_their_difference(tmp_path: Path) -> None:
     """A knee swept over its whole URDF range: both rules apply; a stop angle 2 deg off shows as 2 deg."""
     lo, up = read_urdf(BIPED_URDF).limits("leg_left_knee_pitch_joint")
-    names, s = _replay()
+    names, _ = _replay()
     i = names.index("leg_left_knee_pitch_joint")
     off = _offsets(UPSTREAM_CAL)[3]  # q = s - off
     rec = _edited_replay(tmp_path, names[i], lambda c: np.linspace(lo, up, len(c)) + off)
@@ -161,7 +161,8 @@ def test_both_stops_report_both_rules_and_their_difference(tmp_path: Path) -> No
     prof = tmp_path / "mine.yaml"
     prof.write_text("format: robocal-robot-profile\nversion: 1\nname: mine\nposition_wraps: false\n"
                     "calibration: {method: one-sided, file_format: berkeley-offsets}\njoints:\n" + rows)  # fmt: skip
-    rc, out, report = _sweep(tmp_path, rec, "--robot", str(prof))
+    rc, _, report = _sweep(tmp_path, rec, "--robot", str(prof))
+    assert rc == 0
     rep = json.loads(report.read_text())["joints"]
     knee = rep["leg_left_knee_pitch_joint"]
     assert knee["rules"]["difference"] == pytest.approx(math.radians(2), abs=1e-12)
@@ -173,9 +174,8 @@ def test_both_stops_report_both_rules_and_their_difference(tmp_path: Path) -> No
     )  # one-sided method wrote this one
     assert "rules" not in rep["leg_left_hip_roll_joint"]  # one stop only
     # the same sweep two-sided: bisection written, both rules still reported
-    rc, out, report = _sweep(
-        tmp_path, rec, "--robot", str(prof), "--method", "two-sided", "--threshold", "0.1"
-    )
+    rc, _, report = _sweep(tmp_path, rec, "--robot", str(prof), "--method", "two-sided", "--threshold", "0.1")
+    assert rc == 1  # the other joints were pushed into one stop only: span_mismatch
     knee2 = json.loads(report.read_text())["joints"]["leg_left_knee_pitch_joint"]
     assert knee2["homing_offset"] == knee["rules"]["two_sided_homing_offset"]
     assert knee2["rules"] == knee["rules"]

@@ -646,7 +646,7 @@ def analyse_sweep(
                 warnings.add("span_mismatch")  # the joint went past the URDF's other limit
             if abs(h) > math.pi:
                 warnings.add("offset_large")
-            if math.isfinite(start[i]):
+            if math.isfinite(start[i]) and not both:  # a joint that reached both stops went to its own, too
                 toward = start[i] - smin[i] if side[i] == "lower" else smax[i] - start[i]
                 away = smax[i] - start[i] if side[i] == "lower" else start[i] - smin[i]
                 if away >= threshold_rad and toward < 0.1 * threshold_rad:
