@@ -207,3 +207,20 @@ def test_lite_motor_configuration_is_named_as_such(
         "settings, like the Berkeley Humanoid Lite's robot_configuration.json), not a calibration"
     )
     assert "Infinity" not in err and not (tmp_path / "x.yaml").exists()
+
+
+@pytest.mark.parametrize(("start", "end"), [(2100, 3300), (3300, 2100)])
+def test_migrate_keeps_the_direction_of_a_linear_gripper(tmp_path: Path, start: int, end: int) -> None:
+    """Legacy LINEAR is 0 % at start_pos; a start_pos above end_pos must not flip the gripper on migration."""
+    from robocal.workflows.lerobot import legacy_to_current
+
+    cal = legacy.LegacyCalibration(["gripper"], [0], [0], [start], [end], ["LINEAR"])
+    cals, warnings = legacy_to_current(cal, "feetech")
+    assert warnings == []
+    assert cals["gripper"] == MotorCalibration(1, int(start > end), 0, 2100, 3300)
+    raw = np.array([2100, 2400, 2700, 3300])
+    np.testing.assert_allclose(
+        normalize(raw, cals["gripper"], "range_0_100"),
+        legacy.apply_calibration(raw[:, None], cal)[:, 0],
+        atol=1e-12,
+    )

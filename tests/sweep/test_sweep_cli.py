@@ -363,7 +363,9 @@ def test_direction_unknown_is_reported_when_a_joint_does_not_move(
     assert rc == 1 and out.exists()
     err = capsys.readouterr().err
     assert f"direction check: {ELBOW}: direction_unknown: did not move 0.1 rad within" in err
-    assert f"warning: {ELBOW}: direction_unknown: did not move 0.1 rad within the direction check's time" in err
+    assert (
+        f"warning: {ELBOW}: direction_unknown: did not move 0.1 rad within the direction check's time" in err
+    )
     # without --direction-check nothing claims a verified or unverified direction
     main(["sweep", *args])
     assert json.loads(rep.read_text())["joints"][ELBOW]["warnings"] == []

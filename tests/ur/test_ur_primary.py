@@ -279,7 +279,10 @@ def test_pose_sample_timeout_names_what_was_missing() -> None:
             with pytest.raises(CalibTimeoutError) as exc:
                 client.read_pose_samples(3)
     msg = str(exc.value)
-    assert f"UR controller {host}:{port}: no RobotState with Joint data and CartesianInfo within {SHORT:g} s" in msg
+    assert (
+        f"UR controller {host}:{port}: no RobotState with Joint data and CartesianInfo within {SHORT:g} s"
+        in msg
+    )
     assert "sample 1 of 3; the RobotStates that arrived lack CartesianInfo" in msg
     assert "KinematicsInfo" not in msg
 

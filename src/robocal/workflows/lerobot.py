@@ -756,9 +756,21 @@ def legacy_to_current(
         h = int(legacy_cal.homing_offset[k])
         dm = int(legacy_cal.drive_mode[k])
         if legacy_cal.calib_mode[k] == "LINEAR":
-            lo, hi = sorted((int(legacy_cal.start_pos[k]), int(legacy_cal.end_pos[k])))
+            start, end = int(legacy_cal.start_pos[k]), int(legacy_cal.end_pos[k])
+            lo, hi = sorted((start, end))
             if lo == hi:
                 raise InvalidCalibrationError(f"motor {name!r}: LINEAR start_pos equals end_pos ({lo})")
+            # legacy percent = (raw − start)/(end − start): 0 % at start_pos. With start > end the percentage
+            # falls as the reading rises; Feetech's software drive_mode 1 (100 − n) keeps that exactly.
+            lin_dm = 0
+            if start > end:
+                if vendor == "feetech":
+                    lin_dm = 1
+                else:
+                    warnings.append(
+                        f"{name}: legacy LINEAR start_pos {start} > end_pos {end} (0 % at the higher reading); "
+                        "RANGE_0_100 on Dynamixel counts from range_min, so this joint's percentage is reversed"
+                    )
             offset = 0
             if lo < 0 or hi > 4095:  # legacy Feetech readings were unwrapped past the 0/4095 seam
                 if hi - lo >= 4095:
@@ -777,7 +789,7 @@ def legacy_to_current(
                     "write it to the motor with `robocal lerobot calibrate --use-file`)"
                 )
                 lo, hi = new_lo, new_hi
-            out[name] = MotorCalibration(motor_ids[k], 0, offset, lo, hi)
+            out[name] = MotorCalibration(motor_ids[k], lin_dm, offset, lo, hi)
             continue
         if vendor == "feetech":
             offset = (-h - 2047 + 2048) % 4096 - 2048
