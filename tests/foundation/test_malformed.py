@@ -62,7 +62,7 @@ LITE = {
     "nan_offset_json": (
         "c.json",
         '{"a": {"id": 1, "direction": 1, "homing_offset": NaN}}',
-        "NaN is not valid JSON",
+        "c.json:1: joint 'a': homing_offset is NaN; JSON has no NaN or Infinity",
     ),
     "inf_offset": ("c.yaml", "a: {id: 1, direction: 1, homing_offset: .inf}\n", "homing_offset is inf"),
     "direction_zero": (

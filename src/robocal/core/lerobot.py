@@ -579,12 +579,20 @@ class LegacyCalibration:
             ("start_pos", start_pos),
             ("end_pos", end_pos),
         ):
-            arr = np.asarray(val)
-            if arr.shape != (n,):
-                raise ShapeMismatchError(
-                    f"legacy calibration: {field} has shape {arr.shape}; expected ({n},)"
-                )
-            arrays[field] = arr.astype(np.int64)
+            try:
+                arr = np.asarray(val)
+                if arr.shape != (n,):
+                    raise ShapeMismatchError(
+                        f"legacy calibration: {field} has shape {arr.shape}; expected ({n},)"
+                    )
+                arrays[field] = arr.astype(np.int64)
+            except (OverflowError, TypeError, ValueError) as exc:
+                if isinstance(exc, ShapeMismatchError):
+                    raise
+                raise InvalidCalibrationError(
+                    f"legacy calibration: {field} {list(val) if isinstance(val, Sequence) else val!r} is not "
+                    f"a list of 64-bit integers ({exc})"
+                ) from None
             arrays[field].flags.writeable = False
         if not np.all(np.isin(arrays["drive_mode"], (0, 1))):
             raise InvalidCalibrationError(

@@ -25,7 +25,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..errors import CalibError, FileFormatError, UsageError
+from ..errors import CalibError, FileFormatError, FileWriteError, UsageError
 from ._convention import ValueConvention
 from ._engine import FeaturePlan, FileResult, feature_convention, recalibrate_file
 from ._layout import DatasetLayout, read_layout
@@ -143,6 +143,10 @@ def _read_stats(path: Path) -> dict[str, Any]:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
+    except RecursionError:
+        raise FileFormatError(f"{path}: statistics JSON nested too deeply") from None
+    except ValueError as exc:  # e.g. an integer of more digits than Python converts
         raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
     if not isinstance(data, dict):
         raise FileFormatError(f"{path}: expected a JSON object of features")
@@ -316,8 +320,13 @@ def recalibrate_dataset(
     try:
         _build(layout, tmp, plans, workers, report, on_file_done)
         publish_root(tmp, dst_p)
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if isinstance(exc, OSError) and not isinstance(exc, CalibError):  # a full disk, a read-only folder
+            where = f" ({exc.filename})" if exc.filename else ""
+            raise FileWriteError(
+                f"cannot write {dst_p}: {exc.strerror or exc}{where}; nothing written"
+            ) from None
         raise
     return report
 
@@ -464,7 +473,19 @@ def finish_root(
 def make_temp_root(dst: Path, kind: str = "robocal") -> Path:
     """Create an empty temporary folder beside ``dst`` (same file system, so the final rename is atomic)."""
     final = Path(os.path.abspath(dst))  # "." or "out/.." have no usable name or parent otherwise
-    return Path(tempfile.mkdtemp(prefix=f".{final.name}.{kind}-", dir=final.parent))
+    prefix = f".{final.name}.{kind}-"
+    if len(os.fsencode(prefix)) + 8 > 255:  # a long DST name: a short temporary name still fits
+        prefix = f".rc-{kind}-"
+    try:
+        return Path(tempfile.mkdtemp(prefix=prefix, dir=final.parent))
+    except OSError as exc:
+        raise FileWriteError(
+            f"cannot write {dst}: cannot create a folder in {final.parent} ({exc.strerror or exc}); nothing written"
+        ) from None
+    except UnicodeError:
+        raise FileWriteError(
+            f"cannot write {str(dst)!a}: the name is not valid Unicode (a lone surrogate)"
+        ) from None
 
 
 def publish_root(tmp: Path, dst: Path) -> None:

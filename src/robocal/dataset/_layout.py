@@ -200,6 +200,10 @@ def read_layout(root: str | Path) -> DatasetLayout:
         info = json.loads(read_text(info_path, "dataset info"))
     except json.JSONDecodeError as exc:
         raise FileFormatError(f"{info_path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise FileFormatError(f"{info_path}: not valid JSON (nested too deeply)") from None
+    except ValueError as exc:  # e.g. an integer of more digits than Python converts
+        raise FileFormatError(f"{info_path}: not valid JSON ({exc})") from None
     if not isinstance(info, dict) or not isinstance(info.get("features"), dict):
         raise FileFormatError(f"{info_path}: expected an object with a 'features' object")
     version = info.get("codebase_version")

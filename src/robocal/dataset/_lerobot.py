@@ -412,7 +412,7 @@ def _json_kind(path: Path) -> str | None:
         return None
     try:
         data = json.loads(read_text(path, "calibration file"))
-    except json.JSONDecodeError:
+    except (ValueError, RecursionError):  # not JSON (or too deep / too long a number): the reader reports it
         return None
     if isinstance(data, dict) and "motor_names" in data:
         return "legacy"

@@ -8,6 +8,8 @@ read them as floats; ``-0.0`` is written as ``0.0``.
 from __future__ import annotations
 
 import io
+import re
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from ruamel.yaml import YAML
@@ -16,6 +18,7 @@ from ruamel.yaml.representer import RoundTripRepresenter
 from ruamel.yaml.scalarfloat import ScalarFloat
 
 from ..errors import FileFormatError
+from ._json import MAX_NESTING, check_tree
 
 __all__ = ["dump_yaml", "load_yaml", "yaml_float"]
 
@@ -67,19 +70,71 @@ def _yaml() -> YAML:
     return y
 
 
-def load_yaml(text: str, source: str) -> Any:
+_FLOW_TOKENS = re.compile(r'"(?:[^"\\\n]|\\.)*"|\'(?:[^\'\n]|\'\')*\'|(?<!\S)#[^\n]*|[\[\]{}]')
+
+
+def _flow_depth(text: str) -> int:
+    """Deepest nesting of flow collections (``[`` / ``{``) outside quotes and comments (a quick guard)."""
+    if text.count("[") + text.count("{") <= MAX_NESTING:
+        return 0
+    depth = deepest = 0
+    for m in _FLOW_TOKENS.finditer(text):
+        c = m.group()
+        if c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth = max(depth - 1, 0)
+    return deepest
+
+
+def _line_of(data: Any) -> Callable[[Sequence[Any]], int | None]:
+    """The 1-based line of a key path in a round-trip document (ruamel keeps them in ``.lc``)."""
+
+    def line(path: Sequence[Any]) -> int | None:
+        node = data
+        found: int | None = None
+        try:
+            for key in path:
+                lc = getattr(node, "lc", None)
+                if lc is not None:
+                    pos = lc.key(key) if isinstance(node, Mapping) else lc.item(key)
+                    found = int(pos[0]) + 1
+                node = node[key]
+        except (KeyError, IndexError, TypeError, AttributeError):
+            pass
+        return found
+
+    return line
+
+
+def load_yaml(text: str, source: str, *, item: str = "key") -> Any:
     """Parse YAML text (round-trip types: ``CommentedMap`` / ``CommentedSeq``).
 
+    Args:
+        text: The YAML document.
+        source: File name for messages.
+        item: What the top-level keys are (``"joint"``), for messages.
+
     Raises:
-        FileFormatError: Syntax errors or duplicate keys, naming the file and line.
+        FileFormatError: Syntax errors or duplicate keys, naming the file and line; a document nested more than
+            :data:`~robocal.formats._json.MAX_NESTING` levels deep; a key or string that is not valid Unicode.
     """
+    if _flow_depth(text) > MAX_NESTING:  # ruamel takes seconds for a few thousand levels: refuse them first
+        raise FileFormatError(f"{source}: nested more than {MAX_NESTING} levels deep; not a robocal file")
     try:
-        return _yaml().load(text)
+        data = _yaml().load(text)
     except YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise FileFormatError(f"{source}: invalid YAML{where}: {problem}") from None
+    except RecursionError:
+        raise FileFormatError(
+            f"{source}: nested more than {MAX_NESTING} levels deep; not a robocal file"
+        ) from None
+    check_tree(data, source, item=item, line_of=_line_of(data))
+    return data
 
 
 def dump_yaml(data: Any) -> str:

@@ -34,7 +34,7 @@ from ..core.jointmap import RobotCalibration
 from ..core.profile import RobotProfile
 from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, read_bytes, read_text
-from ._json import load_json
+from ._json import is_valid_unicode, load_json
 from ._numbers import format_float, parse_direction, parse_finite, parse_int
 from ._yaml import dump_yaml, load_yaml
 from .profiles import profile_for_joints, resolve_profile
@@ -160,12 +160,14 @@ def _read_lite_json(path: Path, **_: Any) -> CalibrationFile:
     except (ValueError, RecursionError):
         loose = None
     _refuse_motor_configuration(loose, str(path))
-    return _parse_lite(load_json(text, str(path)), str(path), "lite-json")
+    return _parse_lite(load_json(text, str(path), item="joint"), str(path), "lite-json")
 
 
 def _yaml_data(path: Path, parsed: Any) -> Any:
     """The file's YAML document: ``parsed`` when format detection already parsed it (parse once), else load."""
-    return parsed if parsed is not None else load_yaml(read_text(path, "calibration file"), str(path))
+    if parsed is not None:
+        return parsed
+    return load_yaml(read_text(path, "calibration file"), str(path), item="joint")
 
 
 def _read_lite_yaml(path: Path, parsed_yaml: Any = None, **_: Any) -> CalibrationFile:
@@ -215,7 +217,7 @@ def _write_lite_yaml(
     doc: Any = None
     if path.exists():
         try:
-            doc = load_yaml(read_text(path, "calibration file"), str(path))
+            doc = load_yaml(read_text(path, "calibration file"), str(path), item="joint")
             _parse_lite(doc, str(path), "lite-yaml")
         except FileFormatError:
             doc = None  # not a lite-yaml file we can update: replace it (the old one is kept as .bak)
@@ -737,7 +739,7 @@ def _sniff(text: str, source: str) -> tuple[str | None, Any]:
     if stripped.startswith("{") or stripped.startswith("["):
         try:
             data = json.loads(stripped)
-        except ValueError:
+        except (ValueError, RecursionError):  # reported by the real reader below
             data = None
         if isinstance(data, dict):
             if "position_offsets" in data:
@@ -752,7 +754,7 @@ def _sniff(text: str, source: str) -> tuple[str | None, Any]:
                 return "lite-json", None
             return None, None
     try:
-        data = load_yaml(text, source)
+        data = load_yaml(text, source, item="joint")
     except FileFormatError:
         if stripped.startswith(("{", "[")):
             load_json(stripped, source)  # raises: report the JSON syntax error (line, column)
@@ -892,6 +894,11 @@ def write_calibration(
         raise UsageError(
             f"format {name} is read-only; valid output formats: "
             f"{', '.join(k for k, v in FORMATS.items() if v.writer is not None)}"
+        )
+    bad = [n for n in cf.calibration.joint_names if not is_valid_unicode(n)]
+    if bad:
+        raise InvalidCalibrationError(
+            f"cannot write {p}: joint name {bad[0]!a} is not valid Unicode (a lone surrogate); nothing written"
         )
     spec.writer(p, cf, urdf, joint_order=joint_order, profile=resolve_profile(robot, urdf))
     return name

@@ -64,8 +64,23 @@ def dumps_current(cals: Mapping[str, MotorCalibration]) -> str:
     return json.dumps(data, indent=4)
 
 
+INT32_MAX = 2**31 - 1
+"""Largest magnitude accepted for an integer field: every servo register robocal knows fits in 32 bits."""
+
+
 def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _int_problem(value: Any) -> str | None:
+    """Why ``value`` is not a usable integer field (None when it is one)."""
+    if not _is_int(value):
+        return f"is {value!r}; expected an integer"
+    if abs(value) > INT32_MAX:
+        digits = len(str(abs(value)))
+        shown = str(value) if digits <= 24 else f"an integer of {digits} digits"
+        return f"is {shown}; expected an integer within ±{INT32_MAX} (a 32-bit register)"
+    return None
 
 
 def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibration]:
@@ -82,7 +97,7 @@ def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibra
         FileFormatError: Not JSON, not an object of objects, a missing/extra/non-int field, duplicate ids,
             ``range_min >= range_max``, or a legacy array file. The message names the file, motor and field.
     """
-    data = load_json(text, source)
+    data = load_json(text, source, item="motor")
     if not isinstance(data, dict):
         raise FileFormatError(f"{source}: expected a JSON object of motors, got {type(data).__name__}")
     if data and all(isinstance(v, list) for v in data.values()):
@@ -108,10 +123,9 @@ def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibra
         if extra:
             raise FileFormatError(f"{source}: motor {motor!r}: unknown field(s) {', '.join(extra)}")
         for f in CURRENT_FIELDS:
-            if not _is_int(entry[f]):
-                raise FileFormatError(
-                    f"{source}: motor {motor!r}: field {f} is {entry[f]!r}; expected an integer"
-                )
+            problem = _int_problem(entry[f])
+            if problem is not None:
+                raise FileFormatError(f"{source}: motor {motor!r}: field {f} {problem}")
         if entry["drive_mode"] not in (0, 1):
             raise FileFormatError(
                 f"{source}: motor {motor!r}: field drive_mode is {entry['drive_mode']}; expected 0 or 1"
@@ -185,6 +199,13 @@ def dumps_legacy(cal: LegacyCalibration) -> str:
     return json.dumps(data)
 
 
+def _motor_name(data: Mapping[str, Any], i: int) -> str:
+    names = data.get("motor_names")
+    if isinstance(names, list) and i < len(names) and isinstance(names[i], str):
+        return f" (motor {names[i]!r})"
+    return ""
+
+
 def parse_legacy(text: str, source: str = "<string>") -> LegacyCalibration:
     """Parse and validate a legacy LeRobot calibration JSON (six parallel arrays).
 
@@ -214,8 +235,10 @@ def parse_legacy(text: str, source: str = "<string>") -> LegacyCalibration:
         for i, v in enumerate(arr):
             if want_str and not isinstance(v, str):
                 raise FileFormatError(f"{source}: key {key}[{i}] is {v!r}; expected a string")
-            if not want_str and not _is_int(v):
-                raise FileFormatError(f"{source}: key {key}[{i}] is {v!r}; expected an integer")
+            problem = None if want_str else _int_problem(v)
+            if problem is not None:
+                motor = _motor_name(data, i)
+                raise FileFormatError(f"{source}: key {key}[{i}] {problem}{motor}")
         if n is None:
             n = len(arr)
         elif len(arr) != n:
@@ -250,4 +273,6 @@ def read_legacy(path: PathLike) -> LegacyCalibration:
 
 def write_legacy(path: PathLike, cal: LegacyCalibration) -> Path:
     """Write a legacy LeRobot calibration JSON atomically, byte-identical to LeRobot's writer."""
-    return atomic_write_text(path, dumps_legacy(cal))
+    text = dumps_legacy(cal)
+    parse_legacy(text, str(path))  # refuses what would not read back (e.g. a lone surrogate in a name)
+    return atomic_write_text(path, text)
