@@ -310,3 +310,27 @@ def test_calibrate_final_write_failure_prints_the_calibration(
     cals = {n: MotorCalibration(**v) for n, v in json.loads(cap.out).items()}
     assert cals["shoulder_pan"] == MotorCalibration(1, 0, 53, 847, 3247)  # what a good run writes
     assert not path.exists()
+
+
+def test_ctrl_c_while_the_restoring_line_is_shown_is_deferred(tmp_path: Path) -> None:
+    with SimArm("so101_follower", eeprom=PREVIOUS["so101_follower"]) as arm:
+        before = arm.eeprom()
+        bus = CtrlCDuringRollback(open_bus(arm.spec, arm.port), set())
+        status: list[str] = []
+
+        def show(line: str) -> None:
+            status.append(line)
+            if len(status) == 1:  # the person presses Ctrl-C again just as "restoring…" appears
+                os.kill(os.getpid(), signal.SIGINT)
+
+        try:
+            with pytest.raises(KeyboardInterrupt) as info:
+                calibrate(bus, arm.spec, FirstCtrlC(arm, bus, 3), path=tmp_path / "c.json", on_status=show)  # type: ignore[arg-type]
+        finally:
+            bus.close()
+        assert info.value.args == ()
+        assert status == [
+            "restoring the previous EEPROM of every motor…",
+            "still restoring the previous EEPROM; Ctrl-C is ignored until it is done",
+        ]
+        assert arm.eeprom() == before

@@ -186,7 +186,9 @@ def _defer_sigint(on_status: Callable[[str], None] | None) -> Iterator[list[int]
             def deferred(signum: int, frame: object) -> None:
                 count[0] += 1
                 if on_status is not None:
-                    on_status("still restoring the previous EEPROM; Ctrl-C is ignored until it is done")
+                    # never let the message break the rollback (e.g. a re-entrant write to the same stream)
+                    with contextlib.suppress(Exception):
+                        on_status("still restoring the previous EEPROM; Ctrl-C is ignored until it is done")
 
             signal.signal(signal.SIGINT, deferred)
             installed = True
@@ -216,9 +218,11 @@ def _rollback(
     label = {m.name: f"motor {m.name!r} (id {m.motor_id})" for m in spec.motors}
     restored: list[str] = []
     not_restored: dict[str, tuple[str, ...]] = {}
-    if on_status is not None:
-        on_status("restoring the previous EEPROM of every motor…")
-    with _defer_sigint(on_status) as deferred:
+    with _defer_sigint(
+        on_status
+    ) as deferred:  # first: a Ctrl-C while the status line is shown is deferred too
+        if on_status is not None:
+            on_status("restoring the previous EEPROM of every motor…")
         interrupts = 0
         for m in spec.motors:
             regs = [(f, v) for f, v in before.get(m.name, {}).items() if bus.has_register(m.motor_id, f)]
