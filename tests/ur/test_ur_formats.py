@@ -114,7 +114,7 @@ def _dh_text(**override: str | None) -> str:
 
 MALFORMED = [
     ("missing_key", _dh_text(dh_d=None), r"missing key dh_d"),
-    ("wrong_length", _dh_text(dh_a="[0, 1, 2]"), r"dh_a has 3 values; expected 6"),
+    ("wrong_length", _dh_text(dh_a="[0, 1, 2]"), r"dh_a has 3 values \(\[0, 1, 2\]\); expected 6 numbers"),
     ("nan", _dh_text(dh_alpha="[.nan, 0, 0, 0, 0, 0]"), r"dh_alpha\[0\] is nan"),
     ("inf", _dh_text(dh_d="[.inf, 0, 0, 0, 0, 0]"), r"dh_d\[0\] is inf"),
     ("string", _dh_text(dh_theta="[0, zero, 0, 0, 0, 0]"), r"dh_theta\[1\] is 'zero'; expected a number"),

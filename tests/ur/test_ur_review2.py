@@ -151,7 +151,7 @@ MALFORMED_CONF = [
     (
         "five_values_over_two_lines",
         f"[mounting]\ndelta_theta = [0, 0, 0,\n 0, 0]\n{_TAIL}",
-        r"delta_theta has 5 values; expected 6",
+        r"delta_theta has 5 values \(\[0\.0, 0\.0, 0\.0, 0\.0, 0\.0\]\); expected 6",
     ),
 ]
 

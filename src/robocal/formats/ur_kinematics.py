@@ -22,8 +22,10 @@ Floats are written shortest-round-trip (Python ``repr``), never ``-0``; ``hash``
 
 DH inputs:
 
-* a DH YAML with ``dh_theta``, ``dh_a``, ``dh_d``, ``dh_alpha`` (six numbers each, radians and metres), the
-  layout ur_calibration logs;
+* a DH YAML with ``dh_theta``, ``dh_a``, ``dh_d``, ``dh_alpha`` (six numbers each, radians and metres): flow
+  lists with commas, block lists, or flow lists separated by spaces (``[a b c d e f ]``) as the driver's log and
+  the ur_calibration docs print them; a pasted ROS log (line prefixes, ``checksum`` and ``calibration_status``
+  lines) reads as well;
 * a deltas file with ``delta_theta``, ``delta_a``, ``delta_d``, ``delta_alpha``, either YAML or the
   controller's ``calibration.conf`` (``delta_theta = [ ... ]`` under ``[mounting]``, a list possibly spanning
   several lines), to be added to a model's nominal DH.
@@ -139,14 +141,34 @@ def read_kinematics(path: str | os.PathLike[str]) -> UrKinematics:
     """
     text = read_text(path, "kinematics YAML")
     data = load_yaml(text, str(path))
-    if not isinstance(data, Mapping) or not isinstance(data.get("kinematics"), Mapping):
-        raise FileFormatError(f"kinematics YAML {path}: expected a top-level 'kinematics' mapping")
+    where = f"kinematics YAML {path}"
+    if not isinstance(data, Mapping):
+        raise FileFormatError(
+            f"{where}: the document is {_shown(data)}; expected a top-level 'kinematics' mapping"
+        )
+    if "kinematics" not in data:
+        found = ", ".join(str(k) for k in data) or "none"
+        hint = ""
+        if all(k in data for k in DH_KEYS):
+            hint = "; this is a DH file (pass it with --dh)"
+        elif all(k in data for k in DELTA_KEYS):
+            hint = "; this is a deltas file (pass it with --model MODEL --deltas FILE)"
+        raise FileFormatError(
+            f"{where}: expected a top-level 'kinematics' mapping; found keys: {found}{hint}"
+        )
     kin = data["kinematics"]
+    if not isinstance(kin, Mapping):
+        raise FileFormatError(f"{where}: kinematics is {_shown(kin)}; expected a mapping of the six links")
     links: list[LinkOrigin] = []
     for name in LINK_NAMES:
-        entry = kin.get(name)
+        if name not in kin:
+            found = ", ".join(str(k) for k in kin) or "none"
+            raise FileFormatError(f"{where}: kinematics.{name} is missing (found: {found})")
+        entry = kin[name]
         if not isinstance(entry, Mapping):
-            raise FileFormatError(f"kinematics YAML {path}: kinematics.{name} is missing or not a mapping")
+            raise FileFormatError(
+                f"{where}: kinematics.{name} is {_shown(entry)}; expected a mapping with {', '.join(_FIELDS)}"
+            )
         vals = []
         for key in _FIELDS:
             if key not in entry:
@@ -160,12 +182,46 @@ def read_kinematics(path: str | os.PathLike[str]) -> UrKinematics:
     return UrKinematics(links=tuple(links), hash=h, rpy_convention=convention)
 
 
+_SIX_FORMS = "[a, b, c, d, e, f], [a b c d e f] or a block list"
+
+
+def _shown(value: Any) -> str:
+    text = repr(value if not isinstance(value, (list, tuple)) else list(value))
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
 def _six(value: Any, where: str) -> tuple[float, ...]:
+    """Six finite numbers from a YAML list in any form UR and the ROS drivers write.
+
+    ``[a, b, c, d, e, f]`` and block lists are YAML lists of numbers. UR's driver log and the ur_calibration
+    docs print ``[a b c d e f ]`` (numbers separated by spaces), which YAML reads as a list holding one string;
+    that string is split at whitespace.
+    """
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
-        raise FileFormatError(f"{where} is {value!r}; expected a list of 6 numbers")
-    if len(value) != 6:
-        raise FileFormatError(f"{where} has {len(value)} values; expected 6")
-    return tuple(_number(v, f"{where}[{i}]") for i, v in enumerate(value))
+        raise FileFormatError(f"{where} is {_shown(value)}; expected a list of 6 numbers ({_SIX_FORMS})")
+    items: list[Any] = list(value)
+    if len(items) == 1 and isinstance(items[0], str) and len(items[0].split()) > 1:
+        tokens = items[0].split()
+        items = []
+        for i, token in enumerate(tokens):
+            try:
+                items.append(float(token))
+            except ValueError:
+                raise FileFormatError(
+                    f"{where}[{i}] is {token!r}; expected a number (the list is {_shown(value[0])})"
+                ) from None
+    else:
+        for i, v in enumerate(items):
+            if isinstance(v, str):
+                hint = "; separate the 6 numbers all by commas or all by spaces" if len(v.split()) > 1 else ""
+                raise FileFormatError(
+                    f"{where}[{i}] is {v!r}; expected a number (the list is {_shown(value)}){hint}"
+                )
+    if len(items) != 6:
+        raise FileFormatError(
+            f"{where} has {len(items)} values ({_shown(items)}); expected 6 numbers ({_SIX_FORMS})"
+        )
+    return tuple(_number(v, f"{where}[{i}]") for i, v in enumerate(items))
 
 
 _CONF_SECTION = re.compile(r"^\[\s*[A-Za-z_][\w .-]*\]$")
@@ -275,6 +331,23 @@ def _parse_conf(text: str, source: str, keys: tuple[str, ...]) -> dict[str, Any]
     return raw
 
 
+_LOG_PREFIX = re.compile(
+    r"^(?:\[[\w./-]+\]\s+)?\[\s*(?:DEBUG|INFO|WARN|WARNING|ERROR|FATAL)\s*\](?:\s*\[[^\]]*\])*\s*:\s?"
+)
+"""A ROS log line's prefix: ``[ INFO] [1560953586.35]: `` (ROS 1), ``[INFO] [1700000000.1] [node]: `` (ROS 2),
+optionally after a launch prefix ``[calibration_correction-1] ``."""
+
+_LOG_KEYS = ("checksum", "calibration_status")
+"""Other lines of the KinematicsInfo as UR's client library prints it (next to dh_*); not warned about."""
+
+
+def _strip_log_prefixes(text: str) -> str:
+    """Remove ROS log prefixes so a pasted driver log reads as the YAML it prints."""
+    if "[" not in text:
+        return text
+    return "\n".join(_LOG_PREFIX.sub("", line, count=1) for line in text.split("\n"))
+
+
 def _close_key(name: str, candidates: list[str]) -> str | None:
     match = difflib.get_close_matches(name, candidates, n=1, cutoff=0.75)
     return match[0] if match else None
@@ -283,7 +356,7 @@ def _close_key(name: str, candidates: list[str]) -> str | None:
 def _load_mapping(
     path: str | os.PathLike[str], what: str, keys: tuple[str, ...], warnings: list[str] | None
 ) -> dict[str, Any]:
-    text = read_text(path, what)
+    text = _strip_log_prefixes(read_text(path, what))
     source = f"{what} {path}"
     stripped = text.lstrip()
     is_conf = stripped.startswith("[") or re.search(r"^\s*\w+\s*=\s*\[", text, re.MULTILINE) is not None
@@ -291,7 +364,7 @@ def _load_mapping(
     if not isinstance(data, Mapping):
         raise FileFormatError(f"{source}: expected a mapping with keys {', '.join(keys)}")
     present = [str(k) for k in data]
-    unknown = [k for k in present if k not in keys]
+    unknown = [k for k in present if k not in keys and not (keys == DH_KEYS and k in _LOG_KEYS)]
     missing = [k for k in keys if k not in data]
     if missing:
         hint = ""
@@ -318,6 +391,12 @@ def _read_four(
 ) -> DHParameters:
     """Read four six-number lists (θ, a, d, α in ``keys`` order) from a YAML or ``.conf`` file."""
     data = _load_mapping(path, what, keys, warnings)
+    status = data.get("calibration_status") if keys == DH_KEYS else None
+    if status is not None and warnings is not None and str(status).strip() != "2":
+        warnings.append(
+            f"{what} {path}: calibration_status is {status}, not 2 (linearised); the DH may be nominal "
+            "rather than the robot's calibration"
+        )
     th, a, d, al = (_six(data[k], f"{what} {path}: {k}") for k in keys)
     return DHParameters(theta_rad=th, a_m=a, d_m=d, alpha_rad=al)
 
