@@ -118,18 +118,22 @@ def test_berkeley_written_is_read_back(tmp_path: Path) -> None:
     out = tmp_path / "b.yaml"
     write_calibration(out, cf, "berkeley-offsets", urdf=urdf)
     assert read_calibration(out, urdf=urdf).calibration.is_close(cf.calibration, 0.0)
-    assert read_calibration(out).calibration.is_close(
-        cf.calibration, 0.0
-    )  # order from the file, profile by names
+    # order from the file, robot recognised from its joint names
+    assert read_calibration(out).calibration.is_close(cf.calibration, 0.0)
     order = list(reversed(URDF_ORDER))
     write_calibration(out, cf, "berkeley-offsets", urdf=urdf, joint_order=order)
     back = read_calibration(out, urdf=urdf, joint_order=order)
     assert back.calibration.joint_names == tuple(order)
     assert back.calibration.is_close(cf.calibration.select(order), 0.0)
+    # with the URDF alone, the order the file names wins over the profile's (its offsets stay on their joints),
+    # with a note: the robot's code would read it in its own order
+    alone = read_calibration(out, urdf=urdf)
+    assert alone.calibration.is_close(cf.calibration.select(order), 0.0)
+    assert "another order than robot bhl_biped's low-level code reads" in alone.notes[0]
     with pytest.raises(
         JointMismatchError, match="the file says its joint order is leg_right_ankle_roll_joint"
     ):
-        read_calibration(out, urdf=urdf)  # the profile's order would put the offsets on other joints
+        read_calibration(out, urdf=urdf, joint_order=URDF_ORDER)  # --joints contradicting the file
 
 
 def test_upstream_names_accepted_for_joints(tmp_path: Path) -> None:
@@ -216,3 +220,15 @@ def test_every_format_pair_round_trips(
     back = read_calibration(b, second, urdf=urdf).calibration
     assert sorted(back.joint_names) == sorted(names)
     assert back.select(names).is_close(cal, 0.0)  # same directions, bit-identical offsets
+
+
+def test_check_warns_when_file_order_is_not_the_codes_order(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "b.yaml"
+    cf = read_calibration(UPSTREAM_CAL, robot="bhl_biped")
+    write_calibration(out, cf, "berkeley-offsets", joint_order=list(reversed(URDF_ORDER)))
+    rc = main(["check", "--calibration", str(out), "--urdf", str(BIPED_URDF)])
+    captured = capsys.readouterr()
+    assert rc == 1 and "12/12 joints matched" in captured.out
+    assert "another order than robot bhl_biped's low-level code reads them" in captured.err

@@ -87,6 +87,8 @@ def check(
     profile = resolve_profile(robot, model)
     cf = read_calibration(calibration, fmt, urdf=model, robot=profile)
     report = check_calibration(cf, model, profile)
+    for note in cf.notes:
+        print_warning(note)
     console.print(f"{calibration}: {len(report.matched)}/{report.n_expected} joints matched ({cf.fmt})")
     if profile is not None:
         how = "--robot" if robot is not None else "recognised from the URDF's joint names"
@@ -119,7 +121,7 @@ def check(
     for j in report.joints:
         for w in j.warnings:
             print_warning(f"{j.name}: {w}")
-    ok = report.ok
+    ok = report.ok and not cf.notes
     if (
         source is not None
     ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.sweep)

@@ -399,18 +399,31 @@ def _read_berkeley(
         raise FileFormatError(f"{source}: position_offsets must be a non-empty list of numbers")
     offsets = [parse_finite(v, source, f"position_offsets[{i}]") for i, v in enumerate(raw)]
     written = _order_from_comment(text)
-    order = _berkeley_order(joint_order, profile, source)
-    if order is None:
-        if written is None:
-            raise UsageError(_no_order_message(source))
-        order = written  # a file robocal wrote names its order
-        profile = profile_for_joints(order)  # and a known robot's joints give the directions
-    elif written is not None and written != order and len(written) == len(offsets):
+    if written is not None and len(written) != len(offsets):
+        written = None  # a stale comment (the list was edited): not the file's order
+    # --joints first, then the order the file names (robocal's own files), then the profile's
+    order = (
+        _berkeley_order(joint_order, profile, source) if joint_order is not None or written is None else None
+    )
+    notes: tuple[str, ...] = ()
+    if order is None and written is None:
+        raise UsageError(_no_order_message(source))
+    if order is None and written is not None:
+        order = written  # a file robocal wrote names its order; that is how its offsets are laid out
+        if profile is None:
+            profile = profile_for_joints(order)  # a known robot's joints give the directions
+        elif list(profile.joint_names) != order and set(profile.joint_names) == set(order):
+            notes = (
+                f"{source}: its joints are in another order than robot {profile.name}'s low-level code reads "
+                f"them ({', '.join(profile.joint_names)}); that code reads by index and would put offsets on "
+                "other joints: rewrite it with --to berkeley-offsets (without --joints)",
+            )
+    elif written is not None and order is not None and written != order:
         raise JointMismatchError(
-            f"{source}: the file says its joint order is {', '.join(written)}, but "
-            f"{'--joints' if joint_order is not None else 'profile ' + profile.name} gives "  # type: ignore[union-attr]
+            f"{source}: the file says its joint order is {', '.join(written)}, but --joints gives "
             f"{', '.join(order)}; the offsets would land on other joints"
         )
+    assert order is not None
     if len(order) != len(offsets):
         raise JointMismatchError(
             f"{source}: {len(offsets)} offsets but {len(order)} joints in the order ({', '.join(order)})"
@@ -425,7 +438,7 @@ def _read_berkeley(
         if mid is not None:
             ids[n] = int(mid)
     return CalibrationFile(
-        RobotCalibration(order, dirs, h, 1.0), MappingProxyType(ids), "berkeley-offsets", source
+        RobotCalibration(order, dirs, h, 1.0), MappingProxyType(ids), "berkeley-offsets", source, notes
     )
 
 
