@@ -14,8 +14,9 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from rich.console import Console
+from rich.console import Console, Group, RenderableType
 from rich.live import Live
+from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from ..core.sweep import (
@@ -89,6 +90,8 @@ class LiveView:
         self.threshold_rad = threshold_rad
         self.live: Live | None = None
         self._last = -math.inf
+        self._t0 = -math.inf
+        self._session: SweepSession | None = None
         self.direction: dict[str, int] = {}
         self._told = False
 
@@ -198,32 +201,71 @@ class LiveView:
         for name, stop in zip(session.names, session.stops, strict=True):
             self.console.print(f"  {name}: {_stop_text(stop)}", markup=False)
 
+    def progress(self, session: SweepSession) -> tuple[float, str] | None:
+        """A replay's progress: (fraction read, ``"80.0 of 177.0 MB"``), or None for a live source."""
+        got = getattr(session.source, "progress", None)
+        if got is None:
+            return None
+        done, total, unit, _rows = got
+        if total <= 0:
+            return None
+        frac = min(1.0, done / total)
+        if unit == "bytes":
+            return frac, f"{done / 1e6:.1f} of {total / 1e6:.1f} MB"
+        return frac, f"{done} of {total} {unit}"
+
+    def renderable(self, session: SweepSession) -> RenderableType:
+        """The table, under a progress bar for a replay."""
+        table = self.table(session)
+        prog = self.progress(session)
+        if prog is None:
+            return table
+        frac, what = prog
+        elapsed = time.monotonic() - self._t0 if math.isfinite(self._t0) else 0.0
+        eta = f", {elapsed * (1 - frac) / frac:.0f} s left" if frac > 0.01 else ""
+        line = Table.grid(padding=(0, 1))
+        line.add_row(
+            "replay",
+            ProgressBar(total=1.0, completed=frac, width=40),
+            f"{100 * frac:3.0f}%  {what}, {session.samples} rows, {elapsed:.0f} s{eta}",
+        )
+        return Group(line, table)
+
     def update(self, session: SweepSession) -> None:
         """Redraw at most ``rate_hz`` times a second (plain lines: every ``period_s``)."""
         now = time.monotonic()
         if not self._told and self.live is None:
             self._instructions(session)
+        if self._t0 == -math.inf:
+            self._t0 = now
         if self.live is not None:
             if now - self._last >= 1.0 / self.rate_hz:
                 self._last = now
-                self.live.update(self.table(session))
+                self.live.update(self.renderable(session))
             return
+        self._session = session
         if now - self._last >= self.period_s:
             self._last = now
-            sw = session.tracker.sweep
-            if session.method == "one-sided":
-                moved = int((sw >= self._threshold(session)).sum())
-                self.console.print(
-                    f"sweep: {session.samples} samples, {moved}/{len(session.names)} joints moved",
-                    markup=False,
-                )
-                return
-            span = session.upper - session.lower
-            done = int((sw >= span - self.span_tolerance_rad).sum())
+            self.plain_line(session)
+
+    def plain_line(self, session: SweepSession) -> None:
+        """One plain progress line (no terminal); a replay's says how much of the file was read."""
+        sw = session.tracker.sweep
+        prog = self.progress(session)
+        where = f"replay {100 * prog[0]:.0f}% ({prog[1]}), " if prog is not None else ""
+        if session.method == "one-sided":
+            moved = int((sw >= self._threshold(session)).sum())
             self.console.print(
-                f"sweep: {session.samples} samples, {done}/{len(session.names)} joints at full span",
+                f"sweep: {where}{session.samples} samples, {moved}/{len(session.names)} joints moved",
                 markup=False,
             )
+            return
+        span = session.upper - session.lower
+        done = int((sw >= span - self.span_tolerance_rad).sum())
+        self.console.print(
+            f"sweep: {where}{session.samples} samples, {done}/{len(session.names)} joints at full span",
+            markup=False,
+        )
 
     def prompt(self, joint: str) -> None:
         """Direction check instruction."""
@@ -247,7 +289,12 @@ class LiveView:
             )
 
     def finish(self, result: SweepResult) -> None:
-        """Stop the live table (a confirmation prompt may follow; the command prints the summary)."""
+        """Stop the live table (a confirmation prompt may follow; the command prints the summary).
+
+        Without a terminal, a replay's last progress line (100 %) is printed.
+        """
+        if self.live is None and self._session is not None and self.progress(self._session) is not None:
+            self.plain_line(self._session)
         self.__exit__(None, None, None)
 
 

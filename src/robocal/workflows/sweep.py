@@ -24,7 +24,6 @@ import numpy.typing as npt
 from ..backends.sources import (
     FRAMES,
     JointSpec,
-    ReplaySource,
     Source,
     SourceSpec,
     open_source,
@@ -343,8 +342,9 @@ class SweepSession:
 
     def step(self) -> bool:
         """Read one sample (a replay: a block) into the tracker; False when the source is exhausted."""
-        if isinstance(self.source, ReplaySource):
-            t, pos = self.source.read_block(2000)
+        read_block = getattr(self.source, "read_block", None)
+        if read_block is not None:  # a replay: blocks of rows, memory bounded by the block
+            t, pos = read_block(2000)
             if len(t) == 0:
                 return False
             block = self.to_identity(pos)
