@@ -25,11 +25,17 @@ ROBOTS: dict[str, str] = {
 }
 """Demo robot → CLI module providing ``run_demo(robot, out_dir) -> int``."""
 
+IDENTIFY_ROBOTS: tuple[str, ...] = ("so101", "koch")
+"""Robots ``demo --identify`` simulates (``robocal.cli.kinematics.run_demo``)."""
+
 
 def demo(
     robot: str = typer.Option("lite", "--robot", help="Simulated robot: " + ", ".join(ROBOTS) + "."),
     out: Path | None = typer.Option(
         None, "--out", help="Folder for the files written (default: a temporary one)."
+    ),
+    identify: bool = typer.Option(
+        False, "--identify", help="Kinematic identification instead (so101, koch): simulate, identify, check."
     ),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
@@ -43,7 +49,9 @@ def demo(
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise UsageError(f"cannot create --out folder {out}: {exc.strerror or exc}") from None
-    module = importlib.import_module(ROBOTS[robot])
+    if identify and robot not in IDENTIFY_ROBOTS:
+        raise UsageError(f"--identify works with {', '.join(IDENTIFY_ROBOTS)}, not {robot!r}")
+    module = importlib.import_module("robocal.cli.kinematics" if identify else ROBOTS[robot])
     run = getattr(module, "run_demo", None)
     if run is None:
         raise UsageError(f"the {robot} demo is not available in this build")

@@ -71,7 +71,7 @@ def _wrap_commands(typer_app: typer.Typer) -> None:
 
 
 def _register() -> None:
-    from . import dataset, demo, files, lerobot, sim, sweep, ur
+    from . import dataset, demo, files, kinematics, lerobot, sim, sweep, ur
 
     files.register(app)
     sweep.register(app)
@@ -79,6 +79,7 @@ def _register() -> None:
     app.add_typer(lerobot.app, name="lerobot")
     app.add_typer(ur.app, name="ur")
     app.add_typer(dataset.app, name="dataset")
+    app.add_typer(kinematics.app, name="kinematics")
     app.add_typer(sim.app, name="sim")
     _wrap_commands(app)
 

@@ -8,7 +8,7 @@ Three kinds of measurement share one error model (:class:`~robocal.core.kinemati
 * ``touch``: the tool tip touched to fixed points from many configurations; poses with the same ``group`` touch
   the same unknown point ``P_g``. Residual ``p_model(q) − P_g``.
 * ``gauge``: a ball in socket A (group 0) or socket B (group 1) of a printed gauge whose socket distance ``d`` is
-  known; residuals as for touch plus ``‖P_A − P_B‖ − d``, which fixes the scale touch data cannot see.
+  known; residuals as for touch plus ``√N·(‖P_A − P_B‖ − d)``, which fixes the scale touch data cannot see.
 
 The unknowns ``θ`` are the free model parameters followed by the contact points. Identifiability names each
 parameter the data cannot determine and says why (:func:`analyse`).
@@ -32,8 +32,10 @@ __all__ = [
     "Measurements",
     "Problem",
     "analyse",
+    "dh_like_constraints",
     "free_indices",
     "marker_axis_distances",
+    "plan_poses",
     "scale_direction",
 ]
 
@@ -204,10 +206,11 @@ class Problem:
             dvec = P[1] - P[0]
             dist = float(np.linalg.norm(dvec))
             u = dvec / dist if dist > 0 else np.zeros(3)
+            w = self.gauge_weight
             row = np.zeros((1, J.shape[1]))
-            row[0, len(self.free) : len(self.free) + 3] = -u
-            row[0, len(self.free) + 3 : len(self.free) + 6] = u
-            r = np.concatenate([r, [dist - self.data.distance_m]])
+            row[0, len(self.free) : len(self.free) + 3] = -w * u
+            row[0, len(self.free) + 3 : len(self.free) + 6] = w * u
+            r = np.concatenate([r, [w * (dist - self.data.distance_m)]])
             J = np.concatenate([J, row])
         return r, J
 
@@ -222,8 +225,14 @@ class Problem:
         r = (p - P[np.searchsorted(np.asarray(self.group_ids), self.data.group)]).reshape(-1)
         if self.data.kind == "gauge":
             assert self.data.distance_m is not None
-            r = np.concatenate([r, [float(np.linalg.norm(P[1] - P[0])) - self.data.distance_m]])
+            gap = float(np.linalg.norm(P[1] - P[0])) - self.data.distance_m
+            r = np.concatenate([r, [self.gauge_weight * gap]])
         return r
+
+    @property
+    def gauge_weight(self) -> float:
+        """Weight of the gauge-distance residual: √poses, as much as all the contacts together."""
+        return math.sqrt(self.data.n_poses)
 
     def priority(self) -> FloatArray:
         """Base-set preference over ``θ`` (contact points first)."""
@@ -386,3 +395,44 @@ def plan_poses(
     cols = list(ident.base)
     Jc = (J[:, cols] / ident.column_norms[cols]).reshape(q.shape[0], 3, len(cols))
     return select_poses(Jc, n_poses)
+
+
+def dh_like_constraints(
+    problem: Problem, *, parallel_tol: float = 1e-3
+) -> tuple[FloatArray, tuple[str, ...]]:
+    """Rows ``C`` with ``C θ = 0`` that restrict the model to what a DH parametrisation can express.
+
+    DH has no parameter for tilting a joint axis towards or away from a *parallel* previous axis (Hayati's β,
+    a rotation about the direction normal to both the axis and the link between the two axes). For each joint
+    whose axis is parallel to the previous movable joint's at the nominal zero pose, that tilt is held at zero.
+
+    Returns:
+        ``(c, n_theta)`` constraint rows (unit vectors on the joint's rotation parameters) and the joints held.
+    """
+    model = problem.model
+    _, blocks = model._walk(np.zeros(model.n_params), np.zeros((1, model.chain.n_q)))
+    frames = {group: T_after[0] for group, _, T_after in blocks}
+    rows: list[FloatArray] = []
+    held: list[str] = []
+    prev = None
+    for j in model.chain.movable:
+        T = frames[j.name]
+        if prev is not None and j.type == "revolute" and prev[0].type == "revolute":
+            a_j = T[:3, :3] @ np.asarray(j.axis)
+            a_p = prev[1][:3, :3] @ np.asarray(prev[0].axis)
+            if float(np.linalg.norm(np.cross(a_j, a_p))) < parallel_tol:
+                link = T[:3, 3] - prev[1][:3, 3]
+                perp = link - (link @ a_j) * a_j
+                if float(np.linalg.norm(perp)) > 1e-9:
+                    beta_world = np.cross(a_j, perp / np.linalg.norm(perp))
+                    beta_local = T[:3, :3].T @ beta_world
+                    row = np.zeros(problem.n_theta)
+                    for k, kind in enumerate(("rx", "ry", "rz")):
+                        idx = model.index(f"{j.name}.{kind}")
+                        if idx in problem.free:
+                            row[problem.free.index(idx)] = beta_local[k]
+                    if np.any(row):
+                        rows.append(row)
+                        held.append(j.name)
+        prev = (j, T)
+    return (np.array(rows) if rows else np.zeros((0, problem.n_theta))), tuple(held)

@@ -20,9 +20,13 @@ from ..core.identifiability import Identifiability
 from ..core.kinematic_problem import Measurements, Problem, analyse
 from ..errors import BackendNotAvailableError, UsageError
 
-__all__ = ["FitResult", "PriorSigmas", "fit", "split_validation", "validation_errors"]
+__all__ = ["CONSTRAINT_WEIGHT", "FitResult", "PriorSigmas", "fit", "split_validation", "validation_errors"]
 
 FloatArray = NDArray[np.float64]
+
+
+CONSTRAINT_WEIGHT = 100.0
+"""Metres of residual per unit of a constraint row: holds constrained directions to ~1e-8 at 1 µm residuals."""
 
 
 def _least_squares() -> Any:
@@ -105,6 +109,7 @@ def fit(
     prior: PriorSigmas | None = None,
     tolerance: float = 1e-8,
     restrict: Sequence[int] | None = None,
+    constraints: ArrayLike | None = None,
 ) -> FitResult:
     """Estimate the identifiable unknowns of ``problem``.
 
@@ -113,8 +118,9 @@ def fit(
         huber_m: Use a Huber loss with this scale (m): residuals beyond it count linearly (robust to outliers).
         prior: Add a Gaussian prior towards nominal (``trf``).
         tolerance: Rank tolerance of the identifiability analysis.
-        restrict: Only these ``θ`` indices may be estimated (e.g. a DH-like subset); the base set is then
-            chosen among them.
+        restrict: Only these ``θ`` indices may be estimated; the base set is then chosen among them.
+        constraints: ``(c, n_theta)`` rows ``C`` held at ``C θ = 0`` by stiff penalty rows (e.g. the DH-like
+            restriction of :func:`robocal.core.kinematic_problem.dh_like_constraints`).
 
     Returns:
         The :class:`FitResult`.
@@ -147,13 +153,19 @@ def fit(
         sig = np.array([prior.length_m if m else prior.angle_rad for m in is_len])
         weights = prior.noise_m / sig
 
+    C = (
+        np.zeros((0, len(base)))
+        if constraints is None
+        else CONSTRAINT_WEIGHT * np.atleast_2d(constraints)[:, base]
+    )
+
     def fun(t_b: FloatArray) -> FloatArray:
         t = theta0.copy()
         t[base] = t_b
         r = problem.residuals(t)
         if weights is not None:
             r = np.concatenate([r, weights * (t_b - theta0[base])])
-        return r
+        return np.concatenate([r, C @ (t_b - theta0[base])])
 
     def jac(t_b: FloatArray) -> FloatArray:
         t = theta0.copy()
@@ -162,7 +174,7 @@ def fit(
         Jb = J[:, base]
         if weights is not None:
             Jb = np.concatenate([Jb, np.diag(weights)])
-        return Jb
+        return np.concatenate([Jb, C])
 
     method = "trf" if (huber_m is not None or prior is not None) else "lm"
     loss = "huber" if huber_m is not None else "linear"

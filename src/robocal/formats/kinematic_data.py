@@ -1,0 +1,180 @@
+"""Measurement sessions for kinematic identification as CSV files a user can produce with any tool.
+
+One row per pose, a header row naming the columns (any order; blank lines and lines starting with ``#`` are
+skipped):
+
+* one column per movable joint of the chain, named like the URDF joint: radians (or metres for a prismatic
+  joint); ``<joint>_deg`` for degrees;
+* ``points`` (a tracker, a CMM): ``x``, ``y``, ``z`` in metres, or ``x_mm``, ``y_mm``, ``z_mm``;
+* ``touch``: ``group``: which fixed point the tool touched (any label; same label = same point);
+* ``gauge``: ``socket``: ``A`` or ``B`` (the socket distance is given separately).
+
+Columns ``pose``, ``id``, ``t``, ``time``, ``timestamp`` and ``note`` are allowed and ignored; any other column
+is refused, so a misspelled joint is not silently dropped.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..core.kinematic_problem import KINDS, Measurements
+from ..errors import FileFormatError, UsageError
+from ..fileio import read_text
+from ._numbers import format_float
+
+__all__ = ["IGNORED_COLUMNS", "measurements_to_csv", "parse_measurements", "read_measurements"]
+
+IGNORED_COLUMNS: tuple[str, ...] = ("pose", "id", "t", "time", "timestamp", "note")
+
+
+def _float(text: str, where: str, column: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise FileFormatError(f"{where}: column {column!r} is {text!r}, not a number") from None
+    if not math.isfinite(value):
+        raise FileFormatError(f"{where}: column {column!r} is {text!r}; values must be finite")
+    return value
+
+
+def parse_measurements(
+    text: str,
+    kind: str,
+    joint_names: Sequence[str],
+    *,
+    distance_m: float | None = None,
+    source: str = "<string>",
+) -> tuple[Measurements, tuple[str, ...]]:
+    """Parse a measurement CSV.
+
+    Args:
+        text: The CSV text.
+        kind: ``points``, ``touch`` or ``gauge``.
+        joint_names: The chain's movable joints, the order of ``q``.
+        distance_m: Socket distance for ``gauge`` (m).
+        source: File name for messages.
+
+    Returns:
+        The measurements and the group labels in group-id order (``()`` for points; ``("A", "B")`` for gauge).
+
+    Raises:
+        FileFormatError: Missing, unknown or duplicate columns, a non-number, NaN or inf, a bad socket, no rows.
+    """
+    if kind not in KINDS:
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    lines = [
+        (n, line)
+        for n, line in enumerate(text.splitlines(), 1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not lines:
+        raise FileFormatError(f"{source}: no header row and no poses")
+    rows = list(csv.reader(io.StringIO("\n".join(line for _, line in lines))))
+    header = [h.strip() for h in rows[0]]
+    if len(set(header)) != len(header):
+        dup = sorted({h for h in header if header.count(h) > 1})
+        raise FileFormatError(f"{source}: duplicate columns {', '.join(dup)}")
+    joint_cols: list[tuple[int, float]] = []
+    missing = []
+    for name in joint_names:
+        if name in header:
+            joint_cols.append((header.index(name), 1.0))
+        elif f"{name}_deg" in header:
+            joint_cols.append((header.index(f"{name}_deg"), math.pi / 180.0))
+        else:
+            missing.append(name)
+    extra_cols: dict[str, list[str]] = {
+        "points": ["x", "y", "z"],
+        "touch": ["group"],
+        "gauge": ["socket"],
+    }
+    need = extra_cols[kind]
+    scale_xyz = 1.0
+    if kind == "points" and all(f"{c}_mm" in header for c in need):
+        need = [f"{c}_mm" for c in need]
+        scale_xyz = 1e-3
+    missing += [c for c in need if c not in header]
+    if missing:
+        raise FileFormatError(
+            f"{source}: missing columns {', '.join(missing)} (header: {', '.join(header)}); joints are named "
+            "as in the URDF (radians, or <joint>_deg for degrees)"
+        )
+    known = {header[i] for i, _ in joint_cols} | set(need) | set(IGNORED_COLUMNS)
+    unknown = [h for h in header if h not in known]
+    if unknown:
+        raise FileFormatError(
+            f"{source}: unknown columns {', '.join(unknown)}; expected the chain's joints "
+            f"({', '.join(joint_names)}) and {', '.join(need)}"
+        )
+    if len(rows) < 2:
+        raise FileFormatError(f"{source}: has a header but no poses")
+    q = np.zeros((len(rows) - 1, len(joint_names)))
+    p = np.zeros((len(rows) - 1, 3))
+    labels: list[str] = []
+    group: list[int] = []
+    for r, row in enumerate(rows[1:]):
+        where = f"{source} line {lines[r + 1][0]}"
+        if len(row) != len(header):
+            raise FileFormatError(f"{where}: {len(row)} fields, the header has {len(header)}")
+        for k, (col, scale) in enumerate(joint_cols):
+            q[r, k] = _float(row[col].strip(), where, header[col]) * scale
+        if kind == "points":
+            for a, c in enumerate(need):
+                p[r, a] = _float(row[header.index(c)].strip(), where, c) * scale_xyz
+        else:
+            label = row[header.index(need[0])].strip()
+            if kind == "gauge":
+                label = label.upper()
+                if label not in ("A", "B"):
+                    raise FileFormatError(f"{where}: socket is {label!r}; expected A or B")
+                group.append(0 if label == "A" else 1)
+                continue
+            if not label:
+                raise FileFormatError(f"{where}: empty group")
+            if label not in labels:
+                labels.append(label)
+            group.append(labels.index(label))
+    if kind == "points":
+        return Measurements("points", q, p), ()
+    if kind == "gauge":
+        if set(group) != {0, 1}:
+            raise FileFormatError(f"{source}: a gauge session needs poses in both socket A and socket B")
+        return Measurements("gauge", q, group=np.array(group), distance_m=distance_m), ("A", "B")
+    return Measurements("touch", q, group=np.array(group)), tuple(labels)
+
+
+def read_measurements(
+    path: str | os.PathLike[str], kind: str, joint_names: Sequence[str], *, distance_m: float | None = None
+) -> tuple[Measurements, tuple[str, ...]]:
+    """Read a measurement CSV file; see :func:`parse_measurements`."""
+    return parse_measurements(
+        read_text(path, "measurement file"), kind, joint_names, distance_m=distance_m, source=str(path)
+    )
+
+
+def measurements_to_csv(data: Measurements, joint_names: Sequence[str], labels: Sequence[str] = ()) -> str:
+    """A session as CSV text that :func:`parse_measurements` reads back exactly (shortest round-trip floats)."""
+    extra = {"points": ["x", "y", "z"], "touch": ["group"], "gauge": ["socket"]}[data.kind]
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["pose", *joint_names, *extra])
+    for i in range(data.n_poses):
+        row = [str(i + 1), *(format_float(float(v)) for v in data.q_rad[i])]
+        if data.kind == "points":
+            assert data.p_world_m is not None
+            row += [format_float(float(v)) for v in data.p_world_m[i]]
+        else:
+            assert data.group is not None
+            g = int(data.group[i])
+            if data.kind == "gauge":
+                row.append("A" if g == 0 else "B")
+            else:
+                row.append(labels[g] if g < len(labels) else f"P{g}")
+        writer.writerow(row)
+    return out.getvalue()

@@ -1,0 +1,472 @@
+"""Kinematic identification end to end: URDF + measurements → fit → report, corrected URDF; and simulation.
+
+``identify`` reads the chain from a URDF and a measurement CSV (:mod:`robocal.formats.kinematic_data`), checks
+every pose against the joint limits, holds out a validation share, analyses identifiability, fits the base set
+(:mod:`robocal.workflows.kinematic_fit`), optionally compares with a DH-like fit, and only then writes the
+corrected URDF (joint origins with the zero offsets folded in; nothing else in the file changes) and a JSON
+report, atomically. ``simulate`` produces a session from a simulated SO-101 or Koch with hidden errors.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
+from ..core.chain import SerialChain
+from ..core.kinematic_errors import ErrorModel
+from ..core.kinematic_problem import (
+    KINDS,
+    Measurements,
+    Problem,
+    dh_like_constraints,
+    free_indices,
+    plan_poses,
+)
+from ..errors import UsageError
+from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
+from ..formats.kinematic_data import measurements_to_csv, read_measurements
+from ..formats.urdf import UrdfDocument
+from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
+from .kinematic_fit import FitResult, PriorSigmas, fit, split_validation, validation_errors
+
+__all__ = [
+    "FRAMES",
+    "SIM_ROBOTS",
+    "DhComparison",
+    "IdentifyResult",
+    "SimRobot",
+    "SimulationResult",
+    "identify",
+    "simulate",
+]
+
+FloatArray = NDArray[np.float64]
+
+FRAMES: tuple[str, ...] = ("base", "tracker")
+"""``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""
+
+
+@dataclass(frozen=True)
+class SimRobot:
+    """A shipped robot description for simulations.
+
+    Attributes:
+        urdf: File name under ``robocal/data``.
+        tip_link: Link carrying the marker.
+        marker_off_axis_m: Marker position in the tip link, off the last joint's axis.
+        marker_on_axis_m: The same marker moved onto the last joint's axis.
+        gauge_centre_m: Where the simulated gauge sits, in the base frame.
+    """
+
+    urdf: str
+    tip_link: str
+    marker_off_axis_m: tuple[float, float, float]
+    marker_on_axis_m: tuple[float, float, float]
+    gauge_centre_m: tuple[float, float, float]
+
+
+SIM_ROBOTS: dict[str, SimRobot] = {
+    "so101": SimRobot(
+        "so101_new_calib.urdf", "gripper_link", (0.0121, 0.0, -0.0981), (0.0, 0.0, -0.0981), (0.2, 0.0, 0.05)
+    ),
+    "koch": SimRobot(
+        "koch.urdf", "gripper_static_1", (0.02, 0.0, -0.06), (0.0, 0.0, -0.06), (0.0, 0.15, 0.05)
+    ),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class DhComparison:
+    """A DH-like fit of the same data (biased when consecutive axes are parallel).
+
+    Attributes:
+        held_joints: Joints whose tilt towards the parallel previous axis DH cannot express.
+        train_errors_m: Per-pose errors on the fitted poses.
+        validation_errors_m: Per-pose errors on the held-out poses.
+    """
+
+    held_joints: tuple[str, ...]
+    train_errors_m: FloatArray
+    validation_errors_m: FloatArray
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifyResult:
+    """What ``identify`` found and wrote.
+
+    Attributes:
+        fit: The fit.
+        validation: Held-out measurements (may have no poses).
+        validation_errors_m: Per-pose errors of the corrected model on them.
+        nominal_validation_errors_m: The same for the nominal model.
+        dh: The DH-like comparison, when asked for.
+        chain: The corrected chain (offsets folded into the origins).
+        urdf_out: Corrected URDF written, or None.
+        report_out: JSON report written, or None.
+        report: The report as a dict (what the JSON holds).
+        warnings: Things the user should know.
+    """
+
+    fit: FitResult
+    validation: Measurements
+    validation_errors_m: FloatArray
+    nominal_validation_errors_m: FloatArray
+    dh: DhComparison | None
+    chain: SerialChain
+    urdf_out: Path | None
+    report_out: Path | None
+    report: dict[str, Any]
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _stats_mm(errors: FloatArray) -> dict[str, float] | None:
+    if errors.size == 0:
+        return None
+    return {"mean": float(errors.mean() * 1e3), "max": float(errors.max() * 1e3)}
+
+
+def _kabsch(p_from: FloatArray, p_to: FloatArray) -> FloatArray:
+    """Rigid transform ``T`` with ``T · p_from ≈ p_to`` (least squares), ``(4, 4)``."""
+    a0, b0 = p_from.mean(axis=0), p_to.mean(axis=0)
+    H = (p_from - a0).T @ (p_to - b0)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T))
+    R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = b0 - R @ a0
+    return T
+
+
+def _tool(tool_xyz_m: Sequence[float]) -> FloatArray:
+    t = [float(v) for v in tool_xyz_m]
+    if len(t) != 3 or not all(math.isfinite(v) for v in t):
+        raise UsageError(f"--tool-xyz needs three finite numbers (m), got {list(tool_xyz_m)}")
+    T = np.eye(4)
+    T[:3, 3] = t
+    return T
+
+
+def _origin_changed(old: SerialChain, new: SerialChain) -> dict[str, bool]:
+    before = {j.name: (*j.origin_xyz_m, *j.origin_rpy_rad) for j in old.movable}
+    return {
+        j.name: any(
+            abs(a - b) > 1e-12
+            for a, b in zip(before[j.name], (*j.origin_xyz_m, *j.origin_rpy_rad), strict=True)
+        )
+        for j in new.movable
+    }
+
+
+def identify(
+    urdf: str | os.PathLike[str],
+    data: str | os.PathLike[str],
+    *,
+    kind: str = "points",
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0),
+    frame: str = "base",
+    validate_fraction: float = 0.25,
+    huber_m: float | None = None,
+    prior: bool = False,
+    gauge_distance_m: float | None = None,
+    dh: bool = False,
+    out: str | os.PathLike[str] | None = None,
+    report: str | os.PathLike[str] | None = None,
+    seed: int = 0,
+) -> IdentifyResult:
+    """Identify a URDF chain's geometric errors from a measurement session.
+
+    Args:
+        urdf: Expanded URDF.
+        data: Measurement CSV (see :mod:`robocal.formats.kinematic_data`).
+        kind: ``points``, ``touch`` or ``gauge``.
+        base_link: First link of the chain (default: the URDF root).
+        tip_link: Link the tool is attached to (default: the only leaf).
+        tool_xyz_m: Nominal tool point (marker, ball, tip) in the tip link's frame, m.
+        frame: ``base`` or ``tracker`` (points only): the frame the points are measured in.
+        validate_fraction: Share of poses held out for validation.
+        huber_m: Huber loss scale (m); None for plain least squares.
+        prior: Regularise towards nominal (for short sessions).
+        gauge_distance_m: Socket distance of the gauge (``gauge`` only).
+        dh: Also fit a DH-like model and report its (biased) errors.
+        out: Corrected URDF to write.
+        report: JSON report to write.
+        seed: Seed of the validation split.
+
+    Returns:
+        The :class:`IdentifyResult`; files are written only after everything succeeded.
+
+    Raises:
+        CalibError: Unreadable or malformed files, a pose outside the limits, NaN, too few poses, bad options.
+    """
+    if kind not in KINDS:
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    if frame not in FRAMES:
+        raise UsageError(f"--frame {frame!r}; valid: {', '.join(FRAMES)}")
+    if frame == "tracker" and kind != "points":
+        raise UsageError(
+            "--frame tracker applies to --kind points; touch and gauge data have no outside frame"
+        )
+    if kind == "gauge" and gauge_distance_m is None:
+        raise UsageError("--kind gauge needs the socket distance (--gauge-mm)")
+    if huber_m is not None and not (math.isfinite(huber_m) and huber_m > 0):
+        raise UsageError(f"--huber must be a positive distance, got {huber_m}")
+    out_path = check_output_path(out, "--out") if out is not None else None
+    report_path = check_output_path(report, "--report") if report is not None else None
+    if out_path is not None and report_path is not None and out_path.resolve() == report_path.resolve():
+        raise UsageError("--out and --report must be different files")
+    doc = UrdfDocument.load(urdf)
+    chain = chain_from_urdf(doc.model(), base_link, tip_link)
+    measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=gauge_distance_m)
+    chain.check_q(measurements.q_rad, what=f"{data}: pose")
+    model = ErrorModel(chain, T_tip_tool=_tool(tool_xyz_m))
+    warnings: list[str] = []
+    if frame == "tracker":
+        assert measurements.p_world_m is not None
+        T0 = _kabsch(model.points(measurements.q_rad), measurements.p_world_m)
+        model = ErrorModel(chain, T_world_base=T0, T_tip_tool=model.T_tip_tool)
+    train_rows, val_rows = split_validation(measurements, validate_fraction, seed)
+    train, val = measurements.subset(train_rows), measurements.subset(val_rows)
+    free = free_indices(model, [] if frame == "tracker" else ["base"])
+    problem = Problem(model, train, free, np.zeros(model.n_params))
+    result = fit(problem, huber_m=huber_m, prior=PriorSigmas() if prior else None)
+    if not result.success:
+        warnings.append("the optimiser stopped before converging; check the data for gross errors")
+    val_err = validation_errors(result, val) if val.n_poses else np.zeros(0)
+    nominal_x = np.zeros(model.n_params)
+    val_nom = np.zeros(0)
+    if val.n_poses:
+        val_nom = (
+            validation_errors(result, val, nominal_x) if kind == "points" else np.full(val.n_poses, np.nan)
+        )
+    dh_cmp = None
+    if dh:
+        C, held = dh_like_constraints(problem)
+        dh_fit = fit(problem, huber_m=huber_m, prior=PriorSigmas() if prior else None, constraints=C)
+        dh_cmp = DhComparison(
+            held, dh_fit.train_errors_m, validation_errors(dh_fit, val) if val.n_poses else np.zeros(0)
+        )
+    corrected, T_world_base, T_tip_tool = model.corrected(result.x)
+    ident = result.identifiability
+    if ident.observability.condition > 100:
+        warnings.append(
+            f"condition number {ident.observability.condition:.0f} is above 100: spread the poses over the joint "
+            "ranges (robocal kinematics simulate shows a good set) or record more of them"
+        )
+    for u in ident.unidentifiable:
+        if u.reason.startswith("the marker is on"):
+            warnings.append(f"{u.name}: {u.reason}")
+    names = problem.names
+    params = []
+    for i, name in enumerate(names):
+        unit = "m" if i >= len(free) else model.parameters[free[i]].unit
+        identified = i in ident.base
+        params.append(
+            {
+                "name": name,
+                "unit": unit,
+                "estimate": float(result.theta[i]),
+                "sigma": float(result.sigma[i]) if identified else None,
+                "identified": identified,
+            }
+        )
+    rep: dict[str, Any] = {
+        "tool": "robocal kinematics identify",
+        "urdf": str(urdf),
+        "data": str(data),
+        "kind": kind,
+        "frame": frame,
+        "chain": {
+            "base_link": chain.base_link,
+            "tip_link": chain.tip_link,
+            "joints": list(chain.joint_names),
+        },
+        "poses": {"fit": train.n_poses, "validation": val.n_poses},
+        "rank": ident.rank,
+        "unknowns": len(names),
+        "observability": {
+            "O1": ident.observability.O1,
+            "condition": ident.observability.condition,
+            "O3": ident.observability.O3,
+            "O5": ident.observability.O5,
+        },
+        "fit": {
+            "method": result.method,
+            "loss": result.loss,
+            "evaluations": result.iterations,
+            "converged": result.success,
+        },
+        "errors_mm": {
+            "fit": {
+                "nominal": _stats_mm(result.nominal_train_errors_m),
+                "corrected": _stats_mm(result.train_errors_m),
+            },
+            "validation": {
+                "nominal": _stats_mm(val_nom) if kind == "points" else None,
+                "corrected": _stats_mm(val_err),
+            },
+        },
+        "parameters": params,
+        "unidentifiable": [
+            {"name": u.name, "reason": u.reason, "same_as": [[n, c] for n, c in u.same_as]}
+            for u in ident.unidentifiable
+        ],
+        "joint_offsets": model.offsets(result.x),
+        "corrected_origins": {
+            j.name: {"xyz": list(j.origin_xyz_m), "rpy": list(j.origin_rpy_rad)} for j in corrected.movable
+        },
+        "tool_xyz_m": [float(v) for v in T_tip_tool[:3, 3]],
+        "T_world_base": T_world_base.tolist(),
+        "contact_groups": {
+            label: [float(v) for v in p]
+            for label, p in zip(labels, problem.points_of(result.theta), strict=False)
+        },
+        "dh_like": None
+        if dh_cmp is None
+        else {
+            "held_joints": list(dh_cmp.held_joints),
+            "errors_mm": {
+                "fit": _stats_mm(dh_cmp.train_errors_m),
+                "validation": _stats_mm(dh_cmp.validation_errors_m),
+            },
+            "note": "DH cannot tilt an axis towards a parallel neighbour: this is a floor, not noise",
+        },
+        "warnings": warnings,
+    }
+    urdf_bytes = corrected_urdf_bytes(doc, corrected, _origin_changed(chain, corrected)) if out_path else None
+    report_text = json.dumps(rep, indent=2) + "\n"
+    written_urdf = atomic_write_bytes(out_path, urdf_bytes) if out_path and urdf_bytes is not None else None
+    written_report = atomic_write_text(report_path, report_text) if report_path else None
+    return IdentifyResult(
+        fit=result,
+        validation=val,
+        validation_errors_m=val_err,
+        nominal_validation_errors_m=val_nom,
+        dh=dh_cmp,
+        chain=corrected,
+        urdf_out=written_urdf,
+        report_out=written_report,
+        report=rep,
+        warnings=tuple(warnings),
+    )
+
+
+def shipped_urdf(robot: str) -> Path:
+    """Path of a shipped robot description (``so101``, ``koch``)."""
+    if robot not in SIM_ROBOTS:
+        raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
+    return Path(str(resources.files("robocal") / "data" / SIM_ROBOTS[robot].urdf))
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationResult:
+    """Files written by :func:`simulate` and the hidden truth.
+
+    Attributes:
+        urdf: Nominal URDF copied into the folder.
+        data: Measurement CSV.
+        truth: JSON with the hidden parameters.
+        tip_link: Link the marker is on.
+        tool_xyz_m: Nominal marker position in ``tip_link``.
+        arm: The simulated arm (hidden errors included).
+        measurements: The session.
+    """
+
+    urdf: Path
+    data: Path
+    truth: Path
+    tip_link: str
+    tool_xyz_m: tuple[float, float, float]
+    arm: SimulatedKinematicArm
+    measurements: Measurements
+
+
+def simulate(
+    robot: str,
+    out_dir: str | os.PathLike[str],
+    *,
+    kind: str = "points",
+    poses: int = 50,
+    noise_m: float = 0.5e-3,
+    seed: int = 0,
+    on_axis: bool = False,
+    plan: bool = True,
+    gauge_distance_m: float = 0.05,
+) -> SimulationResult:
+    """Simulate a session on a shipped robot with hidden errors.
+
+    Writes ``<robot>.urdf`` (the nominal description), ``<kind>.csv`` and ``truth.json`` into ``out_dir``.
+
+    Args:
+        robot: ``so101`` or ``koch``.
+        out_dir: Existing folder.
+        kind: ``points``, ``touch`` or ``gauge``.
+        poses: Number of poses (touch: per contact point, 3 points; gauge: per socket).
+        noise_m: Marker noise per axis (points only), m.
+        seed: Seed of the hidden errors, the poses and the noise.
+        on_axis: Put the marker on the last joint's axis (to see the identifiability report catch it).
+        plan: Choose the poses by greedy O1 selection from 2000 random candidates (points only).
+        gauge_distance_m: Socket distance of the simulated gauge.
+    """
+    if kind not in KINDS:
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    if poses < 1:
+        raise UsageError(f"--poses must be at least 1, got {poses}")
+    if not (math.isfinite(noise_m) and noise_m >= 0):
+        raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
+    folder = Path(out_dir)
+    if not folder.is_dir():
+        raise UsageError(f"--out {folder}: not a folder")
+    spec = SIM_ROBOTS.get(robot)
+    src = shipped_urdf(robot)
+    assert spec is not None
+    urdf_bytes = src.read_bytes()
+    doc = UrdfDocument.from_bytes(urdf_bytes, str(src))
+    chain = chain_from_urdf(doc.model(), tip_link=spec.tip_link)
+    marker = spec.marker_on_axis_m if on_axis else spec.marker_off_axis_m
+    model = ErrorModel(chain, T_tip_tool=_tool(marker))
+    rng = np.random.default_rng(seed)
+    arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
+    labels: tuple[str, ...] = ()
+    if kind == "points":
+        if plan:
+            cand = arm.sample_q(2000, rng)
+            q = cand[plan_poses(model, cand, poses)] if poses <= 2000 else arm.sample_q(poses, rng)
+        else:
+            q = arm.sample_q(poses, rng)
+        truth = arm.true_points(q)
+        data = Measurements("points", arm.read(q), truth + rng.normal(0.0, noise_m, truth.shape))
+    elif kind == "touch":
+        c = np.asarray(spec.gauge_centre_m)
+        targets = np.stack([c, c + np.array([0.0, 0.06, 0.0]), c + np.array([-0.05, 0.0, 0.04])])
+        data = arm.touch(targets, poses, rng)
+        labels = ("P1", "P2", "P3")
+    else:
+        data = arm.gauge(spec.gauge_centre_m, gauge_distance_m, poses, rng)
+    truth_doc = {
+        "robot": robot,
+        "seed": seed,
+        "tip_link": spec.tip_link,
+        "tool_xyz_m": list(marker),
+        "noise_m": noise_m if kind == "points" else 0.0,
+        "ticks_per_turn": arm.ticks_per_turn,
+        "hidden_parameters": {n: float(v) for n, v in zip(model.names, arm.x_true, strict=True)},
+    }
+    urdf_path = atomic_write_bytes(folder / f"{robot}.urdf", urdf_bytes)
+    data_path = atomic_write_text(
+        folder / f"{kind}.csv", measurements_to_csv(data, chain.joint_names, labels)
+    )
+    truth_path = atomic_write_text(folder / "truth.json", json.dumps(truth_doc, indent=2) + "\n")
+    return SimulationResult(urdf_path, data_path, truth_path, spec.tip_link, marker, arm, data)
