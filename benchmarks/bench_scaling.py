@@ -162,7 +162,21 @@ def _ops() -> dict[str, Callable[[_Case], Callable[[], object]]]:
 
         return run
 
+    def set_origins(c: _Case) -> Callable[[], object]:
+        from robocal.formats.urdf import UrdfDocument
+
+        doc = UrdfDocument.load(c.urdf)
+        names = c.cal.joint_names
+
+        def run() -> object:
+            for i, name in enumerate(names):
+                doc.set_origin(name, (0.001 * i, 0.0, 0.1), (0.0, 0.0, 0.5))
+            return doc
+
+        return run
+
     return {
+        "URDF set_origin on every joint": set_origins,
         "RobotCalibration + select": lambda c: (
             lambda: RobotCalibration(c.cal.joint_names, c.cal.direction, c.cal.homing_offset).select(
                 c.cal.joint_names[::-1]

@@ -377,9 +377,19 @@ class UrdfDocument:
         return _model_from_tree(self._tree, self.source)
 
     def _joint_el(self, joint: str) -> Any:
-        for el in self._tree.getroot().findall("joint"):
-            if el.get("name") == joint:
-                return el
+        # a name → element table built once (O(1) per lookup, so editing every joint stays linear); checked on
+        # use and rebuilt when the tree was changed through root()
+        root = self._tree.getroot()
+        table: dict[str, Any] | None = getattr(self, "_joint_els", None)
+        el = table.get(joint) if table is not None else None
+        if el is not None and el.getparent() is root and el.get("name") == joint:
+            return el
+        table = {}
+        for e in root.findall("joint"):
+            table.setdefault(e.get("name"), e)
+        self._joint_els = table
+        if joint in table:
+            return table[joint]
         names = [el.get("name") for el in self._tree.getroot().findall("joint")]
         raise JointMismatchError(
             f"URDF {self.source}: no joint {joint!r}; joints: {', '.join(map(str, names))}"
