@@ -254,3 +254,13 @@ def test_core_rule_golden() -> None:
     r = analyse_sweep(["j"], [-1], [-0.2], [1.5], [-0.02], [0.3], method="one-sided", stops=["lower"],
                       stop_rad=[np.deg2rad(-10)], first=[0.3], threshold_rad=0.05, wraps=False)  # fmt: skip
     assert r["j"].homing_offset == -off[0] and r["j"].warnings == ()
+
+
+def test_recording_with_the_codes_joint_names(tmp_path: Path) -> None:
+    """A recording made with the low-level code names its columns as the code does (left_hip_roll_joint)."""
+    text = REPLAY.read_text().splitlines()
+    text[0] = "t," + ",".join(n[len("leg_") :] for n in URDF_ORDER)
+    rec = tmp_path / "upstream_names.csv"
+    rec.write_text("\n".join(text) + "\n")
+    rc, out, _ = _sweep(tmp_path, rec)
+    assert rc == 0 and _offsets(out) == _offsets(UPSTREAM_CAL)

@@ -674,7 +674,7 @@ def run_sweep(
         prior_offsets = _offsets(existing)
 
     # ---- sample
-    src = (open_source_fn or open_source)(spec, joints, topic=topic, frame=frame)
+    src = _open_with_upstream_names(open_source_fn or open_source, spec, joints, profile, topic, frame)
     session = SweepSession(src, joints, method=method, stops=stops, wraps=wraps)
     interrupted = False
     checks: dict[str, int] | None = None
@@ -740,6 +740,26 @@ def run_sweep(
         method,
         profile.name if profile is not None else None,
     )
+
+
+def _open_with_upstream_names(
+    opener: Callable[..., Source],
+    spec: SourceSpec,
+    joints: Sequence[JointSpec],
+    profile: RobotProfile | None,
+    topic: str,
+    frame: str | None,
+) -> Source:
+    """Open the source; a recording whose columns use the robot code's joint names is accepted too."""
+    try:
+        return opener(spec, joints, topic=topic, frame=frame)
+    except JointMismatchError:
+        if spec.kind != "replay" or profile is None or profile.upstream_names == profile.joint_names:
+            raise
+        alias = [
+            replace(j, name=profile.joint(j.name).upstream_name) if j.name in profile else j for j in joints
+        ]
+        return opener(spec, alias, topic=topic, frame=frame)
 
 
 def _file_id(path: Path) -> tuple[int, int, int] | None:
