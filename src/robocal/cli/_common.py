@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -15,6 +17,11 @@ EXIT_OK = 0
 EXIT_WARNINGS = 1
 EXIT_BAD_INPUT = 2
 EXIT_DEVICE = 3
+EXIT_BUG = 70
+"""An unexpected exception: a bug in robocal (BSD ``EX_SOFTWARE``); the traceback is saved to a log file."""
+EXIT_INTERRUPTED = 130
+EXIT_PIPE = 141
+"""Standard output was closed early (``robocal ... | head``), like a shell's 128 + SIGPIPE."""
 
 
 class FitConsole(Console):
@@ -37,6 +44,15 @@ class FitConsole(Console):
             super().print(*objects, **kwargs)
         finally:
             self._width = saved
+
+    def on_broken_pipe(self) -> None:
+        """A closed output pipe (``robocal ... | head``) exits 141, not rich's 1 (which means "warnings")."""
+        if self.quiet:
+            return
+        with contextlib.suppress(OSError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        raise SystemExit(EXIT_PIPE)
 
 
 console = FitConsole(highlight=False, soft_wrap=True)

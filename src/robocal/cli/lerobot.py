@@ -352,7 +352,7 @@ def configure(
 @app.command()
 def check(
     robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
-    port: str = typer.Option(..., "--port", help="Serial port of the arm."),
+    port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim' for a simulated arm."),
     robot_id: str | None = typer.Option(None, "--id", help="Robot id."),
     calibration_dir: CalDir = None,
     file: CalFile = None,
@@ -427,7 +427,7 @@ def migrate(
 def show(
     robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
     port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim'."),
-    robot_id: str | None = typer.Option(None, "--id"),
+    robot_id: str | None = typer.Option(None, "--id", help="Robot id: the calibration is <id>.json."),
     calibration_dir: CalDir = None,
     file: CalFile = None,
     samples: int = typer.Option(1, "--samples", min=1, max=100000, help="Readings to print."),
@@ -477,7 +477,7 @@ def export_urdf(
         pathlib.Path, typer.Option("--out", help="Canonical joint map YAML (robocal format) to write.")
     ],
     robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
-    robot_id: str | None = typer.Option(None, "--id"),
+    robot_id: str | None = typer.Option(None, "--id", help="Robot id: the calibration is <id>.json."),
     calibration_dir: CalDir = None,
     file: CalFile = None,
     sign: str | None = typer.Option(None, "--sign", help="URDF sign per joint: name=-1,..."),
@@ -489,7 +489,7 @@ def export_urdf(
     modes_opt: Modes = None,
     physical: Physical = False,
 ) -> None:
-    """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints (#4442)."""
+    """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints."""
     from ..formats import write_calibration
     from ..lerobot import read_calibration
     from ..workflows.lerobot import export_joint_map

@@ -1,27 +1,42 @@
 """Entry point of the ``robocal`` command.
 
 Exit codes: 0 success, 1 finished with warnings, 2 bad input or usage (one ``error:`` line, nothing
-written), 3 device or communication failure, 130 interrupted.
+written), 3 device or communication failure, 70 internal error (a bug in robocal; the ``error:`` line names the
+log file holding the traceback), 130 interrupted, 141 standard output closed early (``| head``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
+import os
+import platform
+import shlex
 import sys
+import tempfile
+import time
+import traceback
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import typer
+from typer.core import TyperArgument, TyperOption
 
 from .. import __version__
-from ..errors import CalibError
+from ..errors import CalibError, UsageError
 from . import _common
 
 app = typer.Typer(
     name="robocal",
     help="Calibrate robots: Robstride joints, LeRobot arms, Universal Robots kinematics.",
     no_args_is_help=True,
+    epilog=(
+        "Exit codes: 0 success; 1 finished with warnings; 2 bad input or usage (nothing written); "
+        "3 device or communication failure; 70 internal error, a bug in robocal (the traceback is saved to the "
+        "log file the error line names); 130 interrupted; 141 output closed early (| head)."
+    ),
     pretty_exceptions_enable=False,
     add_completion=False,
 )
@@ -114,9 +129,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     _install_note_handler()
     command = typer.main.get_command(app)
+    _polish_help(command)
     args = list(sys.argv[1:] if argv is None else argv)
     try:
+        _version_needs_no_value(args)
         rv = command.main(args=args, prog_name="robocal", standalone_mode=False)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handlers below, not at interpreter exit
     except CalibError as exc:
         _common.print_error(str(exc))
         return exc.exit_code
@@ -134,10 +152,99 @@ def main(argv: Sequence[str] | None = None) -> int:
         if type(exc).__name__ == "Abort":
             _common.print_error("aborted")
             return 130
-        raise
+        if isinstance(exc, BrokenPipeError):  # e.g. `robocal check ... | head -1`: not an error of robocal
+            return _closed_pipe()
+        return _report_bug(exc, args)
     if isinstance(rv, int):
         return rv
     return 0
+
+
+class _FlagOption(TyperOption):
+    """A boolean flag: its help row shows no ``<bool>`` value, since the flag takes none."""
+
+    def display_type_rich(self, ctx: Any) -> str | None:
+        return None
+
+
+class _PositionalArgument(TyperArgument):
+    """A positional argument shown as ``SRC`` (usage line and help table), not ``{src}``."""
+
+    def _usage_display_name(self) -> str:
+        name = (self.metavar or (self.name or "").upper()) + ("..." if self.nargs != 1 else "")
+        return name if self.required else f"[{name}]"
+
+
+def _polish_help(command: Any) -> None:
+    """Flags without ``<bool>`` (``--help`` too), positionals as ``SRC DST``, for every command of the tree."""
+    for param in command.params:
+        if isinstance(param, TyperOption) and (param.is_flag or param.is_bool_flag):
+            param.__class__ = _FlagOption
+        elif isinstance(param, TyperArgument):
+            param.__class__ = _PositionalArgument
+            if param.metavar is None and param.name:
+                param.metavar = param.name.upper()
+    original = command.get_help_option
+
+    def get_help_option(ctx: Any) -> Any:
+        option = original(ctx)
+        if isinstance(option, TyperOption) and not isinstance(option, _FlagOption):
+            option.__class__ = _FlagOption
+        return option
+
+    command.get_help_option = get_help_option
+    for sub in (getattr(command, "commands", None) or {}).values():  # typer vendors click: duck-type groups
+        _polish_help(sub)
+
+
+def _version_needs_no_value(args: Sequence[str]) -> None:
+    """``robocal --version true``: --version is a flag; refuse anything after it instead of ignoring it."""
+    if args and args[0] == "--version" and len(args) > 1:
+        raise UsageError(f"--version takes no value and no other arguments (got {' '.join(args[1:])!r})")
+
+
+def _crash_log_dirs() -> list[Path]:
+    state = os.environ.get("XDG_STATE_HOME") or os.path.join(os.path.expanduser("~"), ".local", "state")
+    return [Path(state) / "robocal", Path(tempfile.gettempdir())]
+
+
+def _report_bug(exc: BaseException, args: Sequence[str]) -> int:
+    """Save the traceback of an unexpected exception to a log file and print one ``error:`` line naming it.
+
+    Returns:
+        :data:`~robocal.cli._common.EXIT_BUG` (70, ``EX_SOFTWARE``).
+    """
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    text = "".join(
+        [
+            f"robocal {__version__} on Python {platform.python_version()} ({platform.platform()})\n",
+            f"command: robocal {shlex.join(args).encode('ascii', 'backslashreplace').decode()}\n\n",
+            *traceback.format_exception(type(exc), exc, exc.__traceback__),
+        ]
+    )
+    saved: Path | None = None
+    for folder in _crash_log_dirs():
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            fd, name = tempfile.mkstemp(prefix=f"robocal-crash-{stamp}-", suffix=".log", dir=folder)
+            with os.fdopen(fd, "w", encoding="utf-8", errors="backslashreplace") as fh:
+                fh.write(text)
+            saved = Path(name)
+            break
+        except OSError:
+            continue
+    what = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    where = f"the traceback is in {saved}" if saved is not None else "the traceback could not be saved"
+    _common.print_error(f"internal error, a bug in robocal ({what}); {where}; please report it")
+    return _common.EXIT_BUG
+
+
+def _closed_pipe() -> int:
+    """Standard output was closed by the reader (``| head``): stop quietly, like other command-line tools."""
+    with contextlib.suppress(OSError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    return _common.EXIT_PIPE
 
 
 def run() -> None:

@@ -497,7 +497,12 @@ def sweep(
         float, typer.Option("--span-tolerance", help="Allowed |sweep - URDF span|, rad.")
     ] = DEFAULT_SPAN_TOLERANCE_RAD,
     report: Annotated[Path | None, typer.Option("--report", help="Write the JSON report here.")] = None,
-    fmt: Annotated[str | None, typer.Option("--format", help="lite-yaml (default) or lite-json.")] = None,
+    fmt: Annotated[
+        str | None,
+        typer.Option(
+            "--format", help="lite-yaml or lite-json (default: from --out's extension, .json is lite-json)."
+        ),
+    ] = None,
     direction_check: Annotated[
         bool, typer.Option("--direction-check", help="Guided 'move toward +' check first.")
     ] = False,

@@ -16,7 +16,7 @@ from ..workflows import ur as wf
 from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
 
 app = typer.Typer(
-    help="Universal Robots: calibrated kinematics for ur_description (extract, correct, verify).",
+    help="Universal Robots: calibrated kinematics for ur_description (extract, correct, defaults, verify, plot).",
     no_args_is_help=True,
 )
 
