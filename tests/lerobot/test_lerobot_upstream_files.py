@@ -224,3 +224,16 @@ def test_migrate_keeps_the_direction_of_a_linear_gripper(tmp_path: Path, start: 
         legacy.apply_calibration(raw[:, None], cal)[:, 0],
         atol=1e-12,
     )
+
+
+def test_writing_a_range_beyond_one_turn_warns_naming_the_motor(tmp_path: Path) -> None:
+    from robocal.formats.lerobot import LeRobotRangeWarning
+    from robocal.lerobot import write_calibration
+
+    cals = read_calibration(FIX / "so101_follower_current_gripper_beyond_turn.json")
+    out = tmp_path / "w.json"
+    with pytest.warns(
+        LeRobotRangeWarning, match=r"w\.json: motor 'gripper' \(id 6\): range_min..range_max 3426..4811"
+    ):
+        write_calibration(out, cals)
+    assert read_calibration(out) == cals  # written as given, like LeRobot

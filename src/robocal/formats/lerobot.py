@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..core.lerobot import LegacyCalibration, MotorCalibration
+from ..core.lerobot import LegacyCalibration, MotorCalibration, ranges_beyond_one_turn
 from ..errors import CalibError, FileFormatError, InvalidCalibrationError, UsageError
 from ..fileio import atomic_write_text, read_text
 from ..fileio import check_output_path as _check_output_path
@@ -26,6 +27,7 @@ from ._json import load_json
 __all__ = [
     "CURRENT_FIELDS",
     "LEGACY_KEYS",
+    "LeRobotRangeWarning",
     "check_output_path",
     "dumps_current",
     "dumps_legacy",
@@ -43,6 +45,10 @@ LEGACY_KEYS = ("homing_offset", "drive_mode", "start_pos", "end_pos", "calib_mod
 """Key order of the legacy JSON."""
 
 PathLike = str | os.PathLike[str]
+
+
+class LeRobotRangeWarning(UserWarning):
+    """A calibration written or read has a motor range beyond one servo turn (LeRobot accepts it unchecked)."""
 
 
 def dumps_current(cals: Mapping[str, MotorCalibration]) -> str:
@@ -167,6 +173,9 @@ def check_output_path(path: PathLike) -> Path:
 def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_dirs: bool = True) -> Path:
     """Write a current LeRobot calibration JSON atomically (keeps ``NAME.bak``); validates first.
 
+    A motor whose range lies beyond one turn (``0..4095``) is written as given, like LeRobot, but with a
+    :class:`LeRobotRangeWarning` naming it (see :func:`robocal.core.lerobot.ranges_beyond_one_turn`).
+
     Raises:
         FileFormatError: The calibration would not read back (duplicate ids, ``range_min >= range_max``, ...).
         UsageError: The file cannot be created there (see :func:`check_output_path`).
@@ -174,6 +183,8 @@ def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_
     text = dumps_current(cals)
     parse_current(text, str(path))
     p = check_output_path(path)
+    for message in ranges_beyond_one_turn(cals):
+        warnings.warn(f"{p}: {message}", LeRobotRangeWarning, stacklevel=2)
     if make_dirs:
         try:
             p.parent.mkdir(parents=True, exist_ok=True)
