@@ -280,3 +280,37 @@ def test_csv_round_trip_is_exact(n: int, kind: str, seed: int) -> None:
         np.testing.assert_array_equal(back.p_world_m, m.p_world_m)
     else:
         np.testing.assert_array_equal(back.group, m.group)
+
+
+def test_plan_writes_poses_inside_the_limits(tmp_path: Path, capsys) -> None:
+    from robocal.workflows.kinematic_sim import shipped_urdf
+
+    out = tmp_path / "plan.csv"
+    args = [
+        "kinematics",
+        "plan",
+        "--urdf",
+        str(shipped_urdf("so101")),
+        "--tip-link",
+        "gripper_link",
+        "--tool-xyz",
+        TOOL,
+        "--poses",
+        "30",
+        "--out",
+        str(out),
+    ]
+    assert main(args) == 0
+    assert (
+        "30 poses for shoulder_pan, shoulder_lift, elbow_flex, wrist_flex, wrist_roll: rank 23"
+        in capsys.readouterr().out
+    )
+    lines = out.read_text().splitlines()
+    assert lines[0] == "pose," + ",".join(JOINTS) and len(lines) == 31
+    q = np.array([[float(v) for v in line.split(",")[1:]] for line in lines[1:]])
+    chain = chain_from_urdf(read_urdf(shipped_urdf("so101")), tip_link="gripper_link")
+    chain.check_q(q)  # raises if any pose is outside the limits
+    # on the wrist-roll axis the plan still writes, with a warning naming the cause
+    assert main([*args[:-4], "--tool-xyz", "0,0,-0.0981", "--poses", "30", "--out", str(out)]) == 1
+    assert "the marker is on the wrist_roll axis" in capsys.readouterr().err
+    assert main([*args[:-2], "--out", str(tmp_path / "nofolder" / "p.csv")]) == 2

@@ -11,6 +11,7 @@ import typer
 from rich.table import Table
 
 from ..errors import UsageError
+from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
 from ._common import EXIT_OK, EXIT_WARNINGS, console, print_warning
 
@@ -153,7 +154,7 @@ def identify(
     raise typer.Exit(_print(result))
 
 
-def _command(sim: wf.SimulationResult, kind: str, gauge_mm: float) -> str:
+def _command(sim: sim_wf.SimulationResult, kind: str, gauge_mm: float) -> str:
     tool = ",".join(f"{v:g}" for v in sim.tool_xyz_m)
     extra = f" --gauge-mm {gauge_mm:g}" if kind == "gauge" else ""
     return (
@@ -182,7 +183,7 @@ def simulate(
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder")
     kind = kind.strip().lower()
-    sim = wf.simulate(
+    sim = sim_wf.simulate(
         robot.strip().lower(),
         out,
         kind=kind,
@@ -196,6 +197,47 @@ def simulate(
     console.print(f"wrote {sim.urdf}, {sim.data} ({sim.measurements.n_poses} poses), {sim.truth}")
     console.print(f"next: {_command(sim, kind, gauge_mm)}")
     raise typer.Exit(EXIT_OK)
+
+
+@app.command("plan")
+def plan(
+    urdf: Annotated[Path, typer.Option("--urdf", help="Expanded URDF of the arm.")],
+    out: Annotated[Path, typer.Option("--out", help="CSV of joint targets to write.")],
+    poses: Annotated[int, typer.Option("--poses", help="How many poses.")] = 50,
+    base_link: Annotated[
+        str | None, typer.Option("--base-link", help="First link (default: URDF root).")
+    ] = None,
+    tip_link: Annotated[
+        str | None, typer.Option("--tip-link", help="Link the tool is on (default: the leaf).")
+    ] = None,
+    tool_xyz: Annotated[
+        str, typer.Option("--tool-xyz", help="Nominal marker position in the tip link, metres: x,y,z.")
+    ] = "0,0,0",
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the random candidates.")] = 0,
+) -> None:
+    """Choose poses inside the joint limits that identify the arm best (greedy O1 over 2000 candidates)."""
+    result = wf.plan(
+        urdf,
+        out,
+        poses=poses,
+        base_link=base_link,
+        tip_link=tip_link,
+        tool_xyz_m=_parse_xyz(tool_xyz),
+        seed=seed,
+    )
+    ident = result.identifiability
+    obs = ident.observability
+    console.print(
+        f"{len(result.q_rad)} poses for {', '.join(result.joint_names)}: rank {ident.rank}, condition number "
+        f"{obs.condition:.1f}, O1 {obs.O1:.3g}, O3 {obs.O3:.3g}"
+    )
+    warnings = [
+        f"{u.name}: {u.reason}" for u in ident.unidentifiable if u.reason.startswith("the marker is on")
+    ]
+    console.print(f"wrote {result.out}; move the arm to each pose and add x,y,z (or group / socket) columns")
+    for w in warnings:
+        print_warning(w)
+    raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
 
 
 def run_demo(robot: str, out_dir: Path | None) -> int:
@@ -216,7 +258,7 @@ def run_demo(robot: str, out_dir: Path | None) -> int:
             f"[bold]kinematics demo[/]: simulated {robot} with hidden errors (1 mm origins, 0.5° tilts, 2° zeros), "
             "4096-tick joints, 0.5 mm marker noise, 50 poses chosen for observability"
         )
-        sim = wf.simulate(robot, folder, poses=67, noise_m=0.5e-3, seed=0)
+        sim = sim_wf.simulate(robot, folder, poses=67, noise_m=0.5e-3, seed=0)
         result = wf.identify(
             sim.urdf,
             sim.data,

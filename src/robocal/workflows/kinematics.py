@@ -14,75 +14,46 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
 from ..core.chain import SerialChain
+from ..core.identifiability import Identifiability
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
     KINDS,
     Measurements,
     Problem,
+    analyse,
     dh_like_constraints,
     free_indices,
     plan_poses,
 )
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
-from ..formats.kinematic_data import measurements_to_csv, read_measurements
+from ..formats._numbers import format_float
+from ..formats.kinematic_data import read_measurements
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
 from .kinematic_fit import FitResult, PriorSigmas, fit, split_validation, validation_errors
 
 __all__ = [
     "FRAMES",
-    "SIM_ROBOTS",
     "DhComparison",
     "IdentifyResult",
-    "SimRobot",
-    "SimulationResult",
+    "PlanResult",
     "identify",
-    "simulate",
+    "plan",
+    "tool_frame",
 ]
 
 FloatArray = NDArray[np.float64]
 
 FRAMES: tuple[str, ...] = ("base", "tracker")
 """``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""
-
-
-@dataclass(frozen=True)
-class SimRobot:
-    """A shipped robot description for simulations.
-
-    Attributes:
-        urdf: File name under ``robocal/data``.
-        tip_link: Link carrying the marker.
-        marker_off_axis_m: Marker position in the tip link, off the last joint's axis.
-        marker_on_axis_m: The same marker moved onto the last joint's axis.
-        gauge_centre_m: Where the simulated gauge sits, in the base frame.
-    """
-
-    urdf: str
-    tip_link: str
-    marker_off_axis_m: tuple[float, float, float]
-    marker_on_axis_m: tuple[float, float, float]
-    gauge_centre_m: tuple[float, float, float]
-
-
-SIM_ROBOTS: dict[str, SimRobot] = {
-    "so101": SimRobot(
-        "so101_new_calib.urdf", "gripper_link", (0.0121, 0.0, -0.0981), (0.0, 0.0, -0.0981), (0.2, 0.0, 0.05)
-    ),
-    "koch": SimRobot(
-        "koch.urdf", "gripper_static_1", (0.02, 0.0, -0.06), (0.0, 0.0, -0.06), (0.0, 0.15, 0.05)
-    ),
-}
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,6 +106,17 @@ def _stats_mm(errors: FloatArray) -> dict[str, float] | None:
     return {"mean": float(errors.mean() * 1e3), "max": float(errors.max() * 1e3)}
 
 
+def _finite(value: Any) -> Any:
+    """The report with NaN and ±inf replaced by None (JSON has no such numbers)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def _kabsch(p_from: FloatArray, p_to: FloatArray) -> FloatArray:
     """Rigid transform ``T`` with ``T · p_from ≈ p_to`` (least squares), ``(4, 4)``."""
     a0, b0 = p_from.mean(axis=0), p_to.mean(axis=0)
@@ -148,7 +130,8 @@ def _kabsch(p_from: FloatArray, p_to: FloatArray) -> FloatArray:
     return T
 
 
-def _tool(tool_xyz_m: Sequence[float]) -> FloatArray:
+def tool_frame(tool_xyz_m: Sequence[float]) -> FloatArray:
+    """``T_tip_tool`` ``(4, 4)`` for a tool point in the tip link's frame (m); UsageError unless 3 finite numbers."""
     t = [float(v) for v in tool_xyz_m]
     if len(t) != 3 or not all(math.isfinite(v) for v in t):
         raise UsageError(f"--tool-xyz needs three finite numbers (m), got {list(tool_xyz_m)}")
@@ -231,7 +214,7 @@ def identify(
     chain = chain_from_urdf(doc.model(), base_link, tip_link)
     measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=gauge_distance_m)
     chain.check_q(measurements.q_rad, what=f"{data}: pose")
-    model = ErrorModel(chain, T_tip_tool=_tool(tool_xyz_m))
+    model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
     warnings: list[str] = []
     if frame == "tracker":
         assert measurements.p_world_m is not None
@@ -346,7 +329,7 @@ def identify(
         "warnings": warnings,
     }
     urdf_bytes = corrected_urdf_bytes(doc, corrected, _origin_changed(chain, corrected)) if out_path else None
-    report_text = json.dumps(rep, indent=2) + "\n"
+    report_text = json.dumps(_finite(rep), indent=2, allow_nan=False) + "\n"
     written_urdf = atomic_write_bytes(out_path, urdf_bytes) if out_path and urdf_bytes is not None else None
     written_report = atomic_write_text(report_path, report_text) if report_path else None
     return IdentifyResult(
@@ -363,110 +346,61 @@ def identify(
     )
 
 
-def shipped_urdf(robot: str) -> Path:
-    """Path of a shipped robot description (``so101``, ``koch``)."""
-    if robot not in SIM_ROBOTS:
-        raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
-    return Path(str(resources.files("robocal") / "data" / SIM_ROBOTS[robot].urdf))
-
-
 @dataclass(frozen=True, eq=False)
-class SimulationResult:
-    """Files written by :func:`simulate` and the hidden truth.
+class PlanResult:
+    """Poses chosen for a measurement session.
 
     Attributes:
-        urdf: Nominal URDF copied into the folder.
-        data: Measurement CSV.
-        truth: JSON with the hidden parameters.
-        tip_link: Link the marker is on.
-        tool_xyz_m: Nominal marker position in ``tip_link``.
-        arm: The simulated arm (hidden errors included).
-        measurements: The session.
+        q_rad: ``(N, n_q)`` joint targets, rad (m for prismatic joints).
+        joint_names: Column order.
+        identifiability: What point measurements at these poses will identify.
+        out: CSV written.
     """
 
-    urdf: Path
-    data: Path
-    truth: Path
-    tip_link: str
-    tool_xyz_m: tuple[float, float, float]
-    arm: SimulatedKinematicArm
-    measurements: Measurements
+    q_rad: FloatArray
+    joint_names: tuple[str, ...]
+    identifiability: Identifiability
+    out: Path
 
 
-def simulate(
-    robot: str,
-    out_dir: str | os.PathLike[str],
+def plan(
+    urdf: str | os.PathLike[str],
+    out: str | os.PathLike[str],
     *,
-    kind: str = "points",
     poses: int = 50,
-    noise_m: float = 0.5e-3,
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0),
+    candidates: int = 2000,
+    margin_rad: float = 0.05,
     seed: int = 0,
-    on_axis: bool = False,
-    plan: bool = True,
-    gauge_distance_m: float = 0.05,
-) -> SimulationResult:
-    """Simulate a session on a shipped robot with hidden errors.
+) -> PlanResult:
+    """Choose ``poses`` configurations inside the joint limits that best identify the chain (greedy O1).
 
-    Writes ``<robot>.urdf`` (the nominal description), ``<kind>.csv`` and ``truth.json`` into ``out_dir``.
-
-    Args:
-        robot: ``so101`` or ``koch``.
-        out_dir: Existing folder.
-        kind: ``points``, ``touch`` or ``gauge``.
-        poses: Number of poses (touch: per contact point, 3 points; gauge: per socket).
-        noise_m: Marker noise per axis (points only), m.
-        seed: Seed of the hidden errors, the poses and the noise.
-        on_axis: Put the marker on the last joint's axis (to see the identifiability report catch it).
-        plan: Choose the poses by greedy O1 selection from 2000 random candidates (points only).
-        gauge_distance_m: Socket distance of the simulated gauge.
+    Writes a CSV with a ``pose`` column and one column per joint, ready to be filled with ``x,y,z`` (or a
+    ``group``/``socket`` column) as the poses are measured.
     """
-    if kind not in KINDS:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
-    if poses < 1:
-        raise UsageError(f"--poses must be at least 1, got {poses}")
-    if not (math.isfinite(noise_m) and noise_m >= 0):
-        raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
-    folder = Path(out_dir)
-    if not folder.is_dir():
-        raise UsageError(f"--out {folder}: not a folder")
-    spec = SIM_ROBOTS.get(robot)
-    src = shipped_urdf(robot)
-    assert spec is not None
-    urdf_bytes = src.read_bytes()
-    doc = UrdfDocument.from_bytes(urdf_bytes, str(src))
-    chain = chain_from_urdf(doc.model(), tip_link=spec.tip_link)
-    marker = spec.marker_on_axis_m if on_axis else spec.marker_off_axis_m
-    model = ErrorModel(chain, T_tip_tool=_tool(marker))
-    rng = np.random.default_rng(seed)
-    arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
-    labels: tuple[str, ...] = ()
-    if kind == "points":
-        if plan:
-            cand = arm.sample_q(2000, rng)
-            q = cand[plan_poses(model, cand, poses)] if poses <= 2000 else arm.sample_q(poses, rng)
-        else:
-            q = arm.sample_q(poses, rng)
-        truth = arm.true_points(q)
-        data = Measurements("points", arm.read(q), truth + rng.normal(0.0, noise_m, truth.shape))
-    elif kind == "touch":
-        c = np.asarray(spec.gauge_centre_m)
-        targets = np.stack([c, c + np.array([0.0, 0.06, 0.0]), c + np.array([-0.05, 0.0, 0.04])])
-        data = arm.touch(targets, poses, rng)
-        labels = ("P1", "P2", "P3")
-    else:
-        data = arm.gauge(spec.gauge_centre_m, gauge_distance_m, poses, rng)
-    truth_doc = {
-        "robot": robot,
-        "seed": seed,
-        "tip_link": spec.tip_link,
-        "tool_xyz_m": list(marker),
-        "noise_m": noise_m if kind == "points" else 0.0,
-        "ticks_per_turn": arm.ticks_per_turn,
-        "hidden_parameters": {n: float(v) for n, v in zip(model.names, arm.x_true, strict=True)},
-    }
-    urdf_path = atomic_write_bytes(folder / f"{robot}.urdf", urdf_bytes)
-    data_path = atomic_write_text(
-        folder / f"{kind}.csv", measurements_to_csv(data, chain.joint_names, labels)
+    if poses < 1 or candidates < poses:
+        raise UsageError(f"--poses must be between 1 and the {candidates} candidates, got {poses}")
+    out_path = check_output_path(out, "--out")
+    chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
+    model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
+    lo, up = chain.limits()
+    lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
+    up = np.where(np.isfinite(up), up, math.pi) - margin_rad
+    if np.any(lo > up):
+        bad = chain.joint_names[int(np.argmax(lo > up))]
+        raise UsageError(f"joint {bad}: its range is narrower than twice the {margin_rad} rad margin")
+    cand = np.random.default_rng(seed).uniform(lo, up, (candidates, chain.n_q))
+    q = cand[plan_poses(model, cand, poses)]
+    problem = Problem(
+        model,
+        Measurements("points", q, model.points(q)),
+        free_indices(model, ["base"]),
+        np.zeros(model.n_params),
     )
-    truth_path = atomic_write_text(folder / "truth.json", json.dumps(truth_doc, indent=2) + "\n")
-    return SimulationResult(urdf_path, data_path, truth_path, spec.tip_link, marker, arm, data)
+    ident = analyse(problem)
+    lines = ["pose," + ",".join(chain.joint_names)]
+    lines += [f"{i + 1}," + ",".join(format_float(float(v)) for v in row) for i, row in enumerate(q)]
+    written = atomic_write_text(out_path, "\n".join(lines) + "\n")
+    return PlanResult(q, chain.joint_names, ident, written)

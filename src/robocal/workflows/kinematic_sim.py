@@ -1,0 +1,166 @@
+"""Simulated measurement sessions on shipped robots (SO-101, Koch) with hidden geometric errors.
+
+``simulate`` writes the nominal URDF, a session CSV and ``truth.json`` (the hidden errors) into a folder, so that
+``robocal kinematics identify`` and ``robocal demo --identify`` run end to end without a robot.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from ..backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
+from ..core.kinematic_errors import ErrorModel
+from ..core.kinematic_problem import KINDS, Measurements, plan_poses
+from ..errors import UsageError
+from ..fileio import atomic_write_bytes, atomic_write_text
+from ..formats.kinematic_data import measurements_to_csv
+from ..formats.urdf import UrdfDocument
+from ..formats.urdf_chain import chain_from_urdf
+from .kinematics import tool_frame
+
+__all__ = ["SIM_ROBOTS", "SimRobot", "SimulationResult", "shipped_urdf", "simulate"]
+
+
+@dataclass(frozen=True)
+class SimRobot:
+    """A shipped robot description for simulations.
+
+    Attributes:
+        urdf: File name under ``robocal/data``.
+        tip_link: Link carrying the marker.
+        marker_off_axis_m: Marker position in the tip link, off the last joint's axis.
+        marker_on_axis_m: The same marker moved onto the last joint's axis.
+        gauge_centre_m: Where the simulated gauge sits, in the base frame.
+    """
+
+    urdf: str
+    tip_link: str
+    marker_off_axis_m: tuple[float, float, float]
+    marker_on_axis_m: tuple[float, float, float]
+    gauge_centre_m: tuple[float, float, float]
+
+
+SIM_ROBOTS: dict[str, SimRobot] = {
+    "so101": SimRobot(
+        "so101_new_calib.urdf", "gripper_link", (0.0121, 0.0, -0.0981), (0.0, 0.0, -0.0981), (0.2, 0.0, 0.05)
+    ),
+    "koch": SimRobot(
+        "koch.urdf", "gripper_static_1", (0.02, 0.0, -0.06), (0.0, 0.0, -0.06), (0.0, 0.15, 0.05)
+    ),
+}
+
+
+def shipped_urdf(robot: str) -> Path:
+    """Path of a shipped robot description (``so101``, ``koch``)."""
+    if robot not in SIM_ROBOTS:
+        raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
+    return Path(str(resources.files("robocal") / "data" / SIM_ROBOTS[robot].urdf))
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationResult:
+    """Files written by :func:`simulate` and the hidden truth.
+
+    Attributes:
+        urdf: Nominal URDF copied into the folder.
+        data: Measurement CSV.
+        truth: JSON with the hidden parameters.
+        tip_link: Link the marker is on.
+        tool_xyz_m: Nominal marker position in ``tip_link``.
+        arm: The simulated arm (hidden errors included).
+        measurements: The session.
+    """
+
+    urdf: Path
+    data: Path
+    truth: Path
+    tip_link: str
+    tool_xyz_m: tuple[float, float, float]
+    arm: SimulatedKinematicArm
+    measurements: Measurements
+
+
+def simulate(
+    robot: str,
+    out_dir: str | os.PathLike[str],
+    *,
+    kind: str = "points",
+    poses: int = 50,
+    noise_m: float = 0.5e-3,
+    seed: int = 0,
+    on_axis: bool = False,
+    plan: bool = True,
+    gauge_distance_m: float = 0.05,
+) -> SimulationResult:
+    """Simulate a session on a shipped robot with hidden errors.
+
+    Writes ``<robot>.urdf`` (the nominal description), ``<kind>.csv`` and ``truth.json`` into ``out_dir``.
+
+    Args:
+        robot: ``so101`` or ``koch``.
+        out_dir: Existing folder.
+        kind: ``points``, ``touch`` or ``gauge``.
+        poses: Number of poses (touch: per contact point, 3 points; gauge: per socket).
+        noise_m: Marker noise per axis (points only), m.
+        seed: Seed of the hidden errors, the poses and the noise.
+        on_axis: Put the marker on the last joint's axis (to see the identifiability report catch it).
+        plan: Choose the poses by greedy O1 selection from 2000 random candidates (points only).
+        gauge_distance_m: Socket distance of the simulated gauge.
+    """
+    if kind not in KINDS:
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    if poses < 1:
+        raise UsageError(f"--poses must be at least 1, got {poses}")
+    if not (math.isfinite(noise_m) and noise_m >= 0):
+        raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
+    folder = Path(out_dir)
+    if not folder.is_dir():
+        raise UsageError(f"--out {folder}: not a folder")
+    spec = SIM_ROBOTS.get(robot)
+    src = shipped_urdf(robot)
+    assert spec is not None
+    urdf_bytes = src.read_bytes()
+    doc = UrdfDocument.from_bytes(urdf_bytes, str(src))
+    chain = chain_from_urdf(doc.model(), tip_link=spec.tip_link)
+    marker = spec.marker_on_axis_m if on_axis else spec.marker_off_axis_m
+    model = ErrorModel(chain, T_tip_tool=tool_frame(marker))
+    rng = np.random.default_rng(seed)
+    arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
+    labels: tuple[str, ...] = ()
+    if kind == "points":
+        if plan:
+            cand = arm.sample_q(2000, rng)
+            q = cand[plan_poses(model, cand, poses)] if poses <= 2000 else arm.sample_q(poses, rng)
+        else:
+            q = arm.sample_q(poses, rng)
+        truth = arm.true_points(q)
+        data = Measurements("points", arm.read(q), truth + rng.normal(0.0, noise_m, truth.shape))
+    elif kind == "touch":
+        c = np.asarray(spec.gauge_centre_m)
+        targets = np.stack([c, c + np.array([0.0, 0.06, 0.0]), c + np.array([-0.05, 0.0, 0.04])])
+        data = arm.touch(targets, poses, rng)
+        labels = ("P1", "P2", "P3")
+    else:
+        data = arm.gauge(spec.gauge_centre_m, gauge_distance_m, poses, rng)
+    truth_doc = {
+        "robot": robot,
+        "seed": seed,
+        "tip_link": spec.tip_link,
+        "tool_xyz_m": list(marker),
+        "noise_m": noise_m if kind == "points" else 0.0,
+        "ticks_per_turn": arm.ticks_per_turn,
+        "hidden_parameters": {n: float(v) for n, v in zip(model.names, arm.x_true, strict=True)},
+    }
+    urdf_path = atomic_write_bytes(folder / f"{robot}.urdf", urdf_bytes)
+    data_path = atomic_write_text(
+        folder / f"{kind}.csv", measurements_to_csv(data, chain.joint_names, labels)
+    )
+    truth_path = atomic_write_text(folder / "truth.json", json.dumps(truth_doc, indent=2) + "\n")
+    return SimulationResult(urdf_path, data_path, truth_path, spec.tip_link, marker, arm, data)
