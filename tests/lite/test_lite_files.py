@@ -232,3 +232,21 @@ def test_check_warns_when_file_order_is_not_the_codes_order(
     captured = capsys.readouterr()
     assert rc == 1 and "12/12 joints matched" in captured.out
     assert "another order than robot bhl_biped's low-level code reads them" in captured.err
+
+
+def test_check_full_humanoid_names_joints_the_code_does_not_drive(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cf = read_calibration(UPSTREAM_CAL, robot="bhl_biped")
+    arm = RobotCalibration(["arm_left_elbow_pitch_joint"], [1], [0.5])
+    both = RobotCalibration(
+        [*cf.calibration.joint_names, *arm.joint_names],
+        [*cf.calibration.direction, 1],
+        [*cf.calibration.homing_offset, 0.5],
+    )
+    lite = tmp_path / "c.yaml"
+    write_calibration(lite, CalibrationFile(both, {**cf.ids, "arm_left_elbow_pitch_joint": 9}), "lite-yaml")
+    rc = main(["check", "--calibration", str(lite), "--urdf", str(FULL_URDF)])
+    out = capsys.readouterr()
+    assert rc == 1 and "12/12 joints matched (lite-yaml)" in out.out
+    assert "robot bhl_biped's code does not drive (or the URDF lacks): arm_left_elbow_pitch_joint" in out.err

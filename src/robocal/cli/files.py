@@ -117,7 +117,7 @@ def check(
     if report.missing:
         print_warning(f"joints missing from the calibration file: {', '.join(report.missing)}")
     if report.extra:
-        print_warning(f"joints in the calibration file but not in the URDF: {', '.join(report.extra)}")
+        print_warning(report.extra_message)
     for j in report.joints:
         for w in j.warnings:
             print_warning(f"{j.name}: {w}")

@@ -79,7 +79,8 @@ class CheckReport:
     Attributes:
         matched: Joints present in both the file and the URDF (URDF order).
         missing: URDF calibration joints the file lacks.
-        extra: File joints the URDF does not have.
+        extra: File joints the URDF does not have (or, with a robot profile, joints the robot's code does not
+            drive).
         joints: Per-joint results for the matched joints.
     """
 
@@ -90,6 +91,7 @@ class CheckReport:
     extra: tuple[str, ...]
     joints: tuple[JointCheck, ...]
     robot: str | None = None
+    expected_from_profile: bool = False
 
     @property
     def n_expected(self) -> int:
@@ -103,10 +105,20 @@ class CheckReport:
         if self.missing:
             out.append(f"joints missing from the calibration file: {', '.join(self.missing)}")
         if self.extra:
-            out.append(f"joints in the calibration file but not in the URDF: {', '.join(self.extra)}")
+            out.append(self.extra_message)
         for j in self.joints:
             out.extend(f"{j.name}: {w}" for w in j.warnings)
         return tuple(out)
+
+    @property
+    def extra_message(self) -> str:
+        """The warning about :attr:`extra` joints."""
+        if self.robot is not None and self.expected_from_profile:
+            return (
+                f"joints in the calibration file that robot {self.robot}'s code does not drive (or the URDF "
+                f"lacks): {', '.join(self.extra)}"
+            )
+        return f"joints in the calibration file but not in the URDF: {', '.join(self.extra)}"
 
     @property
     def ok(self) -> bool:
@@ -178,5 +190,12 @@ def check_calibration(
             shown_id = u_id if u_id is not None else p_id
         results.append(JointCheck(name, jm.homing_offset, jm.direction, shown_id, tuple(warnings)))
     return CheckReport(
-        cf.source, urdf.source, matched, missing, extra, tuple(results), profile.name if profile else None
+        cf.source,
+        urdf.source,
+        matched,
+        missing,
+        extra,
+        tuple(results),
+        profile.name if profile else None,
+        not urdf.ros2_control_joint_names and profile is not None,
     )
