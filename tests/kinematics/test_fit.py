@@ -126,6 +126,10 @@ def test_split_and_validation_on_points() -> None:
     assert validation_errors(result, data.subset(val)).max() < 2e-3  # quantisation only
     with pytest.raises(UsageError, match="validate-fraction"):
         split_validation(data, 1.0)
+    with pytest.raises(
+        UsageError, match=r"--validate-fraction 0.99 holds out 40 of 40 poses and leaves 0 to fit"
+    ):
+        split_validation(data, 0.99)
 
 
 def test_touch_and_gauge_sessions() -> None:

@@ -129,6 +129,8 @@ def fit(
         UsageError: Too few residuals for the unknowns (names how many poses are needed).
     """
     least_squares = _least_squares()
+    if problem.data.n_poses == 0:
+        raise UsageError("no poses to fit")
     theta0 = problem.initial_theta()
     ident = analyse(problem, theta0, tolerance=tolerance)
     base = list(ident.base)
@@ -237,6 +239,11 @@ def split_validation(data: Measurements, fraction: float, seed: int = 0) -> tupl
                 chosen.append(int(i))
         val = np.sort(np.asarray(chosen, dtype=np.int64))
     train = np.setdiff1d(np.arange(n), val)
+    if train.size < 2:
+        raise UsageError(
+            f"--validate-fraction {fraction} holds out {val.size} of {n} poses and leaves {train.size} to fit; "
+            "lower it (0.2-0.3 is usual)"
+        )
     return train.astype(np.int64), val.astype(np.int64)
 
 

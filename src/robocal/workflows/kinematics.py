@@ -246,7 +246,7 @@ def identify(
     if ident.observability.condition > 100:
         warnings.append(
             f"condition number {ident.observability.condition:.0f} is above 100: spread the poses over the joint "
-            "ranges (robocal kinematics simulate shows a good set) or record more of them"
+            "ranges (robocal kinematics plan chooses a good set) or record more of them"
         )
     for u in ident.unidentifiable:
         if u.reason.startswith("the marker is on"):
