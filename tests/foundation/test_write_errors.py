@@ -97,7 +97,8 @@ def test_convert_onto_read_only_or_full_disk(tmp_path: Path, read_only: bool) ->
     )
     out = run_on_tmpfs(
         tmp_path,
-        "(mnt / 'cal.json').write_text('{}')\n" + textwrap.dedent(fill),
+        '(mnt / \'cal.json\').write_text(\'{"j1": {"id": 1, "direction": 1, "homing_offset": 0.1}}\')\n'
+        + textwrap.dedent(fill),
         _cli("convert", str(src), str(tmp_path / "mnt" / "cal.json"), "--to", "lite-json"),
         read_only=read_only,
     )

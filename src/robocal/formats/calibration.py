@@ -32,7 +32,7 @@ from ..core.conventions import (
 )
 from ..core.jointmap import RobotCalibration
 from ..core.profile import RobotProfile
-from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
+from ..errors import CalibError, FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, read_bytes, read_text
 from ._json import is_valid_unicode, load_json
 from ._numbers import format_float, parse_direction, parse_finite, parse_int
@@ -45,6 +45,7 @@ __all__ = [
     "CalibrationFile",
     "detect_format",
     "read_calibration",
+    "read_existing_output",
     "write_calibration",
 ]
 
@@ -877,11 +878,14 @@ def write_calibration(
     ids: Mapping[str, int] | None = None,
     joint_order: Sequence[str] | None = None,
     robot: str | os.PathLike[str] | RobotProfile | None = None,
+    what: str = "destination",
 ) -> str:
     """Write a calibration atomically (keeping ``NAME.bak``), in place where the format allows.
 
     An existing ``lite-yaml`` file is updated in place: comments, key order and untouched values stay as
     they were, and only changed values change. An existing URDF gets its ``<transmission>`` elements updated.
+    An existing file that is not a calibration of the format written is refused (see
+    :func:`read_existing_output`, the one rule ``convert`` and ``sweep --out`` share).
 
     Args:
         path: Destination.
@@ -893,9 +897,13 @@ def write_calibration(
             URDF's document order).
         robot: Robot profile (name, path or :class:`RobotProfile`); when None, the built-in profile the URDF's
             joint names match, if any. Supplies the order of positional formats and ids the data and URDF lack.
+        what: How messages name ``path`` (``"--out"``).
 
     Returns:
         The format written.
+
+    Raises:
+        FileFormatError: ``path`` exists and is not a calibration of the format written; nothing is written.
     """
     p = Path(path)
     cf = data if isinstance(data, CalibrationFile) else CalibrationFile(data)
@@ -913,5 +921,69 @@ def write_calibration(
         raise InvalidCalibrationError(
             f"cannot write {p}: joint name {bad[0]!a} is not valid Unicode (a lone surrogate); nothing written"
         )
-    spec.writer(p, cf, urdf, joint_order=joint_order, profile=resolve_profile(robot, urdf))
+    profile = resolve_profile(robot, urdf)
+    read_existing_output(p, name, what, urdf=urdf, joint_order=joint_order, robot=profile)
+    spec.writer(p, cf, urdf, joint_order=joint_order, profile=profile)
     return name
+
+
+_SELF_CONTAINED = ("lite-json", "lite-yaml", "robocal")
+
+
+def read_existing_output(
+    path: str | os.PathLike[str],
+    fmt: str,
+    what: str = "destination",
+    *,
+    urdf: UrdfModel | None = None,
+    joint_order: Sequence[str] | None = None,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
+) -> CalibrationFile | None:
+    """The one rule for writing over an existing file: it must be a calibration of the format written.
+
+    A missing file, an empty one or one holding only ``#`` comments may be written. Any other file must be
+    recognised as ``fmt`` by its content; ``lite-json``, ``lite-yaml`` and ``robocal`` files must also read
+    without error (``berkeley-offsets`` is positional and ``ros2-transmission`` a URDF that may have no
+    transmission yet, so for those recognising the format is enough). ``robocal convert`` (through
+    :func:`write_calibration`) and ``robocal sweep --out`` (before the sweep starts) both apply it.
+
+    Args:
+        path: The destination.
+        fmt: The format that will be written.
+        what: How the message names the destination (``"--out"``, ``"destination"``).
+        urdf: URDF for reading the existing file (directions, ids).
+        joint_order: Joint order for positional formats.
+        robot: Robot profile for reading the existing file.
+
+    Returns:
+        The calibration the file holds (for the self-contained formats), else None.
+
+    Raises:
+        FileFormatError: The file holds something else; nothing is written. The message says what it looks
+            like and to move it away or choose another destination.
+    """
+    p = Path(path)
+    if not p.exists():
+        return None
+    text = read_text(p, what)
+    if all(not ln.strip() or ln.lstrip().startswith("#") for ln in text.splitlines()):
+        return None  # empty, or only comments: nothing to keep
+
+    def refuse(why: str) -> FileFormatError:
+        return FileFormatError(
+            f"{what} {p}: exists but is not a {fmt} calibration file ({why}); move it away or choose another "
+            f"{'--out' if what == '--out' else 'destination'}"
+        )
+
+    try:
+        found, _doc = _sniff(text, str(p))
+    except FileFormatError as exc:
+        raise refuse(str(exc)) from None
+    if found != fmt:
+        raise refuse(f"it looks like {found}" if found else "not a calibration format robocal knows")
+    if fmt not in _SELF_CONTAINED:
+        return None
+    try:
+        return read_calibration(p, fmt, urdf=urdf, joint_order=joint_order, robot=robot)
+    except CalibError as exc:
+        raise refuse(str(exc)) from None

@@ -46,8 +46,9 @@ from ..errors import (
     JointMismatchError,
     UsageError,
 )
-from ..fileio import atomic_write_text, check_output_path, read_text
+from ..fileio import atomic_write_text, check_output_path
 from ..formats import CalibrationFile, read_calibration, write_calibration
+from ..formats.calibration import read_existing_output
 from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 
@@ -513,18 +514,7 @@ def _existing_output(
         FileFormatError: ``--out`` holds something else than a ``fmt`` calibration (it would be replaced;
             nothing is written).
     """
-    if not out.exists():
-        return None
-    text = read_text(out, "--out")
-    if all(not ln.strip() or ln.lstrip().startswith("#") for ln in text.splitlines()):
-        return None  # empty, or only comments: nothing to update
-    try:
-        return read_calibration(out, fmt, urdf=urdf, robot=profile)
-    except CalibError as exc:
-        raise FileFormatError(
-            f"--out {out}: exists but is not a {fmt} calibration file ({exc}); "
-            "move it away or choose another --out"
-        ) from None
+    return read_existing_output(out, fmt, "--out", urdf=urdf, robot=profile)  # the rule convert applies too
 
 
 def _check_foreign_ids(out: Path, existing: CalibrationFile, joints: Sequence[JointSpec]) -> None:
