@@ -334,3 +334,23 @@ def test_ctrl_c_while_the_restoring_line_is_shown_is_deferred(tmp_path: Path) ->
             "still restoring the previous EEPROM; Ctrl-C is ignored until it is done",
         ]
         assert arm.eeprom() == before
+
+
+def test_cli_read_only_folder_is_refused_before_the_port_is_opened(
+    readonly_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = [
+        "lerobot",
+        "calibrate",
+        "--robot",
+        "koch_follower",
+        "--port",
+        "/dev/robocal-no-such-port",
+        "--id",
+        "a",
+    ]
+    assert main([*args, "--calibration-dir", str(readonly_dir)]) == 2  # not 3 (the port was never tried)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(
+        f"error: cannot write {readonly_dir}/robots/koch_follower/a.json"
+    )

@@ -254,6 +254,10 @@ def calibrate(
         _print_calibration(cals)
         _common.console.print(f"wrote {path} to the motors")
         raise typer.Exit(_common.exit_code_for(beyond))
+    from ..fileio import check_output_path
+
+    # the calibration folder must be writable before the port is even opened (the workflow checks again)
+    check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
     update, close = _sweep_renderer()
     with _arm_bus(spec, port) as (bus, arm):
         if arm is not None:
