@@ -7,6 +7,9 @@ size is predicted to take longer than the per-size budget; the line then says wh
 through ruamel.yaml's round-trip parser (about 1 ms per joint), so the YAML formats stop before 10⁶ at the
 default budget; their slope is still measured over three or more sizes.
 
+Time is this process's CPU time (``time.process_time``: user + system), not wall-clock time, so other work on a
+shared machine does not distort the slope (wall time on a loaded 2-core box varied by 5× between runs).
+
 Environment: ``ROBOCAL_BENCH_MAX_JOINTS`` (default 1000000), ``ROBOCAL_BENCH_BUDGET_S`` (default 20, seconds
 per size and operation).
 """
@@ -244,13 +247,14 @@ def main() -> None:
                 repeat = 3 if (pts and pts[-1][1] < 0.2) or not pts else 1
                 best = math.inf
                 for _ in range(repeat):
-                    t0 = time.perf_counter()
+                    t0 = time.process_time()
                     call()
-                    best = min(best, time.perf_counter() - t0)
+                    best = min(best, time.process_time() - t0)
                 pts.append((n, best))
             shutil.rmtree(case.dir)
     print(
-        f"time per size (s); slope of log(time)/log(N), linear = 1, quadratic = 2; budget {budget:g} s/size"
+        f"CPU time of this process per size (s); slope of log(time)/log(N), linear = 1, quadratic = 2; "
+        f"budget {budget:g} s/size"
     )
     header = f"  {'operation':<32}" + "".join(f"{n:>10,}" for n in sizes) + "   slope"
     print(header)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from robocal.core import RobotCalibration
 from robocal.formats import CalibrationFile, read_calibration, write_calibration
@@ -76,3 +77,27 @@ def test_transmissions_appended_into_a_large_urdf_round_trip(tmp_path: Path) -> 
     assert text.index("<transmission") > text.index("<ros2_control")
     assert text.count("\n    <transmission name=") == n
     assert text.rstrip().endswith("</ros2_control>\n</robot>")
+
+
+def test_check_prints_a_large_robot_as_plain_full_width_lines(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.cli.main import main
+
+    n = 250  # above PLAIN_TABLE_ROWS: plain aligned text, no rich layout (≈ 1 ms per row), names never cut
+    long = "left_shoulder_pitch_joint_with_a_rather_long_descriptive_name_"
+    text = _big_urdf(n).replace('name="j', f'name="{long}j')
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text(text)
+    cal = RobotCalibration([f"{long}j{i}" for i in range(n)], 1.0, np.linspace(-1, 1, n))
+    cal_path = tmp_path / "cal.json"
+    write_calibration(cal_path, cal, "lite-json", urdf=read_urdf(urdf))
+    assert main(["check", "--calibration", str(cal_path), "--urdf", str(urdf)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith(f"{n}/{n} joints matched (lite-json)")
+    header = out[1].split()
+    assert header == ["joint", "id", "direction", "homing_offset", "status"]
+    rows = [line.split() for line in out[2:]]
+    assert len(rows) == n
+    assert rows[0] == [f"{long}j0", "1", "+1", "-1.000000", "ok"]
+    assert rows[-1] == [f"{long}j{n - 1}", str(n), "+1", "1.000000", "ok"]
