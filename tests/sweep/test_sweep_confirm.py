@@ -240,3 +240,51 @@ def test_workflow_confirm_sees_only_changed_offsets_with_a_doubtful_warning(
     run_sweep(urdf, SHORT, fresh, confirm=confirm)
     assert asked == []
     assert keep_prior(outcome.result, []) == outcome.result
+
+
+def test_enter_finishes_a_sweep_that_is_still_running(urdf: Path, tmp_path: Path) -> None:
+    # a recording that is still being written (a FIFO fed row by row) never ends by itself: only Enter ends it
+    import threading
+
+    import numpy as np
+
+    from robocal.backends.sim.lite import LITE_JOINTS
+
+    fifo = tmp_path / "live.csv"
+    os.mkfifo(fifo)
+    lo = np.array([j.lower for j in LITE_JOINTS])
+    up = np.array([j.upper for j in LITE_JOINTS])
+    stop = threading.Event()
+
+    def feed() -> None:
+        with open(fifo, "w") as fh:
+            fh.write("t," + ",".join(j.name for j in LITE_JOINTS) + "\n")
+            k = 0
+            try:
+                while not stop.is_set() and k < 1_000_000:
+                    rows = []
+                    for _ in range(200):
+                        x = 0.5 - 0.5 * np.cos(2 * np.pi * k / 20000)  # a full sweep every 20000 rows
+                        rows.append(",".join(f"{v:.6f}" for v in (k / 1000, *(lo + (up - lo) * x))))
+                        k += 1
+                    fh.write("\n".join(rows) + "\n")
+                    fh.flush()
+                    time.sleep(0.02)
+            except BrokenPipeError:
+                pass
+
+    writer = threading.Thread(target=feed, daemon=True)
+    writer.start()
+    out = tmp_path / "cal.yaml"
+    term = Terminal("sweep", "--urdf", str(urdf), "--source", f"replay:{fifo}", "--out", str(out), "--yes")
+    try:
+        term.expect("Enter or Ctrl-C to finish")
+        time.sleep(1.0)
+        term.send("\r")  # Enter
+        rc = term.wait(timeout=60)
+    finally:
+        stop.set()
+        term.kill()
+    assert rc in (0, 1), term.text
+    assert "sweep result" in term.text and out.exists()
+    writer.join(timeout=10)

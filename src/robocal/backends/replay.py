@@ -196,6 +196,7 @@ def _csv_blocks(
     block_rows: int,
 ) -> Iterator[Block]:
     width = len(header)
+    seekable = fh.seekable()
     have = [j for j, c in enumerate(cols) if c >= 0]
     src = [cols[j] for j in have]
     last_t = -math.inf
@@ -210,7 +211,8 @@ def _csv_blocks(
                 lines.append(reader.line_num)
                 if len(rows) >= block_rows:
                     break
-            rec.done = fh.buffer.tell()  # bytes the text layer has read (ahead by at most its chunk)
+            if seekable:  # bytes the text layer has read (ahead by at most its chunk); a FIFO has no position
+                rec.done = fh.buffer.tell()
             if not rows:
                 break
             values = _parse_block(rows, width, src)
