@@ -251,3 +251,41 @@ def test_calib_error_is_the_only_exception(tmp_path: Path) -> None:
         p.write_text(json.dumps({key: {"id": 1, "direction": 1, "homing_offset": 0.5}}))
         with contextlib.suppress(CalibError):
             read_calibration(p)
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        (
+            "o.yaml",
+            "a:\n  id: 1\n  direction: 1\n  homing_offset: " + "9" * 400 + "\n",
+            "joint 'a': homing_offset is an integer of 400 digits; expected a finite number",
+        ),
+        (
+            "o.json",
+            '{"a": {"id": 1, "direction": 1, "homing_offset": ' + "9" * 400 + "}}",
+            "joint 'a': homing_offset is an integer of 400 digits; expected a finite number",
+        ),
+        (
+            "d.yaml",
+            "a:\n  id: 1\n  direction: " + "9" * 400 + "\n  homing_offset: 0.5\n",
+            "is not a number; expected -1 or 1",
+        ),
+        (
+            "l.json",
+            '{"a": {"id": 1, "direction": 1, "homing_offset": ' + "9" * 5000 + "}}",
+            "Exceeds the limit (4300 digits)",
+        ),
+        (
+            "l.yaml",
+            "a:\n  id: 1\n  direction: 1\n  homing_offset: " + "9" * 5000 + "\n",
+            "invalid YAML: Exceeds the limit (4300 digits)",
+        ),
+    ],
+)
+def test_huge_numbers_in_calibration_files(tmp_path: Path, name: str, content: str, message: str) -> None:
+    p = tmp_path / name
+    p.write_text(content)
+    with pytest.raises(FileFormatError) as info:
+        read_calibration(p)
+    assert str(info.value).startswith(str(p)) and message in str(info.value)

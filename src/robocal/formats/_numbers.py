@@ -18,6 +18,14 @@ def format_float(x: float) -> str:
     return repr(v)
 
 
+def _digits(value: int) -> int:
+    """Decimal digits of ``value`` (without converting it to a string, which Python limits to 4300 digits)."""
+    try:
+        return len(str(abs(value)))
+    except ValueError:
+        return int(abs(value).bit_length() * math.log10(2)) + 1
+
+
 def parse_finite(value: Any, where: str, field: str) -> float:
     """A finite float from a number or numeric string, else :class:`FileFormatError` naming ``where.field``."""
     if isinstance(value, bool) or value is None:
@@ -27,7 +35,14 @@ def parse_finite(value: Any, where: str, field: str) -> float:
             v = float(value.strip())
         except ValueError:
             raise FileFormatError(f"{where}: {field} {value!r} is not a number") from None
-    elif isinstance(value, (int, float)):
+    elif isinstance(value, int):
+        try:
+            v = float(value)
+        except OverflowError:
+            raise FileFormatError(
+                f"{where}: {field} is an integer of {_digits(value)} digits; expected a finite number"
+            ) from None
+    elif isinstance(value, float):
         v = float(value)
     else:
         raise FileFormatError(f"{where}: {field} has type {type(value).__name__}; expected a number")
@@ -61,7 +76,7 @@ def parse_direction(value: Any, where: str) -> int:
         raise FileFormatError(f"{where}: direction is {value!r}; expected -1 or 1")
     try:
         v = float(value.strip()) if isinstance(value, str) else float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise FileFormatError(f"{where}: direction {value!r} is not a number; expected -1 or 1") from None
     if v not in (-1.0, 1.0):
         raise FileFormatError(f"{where}: direction {value!r} is invalid; expected -1 or 1")

@@ -133,6 +133,8 @@ def load_yaml(text: str, source: str, *, item: str = "key") -> Any:
         raise FileFormatError(
             f"{source}: nested more than {MAX_NESTING} levels deep; not a robocal file"
         ) from None
+    except (ValueError, OverflowError) as exc:  # a constructor refused a value, e.g. an int of 5000 digits
+        raise FileFormatError(f"{source}: invalid YAML: {exc}") from None
     check_tree(data, source, item=item, line_of=_line_of(data))
     return data
 

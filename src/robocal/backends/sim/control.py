@@ -38,7 +38,7 @@ import threading
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
-from ...errors import CalibTimeoutError, DeviceError, UsageError
+from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .operator import HandOperator
 
 __all__ = ["ControlServer", "SimControl"]
@@ -162,6 +162,8 @@ class ControlServer:
             req = json.loads(line)
         except (ValueError, UnicodeDecodeError) as exc:
             return {"ok": False, "error": f"not a JSON object: {exc}"}
+        except RecursionError:
+            return {"ok": False, "error": "not a JSON object: nested too deeply"}
         if not isinstance(req, dict):
             return {"ok": False, "error": "a request is a JSON object with a 'cmd' field"}
         cmd = req.get("cmd")
@@ -252,7 +254,12 @@ class SimControl:
             raise CalibTimeoutError(f"{self.path}: no answer to {cmd!r}") from None
         if not line:
             raise DeviceError(f"{self.path}: the simulator closed the connection")
-        answer: dict[str, Any] = json.loads(line)
+        try:
+            answer: dict[str, Any] = json.loads(line)
+        except (ValueError, RecursionError):
+            raise ProtocolError(f"{self.path}: the simulator's answer is not JSON: {line[:80]!r}") from None
+        if not isinstance(answer, dict):
+            raise ProtocolError(f"{self.path}: the simulator's answer is not a JSON object: {line[:80]!r}")
         if not answer.pop("ok", False):
             raise UsageError(str(answer.get("error")))
         return answer
