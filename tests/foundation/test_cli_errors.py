@@ -114,3 +114,31 @@ def test_exit_codes_are_documented_in_help(args: list[str]) -> None:
     )
     assert r.returncode == 0
     assert "70 internal error, a bug in robocal" in r.stdout and "130 interrupted" in r.stdout
+
+
+def test_names_and_paths_over_the_system_limits_are_usage_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.cli.main import main
+
+    cal = str(EXAMPLES / "calibration.yaml")
+    long_name = tmp_path / ("n" * 300 + ".json")
+    assert main(["convert", cal, str(long_name)]) == 2
+    assert capsys.readouterr().err.endswith(
+        ".json: the file name is 305 bytes, longer than the file system's limit of 255\n"
+    )
+    deep = tmp_path.joinpath(*(["d" * 200] * 25), "x.json")
+    assert main(["convert", cal, str(deep)]) == 2
+    assert "longer than the system's limit of 4095" in capsys.readouterr().err
+    assert main(["convert", str(long_name), str(tmp_path / "o.json")]) == 2
+    assert "cannot read (File name too long)" in capsys.readouterr().err
+    root = tmp_path / ("r" * 300)
+    assert main(["dataset", "inspect", str(root), "--calibration", cal]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.endswith(
+        "("
+        + str(len(str(root).encode()))
+        + " bytes): file name too long (a name may have at most 255 bytes, "
+        "a path at most 4095)\n"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -8,6 +8,7 @@ log file holding the traceback), 130 interrupted, 141 standard output closed ear
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import logging
 import os
@@ -154,6 +155,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 130
         if isinstance(exc, BrokenPipeError):  # e.g. `robocal check ... | head -1`: not an error of robocal
             return _closed_pipe()
+        if isinstance(exc, OSError) and exc.errno == errno.ENAMETOOLONG:  # a path the user gave: not a bug
+            name = os.fsdecode(exc.filename) if exc.filename is not None else "a path"
+            shown = name if len(name) <= 80 else f"{name[:40]}…{name[-30:]} ({len(os.fsencode(name))} bytes)"
+            _common.print_error(
+                f"{shown}: file name too long (a name may have at most 255 bytes, a path at most 4095)"
+            )
+            return _common.EXIT_BAD_INPUT
         return _report_bug(exc, args)
     if isinstance(rv, int):
         return rv

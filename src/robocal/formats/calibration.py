@@ -812,7 +812,7 @@ def _detect(path: str | os.PathLike[str]) -> tuple[str, Any]:
 
 
 def _format_for_output(path: Path) -> str:
-    if path.exists() and path.stat().st_size > 0:
+    if os.path.exists(path) and os.path.getsize(path) > 0:
         try:
             fmt = detect_format(path)
             if FORMATS[fmt].writer is not None:
@@ -963,7 +963,7 @@ def read_existing_output(
             like and to move it away or choose another destination.
     """
     p = Path(path)
-    if not p.exists():
+    if not os.path.exists(p):  # os.path: a name too long is "missing" here and refused by the writer
         return None
     text = read_text(p, what)
     if all(not ln.strip() or ln.lstrip().startswith("#") for ln in text.splitlines()):
