@@ -55,3 +55,31 @@ def run_on_tmpfs(
     )
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _can_unshare_user() -> bool:
+    if shutil.which("unshare") is None:
+        return False
+    return subprocess.run(["unshare", "--user", "true"], capture_output=True, check=False).returncode == 0
+
+
+needs_user_ns = pytest.mark.skipif(not _can_unshare_user(), reason="needs unprivileged user namespaces")
+
+
+def run_without_privileges(code: str, *args: str) -> dict[str, Any]:
+    """Run Python ``code`` without root's permission overrides (``unshare --user``); return its JSON line.
+
+    In a new user namespace without a mapping the process keeps its own files but loses CAP_DAC_OVERRIDE, so
+    a folder of mode 0500 is read-only for it as for any user. ``code`` sees ``argv`` (``sys.argv[1:]``).
+    """
+    head = "import json, os, sys\nfrom pathlib import Path\nargv = sys.argv[1:]\n"
+    env = {**os.environ, "PYTHONPATH": SRC}
+    r = subprocess.run(
+        ["unshare", "--user", sys.executable, "-c", head + textwrap.dedent(code), *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+    )
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]

@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 
 import pytest
-from fs_sandbox import needs_unshare, run_on_tmpfs
+from fs_sandbox import needs_unshare, needs_user_ns, run_on_tmpfs, run_without_privileges
 
 from robocal.errors import FileWriteError, UsageError
 from robocal.fileio import atomic_write_text, check_output_path, preflight_output
@@ -158,3 +158,50 @@ def test_full_disk_is_refused_before_any_work(tmp_path: Path) -> None:
     )
     assert out["msg"].startswith("--out ") and "disk full" in out["msg"]
     assert out["files"] == ["fill"]
+
+
+@needs_user_ns
+def test_permissions_as_an_ordinary_user(tmp_path: Path) -> None:
+    """Root passes every permission check; a user namespace takes that away, so the checks are real."""
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro" / "cal.yaml").write_text("old")
+    (tmp_path / "ro").chmod(0o500)
+    (tmp_path / "rw").mkdir()
+    (tmp_path / "rw" / "locked.yaml").write_text("keep")
+    (tmp_path / "rw" / "locked.yaml").chmod(0o444)
+    try:
+        out = run_without_privileges(
+            """
+            from robocal.errors import FileWriteError
+            from robocal.fileio import atomic_write_text, check_output_path
+            res = {}
+            for key, fn in (
+                ("folder", lambda: check_output_path(Path(argv[0]) / "ro" / "cal.yaml", "--out")),
+                ("write", lambda: atomic_write_text(Path(argv[0]) / "ro" / "cal.yaml", "new")),
+                ("locked", lambda: check_output_path(Path(argv[0]) / "rw" / "locked.yaml", "--out")),
+                ("ok", lambda: check_output_path(Path(argv[0]) / "rw" / "new.yaml", "--out")),
+            ):
+                try:
+                    res[key] = str(fn())
+                except FileWriteError as exc:
+                    res[key] = "error: " + str(exc)
+            print(json.dumps(res))
+            """,
+            str(tmp_path),
+        )
+    finally:
+        (tmp_path / "ro").chmod(0o700)
+    assert (
+        out["folder"]
+        == f"error: --out {tmp_path}/ro/cal.yaml: cannot write in {tmp_path}/ro (Permission denied)"
+    )
+    assert (
+        out["write"].startswith(f"error: cannot write {tmp_path}/ro/cal.yaml: ")
+        and "Permission denied" in out["write"]
+    )
+    assert out["locked"] == (
+        f"error: --out {tmp_path}/rw/locked.yaml: the file is write-protected; make it writable to replace it"
+    )
+    assert out["ok"] == f"{tmp_path}/rw/new.yaml"
+    assert (tmp_path / "ro" / "cal.yaml").read_text() == "old"
+    assert sorted(p.name for p in (tmp_path / "rw").iterdir()) == ["locked.yaml"]
