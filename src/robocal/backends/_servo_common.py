@@ -157,10 +157,20 @@ class SdkBusBase:
         """Run an SDK call with retries; map failures to DeviceError / CalibTimeoutError / ProtocolError."""
         result, error, value = COMM_SUCCESS, 0, None
         who = f"motor {motor_id}" if motor_id is not None else "motors"
+        garbled = ""
         for attempt in range(self.retries + 1):
             if attempt:
                 self._drain()
-            value, result, error = fn()
+            garbled = ""
+            try:
+                value, result, error = fn()
+            except OSError as exc:  # pyserial's SerialException: the port went away
+                raise DeviceError(f"{self.port}: {who}: {what} {register!r} failed: {exc}") from None
+            except (IndexError, KeyError, ValueError, TypeError, ZeroDivisionError) as exc:
+                # the SDK indexes into a status packet it did not check (e.g. a stray short reply
+                # answering a read): a garbled packet, retried like a bad checksum
+                value, result, error = None, self._sdk.COMM_RX_CORRUPT, 0
+                garbled = f" (garbled status packet: {type(exc).__name__}: {exc})"
             if result == COMM_SUCCESS and error == 0:
                 return value
             if result == COMM_SUCCESS:
@@ -170,7 +180,9 @@ class SdkBusBase:
                 f"{self.port}: {who}: {what} {register!r} failed: {self._ph.getRxPacketError(error)}"
             )
         text = self._ph.getTxRxResult(result)
-        msg = f"{self.port}: {who}: {what} {register!r} failed after {self.retries + 1} tries: {text}"
+        msg = (
+            f"{self.port}: {who}: {what} {register!r} failed after {self.retries + 1} tries: {text}{garbled}"
+        )
         if result == self._sdk.COMM_RX_TIMEOUT:
             raise CalibTimeoutError(msg)
         if result == self._sdk.COMM_RX_CORRUPT:
