@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -126,12 +127,10 @@ def dh_tree() -> dict[str, Any]:
 
 def csv_seed(rows: int = 30) -> str:
     """A replay CSV of the Lite arm: ``t,<joint>...`` sweeping every joint."""
-    t = np.arange(rows) * 0.01
     lines = ["t," + ",".join(LITE_NAMES)]
-    for i, ti in enumerate(t):
-        lines.append(
-            ",".join([repr(float(ti))] + [repr(0.5 * np.sin(0.3 * i + k)) for k in range(len(LITE_NAMES))])
-        )
+    for i in range(rows):
+        values = [0.01 * i] + [0.5 * math.sin(0.3 * i + k) for k in range(len(LITE_NAMES))]
+        lines.append(",".join(repr(float(v)) for v in values))
     return "\n".join(lines) + "\n"
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import json
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -358,3 +359,59 @@ def test_yaml_integer_beyond_the_int_string_limit_is_a_file_format_error(fmt: st
         p.write_bytes(SEEDS[fmt].replace(b"id: 11", b"id: 1" + b"0" * 5000, 1))
         with pytest.raises(FileFormatError, match=r"c\.yaml: invalid YAML: .*4300 digits"):
             read_calibration(p, fmt)
+
+
+@pytest.mark.parametrize("kind", ["csv", "sqlite3", "mcap"])
+def test_recording_seeds_are_valid(kind: str) -> None:
+    from robocal.backends.replay import read_recording
+
+    with scratch() as root:
+        if kind == "csv":
+            path = root / "sweep.csv"
+            path.write_text(seeds.csv_seed())
+            rows = 30
+        else:
+            path = root / "bag"
+            seeds.write_tree(path, seeds.bag_seed(kind))
+            rows = 10
+        t, q = read_recording(path, seeds.LITE_NAMES)
+        assert t[1] > t[0]
+        assert q.shape == (rows, len(seeds.LITE_NAMES))
+        assert q[3, 2] == pytest.approx(0.5 * math.sin(0.9 + 2))
+
+
+HUGE_INT = "1" + "0" * 5000
+
+
+def test_dataset_info_with_an_integer_beyond_the_int_string_limit_is_a_file_format_error() -> None:
+    """Found by the fuzzer: json's ValueError for an int of > 4300 digits escaped from read_layout."""
+    from robocal.dataset import inspect_dataset
+
+    with scratch() as root:
+        seeds.write_tree(root / "ds", seeds.dataset_seed())
+        info = root / "ds" / "meta" / "info.json"
+        info.write_text(info.read_text().replace('"fps": 30', f'"fps": {HUGE_INT}', 1))
+        assert HUGE_INT in info.read_text()
+        with pytest.raises(FileFormatError, match=r"info\.json: not valid JSON \(Exceeds the limit"):
+            inspect_dataset(root / "ds")
+
+
+def test_dataset_stats_with_an_integer_beyond_the_int_string_limit_is_a_file_format_error() -> None:
+    from robocal.dataset import read_layout
+    from robocal.dataset._driver import check_metadata
+
+    with scratch() as root:
+        seeds.write_tree(root / "ds", seeds.dataset_seed())
+        (root / "ds" / "meta" / "stats.json").write_text(f'{{"action": {{"count": [{HUGE_INT}]}}}}')
+        with pytest.raises(FileFormatError, match=r"stats\.json: cannot read statistics JSON"):
+            check_metadata(read_layout(root / "ds"))
+
+
+def test_calibration_json_with_an_integer_beyond_the_int_string_limit_is_a_file_format_error() -> None:
+    from robocal.dataset.lerobot import load_convention
+
+    with scratch() as root:
+        p = root / "cal.json"
+        p.write_text(seeds.current_seed().replace('"homing_offset": 100', f'"homing_offset": {HUGE_INT}', 1))
+        with pytest.raises(FileFormatError, match=r"cal\.json"):
+            load_convention(p, joint_names=seeds.SO_NAMES)
