@@ -12,6 +12,7 @@ import functools
 import json
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -415,3 +416,29 @@ def test_calibration_json_with_an_integer_beyond_the_int_string_limit_is_a_file_
         p.write_text(seeds.current_seed().replace('"homing_offset": 100', f'"homing_offset": {HUGE_INT}', 1))
         with pytest.raises(FileFormatError, match=r"cal\.json"):
             load_convention(p, joint_names=seeds.SO_NAMES)
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda text: text.replace("\n", "\r", 3).replace("0.01,", "0.01\r,", 1), None),
+        (
+            lambda text: text.replace("0.01,", "0.01" + "9" * 200_000 + ",", 1),
+            r"not a readable CSV \(field larger",
+        ),
+    ],
+    ids=["bare-CR", "huge-field"],
+)
+def test_replay_csv_quirks_found_by_fuzzing(mutate: Callable[[str], str], message: str | None) -> None:
+    """Found by the fuzzer: a bare CR inside a line (and an oversized field) raised csv.Error, a traceback."""
+    from robocal.backends.replay import read_recording
+
+    with scratch() as root:
+        p = root / "sweep.csv"
+        p.write_text(mutate(seeds.csv_seed()), newline="")
+        if message is None:  # a bare CR ends a line, like in any CSV reader; the extra line is then short
+            with pytest.raises(FileFormatError, match=r"sweep\.csv: line \d+ has \d+ cells; expected 15"):
+                read_recording(p, seeds.LITE_NAMES)
+        else:
+            with pytest.raises(FileFormatError, match=message):
+                read_recording(p, seeds.LITE_NAMES)
