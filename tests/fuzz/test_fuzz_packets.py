@@ -320,18 +320,30 @@ def test_servo_status_packets_raise_only_calib_error(
         calib_error_only(fn, f"{model} {call}")
 
 
-def test_feetech_ping_answered_twice_is_a_protocol_error() -> None:
-    """Found by the fuzzer: scservo_sdk's ping reads the model number and indexed into the second copy of
-    the (parameter-less) ping status packet; the IndexError escaped as a traceback."""
+class ShortReplyServoBus(SimServoBus):
+    """Servos whose status packets carry no parameters (a reply to another instruction, or a truncated one)."""
+
+    def _status(self, motor_id: int, error: int, params: bytes = b"") -> bytes:
+        return super()._status(motor_id, error, b"")
+
+
+@pytest.mark.parametrize("model", ["sts3215", "scs0009"])
+def test_feetech_read_answered_without_data_is_a_protocol_error(model: str) -> None:
+    """Found by the fuzzer (a ping status packet arriving twice, the second answering the model-number read):
+    scservo_sdk indexes into the status packet's missing data; the IndexError escaped as a traceback."""
     from robocal.backends.feetech import FeetechBus
     from robocal.errors import ProtocolError
 
     with (
-        MutatingServoBus([SimServo(1, "sts3215")], ops=[("double", 0, 0)]) as sim,
-        FeetechBus(sim.port, {1: "sts3215"}, retries=1, packet_timeout_ms=20) as bus,
-        pytest.raises(
-            ProtocolError,
-            match=r"motor 1: ping 'Model_Number' failed after 2 tries: .*garbled status packet: IndexError",
-        ),
+        ShortReplyServoBus([SimServo(1, model)]) as sim,
+        FeetechBus(sim.port, {1: model}, retries=1, packet_timeout_ms=20) as bus,
     ):
-        bus.ping(1)
+        with pytest.raises(
+            ProtocolError,
+            match=r"motor 1: read 'Present_Position' failed after 2 tries: .*garbled status packet: IndexError",
+        ):
+            bus.read("Present_Position", 1)
+        with pytest.raises(
+            ProtocolError, match=r"motor 1: ping 'Model_Number' failed after 2 tries: .*garbled"
+        ):
+            bus.ping(1)
