@@ -459,10 +459,7 @@ def scratch() -> Iterator[Path]:
 # Crashes of issue 9 that another branch fixes. While one is pending the fuzz tests tolerate exactly that
 # signature (exception type + a text of its message or innermost frames) so they keep hunting other crashes;
 # each also has a dedicated xfail(strict=False) test. Remove the entry once the fix is on main.
-PENDING: list[tuple[type[BaseException], str, str]] = [
-    (RecursionError, "", "issue 9 item 6: deeply nested documents (branch files)"),
-    (OverflowError, "int too large to convert", "issue 9 item 6: legacy integer of 10**30 (branch files)"),
-]
+PENDING: list[tuple[type[BaseException], str, str]] = []
 
 
 def pending_item(exc: BaseException, tb: str) -> str | None:
