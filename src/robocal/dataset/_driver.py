@@ -142,7 +142,7 @@ def check_metadata(layout: DatasetLayout) -> None:
 def _read_stats(path: Path) -> dict[str, Any]:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:  # ValueError: bad JSON, bad UTF-8, an int of > 4300 digits
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
     except RecursionError:
         raise FileFormatError(f"{path}: statistics JSON nested too deeply") from None
