@@ -422,7 +422,7 @@ def test_calibration_json_with_an_integer_beyond_the_int_string_limit_is_a_file_
         (lambda text: text.replace("\n", "\r", 3).replace("0.01,", "0.01\r,", 1), None),
         (
             lambda text: text.replace("0.01,", "0.01" + "9" * 200_000 + ",", 1),
-            r"not a readable CSV \(field larger",
+            r"sweep\.csv: .*field larger than field limit",
         ),
     ],
     ids=["bare-CR", "huge-field"],
