@@ -440,3 +440,34 @@ def test_replay_csv_quirks_found_by_fuzzing(mutate: Callable[[str], str], messag
         else:
             with pytest.raises(FileFormatError, match=message):
                 read_recording(p, seeds.LITE_NAMES)
+
+
+@pytest.mark.parametrize("fmt", ["lite-yaml", "robocal", None])
+def test_yaml_reused_anchor_is_a_file_format_error(fmt: str | None) -> None:
+    """Found by the thorough fuzz run: ruamel's ReusedAnchorWarning escaped (printed, or raised where warnings
+    are errors) instead of the file being refused with its line."""
+    with scratch() as root:
+        p = root / "c.yaml"
+        text = SEEDS["lite-yaml"].decode().replace("id: 11", "id: &a 11", 1).replace("id: 12", "id: &a 12", 1)
+        p.write_text(text)
+        with pytest.raises(
+            FileFormatError, match=r"c\.yaml: invalid YAML \(line 6, column 7\): found duplicate anchor 'a'"
+        ):
+            read_calibration(p, fmt)
+
+
+def test_subnormal_scale_is_refused() -> None:
+    """Found by the thorough fuzz run: a robocal file with scale 5e-324 overflowed 1/scale (RuntimeWarning,
+    an infinite inverse gain) instead of being refused."""
+    from robocal.core.jointmap import RobotCalibration
+    from robocal.errors import InvalidCalibrationError
+
+    with pytest.raises(InvalidCalibrationError, match=r"joint 'a': scale 5e-324 must be finite and > 0"):
+        RobotCalibration(["a"], [1], [0.0], [5e-324])
+    assert RobotCalibration(["a"], [1], [0.0], [2.2250738585072014e-308]).scale[0] > 0
+    with scratch() as root:
+        p = root / "r.yaml"
+        p.write_bytes(SEEDS["robocal"].replace(b"scale: 1.0", b"scale: 5e-324", 1))
+        assert b"5e-324" in p.read_bytes()
+        with pytest.raises(FileFormatError, match=r"r\.yaml.*scale 5e-324 must be finite and > 0"):
+            read_calibration(p, "robocal")

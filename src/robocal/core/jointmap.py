@@ -29,6 +29,8 @@ __all__ = ["TWO_PI", "FloatArray", "JointMap", "RobotCalibration"]
 
 FloatArray = NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
+_SMALLEST_SCALE = float(np.finfo(np.float64).tiny)
+"""Smallest accepted scale: the smallest normal double, whose inverse is still finite."""
 _F64 = np.dtype(np.float64)
 _BLOCK_ELEMENTS = 16384  # 128 KiB of float64 per block: stays in L2 between the two passes
 
@@ -158,7 +160,8 @@ class RobotCalibration:
                 raise
             raise InvalidCalibrationError(f"calibration arrays are not numeric: {exc}") from None
         # vectorised checks; the first offending joint (in order, direction before offset before scale) is named
-        bad = ~((d == 1.0) | (d == -1.0)) | ~np.isfinite(h) | ~(np.isfinite(s) & (s > 0.0))
+        # a subnormal scale (< 2.2e-308) would give an infinite inverse gain
+        bad = ~((d == 1.0) | (d == -1.0)) | ~np.isfinite(h) | ~(np.isfinite(s) & (s >= _SMALLEST_SCALE))
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             name = names[i]
@@ -170,7 +173,9 @@ class RobotCalibration:
                 raise InvalidCalibrationError(
                     f"joint {name!r}: homing_offset is {h[i]}; expected a finite number"
                 )
-            raise InvalidCalibrationError(f"joint {name!r}: scale {s[i]} must be finite and > 0")
+            raise InvalidCalibrationError(
+                f"joint {name!r}: scale {s[i]} must be finite and > 0 (at least {_SMALLEST_SCALE:g})"
+            )
         object.__setattr__(self, "joint_names", names)
         object.__setattr__(self, "direction", d)
         object.__setattr__(self, "homing_offset", h)

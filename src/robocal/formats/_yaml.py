@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import io
 import re
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from ruamel.yaml import YAML
-from ruamel.yaml.error import YAMLError
+from ruamel.yaml.error import YAMLError, YAMLWarning
 from ruamel.yaml.representer import RoundTripRepresenter
 from ruamel.yaml.scalarfloat import ScalarFloat
 
@@ -123,7 +124,17 @@ def load_yaml(text: str, source: str, *, item: str = "key") -> Any:
     if _flow_depth(text) > MAX_NESTING:  # ruamel takes seconds for a few thousand levels: refuse them first
         raise FileFormatError(f"{source}: nested more than {MAX_NESTING} levels deep; not a robocal file")
     try:
-        data = _yaml().load(text)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", YAMLWarning)  # e.g. a reused anchor: ambiguous, refused
+            data = _yaml().load(text)
+    except YAMLWarning as exc:
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        second = next((ln for ln in lines if ln.startswith("second occurrence")), "")
+        m = re.search(r"line (\d+), column (\d+)", second)
+        where = f" (line {m.group(1)}, column {m.group(2)})" if m else ""
+        raise FileFormatError(
+            f"{source}: invalid YAML{where}: {lines[0] if lines else type(exc).__name__}"
+        ) from None
     except YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
