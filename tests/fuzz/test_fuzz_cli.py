@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -163,7 +164,14 @@ def _commands() -> dict[str, Command]:
 
 
 COMMANDS = _commands()
-ENV_KEYS = ("HOME", "HF_HOME", "HF_LEROBOT_HOME", "HF_LEROBOT_CALIBRATION", "XDG_CACHE_HOME")
+ENV_KEYS = (
+    "HOME",
+    "HF_HOME",
+    "HF_LEROBOT_HOME",
+    "HF_LEROBOT_CALIBRATION",
+    "XDG_CACHE_HOME",
+    "XDG_STATE_HOME",
+)
 
 
 def _run(root: Path, home: Path, args: list[str]) -> subprocess.CompletedProcess[str]:
@@ -199,8 +207,10 @@ def _check(
     proc: subprocess.CompletedProcess[str],
 ) -> None:
     err = proc.stderr
-    where = f"robocal {' '.join(cmd.args)} (exit {proc.returncode})\nstderr:\n{err[-3000:]}"
-    if "Traceback (most recent call last)" in err and _pending(err):
+    crash = re.search(r"the traceback is in (\S+\.log)", err)  # the CLI's internal-error handler (exit 70)
+    log = Path(crash.group(1)).read_text(errors="replace") if crash and Path(crash.group(1)).is_file() else ""
+    where = f"robocal {' '.join(cmd.args)} (exit {proc.returncode})\nstderr:\n{err[-3000:]}\n{log[-4000:]}"
+    if ("Traceback (most recent call last)" in err or log) and _pending(err + log):
         return
     assert "Traceback" not in err, where
     assert proc.returncode in (0, 1, 2, 3), where
