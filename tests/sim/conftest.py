@@ -84,7 +84,7 @@ def robocal(
 class Interactive:
     """A child process whose prompts are answered as a person would: wait for the text, then type."""
 
-    def __init__(self, argv: list[str], cwd: Path) -> None:
+    def __init__(self, argv: list[str], cwd: Path, env: dict[str, str] | None = None) -> None:
         import threading
 
         self.proc = subprocess.Popen(
@@ -93,7 +93,7 @@ class Interactive:
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
-            env=dict(os.environ, COLUMNS="200"),
+            env=dict(env or os.environ, COLUMNS="200"),
         )
         self.output = b""
         self._lock = threading.Lock()
