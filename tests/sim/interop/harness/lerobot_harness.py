@@ -11,6 +11,31 @@ import sys
 
 import interop_stubs  # noqa: F401  (must come first: stand-ins for torch & co.)
 
+SIM_FLOOR_MS = 500.0
+"""Least wait for a status packet. Real servos answer within microseconds; the simulator is a Python process
+sharing the machine's cores with the test suite (and, on a developer's machine, with other suites), so the
+SDKs' 34-50 ms waits are raised. Only the waiting changes: every packet is still LeRobot's."""
+
+
+def _patch_timeouts():
+    import dynamixel_sdk
+    import lerobot.motors.feetech.feetech as lerobot_feetech
+
+    original_feetech = lerobot_feetech.patch_setPacketTimeout
+
+    def feetech_timeout(self, packet_length):
+        original_feetech(self, packet_length)
+        self.packet_timeout = max(self.packet_timeout, SIM_FLOOR_MS)
+
+    lerobot_feetech.patch_setPacketTimeout = feetech_timeout
+    original_dxl = dynamixel_sdk.PortHandler.setPacketTimeout
+
+    def dxl_timeout(self, packet_length):
+        original_dxl(self, packet_length)
+        self.packet_timeout = max(self.packet_timeout, SIM_FLOOR_MS)
+
+    dynamixel_sdk.PortHandler.setPacketTimeout = dxl_timeout
+
 
 def make_robot(a):
     cal_dir = pathlib.Path(a["cal_dir"])
@@ -31,6 +56,7 @@ def cal_dict(cal):
 
 def main():
     action, a = sys.argv[1], json.loads(sys.argv[2])
+    _patch_timeouts()
     result = {}
     if action == "calibrate":  # what lerobot-calibrate does
         robot = make_robot(a)
