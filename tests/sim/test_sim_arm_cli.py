@@ -44,7 +44,9 @@ def calibrate_with_operator(cwd: Path, robot: str, port: str, control: str, robo
         ctl.mid()
         run.send()
         run.expect("whole range of motion", after=k)
-        ctl.sweep(seconds=1.2, dwell_s=0.2)
+        ctl.sweep(
+            seconds=1.2, dwell_s=1.0
+        )  # long dwells: a reader starved by a loaded machine still sees each stop
         run.send()
     code, out = run.finish()
     assert code == 0, out

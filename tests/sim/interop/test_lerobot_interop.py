@@ -39,7 +39,9 @@ def lerobot_calibrate(python: Path, cwd: Path, robot: str, port: str, control: s
         ctl.mid()
         run.send()
         run.expect("Recording positions. Press ENTER to stop", after=k)
-        ctl.sweep(seconds=1.2, dwell_s=0.2)
+        ctl.sweep(
+            seconds=1.2, dwell_s=1.0
+        )  # long dwells: a reader starved by a loaded machine still sees each stop
         run.send()
     code, out = run.finish()
     assert code == 0, out[-3000:]
