@@ -471,3 +471,17 @@ def test_subnormal_scale_is_refused() -> None:
         assert b"5e-324" in p.read_bytes()
         with pytest.raises(FileFormatError, match=r"r\.yaml.*scale 5e-324 must be finite and > 0"):
             read_calibration(p, "robocal")
+
+
+def test_rosbag_metadata_with_a_non_integer_message_count_is_read() -> None:
+    """Found by the thorough fuzz run: message_count: NaN in metadata.yaml crashed the progress total
+    (TypeError) although the messages themselves are intact."""
+    from robocal.backends.replay import read_recording
+
+    with scratch() as root:
+        files = dict(seeds.bag_seed("sqlite3"))
+        files["metadata.yaml"] = files["metadata.yaml"].replace(b"message_count: 10", b"message_count: NaN")
+        assert b"message_count: NaN" in files["metadata.yaml"]
+        seeds.write_tree(root / "bag", files)
+        _t, q = read_recording(root / "bag", seeds.LITE_NAMES)
+        assert q.shape == (10, len(seeds.LITE_NAMES))

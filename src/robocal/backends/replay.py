@@ -270,7 +270,9 @@ def _open_rosbag(path: Path, joint_names: Sequence[str], topic: str, block_rows:
         bad = [c.msgtype for c in conns if c.msgtype != "sensor_msgs/msg/JointState"]
         if bad:
             raise FileFormatError(f"recording {path}: topic {topic} has type {bad[0]}; expected JointState")
-        total = int(sum(getattr(c, "msgcount", 0) or 0 for c in conns))
+        # a damaged metadata.yaml can give a non-integer count: it only feeds the progress bar
+        counts = [getattr(c, "msgcount", 0) for c in conns]
+        total = sum(n for n in counts if isinstance(n, int) and not isinstance(n, bool) and n > 0)
     except BaseException:
         reader.close()
         raise
