@@ -314,60 +314,6 @@ class SimLiteSource(RobstrideSource):
         self.sim.stop()
 
 
-class ReplaySource:
-    """Samples from a recording (CSV or rosbag2), already loaded into memory.
-
-    Args:
-        joint_names: The joints in URDF order.
-        t_s: Shape ``(T,)``, s.
-        positions_rad: Shape ``(T, N)`` in ``frame`` (NaN where a joint is missing).
-        frame: ``"identity"`` or ``"motor"``.
-    """
-
-    def __init__(
-        self, joint_names: Sequence[str], t_s: FloatArray, positions_rad: FloatArray, frame: str
-    ) -> None:
-        self.joint_names = tuple(joint_names)
-        self.frame = frame
-        self.t_s = t_s
-        self.positions_rad = positions_rad
-        self._i = 0
-
-    @property
-    def exhausted(self) -> bool:
-        """True after the last row."""
-        return self._i >= len(self.t_s)
-
-    def read(self) -> Sample | None:
-        """The next row, or None at the end."""
-        if self.exhausted:
-            return None
-        i = self._i
-        self._i += 1
-        return Sample(float(self.t_s[i]), self.positions_rad[i])
-
-    def read_block(self, max_rows: int = 1 << 30) -> tuple[FloatArray, FloatArray]:
-        """Up to ``max_rows`` remaining rows at once: ``(t (T,), positions (T, N))``."""
-        i = self._i
-        j = min(len(self.t_s), i + max_rows)
-        self._i = j
-        return self.t_s[i:j], self.positions_rad[i:j]
-
-    def zero_sta(self) -> dict[str, int]:
-        """A recording does not say."""
-        return {}
-
-    def begin_sweep(self) -> None:
-        """Nothing to do."""
-
-    def prompt_positive(self, joint: str) -> None:
-        """A recording cannot answer prompts."""
-        raise UsageError("--direction-check needs a live or simulated source, not a replay")
-
-    def close(self) -> None:
-        """Nothing to release."""
-
-
 class StreamReplaySource:
     """Samples streamed from a recording (CSV or rosbag2) in blocks: memory does not grow with its length.
 
@@ -449,6 +395,27 @@ class StreamReplaySource:
     def close(self) -> None:
         """Release the file."""
         self.recording.close()
+
+
+class ReplaySource(StreamReplaySource):
+    """Samples from a recording already loaded into memory: one block, read as a streamed one.
+
+    Args:
+        joint_names: The joints in URDF order.
+        t_s: Shape ``(T,)``, s.
+        positions_rad: Shape ``(T, N)`` in ``frame`` (NaN where a joint is missing).
+        frame: ``"identity"`` or ``"motor"``.
+    """
+
+    def __init__(
+        self, joint_names: Sequence[str], t_s: FloatArray, positions_rad: FloatArray, frame: str
+    ) -> None:
+        from .replay import Recording
+
+        self.t_s = t_s
+        self.positions_rad = positions_rad
+        blocks = iter([(t_s, positions_rad)])
+        super().__init__(joint_names, Recording(Path("<memory>"), "memory", 0, "rows", blocks), frame)
 
 
 def _sim_lite(spec: SourceSpec, joints: Sequence[JointSpec]) -> SimLiteSource:
