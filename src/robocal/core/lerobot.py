@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, cast, get_args
 
 import numpy as np
 import numpy.typing as npt
@@ -59,17 +59,24 @@ Compat = Literal["lerobot", "exact"]
 Convention = Literal["lerobot", "physical"]
 
 
+def _parse_choice(value: str, choices: tuple[str, ...], what: str) -> str:
+    """``value`` when it is one of ``choices``.
+
+    Raises:
+        UsageError: Any other value (the message names ``what`` and the choices).
+    """
+    if value in choices:
+        return value
+    raise UsageError(f"{what} {value!r}: expected {' or '.join(choices)}")
+
+
 def parse_compat(value: str, what: str = "--compat") -> Compat:
     """Check a compat name: ``"lerobot"`` (bit-identical to LeRobot) or ``"exact"`` (lossless).
 
     Raises:
         UsageError: Any other value (the message names ``what``).
     """
-    if value == "lerobot":
-        return "lerobot"
-    if value == "exact":
-        return "exact"
-    raise UsageError(f"{what} {value!r}: expected lerobot or exact")
+    return cast(Compat, _parse_choice(value, get_args(Compat), what))
 
 
 def parse_convention(value: str, what: str = "convention") -> Convention:
@@ -78,11 +85,7 @@ def parse_convention(value: str, what: str = "convention") -> Convention:
     Raises:
         UsageError: Any other value (the message names ``what``).
     """
-    if value == "lerobot":
-        return "lerobot"
-    if value == "physical":
-        return "physical"
-    raise UsageError(f"{what} {value!r}: expected lerobot or physical")
+    return cast(Convention, _parse_choice(value, get_args(Convention), what))
 
 
 MODE_CODES: dict[str, int] = {"range_m100_100": 0, "range_0_100": 1, "degrees": 2}

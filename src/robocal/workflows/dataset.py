@@ -113,33 +113,21 @@ def _conventions(
     else:
         family = _family(opts, robot)
     old_modes, new_modes = resolve_modes(joints, opts, robot)
-    conv_old = (
-        load_convention(
-            old,
+
+    def load(path: Path | None, modes: dict[str, str] | None, what: str) -> ValueConvention | None:
+        if path is None:
+            return None
+        return load_convention(
+            path,
             joint_names=joints,
-            modes=old_modes,
+            modes=modes,
             family=family,
             compat=compat,
-            what="--old",
+            what=what,
             convention=convention,
         )
-        if old is not None
-        else None
-    )
-    conv_new = (
-        load_convention(
-            new,
-            joint_names=joints,
-            modes=new_modes,
-            family=family,
-            compat=compat,
-            what="--new",
-            convention=convention,
-        )
-        if new is not None
-        else None
-    )
-    return [f.key for f in feats], conv_old, conv_new
+
+    return [f.key for f in feats], load(old, old_modes, "--old"), load(new, new_modes, "--new")
 
 
 def recalibrate(
