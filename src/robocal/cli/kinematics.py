@@ -21,6 +21,14 @@ app = typer.Typer(
 )
 
 
+_UrdfOption = Annotated[Path, typer.Option("--urdf", help="Expanded URDF of the arm.")]
+_BaseLinkOption = Annotated[str | None, typer.Option("--base-link", help="First link (default: URDF root).")]
+_TipLinkOption = Annotated[
+    str | None, typer.Option("--tip-link", help="Link the tool is on (default: the leaf).")
+]
+_KindOption = Annotated[str, typer.Option("--kind", help="points, touch or gauge.")]
+
+
 def _parse_xyz(text: str) -> tuple[float, float, float]:
     parts = [p for p in text.replace(",", " ").split() if p]
     try:
@@ -93,17 +101,13 @@ def _print(result: wf.IdentifyResult) -> int:
 
 @app.command("identify")
 def identify(
-    urdf: Annotated[Path, typer.Option("--urdf", help="Expanded URDF of the arm.")],
+    urdf: _UrdfOption,
     data: Annotated[
         Path, typer.Option("--data", help="Measurement CSV (joints…, x, y, z | group | socket).")
     ],
-    kind: Annotated[str, typer.Option("--kind", help="points, touch or gauge.")] = "points",
-    base_link: Annotated[
-        str | None, typer.Option("--base-link", help="First link (default: URDF root).")
-    ] = None,
-    tip_link: Annotated[
-        str | None, typer.Option("--tip-link", help="Link the tool is on (default: the leaf).")
-    ] = None,
+    kind: _KindOption = "points",
+    base_link: _BaseLinkOption = None,
+    tip_link: _TipLinkOption = None,
     tool_xyz: Annotated[
         str,
         typer.Option("--tool-xyz", help="Nominal marker/ball/tip position in the tip link, metres: x,y,z."),
@@ -167,7 +171,7 @@ def _command(sim: sim_wf.SimulationResult, kind: str, gauge_mm: float) -> str:
 def simulate(
     out: Annotated[Path, typer.Option("--out", help="Folder for <robot>.urdf, <kind>.csv and truth.json.")],
     robot: Annotated[str, typer.Option("--robot", help="so101 or koch.")] = "so101",
-    kind: Annotated[str, typer.Option("--kind", help="points, touch or gauge.")] = "points",
+    kind: _KindOption = "points",
     poses: Annotated[int, typer.Option("--poses", help="Poses (touch: per point; gauge: per socket).")] = 50,
     noise_mm: Annotated[float, typer.Option("--noise-mm", help="Marker noise per axis, mm (points).")] = 0.5,
     seed: Annotated[int, typer.Option("--seed", help="Seed of errors, poses and noise.")] = 0,
@@ -201,15 +205,11 @@ def simulate(
 
 @app.command("plan")
 def plan(
-    urdf: Annotated[Path, typer.Option("--urdf", help="Expanded URDF of the arm.")],
+    urdf: _UrdfOption,
     out: Annotated[Path, typer.Option("--out", help="CSV of joint targets to write.")],
     poses: Annotated[int, typer.Option("--poses", help="How many poses.")] = 50,
-    base_link: Annotated[
-        str | None, typer.Option("--base-link", help="First link (default: URDF root).")
-    ] = None,
-    tip_link: Annotated[
-        str | None, typer.Option("--tip-link", help="Link the tool is on (default: the leaf).")
-    ] = None,
+    base_link: _BaseLinkOption = None,
+    tip_link: _TipLinkOption = None,
     tool_xyz: Annotated[
         str, typer.Option("--tool-xyz", help="Nominal marker position in the tip link, metres: x,y,z.")
     ] = "0,0,0",
