@@ -15,7 +15,7 @@ from robocal.cli.lerobot import run_demo
 from robocal.cli.main import main
 from robocal.formats import read_calibration as read_joint_map
 from robocal.lerobot import MotorCalibration, normalize, read_calibration
-from robocal.workflows.lerobot import open_bus, restore
+from robocal.workflows.lerobot import open_bus, restore, robot_spec
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -165,7 +165,7 @@ def test_check_names_motor_and_field(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert _calibrate(tmp_path, "koch_leader") == 0
     path = tmp_path / "teleoperators" / "koch_leader" / "arm1.json"
     cals = read_calibration(path)
-    with SimArm("koch_leader") as arm:
+    with SimArm(robot_spec("koch_leader")) as arm:
         capsys.readouterr()
         assert (
             main(["lerobot", "check", "--robot", "koch_leader", "--port", arm.port, "--file", str(path)]) == 1

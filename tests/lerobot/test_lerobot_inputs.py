@@ -195,9 +195,9 @@ def test_dataset_convention_exact_keeps_lerobot_signs_physical_flips_drive_mode_
 
 
 def test_export_joint_map_compat_does_not_change_it_physical_does() -> None:
-    from robocal.workflows.lerobot import ROBOTS, export_joint_map
+    from robocal.workflows.lerobot import export_joint_map, robot_spec
 
-    spec = ROBOTS["so101_follower"]
+    spec = robot_spec("so101_follower")
     cals = {
         m.name: MotorCalibration(m.motor_id, int(m.name == "elbow_flex"), 0, 1000, 3000) for m in spec.motors
     }

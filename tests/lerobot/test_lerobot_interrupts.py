@@ -24,7 +24,7 @@ from robocal.cli import _common
 from robocal.cli.main import main
 from robocal.errors import UsageError
 from robocal.lerobot import MotorCalibration
-from robocal.workflows.lerobot import calibrate, open_bus
+from robocal.workflows.lerobot import calibrate, open_bus, robot_spec
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -91,7 +91,7 @@ class FirstCtrlC(SimOperator):
 def test_second_ctrl_c_during_rollback_restores_every_register(
     tmp_path: Path, robot: str, at: set[int], direct: bool
 ) -> None:
-    with SimArm(robot, eeprom=PREVIOUS[robot]) as arm:
+    with SimArm(robot_spec(robot), eeprom=PREVIOUS[robot]) as arm:
         before = arm.eeprom()
         bus = CtrlCDuringRollback(open_bus(arm.spec, arm.port), at, direct=direct)
         try:
@@ -107,7 +107,7 @@ def test_second_ctrl_c_during_rollback_restores_every_register(
 
 
 def test_rollback_reports_that_it_is_restoring_and_each_deferred_ctrl_c(tmp_path: Path) -> None:
-    with SimArm("so101_follower", eeprom=PREVIOUS["so101_follower"]) as arm:
+    with SimArm(robot_spec("so101_follower"), eeprom=PREVIOUS["so101_follower"]) as arm:
         before = arm.eeprom()
         bus = CtrlCDuringRollback(open_bus(arm.spec, arm.port), {2, 7})
         status: list[str] = []
@@ -127,7 +127,7 @@ def test_rollback_reports_that_it_is_restoring_and_each_deferred_ctrl_c(tmp_path
 
 
 def test_rollback_names_exactly_the_motors_and_registers_not_restored(tmp_path: Path) -> None:
-    with SimArm("so101_follower", eeprom=PREVIOUS["so101_follower"]) as arm:
+    with SimArm(robot_spec("so101_follower"), eeprom=PREVIOUS["so101_follower"]) as arm:
         before = arm.eeprom()
         sim = arm.bus
 
@@ -257,7 +257,7 @@ def readonly_dir(tmp_path: Path) -> Iterator[Path]:
 
 
 def test_calibrate_into_read_only_folder_fails_before_any_motor_write(readonly_dir: Path) -> None:
-    with SimArm("so101_follower", eeprom=PREVIOUS["so101_follower"]) as arm:
+    with SimArm(robot_spec("so101_follower"), eeprom=PREVIOUS["so101_follower"]) as arm:
         before = arm.eeprom()
         bus = CtrlCDuringRollback(open_bus(arm.spec, arm.port), set())
         bus.armed = True
@@ -313,7 +313,7 @@ def test_calibrate_final_write_failure_prints_the_calibration(
 
 
 def test_ctrl_c_while_the_restoring_line_is_shown_is_deferred(tmp_path: Path) -> None:
-    with SimArm("so101_follower", eeprom=PREVIOUS["so101_follower"]) as arm:
+    with SimArm(robot_spec("so101_follower"), eeprom=PREVIOUS["so101_follower"]) as arm:
         before = arm.eeprom()
         bus = CtrlCDuringRollback(open_bus(arm.spec, arm.port), set())
         status: list[str] = []

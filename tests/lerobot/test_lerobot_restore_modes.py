@@ -15,7 +15,7 @@ from robocal.cli.main import main
 from robocal.errors import CalibError, CalibTimeoutError
 from robocal.formats import read_calibration as read_joint_map
 from robocal.lerobot import MotorCalibration, normalize, read_calibration, unnormalize, write_calibration
-from robocal.workflows.lerobot import calibrate, configure, open_bus, restore
+from robocal.workflows.lerobot import calibrate, configure, open_bus, restore, robot_spec
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -78,7 +78,7 @@ def _ctrl_c() -> None:
 
 @pytest.fixture(params=["so101_follower", "koch_leader"])
 def arm(request: pytest.FixtureRequest) -> Iterator[SimArm]:
-    with SimArm(request.param, eeprom=PREVIOUS[request.param]) as a:
+    with SimArm(robot_spec(request.param), eeprom=PREVIOUS[request.param]) as a:
         yield a
 
 
@@ -221,7 +221,7 @@ def test_use_file_silent_motor_exit_3_one_error_line(
 def test_calibrate_rollback_skips_a_dead_motor_and_restores_the_others(tmp_path: Path) -> None:
     from robocal.backends.sim.lerobot_arms import SimOperator
 
-    with SimArm("so101_follower", eeprom=PREVIOUS["so101_follower"]) as arm:
+    with SimArm(robot_spec("so101_follower"), eeprom=PREVIOUS["so101_follower"]) as arm:
         before = arm.eeprom()
         sim = arm.bus
         # torque/Lock 12, Operating_Mode 6, reset 18 writes; then motor 2 dies at the first half-turn homing write
@@ -247,7 +247,7 @@ def test_calibrate_rollback_skips_a_dead_motor_and_restores_the_others(tmp_path:
 def test_use_file_ctrl_c_with_a_dead_motor_names_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    with SimArm("koch_leader", eeprom=PREVIOUS["koch_leader"]) as arm:
+    with SimArm(robot_spec("koch_leader"), eeprom=PREVIOUS["koch_leader"]) as arm:
         args = _use_file(tmp_path, arm)
         sim = arm.bus
 
@@ -352,7 +352,7 @@ def test_show_koch_use_degrees(tmp_path: Path, capsys: pytest.CaptureFixture[str
 # ------------------------------------------------------------------------------------------- configure
 def test_configure_cli_so_follower_and_leader(capsys: pytest.CaptureFixture[str]) -> None:
     for robot in ("so101_follower", "so101_leader"):
-        with SimArm(robot) as arm:
+        with SimArm(robot_spec(robot)) as arm:
             arm.servo("shoulder_lift").set_reg("Phase", 0xFF)
             capsys.readouterr()
             assert main(["lerobot", "configure", "--robot", robot, "--port", arm.port]) == 0
@@ -372,7 +372,7 @@ def test_configure_cli_so_follower_and_leader(capsys: pytest.CaptureFixture[str]
 
 
 def test_configure_koch_follower_pid() -> None:
-    with SimArm("koch_follower") as arm:
+    with SimArm(robot_spec("koch_follower")) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
             written = configure(bus, arm.spec)
@@ -392,7 +392,7 @@ def test_configure_koch_follower_pid() -> None:
 def test_koch_leader_gripper_trigger(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from robocal.backends.sim.lerobot_arms import SimOperator
 
-    with SimArm("koch_leader") as arm:
+    with SimArm(robot_spec("koch_leader")) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
             cals = calibrate(bus, arm.spec, SimOperator(arm), path=tmp_path / "lead.json").calibration

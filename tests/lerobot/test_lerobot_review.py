@@ -15,6 +15,7 @@ from robocal.backends.sim.servo import SimServo, SimServoBus
 from robocal.cli.main import main
 from robocal.errors import InvalidCalibrationError, UsageError
 from robocal.lerobot import MotorCalibration, calibration_path, legacy, normalize, unnormalize
+from robocal.workflows.lerobot import robot_spec
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -211,7 +212,7 @@ def test_restore_validates_every_value_before_writing_any(
     from robocal.errors import CalibError
     from robocal.workflows.lerobot import open_bus, restore
 
-    with SimArm(robot) as arm:
+    with SimArm(robot_spec(robot)) as arm:
         cals = {m.name: MotorCalibration(m.motor_id, 0, 7, 100, 4000) for m in arm.spec.motors}
         cals[motor] = replace(cals[motor], **{field: value})
         before = arm.eeprom()

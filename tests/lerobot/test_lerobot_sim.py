@@ -15,7 +15,7 @@ from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, JointTruth, SimArm,
 from robocal.backends.sim.servo import SimServo, SimServoBus, dxl_crc16
 from robocal.errors import CalibTimeoutError, DeviceError, ProtocolError
 from robocal.lerobot import MotorCalibration, read_calibration
-from robocal.workflows.lerobot import calibrate, check, open_bus, restore
+from robocal.workflows.lerobot import calibrate, check, open_bus, restore, robot_spec
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -129,7 +129,7 @@ def test_scs0009_protocol_1_big_endian() -> None:
 # --------------------------------------------------------------------------------------- calibration
 def _run(robot: str, tmp_path: Path, **kw: object) -> tuple[SimArm, dict[str, MotorCalibration], object]:
     op_kw = {k: kw.pop(k) for k in ("mid_pose", "interrupt_at_step", "interrupt_at_prompt") if k in kw}
-    arm = SimArm(robot, truth=kw.pop("truth", None), eeprom=kw.pop("eeprom", None)).start()  # type: ignore[arg-type]
+    arm = SimArm(robot_spec(robot), truth=kw.pop("truth", None), eeprom=kw.pop("eeprom", None)).start()  # type: ignore[arg-type]
     bus = open_bus(arm.spec, arm.port)
     try:
         result = calibrate(bus, arm.spec, SimOperator(arm, **op_kw), path=tmp_path / "cal.json", **kw)  # type: ignore[arg-type]
@@ -241,7 +241,7 @@ PREVIOUS = {
 def test_ctrl_c_restores_eeprom_and_leaves_file(tmp_path: Path, robot: str, where: dict[str, object]) -> None:
     path = tmp_path / "cal.json"
     path.write_text("previous file\n")
-    arm = SimArm(robot, eeprom=PREVIOUS[robot]).start()
+    arm = SimArm(robot_spec(robot), eeprom=PREVIOUS[robot]).start()
     bus = open_bus(arm.spec, arm.port)
     try:
         before = arm.eeprom()
@@ -258,7 +258,7 @@ def test_ctrl_c_restores_eeprom_and_leaves_file(tmp_path: Path, robot: str, wher
 
 def test_dynamixel_restore_writes_drive_mode_and_check_names_fields(tmp_path: Path) -> None:
     _, cals, _ = _run("koch_leader", tmp_path)
-    arm = SimArm("koch_leader").start()  # a fresh arm: Drive_Mode 0 everywhere, offsets 0
+    arm = SimArm(robot_spec("koch_leader")).start()  # a fresh arm: Drive_Mode 0 everywhere, offsets 0
     bus = open_bus(arm.spec, arm.port)
     try:
         diffs = check(bus, arm.spec, cals)
@@ -279,7 +279,7 @@ def test_dynamixel_restore_writes_drive_mode_and_check_names_fields(tmp_path: Pa
 
 
 def test_noisy_calibration_within_two_ticks(tmp_path: Path) -> None:
-    arm = SimArm("so101_leader", noise_ticks=1, seed=3).start()
+    arm = SimArm(robot_spec("so101_leader"), noise_ticks=1, seed=3).start()
     bus = open_bus(arm.spec, arm.port)
     try:
         cals = calibrate(bus, arm.spec, SimOperator(arm), path=None, sweep_full_turn=True).calibration
@@ -294,7 +294,7 @@ def test_noisy_calibration_within_two_ticks(tmp_path: Path) -> None:
 def test_phase_bit4_cleared_like_lerobot_fixture() -> None:
     from robocal.workflows.lerobot import clear_phase_bit4, configure
 
-    with SimArm("so101_follower") as arm:
+    with SimArm(robot_spec("so101_follower")) as arm:
         for name, phase in (("shoulder_pan", 0b00010000), ("shoulder_lift", 0xFF), ("elbow_flex", 0)):
             arm.servo(name).set_reg("Phase", phase)
         bus = open_bus(arm.spec, arm.port)
@@ -316,7 +316,7 @@ def test_phase_bit4_cleared_like_lerobot_fixture() -> None:
             assert arm.servo("wrist_flex").get_reg("P_Coefficient") == 16
         finally:
             bus.close()
-    with SimArm("koch_follower") as arm:
+    with SimArm(robot_spec("koch_follower")) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
             configure(bus, arm.spec)
@@ -338,7 +338,7 @@ def test_multi_turn_feedback_does_not_break_homing(tmp_path: Path) -> None:
 
 def test_feetech_check_and_restore(tmp_path: Path) -> None:
     _, cals, _ = _run("so101_follower", tmp_path)
-    with SimArm("so101_follower") as arm:
+    with SimArm(robot_spec("so101_follower")) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
             diffs = [str(d) for d in check(bus, arm.spec, cals)]
@@ -387,7 +387,7 @@ def test_legacy_pose_calibration_through_the_sdk(
         "zero": dict(zip(names, map(float, ZERO), strict=True)),
         "rotated": dict(zip(names, map(float, ROTATED), strict=True)),
     }
-    with SimArm(robot, truth=truth) as arm:
+    with SimArm(robot_spec(robot), truth=truth) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
             op = SimOperator(arm, poses=poses)
@@ -409,7 +409,7 @@ def test_legacy_calibration_requires_torque_off() -> None:
     from robocal.errors import UsageError
     from robocal.workflows.lerobot import calibrate_legacy
 
-    with SimArm("koch_follower") as arm:
+    with SimArm(robot_spec("koch_follower")) as arm:
         arm.servo("elbow_flex").set_reg("Torque_Enable", 1)
         bus = open_bus(arm.spec, arm.port)
         try:

@@ -16,6 +16,7 @@ import scservo_sdk as scs
 
 from robocal.backends.sim.lerobot_arms import SimArm, seeded_truth
 from robocal.backends.sim.servo import BAUD_RATES, SimServo, SimServoBus
+from robocal.workflows.lerobot import robot_spec
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -121,7 +122,7 @@ def test_baud_change_servo_answers_only_at_its_new_speed(
 
 
 def test_factory_arm_servos_share_id_1_and_are_set_up_one_at_a_time() -> None:
-    with SimArm("koch_follower", factory=True) as arm:
+    with SimArm(robot_spec("koch_follower"), factory=True) as arm:
         arm.bus.attach([6])  # only the gripper is plugged in
         ph, pk = _open(dxl, arm.port, 1_000_000, 2.0)
         try:

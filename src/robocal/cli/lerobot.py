@@ -16,7 +16,7 @@ import typer
 from rich.live import Live
 from rich.table import Table
 
-from ..core.lerobot import ROBOTS, MotorCalibration, RobotSpec, parse_compat
+from ..core.lerobot import MotorCalibration, RobotSpec, parse_compat
 from ..errors import UsageError
 from . import _common
 
@@ -24,7 +24,10 @@ app = typer.Typer(
     help="LeRobot arms: calibrate, configure, check, migrate, show, export-urdf.", no_args_is_help=True
 )
 
-ROBOT_HELP = "so101_follower | so101_leader | koch_follower | koch_leader"
+ROBOT_HELP = (
+    "so100_follower | so100_leader | so101_follower | so101_leader | koch_follower | koch_leader "
+    "(the LeRobot robot profiles; or a profile file)"
+)
 CalDir = Annotated[
     pathlib.Path | None, typer.Option("--calibration-dir", help="Calibration root (default: LeRobot's).")
 ]
@@ -207,7 +210,7 @@ def _arm_bus(spec: RobotSpec, port: str) -> Iterator[tuple[object, object | None
     if port == "sim":
         from ..backends.sim.lerobot_arms import SimArm
 
-        with SimArm(spec.name) as arm:
+        with SimArm(spec) as arm:
             bus = open_bus(spec, arm.port)
             try:
                 yield bus, arm
@@ -545,7 +548,7 @@ def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
     from ..backends.sim.lerobot_arms import SimArm, SimOperator
     from ..lerobot import calibration_path
     from ..workflows.lerobot import calibrate as run
-    from ..workflows.lerobot import open_bus
+    from ..workflows.lerobot import open_bus, robot_spec
 
     if robot not in ("so101", "koch"):
         raise UsageError(f"demo robot {robot!r}: expected so101 or koch")
@@ -557,8 +560,8 @@ def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
     ok = True
     try:
         for name in (f"{robot}_follower", f"{robot}_leader"):
-            spec = ROBOTS[name]
-            with SimArm(name, noise_ticks=1, seed=1) as arm:
+            spec = robot_spec(name)
+            with SimArm(spec, noise_ticks=1, seed=1) as arm:
                 bus = open_bus(spec, arm.port)
                 try:
                     path = calibration_path(spec.kind, spec.device_name, "demo", root=root)

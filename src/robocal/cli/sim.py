@@ -89,10 +89,13 @@ def _arm(
 ) -> None:
     from ..backends.sim.lerobot_arms import ArmHands, SimArm, seeded_truth
     from ..backends.sim.serve import Session
+    from ..workflows.lerobot import robot_spec
 
     if noise < 0:
         raise UsageError(f"--noise {noise}: must be ≥ 0 ticks")
-    arm = SimArm(robot, truth=seeded_truth(robot, seed), noise_ticks=noise, seed=seed or 0, factory=factory)
+    arm = SimArm(
+        robot_spec(robot), truth=seeded_truth(robot, seed), noise_ticks=noise, seed=seed or 0, factory=factory
+    )
     if factory:
         arm.bus.attach(())
     names = list(arm.spec.motor_names)

@@ -26,13 +26,14 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError, UsageError
+from .profile import RobotProfile
 
 __all__ = [
+    "LEGACY_BOUNDS",
     "MODE_CODES",
-    "ROBOTS",
+    "LeRobotMotor",
     "LegacyCalibration",
     "MotorCalibration",
-    "MotorSpec",
     "RangeTracker",
     "RobotSpec",
     "apply_legacy",
@@ -540,6 +541,11 @@ LOWER_BOUND_DEGREE = -270.0
 UPPER_BOUND_DEGREE = 270.0
 LOWER_BOUND_LINEAR = -10.0
 UPPER_BOUND_LINEAR = 110.0
+LEGACY_BOUNDS: dict[str, tuple[float, float]] = {
+    "DEGREE": (LOWER_BOUND_DEGREE, UPPER_BOUND_DEGREE),
+    "LINEAR": (LOWER_BOUND_LINEAR, UPPER_BOUND_LINEAR),
+}
+"""Where LeRobot's legacy ``apply_calibration`` raises, per calibration mode (the same for every arm)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -863,18 +869,19 @@ def legacy_calibration_from_poses(
 
 # ------------------------------------------------------------------------------------------ robot specs
 @dataclass(frozen=True)
-class MotorSpec:
-    """One motor of a LeRobot arm: name, bus id, model and LeRobot norm mode."""
+class LeRobotMotor:
+    """One motor of a LeRobot arm: name, bus id, model, LeRobot norm mode and legacy calibration mode."""
 
     name: str
     motor_id: int
     model: str
     norm_mode: str
+    legacy_mode: str = "DEGREE"
 
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """A LeRobot arm as its calibration sees it.
+    """A LeRobot arm as its calibration sees it (built from its robot profile by :meth:`from_profile`).
 
     Attributes:
         name: robocal / LeRobot CLI name (``"so101_follower"``).
@@ -893,7 +900,7 @@ class RobotSpec:
     old_device_name: str
     kind: str
     vendor: Literal["feetech", "dynamixel"]
-    motors: tuple[MotorSpec, ...]
+    motors: tuple[LeRobotMotor, ...]
     full_turn: tuple[str, ...]
     operating_mode: int
     inverted: tuple[str, ...] = ()
@@ -903,60 +910,29 @@ class RobotSpec:
         """Motor names in bus order."""
         return tuple(m.name for m in self.motors)
 
+    @classmethod
+    def from_profile(cls, profile: RobotProfile) -> RobotSpec:
+        """The LeRobot arm of a robot profile with a ``lerobot`` section (see ``docs/profiles.md``).
 
-_ARM = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
-
-
-def _motors(models: Sequence[str], modes: Sequence[str]) -> tuple[MotorSpec, ...]:
-    return tuple(
-        MotorSpec(n, i + 1, mo, md) for i, (n, mo, md) in enumerate(zip(_ARM, models, modes, strict=True))
-    )
-
-
-_SO_MODES = ("degrees",) * 5 + ("range_0_100",)
-_KOCH_MODES = ("range_m100_100",) * 5 + ("range_0_100",)
-
-ROBOTS: dict[str, RobotSpec] = {
-    "so101_follower": RobotSpec(
-        "so101_follower",
-        "so_follower",
-        "so101_follower",
-        "robots",
-        "feetech",
-        _motors(["sts3215"] * 6, _SO_MODES),
-        ("wrist_roll",),
-        0,
-    ),
-    "so101_leader": RobotSpec(
-        "so101_leader",
-        "so_leader",
-        "so101_leader",
-        "teleoperators",
-        "feetech",
-        _motors(["sts3215"] * 6, _SO_MODES),
-        ("wrist_roll",),
-        0,
-    ),
-    "koch_follower": RobotSpec(
-        "koch_follower",
-        "koch_follower",
-        "koch_follower",
-        "robots",
-        "dynamixel",
-        _motors(["xl430-w250"] * 2 + ["xl330-m288"] * 4, _KOCH_MODES),
-        ("shoulder_pan", "wrist_roll"),
-        4,
-    ),
-    "koch_leader": RobotSpec(
-        "koch_leader",
-        "koch_leader",
-        "koch_leader",
-        "teleoperators",
-        "dynamixel",
-        _motors(["xl330-m077"] * 6, _KOCH_MODES),
-        ("shoulder_pan", "wrist_roll"),
-        4,
-        ("elbow_flex",),
-    ),
-}
-"""LeRobot arms robocal calibrates (SO-100/SO-101 share the SO entries)."""
+        Raises:
+            UsageError: The profile is not a LeRobot arm (no ``lerobot`` section).
+        """
+        lr = profile.lerobot
+        if lr is None:
+            raise UsageError(f"robot profile {profile.name} is not a LeRobot arm (it has no lerobot section)")
+        motors = []
+        for j in profile.joints:
+            if j.motor_id is None or j.model is None or j.norm_mode is None:  # pragma: no cover - parser checks
+                raise UsageError(f"robot profile {profile.name}: joint {j.name} lacks id, model or norm_mode")
+            motors.append(LeRobotMotor(j.name, j.motor_id, j.model, j.norm_mode, j.legacy_mode or "DEGREE"))
+        return cls(
+            profile.name,
+            lr.device_name,
+            lr.old_device_name,
+            lr.kind,
+            cast(Literal["feetech", "dynamixel"], lr.vendor),
+            tuple(motors),
+            lr.full_turn,
+            lr.operating_mode,
+            lr.inverted,
+        )

@@ -17,12 +17,29 @@ import numpy as np
 
 from ..errors import JointMismatchError
 
-__all__ = ["METHODS", "STOPS", "ProfileJoint", "RobotProfile", "stop_angle_rad"]
+__all__ = [
+    "LEGACY_MODES",
+    "METHODS",
+    "NORM_MODES",
+    "STOPS",
+    "LeRobotSection",
+    "ProfileJoint",
+    "RobotProfile",
+    "stop_angle_rad",
+]
 
 METHODS = ("one-sided", "two-sided")
 """Hard-stop procedures: one stop per joint (upstream Berkeley Lite) or both stops (robocal's bisection)."""
 STOPS = ("lower", "upper")
 """Which stop a joint is pushed into: ``lower`` keeps the minimum of ``direction·raw``, ``upper`` the maximum."""
+NORM_MODES = ("range_m100_100", "range_0_100", "degrees")
+"""LeRobot ``MotorNormMode`` values a LeRobot arm's joint may use (``norm_mode``)."""
+LEGACY_MODES = ("DEGREE", "LINEAR")
+"""LeRobot's 2024 legacy ``CalibrationMode`` values (``legacy_mode``)."""
+LEROBOT_KINDS = ("robots", "teleoperators")
+"""Where LeRobot keeps a device's calibration: a robot (follower) or a teleoperator (leader)."""
+LEROBOT_VENDORS = ("feetech", "dynamixel")
+"""Servo vendors of LeRobot arms robocal drives."""
 
 
 def stop_angle_rad(stop_deg: float) -> float:
@@ -43,6 +60,8 @@ class ProfileJoint:
         model: Motor model (e.g. ``rs-02``), or None.
         stop: For the one-sided procedure, the stop the joint is pushed into (``lower``/``upper``), or None.
         stop_deg: Joint angle of that stop, degrees (upstream writes them in degrees), or None.
+        norm_mode: LeRobot arms: the motor's default ``MotorNormMode`` (one of :data:`NORM_MODES`), or None.
+        legacy_mode: LeRobot arms: the 2024 legacy ``CalibrationMode`` (``DEGREE``/``LINEAR``), or None.
     """
 
     name: str
@@ -53,11 +72,39 @@ class ProfileJoint:
     model: str | None = None
     stop: str | None = None
     stop_deg: float | None = None
+    norm_mode: str | None = None
+    legacy_mode: str | None = None
 
     @property
     def stop_rad(self) -> float | None:
         """The stop angle in rad (``numpy.deg2rad`` of :attr:`stop_deg`), or None."""
         return None if self.stop_deg is None else stop_angle_rad(self.stop_deg)
+
+
+@dataclass(frozen=True)
+class LeRobotSection:
+    """How LeRobot drives and stores a LeRobot arm (the profile's ``lerobot:`` section, schema version 2).
+
+    Attributes:
+        device_name: LeRobot class ``name``, the folder of its calibration file (``so_follower`` since v0.4.3).
+        old_device_name: That folder before LeRobot v0.4.3 (``so101_follower``).
+        kind: ``robots`` (a follower) or ``teleoperators`` (a leader): the calibration sub-folder.
+        vendor: ``feetech`` or ``dynamixel``.
+        operating_mode: Operating_Mode LeRobot writes to every motor before calibrating.
+        full_turn: Motors LeRobot does not sweep (their range is forced to one whole turn).
+        inverted: Motors whose Drive_Mode LeRobot sets to 1 (Koch leader ``elbow_flex``).
+        robot_types: Prefixes of LeRobot robot types (a dataset's ``robot_type``) that carry this arm, e.g.
+            ``so`` and ``lekiwi``; a dataset recorded with such a type takes this arm's vendor and modes.
+    """
+
+    device_name: str
+    old_device_name: str
+    kind: str
+    vendor: str
+    operating_mode: int
+    full_turn: tuple[str, ...] = ()
+    inverted: tuple[str, ...] = ()
+    robot_types: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -75,6 +122,8 @@ class RobotProfile:
             reading: no, then extremes are taken exactly as read).
         upstream: Where the facts come from (repository, commit, files), for humans.
         source: Where the profile was read from.
+        lerobot: For a LeRobot arm, how LeRobot drives and stores it (:class:`LeRobotSection`), else None.
+        version: Schema version of the file it was read from.
     """
 
     name: str
@@ -86,6 +135,8 @@ class RobotProfile:
     position_wraps: bool = True
     upstream: str = ""
     source: str = "<memory>"
+    lerobot: LeRobotSection | None = None
+    version: int = 1
 
     @property
     def joint_names(self) -> tuple[str, ...]:

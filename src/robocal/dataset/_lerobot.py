@@ -19,11 +19,12 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
 from ..core.lerobot import (
+    LEGACY_BOUNDS,
     Compat,
     Convention,
     LegacyCalibration,
@@ -31,6 +32,7 @@ from ..core.lerobot import (
     parse_compat,
     parse_convention,
 )
+from ..core.profile import RobotProfile
 from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import read_text
 from ..lerobot import NormMode, normalize, unnormalize
@@ -48,37 +50,50 @@ __all__ = [
 
 MotorFamily = Literal["feetech", "dynamixel"]
 
-_LEGACY_BOUNDS = {"DEGREE": (-270.0, 270.0), "LINEAR": (-10.0, 110.0)}
-"""Where LeRobot's legacy ``apply_calibration`` raises (the calibrated range of a legacy value)."""
+def _arm_profile(robot: str) -> RobotProfile:
+    """The LeRobot arm profile of a robot type: the profile of that name, else one whose ``robot_types`` prefix it.
 
-_ROBOT_FAMILIES: tuple[tuple[str, MotorFamily, bool], ...] = (
-    # prefix, motor family, use_degrees default (LeRobot ≥ 0.4.4 for SO arms; Koch default False)
-    ("so", "feetech", True),
-    ("lekiwi", "feetech", True),
-    ("koch", "dynamixel", False),
-)
+    The longest prefix wins (e.g. ``so100`` → an SO arm, ``lekiwi`` → the SO-101 follower).
+
+    Raises:
+        UsageError: No LeRobot arm profile carries that robot type (the message lists the known prefixes).
+    """
+    from ..formats.profiles import builtin_lerobot_profiles
+
+    arms = builtin_lerobot_profiles()
+    low = robot.lower()
+    for p in arms:
+        if p.name == low:
+            return p
+    prefixes = sorted(
+        {(t, p.name): p for p in arms if p.lerobot is not None for t in p.lerobot.robot_types}.items(),
+        key=lambda item: (-len(item[0][0]), item[0][1]),
+    )
+    for (prefix, _name), p in prefixes:
+        if low.startswith(prefix):
+            return p
+    known = ", ".join(f"{t}*" for t in sorted({t for (t, _n), _p in prefixes}, key=lambda t: (len(t), t)))
+    raise UsageError(f"--robot {robot!r}: unknown robot type; known: {known} (or pass --motor-family)")
 
 
 def motor_family_for_robot(robot: str) -> MotorFamily:
-    """Motor family of a LeRobot robot type (``so*`` → Feetech, ``koch*`` → Dynamixel).
+    """Motor family of a LeRobot robot type, from its arm's profile (``so*`` → Feetech, ``koch*`` → Dynamixel).
 
     Raises:
         UsageError: Unknown robot type (the message lists the known prefixes).
     """
-    for prefix, family, _ in _ROBOT_FAMILIES:
-        if robot.lower().startswith(prefix):
-            return family
-    known = ", ".join(f"{p}*" for p, _, _ in _ROBOT_FAMILIES)
-    raise UsageError(f"--robot {robot!r}: unknown robot type; known: {known} (or pass --motor-family)")
+    lr = _arm_profile(robot).lerobot
+    assert lr is not None
+    return cast(MotorFamily, lr.vendor)
 
 
 def preset_modes(robot: str, joint_names: Sequence[str], use_degrees: bool | None = None) -> dict[str, str]:
     """LeRobot's normalisation mode per joint for a robot preset.
 
-    SO-100/101 and Koch followers: arm joints ``degrees`` when recorded with ``use_degrees`` (SO default
-    True since LeRobot 0.4.4, Koch default False), else ``range_m100_100``; the Koch leader always uses
-    ``range_m100_100``; every ``gripper`` (and ``*_gripper``, e.g. LeKiwi's ``arm_gripper``) uses
-    ``range_0_100``.
+    The robot's arm profile gives the default (``use_degrees`` is on when its arm joints default to
+    ``degrees``: SO-100/101 since LeRobot 0.4.4, not Koch); with ``use_degrees`` the arm joints are
+    ``degrees``, else ``range_m100_100``; every ``gripper`` (and ``*_gripper``, e.g. LeKiwi's ``arm_gripper``)
+    uses ``range_0_100``.
 
     Args:
         robot: LeRobot robot type, e.g. ``"so101_follower"``, ``"koch_leader"``.
@@ -88,10 +103,8 @@ def preset_modes(robot: str, joint_names: Sequence[str], use_degrees: bool | Non
     Returns:
         Joint name → mode value.
     """
-    motor_family_for_robot(robot)
-    default = next(d for p, _, d in _ROBOT_FAMILIES if robot.lower().startswith(p))
-    if robot.lower().startswith("koch") and "leader" in robot.lower():
-        default = False
+    profile = _arm_profile(robot)
+    default = any(j.norm_mode == NormMode.DEGREES.value for j in profile.joints if j.name != "gripper")
     degrees = default if use_degrees is None else use_degrees
     arm = NormMode.DEGREES.value if degrees else NormMode.RANGE_M100_100.value
     return {
@@ -361,8 +374,8 @@ class LegacyConvention:
         return _legacy.revert_calibration(values, self.calibration).astype(np.float64)
 
     def _bounds(self) -> tuple[FloatArray, FloatArray]:
-        lo = np.array([_LEGACY_BOUNDS[m][0] for m in self.calibration.calib_mode])
-        hi = np.array([_LEGACY_BOUNDS[m][1] for m in self.calibration.calib_mode])
+        lo = np.array([LEGACY_BOUNDS[m][0] for m in self.calibration.calib_mode])
+        hi = np.array([LEGACY_BOUNDS[m][1] for m in self.calibration.calib_mode])
         return lo, hi
 
     def from_actual(self, actual: FloatArray) -> tuple[FloatArray, BoolArray]:

@@ -14,7 +14,17 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ..core.profile import METHODS, STOPS, ProfileJoint, RobotProfile
+from ..core.profile import (
+    LEGACY_MODES,
+    LEROBOT_KINDS,
+    LEROBOT_VENDORS,
+    METHODS,
+    NORM_MODES,
+    STOPS,
+    LeRobotSection,
+    ProfileJoint,
+    RobotProfile,
+)
 from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
 from ._numbers import parse_direction, parse_finite, parse_int
@@ -23,6 +33,8 @@ from .urdf import UrdfModel
 
 __all__ = [
     "PROFILE_FORMAT_TAG",
+    "SUPPORTED_VERSIONS",
+    "builtin_lerobot_profiles",
     "builtin_profile_names",
     "builtin_profiles",
     "load_profile",
@@ -46,6 +58,23 @@ _TOP_KEYS = (
 )
 _CAL_KEYS = ("method", "file_format")
 _JOINT_KEYS = ("name", "upstream_name", "bus", "id", "direction", "model", "stop", "stop_deg")
+_LEROBOT_KEYS = (
+    "device_name",
+    "old_device_name",
+    "kind",
+    "vendor",
+    "operating_mode",
+    "full_turn",
+    "inverted",
+    "robot_types",
+)
+_LEROBOT_JOINT_KEYS = ("norm_mode", "legacy_mode")
+SUPPORTED_VERSIONS = (1, 2)
+"""Schema versions this robocal reads; version 2 adds the ``lerobot`` section and its per-joint keys."""
+_SECTION_VERSIONS: dict[str, int] = {"lerobot": 2}
+"""Optional top-level sections → the first schema version that has them (a section is a further key here,
+a parser below and a field of :class:`RobotProfile`)."""
+_JOINT_KEY_VERSIONS: dict[str, int] = dict.fromkeys(_LEROBOT_JOINT_KEYS, 2)
 
 
 def _opt_str(entry: Mapping[str, Any], key: str, where: str) -> str | None:
@@ -63,15 +92,23 @@ def _unknown(entry: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> 
         raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected {', '.join(allowed)}")
 
 
-def _joint(entry: Any, i: int, source: str) -> ProfileJoint:
+def _choice(entry: Mapping[str, Any], key: str, choices: tuple[str, ...], where: str) -> str | None:
+    value = _opt_str(entry, key, where)
+    if value is not None and value not in choices:
+        raise FileFormatError(f"{where}: {key} {value!r}; expected one of {', '.join(choices)}")
+    return value
+
+
+def _joint(entry: Any, i: int, source: str, version: int) -> ProfileJoint:
+    allowed = _JOINT_KEYS + tuple(k for k, v in _JOINT_KEY_VERSIONS.items() if version >= v)
     where = f"profile {source}: joints[{i}]"
     if not isinstance(entry, Mapping):
-        raise FileFormatError(f"{where}: expected a mapping with keys {', '.join(_JOINT_KEYS)}")
+        raise FileFormatError(f"{where}: expected a mapping with keys {', '.join(allowed)}")
     name = _opt_str(entry, "name", where)
     if name is None:
         raise FileFormatError(f"{where}: missing key name (the joint's URDF name)")
     where = f"profile {source}: joint {name!r}"
-    _unknown(entry, _JOINT_KEYS, where)
+    _unknown(entry, allowed, where)
     stop = _opt_str(entry, "stop", where)
     if stop is not None and stop not in STOPS:
         raise FileFormatError(f"{where}: stop {stop!r}; expected {' or '.join(STOPS)}")
@@ -87,6 +124,64 @@ def _joint(entry: Any, i: int, source: str) -> ProfileJoint:
         model=_opt_str(entry, "model", where),
         stop=stop,
         stop_deg=stop_deg,
+        norm_mode=_choice(entry, "norm_mode", NORM_MODES, where),
+        legacy_mode=_choice(entry, "legacy_mode", LEGACY_MODES, where),
+    )
+
+
+def _name_list(section: Mapping[str, Any], key: str, where: str) -> tuple[str, ...]:
+    value = section.get(key)
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not all(isinstance(v, str) and v.strip() for v in value):
+        raise FileFormatError(f"{where}: {key} {value!r}; expected a list of names")
+    return tuple(v.strip() for v in value)
+
+
+def _lerobot_section(data: Any, joints: tuple[ProfileJoint, ...], source: str) -> LeRobotSection:
+    """The ``lerobot:`` section: every key required but the lists; joints need ``id``, ``model``, ``norm_mode``."""
+    where = f"profile {source}: lerobot"
+    if not isinstance(data, Mapping):
+        raise FileFormatError(f"{where}: expected a mapping with keys {', '.join(_LEROBOT_KEYS)}")
+    _unknown(data, _LEROBOT_KEYS, where)
+    required = {}
+    for key in ("device_name", "old_device_name"):
+        value = _opt_str(data, key, where)
+        if value is None:
+            raise FileFormatError(f"{where}: missing key {key}")
+        required[key] = value
+    kind = _choice(data, "kind", LEROBOT_KINDS, where)
+    vendor = _choice(data, "vendor", LEROBOT_VENDORS, where)
+    if kind is None or vendor is None:
+        raise FileFormatError(f"{where}: missing key {'kind' if kind is None else 'vendor'}")
+    if data.get("operating_mode") is None:
+        raise FileFormatError(f"{where}: missing key operating_mode")
+    operating_mode = parse_int(data["operating_mode"], where, "operating_mode")
+    names = {j.name for j in joints}
+    lists = {k: _name_list(data, k, where) for k in ("full_turn", "inverted")}
+    for key, listed in lists.items():
+        unknown = [n for n in listed if n not in names]
+        if unknown:
+            raise FileFormatError(f"{where}: {key} names no joint of the profile: {', '.join(unknown)}")
+    for j in joints:
+        lacking = [
+            k
+            for k, v in (("id", j.motor_id), ("model", j.model), ("norm_mode", j.norm_mode))
+            if v is None
+        ]
+        if lacking:
+            raise FileFormatError(
+                f"profile {source}: joint {j.name!r}: a LeRobot arm needs {', '.join(lacking)}"
+            )
+    return LeRobotSection(
+        device_name=required["device_name"],
+        old_device_name=required["old_device_name"],
+        kind=kind,
+        vendor=vendor,
+        operating_mode=operating_mode,
+        full_turn=lists["full_turn"],
+        inverted=lists["inverted"],
+        robot_types=tuple(t.lower() for t in _name_list(data, "robot_types", where)),
     )
 
 
@@ -100,11 +195,15 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
         raise FileFormatError(
             f"profile {source}: not a robot profile (expected 'format: {PROFILE_FORMAT_TAG}')"
         )
-    if data.get("version") != 1:
+    version = data.get("version")
+    if isinstance(version, bool) or version not in SUPPORTED_VERSIONS:
         raise FileFormatError(
-            f"profile {source}: version {data.get('version')!r} is not supported (expected 1)"
+            f"profile {source}: version {version!r} is not supported "
+            f"(expected {' or '.join(map(str, SUPPORTED_VERSIONS))})"
         )
-    _unknown(data, _TOP_KEYS, f"profile {source}")
+    _unknown(
+        data, _TOP_KEYS + tuple(k for k, v in _SECTION_VERSIONS.items() if version >= v), f"profile {source}"
+    )
     name = _opt_str(data, "name", f"profile {source}")
     if name is None:
         raise FileFormatError(f"profile {source}: missing key name")
@@ -124,7 +223,7 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
     rows = data.get("joints")
     if not isinstance(rows, list) or not rows:
         raise FileFormatError(f"profile {source}: joints must be a non-empty list")
-    joints = tuple(_joint(e, i, source) for i, e in enumerate(rows))
+    joints = tuple(_joint(e, i, source, version) for i, e in enumerate(rows))
     for attr, what in (("name", "name"), ("upstream_name", "upstream_name")):
         seen: set[str] = set()
         for j in joints:
@@ -150,6 +249,8 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
         position_wraps=wraps,
         upstream=_opt_str(data, "upstream", f"profile {source}") or "",
         source=source,
+        lerobot=None if data.get("lerobot") is None else _lerobot_section(data["lerobot"], joints, source),
+        version=version,
     )
     if method == "one-sided" and profile.one_sided_ready():
         raise FileFormatError(
@@ -195,6 +296,11 @@ def builtin_profiles() -> tuple[RobotProfile, ...]:
     return tuple(_builtin(n) for n in builtin_profile_names())
 
 
+def builtin_lerobot_profiles() -> tuple[RobotProfile, ...]:
+    """The built-in profiles of LeRobot arms (those with a ``lerobot`` section), sorted by name."""
+    return tuple(p for p in builtin_profiles() if p.lerobot is not None)
+
+
 def load_profile(robot: str | os.PathLike[str]) -> RobotProfile:
     """A profile by built-in name (``bhl_biped``) or by path of a profile YAML file.
 
@@ -218,11 +324,14 @@ def load_profile(robot: str | os.PathLike[str]) -> RobotProfile:
 def recognise_profile(urdf: UrdfModel) -> RobotProfile | None:
     """The built-in profile whose joints are all in ``urdf`` (the one with most joints), or None.
 
+    LeRobot arm profiles are not recognised (their six motor names are shared by every LeRobot arm); pass
+    ``--robot`` for those.
+
     Raises:
         UsageError: Two profiles with the same number of joints both match (pass ``--robot``).
     """
     names = set(urdf.joint_names)
-    found = [p for p in builtin_profiles() if p.matches(names)]
+    found = [p for p in builtin_profiles() if p.lerobot is None and p.matches(names)]
     if not found:
         return None
     found.sort(key=lambda p: len(p.joints), reverse=True)
@@ -234,10 +343,10 @@ def recognise_profile(urdf: UrdfModel) -> RobotProfile | None:
 
 
 def profile_for_joints(joint_names: Iterable[str]) -> RobotProfile | None:
-    """The built-in profile with exactly these joints (in any order), or None."""
+    """The built-in profile with exactly these joints (in any order), or None (LeRobot arms are not guessed)."""
     have = set(joint_names)
     for p in builtin_profiles():
-        if set(p.joint_names) == have:
+        if p.lerobot is None and set(p.joint_names) == have:
             return p
     return None
 

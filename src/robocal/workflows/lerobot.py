@@ -28,7 +28,6 @@ from typing import Protocol
 from ..backends.servo_bus import ServoBus
 from ..core.jointmap import RobotCalibration
 from ..core.lerobot import (
-    ROBOTS,
     LegacyCalibration,
     MotorCalibration,
     RangeTracker,
@@ -59,6 +58,7 @@ __all__ = [
     "open_bus",
     "read_eeprom",
     "restore",
+    "robot_names",
     "robot_spec",
 ]
 
@@ -117,11 +117,27 @@ class CalibrationNotSavedError(UsageError):
         self.calibration = dict(calibration)
 
 
-def robot_spec(robot: str) -> RobotSpec:
-    """The :class:`RobotSpec` of a robot name (``so101_follower``, ...)."""
-    if robot not in ROBOTS:
-        raise UsageError(f"unknown robot {robot!r}; valid: {', '.join(ROBOTS)}")
-    return ROBOTS[robot]
+def robot_names() -> tuple[str, ...]:
+    """Names of the built-in LeRobot arm profiles (``koch_follower``, ..., ``so101_leader``), sorted."""
+    from ..formats.profiles import builtin_lerobot_profiles
+
+    return tuple(p.name for p in builtin_lerobot_profiles())
+
+
+def robot_spec(robot: str | os.PathLike[str]) -> RobotSpec:
+    """The :class:`RobotSpec` of a built-in LeRobot arm (``so101_follower``, ...) or of a profile file.
+
+    Raises:
+        UsageError: Neither a built-in LeRobot arm nor a profile file of one.
+        FileFormatError: The profile file is malformed.
+    """
+    from ..formats.profiles import load_profile
+
+    text = os.fspath(robot)
+    names = robot_names()
+    if text not in names and not (text.endswith((".yaml", ".yml")) and Path(text).is_file()):
+        raise UsageError(f"unknown robot {text!r}; valid: {', '.join(names)} (or a robot profile file)")
+    return RobotSpec.from_profile(load_profile(text))
 
 
 def open_bus(spec: RobotSpec, port: str, *, retries: int = 3) -> ServoBus:
@@ -594,11 +610,9 @@ def calibrate_legacy(
     operator.prompt("rotated", "Move the arm to the rotated position (every joint +90°) and press ENTER")
     rotated = bus.sync_read("Present_Position", ids)
     operator.prompt("rest", "Move the arm to the rest position and press ENTER")
-    modes = None
-    if spec.vendor == "dynamixel":
-        modes = [
-            "LINEAR" if (aloha_gripper_linear and m.name == "gripper") else "DEGREE" for m in spec.motors
-        ]
+    modes = [  # the profile's legacy modes (Feetech gripper LINEAR); Aloha's Dynamixel gripper on request
+        "LINEAR" if (aloha_gripper_linear and m.name == "gripper") else m.legacy_mode for m in spec.motors
+    ]
     cal = legacy_calibration_from_poses(
         spec.motor_names,
         [zero[i] for i in ids],

@@ -14,9 +14,8 @@ import pytest
 
 from robocal.backends.dynamixel import DYNAMIXEL_MODELS
 from robocal.backends.sim.control import SimControl
-from robocal.core.lerobot import ROBOTS
 from robocal.lerobot import normalize, read_calibration
-from robocal.workflows.lerobot import norm_modes
+from robocal.workflows.lerobot import norm_modes, robot_spec
 
 from ..test_sim_arm_cli import calibrate_with_operator
 from .conftest import Interactive, harness_argv, harness_env, result_of, robocal, run_harness
@@ -71,7 +70,7 @@ def test_calibrate_leaves_identical_json_bytes_and_eeprom(calibrated) -> None:
     robot, sim_le, sim_rc, le_file, rc_file = calibrated
     assert le_file.read_bytes() == rc_file.read_bytes()
     data = json.loads(le_file.read_text())
-    assert list(data) == list(ROBOTS[robot].motor_names)
+    assert list(data) == list(robot_spec(robot).motor_names)
     assert data["wrist_roll"]["range_min"] == 0 and data["wrist_roll"]["range_max"] == 4095
     le, rc = eeprom(sim_le.info["control"]), eeprom(sim_rc.info["control"])
     assert le == rc
@@ -129,7 +128,7 @@ def test_robocal_check_on_lerobot_calibrated_servos_then_names_the_changed_limit
 
 def test_normalised_reads_agree_bit_for_bit(calibrated, lerobot_python, tmp_path: Path) -> None:
     robot, _sim_le, sim_rc, _le_file, rc_file = calibrated
-    spec = ROBOTS[robot]
+    spec = robot_spec(robot)
     grid = list(range(-200, 4296))  # every tick of a turn, and beyond both ends
     got = run_harness(
         lerobot_python,
@@ -163,7 +162,7 @@ def test_broadcast_ping_and_scan_port(lerobot_python, sim_process, tmp_path: Pat
     got = run_harness(lerobot_python, "broadcast_ping", tmp_path, vendor="dynamixel", port=koch.info["port"])
     # Koch follower: xl430-w250 (model number 1060) at ids 1-2, xl330-m288 (1200) at ids 3-6
     assert got["found"] == {"1": 1060, "2": 1060, "3": 1200, "4": 1200, "5": 1200, "6": 1200}
-    assert [DYNAMIXEL_MODELS[m.model][0] for m in ROBOTS["koch_follower"].motors] == [1060, 1060] + [1200] * 4
+    assert [DYNAMIXEL_MODELS[m.model][0] for m in robot_spec("koch_follower").motors] == [1060, 1060] + [1200] * 4
 
 
 def test_setup_motors_on_factory_servos_then_robocal_calibrates(
@@ -185,7 +184,7 @@ def test_setup_motors_on_factory_servos_then_robocal_calibrates(
     order = []
     with SimControl(sim.info["control"]) as ctl:
         at = 0
-        for motor in reversed(ROBOTS["so101_follower"].motor_names):
+        for motor in reversed(robot_spec("so101_follower").motor_names):
             at = run.expect(
                 f"Connect the controller board to the '{motor}' motor only and press enter.", after=at
             )
@@ -194,12 +193,12 @@ def test_setup_motors_on_factory_servos_then_robocal_calibrates(
             run.send()
         code, out = run.finish()
         assert code == 0, out[-3000:]
-        assert result_of(out)["ids"] == {n: i for i, n in enumerate(ROBOTS["so101_follower"].motor_names, 1)}
+        assert result_of(out)["ids"] == {n: i for i, n in enumerate(robot_spec("so101_follower").motor_names, 1)}
         ctl.attach("all")
         state = ctl.state()
     assert order[0] == "gripper"
     assert {n: (j["id"], j["baudrate"]) for n, j in state.items()} == {
-        n: (i, 1_000_000) for i, n in enumerate(ROBOTS["so101_follower"].motor_names, 1)
+        n: (i, 1_000_000) for i, n in enumerate(robot_spec("so101_follower").motor_names, 1)
     }
     got = run_harness(lerobot_python, "broadcast_ping", tmp_path, vendor="feetech", port=sim.info["port"])
     assert got["found"] == {str(i): 777 for i in range(1, 7)}
@@ -222,7 +221,7 @@ def test_hand_edited_files_lerobot_loads_and_robocal_refuses(
 ) -> None:
     """The differences docs/try_without_a_robot.md lists: LeRobot's draccus loader takes these files."""
     field, written, lerobot_value, message = HAND_EDITS[case]
-    names = ROBOTS["so101_follower"].motor_names
+    names = robot_spec("so101_follower").motor_names
     data = {
         n: {"id": i, "drive_mode": 0, "homing_offset": 10, "range_min": 1000, "range_max": 3000}
         for i, n in enumerate(names, 1)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...core.lerobot import ROBOTS, MotorCalibration, RobotSpec
+from ...core.lerobot import MotorCalibration, RobotSpec
 from ...errors import UsageError
 from .operator import JointView
 from .servo import SimServo, SimServoBus
@@ -76,6 +76,8 @@ DEFAULT_TRUTH: dict[str, dict[str, JointTruth]] = {
         "gripper": _t(2150, 1950, 2800),
     },
 }
+DEFAULT_TRUTH["so100_follower"] = DEFAULT_TRUTH["so101_follower"]  # the same arm to LeRobot
+DEFAULT_TRUTH["so100_leader"] = DEFAULT_TRUTH["so101_leader"]
 """Default physical truth of each simulated arm."""
 
 
@@ -110,8 +112,10 @@ class SimArm:
     """A simulated LeRobot arm on a pseudo-terminal.
 
     Args:
-        robot: ``so101_follower``, ``so101_leader``, ``koch_follower`` or ``koch_leader``.
-        truth: Per-joint physical truth; default :data:`DEFAULT_TRUTH`.
+        robot: The arm (its robot profile's :class:`RobotSpec`, e.g.
+            ``robocal.workflows.lerobot.robot_spec("so101_follower")``): one servo per motor, with its id
+            and model.
+        truth: Per-joint physical truth; default :data:`DEFAULT_TRUTH` of the arm's name.
         noise_ticks: Read noise (±ticks) on Present_Position.
         seed: Noise seed.
         eeprom: Initial EEPROM per motor name (``Homing_Offset``, ``Min_Position_Limit``, ... ), e.g. a
@@ -122,7 +126,7 @@ class SimArm:
 
     def __init__(
         self,
-        robot: str,
+        robot: RobotSpec,
         *,
         truth: Mapping[str, JointTruth] | None = None,
         noise_ticks: int = 0,
@@ -130,10 +134,12 @@ class SimArm:
         eeprom: Mapping[str, Mapping[str, int]] | None = None,
         factory: bool = False,
     ) -> None:
-        if robot not in ROBOTS:
-            raise UsageError(f"unknown robot {robot!r}; valid: {', '.join(ROBOTS)}")
-        self.spec: RobotSpec = ROBOTS[robot]
-        self.truth: dict[str, JointTruth] = dict(truth if truth is not None else DEFAULT_TRUTH[robot])
+        if not isinstance(robot, RobotSpec):
+            raise UsageError(f"SimArm takes the arm's RobotSpec (robot_spec({robot!r})), not {type(robot).__name__}")
+        if truth is None and robot.name not in DEFAULT_TRUTH:
+            raise UsageError(f"no simulated truth for robot {robot.name!r}; pass truth=")
+        self.spec: RobotSpec = robot
+        self.truth: dict[str, JointTruth] = dict(truth if truth is not None else DEFAULT_TRUTH[robot.name])
         servos = []
         for m in self.spec.motors:
             t = self.truth[m.name]
