@@ -54,8 +54,9 @@ __all__ = [
 
 log = logging.getLogger("robocal.fileio")
 
-MAX_FILE_BYTES = 256 * 1024 * 1024
-"""Refuse to read calibration or description files larger than this (256 MiB)."""
+MAX_FILE_BYTES = 1024 * 1024 * 1024
+"""Refuse to read calibration or description files larger than this (1 GiB: a URDF of a million joints is
+about 300 MB, the largest file a robot can plausibly need)."""
 
 BACKUP_GENERATIONS = 5
 """Backups kept per file: ``NAME.bak`` (newest), then ``NAME.bak.1`` … ``NAME.bak.4`` (oldest)."""
@@ -143,7 +144,7 @@ def read_bytes(path: PathLike, what: str = "file") -> bytes:
         The file's bytes.
 
     Raises:
-        FileFormatError: The file is missing, unreadable, a directory, larger than 256 MiB, or its name is not
+        FileFormatError: The file is missing, unreadable, a directory, larger than 1 GiB, or its name is not
             a possible file name (a lone surrogate, a NUL byte, too long).
     """
     p = Path(path)
@@ -152,8 +153,12 @@ def read_bytes(path: PathLike, what: str = "file") -> bytes:
         if p.is_dir():
             raise FileFormatError(f"{what} {p}: is a directory, expected a file")
         if size > MAX_FILE_BYTES:
-            raise FileFormatError(f"{what} {p}: {size} bytes is larger than the {MAX_FILE_BYTES} byte limit")
+            raise FileFormatError(
+                f"{what} {p}: {size} bytes is larger than robocal's {MAX_FILE_BYTES} byte input limit"
+            )
         return p.read_bytes()
+    except FileFormatError:  # a ValueError too: not to be taken for a bad file name below
+        raise
     except FileNotFoundError:
         raise FileFormatError(f"{what} {p}: no such file") from None
     except PermissionError:

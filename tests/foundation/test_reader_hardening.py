@@ -269,7 +269,7 @@ def test_calib_error_is_the_only_exception(tmp_path: Path) -> None:
         (
             "d.yaml",
             "a:\n  id: 1\n  direction: " + "9" * 400 + "\n  homing_offset: 0.5\n",
-            "is not a number; expected -1 or 1",
+            "direction <an integer of 400 digits> is invalid; expected -1 or 1",
         ),
         (
             "l.json",

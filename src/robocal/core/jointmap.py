@@ -36,14 +36,15 @@ _BLOCK_ELEMENTS = 16384  # 128 KiB of float64 per block: stays in L2 between the
 
 
 def _check_direction(direction: Any, where: str) -> int:
+    text = repr(direction) if len(repr(direction)) <= 40 else f"{repr(direction)[:39]}…"
     try:
         d = float(direction)
+    except OverflowError:
+        d = math.nan
     except (TypeError, ValueError):
-        raise InvalidCalibrationError(
-            f"{where}: direction {direction!r} is not a number; expected -1 or +1"
-        ) from None
+        raise InvalidCalibrationError(f"{where}: direction {text} is not a number; expected -1 or +1") from None
     if isinstance(direction, bool) or d not in (-1.0, 1.0):
-        raise InvalidCalibrationError(f"{where}: direction {direction!r} is invalid; expected -1 or +1")
+        raise InvalidCalibrationError(f"{where}: direction {text} is invalid; expected -1 or +1")
     return int(d)
 
 

@@ -35,7 +35,7 @@ from ..core.profile import RobotProfile
 from ..errors import CalibError, FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, read_bytes, read_text
 from ._json import is_valid_unicode, load_json
-from ._numbers import format_float, parse_direction, parse_finite, parse_int
+from ._numbers import format_float, parse_direction, parse_finite, parse_motor_id
 from ._yaml import dump_yaml, load_yaml
 from .profiles import profile_for_joints, resolve_profile
 from .urdf import UrdfDocument, UrdfModel, _model_from_tree, _parse_tree
@@ -133,7 +133,7 @@ def _parse_lite(data: Any, source: str, fmt: str) -> CalibrationFile:
                 f"{where}: unknown key {', '.join(extra)}; expected id, direction, homing_offset"
             )
         if "id" in entry:
-            ids[name] = parse_int(entry["id"], where, "id")
+            ids[name] = parse_motor_id(entry["id"], where)
         dirs.append(parse_direction(entry["direction"], where))
         offs.append(parse_finite(entry["homing_offset"], where, "homing_offset"))
         names.append(name)
@@ -275,7 +275,7 @@ def _read_robocal(path: Path, parsed_yaml: Any = None, **_: Any) -> CalibrationF
             if key not in entry:
                 raise FileFormatError(f"{where}: missing key {key}")
         if "id" in entry:
-            ids[str(name)] = parse_int(entry["id"], where, "id")
+            ids[str(name)] = parse_motor_id(entry["id"], where)
         dirs.append(parse_direction(entry["direction"], where))
         offs.append(parse_finite(entry["homing_offset"], where, "homing_offset"))
         scale = parse_finite(entry.get("scale", 1.0), where, "scale")

@@ -27,7 +27,7 @@ from ..core.profile import (
 )
 from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
-from ._numbers import parse_direction, parse_finite, parse_int
+from ._numbers import parse_direction, parse_finite, parse_motor_id
 from ._yaml import load_yaml
 from .urdf import UrdfModel
 
@@ -119,7 +119,7 @@ def _joint(entry: Any, i: int, source: str, version: int) -> ProfileJoint:
         name=name,
         upstream_name=_opt_str(entry, "upstream_name", where) or name,
         bus=_opt_str(entry, "bus", where),
-        motor_id=None if entry.get("id") is None else parse_int(entry["id"], where, "id"),
+        motor_id=None if entry.get("id") is None else parse_motor_id(entry["id"], where),
         direction=None if entry.get("direction") is None else parse_direction(entry["direction"], where),
         model=_opt_str(entry, "model", where),
         stop=stop,

@@ -152,12 +152,12 @@ class UrdfModel:
 
     def motor_id(self, joint: str) -> int | None:
         """The motor id of a joint from its ``id`` or ``can_id`` parameter, None when absent."""
-        from ._numbers import parse_int
+        from ._numbers import parse_motor_id
 
         for key in ("id", "can_id", "motor_id"):
             text = self.param(joint, key)
             if text is not None:
-                return parse_int(text, f"URDF {self.source}: joint {joint!r}", f"<param name='{key}'>")
+                return parse_motor_id(text, f"URDF {self.source}: joint {joint!r}", f"<param name='{key}'>")
         return None
 
     def limits(self, joint: str) -> tuple[float, float]:
