@@ -267,7 +267,9 @@ class SimLiteSource(RobstrideSource):
     motors over the ``virtual`` bus. The source is exhausted a few ticks after the operator's sweep ends.
     """
 
-    def __init__(self, joints: Sequence[JointSpec], sim: Any, *, timeout_s: float = 0.5) -> None:
+    def __init__(self, joints: Sequence[JointSpec], sim: Any, *, timeout_s: float = 5.0) -> None:
+        # the simulated motors answer at once; a long reply timeout only matters on a heavily loaded machine,
+        # where a thread may wait for the GIL longer than a real bus's 0.5 s
         from .robstride import MotorSpec, RobstrideBus
         from .sim.lite import LITE_JOINTS
 
