@@ -27,7 +27,7 @@ from ..core.profile import (
 )
 from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
-from ._numbers import parse_direction, parse_finite, parse_motor_id
+from ._numbers import parse_direction, parse_finite, parse_int, parse_motor_id
 from ._yaml import load_yaml
 from .urdf import UrdfModel
 
