@@ -485,3 +485,25 @@ def test_rosbag_metadata_with_a_non_integer_message_count_is_read() -> None:
         seeds.write_tree(root / "bag", files)
         _t, q = read_recording(root / "bag", seeds.LITE_NAMES)
         assert q.shape == (10, len(seeds.LITE_NAMES))
+
+
+@pytest.mark.parametrize("plugin", ["sqlite3", "mcap"])
+@pytest.mark.parametrize("name", ["null", "[]", "{a: 1}", "7"])
+def test_rosbag_topic_name_that_is_not_a_string_is_a_damaged_metadata_error(
+    tmp_path: Path, plugin: str, name: str
+) -> None:
+    """Found by the thorough run: a metadata.yaml topic name of null / a list escaped as a TypeError."""
+    import re
+
+    from robocal.backends.replay import read_recording
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    for rel, blob in seeds.bag_seed(plugin).items():
+        (bag / rel).write_bytes(blob)
+    meta = bag / "metadata.yaml"
+    text, n = re.subn(r"name: /lite/joint_states", f"name: {name}", meta.read_text())
+    assert n == 1
+    meta.write_text(text)
+    with pytest.raises(FileFormatError, match=r"damaged rosbag2 metadata: a topic entry has name"):
+        read_recording(bag, seeds.LITE_NAMES)

@@ -262,6 +262,12 @@ def _open_rosbag(path: Path, joint_names: Sequence[str], topic: str, block_rows:
     except Exception as exc:  # rosbags raises its own error types for unreadable bags
         raise FileFormatError(f"recording {path}: cannot read rosbag2 ({exc})") from None
     try:
+        for c in reader.connections:  # rosbags takes a damaged metadata.yaml's topic entries as they are
+            if not isinstance(c.topic, str) or not isinstance(c.msgtype, str):
+                raise FileFormatError(
+                    f"recording {path}: damaged rosbag2 metadata: a topic entry has name {c.topic!r:.40} "
+                    f"and type {c.msgtype!r:.40}; expected two strings"
+                )
         conns = [c for c in reader.connections if c.topic == topic]
         if not conns:
             topics = sorted({c.topic for c in reader.connections})
