@@ -87,11 +87,12 @@ def _wrap_commands(typer_app: typer.Typer) -> None:
 
 
 def _register() -> None:
-    from . import dataset, demo, files, kinematics, lerobot, sim, sweep, ur
+    from . import dataset, demo, files, kinematics, lerobot, sim, sweep, ur, view
 
     files.register(app)
     sweep.register(app)
     demo.register(app)
+    view.register(app)
     app.add_typer(lerobot.app, name="lerobot")
     app.add_typer(ur.app, name="ur")
     app.add_typer(dataset.app, name="dataset")

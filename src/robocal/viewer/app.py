@@ -1,0 +1,676 @@
+"""The viser web page: the robot, its ghost, the joint panel, the replay controls, the page loop.
+
+See :mod:`robocal.viewer` for the public API and the page state a browser test can read.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import html
+import io
+import json
+import math
+import socket
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import BackendNotAvailableError, UsageError
+from .latest import Frame, LatestFrame
+from .mapping import JointMapper
+from .model import RobotModel
+
+__all__ = [
+    "GHOST_RGB",
+    "OUTSIDE_RGB",
+    "JointReadout",
+    "PageUpdate",
+    "ReplayControl",
+    "ViewerApp",
+    "check_port_free",
+]
+
+FloatArray = npt.NDArray[np.float64]
+OUTSIDE_RGB = (0.86, 0.08, 0.08)
+"""Colour of a link whose joint is outside its URDF limits (model and panel)."""
+GHOST_RGB = (0.25, 0.55, 1.0)
+"""Colour of the ``--compare`` ghost."""
+GHOST_OPACITY = 0.35
+
+
+@dataclass(frozen=True)
+class JointReadout:
+    """One joint at one page update.
+
+    Attributes:
+        name: Joint name.
+        raw: Raw value from the source (its unit: rad of the motor, ticks, …); NaN when not read.
+        q: Calibrated position, rad (m for prismatic).
+        q_compare: Position through the ``--compare`` calibration, or NaN without one.
+        lower: URDF lower limit (``-inf`` when none).
+        upper: URDF upper limit (``+inf`` when none).
+        outside: True when ``q`` is outside ``[lower, upper]``.
+    """
+
+    name: str
+    raw: float
+    q: float
+    q_compare: float
+    lower: float
+    upper: float
+    outside: bool
+
+
+@dataclass(frozen=True)
+class PageUpdate:
+    """What one page update showed; handed to every hook added with :meth:`ViewerApp.add_hook`.
+
+    Attributes:
+        frame: The source frame shown.
+        q: Calibrated joint positions, shape ``(N,)`` in :attr:`RobotModel.actuated` order.
+        q_compare: Ghost joint positions, shape ``(N,)``, or None without a ghost.
+        outside: Shape ``(N,)``, joints outside their limits.
+        poses: Link → 4×4 world pose of the robot.
+        ghost_poses: Link → 4×4 world pose of the ghost, or None.
+        joints: Per-joint readouts.
+        local: Link → 4×4 pose relative to its parent link (what is sent to the page).
+        ghost_local: The same for the ghost, or None.
+    """
+
+    frame: Frame
+    q: FloatArray
+    q_compare: FloatArray | None
+    outside: npt.NDArray[np.bool_]
+    poses: dict[str, FloatArray]
+    ghost_poses: dict[str, FloatArray] | None
+    joints: tuple[JointReadout, ...]
+    local: dict[str, FloatArray]
+    ghost_local: dict[str, FloatArray] | None
+
+
+class ReplayControl:
+    """What the page's replay controls drive (implemented by :class:`robocal.viewer.feeds.ReplayFeed`)."""
+
+    t_start_s: float
+    t_end_s: float
+
+    @property
+    def playing(self) -> bool:
+        """True while playing."""
+        raise NotImplementedError
+
+    @property
+    def position_s(self) -> float:
+        """Current recording time, s."""
+        raise NotImplementedError
+
+    def play(self) -> None:
+        """Start or resume playing."""
+        raise NotImplementedError
+
+    def pause(self) -> None:
+        """Pause."""
+        raise NotImplementedError
+
+    def seek(self, t_s: float) -> None:
+        """Jump to recording time ``t_s`` (clamped to the recording) and show that frame."""
+        raise NotImplementedError
+
+
+def check_port_free(host: str, port: int) -> None:
+    """Refuse a port another program listens on (viser would silently move to the next one).
+
+    Raises:
+        UsageError: The port is in use or the host cannot be bound.
+    """
+    if not (0 <= port <= 65535):
+        raise UsageError(f"--port {port}: expected 0..65535")
+    if port == 0:
+        return
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except socket.gaierror as exc:
+        raise UsageError(f"--host {host!r}: cannot resolve it ({exc.strerror})") from None
+    family, _, _, _, addr = infos[0]
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(addr)
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                raise UsageError(
+                    f"port {port} on {host} is in use by another program; pass --port with a free one "
+                    "(or --port 0 for any)"
+                ) from None
+            raise UsageError(f"cannot serve on {host}:{port}: {exc.strerror or exc}") from None
+
+
+def _fmt(x: float, digits: int = 3) -> str:
+    if math.isnan(x):
+        return "—"
+    if math.isinf(x):
+        return "∞" if x > 0 else "−∞"
+    return f"{x:+.{digits}f}"
+
+
+def _lim(x: float) -> str:
+    if math.isinf(x):
+        return "∞" if x > 0 else "−∞"
+    return f"{x:.2f}"
+
+
+def _wxyz(R: FloatArray) -> tuple[float, float, float, float]:
+    """Rotation matrix → unit quaternion (w, x, y, z)."""
+    m = R
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        w, x, y, z = 0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
+        w, x, y, z = (m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s
+    elif m[1, 1] > m[2, 2]:
+        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
+        w, x, y, z = (m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s
+    else:
+        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
+        w, x, y, z = (m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    return (w / n, x / n, y / n, z / n)
+
+
+def _viser() -> Any:
+    try:
+        import viser
+    except ImportError:
+        raise BackendNotAvailableError("robocal view needs viser: pip install 'robocal[view]'") from None
+    return viser
+
+
+class _Robot:
+    """One drawn copy of the model (the robot or its ghost): a frame per link, meshes under it."""
+
+    def __init__(
+        self,
+        server: Any,
+        model: RobotModel,
+        root: str,
+        *,
+        rgb: tuple[float, float, float] | None,
+        opacity: float | None,
+    ) -> None:
+        self.root = root
+        self.frames: dict[str, Any] = {}
+        self.meshes: dict[str, list[tuple[Any, tuple[float, float, float]]]] = {}
+        self.last: dict[str, FloatArray] = {}
+        self.rgb_now: dict[str, tuple[float, float, float]] = {}
+        server.scene.add_frame(root, show_axes=False)
+        parent_of = {j.child: j.parent for j in model.joints}
+        index = {link: k for k, link in enumerate(model.links)}
+        self.paths: dict[str, str] = {}
+        for link in model.links:  # parents first: nested frames, so a joint move is one rotation message
+            parent = parent_of.get(link)
+            base = root if parent is None else self.paths[parent]
+            self.paths[link] = f"{base}/L{index[link]}"
+            self.frames[link] = server.scene.add_frame(self.paths[link], show_axes=False)
+        count: dict[str, int] = {}
+        for shape in model.shapes:
+            i = count.get(shape.link, 0)
+            count[shape.link] = i + 1
+            color = rgb if rgb is not None else shape.rgba[:3]
+            alpha = opacity if opacity is not None else (shape.rgba[3] if shape.rgba[3] < 1.0 else None)
+            handle = server.scene.add_mesh_simple(
+                f"{self.paths[shape.link]}/s{i}", shape.vertices, shape.faces, color=color, opacity=alpha
+            )
+            self.meshes.setdefault(shape.link, []).append((handle, color))
+            self.rgb_now[shape.link] = color
+
+    def pose(self, local: dict[str, FloatArray]) -> None:
+        """Set every link's pose relative to its parent link (only what changed is sent)."""
+        for link, T in local.items():
+            last = self.last.get(link)
+            h = self.frames[link]
+            if last is None or not np.array_equal(last[:3, :3], T[:3, :3]):
+                h.wxyz = _wxyz(T[:3, :3])
+            if last is None or not np.array_equal(last[:3, 3], T[:3, 3]):
+                h.position = (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]))
+            self.last[link] = T
+
+    def tint(self, link: str, rgb: tuple[float, float, float] | None) -> None:
+        """Colour a link's meshes ``rgb`` (None: back to their own colour)."""
+        for handle, own in self.meshes.get(link, []):
+            want = own if rgb is None else rgb
+            if self.rgb_now.get(link) != want:
+                handle.color = want
+        if link in self.meshes:
+            self.rgb_now[link] = rgb if rgb is not None else self.meshes[link][0][1]
+
+    def set_visible(self, visible: bool) -> None:
+        for h in self.frames.values():
+            h.visible = visible
+
+
+class ViewerApp:
+    """A local web page showing ``model`` posed by the newest joint frame.
+
+    Args:
+        model: The robot.
+        calibration: Raw → joint map of the robot (None: raw values are joint positions).
+        compare: Raw → joint map of the ghost (None: no ghost).
+        host: Interface to serve on.
+        port: TCP port (0: any free port).
+        rate_hz: Page updates per second (the page loop).
+        clock: Monotonic clock, s (injected by tests).
+        title: Shown at the top of the panel.
+        raw_unit: Unit of the raw values, shown in the panel (``rad``, ``ticks``).
+    """
+
+    def __init__(
+        self,
+        model: RobotModel,
+        *,
+        calibration: JointMapper | None = None,
+        compare: JointMapper | None = None,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        rate_hz: float = 30.0,
+        clock: Callable[[], float] = time.monotonic,
+        title: str = "",
+        raw_unit: str = "rad",
+    ) -> None:
+        if not (math.isfinite(rate_hz) and 0 < rate_hz <= 240):
+            raise UsageError(f"--rate {rate_hz}: expected 0 < rate <= 240 page updates per second")
+        self.model = model
+        self.joint_names = model.actuated
+        self.calibration = calibration or JointMapper(self.joint_names, None, "none")
+        self.compare = compare
+        self.host = host
+        self.requested_port = port
+        self.rate_hz = rate_hz
+        self.clock = clock
+        self.title = title or model.name
+        self.raw_unit = raw_unit
+        self.slot = LatestFrame(clock)
+        self.updates = 0
+        """Page updates made (frames shown)."""
+        self.last_latency_s = math.nan
+        self.max_latency_s = 0.0
+        self.last_update: PageUpdate | None = None
+        self.messages: list[tuple[str, str]] = []
+        """``(level, text)`` shown on the page: ``info``, ``warning`` or ``error``."""
+        self.source_state = "waiting"
+        """``waiting``, ``running``, ``finished`` or ``failed``."""
+        self._hooks: list[Callable[[ViewerApp, PageUpdate], None]] = []
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._replay: ReplayControl | None = None
+        self._replay_gui: dict[str, Any] = {}
+        self.server: Any = None
+        self.robot: _Robot | None = None
+        self.ghost: _Robot | None = None
+        self._panel: Any = None
+        self._banner: Any = None
+        self._outside_now = np.zeros(len(self.joint_names), dtype=bool)
+
+    # ------------------------------------------------------------------------------------------- lifecycle
+    def start(self, *, loop: bool = True) -> ViewerApp:
+        """Bind the port, build the scene and the panel, start the page loop.
+
+        Args:
+            loop: Start the page loop thread (tests pass False and call :meth:`step` themselves).
+
+        Raises:
+            UsageError: The port is in use.
+            BackendNotAvailableError: viser is not installed.
+        """
+        viser = _viser()
+        check_port_free(self.host, self.requested_port)
+        with contextlib.redirect_stdout(io.StringIO()):  # viser prints its own URL box; the CLI prints ours
+            server = viser.ViserServer(
+                host=self.host, port=self.requested_port, label="robocal", verbose=False
+            )
+        if self.requested_port and server.get_port() != self.requested_port:  # lost a race for the port
+            server.stop()
+            raise UsageError(f"port {self.requested_port} on {self.host} is in use by another program")
+        self.server = server
+        try:
+            self._build()
+        except BaseException:
+            server.stop()
+            raise
+        if loop:
+            self._thread = threading.Thread(target=self._loop, name="robocal-view-page", daemon=True)
+            self._thread.start()
+        return self
+
+    @property
+    def port(self) -> int:
+        """The port served on (after :meth:`start`)."""
+        return int(self.server.get_port()) if self.server is not None else self.requested_port
+
+    @property
+    def url(self) -> str:
+        """The page's address."""
+        host = self.host
+        if host in ("0.0.0.0", "::", ""):
+            host = "localhost"
+        if ":" in host:
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}/"
+
+    def stop(self) -> None:
+        """Stop the page loop and the server (idempotent)."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)
+        self._thread = None
+        if self.server is not None:
+            server, self.server = self.server, None
+            with contextlib.redirect_stdout(io.StringIO()):  # "(viser) Server stopped"
+                server.stop()
+
+    def __enter__(self) -> ViewerApp:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block until :meth:`stop` (True) or ``timeout_s`` (False)."""
+        return self._stop.wait(timeout_s)
+
+    # ------------------------------------------------------------------------------------------- producer API
+    def push(self, t_s: float, raw: npt.ArrayLike) -> None:
+        """Hand the newest frame to the page (any thread; replaces an unshown one, never queues).
+
+        Args:
+            t_s: Source time stamp, s.
+            raw: Shape ``(N,)`` raw values in :attr:`joint_names` order (NaN: not read).
+        """
+        self.slot.put(t_s, raw)
+
+    def add_hook(self, hook: Callable[[ViewerApp, PageUpdate], None]) -> None:
+        """Call ``hook(app, update)`` after every page update (overlays: arcs, arrows, labels).
+
+        Hooks run on the page thread inside the same ``server.atomic()`` block as the robot, so their scene
+        changes reach the browser together with the pose.
+        """
+        self._hooks.append(hook)
+
+    def message(self, text: str, level: str = "info") -> None:
+        """Show ``text`` on the page (``info``, ``warning`` or ``error``); the newest few are kept."""
+        with self._lock:
+            self.messages = [*self.messages[-4:], (level, text)]
+        self._render_banner()
+
+    def set_source_state(self, state: str, text: str = "") -> None:
+        """Record the source's state (``running``, ``finished``, ``failed``) and optionally show ``text``."""
+        self.source_state = state
+        if text:
+            self.message(text, "error" if state == "failed" else "info")
+        else:
+            self._render_banner()
+
+    def attach_replay(self, control: ReplayControl) -> None:
+        """Add a time slider and play/pause to the page, driving ``control``."""
+        self._replay = control
+        if self.server is not None:
+            self._build_replay()
+
+    # ------------------------------------------------------------------------------------------- page loop
+    def _loop(self) -> None:
+        period = 1.0 / self.rate_hz
+        next_t = time.monotonic()
+        while not self._stop.is_set():
+            try:
+                self.step()
+            except Exception as exc:  # a hook or the server failed: show it, keep serving
+                self.message(f"page update failed: {type(exc).__name__}: {exc}", "error")
+                self._stop.wait(1.0)
+            next_t += period
+            delay = next_t - time.monotonic()
+            if delay < 0:  # fell behind (a slow machine): skip ahead, never catch up in a burst
+                next_t = time.monotonic()
+                delay = 0.0
+            self._stop.wait(delay)
+
+    def readouts(self, frame: Frame) -> PageUpdate:
+        """Compute (without drawing) what ``frame`` shows."""
+        q = self.calibration.to_joint(frame.raw)
+        qc = self.compare.to_joint(frame.raw) if self.compare is not None else None
+        outside = self.model.outside_limits(q)
+        poses, local = self.model.poses(q)
+        ghost, ghost_local = self.model.poses(qc) if qc is not None else (None, None)
+        joints = tuple(
+            JointReadout(
+                name,
+                float(frame.raw[i]),
+                float(q[i]),
+                float(qc[i]) if qc is not None else math.nan,
+                float(self.model.lower[i]),
+                float(self.model.upper[i]),
+                bool(outside[i]),
+            )
+            for i, name in enumerate(self.joint_names)
+        )
+        return PageUpdate(frame, q, qc, outside, poses, ghost, joints, local, ghost_local)
+
+    def step(self) -> bool:
+        """One page update: take the newest frame (if any new), pose the robot and ghost, refresh the panel.
+
+        Returns:
+            True when a new frame was shown.
+        """
+        frame = self.slot.take()
+        if frame is None:
+            return False
+        update = self.readouts(frame)
+        latency = self.clock() - frame.put_s
+        with self._lock:
+            self.last_latency_s = latency
+            self.max_latency_s = max(self.max_latency_s, latency)
+            self.updates += 1
+            self.last_update = update
+        if self.server is None:
+            return True
+        with self.server.atomic():
+            assert self.robot is not None
+            self.robot.pose(update.local)
+            changed = np.flatnonzero(update.outside != self._outside_now)
+            for i in changed:
+                link = self.model.child_link(self.joint_names[i])
+                self.robot.tint(link, OUTSIDE_RGB if update.outside[i] else None)
+            self._outside_now = update.outside.copy()
+            if self.ghost is not None and update.ghost_local is not None:
+                self.ghost.pose(update.ghost_local)
+            self._render_panel(update)
+            self._sync_replay()
+            for hook in self._hooks:
+                hook(self, update)
+        return True
+
+    # ------------------------------------------------------------------------------------------- page state
+    def status(self) -> dict[str, Any]:
+        """The page's state as plain data (also embedded in the page as JSON, see :mod:`robocal.viewer`)."""
+        with self._lock:
+            u = self.last_update
+            out: dict[str, Any] = {
+                "robot": self.model.name,
+                "updates": self.updates,
+                "frames_in": self.slot.frames_in,
+                "frames_dropped": self.slot.dropped,
+                "latency_s": None if math.isnan(self.last_latency_s) else self.last_latency_s,
+                "source": self.source_state,
+                "calibration": self.calibration.label,
+                "compare": self.compare.label if self.compare is not None else None,
+                "t_s": u.frame.t_s if u is not None else None,
+                "messages": [{"level": lv, "text": tx} for lv, tx in self.messages],
+                "joints": [],
+            }
+            if self._replay is not None:
+                out["replay"] = {
+                    "playing": self._replay.playing,
+                    "position_s": self._replay.position_s,
+                    "start_s": self._replay.t_start_s,
+                    "end_s": self._replay.t_end_s,
+                }
+            if u is not None:
+                out["joints"] = [
+                    {
+                        "name": j.name,
+                        "raw": None if math.isnan(j.raw) else j.raw,
+                        "q": None if math.isnan(j.q) else j.q,
+                        "q_compare": None if math.isnan(j.q_compare) else j.q_compare,
+                        "lower": j.lower if math.isfinite(j.lower) else None,
+                        "upper": j.upper if math.isfinite(j.upper) else None,
+                        "outside": j.outside,
+                        "color": "red" if j.outside else "normal",
+                    }
+                    for j in u.joints
+                ]
+        return out
+
+    # ------------------------------------------------------------------------------------------- building
+    def _build(self) -> None:
+        server = self.server
+        server.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
+        server.scene.set_up_direction("+z")
+        server.scene.add_grid("/grid", width=2.0, height=2.0, cell_size=0.1, plane="xy")
+        self.robot = _Robot(server, self.model, "/robot", rgb=None, opacity=None)
+        if self.compare is not None:
+            self.ghost = _Robot(server, self.model, "/ghost", rgb=GHOST_RGB, opacity=GHOST_OPACITY)
+        server.gui.add_markdown(f"**{html.escape(self.title)}**")
+        self._banner = server.gui.add_html(self._banner_html())
+        if self._replay is not None:
+            self._build_replay()
+        if self.ghost is not None:
+            toggle = server.gui.add_checkbox("Show ghost (--compare)", initial_value=True)
+
+            def show_ghost(_: Any) -> None:
+                if self.ghost is not None:
+                    self.ghost.set_visible(bool(toggle.value))
+
+            toggle.on_update(show_ghost)
+
+        self._panel = server.gui.add_html(self._panel_html(None))
+        world, rest = self.model.poses(np.zeros(len(self.joint_names)))
+        pts = np.array([T[:3, 3] for T in world.values()])
+        centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+        size = max(0.3, float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))))
+        server.initial_camera.look_at = tuple(float(x) for x in centre)
+        server.initial_camera.position = tuple(float(x) for x in centre + np.array([1.1, -1.3, 0.7]) * size)
+        self.robot.pose(rest)
+        if self.ghost is not None:
+            self.ghost.pose(rest)
+
+    def _build_replay(self) -> None:
+        control = self._replay
+        if control is None or self._replay_gui or self.server is None:
+            return
+        gui = self.server.gui
+        folder = gui.add_folder("Replay")
+        with folder:
+            lo, hi = control.t_start_s, control.t_end_s
+            if not hi > lo:
+                hi = lo + 1e-3
+            slider = gui.add_slider("time (s)", min=lo, max=hi, step=(hi - lo) / 1000.0, initial_value=lo)
+            button = gui.add_button("Pause" if control.playing else "Play")
+
+        def seek(event: Any) -> None:
+            if event.client is None:  # our own sync of the slider, not the user's drag
+                return
+            control.seek(float(slider.value))
+
+        def play_pause(_: Any) -> None:
+            if control.playing:
+                control.pause()
+            else:
+                control.play()
+            button.label = "Pause" if control.playing else "Play"
+
+        slider.on_update(seek)
+        button.on_click(play_pause)
+
+        self._replay_gui = {"slider": slider, "button": button}
+
+    def _sync_replay(self) -> None:
+        control = self._replay
+        if control is None or not self._replay_gui:
+            return
+        slider = self._replay_gui["slider"]
+        t = min(max(control.position_s, slider.min), slider.max)
+        if abs(float(slider.value) - t) > 1e-9:
+            slider.value = t
+        label = "Pause" if control.playing else "Play"
+        if self._replay_gui["button"].label != label:
+            self._replay_gui["button"].label = label
+
+    def _banner_html(self) -> str:
+        colours = {"info": "#335", "warning": "#a60", "error": "#c00"}
+        with self._lock:
+            rows = "".join(
+                f'<div class="robocal-msg robocal-{lv}" style="color:{colours.get(lv, "#333")}">'
+                f"{html.escape(tx)}</div>"
+                for lv, tx in self.messages
+            )
+        return f'<div id="robocal-messages" data-source="{self.source_state}">{rows}</div>'
+
+    def _render_banner(self) -> None:
+        if self._banner is not None:
+            self._banner.content = self._banner_html()
+
+    def _panel_html(self, update: PageUpdate | None) -> str:
+        unit = html.escape(self.raw_unit)
+        head = (
+            '<table id="robocal-joints" style="width:100%;font-size:0.8em;border-collapse:collapse">'
+            f"<tr><th align=left>joint</th><th align=right>raw ({unit})</th><th align=right>q (rad)</th>"
+            + ("<th align=right>ghost</th>" if self.compare is not None else "")
+            + "<th align=right>limits</th><th>range</th></tr>"
+        )
+        rows = []
+        for i, name in enumerate(self.joint_names):
+            j = update.joints[i] if update is not None else None
+            raw = j.raw if j else math.nan
+            q = j.q if j else math.nan
+            qc = j.q_compare if j else math.nan
+            lo, hi = float(self.model.lower[i]), float(self.model.upper[i])
+            outside = bool(j.outside) if j else False
+            colour = "#c00" if outside else "#222"
+            if math.isfinite(lo) and math.isfinite(hi) and hi > lo and not math.isnan(q):
+                frac = min(1.0, max(0.0, (q - lo) / (hi - lo)))
+            else:
+                frac = 0.5 if not math.isnan(q) else math.nan
+            bar = ""
+            if not math.isnan(frac):
+                bar = (
+                    f'<div style="position:absolute;left:calc({100 * frac:.1f}% - 2px);top:0;width:4px;'
+                    f'height:100%;background:{"#d00" if outside else "#36c"}"></div>'
+                )
+            rows.append(
+                f'<tr class="robocal-joint" data-joint="{html.escape(name)}" data-outside="{int(outside)}" '
+                f'data-q="{"" if math.isnan(q) else repr(q)}" style="color:{colour}">'
+                f"<td>{html.escape(name)}</td><td align=right>{_fmt(raw)}</td><td align=right>{_fmt(q)}</td>"
+                + (f"<td align=right>{_fmt(qc)}</td>" if self.compare is not None else "")
+                + f'<td align=right style="white-space:nowrap">{_lim(lo)}…{_lim(hi)}</td>'
+                '<td style="width:25%"><div style="position:relative;height:8px;background:#ddd;'
+                f'border:1px solid {"#d00" if outside else "#bbb"}">{bar}</div></td></tr>'
+            )
+        status = html.escape(json.dumps(self.status(), separators=(",", ":")), quote=True)
+        return (
+            head
+            + "".join(rows)
+            + "</table>"
+            + f'<div id="robocal-status" data-updates="{self.updates}" data-status="{status}" '
+            f'style="font-size:0.7em;color:#666">updates {self.updates} · dropped {self.slot.dropped}</div>'
+        )
+
+    def _render_panel(self, update: PageUpdate) -> None:
+        if self._panel is not None:
+            self._panel.content = self._panel_html(update)

@@ -1,0 +1,193 @@
+"""`robocal view` end to end: the simulated Lite, a replay through a calibration, bad input, Ctrl-C."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocal.cli.main import main
+from robocal.errors import JointMismatchError
+from robocal.formats import read_calibration
+from robocal.formats.urdf import read_urdf
+from robocal.viewer.session import ViewOptions, open_view
+
+from .conftest import LITE_URDF, REPO
+
+LITE_CAL = REPO / "examples" / "lite" / "calibration.yaml"
+
+
+def wait_for(cond: Callable[[], bool], timeout_s: float = 60.0) -> None:
+    end = time.monotonic() + timeout_s
+    while not cond():
+        if time.monotonic() > end:
+            raise AssertionError("condition not reached in time")
+        time.sleep(0.02)
+
+
+def test_sim_lite_through_a_calibration_with_the_uncalibrated_ghost() -> None:
+    opts = ViewOptions(urdf=LITE_URDF, source="sim:lite?seed=3", calibration=LITE_CAL, compare="none", port=0)
+    cal = read_calibration(LITE_CAL, urdf=read_urdf(LITE_URDF)).calibration
+    with open_view(opts) as session:
+        app = session.app
+        seen: list[np.ndarray] = []
+
+        def moved() -> bool:
+            u = app.last_update
+            if u is not None and (not seen or not np.array_equal(seen[-1], u.q)):
+                seen.append(u.q.copy())
+            return len(seen) >= 3
+
+        wait_for(moved)
+        u = app.last_update
+        assert u is not None and u.q_compare is not None
+        names = list(app.joint_names)
+        assert len(names) == 14
+        raw = u.frame.raw
+        np.testing.assert_allclose(u.q, cal.select(names).to_joint(raw), atol=1e-12)
+        np.testing.assert_allclose(u.q_compare, cal.select(names).direction * raw, atol=1e-12)
+        status = app.status()
+        assert status["calibration"] == "calibration.yaml" and status["source"] == "running"
+        assert status["compare"] == "none (direction·raw)"
+    assert app.server is None and not session.feed.alive
+
+
+def write_csv(path: Path, names: list[str], rows: list[list[float]]) -> None:
+    path.write_text(
+        "t," + ",".join(names) + "\n" + "".join(",".join(repr(x) for x in r) + "\n" for r in rows)
+    )
+
+
+def test_replay_csv_through_a_calibration(tmp_path: Path) -> None:
+    cal = read_calibration(LITE_CAL, urdf=read_urdf(LITE_URDF)).calibration
+    rec = tmp_path / "rec.csv"
+    write_csv(rec, ["left_elbow_pitch", "left_shoulder_pitch"], [[0.0, -1.0, -0.5], [1.0, -0.8, -0.3]])
+    opts = ViewOptions(urdf=LITE_URDF, source=f"replay:{rec}", calibration=LITE_CAL, port=0)
+    with open_view(opts) as session:
+        feed = session.feed
+        feed.pause()  # type: ignore[attr-defined]
+        feed.seek(1.0)  # type: ignore[attr-defined]
+        wait_for(lambda: session.app.last_update is not None and session.app.last_update.frame.t_s == 1.0)
+        joints = {j["name"]: j for j in session.app.status()["joints"]}
+    # identity-frame values x: raw = d·x, q = d·(raw − h) = x − d·h
+    for name, x in (("left_elbow_pitch", -0.8), ("left_shoulder_pitch", -0.3)):
+        jm = cal.joint_map(name)
+        assert joints[name]["q"] == pytest.approx(x - jm.direction * jm.homing_offset, abs=1e-12)
+        assert joints[name]["raw"] == pytest.approx(jm.direction * x, abs=1e-12)
+    assert joints["right_elbow_pitch"]["raw"] is None  # no column: no reading
+    assert session.app.status()["replay"]["end_s"] == 1.0
+
+
+def test_calibration_of_another_robot_is_refused(tmp_path: Path) -> None:
+    other = tmp_path / "other.yaml"
+    other.write_text("joint_a:\n  id: 1\n  direction: 1\n  homing_offset: 0.0\n")
+    opts = ViewOptions(urdf=LITE_URDF, source="sim:lite", calibration=other, port=0)
+    with pytest.raises(JointMismatchError, match="none of its joints"):
+        open_view(opts)
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_bad_urdf_one_error_line_nothing_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'/>")
+    before = sorted(tmp_path.iterdir())
+    code, _, err = run_cli(["view", "--urdf", str(bad), "--source", "sim:lite", "--port", "0"], capsys)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "bad.urdf" in lines[0]
+    assert sorted(tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        ([], "give exactly one of --source, --lerobot-port or --ur-host"),
+        (["--source", "sim:lite", "--ur-host", "10.0.0.2"], "(got --source, --ur-host)"),
+        (["--source", "bogus"], "--source 'bogus'"),
+        (["--source", "sim:lite", "--frame", "motor"], "--frame goes with --source replay:FILE"),
+        (["--lerobot-port", "sim"], "--lerobot-port needs --robot"),
+        (["--source", "sim:lite", "--package-path", "nope"], "expected NAME=DIR"),
+        (["--source", "replay:/nonexistent/rec.csv"], "no such file"),
+    ],
+)
+def test_cli_usage_errors(extra: list[str], needle: str, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run_cli(["view", "--urdf", str(LITE_URDF), "--port", "0", *extra], capsys)
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("error: ") and needle in err
+
+
+def test_cli_port_in_use(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        code, _, err = run_cli(
+            ["view", "--urdf", str(LITE_URDF), "--source", "sim:lite", "--port", str(port)], capsys
+        )
+    assert code == 2
+    assert (
+        err
+        == f"error: port {port} on 127.0.0.1 is in use by another program; pass --port with a free one (or --port 0 for any)\n"
+    )
+
+
+def test_cli_replay_for_a_duration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "rec.csv"
+    write_csv(rec, ["left_elbow_pitch"], [[0.0, -1.0], [0.5, -0.5]])
+    code, out, err = run_cli(
+        ["view", "--urdf", str(LITE_URDF), "--source", f"replay:{rec}", "--port", "0", "--duration", "0.5"],
+        capsys,
+    )
+    assert code == 0 and err == ""
+    assert out.startswith("robocal view: serving http://127.0.0.1:") and out.rstrip().endswith(
+        "(Ctrl-C to stop)"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]
+
+
+def test_ctrl_c_exits_cleanly() -> None:
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "robocal",
+            "view",
+            "--urdf",
+            str(LITE_URDF),
+            "--source",
+            "sim:lite",
+            "--port",
+            "0",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        assert line.startswith("robocal view: serving http://127.0.0.1:")
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0
+    assert err == "" and out == ""
