@@ -37,6 +37,12 @@ def demo(
     identify: bool = typer.Option(
         False, "--identify", help="Kinematic identification instead (so101, koch): simulate, identify, check."
     ),
+    view: bool = typer.Option(
+        False,
+        "--view",
+        help="Then show the calibrated simulated Lite in the browser (robocal view; Ctrl-C to stop).",
+    ),
+    port: int = typer.Option(8080, "--port", help="With --view: TCP port of the page (0: any free one)."),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
     robot = robot.strip().lower()
@@ -51,11 +57,36 @@ def demo(
             raise UsageError(f"cannot create --out folder {out}: {exc.strerror or exc}") from None
     if identify and robot not in IDENTIFY_ROBOTS:
         raise UsageError(f"--identify works with {', '.join(IDENTIFY_ROBOTS)}, not {robot!r}")
+    if view:
+        if robot != "lite" or identify:
+            raise UsageError(
+                "--view shows the Lite demo; for a LeRobot arm use "
+                "`robocal view --urdf URDF --lerobot-port sim --robot so101_follower --calibration FILE`"
+            )
+        raise typer.Exit(_demo_view(out, port))
     module = importlib.import_module("robocal.cli.kinematics" if identify else ROBOTS[robot])
     run = getattr(module, "run_demo", None)
     if run is None:
         raise UsageError(f"the {robot} demo is not available in this build")
     raise typer.Exit(int(run(robot, out)))
+
+
+def _demo_view(out: Path | None, port: int) -> int:
+    """Run the Lite sweep demo, then serve the calibrated simulated Lite; the worse of the two exit codes."""
+    import tempfile
+
+    from ..viewer.app import check_port_free
+    from ..viewer.demo import lite_view_options
+    from . import sweep, view
+
+    check_port_free("127.0.0.1", port)  # before the sweep, not after it
+    with tempfile.TemporaryDirectory(prefix="robocal-demo-") as tmp:
+        folder = out if out is not None else Path(tmp)
+        code = int(sweep.run_demo("lite", folder))
+        if code not in (0, 1):
+            return code
+        opts = lite_view_options(folder / "calibration.yaml", sweep.DEMO_SOURCE, port=port)
+        return max(code, view.serve(opts))
 
 
 def register(app: typer.Typer) -> None:

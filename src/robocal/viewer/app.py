@@ -565,7 +565,7 @@ class ViewerApp:
         centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
         size = max(0.3, float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))))
         server.initial_camera.look_at = tuple(float(x) for x in centre)
-        server.initial_camera.position = tuple(float(x) for x in centre + np.array([1.1, -1.3, 0.7]) * size)
+        server.initial_camera.position = tuple(float(x) for x in centre + np.array([1.6, -2.0, 1.1]) * size)
         self.robot.pose(rest)
         if self.ghost is not None:
             self.ghost.pose(rest)

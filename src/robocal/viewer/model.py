@@ -46,7 +46,7 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 RGBA = tuple[float, float, float, float]
-DEFAULT_RGBA: RGBA = (0.72, 0.74, 0.78, 1.0)
+DEFAULT_RGBA: RGBA = (0.42, 0.48, 0.58, 1.0)
 """Colour of a link without a URDF material."""
 ROD_RADIUS_M = 0.012
 BALL_RADIUS_M = 0.022
