@@ -220,3 +220,49 @@ def test_replay_play_pause_seek(served: ViewerApp) -> None:
     assert feed.position_s == 0.0
     with pytest.raises(UsageError):
         feed.seek(math.nan)
+
+
+def test_a_websocket_client_receives_the_pose_and_the_red_joint(served: ViewerApp) -> None:
+    """A real websocket client on viser's protocol: the messages carry the new orientation and the red row."""
+    import asyncio
+
+    import msgspec
+    import viser
+    import websockets
+    import zstandard
+
+    app = served
+    assert app.robot is not None
+    upper_path = app.robot.paths["upper"]
+
+    def decode(frame: bytes) -> list[dict[str, object]]:
+        size = int.from_bytes(frame[0:8], "little")
+        compressed = int.from_bytes(frame[8:16], "little")
+        inner = zstandard.ZstdDecompressor().decompress(frame[16 : 16 + compressed], max_output_size=size)
+        return list(msgspec.msgpack.decode(inner)["messages"])
+
+    async def run() -> tuple[list[float] | None, bool]:
+        url = app.url.replace("http://", "ws://")
+        async with websockets.connect(url, subprotocols=[f"viser-v{viser.__version__}"], max_size=None) as ws:
+            app.push(0.0, [1.3, 0.0])  # shoulder beyond its +1.0 limit
+            await asyncio.get_running_loop().run_in_executor(None, app.step)
+            wxyz = None
+            red = False
+            end = asyncio.get_running_loop().time() + 60
+            while (wxyz is None or not red) and asyncio.get_running_loop().time() < end:
+                frame = await asyncio.wait_for(ws.recv(), timeout=60)
+                assert isinstance(frame, bytes)
+                for m in decode(frame):
+                    if m.get("type") == "SetOrientationMessage" and m.get("name") == upper_path:
+                        wxyz = list(m["wxyz"])  # type: ignore[call-overload]
+                    updates = m.get("updates")
+                    if isinstance(updates, dict) and 'data-joint="shoulder" data-outside="1"' in str(
+                        updates.get("content", "")
+                    ):
+                        red = True
+            return wxyz, red
+
+    wxyz, red = asyncio.run(run())
+    assert wxyz is not None
+    np.testing.assert_allclose(wxyz, y_rotation(1.3), atol=1e-6)
+    assert red

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import socket
@@ -191,3 +192,144 @@ def test_ctrl_c_exits_cleanly() -> None:
             proc.kill()
     assert proc.returncode == 0
     assert err == "" and out == ""
+
+
+def test_lerobot_sim_arm_through_its_calibration(tmp_path: Path) -> None:
+    import json
+
+    from robocal.workflows.lerobot import robot_spec
+
+    spec = robot_spec("so101_follower")
+    ranges = {
+        "shoulder_pan": (900, 3300),
+        "shoulder_lift": (780, 3150),
+        "elbow_flex": (850, 3100),
+        "wrist_flex": (0, 4095),
+        "wrist_roll": (113, 3981),
+        "gripper": (2000, 3400),
+    }
+    cal = {
+        m.name: {"id": m.motor_id, "drive_mode": 0, "homing_offset": 0, "range_min": lo, "range_max": hi}
+        for m in spec.motors
+        for lo, hi in [ranges[m.name]]
+    }
+    path = tmp_path / "arm.json"
+    path.write_text(json.dumps(cal))
+    opts = ViewOptions(
+        urdf=REPO / "src" / "robocal" / "data" / "so101_shapes.urdf",
+        lerobot_port="sim",
+        robot="so101_follower",
+        calibration=path,
+        compare="none",
+        port=0,
+    )
+    with open_view(opts) as session:
+        wait_for(lambda: session.app.updates >= 2)
+        joints = {j["name"]: j for j in session.app.status()["joints"]}
+    # the simulated arm rests at its mid pose: shoulder_pan at tick 2100, the middle of its range (DEGREES: 0 rad)
+    assert joints["shoulder_pan"]["raw"] == 2100.0
+    assert joints["shoulder_pan"]["q"] == pytest.approx(0.0, abs=1e-12)
+    assert joints["shoulder_pan"]["q_compare"] == pytest.approx((2100 - 2048) * 2 * np.pi / 4096, abs=1e-12)
+    # shoulder_lift: LeRobot DEGREES, (present − mid)·2π/4095 with mid = (780 + 3150)/2
+    assert joints["shoulder_lift"]["q"] == pytest.approx((1950 - 1965) * 2 * np.pi / 4095, abs=1e-12)
+    # the gripper (a range-mode motor): the tick angle about the middle of its range
+    assert joints["gripper"]["q"] == pytest.approx((2300 - 2700) * 2 * np.pi / 4096, abs=1e-12)
+    assert session.app.raw_unit == "ticks"
+
+
+def test_demo_view_serves_the_calibrated_lite() -> None:
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocal", "demo", "--view", "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        assert proc.stdout is not None
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith("robocal view: serving http://127.0.0.1:"):
+                break
+        assert lines and lines[-1].startswith("robocal view: serving"), "".join(lines[-5:])
+        assert any("largest error" in ln for ln in lines)
+        proc.send_signal(signal.SIGINT)
+        _out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert err == ""
+
+
+def test_demo_view_only_for_the_lite(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run_cli(["demo", "--robot", "so101", "--view"], capsys)
+    assert code == 2 and err.startswith("error: --view shows the Lite demo")
+
+
+def six_joint_urdf(tmp_path: Path) -> Path:
+    joints = []
+    for k in range(6):
+        joints.append(
+            f'<link name="l{k + 1}"/><joint name="j{k + 1}" type="revolute"><parent link="l{k}"/>'
+            f'<child link="l{k + 1}"/><origin xyz="0 0 0.1"/><axis xyz="0 {k % 2} {1 - k % 2}"/>'
+            '<limit lower="-6.3" upper="6.3" effort="1" velocity="1"/></joint>'
+        )
+    p = tmp_path / "six.urdf"
+    p.write_text('<robot name="six"><link name="l0"/>' + "".join(joints) + "</robot>")
+    return p
+
+
+def test_ur_host_shows_the_controllers_joints(tmp_path: Path) -> None:
+    from robocal.backends.sim.ur_controller import SimUrController
+    from robocal.core.ur import nominal_dh
+
+    with SimUrController(nominal_dh("ur3e"), rate_hz=50.0) as sim:
+        host, port = sim.address
+        opts = ViewOptions(urdf=six_joint_urdf(tmp_path), ur_host=f"{host}:{port}", port=0)
+        seen: list[list[float]] = []
+        with open_view(opts) as session:
+
+            def two_poses() -> bool:
+                u = session.app.last_update
+                if u is not None and (not seen or seen[-1] != u.q.tolist()):
+                    seen.append(u.q.tolist())
+                return len(seen) >= 2
+
+            wait_for(two_poses)
+    assert all(len(q) == 6 and all(math.isfinite(x) for x in q) for q in seen)
+    assert seen[0] != seen[1]  # the simulated controller moves
+
+
+def test_ur_host_refuses_joint_calibrations(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run_cli(
+        ["view", "--urdf", str(six_joint_urdf(tmp_path)), "--ur-host", "127.0.0.1", "--compare", "none"],
+        capsys,
+    )
+    assert code == 2 and "robocal ur view" in err
+
+
+def test_cli_source_that_does_not_answer(capsys: pytest.CaptureFixture[str]) -> None:
+    """A CAN bus with no motor: the page serves, the failure is one error line, exit 3 (device)."""
+    code, out, err = run_cli(
+        [
+            "view",
+            "--urdf",
+            str(LITE_URDF),
+            "--source",
+            "can:virtual:robocal-view-test-nobody",
+            "--port",
+            "0",
+            "--duration",
+            "3",
+        ],
+        capsys,
+    )
+    assert code == 3
+    assert out.startswith("robocal view: serving")
+    assert err.count("\n") == 1 and err.startswith(
+        "error: no reply within 0.1 s from motor 'left_shoulder_pitch'"
+    )
+    assert err.rstrip().endswith("(the page keeps the last pose; Ctrl-C to stop)")

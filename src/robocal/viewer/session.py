@@ -375,7 +375,7 @@ def _open_lerobot(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> 
     if port == "sim":
         from ..backends.sim.lerobot_arms import SimArm
 
-        arm = SimArm(spec.name).start()
+        arm = SimArm(spec).start()
         port = arm.port
     try:
         bus = open_bus(spec, port)
