@@ -161,6 +161,11 @@ def test_cli_replay_for_a_duration(tmp_path: Path, capsys: pytest.CaptureFixture
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]
 
 
+def default_sigint() -> None:
+    """The child gets Ctrl-C even when the suite runs as a background job (which ignores SIGINT)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_exits_cleanly() -> None:
     env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
     proc = subprocess.Popen(
@@ -180,6 +185,7 @@ def test_ctrl_c_exits_cleanly() -> None:
         stderr=subprocess.PIPE,
         text=True,
         env=env,
+        preexec_fn=default_sigint,
     )
     try:
         assert proc.stdout is not None
@@ -190,8 +196,7 @@ def test_ctrl_c_exits_cleanly() -> None:
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 0
-    assert err == "" and out == ""
+    assert (proc.returncode, err, out) == (0, "", "")
 
 
 def test_lerobot_sim_arm_through_its_calibration(tmp_path: Path) -> None:
@@ -245,6 +250,7 @@ def test_demo_view_serves_the_calibrated_lite() -> None:
         stderr=subprocess.PIPE,
         text=True,
         env=env,
+        preexec_fn=default_sigint,
     )
     try:
         assert proc.stdout is not None

@@ -100,15 +100,15 @@ def serve(opts: object, *, open_browser: bool = False, duration_s: float | None 
     session = open_view(opts)
     reported = False
     try:
-        for w in session.warnings:
-            _common.print_warning(w)
-        _common.console.print(f"robocal view: serving {session.app.url}  (Ctrl-C to stop)", markup=False)
-        if open_browser:
-            import webbrowser
+        try:  # Ctrl-C anywhere from here on is the normal way to stop: close cleanly, exit 0
+            for w in session.warnings:
+                _common.print_warning(w)
+            _common.console.print(f"robocal view: serving {session.app.url}  (Ctrl-C to stop)", markup=False)
+            if open_browser:
+                import webbrowser
 
-            webbrowser.open(session.app.url)
-        end = None if duration_s is None else time.monotonic() + duration_s
-        try:
+                webbrowser.open(session.app.url)
+            end = None if duration_s is None else time.monotonic() + duration_s
             while end is None or time.monotonic() < end:
                 session.app.wait(0.2 if end is None else max(0.0, min(0.2, end - time.monotonic())))
                 err = session.feed.error
