@@ -6,9 +6,6 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("viser")
-pytest.importorskip("yourdfpy")
-
 REPO = Path(__file__).resolve().parents[2]
 LITE_URDF = REPO / "examples" / "lite" / "lite_bimanual.urdf"
 

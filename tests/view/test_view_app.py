@@ -13,6 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
+pytest.importorskip("yourdfpy")
+pytest.importorskip("trimesh")
+
 from robocal.core.jointmap import RobotCalibration
 from robocal.errors import DeviceError, UsageError
 from robocal.viewer import JointMapper, LatestFrame, ViewerApp, load_robot_model

@@ -15,6 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
+pytest.importorskip("yourdfpy")
+pytest.importorskip("trimesh")
+
 from robocal.cli.main import main
 from robocal.errors import JointMismatchError
 from robocal.formats import read_calibration

@@ -7,6 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
+pytest.importorskip("yourdfpy")
+pytest.importorskip("trimesh")
 import trimesh
 import yourdfpy
 from hypothesis import given

@@ -9,6 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
+pytest.importorskip("yourdfpy")
+pytest.importorskip("trimesh")
+
 from robocal.formats.urdf import parse_urdf
 from robocal.viewer import load_robot_model
 from robocal.viewer.shapes import add_simple_shapes
