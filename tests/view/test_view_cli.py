@@ -343,3 +343,75 @@ def test_cli_source_that_does_not_answer(capsys: pytest.CaptureFixture[str]) -> 
         "error: no reply within 0.1 s from motor 'left_shoulder_pitch'"
     )
     assert err.rstrip().endswith("(the page keeps the last pose; Ctrl-C to stop)")
+
+
+def write_bag(path: Path, names: list[str], t: list[float], rows: list[list[float]]) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    JointState = ts.types["sensor_msgs/msg/JointState"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        conn = w.add_connection("/lite/joint_states", JointState.__msgtype__, typestore=ts)
+        for ti, row in zip(t, rows, strict=True):
+            ns = round(ti * 1e9) + 1_000_000_000
+            msg = JointState(
+                header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                name=list(names),
+                position=np.asarray(row, dtype=np.float64),
+                velocity=np.zeros(0),
+                effort=np.zeros(0),
+            )
+            w.write(conn, ns, ts.serialize_cdr(msg, JointState.__msgtype__))
+
+
+def test_replay_rosbag2_mcap_with_the_slider(tmp_path: Path) -> None:
+    bag = tmp_path / "session"
+    write_bag(bag, ["right_elbow_pitch"], [0.0, 0.25, 0.5], [[-0.1], [-2.5], [-0.3]])
+    with open_view(ViewOptions(urdf=LITE_URDF, source=f"replay:{bag}", port=0)) as session:
+        feed = session.feed
+        feed.pause()  # type: ignore[attr-defined]
+        feed.seek(1.25)  # type: ignore[attr-defined]  # recording time: header stamps from 1 s
+        wait_for(lambda: session.app.last_update is not None and session.app.last_update.frame.t_s == 1.25)
+        status = session.app.status()
+    elbow = next(j for j in status["joints"] if j["name"] == "right_elbow_pitch")
+    # no calibration: q = direction·raw = the recorded identity-frame value; −2.5 is below the −2.356 limit
+    assert elbow["q"] == pytest.approx(-2.5) and elbow["outside"] is True and elbow["color"] == "red"
+    assert status["replay"]["start_s"] == 1.0 and status["replay"]["end_s"] == 1.5
+
+
+def test_missing_meshes_one_warning_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "rec.csv"
+    write_csv(rec, ["shoulder_pan"], [[0.0, 0.1]])
+    so101 = REPO / "src" / "robocal" / "data" / "so101_new_calib.urdf"
+    code, out, err = run_cli(
+        ["view", "--urdf", str(so101), "--source", f"replay:{rec}", "--port", "0", "--duration", "0.3"],
+        capsys,
+    )
+    assert code == 0 and out.startswith("robocal view: serving")
+    assert err.count("\n") == 1
+    assert err.startswith(
+        "warning: 17 mesh(es) of so101_new_calib.urdf could not be loaded and are drawn as simple shapes"
+    )
+
+
+def test_compare_file_with_a_flipped_direction_diverges_only_on_that_joint(tmp_path: Path) -> None:
+    text = LITE_CAL.read_text()
+    i = text.index("left_elbow_pitch:")
+    flipped = tmp_path / "flipped.yaml"
+    flipped.write_text(text[:i] + text[i:].replace("direction: -1", "direction: 1", 1))
+    opts = ViewOptions(
+        urdf=LITE_URDF, source="sim:lite?seed=5", calibration=LITE_CAL, compare=str(flipped), port=0
+    )
+    with open_view(opts) as session:
+        wait_for(lambda: session.app.updates >= 2)
+        u = session.app.last_update
+    assert u is not None and u.q_compare is not None
+    names = list(session.app.joint_names)
+    k = names.index("left_elbow_pitch")
+    assert u.q_compare[k] == pytest.approx(-u.q[k], abs=1e-12) and abs(u.q[k]) > 1e-3
+    others = [i for i in range(len(names)) if i != k]
+    np.testing.assert_array_equal(u.q_compare[others], u.q[others])
+    assert session.app.status()["compare"] == "flipped.yaml"
