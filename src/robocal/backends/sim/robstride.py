@@ -6,8 +6,14 @@ direction, hard stops, encoder noise and the power-on wrap (``[0, 2π)`` with ``
 every request addressed to one of its motors and answers it as the firmware would (types 0, 1, 3, 4, 6, 17,
 18, 22).
 
-The joint's true position is set from outside (by a simulated operator or a test), so a simulation runs as
-fast as the protocol allows, not in real time.
+Without a plant the joint's true position is set from outside (by a simulated operator or a test), so a
+simulation runs as fast as the protocol allows, not in real time. With a :class:`~.physics.JointPlant` and a
+:class:`~.physics.SimClock` the commands move the joint: every request first advances the clock by the bus
+latency and integrates the plant up to it, under the firmware's MIT law as it stood (``τ = kp·(p − θ) +
+kd·(v − ω) + τ_ff``, motor frame, clipped at the model's torque range and the ``limit_torque`` parameter
+0x700B; zero torque in reset mode). The type-2 feedback then carries the plant's position, velocity and torque;
+a latched overload sets fault bit 4 (bit 20 of the identifier; the torque is cut) until a type-4 stop with
+"clear faults"; a plant that does not answer (pressed into a stop, :attr:`JointPlant.answers`) loses its reply.
 """
 
 from __future__ import annotations
@@ -40,6 +46,7 @@ from ..robstride.protocol import (
     split_id,
     unpack_param_value,
 )
+from .physics import Drive, JointPlant, SimClock
 
 __all__ = ["SimMotor", "SimMotorBus"]
 
@@ -88,12 +95,24 @@ class SimMotor:
     zero_shift_rad: float = 0.0
     last_command: tuple[float, float, float, float, float] | None = None
     requests: dict[int, int] = field(default_factory=dict)
+    plant: JointPlant | None = None
+    """Physics of the joint (joint frame); None: the position is set from outside."""
+    clock: SimClock | None = None
+    """Simulated time the plant is integrated to at each request (required with a plant)."""
+    latency_s: float = 0.0005
+    """Bus latency added to the simulated clock per request (with a plant)."""
+    limit_torque_nm: float | None = None
+    """``limit_torque`` (0x700B); None: the model's torque range."""
     _branch_rad: float = 0.0
     _rng: Any = None
 
     def __post_init__(self) -> None:
         self.limits: ModelLimits = model_limits(self.model)
         self._rng = np.random.default_rng(self.seed)
+        if self.plant is not None and self.clock is None:
+            raise DeviceError(f"simulated motor {self.can_id}: a plant needs a simulated clock")
+        if self.plant is not None:
+            self.q_rad = self.plant.q_rad
         self.set_position(self.q_rad)
         self.power_on()
 
@@ -102,6 +121,27 @@ class SimMotor:
         """Move the joint (clamped to the hard stops)."""
         self.q_rad = min(max(q_rad, self.stop_lower_rad), self.stop_upper_rad)
         self.v_rad_s = v_rad_s
+        if self.plant is not None:
+            self.plant.set_state(self.q_rad, v_rad_s)
+
+    def drive(self) -> Drive:
+        """The firmware's torque law now, in the joint frame (limp unless enabled with an MIT command)."""
+        if self.mode != 2 or self.last_command is None:
+            return Drive()
+        p, v, kp, kd, t = self.last_command
+        d = self.direction
+        limit = self.limits.t_max_nm
+        if self.limit_torque_nm is not None:
+            limit = min(limit, max(0.0, self.limit_torque_nm))
+        q_ref = d * (p - self.true_homing_offset_rad)
+        return Drive(kp, kd, q_ref, d * v, d * t, limit)
+
+    def sync(self) -> None:
+        """Integrate the plant up to the clock under the current command (no-op without a plant)."""
+        if self.plant is None or self.clock is None:
+            return
+        self.plant.run_until(self.clock.now(), self.drive())
+        self.q_rad, self.v_rad_s = self.plant.q_rad, self.plant.v_rad_s
 
     def _continuous_raw(self) -> float:
         return self.direction * self.q_rad + self.factory_zero_rad - self.zero_shift_rad + self.add_offset_rad
@@ -124,7 +164,10 @@ class SimMotor:
 
     def reading_rad(self, noisy: bool = True) -> float:
         """Position the motor reports now (motor frame, rad)."""
-        x = self._continuous_raw() + self._branch_rad
+        if self.plant is not None and noisy:  # the plant's encoder: quantised, its own noise
+            x = self.direction * self.plant.read().q_rad + self.true_homing_offset_rad
+        else:
+            x = self._continuous_raw() + self._branch_rad
         if noisy and self.noise_rad > 0:
             x += float(self._rng.normal(0.0, self.noise_rad))
         if self.single_turn:
@@ -134,7 +177,11 @@ class SimMotor:
     def feedback(self, host_id: int) -> Feedback:
         """The type-2 frame content for the current state."""
         tau = 0.0
-        if self.last_command is not None and self.mode == 2:
+        faults = 0
+        if self.plant is not None:
+            tau = self.direction * self.plant.tau_motor_nm if self.mode == 2 else 0.0
+            faults = 0x10 if self.plant.latched else 0
+        elif self.last_command is not None and self.mode == 2:
             p, v, kp, kd, t_ff = self.last_command
             raw = self.reading_rad(noisy=False)
             tau = kp * (p - raw) + kd * (v - self.direction * self.v_rad_s) + t_ff
@@ -143,7 +190,7 @@ class SimMotor:
             motor_id=self.can_id,
             host_id=host_id,
             mode=self.mode,
-            faults=0,
+            faults=faults,
             position_rad=self.reading_rad(),
             velocity_rad_s=self.direction * self.v_rad_s,
             torque_nm=tau,
@@ -153,8 +200,18 @@ class SimMotor:
     # ----------------------------------------------------------------------------------------- protocol
     def handle(self, arbitration_id: int, data: bytes) -> list[tuple[int, bytes]]:
         """Answer one request frame addressed to this motor; returns the reply frames."""
-        comm, data16, _ = split_id(arbitration_id)
+        comm, _, _ = split_id(arbitration_id)
         self.requests[comm] = self.requests.get(comm, 0) + 1
+        if self.plant is not None and self.clock is not None:
+            self.clock.advance(self.latency_s)
+            self.sync()
+        replies = self._handle(arbitration_id, data)
+        if self.plant is not None and not self.plant.answers():
+            return []  # the reply is lost (the command was heard and obeyed)
+        return replies
+
+    def _handle(self, arbitration_id: int, data: bytes) -> list[tuple[int, bytes]]:
+        comm, data16, _ = split_id(arbitration_id)
         host = data16 & 0xFF
         if comm != CommType.MIT:
             self.host_id = host
@@ -171,6 +228,8 @@ class SimMotor:
             if bytes(data[:2]) == FIRMWARE_QUERY[:2]:
                 return [encode_firmware_reply(self.can_id, host, self.firmware)]
             self.mode = 0
+            if data[:1] == b"\x01" and self.plant is not None:
+                self.plant.clear_overload()
         elif comm == CommType.SET_ZERO:
             if self.run_mode == 1:  # blocked in PP mode
                 return [encode_feedback(self.feedback(host), self.limits)]
@@ -191,6 +250,8 @@ class SimMotor:
                 self._branch_rad -= value
             elif index == Param.RUN_MODE:
                 self.run_mode = int(value)
+            elif index == Param.LIMIT_TORQUE:
+                self.limit_torque_nm = value
         elif comm == CommType.SAVE:
             pass
         else:
@@ -208,6 +269,8 @@ class SimMotor:
             return self.add_offset_rad
         if index == Param.RUN_MODE:
             return float(self.run_mode)
+        if index == Param.LIMIT_TORQUE:
+            return self.limits.t_max_nm if self.limit_torque_nm is None else self.limit_torque_nm
         if index == Param.VBUS:
             return 24.0
         if index == 0x701E:  # loc_kp (the manual's example)
