@@ -10,6 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from robocal.core import lerobot as core
+from robocal.core.wrap_range import RangeTracker
 from robocal.errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError
 from robocal.lerobot import MotorCalibration, NormMode, normalize, unnormalize
 
@@ -333,16 +334,16 @@ def test_sign_magnitude_exhaustive(k: int) -> None:
 
 # ------------------------------------------------------------------------------------ §4.6 range tracking
 def test_range_tracker_lerobot_fixture_and_seam() -> None:
-    tr = core.RangeTracker.start([351, 28, 4002])
-    tr = tr.update([42, 3600, 2999]).update([1337, 2444, 146])
-    assert tr.wrap_unaware_min.tolist() == [42, 28, 146]
-    assert tr.wrap_unaware_max.tolist() == [1337, 3600, 4002]
-    seam = core.RangeTracker.start([4000])
-    for t in (4050, 4090, 20, 100, 60, 3990):
-        seam = seam.update([t])
-    assert (seam.wrap_unaware_min[0], seam.wrap_unaware_max[0]) == (20, 4090)  # LeRobot's clipped answer
-    assert (int(seam.min_unwrapped[0]), int(seam.max_unwrapped[0])) == (3990, 4196)
-    assert bool(seam.crossed_seam[0]) and not bool(seam.full_turn[0])
+    tr = RangeTracker(3, period=4096, units="ticks")
+    for reading in ([351, 28, 4002], [42, 3600, 2999], [1337, 2444, 146]):
+        tr.update(reading)
+    assert tr.raw_minimum.tolist() == [42, 28, 146]
+    assert tr.raw_maximum.tolist() == [1337, 3600, 4002]
+    seam = RangeTracker(1, period=4096, units="ticks")
+    for t in (4000, 4050, 4090, 20, 100, 60, 3990):
+        seam.update([t])
+    assert (seam.raw_minimum[0], seam.raw_maximum[0]) == (20, 4090)  # LeRobot's clipped answer
+    assert (int(seam.minimum[0]), int(seam.maximum[0])) == (3990, 4196)  # crossed the seam, not a full turn
     shift, lo, hi = core.centre_homing(3990, 4196)
     assert (shift, lo, hi) == (2046, 1944, 2150)
 
@@ -458,11 +459,11 @@ def test_malformed_inputs_raise_specific_errors() -> None:
 def test_range_tracker_recovers_true_travel(start: int, steps: list[int]) -> None:
     # a continuous physical path observed modulo 4096: the unwrapped extremes equal the path's extremes
     path = np.cumsum([start, *steps])
-    tr = core.RangeTracker.start([path[0] % 4096])
-    for p in path[1:]:
-        tr = tr.update([p % 4096])
-    assert int(tr.max_unwrapped[0] - tr.min_unwrapped[0]) == int(path.max() - path.min())
-    assert int(tr.min_unwrapped[0]) - int(path.min()) == int(path[0] % 4096) - int(path[0])
+    tr = RangeTracker(1, period=4096, units="ticks")
+    for p in path:
+        tr.update([p % 4096])
+    assert int(tr.maximum[0] - tr.minimum[0]) == int(path.max() - path.min())
+    assert int(tr.minimum[0]) - int(path.min()) == int(path[0] % 4096) - int(path[0])
     if path.max() - path.min() < 4095:
-        _shift, lo, hi = core.centre_homing(int(tr.min_unwrapped[0]), int(tr.max_unwrapped[0]))
+        _shift, lo, hi = core.centre_homing(int(tr.minimum[0]), int(tr.maximum[0]))
         assert 0 <= lo <= hi <= 4095 and abs((lo + hi) // 2 - 2047) <= 1

@@ -81,7 +81,7 @@ def test_tracker_ignores_nan_and_checks_shape() -> None:
     with pytest.raises(ShapeMismatchError, match=r"expected \(2,\)"):
         tr.update([1.0])
     with pytest.raises(InvalidCalibrationError, match="period"):
-        RangeTracker(1, period_rad=0.0)
+        RangeTracker(1, period=0.0)
     empty = RangeTracker(1)
     assert math.isnan(empty.minimum[0]) and empty.sweep[0] == 0.0
 

@@ -34,7 +34,6 @@ __all__ = [
     "LeRobotMotor",
     "LegacyCalibration",
     "MotorCalibration",
-    "RangeTracker",
     "RobotSpec",
     "apply_legacy",
     "autocorrect_legacy",
@@ -441,76 +440,6 @@ def half_turn_homing_offset(
     if vendor == "dynamixel":
         return half - pos
     raise InvalidCalibrationError(f"vendor {vendor!r}: expected 'feetech' or 'dynamixel'")
-
-
-@dataclass(frozen=True)
-class RangeTracker:
-    """Wrap-aware min/max of one or more motors' positions (fixes huggingface/lerobot#3586).
-
-    Positions are unwrapped across the 0/``resolution`` seam: a step larger than half a turn is taken as a
-    crossing, so a sweep through the seam gives a contiguous interval instead of (≈0, ≈4095).
-    Immutable: :meth:`update` returns a new tracker.
-
-    Attributes:
-        resolution: Ticks per turn.
-        first_ticks: Shape ``(n,)``, first reading (the unwrapping reference).
-        last_unwrapped: Shape ``(n,)``, last reading, unwrapped.
-        min_unwrapped: Shape ``(n,)``, smallest unwrapped reading.
-        max_unwrapped: Shape ``(n,)``, largest unwrapped reading.
-        wrap_unaware_min: Shape ``(n,)``, LeRobot's naive min (for comparison).
-        wrap_unaware_max: Shape ``(n,)``, LeRobot's naive max.
-    """
-
-    resolution: int
-    first_ticks: IntArray
-    last_unwrapped: IntArray
-    min_unwrapped: IntArray
-    max_unwrapped: IntArray
-    wrap_unaware_min: IntArray
-    wrap_unaware_max: IntArray
-
-    @classmethod
-    def start(cls, ticks: npt.ArrayLike, resolution: int = 4096) -> RangeTracker:
-        """Begin tracking at ``ticks`` (shape ``(n,)``)."""
-        t = np.atleast_1d(np.asarray(ticks, dtype=np.int64))
-        return cls(resolution, t.copy(), t.copy(), t.copy(), t.copy(), t.copy(), t.copy())
-
-    def update(self, ticks: npt.ArrayLike) -> RangeTracker:
-        """Add one reading (shape ``(n,)``) and return the new tracker."""
-        t = np.atleast_1d(np.asarray(ticks, dtype=np.int64))
-        if t.shape != self.first_ticks.shape:
-            raise ShapeMismatchError(f"reading has shape {t.shape}; expected {self.first_ticks.shape}")
-        half = self.resolution // 2
-        prev_wrapped = np.mod(self.last_unwrapped, self.resolution)
-        step = np.mod(t - prev_wrapped + half, self.resolution) - half
-        last = self.last_unwrapped + step
-        return RangeTracker(
-            self.resolution,
-            self.first_ticks,
-            last,
-            np.minimum(self.min_unwrapped, last),
-            np.maximum(self.max_unwrapped, last),
-            np.minimum(self.wrap_unaware_min, t),
-            np.maximum(self.wrap_unaware_max, t),
-        )
-
-    @property
-    def span_ticks(self) -> IntArray:
-        """Shape ``(n,)``: swept travel in ticks."""
-        out: IntArray = self.max_unwrapped - self.min_unwrapped
-        return out
-
-    @property
-    def crossed_seam(self) -> npt.NDArray[np.bool_]:
-        """Shape ``(n,)``: the travel left ``[0, resolution − 1]`` (the sweep went through the seam)."""
-        out: npt.NDArray[np.bool_] = (self.min_unwrapped < 0) | (self.max_unwrapped > self.resolution - 1)
-        return out
-
-    @property
-    def full_turn(self) -> npt.NDArray[np.bool_]:
-        """Shape ``(n,)``: the travel covers a whole turn or more."""
-        out: npt.NDArray[np.bool_] = self.span_ticks >= self.resolution - 1
-        return out
 
 
 def centre_homing(min_unwrapped: int, max_unwrapped: int, *, resolution: int = 4096) -> tuple[int, int, int]:

@@ -43,6 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError
+from .wrap_range import RangeTracker
 
 __all__ = [
     "CODES",
@@ -85,118 +86,6 @@ WARNING_CODES: tuple[str, ...] = (
 """Every warning code, in display order."""
 CODES: tuple[str, ...] = ("ok", *WARNING_CODES)
 """Every status code."""
-
-
-class RangeTracker:
-    """Running min/max of N joint positions that unwraps sample-to-sample jumps.
-
-    Consecutive samples that differ by more than half a period are taken to have crossed a wrap point
-    (the power-on wrap, the ±4π runtime wrap or a publisher that wraps to ±π) and are shifted by whole
-    periods, so a sweep that crosses the wrap gives its true range. Unwrapped values stay on the
-    branch of each joint's first sample. Non-finite samples are ignored per joint.
-
-    Args:
-        n_joints: Number of joints N.
-        period_rad: Wrap period (2π for Robstride positions).
-    """
-
-    def __init__(self, n_joints: int, period_rad: float = TWO_PI) -> None:
-        if n_joints < 0:
-            raise ShapeMismatchError(f"RangeTracker: n_joints {n_joints} must be >= 0")
-        if not (math.isfinite(period_rad) and period_rad > 0):
-            raise InvalidCalibrationError(f"RangeTracker: period {period_rad} must be finite and > 0")
-        self.n_joints = n_joints
-        self.period_rad = float(period_rad)
-        self._last = np.full(n_joints, np.nan)  # last raw (wrapped) sample
-        self._current = np.full(n_joints, np.nan)  # last unwrapped sample
-        self._min = np.full(n_joints, np.inf)
-        self._max = np.full(n_joints, -np.inf)
-        self._count = np.zeros(n_joints, dtype=np.int64)
-        self._inv_period = 1.0 / self.period_rad
-        self._started = False
-        self._fast = 0  # samples added by the fast path (every joint counted)
-
-    def _check(self, s: Any, ndim: int) -> FloatArray:
-        arr = np.asarray(s, dtype=np.float64)
-        if arr.ndim != ndim or arr.shape[-1] != self.n_joints:
-            want = f"({self.n_joints},)" if ndim == 1 else f"(T, {self.n_joints})"
-            raise ShapeMismatchError(f"RangeTracker: sample has shape {arr.shape}; expected {want}")
-        return arr
-
-    def update(self, s_rad: npt.ArrayLike) -> None:
-        """Add one sample, shape ``(N,)``, rad (fast path once every joint has a finite sample)."""
-        x = self._check(s_rad, 1)
-        if not self._started:
-            self.update_many(x[None, :])
-            self._started = bool(np.all(self._count > 0))
-            return
-        d = x - self._last
-        if not math.isfinite(d.sum()):
-            self.update_many(x[None, :])
-            return
-        d -= self.period_rad * np.floor(d * self._inv_period + 0.5)
-        d += self._current
-        np.minimum(self._min, d, out=self._min)
-        np.maximum(self._max, d, out=self._max)
-        self._fast += 1
-        self._current = d
-        self._last = x.copy()
-
-    def update_many(self, s_rad: npt.ArrayLike) -> None:
-        """Add a block of samples, shape ``(T, N)``, rad (rows in time order)."""
-        S = self._check(s_rad, 2)
-        if S.shape[0] == 0:
-            return
-        finite = np.isfinite(S)
-        last = self._last.copy()
-        cur = self._current.copy()
-        fresh = ~np.isfinite(last) & finite.any(axis=0)
-        if fresh.any():  # a joint's first finite sample starts its branch
-            first_row = np.argmax(finite, axis=0)
-            first_val = S[first_row, np.arange(self.n_joints)]
-            last[fresh] = first_val[fresh]
-            cur[fresh] = first_val[fresh]
-        if not finite.all():  # forward-fill gaps with the previous finite value
-            idx = np.where(finite, np.arange(S.shape[0])[:, None], -1)
-            np.maximum.accumulate(idx, axis=0, out=idx)
-            S = np.take_along_axis(np.vstack([last[None, :], S]), idx + 1, axis=0)
-        d = np.diff(np.vstack([last[None, :], S]), axis=0)
-        d = np.nan_to_num(d - self.period_rad * np.round(d / self.period_rad), nan=0.0)
-        U = cur[None, :] + np.cumsum(d, axis=0)
-        valid = finite
-        np.minimum(self._min, np.where(valid, U, np.inf).min(axis=0), out=self._min)
-        np.maximum(self._max, np.where(valid, U, -np.inf).max(axis=0), out=self._max)
-        self._count += valid.sum(axis=0)
-        seen = valid.any(axis=0)
-        self._current = np.where(seen, U[-1], cur)
-        self._last = np.where(seen, S[-1], last)
-
-    @property
-    def count(self) -> npt.NDArray[np.int64]:
-        """Finite samples seen per joint, shape ``(N,)``."""
-        out: npt.NDArray[np.int64] = self._count + self._fast
-        return out
-
-    @property
-    def current(self) -> FloatArray:
-        """Latest unwrapped position per joint, shape ``(N,)``, rad (NaN before the first sample)."""
-        out: FloatArray = self._current.copy()
-        return out
-
-    @property
-    def minimum(self) -> FloatArray:
-        """Unwrapped minimum per joint, shape ``(N,)``, rad (NaN before the first sample)."""
-        return np.where(self.count > 0, self._min, np.nan)
-
-    @property
-    def maximum(self) -> FloatArray:
-        """Unwrapped maximum per joint, shape ``(N,)``, rad (NaN before the first sample)."""
-        return np.where(self.count > 0, self._max, np.nan)
-
-    @property
-    def sweep(self) -> FloatArray:
-        """``maximum − minimum`` per joint, shape ``(N,)``, rad (0 before the first sample)."""
-        return np.where(self.count > 0, self._max - self._min, 0.0)
 
 
 def bisect_homing_offset(

@@ -30,12 +30,12 @@ from ..core.jointmap import RobotCalibration
 from ..core.lerobot import (
     LegacyCalibration,
     MotorCalibration,
-    RangeTracker,
     RobotSpec,
     centre_homing,
     half_turn_homing_offset,
     legacy_calibration_from_poses,
 )
+from ..core.wrap_range import RangeTracker
 from ..errors import CalibError, InvalidCalibrationError, UsageError
 from ..fileio import check_output_path
 from ..formats.lerobot import write_current, write_legacy
@@ -511,20 +511,21 @@ def calibrate(
             raise UsageError(f"{spec.name}: no motor to sweep")
         operator.prompt("sweep", "Move every joint through its whole range of motion, then press ENTER")
         first = bus.sync_read("Present_Position", swept_ids)
-        tracker = RangeTracker.start([first[i] for i in swept_ids], resolution=res[swept[0].name])
+        tracker = RangeTracker(len(swept), period=res[swept[0].name], units="ticks")
+        tracker.update([first[i] for i in swept_ids])
         step = 0
         while True:
             done = operator.sweep_step()
             now = bus.sync_read("Present_Position", swept_ids)
-            tracker = tracker.update([now[i] for i in swept_ids])
+            tracker.update([now[i] for i in swept_ids])
             step += 1
             if on_sweep is not None:
                 on_sweep(
                     SweepView(
                         tuple(m.name for m in swept),
                         tuple(now[i] for i in swept_ids),
-                        tuple(int(v) for v in tracker.min_unwrapped),
-                        tuple(int(v) for v in tracker.max_unwrapped),
+                        tuple(int(v) for v in tracker.minimum),
+                        tuple(int(v) for v in tracker.maximum),
                         step,
                     )
                 )
@@ -535,17 +536,17 @@ def calibrate(
         naive: dict[str, tuple[int, int]] = {}
         for k, m in enumerate(swept):
             r = res[m.name]
-            lo, hi = int(tracker.min_unwrapped[k]), int(tracker.max_unwrapped[k])
-            naive[m.name] = (int(tracker.wrap_unaware_min[k]), int(tracker.wrap_unaware_max[k]))
+            lo, hi = int(tracker.minimum[k]), int(tracker.maximum[k])
+            naive[m.name] = (int(tracker.raw_minimum[k]), int(tracker.raw_maximum[k]))
             base = 0 if home_after_sweep else offsets[m.name]
             if lo == hi:
                 raise InvalidCalibrationError(
                     f"motor {m.name!r} (id {m.motor_id}) did not move during the sweep"
                 )
-            if bool(tracker.full_turn[k]):
+            if hi - lo >= r - 1:  # the travel covers a whole turn or more
                 notes.append(f"{m.name}: swept a full turn; range set to 0..{r - 1}")
                 offset, rmin, rmax = offsets[m.name], 0, r - 1
-            elif home_after_sweep or bool(tracker.crossed_seam[k]):
+            elif home_after_sweep or lo < 0 or hi > r - 1:  # the travel went through the 0/r-1 seam
                 if not home_after_sweep:
                     notes.append(
                         f"{m.name}: the sweep crossed the 0/{r - 1} seam (LeRobot would record "
