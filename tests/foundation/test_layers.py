@@ -27,7 +27,11 @@ HEAVY = [
 
 
 def test_core_imports_with_numpy_alone() -> None:
-    modules = sorted(p.stem for p in (SRC / "core").glob("*.py") if p.stem != "__init__")
+    modules = sorted(
+        ".".join(p.relative_to(SRC / "core").with_suffix("").parts).removesuffix(".__init__")
+        for p in (SRC / "core").rglob("*.py")
+        if p.parent != SRC / "core" or p.stem != "__init__"
+    )
     code = (
         "import sys\n"
         + "".join(f"import robocal.core.{m}\n" for m in modules)
@@ -42,7 +46,7 @@ def test_core_imports_with_numpy_alone() -> None:
         env={"PYTHONPATH": str(SRC.parent)},
     )
     assert out.stdout.strip() == "", f"robocal.core pulled in: {out.stdout.strip()}"
-    assert "jointmap" in modules
+    assert "jointmap" in modules and "lerobot.normalisation" in modules
 
 
 def _robocal_imports(path: Path) -> set[str]:

@@ -5,7 +5,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -14,14 +13,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..core.jointmap import RobotCalibration
-from ..core.lerobot import (
+from ..core.lerobot.legacy import (
     LegacyCalibration,
     apply_legacy,
     autocorrect_legacy,
+    degree_joint_map,
     degrees_to_steps,
     legacy_calibration_from_poses,
     revert_legacy,
+    to_robot_calibration,
 )
 from ..errors import InvalidCalibrationError
 from ..formats import lerobot as _fmt
@@ -82,55 +82,3 @@ def apply_calibration(raw: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray
 def revert_calibration(values: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.int64]:
     """Degrees / percent ``(..., n_motors)`` (a scalar for one motor) → raw ticks, ``np.round`` (half to even)."""
     return _one_motor(revert_legacy, values, cal)
-
-
-def degree_joint_map(cal: LegacyCalibration) -> tuple[RobotCalibration, tuple[str, ...]]:
-    """The exact joint map of a legacy calibration's DEGREE motors, and the LINEAR motors left out.
-
-    A LeRobot SO-100 file has a LINEAR gripper next to five DEGREE joints; the joints convert exactly (see
-    :func:`to_robot_calibration`), the gripper (a percentage of a start..end span) has no joint angle.
-
-    Raises:
-        InvalidCalibrationError: Every motor is LINEAR (nothing to convert; all are named).
-    """
-    if not isinstance(cal, LegacyCalibration):
-        raise InvalidCalibrationError(
-            f"cal is a {type(cal).__name__}; expected a LegacyCalibration (see read_legacy)"
-        )
-    keep = [i for i, mode in enumerate(cal.calib_mode) if mode == "DEGREE"]
-    linear = tuple(cal.motor_names[i] for i, mode in enumerate(cal.calib_mode) if mode == "LINEAR")
-    if not keep:
-        raise InvalidCalibrationError(
-            f"LINEAR motor(s) {', '.join(linear)} are not convertible to a joint map "
-            "(percent of a start..end span, not an angle) and there is no DEGREE motor"
-        )
-    sub = LegacyCalibration(
-        [cal.motor_names[i] for i in keep],
-        cal.homing_offset[keep],
-        cal.drive_mode[keep],
-        cal.start_pos[keep],
-        cal.end_pos[keep],
-        [cal.calib_mode[i] for i in keep],
-    )
-    return to_robot_calibration(sub), linear
-
-
-def to_robot_calibration(cal: LegacyCalibration) -> RobotCalibration:
-    """Exact canonical joint map of a legacy DEGREE calibration, in radians.
-
-    Legacy: ``q_rad = (±raw + h)·π/2048``. Canonical: ``q = direction·scale·(raw − homing_offset)`` with
-    ``direction = −1 if drive_mode else +1``, ``scale = π/2048`` rad/tick and
-    ``homing_offset = −direction·h`` ticks.
-
-    Raises:
-        InvalidCalibrationError: Naming every LINEAR motor (a percentage has no joint-angle equivalent).
-    """
-    linear = [m for m, mode in zip(cal.motor_names, cal.calib_mode, strict=True) if mode == "LINEAR"]
-    if linear:
-        raise InvalidCalibrationError(
-            f"LINEAR motor(s) {', '.join(linear)} are not convertible to a joint map "
-            "(percent of a start..end span, not an angle); only DEGREE motors are"
-        )
-    direction = np.where(cal.drive_mode == 1, -1.0, 1.0)
-    homing = -direction * cal.homing_offset.astype(np.float64)
-    return RobotCalibration(cal.motor_names, direction, homing, math.pi / 2048)
