@@ -13,7 +13,8 @@ from robocal.backends.dynamixel import DynamixelBus
 from robocal.backends.feetech import FeetechBus
 from robocal.backends.sim.servo import SimServo, SimServoBus
 from robocal.cli.main import main
-from robocal.errors import InvalidCalibrationError, UsageError
+from robocal.errors import FileFormatError, InvalidCalibrationError, UsageError
+from robocal.formats.lerobot import LEGACY_KEYS
 from robocal.lerobot import MotorCalibration, calibration_path, legacy, normalize, unnormalize
 from robocal.workflows.lerobot import robot_spec
 
@@ -82,8 +83,8 @@ def test_bad_resolution_is_refused(resolution: int) -> None:
 
 def test_legacy_file_without_motors_is_refused(tmp_path: Path) -> None:
     p = tmp_path / "empty.json"
-    p.write_text(json.dumps({k: [] for k in legacy._fmt.LEGACY_KEYS}))
-    with pytest.raises(legacy._fmt.FileFormatError, match="no motors"):
+    p.write_text(json.dumps({k: [] for k in LEGACY_KEYS}))
+    with pytest.raises(FileFormatError, match="no motors"):
         legacy.read_legacy(p)
 
 

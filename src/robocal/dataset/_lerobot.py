@@ -1,6 +1,6 @@
 """LeRobot conventions for dataset values: current (normalised) and legacy (degrees / percent).
 
-Current scheme, per motor (normalisation by :mod:`robocal.lerobot`)::
+Current scheme, per motor (normalisation by :mod:`robocal.core.lerobot.normalisation`)::
 
     value --unnormalize--> present ticks --homing offset in the motor--> actual ticks
     Feetech:   actual = present + homing_offset     (firmware: Present = Actual − Homing_Offset)
@@ -10,7 +10,7 @@ Feetech STS servos report a single-turn position, so a new present position is w
 ``[0, resolution)``; Dynamixel arms (Koch) run in extended-position mode and are not wrapped.
 
 Legacy scheme: the offset lived in software only, so present = actual and the value is LeRobot's legacy
-``apply_calibration`` (DEGREE or LINEAR, :mod:`robocal.lerobot.legacy`).
+``apply_calibration`` (DEGREE or LINEAR, :mod:`robocal.core.lerobot.legacy`).
 """
 
 from __future__ import annotations
@@ -32,11 +32,12 @@ from ..core.lerobot import (
     parse_compat,
     parse_convention,
 )
+from ..core.lerobot.legacy import revert_calibration
+from ..core.lerobot.normalisation import NormMode, normalize, unnormalize
 from ..core.profile import RobotProfile
 from ..errors import FileFormatError, InvalidCalibrationError, JointMismatchError, UsageError
 from ..fileio import read_text
-from ..lerobot import NormMode, normalize, unnormalize
-from ..lerobot import legacy as _legacy
+from ..formats.lerobot import read_current, read_legacy
 from ._convention import BoolArray, FloatArray, JointMapConvention, ValueConvention
 
 __all__ = [
@@ -188,7 +189,7 @@ class LeRobotConvention:
         return 1.0 if self.family == "feetech" else -1.0
 
     def _norm_options(self) -> dict[str, Any]:
-        """Keyword arguments of ``robocal.lerobot.normalize`` / ``unnormalize`` for this convention."""
+        """Keyword arguments of ``normalize`` / ``unnormalize`` for this convention."""
         return {
             "apply_drive_mode": self._apply_drive_mode,
             "compat": self.compat,
@@ -371,7 +372,7 @@ class LegacyConvention:
 
     def to_actual(self, values: FloatArray) -> FloatArray:
         """Legacy values ``(N, D)`` → ticks (LeRobot's ``revert_calibration``, rounded)."""
-        return _legacy.revert_calibration(values, self.calibration).astype(np.float64)
+        return revert_calibration(values, self.calibration).astype(np.float64)
 
     def _bounds(self) -> tuple[FloatArray, FloatArray]:
         lo = np.array([LEGACY_BOUNDS[m][0] for m in self.calibration.calib_mode])
@@ -473,8 +474,6 @@ def load_convention(
         raise FileFormatError(f"{what} {p}: no such file")
     kind = _json_kind(p)
     if kind == "current":
-        from ..lerobot import read_calibration as read_current
-
         # motors the dataset does not hold (e.g. LeKiwi's base wheels) are not needed and have no mode
         cals = {n: c for n, c in read_current(p).items() if n in joint_names}
         if family is None:
@@ -483,7 +482,7 @@ def load_convention(
             raise UsageError(f"{what} {p} is a LeRobot calibration: pass --robot or --modes")
         return LeRobotConvention.from_calibrations(cals, modes, family, compat, convention)
     if kind == "legacy":
-        return LegacyConvention(_legacy.read_legacy(p))
+        return LegacyConvention(read_legacy(p))
     from ..formats import read_calibration
 
     cf = read_calibration(p, joint_order=list(joint_names))

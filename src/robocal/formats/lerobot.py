@@ -20,15 +20,16 @@ from typing import Any
 
 from ..core.lerobot import LegacyCalibration, MotorCalibration, ranges_beyond_one_turn
 from ..errors import CalibError, FileFormatError, InvalidCalibrationError, UsageError
-from ..fileio import atomic_write_text, read_text
-from ..fileio import check_output_path as _check_output_path
+from ..fileio import atomic_write_text, check_output_path, read_text
 from ._json import load_json
 
 __all__ = [
     "CURRENT_FIELDS",
+    "KINDS",
     "LEGACY_KEYS",
     "LeRobotRangeWarning",
-    "check_output_path",
+    "calibration_path",
+    "default_calibration_root",
     "dumps_current",
     "dumps_legacy",
     "parse_current",
@@ -157,19 +158,6 @@ def read_current(path: PathLike) -> dict[str, MotorCalibration]:
     return parse_current(read_text(path, "LeRobot calibration"), str(path))
 
 
-def check_output_path(path: PathLike) -> Path:
-    """Refuse, before anything is done, an output file that cannot be created (missing folders may be).
-
-    The generic preflight of :func:`robocal.fileio.check_output_path` with ``create_dirs=True``: the nearest
-    existing folder must be writable, names within the limits, the disk not full.
-
-    Raises:
-        FileWriteError: ``path`` is a directory, one of its existing parents is not a folder, the folder is
-            not writable, ... (a ``UsageError``).
-    """
-    return _check_output_path(path, "cannot write", create_dirs=True)
-
-
 def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_dirs: bool = True) -> Path:
     """Write a current LeRobot calibration JSON atomically (keeps ``NAME.bak``); validates first.
 
@@ -178,11 +166,12 @@ def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_
 
     Raises:
         FileFormatError: The calibration would not read back (duplicate ids, ``range_min >= range_max``, ...).
-        UsageError: The file cannot be created there (see :func:`check_output_path`).
+        UsageError: The file cannot be created there (:func:`robocal.fileio.check_output_path`, missing
+            folders allowed).
     """
     text = dumps_current(cals)
     parse_current(text, str(path))
-    p = check_output_path(path)
+    p = check_output_path(path, "cannot write", create_dirs=True)
     for message in ranges_beyond_one_turn(cals):
         warnings.warn(f"{p}: {message}", LeRobotRangeWarning, stacklevel=2)
     if make_dirs:
@@ -287,3 +276,53 @@ def write_legacy(path: PathLike, cal: LegacyCalibration) -> Path:
     text = dumps_legacy(cal)
     parse_legacy(text, str(path))  # refuses what would not read back (e.g. a lone surrogate in a name)
     return atomic_write_text(path, text)
+
+
+# ------------------------------------------------------------------------------ calibration paths
+KINDS = {
+    "robots": "robots",
+    "robot": "robots",
+    "teleoperators": "teleoperators",
+    "teleoperator": "teleoperators",
+}
+
+
+def default_calibration_root() -> Path:
+    """LeRobot's calibration root folder.
+
+    ``$HF_LEROBOT_CALIBRATION``, else ``$HF_LEROBOT_HOME/calibration``, else ``$HF_HOME/lerobot/calibration``
+    where ``HF_HOME`` defaults like ``huggingface_hub`` to ``$XDG_CACHE_HOME/huggingface``, else
+    ``~/.cache/huggingface`` (so ``~/.cache/huggingface/lerobot/calibration``). Empty variables count as unset.
+    """
+    env = os.environ
+    if env.get("HF_LEROBOT_CALIBRATION"):
+        return Path(env["HF_LEROBOT_CALIBRATION"]).expanduser()
+    if env.get("HF_LEROBOT_HOME"):
+        return Path(env["HF_LEROBOT_HOME"]).expanduser() / "calibration"
+    if env.get("HF_HOME"):
+        hf_home = Path(os.path.expandvars(os.path.expanduser(env["HF_HOME"])))
+    else:
+        cache = Path(env["XDG_CACHE_HOME"]) if env.get("XDG_CACHE_HOME") else Path.home() / ".cache"
+        hf_home = Path(os.path.expandvars(os.path.expanduser(cache / "huggingface")))
+    return hf_home / "lerobot" / "calibration"
+
+
+def calibration_path(
+    kind: str, name: str, id: str | None, root: str | os.PathLike[str] | None = None
+) -> Path:
+    """LeRobot's calibration file path ``ROOT/{robots|teleoperators}/<name>/<id>.json``.
+
+    Args:
+        kind: ``"robots"`` or ``"teleoperators"`` (singular accepted).
+        name: Device class name, e.g. ``"so_follower"`` (v0.4.3+), ``"so101_follower"`` (older),
+            ``"koch_leader"``.
+        id: The robot id; ``None`` gives LeRobot's literal ``None.json``.
+        root: Calibration root; default :func:`default_calibration_root`.
+    """
+    if kind not in KINDS:
+        raise UsageError(f"calibration kind {kind!r}: expected 'robots' or 'teleoperators'")
+    for what, value in (("name", name), ("id", str(id))):
+        if not value or "/" in value or "\\" in value or value in (".", ".."):
+            raise UsageError(f"calibration {what} {value!r}: expected a plain file name")
+    base = Path(root).expanduser() if root is not None else default_calibration_root()
+    return base / KINDS[kind] / name / f"{id}.json"

@@ -374,7 +374,7 @@ def configure(
         gripper = next(m for m in spec.motors if m.name == "gripper")
         if gripper.name not in calibration:
             raise InvalidCalibrationError("calibration has no entry for motor 'gripper'")
-        from ..lerobot import unnormalize
+        from ..core.lerobot.normalisation import unnormalize
 
         goal = int(
             unnormalize(
@@ -398,7 +398,7 @@ def norm_modes(
     Raises:
         UsageError: An override names an unknown motor or mode.
     """
-    from ..lerobot import NormMode
+    from ..core.lerobot.normalisation import NormMode
 
     valid = {v.value for v in NormMode}
     over = dict(overrides or {})

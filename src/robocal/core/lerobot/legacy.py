@@ -8,9 +8,9 @@ Six parallel arrays per arm (:class:`LegacyCalibration`); DEGREE motors read
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -28,6 +28,7 @@ __all__ = [
     "UPPER_BOUND_DEGREE",
     "UPPER_BOUND_LINEAR",
     "LegacyCalibration",
+    "apply_calibration",
     "apply_legacy",
     "autocorrect_legacy",
     "avoid_rotation_reset",
@@ -35,6 +36,7 @@ __all__ = [
     "degrees_to_steps",
     "legacy_calibration_from_poses",
     "nearest_rounded_position",
+    "revert_calibration",
     "revert_legacy",
     "to_robot_calibration",
 ]
@@ -371,6 +373,37 @@ def legacy_calibration_from_poses(
     return LegacyCalibration(motor_names, homing, drive_mode, zero, rot_driven, modes)
 
 
+# ------------------------------------------------------------- LeRobot's names, one motor as a scalar
+def _one_motor(
+    kernel: Callable[[npt.ArrayLike, LegacyCalibration], npt.NDArray[Any]],
+    x: npt.ArrayLike,
+    cal: LegacyCalibration,
+) -> npt.NDArray[Any]:
+    """A scalar for a one-motor calibration is that motor's value (result of shape ``()``)."""
+    if not isinstance(cal, LegacyCalibration):
+        raise InvalidCalibrationError(
+            f"cal is a {type(cal).__name__}; expected a LegacyCalibration (see read_legacy)"
+        )
+    if len(cal.motor_names) == 1 and np.ndim(x) == 0:
+        one: npt.NDArray[Any] = kernel(np.asarray(x)[np.newaxis], cal)[..., 0]
+        return one
+    return kernel(x, cal)
+
+
+def apply_calibration(raw: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.float64]:
+    """Raw ticks ``(..., n_motors)`` (a scalar for one motor) → degrees (DEGREE) / percent (LINEAR).
+
+    Raises:
+        JointOutOfRangeError: With LeRobot's message, outside ±270° / −10..110 %.
+    """
+    return _one_motor(apply_legacy, raw, cal)
+
+
+def revert_calibration(values: npt.ArrayLike, cal: LegacyCalibration) -> npt.NDArray[np.int64]:
+    """Degrees / percent ``(..., n_motors)`` (a scalar for one motor) → raw ticks, ``np.round`` (half to even)."""
+    return _one_motor(revert_legacy, values, cal)
+
+
 # -------------------------------------------------------------------------------- exact joint map
 def degree_joint_map(cal: LegacyCalibration) -> tuple[RobotCalibration, tuple[str, ...]]:
     """The exact joint map of a legacy calibration's DEGREE motors, and the LINEAR motors left out.
@@ -383,7 +416,7 @@ def degree_joint_map(cal: LegacyCalibration) -> tuple[RobotCalibration, tuple[st
     """
     if not isinstance(cal, LegacyCalibration):
         raise InvalidCalibrationError(
-            f"cal is a {type(cal).__name__}; expected a LegacyCalibration (see robocal.lerobot.legacy.read_legacy)"
+            f"cal is a {type(cal).__name__}; expected a LegacyCalibration (see read_legacy)"
         )
     keep = [i for i, mode in enumerate(cal.calib_mode) if mode == "DEGREE"]
     linear = tuple(cal.motor_names[i] for i, mode in enumerate(cal.calib_mode) if mode == "LINEAR")

@@ -17,21 +17,27 @@ Two independent choices:
 
 from __future__ import annotations
 
-from typing import Literal, cast, get_args
+from collections.abc import Callable, Mapping, Sequence
+from enum import Enum
+from typing import Any, Literal, cast, get_args
 
 import numpy as np
 import numpy.typing as npt
 
 from ...errors import InvalidCalibrationError, ShapeMismatchError, UsageError
 from ._values import FloatArray, IntArray, _as_float_array, _check_resolution, _check_values, _to_ticks
+from .calibration import MotorCalibration
 
 __all__ = [
     "MODE_CODES",
     "Compat",
     "Convention",
+    "NormMode",
+    "normalize",
     "normalize_array",
     "parse_compat",
     "parse_convention",
+    "unnormalize",
     "unnormalize_array",
 ]
 
@@ -202,3 +208,182 @@ def unnormalize_array(
     if compat == "lerobot":
         return _to_ticks(np.trunc(out), "values")
     return _to_ticks(np.sign(out) * np.floor(np.abs(out) + 0.5), "values")
+
+
+# ------------------------------------------------------------------ per-motor dispatch (public API)
+class NormMode(str, Enum):
+    """LeRobot ``MotorNormMode``; plain strings with these values are accepted everywhere."""
+
+    RANGE_M100_100 = "range_m100_100"
+    RANGE_0_100 = "range_0_100"
+    DEGREES = "degrees"
+
+
+CalibrationArg = MotorCalibration | Sequence[MotorCalibration] | Mapping[str, MotorCalibration]
+ModeArg = NormMode | str | Sequence[NormMode | str] | Mapping[str, NormMode | str]
+
+
+def _mode_code(mode: object) -> int:
+    value = mode.value if isinstance(mode, NormMode) else mode
+    if not isinstance(value, str) or value not in MODE_CODES:
+        raise InvalidCalibrationError(f"norm mode {mode!r}: expected one of {', '.join(MODE_CODES)}")
+    return MODE_CODES[value]
+
+
+def _unpack(calibration: CalibrationArg, mode: ModeArg) -> tuple[bool, list[MotorCalibration], list[int]]:
+    """``(one motor, calibrations, mode codes)``; a Mapping (as read from a file) is taken in its order."""
+    single = isinstance(calibration, MotorCalibration)
+    if isinstance(calibration, MotorCalibration):
+        cals = [calibration]
+    elif isinstance(calibration, Mapping):
+        cals = list(calibration.values())
+    elif isinstance(calibration, (str, bytes)):
+        cals = []
+    else:
+        try:
+            cals = list(calibration)
+        except TypeError:
+            cals = []
+    if not cals or not all(isinstance(c, MotorCalibration) for c in cals):
+        raise InvalidCalibrationError(
+            "calibration: expected a MotorCalibration or a non-empty sequence of them"
+        )
+    if isinstance(mode, (str, NormMode)):
+        codes = [_mode_code(mode)] * len(cals)
+    elif isinstance(mode, Mapping):
+        if not isinstance(calibration, Mapping):
+            raise InvalidCalibrationError(
+                "modes given by motor name need the calibration as a motor name → MotorCalibration mapping "
+                "(as read_calibration returns); with a sequence of calibrations give one mode per motor in order"
+            )
+        names = list(calibration)
+        missing = [n for n in names if n not in mode]
+        unknown = [str(n) for n in mode if n not in calibration]
+        if missing or unknown:
+            parts = []
+            if missing:
+                parts.append(f"no mode for motor(s) {', '.join(map(str, missing))}")
+            if unknown:
+                parts.append(f"mode(s) for unknown motor(s) {', '.join(unknown)}")
+            raise ShapeMismatchError(f"modes by motor name: {'; '.join(parts)}")
+        codes = []
+        for n in names:
+            try:
+                codes.append(_mode_code(mode[n]))
+            except InvalidCalibrationError as exc:
+                raise InvalidCalibrationError(f"motor {n!r}: {exc}") from None
+    else:
+        try:
+            modes = list(mode)
+        except TypeError:
+            raise InvalidCalibrationError(
+                f"norm mode {mode!r}: expected one of {', '.join(MODE_CODES)} or one per motor"
+            ) from None
+        codes = [_mode_code(m) for m in modes]
+        if len(codes) != len(cals):
+            raise ShapeMismatchError(
+                f"{len(codes)} modes for {len(cals)} motors; expected one mode per motor"
+            )
+    return single, cals, codes
+
+
+def _per_motor(
+    kernel: Callable[..., npt.NDArray[Any]],
+    what: str,
+    x_in: npt.ArrayLike,
+    calibration: CalibrationArg,
+    mode: ModeArg,
+    **options: Any,
+) -> npt.NDArray[Any]:
+    """Run a vectorised kernel over the motor axis; one motor (or a scalar for one motor) gets its own."""
+    single, cals, codes = _unpack(calibration, mode)
+    x = _as_float_array(x_in, what)
+    add_axis = single or (len(cals) == 1 and x.ndim == 0)
+    if add_axis:
+        x = x[..., np.newaxis]
+    out = kernel(
+        x,
+        [c.range_min for c in cals],
+        [c.range_max for c in cals],
+        [c.drive_mode for c in cals],
+        codes,
+        **options,
+    )
+    return out[..., 0] if add_axis else out
+
+
+def normalize(
+    raw: npt.ArrayLike,
+    calibration: CalibrationArg,
+    mode: ModeArg,
+    *,
+    apply_drive_mode: bool = True,
+    compat: Compat = "lerobot",
+    resolution: int = 4096,
+    convention: Convention = "lerobot",
+) -> npt.NDArray[np.float64]:
+    """Raw ``Present_Position`` ticks → LeRobot normalised values (LeRobot's ``_normalize``).
+
+    Args:
+        raw: Decoded ticks, shape ``(..., n_motors)``, or a scalar for one motor; with a single
+            ``MotorCalibration`` any shape (each element is that motor).
+        calibration: One ``MotorCalibration``, a sequence of one per motor, or a motor name → calibration
+            mapping (as ``robocal.lerobot.read_calibration`` returns; taken in its order).
+        mode: One mode for all motors, one per motor in order, or (with a name → calibration mapping) a
+            motor name → mode mapping naming every motor (``NormMode`` or its string value).
+        apply_drive_mode: True for Feetech (software inversion), False for Dynamixel (hardware Drive_Mode).
+        compat: Rounding only: ``"lerobot"`` truncates like LeRobot 0.6.1, ``"exact"`` rounds (lossless).
+            Normalising does not round, so both give the same values here.
+        resolution: Ticks per turn (4096; scs0009 1024).
+        convention: DEGREES scale and sign: ``"lerobot"`` (LeRobot's ``resolution − 1`` ticks per 360°,
+            drive_mode ignored) or ``"physical"`` (``resolution`` ticks per 360°, drive_mode honoured).
+
+    Returns:
+        Float64 array of ``raw``'s shape: −100..100, 0..100 or degrees.
+
+    Raises:
+        InvalidCalibrationError: Input that is not real numbers (strings, also number strings; booleans;
+            complex; datetime64; ``None``, reported as missing), NaN/inf, an unknown mode, a drive_mode other
+            than 0/1, ``range_min >= range_max``.
+        ShapeMismatchError: The last axis is not the number of motors, or the modes do not match the motors.
+    """
+    return _per_motor(
+        normalize_array,
+        "raw",
+        raw,
+        calibration,
+        mode,
+        apply_drive_mode=apply_drive_mode,
+        compat=compat,
+        resolution=resolution,
+        convention=convention,
+    )
+
+
+def unnormalize(
+    values: npt.ArrayLike,
+    calibration: CalibrationArg,
+    mode: ModeArg,
+    *,
+    apply_drive_mode: bool = True,
+    compat: Compat = "lerobot",
+    resolution: int = 4096,
+    convention: Convention = "lerobot",
+) -> npt.NDArray[np.int64]:
+    """Normalised values → raw ``Goal_Position`` ticks (LeRobot's ``_unnormalize``); see :func:`normalize`.
+
+    Returns:
+        Int64 array of ``values``' shape (truncated like ``int()`` with ``compat="lerobot"``, rounded with
+        ``"exact"``; otherwise the same values).
+    """
+    return _per_motor(
+        unnormalize_array,
+        "values",
+        values,
+        calibration,
+        mode,
+        apply_drive_mode=apply_drive_mode,
+        compat=compat,
+        resolution=resolution,
+        convention=convention,
+    )
