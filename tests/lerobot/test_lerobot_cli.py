@@ -62,12 +62,12 @@ def test_calibrate_sim_writes_lerobot_file(tmp_path: Path, capsys: pytest.Captur
 def test_calibrate_ctrl_c_exit_130_no_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    original = lerobot_arms.SimOperator.__init__
+    original = lerobot_arms.SimArmOperator.__init__
 
-    def interrupting(self: lerobot_arms.SimOperator, arm: SimArm, **kw: object) -> None:
+    def interrupting(self: lerobot_arms.SimArmOperator, arm: SimArm, **kw: object) -> None:
         original(self, arm, interrupt_at_step=4)
 
-    monkeypatch.setattr(lerobot_arms.SimOperator, "__init__", interrupting)
+    monkeypatch.setattr(lerobot_arms.SimArmOperator, "__init__", interrupting)
     assert _calibrate(tmp_path) == 130
     assert capsys.readouterr().err.strip().splitlines()[-1] == (
         "error: interrupted: every motor's EEPROM was restored and no file was written"

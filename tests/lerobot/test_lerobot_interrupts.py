@@ -18,8 +18,9 @@ import pytest
 from rich.console import Console
 
 import robocal.workflows.lerobot as wf
+import robocal.workflows.lerobot.arms as wf_arms
 from robocal.backends.sim import lerobot_arms
-from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, SimArm, SimOperator
+from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, SimArm, SimArmOperator
 from robocal.cli import _common
 from robocal.cli.main import main
 from robocal.errors import UsageError
@@ -72,7 +73,7 @@ class CtrlCDuringRollback:
         self._bus.write(register, motor_id, value)
 
 
-class FirstCtrlC(SimOperator):
+class FirstCtrlC(SimArmOperator):
     """The operator presses Ctrl-C at a sweep step and arms the bus for the second Ctrl-C."""
 
     def __init__(self, arm: SimArm, bus: CtrlCDuringRollback, at_step: int) -> None:
@@ -175,12 +176,12 @@ def _args(tmp: Path, robot: str = "so101_follower") -> list[str]:
 
 
 def _interrupting_operator(monkeypatch: pytest.MonkeyPatch, step: int) -> None:
-    original = lerobot_arms.SimOperator.__init__
+    original = lerobot_arms.SimArmOperator.__init__
 
-    def init(self: SimOperator, arm: SimArm, **kw: object) -> None:
+    def init(self: SimArmOperator, arm: SimArm, **kw: object) -> None:
         original(self, arm, interrupt_at_step=step)
 
-    monkeypatch.setattr(lerobot_arms.SimOperator, "__init__", init)
+    monkeypatch.setattr(lerobot_arms.SimArmOperator, "__init__", init)
 
 
 def test_cli_second_ctrl_c_shows_restoring_and_restores(
@@ -195,7 +196,7 @@ def test_cli_second_ctrl_c_shows_restoring_and_restores(
         made.append(b)
         return b
 
-    monkeypatch.setattr(wf, "open_bus", make)
+    monkeypatch.setattr(wf_arms, "open_bus", make)
     arms: list[SimArm] = []
     orig_enter = SimArm.__enter__
 
@@ -204,14 +205,14 @@ def test_cli_second_ctrl_c_shows_restoring_and_restores(
         return orig_enter(self)
 
     monkeypatch.setattr(SimArm, "__enter__", enter)
-    original_sweep = SimOperator.sweep_step
+    original_sweep = SimArmOperator.sweep_step
 
-    def sweep_step(self: SimOperator) -> bool:
+    def sweep_step(self: SimArmOperator) -> bool:
         if self.step >= 6:
             made[0].armed = True
         return original_sweep(self)
 
-    monkeypatch.setattr(SimOperator, "sweep_step", sweep_step)
+    monkeypatch.setattr(SimArmOperator, "sweep_step", sweep_step)
     assert main(_args(tmp_path)) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert made[0].sent == 2
@@ -261,7 +262,7 @@ def test_calibrate_into_read_only_folder_fails_before_any_motor_write(readonly_d
         before = arm.eeprom()
         bus = CtrlCDuringRollback(open_bus(arm.spec, arm.port), set())
         bus.armed = True
-        op = SimOperator(arm)
+        op = SimArmOperator(arm)
         try:
             with pytest.raises(UsageError, match="cannot create folders in"):
                 calibrate(bus, arm.spec, op, path=readonly_dir / "robots" / "so_follower" / "a.json")  # type: ignore[arg-type]

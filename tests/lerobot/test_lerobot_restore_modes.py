@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import robocal.workflows.lerobot as wf
+import robocal.workflows.lerobot.arms as wf_arms
 from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, SimArm
 from robocal.cli.main import main
 from robocal.errors import CalibError, CalibTimeoutError
@@ -166,7 +167,7 @@ def _use_file(tmp_path: Path, arm: SimArm) -> list[str]:
 
 def _patch_bus(monkeypatch: pytest.MonkeyPatch, make: Callable[[Any], FaultyBus]) -> None:
     real = wf.open_bus
-    monkeypatch.setattr(wf, "open_bus", lambda spec, port, **kw: make(real(spec, port, **kw)))
+    monkeypatch.setattr(wf_arms, "open_bus", lambda spec, port, **kw: make(real(spec, port, **kw)))
 
 
 def test_use_file_ctrl_c_exit_130_eeprom_restored(
@@ -219,7 +220,7 @@ def test_use_file_silent_motor_exit_3_one_error_line(
 
 
 def test_calibrate_rollback_skips_a_dead_motor_and_restores_the_others(tmp_path: Path) -> None:
-    from robocal.backends.sim.lerobot_arms import SimOperator
+    from robocal.backends.sim.lerobot_arms import SimArmOperator
 
     with SimArm(robot_spec("so101_follower"), eeprom=PREVIOUS["so101_follower"]) as arm:
         before = arm.eeprom()
@@ -228,7 +229,7 @@ def test_calibrate_rollback_skips_a_dead_motor_and_restores_the_others(tmp_path:
         bus = FaultyBus(open_bus(arm.spec, arm.port), 12 + 6 + 18 + 1, lambda: sim.silent_ids.add(2))
         try:
             with pytest.raises(CalibTimeoutError) as info:
-                calibrate(bus, arm.spec, SimOperator(arm), path=tmp_path / "c.json")  # type: ignore[arg-type]
+                calibrate(bus, arm.spec, SimArmOperator(arm), path=tmp_path / "c.json")  # type: ignore[arg-type]
         finally:
             bus.close()
         assert ("Homing_Offset", 1, 2100 - 2047) in bus.writes
@@ -390,12 +391,12 @@ def test_configure_koch_follower_pid() -> None:
 
 
 def test_koch_leader_gripper_trigger(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from robocal.backends.sim.lerobot_arms import SimOperator
+    from robocal.backends.sim.lerobot_arms import SimArmOperator
 
     with SimArm(robot_spec("koch_leader")) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
-            cals = calibrate(bus, arm.spec, SimOperator(arm), path=tmp_path / "lead.json").calibration
+            cals = calibrate(bus, arm.spec, SimArmOperator(arm), path=tmp_path / "lead.json").calibration
         finally:
             bus.close()
         base = ["lerobot", "configure", "--robot", "koch_leader", "--port", arm.port]

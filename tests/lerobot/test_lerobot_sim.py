@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from robocal.backends.dynamixel import DynamixelBus
 from robocal.backends.feetech import FeetechBus
-from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, JointTruth, SimArm, SimOperator
+from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, JointTruth, SimArm, SimArmOperator
 from robocal.backends.sim.servo import SimServo, SimServoBus, dxl_crc16
 from robocal.errors import CalibTimeoutError, DeviceError, ProtocolError
 from robocal.lerobot import MotorCalibration, read_calibration
@@ -132,7 +132,7 @@ def _run(robot: str, tmp_path: Path, **kw: object) -> tuple[SimArm, dict[str, Mo
     arm = SimArm(robot_spec(robot), truth=kw.pop("truth", None), eeprom=kw.pop("eeprom", None)).start()  # type: ignore[arg-type]
     bus = open_bus(arm.spec, arm.port)
     try:
-        result = calibrate(bus, arm.spec, SimOperator(arm, **op_kw), path=tmp_path / "cal.json", **kw)  # type: ignore[arg-type]
+        result = calibrate(bus, arm.spec, SimArmOperator(arm, **op_kw), path=tmp_path / "cal.json", **kw)  # type: ignore[arg-type]
         return arm, result.calibration, result
     finally:
         bus.close()
@@ -247,7 +247,7 @@ def test_ctrl_c_restores_eeprom_and_leaves_file(tmp_path: Path, robot: str, wher
         before = arm.eeprom()
         assert before["gripper"]["Homing_Offset"] == PREVIOUS[robot]["gripper"]["Homing_Offset"]
         with pytest.raises(KeyboardInterrupt):
-            calibrate(bus, arm.spec, SimOperator(arm, **where), path=path)  # type: ignore[arg-type]
+            calibrate(bus, arm.spec, SimArmOperator(arm, **where), path=path)  # type: ignore[arg-type]
         assert arm.eeprom() == before
         assert path.read_text() == "previous file\n"
         assert not (tmp_path / "cal.json.bak").exists()
@@ -282,7 +282,7 @@ def test_noisy_calibration_within_two_ticks(tmp_path: Path) -> None:
     arm = SimArm(robot_spec("so101_leader"), noise_ticks=1, seed=3).start()
     bus = open_bus(arm.spec, arm.port)
     try:
-        cals = calibrate(bus, arm.spec, SimOperator(arm), path=None, sweep_full_turn=True).calibration
+        cals = calibrate(bus, arm.spec, SimArmOperator(arm), path=None, sweep_full_turn=True).calibration
         for name, (lo, hi) in arm.recovered_stops(cals).items():
             t = arm.truth[name]
             assert abs(lo - t.stop_low_ticks) <= 2 and abs(hi - t.stop_high_ticks) <= 2, name
@@ -390,7 +390,7 @@ def test_legacy_pose_calibration_through_the_sdk(
     with SimArm(robot_spec(robot), truth=truth) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
-            op = SimOperator(arm, poses=poses)
+            op = SimArmOperator(arm, poses=poses)
             cal = calibrate_legacy(bus, arm.spec, op, path=tmp_path / "main_follower.json")
             assert op.prompts == ["zero", "rotated", "rest"]
             raw_rot = [bus.read("Present_Position", i) for i in range(1, 7)]
@@ -416,7 +416,7 @@ def test_legacy_calibration_requires_torque_off() -> None:
             with pytest.raises(
                 UsageError, match=r"torque must be disabled on all motors \(enabled on elbow_flex\)"
             ):
-                calibrate_legacy(bus, arm.spec, SimOperator(arm))
+                calibrate_legacy(bus, arm.spec, SimArmOperator(arm))
         finally:
             bus.close()
 

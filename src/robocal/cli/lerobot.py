@@ -2,23 +2,25 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 import pathlib
-import sys
 import tempfile
-import threading
-import time
-from collections.abc import Callable, Iterator
 from typing import Annotated
 
 import typer
-from rich.live import Live
 from rich.table import Table
 
-from ..core.lerobot import MotorCalibration, RobotSpec, parse_compat
+from ..core.lerobot import RobotSpec, parse_compat
 from ..errors import UsageError
 from . import _common
+from ._lerobot_render import (
+    ConsoleOperator,
+    interrupted,
+    print_calibration,
+    range_warnings,
+    status,
+    sweep_renderer,
+)
 
 app = typer.Typer(
     help="LeRobot arms: calibrate, configure, check, migrate, show, export-urdf.", no_args_is_help=True
@@ -63,60 +65,6 @@ def _modes(spec: RobotSpec, use_degrees: bool | None, modes: str | None) -> tupl
     return norm_modes(spec, use_degrees=use_degrees, overrides=_common.parse_assignments(modes, "--modes"))
 
 
-def _interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") -> typer.Exit:
-    """Print the one ``error: interrupted`` line; exit 130.
-
-    The workflows re-raise Ctrl-C with the motors they could not restore as its argument; then that is shown.
-    """
-    what = f"{exc}{not_restored}" if exc.args else restored
-    _common.print_error(f"interrupted: {what}")
-    return typer.Exit(130)
-
-
-def _range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[str]:
-    """Print (and return) one warning per motor whose range lies beyond one turn (LeRobot accepts those)."""
-    from ..core.lerobot import ranges_beyond_one_turn
-
-    found = ranges_beyond_one_turn(cals, vendor=spec.vendor)
-    for w in found:
-        _common.print_warning(w)
-    return found
-
-
-def _status(message: str) -> None:
-    """One plain status line on standard error (e.g. while the EEPROM is being restored)."""
-    sys.stderr.write(message + "\n")
-    sys.stderr.flush()
-
-
-class ConsoleOperator:
-    """A human at a terminal: ``input()`` for prompts; the sweep ends when ENTER is pressed."""
-
-    def __init__(self) -> None:
-        self._done = threading.Event()
-
-    def prompt(self, stage: str, message: str) -> None:
-        """Print the message and wait for ENTER (the sweep prompt returns at once; ENTER ends the sweep)."""
-        if stage == "sweep":
-            _common.err_console.print(message)
-            self._done.clear()
-
-            def wait() -> None:
-                with contextlib.suppress(EOFError, OSError):
-                    sys.stdin.readline()
-                self._done.set()
-
-            threading.Thread(target=wait, daemon=True).start()
-            return
-        _common.err_console.print(message)
-        sys.stdin.readline()
-
-    def sweep_step(self) -> bool:
-        """True once ENTER was pressed; paces the loop at about 50 Hz like LeRobot."""
-        time.sleep(0.02)
-        return self._done.is_set()
-
-
 def _spec(robot: str) -> RobotSpec:
     from ..workflows.lerobot import robot_spec
 
@@ -131,97 +79,13 @@ def _cal_file(
     *,
     reading: bool = True,
 ) -> pathlib.Path:
-    """The calibration file: ``--file``, else LeRobot's path; when reading, fall back to the pre-v0.4.3 folder."""
-    from ..lerobot import calibration_path
+    """The calibration file (the workflow's choice); warns when LeRobot's pre-v0.4.3 folder is used."""
+    from ..workflows.lerobot import calibration_file
 
-    if file is not None:
-        return file
-    if robot_id is None:
-        raise UsageError("give --id (and optionally --calibration-dir) or --file")
-    path = calibration_path(spec.kind, spec.device_name, robot_id, root=calibration_dir)
-    if reading and not path.exists() and spec.old_device_name != spec.device_name:
-        old = calibration_path(spec.kind, spec.old_device_name, robot_id, root=calibration_dir)
-        if old.exists():
-            _common.print_warning(f"using {old} (LeRobot < 0.4.3 folder); LeRobot now reads {path}")
-            return old
+    path, note = calibration_file(spec, robot_id, calibration_dir, file, reading=reading)
+    if note is not None:
+        _common.print_warning(note)
     return path
-
-
-def _sweep_renderer() -> tuple[Callable[[object], None], Callable[[], None]]:
-    """A live rich table on a terminal, otherwise one plain line every 10 readings."""
-    from ..workflows.lerobot import SweepView
-
-    live: Live | None = None
-    last: list[SweepView] = []
-
-    def table(view: SweepView) -> Table:
-        t = Table(title=f"range of motion (reading {view.step})")
-        for col in ("motor", "min", "present", "max"):
-            t.add_column(col, justify="right" if col != "motor" else "left")
-        for n, p, lo, hi in zip(view.names, view.present, view.minimum, view.maximum, strict=True):
-            t.add_row(n, str(lo), str(p), str(hi))
-        return t
-
-    def update(view: object) -> None:
-        nonlocal live
-        assert isinstance(view, SweepView)
-        last[:] = [view]
-        if _common.err_console.is_terminal:
-            if live is None:
-                live = Live(table(view), console=_common.err_console, refresh_per_second=10)
-                live.start()
-            else:
-                live.update(table(view))
-        elif view.step % 10 == 0:
-            parts = [
-                f"{n} {lo}..{hi}" for n, lo, hi in zip(view.names, view.minimum, view.maximum, strict=True)
-            ]
-            _common.err_console.print(f"reading {view.step}: " + ", ".join(parts))
-
-    def close() -> None:
-        """Stop the live table or print the last plain line; idempotent (nothing is printed twice)."""
-        nonlocal live
-        if live is not None:
-            live.stop()
-            live = None
-        elif last:
-            v = last[0]
-            parts = [f"{n} {lo}..{hi}" for n, lo, hi in zip(v.names, v.minimum, v.maximum, strict=True)]
-            _common.err_console.print(f"reading {v.step}: " + ", ".join(parts))
-        last.clear()
-
-    return update, close
-
-
-def _print_calibration(cals: dict[str, MotorCalibration]) -> None:
-    t = Table(title="calibration")
-    for col in ("motor", "id", "drive_mode", "homing_offset", "range_min", "range_max"):
-        t.add_column(col)
-    for n, c in cals.items():
-        t.add_row(n, str(c.id), str(c.drive_mode), str(c.homing_offset), str(c.range_min), str(c.range_max))
-    _common.console.print(t)
-
-
-@contextlib.contextmanager
-def _arm_bus(spec: RobotSpec, port: str) -> Iterator[tuple[object, object | None]]:
-    """Open the bus on ``port``; ``sim`` starts a simulated arm (yields the bus and the SimArm or None)."""
-    from ..workflows.lerobot import open_bus
-
-    if port == "sim":
-        from ..backends.sim.lerobot_arms import SimArm
-
-        with SimArm(spec) as arm:
-            bus = open_bus(spec, arm.port)
-            try:
-                yield bus, arm
-            finally:
-                bus.close()
-        return
-    bus = open_bus(spec, port)
-    try:
-        yield bus, None
-    finally:
-        bus.close()
 
 
 @app.command()
@@ -241,54 +105,48 @@ def calibrate(
     """Calibrate a LeRobot arm (mid pose, then sweep every joint) and write LeRobot's JSON."""
     from ..formats.lerobot import dumps_current
     from ..lerobot import read_calibration
-    from ..workflows.lerobot import CalibrationNotSavedError, restore
+    from ..workflows.lerobot import CalibrationNotSavedError, open_arm, restore, sim_operator
     from ..workflows.lerobot import calibrate as run
 
     spec = _spec(robot)
     path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file)
     if use_file:
         cals = read_calibration(path)
-        beyond = _range_warnings(spec, cals)
-        with _arm_bus(spec, port) as (bus, _arm):
+        beyond = range_warnings(spec, cals)
+        with open_arm(spec, port) as (bus, _arm):
             try:
-                restore(bus, spec, cals, on_status=_status)  # type: ignore[arg-type]
+                restore(bus, spec, cals, on_status=status)
             except KeyboardInterrupt as exc:
-                raise _interrupted(exc, "the motors' previous EEPROM was written back") from None
-        _print_calibration(cals)
+                raise interrupted(exc, "the motors' previous EEPROM was written back") from None
+        print_calibration(cals)
         _common.console.print(f"wrote {path} to the motors")
         raise typer.Exit(_common.exit_code_for(beyond))
     from ..fileio import check_output_path
 
     # the calibration folder must be writable before the port is even opened (the workflow checks again)
     check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
-    update, close = _sweep_renderer()
-    with _arm_bus(spec, port) as (bus, arm):
-        if arm is not None:
-            from ..backends.sim.lerobot_arms import SimArm, SimOperator
+    update, close = sweep_renderer()
+    with open_arm(spec, port) as (bus, arm):
+        operator: object = sim_operator(arm) if arm is not None else ConsoleOperator()
 
-            assert isinstance(arm, SimArm)
-            operator: object = SimOperator(arm)
-        else:
-            operator = ConsoleOperator()
-
-        def status(message: str) -> None:
+        def status_line(message: str) -> None:
             close()  # the live table ends before the first status line
-            _status(message)
+            status(message)
 
         try:
             result = run(
-                bus,  # type: ignore[arg-type]
+                bus,
                 spec,
                 operator,  # type: ignore[arg-type]
                 path=path,
                 home_after_sweep=home_after_sweep,
                 sweep_full_turn=sweep_full_turn,
                 on_sweep=update,
-                on_status=status,
+                on_status=status_line,
             )
         except KeyboardInterrupt as exc:
             close()
-            raise _interrupted(
+            raise interrupted(
                 exc,
                 "every motor's EEPROM was restored and no file was written",
                 "; no file was written",
@@ -302,7 +160,7 @@ def calibrate(
             ) from None
         finally:
             close()
-    _print_calibration(result.calibration)
+    print_calibration(result.calibration)
     for note in result.notes:
         _common.print_warning(note)
     _common.console.print(f"calibration saved to {result.path}")
@@ -323,6 +181,7 @@ def configure(
     """Apply LeRobot's motor presets: return delay, acceleration, PID, operating modes, gripper limits/trigger."""
     from ..lerobot import read_calibration
     from ..workflows.lerobot import configure as run
+    from ..workflows.lerobot import open_arm
 
     spec = _spec(robot)
     warnings: list[str] = []
@@ -334,12 +193,12 @@ def configure(
             )
         else:
             cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
-    with _arm_bus(spec, port) as (bus, arm):
+    with open_arm(spec, port) as (bus, arm):
         if arm is not None and cals is not None:
             from ..workflows.lerobot import restore
 
-            restore(bus, spec, cals)  # type: ignore[arg-type]
-        written = run(bus, spec, calibration=cals, gripper_open_pos=gripper_open_pos)  # type: ignore[arg-type]
+            restore(bus, spec, cals)
+        written = run(bus, spec, calibration=cals, gripper_open_pos=gripper_open_pos)
     t = Table(title=f"{spec.name}: registers written")
     t.add_column("motor")
     t.add_column("registers")
@@ -367,13 +226,14 @@ def check(
     """Compare the motors' EEPROM with the calibration file, naming each motor and field that differs."""
     from ..lerobot import read_calibration
     from ..workflows.lerobot import check as run
+    from ..workflows.lerobot import open_arm
 
     spec = _spec(robot)
     path = _cal_file(spec, robot_id, calibration_dir, file)
     cals = read_calibration(path)
-    beyond = _range_warnings(spec, cals)
-    with _arm_bus(spec, port) as (bus, _arm):
-        diffs = run(bus, spec, cals)  # type: ignore[arg-type]
+    beyond = range_warnings(spec, cals)
+    with open_arm(spec, port) as (bus, _arm):
+        diffs = run(bus, spec, cals)
     for d in diffs:
         _common.console.print(f"differs: {d}")
     if not diffs:
@@ -446,36 +306,30 @@ def show(
     physical: Physical = False,
 ) -> None:
     """Print live normalised positions (LeRobot's units) of every motor."""
-    from ..lerobot import normalize, read_calibration
+    from ..lerobot import read_calibration
+    from ..workflows.lerobot import open_arm, read_positions, require_motors, restore
 
     compat_mode = parse_compat(compat)
     spec = _spec(robot)
-    _modes(spec, use_degrees, modes_opt)  # bad --modes is refused before any file or bus I/O
+    modes = _modes(spec, use_degrees, modes_opt)  # bad --modes is refused before any file or bus I/O
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
-    missing = [n for n in spec.motor_names if n not in cals]
-    if missing:
-        raise UsageError(f"calibration has no entry for motor(s) {', '.join(missing)}")
-    _range_warnings(spec, cals)
-    order = [cals[n] for n in spec.motor_names]
-    modes = list(_modes(spec, use_degrees, modes_opt))
-    ids = [m.motor_id for m in spec.motors]
-    with _arm_bus(spec, port) as (bus, _arm):
-        if _arm is not None:
-            from ..workflows.lerobot import restore
-
-            restore(bus, spec, cals)  # type: ignore[arg-type]
+    require_motors(spec, cals)
+    range_warnings(spec, cals)
+    with open_arm(spec, port) as (bus, arm):
+        if arm is not None:  # the simulated arm starts uncalibrated: give it this calibration
+            restore(bus, spec, cals)
         _common.console.print("reading  " + "  ".join(spec.motor_names))
-        for k in range(samples):
-            raw = bus.sync_read("Present_Position", ids)  # type: ignore[attr-defined]
-            vals = normalize(
-                [raw[i] for i in ids],
-                order,
-                modes,
-                apply_drive_mode=spec.vendor == "feetech",
-                compat=compat_mode,
-                convention="physical" if physical else "lerobot",
-            )
-            _common.console.print(f"{k:>7}  " + "  ".join(f"{v:9.3f}" for v in vals))
+        rows = read_positions(
+            bus,
+            spec,
+            cals,
+            modes,
+            samples=samples,
+            compat=compat_mode,
+            convention="physical" if physical else "lerobot",
+        )
+        for k, values in enumerate(rows):
+            _common.console.print(f"{k:>7}  " + "  ".join(f"{v:9.3f}" for v in values))
 
 
 @app.command("export-urdf")
@@ -517,7 +371,7 @@ def export_urdf(
             raise UsageError(f"--offset-deg {k}={v}: expected a number of degrees") from None
     modes = _modes(spec, use_degrees, modes_opt)
     cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
-    beyond = _range_warnings(spec, cals)
+    beyond = range_warnings(spec, cals)
     rc, skipped = export_joint_map(
         spec,
         cals,
@@ -545,7 +399,7 @@ def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
     Returns:
         Exit code (0 when every recovered hard stop matches the simulator's truth within 2 ticks).
     """
-    from ..backends.sim.lerobot_arms import SimArm, SimOperator
+    from ..backends.sim.lerobot_arms import SimArm, SimArmOperator
     from ..lerobot import calibration_path
     from ..workflows.lerobot import calibrate as run
     from ..workflows.lerobot import open_bus, robot_spec
@@ -565,7 +419,7 @@ def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
                 bus = open_bus(spec, arm.port)
                 try:
                     path = calibration_path(spec.kind, spec.device_name, "demo", root=root)
-                    result = run(bus, spec, SimOperator(arm), path=path, sweep_full_turn=True)
+                    result = run(bus, spec, SimArmOperator(arm), path=path, sweep_full_turn=True)
                 finally:
                     bus.close()
                 t = Table(title=f"{name}: simulated {spec.vendor} servos on {arm.port}")

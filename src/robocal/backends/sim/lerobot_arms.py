@@ -2,7 +2,7 @@
 
 A :class:`SimArm` puts one :class:`~robocal.backends.sim.servo.SimServo` per motor behind a pseudo-terminal,
 with a physical truth per joint (mid pose and hard stops in the motor's actual-tick frame). A
-:class:`SimOperator` plays the human: it holds the arm at its mid pose when asked and sweeps every joint from
+:class:`SimArmOperator` plays the human: it holds the arm at its mid pose when asked and sweeps every joint from
 stop to stop during range recording, and can raise ``KeyboardInterrupt`` at a chosen step (Ctrl-C).
 """
 
@@ -20,7 +20,7 @@ from ...errors import UsageError
 from .operator import JointView
 from .servo import SimServo, SimServoBus
 
-__all__ = ["DEFAULT_TRUTH", "ArmHands", "JointTruth", "SimArm", "SimOperator", "seeded_truth"]
+__all__ = ["DEFAULT_TRUTH", "ArmHands", "JointTruth", "SimArm", "SimArmOperator", "seeded_truth"]
 
 
 @dataclass(frozen=True)
@@ -241,7 +241,7 @@ class ArmHands:
         self.arm.servo(name).move_to(position)
 
 
-class SimOperator:
+class SimArmOperator:
     """Plays the human during calibration: mid pose on request, stop-to-stop sweeps, optional Ctrl-C.
 
     Args:

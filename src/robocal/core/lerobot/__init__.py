@@ -17,7 +17,7 @@ from __future__ import annotations
 from ._values import FloatArray, IntArray, _as_float_array, _check_resolution, _check_values, _to_ticks
 from .arm import LeRobotMotor, RobotSpec
 from .calibration import MotorCalibration, ranges_beyond_one_turn
-from .homing import centre_homing, half_turn_homing_offset
+from .homing import centre_homing, half_turn_homing_offset, wrap_feetech_offset
 from .legacy import (
     HALF_TURN_DEGREE,
     LEGACY_BOUNDS,
@@ -98,4 +98,5 @@ __all__ = [
     "to_robot_calibration",
     "unnormalize",
     "unnormalize_array",
+    "wrap_feetech_offset",
 ]

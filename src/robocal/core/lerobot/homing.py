@@ -8,7 +8,7 @@ from ...errors import InvalidCalibrationError
 from .normalisation import Compat
 from .registers import encode_sign_magnitude
 
-__all__ = ["centre_homing", "half_turn_homing_offset"]
+__all__ = ["centre_homing", "half_turn_homing_offset", "wrap_feetech_offset"]
 
 
 def half_turn_homing_offset(
@@ -67,3 +67,20 @@ def centre_homing(min_unwrapped: int, max_unwrapped: int, *, resolution: int = 4
     centre = (lo + hi) // 2
     shift = centre - (resolution - 1) // 2
     return shift, lo - shift, hi - shift
+
+
+def wrap_feetech_offset(offset: int, lo: int, hi: int, res: int) -> tuple[int, int, int]:
+    """Bring a Feetech Homing_Offset into ±(res/2 − 1), the sign-magnitude register's reach.
+
+    Present wraps modulo a turn, so whole turns can be dropped; −res/2 is not encodable and becomes
+    −res/2 + 1, which makes every reading one tick lower (the range ``lo..hi`` is lowered with it).
+
+    Returns:
+        ``(offset, lo, hi)``.
+    """
+    half = res // 2
+    off = (offset + half) % res - half
+    if off == -half:  # −2048 is not encodable: use −2047, which makes every reading one tick lower
+        off = -half + 1
+        lo, hi = lo - 1, hi - 1
+    return off, lo, hi

@@ -1,0 +1,57 @@
+"""LeRobot arm jobs, one module per job; everything is re-exported here.
+
+* :mod:`.arms` — the arms (robot profiles), opening their bus (``sim`` starts a simulated arm), norm modes;
+* :mod:`.files` — where an arm's calibration file is;
+* :mod:`.calibrate` — LeRobot's current calibration and the legacy (2024) one, with robocal's fixes;
+* :mod:`.eeprom` — EEPROM snapshot, all-or-nothing restore with rollback, check against a file;
+* :mod:`.configure` — LeRobot's ``configure()`` presets;
+* :mod:`.show` — live normalised positions;
+* :mod:`.migrate` — legacy calibration → current scheme;
+* :mod:`.joint_map` — the exact URDF joint map of the DEGREES joints.
+"""
+
+from __future__ import annotations
+
+from .arms import norm_modes, open_arm, open_bus, robot_names, robot_spec, sim_operator
+from .calibrate import (
+    CalibrationNotSavedError,
+    CalibrationResult,
+    Operator,
+    RangeView,
+    calibrate,
+    calibrate_legacy,
+)
+from .configure import clear_phase_bit4, configure
+from .eeprom import EEPROM_FIELDS, Difference, RollbackReport, check, read_eeprom, restore
+from .files import calibration_file
+from .joint_map import export_joint_map
+from .migrate import legacy_to_current
+from .show import read_positions, require_motors
+
+__all__ = [
+    "EEPROM_FIELDS",
+    "CalibrationNotSavedError",
+    "CalibrationResult",
+    "Difference",
+    "Operator",
+    "RangeView",
+    "RollbackReport",
+    "calibrate",
+    "calibrate_legacy",
+    "calibration_file",
+    "check",
+    "clear_phase_bit4",
+    "configure",
+    "export_joint_map",
+    "legacy_to_current",
+    "norm_modes",
+    "open_arm",
+    "open_bus",
+    "read_eeprom",
+    "read_positions",
+    "require_motors",
+    "restore",
+    "robot_names",
+    "robot_spec",
+    "sim_operator",
+]

@@ -1,0 +1,125 @@
+"""The LeRobot arms robocal knows (their robot profiles), their buses (real or simulated) and norm modes."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+from ...backends.servo_bus import ServoBus
+from ...core.lerobot import (
+    RobotSpec,
+)
+from ...errors import UsageError
+
+__all__ = [
+    "norm_modes",
+    "open_arm",
+    "open_bus",
+    "robot_names",
+    "robot_spec",
+    "sim_operator",
+]
+
+
+def robot_names() -> tuple[str, ...]:
+    """Names of the built-in LeRobot arm profiles (``koch_follower``, ..., ``so101_leader``), sorted."""
+    from ...formats.profiles import builtin_lerobot_profiles
+
+    return tuple(p.name for p in builtin_lerobot_profiles())
+
+def robot_spec(robot: str | os.PathLike[str]) -> RobotSpec:
+    """The :class:`RobotSpec` of a built-in LeRobot arm (``so101_follower``, ...) or of a profile file.
+
+    Raises:
+        UsageError: Neither a built-in LeRobot arm nor a profile file of one.
+        FileFormatError: The profile file is malformed.
+    """
+    from ...formats.profiles import load_profile
+
+    text = os.fspath(robot)
+    names = robot_names()
+    if text not in names and not (text.endswith((".yaml", ".yml")) and Path(text).is_file()):
+        raise UsageError(f"unknown robot {text!r}; valid: {', '.join(names)} (or a robot profile file)")
+    return RobotSpec.from_profile(load_profile(text))
+
+def open_bus(spec: RobotSpec, port: str, *, retries: int = 3) -> ServoBus:
+    """Open the vendor-SDK bus of an arm on ``port``."""
+    motors = {m.motor_id: m.model for m in spec.motors}
+    if spec.vendor == "feetech":
+        from ...backends.feetech import FeetechBus
+
+        return FeetechBus(port, motors, retries=retries)
+    from ...backends.dynamixel import DynamixelBus
+
+    return DynamixelBus(port, motors, retries=retries)
+
+def norm_modes(
+    spec: RobotSpec, *, use_degrees: bool | None = None, overrides: Mapping[str, str] | None = None
+) -> tuple[str, ...]:
+    """LeRobot's norm mode per motor (bus order) for a ``use_degrees`` setting, with per-joint overrides.
+
+    ``use_degrees=None`` keeps LeRobot's default for the robot (SO arms DEGREES since v0.4.4, Koch
+    RANGE_M100_100). True: every motor but the gripper in DEGREES; False: RANGE_M100_100. The gripper stays
+    RANGE_0_100 (LeRobot refuses DEGREES there). ``overrides`` (motor → mode) win over all of that.
+
+    Raises:
+        UsageError: An override names an unknown motor or mode.
+    """
+    from ...core.lerobot.normalisation import NormMode
+
+    valid = {v.value for v in NormMode}
+    over = dict(overrides or {})
+    unknown = sorted(set(over) - set(spec.motor_names))
+    if unknown:
+        raise UsageError(
+            f"--modes: unknown motor(s) {', '.join(unknown)} on a {spec.name}; valid: {', '.join(spec.motor_names)}"
+        )
+    out = []
+    for m in spec.motors:
+        if m.name in over:
+            mode = over[m.name].strip().lower()
+            if mode not in valid:
+                raise UsageError(
+                    f"--modes {m.name}={over[m.name]}: expected one of {', '.join(sorted(valid))}"
+                )
+        elif use_degrees is None or m.name == "gripper":
+            mode = m.norm_mode
+        else:
+            mode = "degrees" if use_degrees else "range_m100_100"
+        out.append(mode)
+    return tuple(out)
+
+
+@contextlib.contextmanager
+def open_arm(spec: RobotSpec, port: str) -> Iterator[tuple[ServoBus, Any]]:
+    """Open the arm's bus on ``port``; ``sim`` starts a simulated arm first and yields it too.
+
+    Yields:
+        ``(bus, sim_arm)``: the open bus and the :class:`~robocal.backends.sim.lerobot_arms.SimArm` (None on a
+        real port). The bus is closed (and the simulated arm stopped) on exit.
+    """
+    if port == "sim":
+        from ...backends.sim.lerobot_arms import SimArm
+
+        with SimArm(spec) as arm:
+            bus = open_bus(spec, arm.port)
+            try:
+                yield bus, arm
+            finally:
+                bus.close()
+        return
+    bus = open_bus(spec, port)
+    try:
+        yield bus, None
+    finally:
+        bus.close()
+
+
+def sim_operator(arm: Any) -> Any:
+    """The simulated operator of a simulated arm (mid pose on request, stop-to-stop sweeps)."""
+    from ...backends.sim.lerobot_arms import SimArmOperator
+
+    return SimArmOperator(arm)

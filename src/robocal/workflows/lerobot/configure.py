@@ -1,0 +1,110 @@
+"""LeRobot's ``configure()`` motor presets (return delay, acceleration, PID, operating modes, gripper)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from ...backends.servo_bus import ServoBus
+from ...core.lerobot import (
+    MotorCalibration,
+    RobotSpec,
+)
+from ...errors import InvalidCalibrationError
+
+__all__ = [
+    "clear_phase_bit4",
+    "configure",
+]
+
+
+def clear_phase_bit4(bus: ServoBus, spec: RobotSpec) -> list[int]:
+    """Clear bit 4 of Phase on sts3215 motors (single-turn angle feedback; huggingface/lerobot#3373).
+
+    Writes only where the bit is set (0b00010000 → 0, 0xFF → 0b11101111, 0 → no write).
+
+    Returns:
+        Ids of the motors written.
+    """
+    written = []
+    for m in spec.motors:
+        if m.model != "sts3215":
+            continue
+        phase = bus.read("Phase", m.motor_id)
+        if phase & 0x10:
+            bus.write("Phase", m.motor_id, phase & ~0x10 & 0xFF)
+            written.append(m.motor_id)
+    return written
+
+def configure(
+    bus: ServoBus,
+    spec: RobotSpec,
+    *,
+    calibration: Mapping[str, MotorCalibration] | None = None,
+    gripper_open_pos: float = 50.0,
+) -> list[tuple[str, str, int]]:
+    """LeRobot's ``configure()`` presets (torque stays off, except the Koch leader's gripper trigger).
+
+    Every arm: torque off (Feetech also Lock 0), Return_Delay_Time 0. Feetech (SO): Maximum_Acceleration and
+    Acceleration 254, Phase bit 4 cleared on sts3215, Operating_Mode 0; the follower also P/I/D 16/0/32 and
+    gripper Max_Torque_Limit 500, Protection_Current 250, Overload_Torque 25. Dynamixel (Koch): extended position
+    (4) except the gripper current-based position (5); the follower's elbow_flex Position P/I/D 1500/0/600.
+
+    Koch leader gripper trigger (LeRobot's order): with ``calibration`` given, the gripper's torque is enabled
+    and ``Goal_Position = gripper_open_pos`` written (RANGE_0_100, unnormalised like LeRobot), so the gripper
+    springs back open when squeezed. LeRobot also enables the torque without a calibration (holding whatever
+    goal the motor has); robocal then skips the trigger. LeRobot's followers re-enable torque afterwards;
+    robocal leaves it off.
+
+    Returns:
+        ``(motor, register, value)`` for every register written, in order (Phase only where changed).
+    """
+    written: list[tuple[str, str, int]] = []
+
+    def put(name: str, motor_id: int, register: str, value: int) -> None:
+        bus.write(register, motor_id, value)
+        written.append((name, register, value))
+
+    for m in spec.motors:  # torque off first (EEPROM writes)
+        put(m.name, m.motor_id, "Torque_Enable", 0)
+        if bus.has_register(m.motor_id, "Lock"):
+            put(m.name, m.motor_id, "Lock", 0)
+    for m in spec.motors:
+        put(m.name, m.motor_id, "Return_Delay_Time", 0)
+    follower = spec.kind == "robots"
+    if spec.vendor == "feetech":
+        by_id = {m.motor_id: m.name for m in spec.motors}
+        for i in clear_phase_bit4(bus, spec):
+            written.append((by_id[i], "Phase", bus.read("Phase", i)))
+        for m in spec.motors:
+            presets = [("Maximum_Acceleration", 254), ("Acceleration", 254), ("Operating_Mode", 0)]
+            if follower:
+                presets += [("P_Coefficient", 16), ("I_Coefficient", 0), ("D_Coefficient", 32)]
+                if m.name == "gripper":
+                    presets += [
+                        ("Max_Torque_Limit", 500),
+                        ("Protection_Current", 250),
+                        ("Overload_Torque", 25),
+                    ]
+            for reg, value in presets:
+                put(m.name, m.motor_id, reg, value)
+        return written
+    for m in spec.motors:
+        put(m.name, m.motor_id, "Operating_Mode", 5 if m.name == "gripper" else 4)
+    if follower:
+        elbow = next(m for m in spec.motors if m.name == "elbow_flex")
+        for reg, value in (("Position_P_Gain", 1500), ("Position_I_Gain", 0), ("Position_D_Gain", 600)):
+            put(elbow.name, elbow.motor_id, reg, value)
+    elif calibration is not None:
+        gripper = next(m for m in spec.motors if m.name == "gripper")
+        if gripper.name not in calibration:
+            raise InvalidCalibrationError("calibration has no entry for motor 'gripper'")
+        from ...core.lerobot.normalisation import unnormalize
+
+        goal = int(
+            unnormalize(
+                float(gripper_open_pos), calibration[gripper.name], "range_0_100", apply_drive_mode=False
+            )
+        )
+        put(gripper.name, gripper.motor_id, "Torque_Enable", 1)
+        put(gripper.name, gripper.motor_id, "Goal_Position", goal)
+    return written
