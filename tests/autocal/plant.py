@@ -111,3 +111,30 @@ def run_search(plant: Plant, search: StopSearch, max_steps: int = 100_000) -> li
             break
         cmds.append(search.step(plant.run(cmds[-1])))
     return cmds
+
+
+class PlantDriver:
+    """A :class:`robocal.workflows.autocal.JointDriver` over a :class:`Plant` (no wire; tests of the workflow)."""
+
+    def __init__(self, name: str, plant: Plant, interrupt_after: int | None = None) -> None:
+        self.name = name
+        self.plant = plant
+        self.limp_count = 0
+        self.is_limp = False
+        self.steps = 0
+        self.interrupt_after = interrupt_after
+
+    def read(self) -> Sample:
+        return self.plant.sample()
+
+    def execute(self, cmd: Command) -> Sample:
+        self.steps += 1
+        if self.interrupt_after is not None and self.steps >= self.interrupt_after:
+            raise KeyboardInterrupt
+        self.is_limp = cmd.action == "limp"
+        return self.plant.run(cmd)
+
+    def limp(self) -> None:
+        self.limp_count += 1
+        self.is_limp = True
+        self.plant.run(Command("limp"))

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import JointMismatchError
+from .profile_auto import AutoSection
 
 __all__ = [
     "LEGACY_MODES",
@@ -124,6 +125,7 @@ class RobotProfile:
         source: Where the profile was read from.
         lerobot: For a LeRobot arm, how LeRobot drives and stores it (:class:`LeRobotSection`), else None.
         version: Schema version of the file it was read from.
+        auto: The ``auto_calibration`` section (automatic hard-stop search, schema version 2), or None.
     """
 
     name: str
@@ -137,6 +139,7 @@ class RobotProfile:
     source: str = "<memory>"
     lerobot: LeRobotSection | None = None
     version: int = 1
+    auto: AutoSection | None = None
 
     @property
     def joint_names(self) -> tuple[str, ...]:

@@ -28,6 +28,7 @@ from ..core.profile import (
 from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
 from ._numbers import parse_direction, parse_finite, parse_int, parse_motor_id
+from ._profile_auto import parse_auto_section
 from ._yaml import load_yaml
 from .urdf import UrdfModel
 
@@ -70,8 +71,9 @@ _LEROBOT_KEYS = (
 )
 _LEROBOT_JOINT_KEYS = ("norm_mode", "legacy_mode")
 SUPPORTED_VERSIONS = (1, 2)
-"""Schema versions this robocal reads; version 2 adds the ``lerobot`` section and its per-joint keys."""
-_SECTION_VERSIONS: dict[str, int] = {"lerobot": 2}
+"""Schema versions this robocal reads; version 2 adds the ``lerobot`` and ``auto_calibration`` sections and the
+``lerobot`` per-joint keys."""
+_SECTION_VERSIONS: dict[str, int] = {"lerobot": 2, "auto_calibration": 2}
 """Optional top-level sections → the first schema version that has them (a section is a further key here,
 a parser below and a field of :class:`RobotProfile`)."""
 _JOINT_KEY_VERSIONS: dict[str, int] = dict.fromkeys(_LEROBOT_JOINT_KEYS, 2)
@@ -201,6 +203,10 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
             f"profile {source}: version {version!r} is not supported "
             f"(expected {' or '.join(map(str, SUPPORTED_VERSIONS))})"
         )
+    if version < 2 and "auto_calibration" in data:
+        raise FileFormatError(
+            f"profile {source}: the auto_calibration section needs version 2 (this file says version {version})"
+        )
     _unknown(
         data, _TOP_KEYS + tuple(k for k, v in _SECTION_VERSIONS.items() if version >= v), f"profile {source}"
     )
@@ -251,6 +257,9 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
         source=source,
         lerobot=None if data.get("lerobot") is None else _lerobot_section(data["lerobot"], joints, source),
         version=version,
+        auto=None
+        if data.get("auto_calibration") is None
+        else parse_auto_section(data["auto_calibration"], joints, source),
     )
     if method == "one-sided" and profile.one_sided_ready():
         raise FileFormatError(

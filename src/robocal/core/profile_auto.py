@@ -1,0 +1,132 @@
+"""The ``auto_calibration`` section of a robot profile: how the joints find their own hard stops.
+
+Values only (no I/O); :mod:`robocal.formats.profiles` reads them from the profile YAML (schema version 2, see
+``docs/profiles.md``) and :mod:`robocal.workflows.autocal` runs them. Angles are in the URDF joint frame,
+degrees in the file and rad in the properties; torques in N·m at the output.
+
+Safety rules that no file can lift: the search torque is a fraction of the motor's rated torque and never above
+:data:`HARD_MAX_TORQUE_FRACTION` of it; the speed is at most :data:`HARD_MAX_SPEED_DEG_S`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = [
+    "AUTO_STOPS",
+    "HARD_MAX_SPEED_DEG_S",
+    "HARD_MAX_TORQUE_FRACTION",
+    "RATED_TORQUE_NM",
+    "AutoJoint",
+    "AutoSection",
+    "rated_torque_nm",
+]
+
+AUTO_STOPS = ("both", "lower", "upper")
+"""Which stops of a joint exist (and are searched): both, or only one (one-sided zero from the stop angle)."""
+HARD_MAX_TORQUE_FRACTION = 0.5
+"""No profile may push harder than this fraction of the rated torque."""
+HARD_MAX_SPEED_DEG_S = 30.0
+"""No profile may approach a stop faster than this (at the output)."""
+
+RATED_TORQUE_NM: dict[str, float] = {
+    # Robstride manuals (rated / peak): RS00 5/14, RS01 6/17, RS02 6/17, RS03 20/60, RS04 40/120, RS05 1.6/5.5,
+    # RS06 11/36 N·m.
+    "RS00": 5.0,
+    "RS01": 6.0,
+    "RS02": 6.0,
+    "RS03": 20.0,
+    "RS04": 40.0,
+    "RS05": 1.6,
+    "RS06": 11.0,
+}
+"""Rated output torque of motor models a profile may name without ``rated_nm`` (key: model upper-cased, no '-')."""
+
+
+def rated_torque_nm(model: str | None) -> float | None:
+    """The rated torque of a motor model (``rs-02`` → 6.0), or None when unknown."""
+    if model is None:
+        return None
+    return RATED_TORQUE_NM.get(model.strip().upper().replace("-", "").replace("_", ""))
+
+
+@dataclass(frozen=True)
+class AutoJoint:
+    """How one joint is auto-calibrated.
+
+    Attributes:
+        name: URDF joint name.
+        stops: ``both``, ``lower`` or ``upper`` (:data:`AUTO_STOPS`).
+        lower_deg: Expected lower stop angle (joint frame), or None (then the URDF limit).
+        upper_deg: Expected upper stop angle, or None (then the URDF limit).
+        tolerance_deg: How far a stop may lie beyond its expected angle (travel bound margin) and how far the
+            span may differ from the expected span.
+        rated_nm: Rated output torque of the motor (N·m).
+        torque_fraction: Search torque as a fraction of ``rated_nm``.
+        speed_deg_s: Approach speed.
+        park_deg: Angle the joint moves to and holds once calibrated (None: the middle of its stops).
+        pose: Angles other joints hold while this one is searched; only joints calibrated before it.
+    """
+
+    name: str
+    stops: str
+    rated_nm: float
+    torque_fraction: float
+    speed_deg_s: float
+    tolerance_deg: float
+    lower_deg: float | None = None
+    upper_deg: float | None = None
+    park_deg: float | None = None
+    pose: tuple[tuple[str, float], ...] = ()
+
+    @property
+    def torque_cap_nm(self) -> float:
+        """Search torque (N·m): ``torque_fraction · rated_nm``."""
+        return self.torque_fraction * self.rated_nm
+
+    @property
+    def speed_rad_s(self) -> float:
+        """Approach speed (rad/s)."""
+        return math.radians(self.speed_deg_s)
+
+    def expected_rad(
+        self, urdf_lower: float | None, urdf_upper: float | None
+    ) -> tuple[float | None, float | None]:
+        """Expected (lower, upper) stop angles in rad: the profile's, else the URDF's limits."""
+        lo = math.radians(self.lower_deg) if self.lower_deg is not None else urdf_lower
+        hi = math.radians(self.upper_deg) if self.upper_deg is not None else urdf_upper
+        return lo, hi
+
+
+@dataclass(frozen=True)
+class AutoSection:
+    """A profile's ``auto_calibration`` section.
+
+    Attributes:
+        joints: The joints in search order.
+        max_torque_fraction: The cap for every joint (≤ :data:`HARD_MAX_TORQUE_FRACTION`).
+        span_tolerance_deg: Default span plausibility tolerance.
+        backoff_deg: Retreat after each contact.
+        dwell_s: Stall dwell.
+        second_touch: Touch each stop twice.
+    """
+
+    joints: tuple[AutoJoint, ...]
+    max_torque_fraction: float = 0.3
+    span_tolerance_deg: float = 5.0
+    backoff_deg: float = 5.0
+    dwell_s: float = 0.2
+    second_touch: bool = False
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Joint names in search order."""
+        return tuple(j.name for j in self.joints)
+
+    def joint(self, name: str) -> AutoJoint | None:
+        """The entry of joint ``name`` or None."""
+        for j in self.joints:
+            if j.name == name:
+                return j
+        return None

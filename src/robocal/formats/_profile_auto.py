@@ -1,0 +1,179 @@
+"""Parse a robot profile's ``auto_calibration`` section (schema version 2; see ``docs/profiles.md``)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from ..core.profile_auto import (
+    AUTO_STOPS,
+    HARD_MAX_SPEED_DEG_S,
+    HARD_MAX_TORQUE_FRACTION,
+    AutoJoint,
+    AutoSection,
+    rated_torque_nm,
+)
+from ..errors import FileFormatError
+from ._numbers import parse_finite
+
+__all__ = ["AUTO_KEYS", "parse_auto_section"]
+
+AUTO_KEYS = (
+    "speed_deg_s",
+    "torque_fraction",
+    "max_torque_fraction",
+    "tolerance_deg",
+    "span_tolerance_deg",
+    "backoff_deg",
+    "dwell_s",
+    "second_touch",
+    "joints",
+)
+_JOINT_KEYS = (
+    "name",
+    "stops",
+    "lower_deg",
+    "upper_deg",
+    "tolerance_deg",
+    "rated_nm",
+    "torque_fraction",
+    "speed_deg_s",
+    "park_deg",
+    "pose",
+)
+
+
+def _unknown(entry: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
+    extra = [str(k) for k in entry if k not in allowed]
+    if extra:
+        raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected {', '.join(allowed)}")
+
+
+def _num(entry: Mapping[str, Any], key: str, where: str, default: float | None) -> float | None:
+    if entry.get(key) is None:
+        return default
+    value = entry[key]
+    if isinstance(value, bool):
+        raise FileFormatError(f"{where}: {key} {value!r} must be a number")
+    return parse_finite(value, where, key)
+
+
+def _positive(value: float | None, key: str, where: str, upper: float | None = None) -> float:
+    if value is None or not value > 0:
+        raise FileFormatError(f"{where}: {key} must be a positive number, got {value!r}")
+    if upper is not None and value > upper:
+        raise FileFormatError(f"{where}: {key} {value:g} is above the hard limit {upper:g}")
+    return value
+
+
+def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSection:
+    """Validate the ``auto_calibration`` mapping of profile ``source``.
+
+    Args:
+        data: The loaded YAML value of the section.
+        joints: The profile's joints (:class:`robocal.core.profile.ProfileJoint`), for names and models.
+        source: Where the profile comes from (for messages).
+
+    Raises:
+        FileFormatError: Naming the profile, the joint and the field (a torque above the hard cap, a speed above
+            the hard limit, a pose naming a joint not calibrated before, an unknown joint or key, ...).
+    """
+    where = f"profile {source}: auto_calibration"
+    if not isinstance(data, Mapping):
+        raise FileFormatError(f"{where}: expected a mapping with keys {', '.join(AUTO_KEYS)}")
+    _unknown(data, AUTO_KEYS, where)
+    cap = _positive(
+        _num(data, "max_torque_fraction", where, 0.3), "max_torque_fraction", where, HARD_MAX_TORQUE_FRACTION
+    )
+    speed = _num(data, "speed_deg_s", where, 10.0)
+    torque = _num(data, "torque_fraction", where, min(0.25, cap))
+    tolerance = _num(data, "tolerance_deg", where, 15.0)
+    span_tol = _positive(_num(data, "span_tolerance_deg", where, 5.0), "span_tolerance_deg", where, 90.0)
+    backoff = _positive(_num(data, "backoff_deg", where, 5.0), "backoff_deg", where, 45.0)
+    dwell = _positive(_num(data, "dwell_s", where, 0.2), "dwell_s", where, 5.0)
+    second = data.get("second_touch", False)
+    if not isinstance(second, bool):
+        raise FileFormatError(f"{where}: second_touch {second!r}; expected true or false")
+    models = {str(j.name): j.model for j in joints}
+    rows = data.get("joints")
+    if not isinstance(rows, list) or not rows:
+        raise FileFormatError(f"{where}: joints must be a non-empty list (the search order)")
+    out: list[AutoJoint] = []
+    for i, row in enumerate(rows):
+        jw = f"{where}: joints[{i}]"
+        if not isinstance(row, Mapping):
+            raise FileFormatError(f"{jw}: expected a mapping with keys {', '.join(_JOINT_KEYS)}")
+        name = row.get("name")
+        if not isinstance(name, str) or not name.strip():
+            raise FileFormatError(f"{jw}: missing key name")
+        name = name.strip()
+        jw = f"{where}: joint {name!r}"
+        _unknown(row, _JOINT_KEYS, jw)
+        if name not in models:
+            raise FileFormatError(f"{jw}: not a joint of the profile ({', '.join(models)})")
+        if any(j.name == name for j in out):
+            raise FileFormatError(f"{jw}: appears twice")
+        stops = row.get("stops", "both")
+        if stops not in AUTO_STOPS:
+            raise FileFormatError(f"{jw}: stops {stops!r}; expected one of {', '.join(AUTO_STOPS)}")
+        lower = _num(row, "lower_deg", jw, None)
+        upper = _num(row, "upper_deg", jw, None)
+        if lower is not None and upper is not None and not lower < upper:
+            raise FileFormatError(f"{jw}: lower_deg {lower:g} must be below upper_deg {upper:g}")
+        if (stops == "lower" and lower is None) or (stops == "upper" and upper is None):
+            raise FileFormatError(
+                f"{jw}: a one-sided joint (stops: {stops}) needs {stops}_deg, its stop angle"
+            )
+        rated = _num(row, "rated_nm", jw, rated_torque_nm(models[name]))
+        if rated is None:
+            raise FileFormatError(
+                f"{jw}: rated_nm missing and motor model {models[name]!r} has no known rating"
+            )
+        rated = _positive(rated, "rated_nm", jw)
+        frac = _positive(_num(row, "torque_fraction", jw, torque), "torque_fraction", jw)
+        if frac > cap:
+            raise FileFormatError(
+                f"{jw}: torque_fraction {frac:g} is above the profile's max_torque_fraction {cap:g}"
+            )
+        spd = _positive(_num(row, "speed_deg_s", jw, speed), "speed_deg_s", jw, HARD_MAX_SPEED_DEG_S)
+        tol = _positive(_num(row, "tolerance_deg", jw, tolerance), "tolerance_deg", jw, 90.0)
+        park = _num(row, "park_deg", jw, None)
+        pose_raw = row.get("pose") or {}
+        if not isinstance(pose_raw, Mapping):
+            raise FileFormatError(f"{jw}: pose must map joint names to angles in degrees")
+        done = {j.name for j in out}
+        pose: list[tuple[str, float]] = []
+        for other in pose_raw:
+            if other not in done:
+                raise FileFormatError(
+                    f"{jw}: pose names {other!r}, which is not calibrated before it (only joints earlier in "
+                    "the order can hold an angle)"
+                )
+            value = _num(pose_raw, other, f"{jw}: pose", None)
+            assert value is not None
+            pose.append((str(other), value))
+        out.append(
+            AutoJoint(
+                name=name,
+                stops=str(stops),
+                rated_nm=rated,
+                torque_fraction=frac,
+                speed_deg_s=spd,
+                tolerance_deg=tol,
+                lower_deg=lower,
+                upper_deg=upper,
+                park_deg=park,
+                pose=tuple(pose),
+            )
+        )
+    if not math.isfinite(cap):  # pragma: no cover - _positive refuses
+        raise FileFormatError(f"{where}: max_torque_fraction must be finite")
+    return AutoSection(
+        joints=tuple(out),
+        max_torque_fraction=cap,
+        span_tolerance_deg=span_tol,
+        backoff_deg=backoff,
+        dwell_s=dwell,
+        second_touch=second,
+    )

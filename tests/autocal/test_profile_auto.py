@@ -1,0 +1,104 @@
+"""The profiles' auto_calibration section: built-in values and every refusal."""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Any
+
+import pytest
+
+from robocal.errors import FileFormatError
+from robocal.formats.profiles import load_profile, parse_profile
+
+BASE: dict[str, Any] = {
+    "format": "robocal-robot-profile",
+    "version": 2,
+    "name": "t",
+    "joints": [
+        {"name": "a", "model": "rs-02"},
+        {"name": "b", "model": "sts3215"},
+    ],
+    "auto_calibration": {
+        "joints": [
+            {"name": "a", "stops": "both"},
+            {"name": "b", "stops": "upper", "upper_deg": 90, "rated_nm": 2.0, "pose": {"a": 10}},
+        ]
+    },
+}
+
+
+def doc(**changes: Any) -> dict[str, Any]:
+    d = copy.deepcopy(BASE)
+    for path, value in changes.items():
+        node: Any = d
+        keys = path.split("__")
+        for k in keys[:-1]:
+            node = node[int(k)] if k.isdigit() else node[k]
+        last = keys[-1]
+        if value is None:
+            del node[int(last) if last.isdigit() else last]
+        else:
+            node[int(last) if last.isdigit() else last] = value
+    return d
+
+
+def test_defaults_and_model_rating() -> None:
+    p = parse_profile(doc(), "t.yaml")
+    assert p.auto is not None
+    a, b = p.auto.joints
+    assert a.rated_nm == 6.0  # RS02 rated torque
+    assert a.torque_fraction == 0.25 and a.torque_cap_nm == pytest.approx(1.5)
+    assert a.speed_deg_s == 10.0 and a.tolerance_deg == 15.0
+    assert b.stops == "upper" and b.upper_deg == 90 and b.pose == (("a", 10.0),)
+    assert b.expected_rad(-1.0, 1.0) == (-1.0, pytest.approx(math.pi / 2))
+
+
+def test_builtin_lite_profile_has_14_joints() -> None:
+    p = load_profile("bhl_arms")
+    assert p.auto is not None
+    assert len(p.auto.joints) == 14
+    assert set(p.auto.joint_names) == set(p.joint_names)
+    sp = p.auto.joint("left_shoulder_pitch")
+    assert sp is not None and sp.torque_cap_nm == pytest.approx(0.3 * 6.0)
+    assert p.auto.joint("left_wrist_roll").torque_cap_nm == pytest.approx(0.25 * 1.6)  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"version": 1}, "needs version 2"),
+        ({"version": 3}, "version 3 is not supported"),
+        ({"auto_calibration__max_torque_fraction": 0.6}, "above the hard limit 0.5"),
+        (
+            {"auto_calibration__joints__0__torque_fraction": 0.4},
+            "above the profile's max_torque_fraction 0.3",
+        ),
+        ({"auto_calibration__speed_deg_s": 45}, "speed_deg_s 45 is above the hard limit 30"),
+        ({"auto_calibration__joints__0__speed_deg_s": -1}, "speed_deg_s must be a positive number"),
+        ({"auto_calibration__joints__0__bogus": 1}, "unknown key bogus"),
+        ({"auto_calibration__joints__0__name": "zz"}, "not a joint of the profile"),
+        ({"auto_calibration__joints__1__upper_deg": None}, "needs upper_deg"),
+        ({"auto_calibration__joints__1__rated_nm": None}, "no known rating"),
+        ({"auto_calibration__joints__0__pose": {"b": 1}}, "not calibrated before it"),
+        ({"auto_calibration__joints__0__stops": "middle"}, "stops 'middle'"),
+        (
+            {"auto_calibration__joints__0__lower_deg": 5, "auto_calibration__joints__0__upper_deg": 5},
+            "must be below",
+        ),
+        ({"auto_calibration__second_touch": "yes"}, "second_touch"),
+        ({"auto_calibration__joints": []}, "non-empty list"),
+        ({"auto_calibration__joints__0__rated_nm": math.nan}, "rated_nm"),
+    ],
+)
+def test_refused(changes: dict[str, Any], message: str) -> None:
+    with pytest.raises(FileFormatError, match=message) as info:
+        parse_profile(doc(**changes), "t.yaml")
+    assert "profile t.yaml" in str(info.value)
+
+
+def test_duplicate_joint_refused() -> None:
+    d = doc()
+    d["auto_calibration"]["joints"].append({"name": "a"})
+    with pytest.raises(FileFormatError, match="'a': appears twice"):
+        parse_profile(d, "t.yaml")
