@@ -72,7 +72,7 @@ FAIL_CODES = (
     "aborted",
 )
 """Why a search or a joint failed (``ok`` otherwise)."""
-TESTS = ("torque", "lag", "overload+reread", "no-reply+reread")
+TESTS = ("torque", "lag", "overload+reread", "no-reply+reread", "transit-stall")
 """Which test declared the stop."""
 
 
@@ -115,7 +115,7 @@ class SearchConfig:
     min_travel_rad: float = math.radians(3.0)
     dwell_s: float = 0.2
     press_fraction: float = 0.5
-    settle_s: float = 0.3
+    settle_s: float = 0.2
     backoff_rad: float = math.radians(5.0)
     second_touch: bool = False
     touch_tol_rad: float = math.radians(0.5)

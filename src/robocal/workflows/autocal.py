@@ -267,11 +267,26 @@ def move_to(
     max_lag_rad: float,
     tol_rad: float = math.radians(1.0),
     timeout_s: float | None = None,
-) -> Sample:
-    """Ramp the joint to ``target_rad`` (torque limited), then hold it; returns the last reading.
+    stall_s: float | None = None,
+) -> tuple[Sample, bool]:
+    """Ramp the joint to ``target_rad`` (torque limited: the target never leads by more than ``max_lag_rad``).
+
+    Args:
+        driver: The joint.
+        target_rad: Where to go (driver frame).
+        speed_rad_s: Ramp speed.
+        cap_nm: Torque limit of the move.
+        max_lag_rad: The largest lead of the target.
+        tol_rad: Arrival tolerance.
+        timeout_s: Time bound (default: distance/speed + 3 s).
+        stall_s: When given, a joint held back (target leading by ≥ 90 % of ``max_lag_rad`` and slower than
+            10 % of the speed) for this long ends the move early: returns ``(reading, True)``.
+
+    Returns:
+        The last reading and whether the move ended on a stall.
 
     Raises:
-        AutoCalAbortedError: The joint does not get there in time (blocked) or stops answering.
+        AutoCalAbortedError: The joint does not get there in time (blocked, without ``stall_s``).
     """
     s = driver.read()
     if not s.ok:
@@ -281,6 +296,7 @@ def move_to(
     distance = abs(target_rad - ref)
     limit = timeout_s if timeout_s is not None else distance / speed_rad_s + 3.0
     last = s.t_s
+    stalled_since: float | None = None
     while True:
         dt = max(s.t_s - last, 0.0)
         last = s.t_s
@@ -292,13 +308,28 @@ def move_to(
         v_ff = 0.0 if at_end else math.copysign(speed_rad_s, target_rad - ref)
         s = driver.execute(Command("drive", ref, v_ff, cap_nm))
         if s.ok and at_end and abs(s.q_rad - target_rad) <= tol_rad:
-            return s
+            return s, False
+        if stall_s is not None and s.ok:
+            v = s.v_rad_s if math.isfinite(s.v_rad_s) else 0.0
+            held = abs(ref - s.q_rad) >= 0.9 * max_lag_rad and abs(v) < 0.1 * speed_rad_s
+            if held:
+                stalled_since = s.t_s if stalled_since is None else stalled_since
+                if s.t_s - stalled_since >= stall_s:
+                    return s, True
+            else:
+                stalled_since = None
         if s.t_s - t0 > limit:
             q = f"{math.degrees(s.q_rad):.1f}°" if s.ok else "unknown"
             raise AutoCalAbortedError(
                 f"joint {driver.name}: could not reach {math.degrees(target_rad):.1f}° within {limit:.1f} s "
                 f"(at {q}): blocked?"
             )
+
+
+TRANSIT_FACTOR = 5.0
+"""Moves that are not searches (to near the second stop, to the park angle) go this much faster than the search."""
+TRANSIT_MAX_RAD_S = math.radians(120.0)
+"""... but never faster than this."""
 
 
 def calibrate_joint(
@@ -340,16 +371,32 @@ def calibrate_joint(
         lower = first
     else:
         upper = first
+    transit = min(TRANSIT_FACTOR * joint.speed_rad_s, TRANSIT_MAX_RAD_S)
     if first.ok and joint.stops == "both":
         backoff = math.radians(section.backoff_deg)
-        cfg2 = _config(
-            joint,
-            section,
-            max_travel_rad=max(span - backoff, 0.0) + tol,
-            max_lag_rad=max_lag_rad,
-            gravity=gravity,
-        )
-        upper = run_search(driver, StopSearch(1, cfg2), view, "upper")
+        start = driver.read()
+        travel = span - backoff + tol
+        # fast to 2·tol short of where the upper stop is expected; a stall on the way is an early stop
+        near = first.q_stop_rad + span - 2 * tol
+        if start.ok and near - start.q_rad > math.radians(10.0):
+            s, stalled = move_to(driver, near, transit, cap, max_lag_rad, stall_s=section.dwell_s)
+            if stalled:
+                upper = StopResult(
+                    1,
+                    "ok",
+                    q_stop_rad=s.q_rad,
+                    q_pressed_rad=s.q_rad,
+                    torque_nm=s.torque_nm,
+                    test="transit-stall",
+                    t_detect_s=s.t_s - start.t_s,
+                    duration_s=s.t_s - start.t_s,
+                    travel_rad=abs(s.q_rad - start.q_rad),
+                )
+            else:
+                travel = first.q_stop_rad + span + tol - s.q_rad
+        if upper is None:
+            cfg2 = _config(joint, section, max_travel_rad=travel, max_lag_rad=max_lag_rad, gravity=gravity)
+            upper = run_search(driver, StopSearch(1, cfg2), view, "upper")
     stops = joint_zero(
         joint.name,
         lower,
@@ -361,7 +408,7 @@ def calibrate_joint(
     if stops.ok:
         park = _park_target(joint, stops, expected_lower_rad, expected_upper_rad)
         try:
-            move_to(driver, park, joint.speed_rad_s * 2, cap, max_lag_rad)
+            move_to(driver, park, transit, cap, max_lag_rad)
         except AutoCalAbortedError as exc:
             driver.limp()
             stops = JointStops(
@@ -464,7 +511,7 @@ def run_autocal(
                         move_to(
                             drivers[other],
                             math.radians(angle_deg) + run.offsets[other],
-                            section.joint(other).speed_rad_s * 2,  # type: ignore[union-attr]
+                            section.joint(other).speed_rad_s * TRANSIT_FACTOR,  # type: ignore[union-attr]
                             section.joint(other).torque_cap_nm,  # type: ignore[union-attr]
                             _lag(max_lag_rad, other),
                         )
