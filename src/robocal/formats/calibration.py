@@ -675,10 +675,11 @@ def _write_transmission(path: Path, cf: CalibrationFile, urdf: UrdfModel | None,
 
 # -------------------------------------------------------------------------------------- lerobot-legacy
 def _read_lerobot_legacy(path: Path, **_: Any) -> CalibrationFile:
-    from ..lerobot import legacy  # the public LeRobot facade (lazy: it is only needed for this format)
+    from ..core.lerobot.legacy import degree_joint_map
+    from .lerobot import read_legacy  # lazy: only needed for this format
 
-    cal = legacy.read_legacy(path)
-    rc, linear = legacy.degree_joint_map(cal)  # DEGREE joints exactly; LINEAR ones are named and left out
+    cal = read_legacy(path)
+    rc, linear = degree_joint_map(cal)  # DEGREE joints exactly; LINEAR ones are named and left out
     notes = (
         (f"{path}: LINEAR motor(s) {', '.join(linear)} left out (percent of a span, not a joint angle)",)
         if linear

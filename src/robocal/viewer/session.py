@@ -332,7 +332,8 @@ def _lerobot_maps(spec: Any, cals: Any, names: Sequence[str]) -> tuple[list[str]
 
 
 def _open_lerobot(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> ViewSession:
-    from ..lerobot import calibration_path, read_calibration
+    from ..formats.lerobot import calibration_path
+    from ..formats.lerobot import read_current as read_calibration
     from ..workflows.lerobot import open_bus, robot_spec
 
     assert opts.lerobot_port is not None and opts.robot is not None
