@@ -9,7 +9,7 @@ What a test reads back:
 * pixels: :func:`screenshot` gives the page as an ``(H, W, 3)`` uint8 array; :func:`color_mask`,
   :func:`centroid` and :func:`scene_region` look at what the WebGL canvas drew;
 * page state: :func:`page_state` parses the JSON that a robocal view publishes in the page (an element with
-  ``id="robocal-state"`` and a ``data-state`` attribute, sent over viser's websocket like everything else),
+  ``id="robocal-status"`` and a ``data-status`` attribute, sent over viser's websocket like everything else),
   and :func:`gui_value` reads the value of a labelled control in viser's panel.
 
 Every wait is bounded (:data:`DEFAULT_TIMEOUT_S`) and polls; nothing depends on the machine's speed.
@@ -80,14 +80,14 @@ def wait_until(predicate: Callable[[], T], timeout_s: float = DEFAULT_TIMEOUT_S,
 
 
 def open_viser(page: Any, url: str, timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
-    """Load a viser page, wait until its websocket is connected and the canvas has drawn a frame.
+    """Load a robocal viser page; wait until its state arrived over the websocket and the canvas drew a frame.
 
     The "Software WebGL rendering detected" notice that viser shows on SwiftShader is closed so that it does
     not cover the scene; other notifications (robocal's own messages) are left alone.
     """
     page.set_default_timeout(timeout_s * 1000)
     page.goto(url)
-    page.get_by_text("Connected", exact=True).first.wait_for(state="visible")
+    wait_until(lambda: page_state(page) is not None, timeout_s, "the page state (#robocal-status)")
     wait_until(lambda: _canvas_size(page)[0] > 0, timeout_s, "the WebGL canvas")
     dismiss_webgl_notice(page)
     next_frames(page)
@@ -149,6 +149,23 @@ def color_mask(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 40) -> np.
     return np.asarray(np.all(diff <= tol, axis=-1))
 
 
+def shade_mask(
+    img: np.ndarray, rgb: tuple[int, int, int], tol: float = 0.18, min_value: int = 50
+) -> np.ndarray:
+    """Pixels of the hue of ``rgb`` whatever their lighting: colours compared after dividing by their maximum.
+
+    A lit or shaded face of an orange mesh is a brighter or darker orange; white, grey and black pixels (and
+    pixels darker than ``min_value``) never match a saturated colour.
+    """
+    px = img.astype(np.float64)
+    v = px.max(axis=-1)
+    ref = np.asarray(rgb, dtype=np.float64)
+    ref = ref / ref.max()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        norm = px / v[..., None]
+    return np.asarray((v >= min_value) & np.all(np.abs(norm - ref) <= tol, axis=-1))
+
+
 def reddish_mask(img: np.ndarray) -> np.ndarray:
     """Pixels that a person would call red, whatever the shading: R high, G and B much lower."""
     r, g, b = (img[..., k].astype(np.int16) for k in range(3))
@@ -164,9 +181,14 @@ def centroid(mask: np.ndarray) -> tuple[float, float] | None:
 
 
 def page_state(page: Any) -> dict[str, Any] | None:
-    """The JSON a robocal view publishes in ``#robocal-state[data-state]``, or ``None`` before it arrived."""
+    """The JSON a robocal view publishes in its page, or ``None`` before it arrived.
+
+    robocal's views put it in ``#robocal-status[data-status]`` (sent over viser's websocket with the scene
+    updates, so a state that arrived means the scene updates before it arrived too).
+    """
     raw = page.evaluate(
-        "() => { const e = document.getElementById('robocal-state'); return e ? e.getAttribute('data-state') : null; }"
+        "() => { const e = document.getElementById('robocal-status');"
+        " return e ? e.getAttribute('data-status') : null; }"
     )
     return None if raw is None else dict(json.loads(raw))
 

@@ -25,7 +25,7 @@ def scene() -> Iterator[Any]:
         "/box", color=(230, 20, 20), dimensions=(0.6, 0.6, 0.6), position=(0.0, 0.0, 0.0)
     )
     value = server.gui.add_text("value", initial_value="0.000", disabled=True)
-    state = server.gui.add_html('<div id="robocal-state" data-state=\'{"seq": 0}\'></div>')
+    state = server.gui.add_html('<div id="robocal-status" data-status=\'{"seq": 0}\'></div>')
 
     @server.on_client_connect
     def _(client: Any) -> None:
@@ -36,7 +36,7 @@ def scene() -> Iterator[Any]:
     def publish(seq: int, x: float) -> None:
         box.position = (x, 0.0, 0.0)
         value.value = f"{x:.3f}"
-        state.content = f"<div id=\"robocal-state\" data-state='{json.dumps({'seq': seq, 'x': x})}'></div>"
+        state.content = f"<div id=\"robocal-status\" data-status='{json.dumps({'seq': seq, 'x': x})}'></div>"
 
     try:
         yield server, publish

@@ -2,21 +2,25 @@
 
 from __future__ import annotations
 
+import contextlib
 import pathlib
 import tempfile
+import time
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 from rich.table import Table
 
 from ..core.ur import RPY_CONVENTIONS, TEST_SET_3_DELTAS, UR_MODELS, deviation_from_nominal, nominal_dh
 from ..errors import UsageError
+from ..viewer.ur_page import parse_q
 from ..workflows import ur as wf
 from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
 
 app = typer.Typer(
-    help="Universal Robots: calibrated kinematics for ur_description (extract, correct, defaults, verify, plot).",
+    help="Universal Robots: calibrated kinematics for ur_description (extract, correct, defaults, verify, plot, view).",
     no_args_is_help=True,
 )
 
@@ -144,6 +148,10 @@ def verify(
     port: Annotated[int, typer.Option("--port", help="Primary interface port.")] = 30001,
     timeout: Annotated[float, typer.Option("--timeout", help="Seconds per controller read.")] = 10.0,
     controller_samples: Annotated[int, typer.Option("--controller-samples", help="States to compare.")] = 20,
+    q: Annotated[
+        str | None,
+        typer.Option("--q", help="Compare at these joint positions (rad, 'q1,…,q6') instead of --samples random ones."),
+    ] = None,
 ) -> None:
     """Compare the FK of the YAML (built like ur_description does) and/or a URDF with the DH FK.
 
@@ -160,7 +168,8 @@ def verify(
         )
     if dh is not None or model is not None or deltas is not None or host is None:
         params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
-        reports.extend(wf.verify(file, params, urdf_path=urdf, samples=samples, seed=seed))
+        q_rad = None if q is None else np.array([parse_q(q)])
+        reports.extend(wf.verify(file, params, urdf_path=urdf, samples=samples, seed=seed, q_rad=q_rad))
     raise typer.Exit(_print_reports(reports, input_warnings))
 
 
@@ -178,6 +187,69 @@ def plot(
     for w in input_warnings:
         print_warning(w)
     raise typer.Exit(EXIT_WARNINGS if input_warnings else EXIT_OK)
+
+
+@app.command("view")
+def view(
+    dh: Annotated[Path | None, typer.Option("--dh", help="Calibrated DH YAML (dh_theta, dh_a, dh_d, dh_alpha).")] = None,
+    host: Annotated[str | None, typer.Option("--host", help="Read the calibrated DH from this controller.")] = None,
+    port: Annotated[int, typer.Option("--port", help="Controller's primary interface port.")] = 30001,
+    timeout: Annotated[float, typer.Option("--timeout", help="Seconds to wait for KinematicsInfo.")] = 10.0,
+    model: Annotated[
+        str | None, typer.Option("--model", help=f"Nominal UR model ({MODELS}); default: the closest one.")
+    ] = None,
+    q: Annotated[str | None, typer.Option("--q", help="Initial joint positions, rad ('q1,…,q6'); default 0.")] = None,
+    samples: Annotated[int, typer.Option("--samples", help="Random joint vectors for max Δp (as ur verify).")] = 1000,
+    seed: Annotated[int, typer.Option("--seed", help="Random seed (as ur verify).")] = 0,
+    arrow_scale: Annotated[float, typer.Option("--arrow-scale", help="Drawn arrow length per metre of error.")] = 100.0,
+    view_host: Annotated[str, typer.Option("--view-host", help="Interface the web page is served on.")] = "127.0.0.1",
+    view_port: Annotated[int, typer.Option("--view-port", help="TCP port of the web page (0: any free port).")] = 8080,
+) -> None:
+    """Show the nominal and the calibrated arm side by side in the browser, with tool0's position error.
+
+    The calibrated DH comes from --dh FILE or from a controller (--host). Joint positions are set with --q and
+    the page's sliders; the page shows Δp at q and max Δp over --samples random joint vectors, the numbers
+    `robocal ur verify` prints for the YAML `robocal ur correct` writes from the same DH. Serves until Ctrl-C.
+    """
+    from ..viewer import ur_page
+
+    if (dh is None) == (host is None):
+        raise UsageError("give either --dh FILE or --host HOST")
+    q_rad = ur_page.parse_q(q)
+    warnings: list[str] = []
+    if dh is not None:
+        params = wf.load_dh_input(dh, None, None, warnings=warnings)
+        source = str(dh)
+    else:
+        assert host is not None
+        params, ctrl_warnings = wf.read_controller_dh(host, port=port, timeout_s=timeout)
+        warnings.extend(ctrl_warnings)
+        source = f"controller {host}:{port}"
+    page = ur_page.UrViewPage(
+        ur_page.UrViewModel(params, model),
+        source=source,
+        q_rad=q_rad,
+        samples=samples,
+        seed=seed,
+        arrow_scale=arrow_scale,
+        host=view_host,
+        port=view_port,
+    ).start()
+    try:
+        c = page.current
+        console.print(f"robocal ur view: {page.url}  (Ctrl-C to stop)")
+        console.print(
+            f"{page.view.model}: Δp at q = {ur_page.format_error_m(c.error_norm_m)} m; "
+            f"max Δp over {samples} samples = {ur_page.format_error_m(page.verify_m)} m"
+        )
+        for w in warnings:
+            print_warning(w)
+        with contextlib.suppress(KeyboardInterrupt):
+            while page.server is not None:
+                time.sleep(0.5)
+    finally:
+        page.stop()
+    raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
 
 
 def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:

@@ -57,6 +57,7 @@ __all__ = [
     "extract",
     "load_dh_input",
     "plot",
+    "read_controller_dh",
     "urdf_fk",
     "verify",
     "verify_controller",
@@ -393,6 +394,7 @@ def verify(
     seed: int = 0,
     tolerance_m: float = DEFAULT_TOLERANCE_M,
     tolerance_rad: float = DEFAULT_TOLERANCE_RAD,
+    q_rad: FloatArray | None = None,
 ) -> list[VerifyReport]:
     """Compare the FK of a kinematics YAML (as ur_description builds it) and/or a URDF with the DH FK.
 
@@ -404,15 +406,21 @@ def verify(
         seed: RNG seed.
         tolerance_m: Position tolerance for the warning.
         tolerance_rad: Rotation tolerance for the warning.
+        q_rad: ``(N, 6)`` joint vectors (rad) to compare at instead of the random ones (``--q``).
 
     Returns:
         One report per checked source.
     """
-    _check_samples(samples, "--samples", MAX_VERIFY_SAMPLES)
     if kinematics_path is None and urdf_path is None:
         raise UsageError("nothing to verify: give a kinematics FILE and/or --urdf")
-    rng = np.random.default_rng(seed)
-    q = rng.uniform(-2.0 * math.pi, 2.0 * math.pi, size=(samples, 6))
+    if q_rad is not None:
+        q = np.asarray(q_rad, dtype=np.float64)
+        if q.ndim != 2 or q.shape[1] != 6 or q.shape[0] == 0 or not np.all(np.isfinite(q)):
+            raise UsageError(f"--q: expected six finite joint positions per vector, got shape {q.shape}")
+    else:
+        _check_samples(samples, "--samples", MAX_VERIFY_SAMPLES)
+        rng = np.random.default_rng(seed)
+        q = rng.uniform(-2.0 * math.pi, 2.0 * math.pi, size=(samples, 6))
     T_dh = fk_dh(dh, q)
     tol = (tolerance_m, tolerance_rad)
     reports: list[VerifyReport] = []
@@ -423,6 +431,21 @@ def verify(
     if urdf_path is not None:
         reports.append(_report(f"URDF {urdf_path}", urdf_fk(urdf_path, q), T_dh, None, dh, tol))
     return reports
+
+
+def read_controller_dh(host: str, *, port: int = 30001, timeout_s: float = 10.0) -> tuple[DHParameters, list[str]]:
+    """The calibrated DH a controller reports (KinematicsInfo), with the reader's warnings (status ≠ 2).
+
+    Raises:
+        UsageError: Bad host/port/timeout.
+        CalibTimeoutError, ProtocolError, DeviceError: As :class:`~robocal.backends.ur_primary.PrimaryClient`.
+    """
+    _check_connection(host, port, timeout_s)
+    from ..backends.ur_primary import PrimaryClient
+
+    with PrimaryClient(host, port, timeout_s) as client:
+        info = client.read_kinematics()
+        return info.dh, list(client.warnings)
 
 
 def verify_controller(
