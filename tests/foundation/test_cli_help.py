@@ -77,11 +77,11 @@ def test_group_help_names_every_command(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     text = _help(capsys, monkeypatch, "ur")
-    assert "(extract, correct, defaults, verify, plot)" in text
-    for name in ("extract", "correct", "defaults", "verify", "plot"):
+    assert "(extract, correct, defaults, verify, plot, view)" in text
+    for name in ("extract", "correct", "defaults", "verify", "plot", "view"):
         assert re.search(rf"│ {name}\s+\S", text), name  # each command has a help line
     root = _help(capsys, monkeypatch)
-    assert "(extract, correct, defaults, verify, plot)" in root
+    assert "(extract, correct, defaults, verify, plot, view)" in root
 
 
 def test_specific_option_texts(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
