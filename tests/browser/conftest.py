@@ -1,4 +1,4 @@
-"""Fixtures for the browser tests: one headless Chromium per session, a fresh page per test.
+"""Fixtures for the browser tests: one headless Chromium per test module, a fresh page per test.
 
 The tests here skip, with the reason, only when no Chromium binary is on the machine (``.ci/run`` installs the
 distribution's ``chromium`` package when it can). Playwright and viser come with ``pip install -e '.[test]'``;
@@ -33,8 +33,11 @@ def chromium_path() -> str:
     return path
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser(chromium_path: str) -> Iterator[Any]:
+    # Module scope, not session: Playwright's sync API keeps an asyncio loop running in the main thread while
+    # it is open, and later tests that call asyncio.run() would fail ("cannot be called from a running event
+    # loop"). One Chromium per test module costs a few seconds.
     from playwright.sync_api import sync_playwright
 
     with tempfile.TemporaryDirectory(prefix="robocal-chromium-") as profile, sync_playwright() as pw:
