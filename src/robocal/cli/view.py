@@ -39,7 +39,10 @@ def view(
         None, "--compare", help="Second calibration file drawn as a ghost, or 'none' for no calibration."
     ),
     package_path: list[str] = typer.Option(
-        [], "--package-path", help="NAME=DIR: where package://NAME/ meshes are (repeatable)."
+        [],
+        "--package-path",
+        metavar="NAME=DIR",
+        help="Where package://NAME/ meshes are (repeatable).",
     ),
     frame: str | None = typer.Option(
         None, "--frame", help="Replay positions are identity (direction·raw, default) or motor (raw)."
