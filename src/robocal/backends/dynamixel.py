@@ -120,3 +120,13 @@ class DynamixelBus(SdkBusBase):
         if register in SIGNED_BYTES:
             return decode_twos_complement(raw, SIGNED_BYTES[register])
         return int(raw)
+
+    def reboot(self, motor_id: int) -> None:
+        """REBOOT instruction (0x08): the only way to clear ``Hardware_Error_Status``; torque is off after it."""
+        self._entry(motor_id, "Torque_Enable")
+
+        def call() -> tuple[None, int, int]:
+            result, error = self._ph.reboot(self._port_handler, motor_id)
+            return None, result, error
+
+        self._call("reboot", motor_id, "Torque_Enable", call)

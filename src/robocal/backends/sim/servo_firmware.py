@@ -1,0 +1,306 @@
+"""The firmware of a simulated Feetech or Dynamixel servo with physics: control law, saturation, protection.
+
+A :class:`ServoFirmware` joins one :class:`~robocal.backends.sim.servo.SimServo` (its control table) to a
+:class:`~robocal.backends.sim.physics.JointPlant` on a :class:`~robocal.backends.sim.physics.SimClock`. The
+simulated bus calls :meth:`ServoFirmware.sync` before it handles each packet (after advancing the clock by the bus
+latency), :meth:`ServoFirmware.after_write` after a register write and :meth:`ServoFirmware.refresh` before a
+read. Plant radians map to the servo's actual ticks as ``ticks = zero_ticks + q·resolution/2π``.
+
+Control laws (joint torque τ; ``e`` the setpoint error in ticks, ``ω`` the velocity):
+
+* Feetech STS/SCS, ``Operating_Mode`` 0 (position): ``τ = clip(P/1024·τ_stall·e − D·0.005·τ_stall·ω,
+  ±τ_stall·Torque_Limit/1000)`` with ``P_Coefficient``, ``D_Coefficient``; the setpoint moves toward
+  ``Goal_Position`` at ``Goal_Velocity`` ticks/s (0: at once). ``Operating_Mode`` 1 (velocity): a velocity loop to
+  the signed ``Goal_Velocity`` (ticks/s), same torque cap. Overload protection: ``|τ| ≥ τ_stall·Overload_Torque %``
+  for ``Protection_Time``·10 ms sets ``Status`` bit 5 and limits the torque to ``Protective_Torque %`` until the
+  torque is switched off. ``Present_Load`` is τ/τ_stall in 0.1 % (sign bit 10), ``Present_Current`` in 6.5 mA,
+  ``Present_Velocity`` in ticks/s, ``Moving`` while |ω| > 20 ticks/s or the setpoint is travelling.
+* Dynamixel X: ``Operating_Mode`` 5 (current-based position): ``τ = clip(kt·i_unit·(P/128·e − D/16·ω_ms),
+  ±kt·i_unit·min(|Goal_Current|, Current_Limit))`` with ``Position_P_Gain``, ``Position_D_Gain`` (``ω_ms`` in
+  ticks/ms), setpoint ramped at ``Profile_Velocity`` (0.229 rev/min; 0: at once); modes 3/4 the same law capped
+  at ``τ_stall·PWM_Limit/885``; mode 1 velocity, mode 0 current (``Goal_Current``), mode 16 PWM.
+  ``Present_Current`` in the model's current unit, ``Present_Velocity`` in 0.229 rev/min, ``Moving`` above
+  ``Moving_Threshold``. Overload: ≥ 95 % of the mode's maximum output for 1 s sets ``Hardware_Error_Status``
+  bit 5, switches the torque off and keeps it off (the alert bit 0x80 in every status packet) until a REBOOT.
+
+Torque on (``Torque_Enable`` 0 → 1) sets ``Goal_Position`` to the present position, so the servo holds where it
+is. Ratings (:data:`RATINGS`) are datasheet stall torques and currents. The gains' scaling, the protection
+defaults of Dynamixel and the Goal_Position update at torque-on are assumptions (docs/sim.md lists them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from ...core.lerobot import encode_sign_magnitude, encode_twos_complement
+from .physics import Drive, JointPlant, OverloadLatch, SimClock
+
+if TYPE_CHECKING:
+    from .servo import SimServo
+
+__all__ = ["RATINGS", "MotorRating", "ServoFirmware"]
+
+TWO_PI = 2.0 * math.pi
+RPM_UNIT = 0.229
+"""Dynamixel velocity unit, rev/min."""
+PWM_FULL = 885
+"""Dynamixel X PWM register value for 100 % duty."""
+
+
+@dataclass(frozen=True)
+class MotorRating:
+    """Datasheet numbers of a servo model.
+
+    Attributes:
+        stall_torque_nm: Stall torque at the nominal voltage.
+        stall_current_a: Stall current.
+        current_unit_a: One unit of ``Present_Current`` / ``Goal_Current``.
+        current_limit: Factory ``Current_Limit`` (Dynamixel; 0 where there is none).
+    """
+
+    stall_torque_nm: float
+    stall_current_a: float
+    current_unit_a: float
+    current_limit: int = 0
+
+    @property
+    def kt_nm_a(self) -> float:
+        """Torque per ampere."""
+        return self.stall_torque_nm / self.stall_current_a
+
+
+RATINGS: dict[str, MotorRating] = {
+    "sts3215": MotorRating(1.91, 2.7, 0.0065),  # 7.4 V, 19.5 kg·cm
+    "sts3250": MotorRating(4.9, 3.0, 0.0065),
+    "sm8512bl": MotorRating(11.8, 7.0, 0.0065),
+    "scs0009": MotorRating(0.23, 0.7, 0.0065),
+    "xl330-m077": MotorRating(0.228, 1.47, 0.001, 1750),
+    "xl330-m288": MotorRating(0.52, 1.47, 0.001, 1750),
+    "xl430-w250": MotorRating(1.5, 1.4, 0.00269),  # no current sensing: no current modes
+    "xc430-w150": MotorRating(1.4, 1.4, 0.00269),
+    "xm430-w350": MotorRating(4.1, 2.3, 0.00269, 1193),
+    "xm540-w270": MotorRating(10.6, 4.4, 0.00269, 2047),
+}
+"""Model → rating."""
+
+_CHUNK_S = 0.005  # the setpoint ramp is updated at least every 5 ms of simulated time
+
+
+class ServoFirmware:
+    """The firmware of one simulated servo driving a plant (see the module docstring).
+
+    Args:
+        servo: The servo (its registers are the firmware's state).
+        plant: The joint.
+        clock: Simulated time.
+        zero_ticks: Actual ticks at plant position 0.
+    """
+
+    def __init__(self, servo: SimServo, plant: JointPlant, clock: SimClock, *, zero_ticks: float) -> None:
+        self.servo = servo
+        self.plant = plant
+        self.clock = clock
+        self.zero_ticks = float(zero_ticks)
+        self.rating = RATINGS[servo.model]
+        self.res = servo.resolution
+        self.setpoint_ticks = servo.actual_ticks
+        self.ramp_ticks_s = 0.0
+        self.dxl = servo.vendor == "dynamixel"
+        s = servo
+        if self.dxl:
+            s.set_reg("Current_Limit", self.rating.current_limit)
+            s.set_reg("Goal_Current", self.rating.current_limit)
+            s.set_reg("PWM_Limit", PWM_FULL)
+            s.set_reg("Position_P_Gain", 800)
+            s.set_reg("Moving_Threshold", 10)
+            s.set_reg("Shutdown", 0x34)
+        elif "Torque_Limit" in s.table:
+            for name, value in (
+                ("Max_Torque_Limit", 1000),
+                ("Torque_Limit", 1000),
+                ("P_Coefficient", 32),
+                ("D_Coefficient", 32),
+                ("Protective_Torque", 20),
+                ("Protection_Time", 200),
+                ("Overload_Torque", 80),
+            ):
+                s.set_reg(name, value)
+        plant.set_state(self.rad(servo.actual_ticks))
+
+    # ------------------------------------------------------------------------------------------ frames
+    def rad(self, actual_ticks: float) -> float:
+        """Actual ticks → plant radians."""
+        return (actual_ticks - self.zero_ticks) * TWO_PI / self.res
+
+    def ticks(self, q_rad: float) -> float:
+        """Plant radians → actual ticks."""
+        return self.zero_ticks + q_rad * self.res / TWO_PI
+
+    def _reg(self, name: str, default: int = 0) -> int:
+        return self.servo.get_reg(name) if name in self.servo.table else default
+
+    @property
+    def torque_on(self) -> bool:
+        """``Torque_Enable`` is set."""
+        return bool(self._reg("Torque_Enable"))
+
+    @property
+    def _sign(self) -> float:
+        return -1.0 if self.dxl and self._reg("Drive_Mode") & 1 else 1.0
+
+    # ----------------------------------------------------------------------------------------- the law
+    def _position_gains(self) -> tuple[float, float]:
+        """(kp N·m/rad, kd N·m·s/rad) of the position loop."""
+        per_rad = self.res / TWO_PI
+        r = self.rating
+        if self.dxl:
+            amp = r.current_unit_a * r.kt_nm_a
+            kp = self._reg("Position_P_Gain") / 128 * amp * per_rad
+            kd = self._reg("Position_D_Gain") / 16 * amp * per_rad * 0.001
+            return kp, kd
+        p, d = self._reg("P_Coefficient", 32), self._reg("D_Coefficient", 32)
+        return p / 1024 * r.stall_torque_nm * per_rad, d * 0.005 * r.stall_torque_nm
+
+    def _cap(self) -> float:
+        r = self.rating
+        if not self.dxl:
+            return r.stall_torque_nm * min(1000, self._reg("Torque_Limit", 1000)) / 1000
+        pwm_cap = r.stall_torque_nm * min(PWM_FULL, self._reg("PWM_Limit")) / PWM_FULL
+        if self._reg("Operating_Mode") in (0, 5):
+            amps = min(abs(self._reg("Goal_Current")), self._reg("Current_Limit")) * r.current_unit_a
+            return min(pwm_cap, amps * r.kt_nm_a)
+        return pwm_cap
+
+    def _overload(self) -> OverloadLatch:
+        r = self.rating
+        if self.dxl:
+            return OverloadLatch(
+                0.95 * r.stall_torque_nm * min(1.0, self._reg("PWM_Limit") / PWM_FULL), 1.0, 0.0
+            )
+        return OverloadLatch(
+            r.stall_torque_nm * self._reg("Overload_Torque", 80) / 100,
+            self._reg("Protection_Time", 200) * 0.01,
+            r.stall_torque_nm * self._reg("Protective_Torque", 20) / 100,
+        )
+
+    def _velocity_ref_rad_s(self) -> float:
+        if self.dxl:
+            return self._reg("Goal_Velocity") * RPM_UNIT / 60 * TWO_PI
+        name = "Goal_Velocity" if "Goal_Velocity" in self.servo.table else "Goal_Speed"
+        return self._reg(name) * TWO_PI / self.res
+
+    def drive(self) -> Drive:
+        """The torque law now, in the plant frame (limp with torque off)."""
+        if not self.torque_on:
+            return Drive()
+        mode, sign, cap = self._reg("Operating_Mode"), self._sign, self._cap()
+        r = self.rating
+        if self.dxl and mode == 0:
+            return Drive(
+                tau_ff_nm=sign * self._reg("Goal_Current") * r.current_unit_a * r.kt_nm_a, tau_max_nm=cap
+            )
+        if self.dxl and mode == 16:
+            return Drive(
+                tau_ff_nm=sign * r.stall_torque_nm * self._reg("Goal_PWM") / PWM_FULL, tau_max_nm=cap
+            )
+        if mode == 1:
+            kv = r.stall_torque_nm / (200 * TWO_PI / self.res)  # saturates 200 ticks/s off the goal speed
+            return Drive(kd_nms_rad=kv, v_ref_rad_s=sign * self._velocity_ref_rad_s(), tau_max_nm=cap)
+        kp, kd = self._position_gains()
+        v_ref = self.ramp_ticks_s * TWO_PI / self.res
+        return Drive(kp, kd, self.rad(self.setpoint_ticks), v_ref, 0.0, cap)
+
+    def _ramp_speed_ticks_s(self) -> float:
+        """Speed of the setpoint (0: jumps)."""
+        if self.dxl:
+            return self._reg("Profile_Velocity") * RPM_UNIT / 60 * self.res
+        name = "Goal_Velocity" if "Goal_Velocity" in self.servo.table else "Goal_Speed"
+        return float(abs(self._reg(name)))
+
+    # ------------------------------------------------------------------------------------------- hooks
+    def sync(self) -> None:
+        """Integrate the plant to the clock, moving the setpoint along its ramp."""
+        plant, now = self.plant, self.clock.now()
+        plant.overload = self._overload()
+        mode = self._reg("Operating_Mode")
+        position_law = mode in (3, 4, 5) if self.dxl else mode == 0
+        while plant.t_s < now - 1e-12:
+            t_next = min(now, plant.t_s + _CHUNK_S)
+            self.ramp_ticks_s = 0.0
+            if self.torque_on and position_law:
+                goal = self.servo.goal_to_actual(self.servo.get_reg("Goal_Position"))
+                speed = self._ramp_speed_ticks_s()
+                err = goal - self.setpoint_ticks
+                if speed <= 0 or abs(err) <= speed * (t_next - plant.t_s):
+                    self.setpoint_ticks = goal
+                else:
+                    self.setpoint_ticks += math.copysign(speed * (t_next - plant.t_s), err)
+                    self.ramp_ticks_s = math.copysign(speed, err)
+            plant.run_until(t_next, self.drive())
+            if plant.t_s < t_next - 1e-12:  # the plant's step is coarser than what is left
+                break
+            if self.dxl and plant.latched and self.torque_on:
+                self.servo.set_reg("Torque_Enable", 0)  # the overload shuts the torque off
+                self.servo.set_reg("Hardware_Error_Status", self._reg("Hardware_Error_Status") | 0x20)
+        self.servo.actual_ticks = self.ticks(plant.read().q_rad)
+
+    def after_write(self, addr: int, size: int, torque_was_on: bool) -> None:
+        """A register write was applied: torque-on holds the present position; torque-off clears Feetech's latch."""
+        on = self.torque_on
+        if on and not torque_was_on:
+            self.setpoint_ticks = self.servo.actual_ticks
+            self.servo.set_reg("Goal_Position", self.servo.present_ticks())
+        if not on and torque_was_on and not self.dxl:
+            self.plant.clear_overload()
+
+    def torque_enable_refused(self, value: int) -> bool:
+        """Dynamixel refuses torque on while a hardware error stands (until a REBOOT)."""
+        return self.dxl and bool(value) and bool(self._reg("Hardware_Error_Status"))
+
+    def reboot(self) -> None:
+        """Dynamixel REBOOT: clears the hardware error; the torque stays off."""
+        self.servo.set_reg("Hardware_Error_Status", 0)
+        self.servo.set_reg("Torque_Enable", 0)
+        self.plant.clear_overload()
+
+    def error_byte(self) -> int:
+        """The error field of a status packet (Feetech: the ``Status`` bits; Dynamixel: alert bit 0x80)."""
+        if self.dxl:
+            return 0x80 if self._reg("Hardware_Error_Status") else 0
+        return 0x20 if self.plant.latched else 0
+
+    def answers(self) -> bool:
+        """False while the plant's replies are lost."""
+        return self.plant.answers()
+
+    def refresh(self) -> None:
+        """Write the Present_* registers, Moving and the fault bits (before a read)."""
+        s, p, r = self.servo, self.plant, self.rating
+        tau = p.tau_motor_nm * self._sign
+        v_ticks = p.v_rad_s * self.res / TWO_PI * self._sign
+        moving = abs(v_ticks) > 20 or self.ramp_ticks_s != 0.0
+        if self.dxl:
+            v_units = round(p.v_rad_s * 60 / TWO_PI / RPM_UNIT * self._sign)
+            cur = round(tau / r.kt_nm_a / r.current_unit_a)
+            self._raw("Present_Current", encode_twos_complement(max(-32768, min(32767, cur)), 2))
+            self._raw("Present_Velocity", encode_twos_complement(v_units, 4))
+            moving = abs(v_units) > self._reg("Moving_Threshold") or self.ramp_ticks_s != 0.0
+        else:
+            if "Present_Load" in s.table:
+                load = max(-1000, min(1000, round(tau / r.stall_torque_nm * 1000)))
+                self._raw("Present_Load", encode_sign_magnitude(load, 10) if not s.big_endian else abs(load))
+            if "Present_Current" in s.table:
+                self._raw("Present_Current", min(0x7FFF, round(abs(tau) / r.kt_nm_a / r.current_unit_a)))
+            name = "Present_Velocity" if "Present_Velocity" in s.table else "Present_Speed"
+            v = max(-32767, min(32767, round(v_ticks)))
+            self._raw(name, encode_sign_magnitude(v, 15) if not s.big_endian else v & 0xFFFF)
+            if "Status" in s.table:
+                status = self._reg("Status") & ~0x20
+                s.set_reg("Status", status | (0x20 if p.latched else 0))
+        s.set_reg("Moving", int(moving))
+
+    def _raw(self, name: str, raw: int) -> None:
+        addr, size = self.servo.table[name]
+        self.servo.regs[addr : addr + size] = self.servo._pack(raw, size)

@@ -1,0 +1,201 @@
+"""Simulated Feetech and Dynamixel servos with physics, driven by the unmodified SDKs through robocal's backends."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+
+from robocal.backends.dynamixel import DynamixelBus
+from robocal.backends.feetech import FeetechBus
+from robocal.backends.sim.physics import JointPlant, PlantParams, Scenario, SimClock, make_plant
+from robocal.backends.sim.servo import SimServo, SimServoBus
+from robocal.backends.sim.servo_firmware import RATINGS, ServoFirmware
+from robocal.errors import CalibTimeoutError, DeviceError
+
+pytestmark = pytest.mark.timeout(120)
+
+TICK = 2 * math.pi / 4096
+ZERO = 2048.0  # actual ticks at plant position 0
+STS = RATINGS["sts3215"]
+XL = RATINGS["xl330-m288"]
+
+
+def params(**kw: float) -> PlantParams:
+    base = {"stop_lower_rad": -1.0, "stop_upper_rad": 1.0, "stiffness_upper": 200.0, "stiction_nm": 0.05}
+    base.update(kw)
+    return PlantParams(**base)  # type: ignore[arg-type]
+
+
+@contextmanager
+def rig(model: str, plant: JointPlant, q0_rad: float = 0.0) -> Iterator[tuple[SimServo, SimClock, object]]:
+    clock = SimClock()
+    servo = SimServo(1, model, ZERO + q0_rad / TICK)
+    servo.firmware = ServoFirmware(servo, plant, clock, zero_ticks=ZERO)
+    cls = FeetechBus if servo.vendor == "feetech" else DynamixelBus
+    with (
+        SimServoBus([servo], clock=clock) as sim,
+        cls(sim.port, {1: model}, packet_timeout_ms=500.0, retries=1) as bus,
+    ):
+        yield servo, clock, bus
+
+
+def wait(bus: FeetechBus | DynamixelBus, clock: SimClock, seconds: float) -> int:
+    """Poll Present_Position every 20 ms of simulated time; the last reading."""
+    pos = 0
+    for _ in range(round(seconds / 0.02)):
+        pos = bus.sync_read("Present_Position", [1])[1]
+        clock.sleep(0.02)
+    return pos
+
+
+def test_feetech_position_servo_pushes_the_stop_with_its_torque_limit() -> None:
+    plant = JointPlant(params(), q0_rad=0.5)
+    with rig("sts3215", plant, 0.5) as (_servo, clock, bus):
+        assert isinstance(bus, FeetechBus)
+        bus.write("Torque_Limit", 1, 300)  # 30 % of the stall torque
+        bus.write("Torque_Enable", 1, 1)
+        assert bus.read("Goal_Position", 1) == round(ZERO + 0.5 / TICK)  # torque on holds where it is
+        bus.write("Goal_Position", 1, round(ZERO + 1.3 / TICK))  # past the stop at 1.0 rad
+        pos = wait(bus, clock, 2.0)
+        push = 0.3 * STS.stall_torque_nm
+        # held in the stop at the torque limit: deflection push/k (± one tick, ± friction/k)
+        assert (pos - ZERO) * TICK == pytest.approx(1.0 + push / 200.0, abs=TICK + 0.05 / 200)
+        assert bus.read("Present_Load", 1) == 300
+        assert bus.read("Present_Current", 1) == round(push / STS.kt_nm_a / 0.0065)
+        assert bus.read("Moving", 1) == 0
+        assert bus.read("Status", 1) == 0
+        # a goal just past the stop: the P law and the stop spring share the lag (kp·lag below the limit)
+        plant.params = params(stiction_nm=0.0, coulomb_nm=0.0)
+        goal = round(ZERO + 1.0 / TICK) + 5
+        bus.write("Goal_Position", 1, goal)
+        wait(bus, clock, 1.0)
+        kp = 32 / 1024 * STS.stall_torque_nm / TICK
+        goal_rad = (goal - ZERO) * TICK
+        q = (kp * goal_rad + 200.0 * 1.0) / (kp + 200.0)
+        assert plant.q_rad == pytest.approx(q, abs=1e-6)
+        assert bus.read("Present_Load", 1) == round(kp * (goal_rad - q) / STS.stall_torque_nm * 1000)
+
+
+def test_feetech_stiction_no_motion_below_breakaway_and_goal_speed_ramp() -> None:
+    plant = make_plant(Scenario(stiction_ratio=0.8), params(), search_torque_nm=1.0)
+    with rig("sts3215", plant) as (_servo, clock, bus):
+        assert isinstance(bus, FeetechBus)
+        start = bus.read("Present_Position", 1)
+        bus.write("Torque_Limit", 1, round(0.79 / STS.stall_torque_nm * 1000))  # 0.79 N·m < 0.8 breakaway
+        bus.write("Torque_Enable", 1, 1)
+        bus.write("Goal_Position", 1, start + 300)
+        assert wait(bus, clock, 1.0) == start and bus.read("Moving", 1) == 0
+        bus.write("Torque_Enable", 1, 0)
+        bus.write("Torque_Limit", 1, 1000)
+        bus.write("Goal_Velocity", 1, 200)  # ticks/s: 300 ticks take 1.5 s
+        bus.write("Torque_Enable", 1, 1)
+        bus.write("Goal_Position", 1, start + 300)
+        wait(bus, clock, 0.5)
+        mid = bus.read("Present_Position", 1)
+        assert 50 < mid - start < 150 and bus.read("Moving", 1) == 1
+        # it stops short of the goal by at most the stiction dead band breakaway/kp (13 ticks)
+        kp = 32 / 1024 * STS.stall_torque_nm / TICK
+        assert 0 <= start + 300 - wait(bus, clock, 2.0) <= 0.8 / kp / TICK + 1
+
+
+def test_feetech_overload_latch_after_protection_time_and_torque_off_clears_it() -> None:
+    plant = JointPlant(params(), q0_rad=0.9)
+    with rig("sts3215", plant, 0.9) as (_servo, clock, bus):
+        assert isinstance(bus, FeetechBus)
+        bus.write("Overload_Torque", 1, 25)  # LeRobot's gripper setting
+        bus.write("Protection_Time", 1, 50)  # 0.5 s
+        bus.write("Protective_Torque", 1, 10)
+        bus.write("Torque_Limit", 1, 300)
+        bus.write("Torque_Enable", 1, 1)
+        bus.write("Goal_Position", 1, round(ZERO + 1.3 / TICK))
+        wait(bus, clock, 0.4)
+        assert bus.read("Status", 1) == 0
+        wait(bus, clock, 0.2)
+        assert bus.sync_read("Status", [1])[1] == 0x20  # overload bit
+        with pytest.raises(DeviceError, match=r"[Oo]verload"):  # every status packet carries it
+            bus.read("Present_Load", 1)
+        assert bus.sync_read("Present_Load", [1])[1] == 100  # limited to Protective_Torque 10 %
+        bus.write("Torque_Enable", 1, 0)  # torque off clears the latch
+        assert bus.read("Status", 1) == 0
+        bus.write("Torque_Enable", 1, 1)
+        bus.write("Goal_Position", 1, round(ZERO + 1.3 / TICK))
+        wait(bus, clock, 0.2)
+        assert bus.read("Present_Load", 1) == 300
+
+
+def test_feetech_velocity_mode_and_silent_at_the_stop() -> None:
+    plant = make_plant(Scenario(silent_at_stop=True), params(), search_torque_nm=0.6, q0_rad=0.8)
+    with rig("sts3215", plant, 0.8) as (_servo, clock, bus):
+        assert isinstance(bus, FeetechBus)
+        bus.write("Operating_Mode", 1, 1)
+        bus.write("Torque_Limit", 1, round(0.6 / STS.stall_torque_nm * 1000))
+        bus.write("Torque_Enable", 1, 1)
+        bus.write("Goal_Velocity", 1, 100)
+        wait(bus, clock, 0.5)
+        assert bus.read("Present_Velocity", 1) == pytest.approx(100, abs=3)
+        with pytest.raises(CalibTimeoutError):
+            wait(bus, clock, 3.0)  # pressed into the stop with 0.6 N·m: the replies are lost
+        assert plant.q_rad > 1.0
+        bus.sync_write("Torque_Enable", {1: 0})  # heard without a reply
+        clock.sleep(0.1)
+        assert bus.read("Torque_Enable", 1) == 0
+
+
+def test_dynamixel_current_based_position_with_goal_current() -> None:
+    plant = JointPlant(params(), q0_rad=0.5)
+    with rig("xl330-m288", plant, 0.5) as (_servo, clock, bus):
+        assert isinstance(bus, DynamixelBus)
+        bus.write("Operating_Mode", 1, 5)
+        bus.write("Goal_Current", 1, 400)  # mA
+        bus.write("Torque_Enable", 1, 1)
+        bus.write("Goal_Position", 1, round(ZERO + 1.3 / TICK))
+        pos = wait(bus, clock, 3.0)
+        push = 0.4 * XL.kt_nm_a
+        assert (pos - ZERO) * TICK == pytest.approx(1.0 + push / 200.0, abs=TICK + 0.05 / 200)
+        assert bus.read("Present_Current", 1) == 400
+        assert bus.read("Hardware_Error_Status", 1) == 0
+        with pytest.raises(DeviceError, match="not available to target address"):  # Access error
+            bus.write("Operating_Mode", 1, 3)  # EEPROM locked while torque is on
+
+
+def test_dynamixel_overload_shuts_torque_off_until_reboot() -> None:
+    plant = JointPlant(params(), q0_rad=0.9)
+    with rig("xl330-m288", plant, 0.9) as (_servo, clock, bus):
+        assert isinstance(bus, DynamixelBus)
+        bus.write("Torque_Enable", 1, 1)  # position mode 3: full PWM
+        bus.write("Goal_Position", 1, round(ZERO + 1.6 / TICK))
+        wait(bus, clock, 0.9)
+        assert bus.read("Hardware_Error_Status", 1) == 0
+        wait(bus, clock, 0.3)
+        with pytest.raises(DeviceError, match=r"[Hh]ardware error"):
+            bus.read("Hardware_Error_Status", 1)
+        assert bus.sync_read("Hardware_Error_Status", [1])[1] == 0x20
+        assert bus.sync_read("Torque_Enable", [1])[1] == 0 and plant.tau_motor_nm == 0.0
+        with pytest.raises(DeviceError):
+            bus.write("Torque_Enable", 1, 1)
+        bus.reboot(1)
+        assert bus.read("Hardware_Error_Status", 1) == 0
+        bus.write("Torque_Enable", 1, 1)
+        assert bus.read("Torque_Enable", 1) == 1
+
+
+def test_servo_runs_are_deterministic_with_a_seed() -> None:
+    def run() -> list[int]:
+        plant = make_plant(
+            Scenario(asymmetric_stops=True), params(noise_rad=2 * TICK), search_torque_nm=0.5, seed=4
+        )
+        out = []
+        with rig("sts3215", plant) as (_s, clock, bus):
+            assert isinstance(bus, FeetechBus)
+            bus.write("Torque_Limit", 1, 250)
+            bus.write("Torque_Enable", 1, 1)
+            bus.write("Goal_Position", 1, round(ZERO + 1.3 / TICK))
+            for _ in range(60):
+                out.append(bus.sync_read("Present_Position", [1])[1])
+                clock.sleep(0.02)
+        return out
+
+    assert run() == run()
