@@ -199,3 +199,36 @@ def test_servo_runs_are_deterministic_with_a_seed() -> None:
         return out
 
     assert run() == run()
+
+
+def test_so101_arm_with_physics_pushes_a_joint_into_its_truth_stop() -> None:
+    from robocal.backends.sim.arm_physics import attach_physics
+    from robocal.backends.sim.lerobot_arms import SimArm
+    from robocal.workflows.lerobot import robot_spec
+
+    clock = SimClock()
+    spec = robot_spec("so101_follower")
+    with SimArm(spec) as arm:
+        plants = attach_physics(arm, clock, scenarios={"wrist_roll": Scenario(missing_stop="both")})
+        assert plants["shoulder_pan"].params.stop_upper_rad == pytest.approx((3300 - 2100) * TICK)
+        ids = {m.name: m.motor_id for m in spec.motors}
+        with FeetechBus(arm.port, {m.motor_id: m.model for m in spec.motors}, packet_timeout_ms=500.0) as bus:
+            pan = ids["shoulder_pan"]
+            bus.write("Torque_Limit", pan, 250)
+            bus.write("Torque_Enable", pan, 1)
+            bus.write("Goal_Position", pan, 3600)
+            for _ in range(100):
+                pos = bus.sync_read("Present_Position", list(ids.values()))
+                clock.sleep(0.02)
+            push = 0.25 * STS.stall_torque_nm
+            assert pos[pan] == pytest.approx(3300 + push / 300.0 / TICK, abs=1 + 0.06 / 300 / TICK)
+            assert bus.read("Present_Load", pan) == 250
+            assert pos[ids["elbow_flex"]] == 2000  # the others rest where they were
+            roll = ids["wrist_roll"]  # no stops: the velocity mode turns it past the seam
+            bus.write("Operating_Mode", roll, 1)
+            bus.write("Torque_Enable", roll, 1)
+            bus.write("Goal_Velocity", roll, 1000)
+            clock.sleep(3.0)
+            bus.sync_read("Present_Position", [roll])  # plants are integrated up to the clock at each packet
+            # 1000 ticks/s for 3 s, past where the truth's stop (3981) would have held it
+            assert plants["wrist_roll"].q_rad == pytest.approx(3000 * TICK, abs=0.05)

@@ -99,11 +99,20 @@ class SimServoBus:
         self._settles: list[threading.Event] = []
         if clock is not None:
             clock.add_settler(self.settle)
+
         self.instructions = 0
         self.silent_ids: set[int] = set()
         """Ids that do not answer (to test timeouts)."""
         self.corrupt_next = 0
         """Number of upcoming status packets sent with a wrong checksum."""
+
+    def use_clock(self, clock: SimClock) -> None:
+        """Run on ``clock`` from now on (servos with physics are integrated to it)."""
+        with self._lock:
+            if self.clock is not None:
+                self.clock.remove_settler(self.settle)
+            self.clock = clock
+            clock.add_settler(self.settle)
 
     # ------------------------------------------------------------------------------------ life cycle
     def start(self) -> SimServoBus:
