@@ -278,6 +278,8 @@ class SimMotor:
         return None
 
 
+_SETTLE_ID = 0x7FA
+"""Standard (11-bit) id of the marker frame of :meth:`SimMotorBus.settle` (the Robstride protocol is 29-bit)."""
 _IP_MULTICAST_ALL = 49  # Linux: deliver only the groups this socket joined (default: every group on the host)
 _IPV6_MULTICAST_ALL = 29
 
@@ -328,6 +330,9 @@ class SimMotorBus:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._bus: Any = None
+        self._marker_bus: Any = None
+        self._settles: list[threading.Event] = []
+        self._clocks = {id(m.clock): m.clock for m in self.motors.values() if m.clock is not None}
 
     def start(self) -> SimMotorBus:
         """Open the channel and start answering."""
@@ -341,10 +346,34 @@ class SimMotorBus:
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name=f"sim-robstride-{self.channel}", daemon=True)
         self._thread.start()
+        if self.interface == "virtual":
+            for clock in self._clocks.values():
+                clock.add_settler(self.settle)
         return self
+
+    def settle(self, timeout_s: float = 10.0) -> None:
+        """Return once every frame sent on the channel so far has been handled (for ``SimClock.sleep``).
+
+        A standard-id marker frame sent behind them (the host ignores it) is acknowledged by the thread when it
+        gets there, so a request whose reply is lost is applied before simulated time moves on.
+        """
+        can = require("can", "the simulated Robstride bus")
+        if self._thread is None or not self._thread.is_alive():
+            return
+        if self._marker_bus is None:
+            self._marker_bus = can.Bus(channel=self.channel, interface="virtual", receive_own_messages=False)
+        done = threading.Event()
+        self._settles.append(done)
+        self._marker_bus.send(can.Message(arbitration_id=_SETTLE_ID, data=b"settle", is_extended_id=False))
+        done.wait(timeout_s)
 
     def stop(self) -> None:
         """Stop answering and close the channel."""
+        for clock in self._clocks.values():
+            clock.remove_settler(self.settle)
+        if self._marker_bus is not None:
+            self._marker_bus.shutdown()
+            self._marker_bus = None
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
@@ -364,6 +393,10 @@ class SimMotorBus:
         bus = self._bus
         while not self._stop.is_set():
             msg = bus.recv(timeout=0.02)
+            if msg is not None and not msg.is_extended_id and msg.arbitration_id == _SETTLE_ID:
+                if self._settles:
+                    self._settles.pop(0).set()
+                continue
             if msg is None or not msg.is_extended_id:
                 continue
             motor_id = msg.arbitration_id & 0xFF
