@@ -140,3 +140,24 @@ def test_seeded_runs_through_the_wire_are_identical() -> None:
         return out
 
     assert run() == run()
+
+
+def test_lost_replies_are_applied_at_the_same_simulated_time_every_run() -> None:
+    def run() -> list[float]:
+        plant = make_plant(Scenario(silent_at_stop=True), NOMINAL, search_torque_nm=1.0, q0_rad=0.9)
+        out = []
+        with rig(plant, direction=1) as (bus, _motor, clock):
+            bus.timeout_s = 0.05
+            bus.enable("j")
+            for _ in range(60):
+                try:
+                    out.append(bus.mit_command("j", 1.5 + OFFSET, 0.0, 5.0, 0.2, 0.0).position_rad)
+                except CalibTimeoutError:
+                    out.append(math.nan)
+                clock.sleep(0.01)
+            out.append(plant.q_rad)
+        return out
+
+    a, b = run(), run()
+    assert math.isnan(a[-2])  # pressed into the stop: lost
+    assert str(a) == str(b)  # nan-aware equality

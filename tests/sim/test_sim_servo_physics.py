@@ -232,3 +232,36 @@ def test_so101_arm_with_physics_pushes_a_joint_into_its_truth_stop() -> None:
             bus.sync_read("Present_Position", [roll])  # plants are integrated up to the clock at each packet
             # 1000 ticks/s for 3 s, past where the truth's stop (3981) would have held it
             assert plants["wrist_roll"].q_rad == pytest.approx(3000 * TICK, abs=0.05)
+
+
+def test_koch_arm_current_based_gripper_and_no_current_mode_on_xl430() -> None:
+    from robocal.backends.sim.arm_physics import attach_physics
+    from robocal.backends.sim.lerobot_arms import SimArm
+    from robocal.workflows.lerobot import robot_spec
+
+    clock = SimClock()
+    spec = robot_spec("koch_follower")
+    models = {m.name: m.model for m in spec.motors}
+    ids = {m.name: m.motor_id for m in spec.motors}
+    with SimArm(spec) as arm:
+        attach_physics(arm, clock)
+        with DynamixelBus(
+            arm.port, {m.motor_id: m.model for m in spec.motors}, packet_timeout_ms=500.0
+        ) as bus:
+            xl430 = next(n for n, m in models.items() if m == "xl430-w250")
+            with pytest.raises(
+                DeviceError, match="data value is out of range"
+            ):  # no current sensing on the XL430
+                bus.write("Operating_Mode", ids[xl430], 5)
+            grip = ids["gripper"]
+            assert models["gripper"].startswith("xl330")
+            bus.write("Operating_Mode", grip, 5)
+            bus.write("Goal_Current", grip, 300)
+            bus.write("Torque_Enable", grip, 1)
+            bus.write("Goal_Position", grip, 3500)  # past the truth's high stop (3000)
+            for _ in range(100):
+                pos = bus.sync_read("Present_Position", [grip])[grip]
+                clock.sleep(0.02)
+            push = 0.3 * XL.kt_nm_a
+            assert pos == pytest.approx(3000 + push / 300.0 / TICK, abs=1 + 0.06 / 300 / TICK)
+            assert bus.read("Present_Current", grip) == 300

@@ -271,8 +271,9 @@ class SimServoBus:
         torque_addr = servo.table["Torque_Enable"][0]
         fw = servo.firmware
         if fw is not None:
-            if addr <= torque_addr < addr + len(data) and fw.torque_enable_refused(data[torque_addr - addr]):
-                return 0x80 | 7  # hardware error standing: torque stays off until a REBOOT
+            refused = fw.write_error(addr, data)
+            if refused:
+                return refused
             was_on = bool(servo.regs[torque_addr])
             servo.regs[addr : addr + len(data)] = data
             fw.after_write(addr, len(data), was_on)

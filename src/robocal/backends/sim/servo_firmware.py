@@ -255,6 +255,23 @@ class ServoFirmware:
         if not on and torque_was_on and not self.dxl:
             self.plant.clear_overload()
 
+    def write_error(self, addr: int, data: bytes) -> int:
+        """The status error of a write the firmware refuses (0: accepted).
+
+        Dynamixel: torque on while a hardware error stands (Access error, until a REBOOT); a current or
+        current-based position ``Operating_Mode`` on a model without current sensing (Data Range error).
+        """
+        if not self.dxl:
+            return 0
+        table = self.servo.table
+        torque_addr, mode_addr = table["Torque_Enable"][0], table["Operating_Mode"][0]
+        if addr <= torque_addr < addr + len(data) and self.torque_enable_refused(data[torque_addr - addr]):
+            return 0x80 | 7
+        current_mode = addr <= mode_addr < addr + len(data) and data[mode_addr - addr] in (0, 5)
+        if current_mode and not self.rating.current_limit:
+            return 4
+        return 0
+
     def torque_enable_refused(self, value: int) -> bool:
         """Dynamixel refuses torque on while a hardware error stands (until a REBOOT)."""
         return self.dxl and bool(value) and bool(self._reg("Hardware_Error_Status"))
