@@ -265,3 +265,19 @@ def test_koch_arm_current_based_gripper_and_no_current_mode_on_xl430() -> None:
             push = 0.3 * XL.kt_nm_a
             assert pos == pytest.approx(3000 + push / 300.0 / TICK, abs=1 + 0.06 / 300 / TICK)
             assert bus.read("Present_Current", grip) == 300
+
+
+def test_scenario_overload_latch_replaces_the_feetech_rule() -> None:
+    plant = make_plant(Scenario(overload_latch=True), params(), search_torque_nm=0.5, q0_rad=0.9)
+    with rig("sts3215", plant, 0.9) as (_servo, clock, bus):
+        assert isinstance(bus, FeetechBus)
+        bus.write("Torque_Limit", 1, round(0.5 / STS.stall_torque_nm * 1000))  # 26 %: under the 80 % default
+        bus.write("Torque_Enable", 1, 1)
+        bus.write("Goal_Position", 1, round(ZERO + 1.3 / TICK))
+        wait(bus, clock, 0.4)
+        assert bus.sync_read("Status", [1])[1] == 0
+        wait(bus, clock, 0.2)  # 0.5 s at >= 90 % of the search torque
+        assert bus.sync_read("Status", [1])[1] == 0x20
+        assert bus.sync_read("Present_Load", [1])[1] == 0  # the scenario's latch cuts the torque
+        bus.write("Torque_Enable", 1, 0)
+        assert bus.read("Status", 1) == 0

@@ -108,6 +108,8 @@ class ServoFirmware:
         self.setpoint_ticks = servo.actual_ticks
         self.ramp_ticks_s = 0.0
         self.dxl = servo.vendor == "dynamixel"
+        self.scenario_overload = plant.overload
+        """A scenario's overload latch (from :func:`~.scenarios.make_plant`) replaces the firmware's own rule."""
         s = servo
         if self.dxl:
             s.set_reg("Current_Limit", self.rating.current_limit)
@@ -174,6 +176,8 @@ class ServoFirmware:
         return pwm_cap
 
     def _overload(self) -> OverloadLatch:
+        if self.scenario_overload is not None:
+            return self.scenario_overload
         r = self.rating
         if self.dxl:
             return OverloadLatch(
