@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robocal.core.stop_search import Command, Sample, StopSearch
+from robocal.core.stop_search import Command, StopSample, StopSearch
 
 
 @dataclass
@@ -70,7 +70,7 @@ class Plant:
         lim = cmd.torque_limit_nm
         return float(np.clip(tau, -lim, lim))
 
-    def run(self, cmd: Command) -> Sample:
+    def run(self, cmd: Command) -> StopSample:
         dt = 0.001
         n = round(self.period_s / dt)
         if cmd.action == "reread":
@@ -95,13 +95,13 @@ class Plant:
             else:
                 self._over = 0.0
         if self.silent_beyond is not None and self.q > self.silent_beyond and cmd.action != "reread":
-            return Sample(self.t, math.nan, ok=False)
+            return StopSample(self.t, math.nan, ok=False)
         res = 2 * math.pi / self.ticks
         q_meas = round((self.q + self.rng.normal(0, self.noise_rad)) / res) * res
-        return Sample(self.t, q_meas, self.v, self.tau, True, self.latched)
+        return StopSample(self.t, q_meas, self.v, self.tau, True, self.latched)
 
-    def sample(self) -> Sample:
-        return Sample(self.t, self.q, self.v, self.tau)
+    def sample(self) -> StopSample:
+        return StopSample(self.t, self.q, self.v, self.tau)
 
 
 def run_search(plant: Plant, search: StopSearch, max_steps: int = 100_000) -> list[Command]:
@@ -124,10 +124,10 @@ class PlantDriver:
         self.steps = 0
         self.interrupt_after = interrupt_after
 
-    def read(self) -> Sample:
+    def read(self) -> StopSample:
         return self.plant.sample()
 
-    def execute(self, cmd: Command) -> Sample:
+    def execute(self, cmd: Command) -> StopSample:
         self.steps += 1
         if self.interrupt_after is not None and self.steps >= self.interrupt_after:
             raise KeyboardInterrupt

@@ -107,7 +107,14 @@ def test_duplicate_joint_refused() -> None:
 def test_lerobot_followers_have_auto_sections() -> None:
     so = load_profile("so101_follower").auto
     assert so is not None
-    assert so.joint_names == ("shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper", "shoulder_pan")
+    assert so.joint_names == (
+        "shoulder_lift",
+        "elbow_flex",
+        "wrist_flex",
+        "wrist_roll",
+        "gripper",
+        "shoulder_pan",
+    )
     assert so.joint("shoulder_lift").torque_cap_nm == pytest.approx(0.87)  # type: ignore[union-attr]
     assert so.joint("wrist_flex").pose == (("shoulder_lift", 0.0), ("elbow_flex", 0.0))  # type: ignore[union-attr]
     koch = load_profile("koch_follower").auto

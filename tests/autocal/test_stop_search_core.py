@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from robocal.core.stop_search import Command, Sample, SearchConfig, StopSearch, joint_zero
+from robocal.core.stop_search import Command, SearchConfig, StopSample, StopSearch, joint_zero
 from robocal.errors import InvalidCalibrationError
 
 from .plant import Plant, run_search
@@ -158,15 +158,15 @@ def test_one_sided_zero_uses_profile_angle() -> None:
 
 def test_no_reply_at_start_fails() -> None:
     s = StopSearch(1, config())
-    assert s.start(Sample(0.0, math.nan, ok=False)).action == "limp"
+    assert s.start(StopSample(0.0, math.nan, ok=False)).action == "limp"
     assert s.result.code == "no_reply"
 
 
 def test_abort() -> None:
     s = StopSearch(1, config())
-    s.start(Sample(0.0, 0.0, 0.0, 0.0))
+    s.start(StopSample(0.0, 0.0, 0.0, 0.0))
     assert s.abort().code == "aborted"
-    assert s.step(Sample(0.01, 0.0, 0.0, 0.0)).action == "limp"
+    assert s.step(StopSample(0.01, 0.0, 0.0, 0.0)).action == "limp"
 
 
 @pytest.mark.parametrize("bad", [{"speed_rad_s": 0.0}, {"torque_cap_nm": math.nan}, {"dwell_s": -1.0}])

@@ -114,7 +114,7 @@ class AutoSection:
 
     joints: tuple[AutoJoint, ...]
     max_torque_fraction: float = 0.3
-    span_tolerance_deg: float = 5.0
+    span_tolerance_deg: float = 10.0
     backoff_deg: float = 5.0
     dwell_s: float = 0.2
     second_touch: bool = False

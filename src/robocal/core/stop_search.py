@@ -1,7 +1,7 @@
 """Automatic hard-stop search: a backend-neutral state machine and the per-joint zero/span math.
 
 Pure numpy, no I/O, no clock: a driver (a Robstride MIT loop, a Feetech or Dynamixel servo, a simulator)
-feeds :class:`Sample` values — time, position, velocity, torque, flags — into :meth:`StopSearch.step` and
+feeds :class:`StopSample` values — time, position, velocity, torque, flags — into :meth:`StopSearch.step` and
 carries out the :class:`Command` it returns. Angles are in the joint frame (rad, after the axis direction),
 torques in N·m on the joint (positive along +q).
 
@@ -39,224 +39,26 @@ Failure codes (stable, in reports): ``missing_stop``, ``timeout``, ``no_reply``,
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
 from ..errors import InvalidCalibrationError
+from .stop_types import FAIL_CODES, TESTS, Command, SearchConfig, StopResult, StopSample
+from .stop_zero import JointStops, joint_zero, summarise, with_gravity
 
 __all__ = [
     "FAIL_CODES",
     "TESTS",
     "Command",
     "JointStops",
-    "Sample",
     "SearchConfig",
     "StopResult",
+    "StopSample",
     "StopSearch",
     "joint_zero",
     "summarise",
     "with_gravity",
 ]
-
-FAIL_CODES = (
-    "missing_stop",
-    "timeout",
-    "no_reply",
-    "touch_mismatch",
-    "blocked",
-    "span_mismatch",
-    "stop_mismatch",
-    "aborted",
-)
-"""Why a search or a joint failed (``ok`` otherwise)."""
-TESTS = ("torque", "lag", "overload+reread", "no-reply+reread", "transit-stall")
-"""Which test declared the stop."""
-
-
-@dataclass(frozen=True)
-class SearchConfig:
-    """Parameters of one stop search (joint frame; SI units).
-
-    Attributes:
-        speed_rad_s: Approach speed (> 0). The notes suggest 5–20 °/s at the output.
-        torque_cap_nm: Push torque cap (> 0): the driver limits the motor to it; the press uses it.
-        max_travel_rad: Travel bound from the start position (expected distance to the stop + margin).
-        max_time_s: Time bound of the whole search (approach, press, back-off, second touch).
-        max_lag_rad: The target never leads the joint by more than this (``cap/kp`` for a PD drive).
-        torque_fraction: Torque test threshold as a fraction of the cap (above any stiction to ignore).
-        lag_fraction: Lag test threshold as a fraction of ``max_lag_rad``.
-        v_fraction: Stall velocity threshold as a fraction of the speed.
-        arm_speed_fraction: The joint must reach this fraction of the speed before the test is armed.
-        min_travel_rad: Travel before the test is armed.
-        dwell_s: How long the stall condition must hold.
-        press_fraction: Second press level (fraction of the cap) for the stiffness estimate.
-        settle_s: Settling time at each press level before reading.
-        backoff_rad: Retreat after contact.
-        second_touch: Touch the stop a second time; both touches must agree within ``touch_tol_rad``.
-        touch_tol_rad: Agreement of the two touches.
-        confirm_tol_rad: A re-read position confirms a suspect stop when within this of the last good one.
-        reply_timeout_s: Replies missing for longer than this fail the search.
-        max_suspects: Unconfirmed suspect events allowed before the search fails.
-        gravity_nm: Gravity torque on the joint as a function of q (joint frame), or None (taken as 0).
-    """
-
-    speed_rad_s: float
-    torque_cap_nm: float
-    max_travel_rad: float
-    max_time_s: float
-    max_lag_rad: float
-    torque_fraction: float = 0.9
-    lag_fraction: float = 0.9
-    v_fraction: float = 0.1
-    arm_speed_fraction: float = 0.7
-    min_travel_rad: float = math.radians(3.0)
-    dwell_s: float = 0.2
-    press_fraction: float = 0.5
-    settle_s: float = 0.2
-    backoff_rad: float = math.radians(5.0)
-    second_touch: bool = False
-    touch_tol_rad: float = math.radians(0.5)
-    confirm_tol_rad: float = math.radians(1.0)
-    reply_timeout_s: float = 0.5
-    max_suspects: int = 3
-    gravity_nm: Callable[[float], float] | None = field(default=None, compare=False)
-
-    def __post_init__(self) -> None:
-        for name in (
-            "speed_rad_s",
-            "torque_cap_nm",
-            "max_travel_rad",
-            "max_time_s",
-            "max_lag_rad",
-            "dwell_s",
-        ):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise InvalidCalibrationError(
-                    f"stop search: {name} must be a positive finite number, got {value!r}"
-                )
-        for name in ("torque_fraction", "lag_fraction", "v_fraction", "arm_speed_fraction", "press_fraction"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0 < value < 1.5):
-                raise InvalidCalibrationError(f"stop search: {name} must be in (0, 1.5), got {value!r}")
-        for name in ("min_travel_rad", "settle_s", "backoff_rad", "touch_tol_rad", "confirm_tol_rad"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise InvalidCalibrationError(f"stop search: {name} must be ≥ 0, got {value!r}")
-
-    def gravity(self, q_rad: float) -> float:
-        """Gravity torque at ``q_rad`` (0 without a model)."""
-        return 0.0 if self.gravity_nm is None else float(self.gravity_nm(q_rad))
-
-
-@dataclass(frozen=True)
-class Sample:
-    """One reading of a joint.
-
-    Attributes:
-        t_s: Time (s, any monotonic origin; a simulator's clock).
-        q_rad: Position (joint frame); NaN when ``ok`` is False.
-        v_rad_s: Velocity; NaN when unknown.
-        torque_nm: Torque the motor applies (joint frame, signed); NaN when the backend has none.
-        ok: A reply arrived.
-        overload: The motor reports an overload / protection latch.
-    """
-
-    t_s: float
-    q_rad: float
-    v_rad_s: float = math.nan
-    torque_nm: float = math.nan
-    ok: bool = True
-    overload: bool = False
-
-
-@dataclass(frozen=True)
-class Command:
-    """What the driver does next.
-
-    ``action``:
-
-    * ``drive`` — position target ``q_target_rad`` with velocity feed-forward ``v_target_rad_s``, torque
-      limited to ``torque_limit_nm``;
-    * ``push`` — push along ``direction`` with ``torque_limit_nm`` (a torque command, or a goal beyond the stop
-      with the torque limit), ``q_target_rad`` is the goal a position servo uses;
-    * ``reread`` — clear any latch (torque off briefly), read the position, resume;
-    * ``hold`` — the search is over: hold ``q_target_rad`` (torque limited);
-    * ``limp`` — the search failed: torque off at once.
-    """
-
-    action: str
-    q_target_rad: float = math.nan
-    v_target_rad_s: float = 0.0
-    torque_limit_nm: float = 0.0
-
-
-@dataclass(frozen=True)
-class StopResult:
-    """The outcome of one stop search.
-
-    Attributes:
-        direction: −1 (lower stop) or +1 (upper stop).
-        code: ``ok`` or one of :data:`FAIL_CODES`.
-        reason: One sentence for humans ("" when ok).
-        q_stop_rad: Contact surface (pressed position corrected by ``(τ + τ_g)/k̂``); NaN when failed.
-        q_pressed_rad: Position pressed at the cap (mean over the dwell).
-        torque_nm: Detection torque (mean over the dwell, signed).
-        stiffness_nm_per_rad: Estimated stop stiffness, NaN when not measured.
-        test: Which test declared the stop (:data:`TESTS`) or "".
-        t_detect_s: Time of the detection from the search start.
-        duration_s: Time of the whole search.
-        travel_rad: Largest travel from the start.
-        peak_torque_nm: Largest |torque| read.
-        touches: Contact surfaces of each touch (one or two).
-    """
-
-    direction: int
-    code: str
-    reason: str = ""
-    q_stop_rad: float = math.nan
-    q_pressed_rad: float = math.nan
-    torque_nm: float = math.nan
-    stiffness_nm_per_rad: float = math.nan
-    test: str = ""
-    t_detect_s: float = math.nan
-    duration_s: float = math.nan
-    travel_rad: float = 0.0
-    peak_torque_nm: float = 0.0
-    touches: tuple[float, ...] = ()
-
-    @property
-    def ok(self) -> bool:
-        """Whether the stop was found."""
-        return self.code == "ok"
-
-    def to_report(self) -> dict[str, Any]:
-        """Plain values for a JSON report (degrees where a person reads them)."""
-
-        def deg(x: float) -> float | None:
-            return None if not math.isfinite(x) else round(math.degrees(x), 4)
-
-        def num(x: float, nd: int = 4) -> float | None:
-            return None if not math.isfinite(x) else round(x, nd)
-
-        return {
-            "code": self.code,
-            "reason": self.reason,
-            "q_stop_deg": deg(self.q_stop_rad),
-            "q_pressed_deg": deg(self.q_pressed_rad),
-            "detection_torque_nm": num(self.torque_nm),
-            "stiffness_nm_per_rad": num(self.stiffness_nm_per_rad, 2),
-            "test": self.test,
-            "t_detect_s": num(self.t_detect_s, 3),
-            "duration_s": num(self.duration_s, 3),
-            "travel_deg": deg(self.travel_rad),
-            "peak_torque_nm": num(self.peak_torque_nm),
-            "touches_deg": [deg(x) for x in self.touches],
-        }
-
 
 _APPROACH, _CONFIRM, _PRESS_HI, _PRESS_LO, _BACKOFF, _DONE = range(6)
 
@@ -286,8 +88,8 @@ class StopSearch:
         self._target = math.nan
         self._armed = False
         self._stall_since: float | None = None
-        self._window: list[Sample] = []
-        self._last_good: Sample | None = None
+        self._window: list[StopSample] = []
+        self._last_good: StopSample | None = None
         self._no_reply_since: float | None = None
         self._suspects = 0
         self._suspect_kind = ""
@@ -326,7 +128,7 @@ class StopSearch:
         """The current phase name (for a live view)."""
         return ("approach", "confirm", "press", "press", "backoff", "done")[self._phase]
 
-    def start(self, sample: Sample) -> Command:
+    def start(self, sample: StopSample) -> Command:
         """Begin at the joint's current reading (must be a good reply)."""
         if not sample.ok or not math.isfinite(sample.q_rad):
             return self._fail("no_reply", "no position reading at the start of the search", sample)
@@ -342,7 +144,7 @@ class StopSearch:
             self._result = self._make_fail("aborted", reason)
         return self._result
 
-    def step(self, sample: Sample) -> Command:
+    def step(self, sample: StopSample) -> Command:
         """Feed the next reading; returns the next command (``hold`` or ``limp`` once done)."""
         cfg = self.config
         if self._result is not None:
@@ -394,13 +196,13 @@ class StopSearch:
             "drive", self._target, self.direction * self.config.speed_rad_s, self.config.torque_cap_nm
         )
 
-    def _approach(self, s: Sample, dt: float) -> Command:
+    def _approach(self, s: StopSample, dt: float) -> Command:
         cfg, d = self.config, self.direction
         self._target += d * cfg.speed_rad_s * max(dt, 0.0)
         lead = d * (self._target - s.q_rad)
-        clamped = lead > cfg.max_lag_rad
-        if clamped:
-            self._target = s.q_rad + d * cfg.max_lag_rad
+        clamped = abs(lead) > cfg.max_lag_rad
+        if clamped:  # ahead of the joint by at most max_lag, and never behind it by more
+            self._target = s.q_rad + math.copysign(cfg.max_lag_rad, lead) * d
         v = s.v_rad_s if math.isfinite(s.v_rad_s) else math.nan
         travel = abs(s.q_rad - self._touch_start_q)
         min_travel = (
@@ -430,7 +232,7 @@ class StopSearch:
             self._window = []
         return Command("drive", self._target, 0.0 if clamped else d * cfg.speed_rad_s, cfg.torque_cap_nm)
 
-    def _contact(self, s: Sample, test: str) -> Command:
+    def _contact(self, s: StopSample, test: str) -> Command:
         cfg = self.config
         win = self._window or [s]
         q_hi = float(np.mean([w.q_rad for w in win]))
@@ -452,7 +254,7 @@ class StopSearch:
         goal = self._hi[0] + d * cfg.max_lag_rad
         return Command("push", goal, 0.0, fraction * cfg.torque_cap_nm)
 
-    def _press(self, s: Sample) -> Command:
+    def _press(self, s: StopSample) -> Command:
         cfg = self.config
         elapsed = s.t_s - self._phase_t0
         if elapsed < cfg.settle_s:
@@ -480,7 +282,7 @@ class StopSearch:
             return q
         return q - (tau + self.config.gravity(q)) / k
 
-    def _start_backoff(self, s: Sample) -> Command:
+    def _start_backoff(self, s: StopSample) -> Command:
         cfg = self.config
         self._phase = _BACKOFF
         self._phase_t0 = s.t_s
@@ -488,7 +290,7 @@ class StopSearch:
         self._target = s.q_rad
         return Command("drive", s.q_rad, 0.0, cfg.torque_cap_nm)
 
-    def _backoff(self, s: Sample) -> Command:
+    def _backoff(self, s: StopSample) -> Command:
         cfg, d = self.config, self.direction
         step = cfg.speed_rad_s * max(s.t_s - self._phase_t0, 0.0)
         self._phase_t0 = s.t_s
@@ -510,7 +312,7 @@ class StopSearch:
             "drive", self._target, -d * cfg.speed_rad_s if remaining > 0 else 0.0, cfg.torque_cap_nm
         )
 
-    def _finish(self, s: Sample) -> Command:
+    def _finish(self, s: StopSample) -> Command:
         cfg = self.config
         touches = tuple(self._touches)
         if len(touches) == 2 and abs(touches[0] - touches[1]) > cfg.touch_tol_rad:
@@ -546,7 +348,7 @@ class StopSearch:
         self._phase = _CONFIRM
         return Command("reread", self._target, 0.0, self.config.torque_cap_nm)
 
-    def _confirm(self, s: Sample) -> Command:
+    def _confirm(self, s: StopSample) -> Command:
         cfg = self.config
         good = self._last_good
         resume = self._resume_phase
@@ -584,7 +386,7 @@ class StopSearch:
         return self._drive_cmd()
 
     # -- ends ---------------------------------------------------------------------------------------------
-    def _make_fail(self, code: str, reason: str, s: Sample | None = None) -> StopResult:
+    def _make_fail(self, code: str, reason: str, s: StopSample | None = None) -> StopResult:
         t = s.t_s if s is not None and math.isfinite(self._t0) else math.nan
         return StopResult(
             direction=self.direction,
@@ -596,7 +398,7 @@ class StopSearch:
             touches=tuple(self._touches),
         )
 
-    def _fail(self, code: str, reason: str, s: Sample) -> Command:
+    def _fail(self, code: str, reason: str, s: StopSample) -> Command:
         self._result = self._make_fail(code, reason, s)
         self._phase = _DONE
         return Command("limp")
@@ -608,129 +410,3 @@ class StopSearch:
         return Command(
             "hold", self._last_good.q_rad if self._last_good else math.nan, 0.0, self.config.torque_cap_nm
         )
-
-
-@dataclass(frozen=True)
-class JointStops:
-    """Both (or one) stops of a joint combined into a zero.
-
-    Attributes:
-        name: Joint name.
-        code: ``ok`` or a failure code (:data:`FAIL_CODES`).
-        reason: One sentence ("" when ok).
-        lower: Lower-stop search result, or None when not searched.
-        upper: Upper-stop search result, or None.
-        offset_rad: Position offset in the joint frame, ``q_joint = s − offset`` (NaN when failed).
-        span_rad: Measured span (upper − lower surfaces), NaN for one-sided.
-        expected_span_rad: Expected span (URDF or profile), NaN when unknown.
-    """
-
-    name: str
-    code: str
-    reason: str
-    lower: StopResult | None
-    upper: StopResult | None
-    offset_rad: float
-    span_rad: float = math.nan
-    expected_span_rad: float = math.nan
-
-    @property
-    def ok(self) -> bool:
-        """Whether the joint has a trustworthy offset."""
-        return self.code == "ok"
-
-    def to_report(self) -> dict[str, Any]:
-        """Plain values for a JSON report."""
-
-        def deg(x: float) -> float | None:
-            return None if not math.isfinite(x) else round(math.degrees(x), 4)
-
-        return {
-            "code": self.code,
-            "reason": self.reason,
-            "offset_rad": None if not math.isfinite(self.offset_rad) else self.offset_rad,
-            "q_stop_minus_deg": None if self.lower is None else deg(self.lower.q_stop_rad),
-            "q_stop_plus_deg": None if self.upper is None else deg(self.upper.q_stop_rad),
-            "span_deg": deg(self.span_rad),
-            "expected_span_deg": deg(self.expected_span_rad),
-            "lower": None if self.lower is None else self.lower.to_report(),
-            "upper": None if self.upper is None else self.upper.to_report(),
-        }
-
-
-def joint_zero(
-    name: str,
-    lower: StopResult | None,
-    upper: StopResult | None,
-    expected_lower_rad: float | None,
-    expected_upper_rad: float | None,
-    span_tol_rad: float = math.radians(5.0),
-    stop_tol_rad: float = math.radians(10.0),
-) -> JointStops:
-    """Combine the stop searches of one joint into its offset (``q_joint = s − offset``).
-
-    Two-sided (both results given): the midpoint of the measured contact surfaces lands on the midpoint of the
-    expected stop angles, ``offset = ½(s⁻ + s⁺) − ½(lower + upper)``; the measured span must match
-    ``upper − lower`` within ``span_tol_rad`` (an obstacle or a cable hit first, or a missing stop: span
-    mismatch). One-sided: ``offset = s_stop − stop`` where ``stop`` is the profile's angle of that stop.
-
-    Args:
-        name: Joint name (for messages).
-        lower: Result of the search into the lower stop, or None.
-        upper: Result of the search into the upper stop, or None.
-        expected_lower_rad: Expected lower stop angle (joint frame), or None.
-        expected_upper_rad: Expected upper stop angle (joint frame), or None.
-        span_tol_rad: Span plausibility tolerance.
-        stop_tol_rad: One-sided: how far the raw stop may be from… (unused for two-sided); kept for reports.
-
-    Raises:
-        InvalidCalibrationError: No search given, or a one-sided search without its expected angle.
-    """
-    del stop_tol_rad
-    if lower is None and upper is None:
-        raise InvalidCalibrationError(f"joint {name}: no stop search to combine")
-    for res in (lower, upper):
-        if res is not None and not res.ok:
-            side = "lower" if res.direction < 0 else "upper"
-            return JointStops(name, res.code, f"{side} stop: {res.reason}", lower, upper, math.nan)
-    if lower is not None and upper is not None:
-        s_lo, s_hi = lower.q_stop_rad, upper.q_stop_rad
-        span = s_hi - s_lo
-        if expected_lower_rad is None or expected_upper_rad is None:
-            return JointStops(
-                name, "ok", "", lower, upper, 0.5 * (s_lo + s_hi), span_rad=span
-            )  # no expectation: zero mid-range
-        exp_span = expected_upper_rad - expected_lower_rad
-        offset = 0.5 * (s_lo + s_hi) - 0.5 * (expected_lower_rad + expected_upper_rad)
-        if abs(span - exp_span) > span_tol_rad:
-            return JointStops(
-                name,
-                "span_mismatch",
-                f"span {math.degrees(span):.1f}° differs from the expected {math.degrees(exp_span):.1f}° by more "
-                f"than {math.degrees(span_tol_rad):.1f}° (an obstacle, a cable or a missing stop?)",
-                lower,
-                upper,
-                math.nan,
-                span,
-                exp_span,
-            )
-        return JointStops(name, "ok", "", lower, upper, offset, span, exp_span)
-    res = lower if lower is not None else upper
-    assert res is not None
-    expected = expected_lower_rad if res is lower else expected_upper_rad
-    if expected is None:
-        raise InvalidCalibrationError(f"joint {name}: a one-sided stop needs its expected angle")
-    return JointStops(name, "ok", "", lower, upper, res.q_stop_rad - expected)
-
-
-def with_gravity(config: SearchConfig, gravity_nm: Callable[[float], float] | None) -> SearchConfig:
-    """``config`` with a gravity model (``τ_g(q)`` in the joint frame)."""
-    return replace(config, gravity_nm=gravity_nm)
-
-
-def summarise(values: Sequence[float]) -> tuple[float, float]:
-    """Mean and standard deviation (ddof 0) of finite values; NaNs when none."""
-    arr = np.asarray([v for v in values if math.isfinite(v)], dtype=float)
-    if arr.size == 0:
-        return math.nan, math.nan
-    return float(arr.mean()), float(arr.std())

@@ -89,7 +89,7 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
     speed = _num(data, "speed_deg_s", where, 10.0)
     torque = _num(data, "torque_fraction", where, min(0.25, cap))
     tolerance = _num(data, "tolerance_deg", where, 15.0)
-    span_tol = _positive(_num(data, "span_tolerance_deg", where, 5.0), "span_tolerance_deg", where, 90.0)
+    span_tol = _positive(_num(data, "span_tolerance_deg", where, 10.0), "span_tolerance_deg", where, 90.0)
     backoff = _positive(_num(data, "backoff_deg", where, 5.0), "backoff_deg", where, 45.0)
     dwell = _positive(_num(data, "dwell_s", where, 0.2), "dwell_s", where, 5.0)
     second = data.get("second_touch", False)

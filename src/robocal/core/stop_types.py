@@ -1,0 +1,208 @@
+"""Values of the automatic hard-stop search: configuration, readings, commands, results (see stop_search)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import InvalidCalibrationError
+
+__all__ = ["FAIL_CODES", "TESTS", "Command", "SearchConfig", "StopResult", "StopSample"]
+
+FAIL_CODES = (
+    "missing_stop",
+    "timeout",
+    "no_reply",
+    "touch_mismatch",
+    "blocked",
+    "span_mismatch",
+    "stop_mismatch",
+    "aborted",
+)
+"""Why a search or a joint failed (``ok`` otherwise)."""
+TESTS = ("torque", "lag", "overload+reread", "no-reply+reread", "transit-stall")
+"""Which test declared the stop."""
+
+
+@dataclass(frozen=True)
+class SearchConfig:
+    """Parameters of one stop search (joint frame; SI units).
+
+    Attributes:
+        speed_rad_s: Approach speed (> 0). The notes suggest 5–20 °/s at the output.
+        torque_cap_nm: Push torque cap (> 0): the driver limits the motor to it; the press uses it.
+        max_travel_rad: Travel bound from the start position (expected distance to the stop + margin).
+        max_time_s: Time bound of the whole search (approach, press, back-off, second touch).
+        max_lag_rad: The target never leads the joint by more than this (``cap/kp`` for a PD drive).
+        torque_fraction: Torque test threshold as a fraction of the cap (above any stiction to ignore).
+        lag_fraction: Lag test threshold as a fraction of ``max_lag_rad``.
+        v_fraction: Stall velocity threshold as a fraction of the speed.
+        arm_speed_fraction: The joint must reach this fraction of the speed before the test is armed.
+        min_travel_rad: Travel before the test is armed.
+        dwell_s: How long the stall condition must hold.
+        press_fraction: Second press level (fraction of the cap) for the stiffness estimate.
+        settle_s: Settling time at each press level before reading.
+        backoff_rad: Retreat after contact.
+        second_touch: Touch the stop a second time; both touches must agree within ``touch_tol_rad``.
+        touch_tol_rad: Agreement of the two touches.
+        confirm_tol_rad: A re-read position confirms a suspect stop when within this of the last good one.
+        reply_timeout_s: Replies missing for longer than this fail the search.
+        max_suspects: Unconfirmed suspect events allowed before the search fails.
+        gravity_nm: Gravity torque on the joint as a function of q (joint frame), or None (taken as 0).
+    """
+
+    speed_rad_s: float
+    torque_cap_nm: float
+    max_travel_rad: float
+    max_time_s: float
+    max_lag_rad: float
+    torque_fraction: float = 0.9
+    lag_fraction: float = 0.9
+    v_fraction: float = 0.1
+    arm_speed_fraction: float = 0.7
+    min_travel_rad: float = math.radians(3.0)
+    dwell_s: float = 0.2
+    press_fraction: float = 0.5
+    settle_s: float = 0.2
+    backoff_rad: float = math.radians(5.0)
+    second_touch: bool = False
+    touch_tol_rad: float = math.radians(0.5)
+    confirm_tol_rad: float = math.radians(1.0)
+    reply_timeout_s: float = 0.5
+    max_suspects: int = 3
+    gravity_nm: Callable[[float], float] | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        for name in (
+            "speed_rad_s",
+            "torque_cap_nm",
+            "max_travel_rad",
+            "max_time_s",
+            "max_lag_rad",
+            "dwell_s",
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise InvalidCalibrationError(
+                    f"stop search: {name} must be a positive finite number, got {value!r}"
+                )
+        for name in ("torque_fraction", "lag_fraction", "v_fraction", "arm_speed_fraction", "press_fraction"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0 < value < 1.5):
+                raise InvalidCalibrationError(f"stop search: {name} must be in (0, 1.5), got {value!r}")
+        for name in ("min_travel_rad", "settle_s", "backoff_rad", "touch_tol_rad", "confirm_tol_rad"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise InvalidCalibrationError(f"stop search: {name} must be ≥ 0, got {value!r}")
+
+    def gravity(self, q_rad: float) -> float:
+        """Gravity torque at ``q_rad`` (0 without a model)."""
+        return 0.0 if self.gravity_nm is None else float(self.gravity_nm(q_rad))
+
+
+@dataclass(frozen=True)
+class StopSample:
+    """One reading of a joint.
+
+    Attributes:
+        t_s: Time (s, any monotonic origin; a simulator's clock).
+        q_rad: Position (joint frame); NaN when ``ok`` is False.
+        v_rad_s: Velocity; NaN when unknown.
+        torque_nm: Torque the motor applies (joint frame, signed); NaN when the backend has none.
+        ok: A reply arrived.
+        overload: The motor reports an overload / protection latch.
+    """
+
+    t_s: float
+    q_rad: float
+    v_rad_s: float = math.nan
+    torque_nm: float = math.nan
+    ok: bool = True
+    overload: bool = False
+
+
+@dataclass(frozen=True)
+class Command:
+    """What the driver does next.
+
+    ``action``:
+
+    * ``drive`` — position target ``q_target_rad`` with velocity feed-forward ``v_target_rad_s``, torque
+      limited to ``torque_limit_nm``;
+    * ``push`` — push along ``direction`` with ``torque_limit_nm`` (a torque command, or a goal beyond the stop
+      with the torque limit), ``q_target_rad`` is the goal a position servo uses;
+    * ``reread`` — clear any latch (torque off briefly), read the position, resume;
+    * ``hold`` — the search is over: hold ``q_target_rad`` (torque limited);
+    * ``limp`` — the search failed: torque off at once.
+    """
+
+    action: str
+    q_target_rad: float = math.nan
+    v_target_rad_s: float = 0.0
+    torque_limit_nm: float = 0.0
+
+
+@dataclass(frozen=True)
+class StopResult:
+    """The outcome of one stop search.
+
+    Attributes:
+        direction: −1 (lower stop) or +1 (upper stop).
+        code: ``ok`` or one of :data:`FAIL_CODES`.
+        reason: One sentence for humans ("" when ok).
+        q_stop_rad: Contact surface (pressed position corrected by ``(τ + τ_g)/k̂``); NaN when failed.
+        q_pressed_rad: Position pressed at the cap (mean over the dwell).
+        torque_nm: Detection torque (mean over the dwell, signed).
+        stiffness_nm_per_rad: Estimated stop stiffness, NaN when not measured.
+        test: Which test declared the stop (:data:`TESTS`) or "".
+        t_detect_s: Time of the detection from the search start.
+        duration_s: Time of the whole search.
+        travel_rad: Largest travel from the start.
+        peak_torque_nm: Largest |torque| read.
+        touches: Contact surfaces of each touch (one or two).
+    """
+
+    direction: int
+    code: str
+    reason: str = ""
+    q_stop_rad: float = math.nan
+    q_pressed_rad: float = math.nan
+    torque_nm: float = math.nan
+    stiffness_nm_per_rad: float = math.nan
+    test: str = ""
+    t_detect_s: float = math.nan
+    duration_s: float = math.nan
+    travel_rad: float = 0.0
+    peak_torque_nm: float = 0.0
+    touches: tuple[float, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """Whether the stop was found."""
+        return self.code == "ok"
+
+    def to_report(self) -> dict[str, Any]:
+        """Plain values for a JSON report (degrees where a person reads them)."""
+
+        def deg(x: float) -> float | None:
+            return None if not math.isfinite(x) else round(math.degrees(x), 4)
+
+        def num(x: float, nd: int = 4) -> float | None:
+            return None if not math.isfinite(x) else round(x, nd)
+
+        return {
+            "code": self.code,
+            "reason": self.reason,
+            "q_stop_deg": deg(self.q_stop_rad),
+            "q_pressed_deg": deg(self.q_pressed_rad),
+            "detection_torque_nm": num(self.torque_nm),
+            "stiffness_nm_per_rad": num(self.stiffness_nm_per_rad, 2),
+            "test": self.test,
+            "t_detect_s": num(self.t_detect_s, 3),
+            "duration_s": num(self.duration_s, 3),
+            "travel_deg": deg(self.travel_rad),
+            "peak_torque_nm": num(self.peak_torque_nm),
+            "touches_deg": [deg(x) for x in self.touches],
+        }
