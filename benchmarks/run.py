@@ -19,6 +19,7 @@ def main(argv: list[str]) -> int:
         spec = importlib.util.spec_from_file_location(path.stem, path)
         assert spec is not None and spec.loader is not None
         module = importlib.util.module_from_spec(spec)
+        sys.modules[path.stem] = module  # dataclasses look their module up while the class is made
         spec.loader.exec_module(module)
         print(f"== {name} ==", flush=True)
         t0 = time.perf_counter()

@@ -25,6 +25,7 @@ from ..core.sweep import (
     DEFAULT_THRESHOLD_RAD,
     SweepResult,
 )
+from ..errors import UsageError
 from ..workflows.sweep import (
     CONFIRM_CODES,
     DEFAULT_DIRECTION_STEP_S,
@@ -540,8 +541,36 @@ def sweep(
             "(both stops, bisection). Default: the profile's procedure, else two-sided.",
         ),
     ] = None,
+    auto: Annotated[
+        bool,
+        typer.Option(
+            "--auto",
+            help="The joints find their own hard stops (Robstride; the profile's auto_calibration section): "
+            "asks to clear the workspace first (--yes skips), Ctrl-C makes every motor limp (docs/auto_calibration.md).",
+        ),
+    ] = False,
+    joints: Annotated[
+        str | None, typer.Option("--joints", help="--auto: calibrate only these joints (comma-separated).")
+    ] = None,
+    partial: Annotated[
+        bool, typer.Option("--partial", help="--auto: write the joints that passed even if others failed.")
+    ] = False,
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
+    if auto:
+        from ._autocal import sweep_auto
+
+        if prior is not None or threshold is not None or method is not None or direction_check or frame:
+            raise UsageError(
+                "--auto finds the stops itself: --prior, --threshold, --method, --direction-check "
+                "and --frame do not apply"
+            )
+        sweep_auto(
+            urdf, source, out, robot=robot, joints=joints, report=report, fmt=fmt, partial=partial, yes=yes
+        )
+        return
+    if joints is not None or partial:
+        raise UsageError("--joints and --partial go with --auto")
     stop = threading.Event()
     lines = StdinLines(stop) if _stdin_is_terminal() else None  # Enter finishes the sweep
     confirm = make_confirm(lines) if lines is not None and _terminal() and not yes else None

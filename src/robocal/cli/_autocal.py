@@ -1,0 +1,244 @@
+"""CLI side of the automatic hard-stop calibration (``sweep --auto``, ``lerobot calibrate --auto``, ``demo --auto``).
+
+The clear-workspace prompt, the live view and the result table; the logic lives in
+:mod:`robocal.workflows.autocal` and :mod:`robocal.workflows.autocal_sweep`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import typer
+from rich.table import Table
+
+from ..core.stop_search import StopSample
+from ..errors import UsageError
+from ..workflows.autocal import AutoCalResult, JointOutcome
+from . import _common
+
+__all__ = ["AutoLiveView", "auto_table", "make_confirm_start", "sweep_auto"]
+
+
+def make_confirm_start(yes: bool, what: str = "robot") -> Any:
+    """The clear-workspace prompt (None with ``--yes``).
+
+    Raises:
+        UsageError: Not on a terminal and no ``--yes`` (a script must say so explicitly).
+    """
+    if yes:
+        return None
+    if not sys.stdin.isatty():
+        raise UsageError(
+            "--auto moves the robot on its own: on a terminal it asks to confirm the workspace is clear; "
+            "pass --yes to skip the question in a script"
+        )
+
+    def confirm(names: Sequence[str], caps: Mapping[str, float]) -> bool:
+        con = _common.console
+        cap = max(caps.values()) if caps else 0.0
+        con.print(
+            f"CLEAR THE WORKSPACE: these {len(names)} joints of the {what} will move on their own into their hard "
+            f"stops, one after the other, pushing with at most {cap:.2f} N·m:",
+            markup=False,
+        )
+        for n in names:
+            con.print(f"  {n}  (cap {caps[n]:.2f} N·m)", markup=False)
+        con.print("Ctrl-C at any time makes every motor limp at once.", markup=False)
+        return bool(typer.confirm("Start?", default=False))
+
+    return confirm
+
+
+class AutoLiveView:
+    """A line per joint and a status line at most every 0.2 s (wall clock) while a joint is searched."""
+
+    def __init__(self, min_interval_s: float = 0.2) -> None:
+        self.min_interval_s = min_interval_s
+        self._last = 0.0
+
+    def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
+        _common.err_console.print(
+            f"{name}: searching its stops at {math.degrees(speed_rad_s):.0f}°/s, cap {cap_nm:.2f} N·m",
+            markup=False,
+        )
+
+    def sample(self, name: str, phase: str, side: str, sample: StopSample) -> None:
+        now = time.monotonic()
+        if now - self._last < self.min_interval_s or not sys.stderr.isatty():
+            return
+        self._last = now
+        q = f"{math.degrees(sample.q_rad):+8.2f}°" if sample.ok else "  (no reply)"
+        tau = f"{sample.torque_nm:+.2f} N·m" if math.isfinite(sample.torque_nm) else ""
+        sys.stderr.write(f"\r  {name} {side:5s} {phase:8s} q {q} {tau}   ")
+        sys.stderr.flush()
+
+    def joint_done(self, outcome: JointOutcome) -> None:
+        if sys.stderr.isatty():
+            sys.stderr.write("\r" + " " * 70 + "\r")
+        st = outcome.stops
+        if outcome.ok:
+            span = f", span {math.degrees(st.span_rad):.2f}°" if math.isfinite(st.span_rad) else ""
+            _common.err_console.print(f"{outcome.name}: ok{span} in {outcome.time_s:.1f} s", markup=False)
+        else:
+            _common.err_console.print(f"{outcome.name}: FAILED {st.code}: {st.reason}", markup=False)
+
+
+def _deg(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{math.degrees(x):+.2f}"
+
+
+def auto_table(result: AutoCalResult, title: str = "automatic hard-stop calibration") -> Table:
+    """Per joint: q_stop−/q_stop+, span, stiffness, detection torque, time, which test fired, verdict."""
+    t = Table(title=f"{title} ({result.total_time_s:.1f} s)")
+    for col in (
+        "joint",
+        "q_stop− °",
+        "q_stop+ °",
+        "span °",
+        "k N·m/rad",
+        "τ detect N·m",
+        "time s",
+        "test",
+        "status",
+    ):
+        t.add_column(col, justify="left" if col in ("joint", "test", "status") else "right")
+    for o in result.joints:
+        st = o.stops
+        lo, hi = st.lower, st.upper
+        ks = [
+            r.stiffness_nm_per_rad
+            for r in (lo, hi)
+            if r is not None and math.isfinite(r.stiffness_nm_per_rad)
+        ]
+        taus = [f"{r.torque_nm:+.2f}" for r in (lo, hi) if r is not None and math.isfinite(r.torque_nm)]
+        tests = [r.test for r in (lo, hi) if r is not None and r.test]
+        t.add_row(
+            o.name,
+            _deg(lo.q_stop_rad if lo is not None else None),
+            _deg(hi.q_stop_rad if hi is not None else None),
+            _deg(st.span_rad),
+            f"{sum(ks) / len(ks):.0f}" if ks else "-",
+            "/".join(taus) or "-",
+            f"{o.time_s:.1f}",
+            "/".join(tests) or "-",
+            "ok" if o.ok else f"{st.code}: {st.reason}",
+        )
+    return t
+
+
+def sweep_auto(
+    urdf: Path,
+    source: str,
+    out: Path,
+    *,
+    robot: str | None,
+    joints: str | None,
+    report: Path | None,
+    fmt: str | None,
+    partial: bool,
+    yes: bool,
+) -> None:
+    """``robocal sweep --auto``: run, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C)."""
+    from ..workflows.autocal_sweep import run_sweep_auto
+    from .sweep import print_warnings, result_table
+
+    names = [n.strip() for n in joints.split(",") if n.strip()] if joints else None
+    try:
+        outcome = run_sweep_auto(
+            urdf,
+            source,
+            out,
+            robot=robot,
+            joints=names,
+            report=report,
+            fmt=fmt,
+            partial=partial,
+            confirm_start=make_confirm_start(yes),
+            view=AutoLiveView(),
+        )
+    except KeyboardInterrupt:
+        _common.err_console.print("interrupted: every motor is limp; nothing was written", markup=False)
+        raise
+    _common.console.print(auto_table(outcome.auto))
+    _common.console.print(result_table(outcome.result))
+    print_warnings(outcome.result)
+    if outcome.auto.failed:
+        _common.print_warning(f"written with --partial although {outcome.auto.failure_summary()}")
+    if outcome.out is not None:
+        _common.console.print(f"wrote {outcome.out} ({outcome.fmt})", markup=False)
+    if outcome.report is not None:
+        _common.console.print(f"wrote {outcome.report}", markup=False)
+    raise typer.Exit(outcome.exit_code)
+
+
+def run_auto_demo(robot: str, out_dir: Path | None) -> int:
+    """``robocal demo --auto``: the simulated robot finds its own hard stops; true vs recovered zeros.
+
+    The Lite's 14 Robstride joints are simulated motors on two ``virtual`` CAN channels, each moving a physics
+    plant on one simulated clock; robocal drives them with MIT frames through its Robstride bus code.
+
+    Returns:
+        0 when every joint passed and every recovered zero is within 0.5° of the simulator's truth, else 1.
+    """
+    import tempfile
+
+    from ..backends.sim.lite import lite_urdf_text
+    from ..fileio import atomic_write_text
+    from ..workflows.autocal_sim import SimAutoLite, sim_opener
+    from ..workflows.autocal_sweep import run_sweep_auto
+
+    if robot != "lite":
+        raise UsageError(
+            f"demo --auto simulates the lite (14 Robstride joints); {robot!r} is not available yet"
+        )
+    tmp = None
+    if out_dir is None:
+        tmp = tempfile.TemporaryDirectory(prefix="robocal-demo-auto-")
+        out_dir = Path(tmp.name)
+    try:
+        urdf = out_dir / "lite_bimanual.urdf"
+        atomic_write_text(urdf, lite_urdf_text(), backup=False)
+        con = _common.console
+        con.print(
+            "robocal demo --auto: simulated Lite, 14 Robstride joints on two virtual CAN buses, physics on a "
+            "simulated clock; each joint finds its own hard stops (no operator)",
+            markup=False,
+        )
+        holder: list[SimAutoLite] = []
+        outcome = run_sweep_auto(
+            urdf,
+            "sim:lite?seed=0",
+            out_dir / "calibration.yaml",
+            robot="bhl_arms",
+            report=out_dir / "sweep_report.json",
+            view=AutoLiveView(),
+            open_drivers_fn=sim_opener(holder),
+        )
+        con.print(auto_table(outcome.auto))
+        truth = holder[0].true_offsets()
+        t = Table(title="true vs recovered homing_offset (rad)")
+        for col in ("joint", "true", "recovered", "error °"):
+            t.add_column(col, justify="left" if col == "joint" else "right")
+        worst = 0.0
+        for j in outcome.result.joints:
+            err = j.homing_offset - truth[j.name]
+            worst = max(worst, abs(err))
+            t.add_row(j.name, f"{truth[j.name]:+.4f}", f"{j.homing_offset:+.4f}", f"{math.degrees(err):+.3f}")
+        con.print(t)
+        where = (
+            " (temporary folder, removed on exit; keep the files with --out DIR)" if tmp is not None else ""
+        )
+        con.print(
+            f"largest error {math.degrees(worst):.3f}°, {outcome.auto.total_time_s:.1f} s simulated; wrote "
+            f"{outcome.out} and {outcome.report}{where}",
+            markup=False,
+        )
+        return 0 if worst <= math.radians(0.5) and not outcome.auto.failed else 1
+    finally:
+        if tmp is not None:
+            tmp.cleanup()

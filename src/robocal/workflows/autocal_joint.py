@@ -1,0 +1,446 @@
+"""One joint of the automatic hard-stop calibration: drivers, clocks, moves, the per-joint search and results.
+
+See :mod:`robocal.workflows.autocal` (the robot-level run) and docs/auto_calibration.md.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from ..core.profile_auto import AutoJoint, AutoSection
+from ..core.stop_search import (
+    Command,
+    JointStops,
+    SearchConfig,
+    StopResult,
+    StopSample,
+    StopSearch,
+    joint_zero,
+)
+from ..errors import CalibError, CalibTimeoutError
+
+__all__ = [
+    "TRANSIT_FACTOR",
+    "TRANSIT_MAX_RAD_S",
+    "AutoCalAbortedError",
+    "AutoCalFailedError",
+    "AutoCalResult",
+    "AutoView",
+    "Clock",
+    "JointDriver",
+    "JointOutcome",
+    "MonotonicClock",
+    "calibrate_joint",
+    "limp_all",
+    "limp_on_error",
+    "move_to",
+    "run_search",
+]
+
+
+class AutoCalAbortedError(CalibError):
+    """The auto-calibration was interrupted or hit a fault: every motor was made limp, nothing was written."""
+
+    exit_code = 3
+
+
+class AutoCalFailedError(CalibError):
+    """One or more joints failed (missing stop, snag, span mismatch, ...); nothing was written.
+
+    Attributes:
+        result: The run's result (the passing joints' zeros are in it).
+    """
+
+    exit_code = 3
+
+    def __init__(self, message: str, result: AutoCalResult) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+class Clock(Protocol):
+    """Where a driver takes its time from (wall clock on hardware, a simulated clock in a simulator)."""
+
+    def now(self) -> float:
+        """Seconds (monotonic)."""
+        ...
+
+    def sleep(self, dt_s: float) -> Any:
+        """Let ``dt_s`` seconds pass."""
+        ...
+
+
+class MonotonicClock:
+    """The wall clock (``time.monotonic``/``time.sleep``), for real hardware."""
+
+    def now(self) -> float:
+        """Seconds since an arbitrary origin."""
+        return time.monotonic()
+
+    def sleep(self, dt_s: float) -> None:
+        """Sleep ``dt_s`` seconds (no-op for ≤ 0)."""
+        if dt_s > 0:
+            time.sleep(dt_s)
+
+
+class JointDriver(Protocol):
+    """One joint as the stop search sees it (joint frame ``s = direction·raw``, rad; N·m)."""
+
+    name: str
+
+    def read(self) -> StopSample:
+        """Read the joint without changing what the motor does."""
+        ...
+
+    def execute(self, cmd: Command) -> StopSample:
+        """Carry out ``cmd`` for one control period; return the reading at its end."""
+        ...
+
+    def limp(self) -> None:
+        """Torque off now (must not raise)."""
+        ...
+
+
+class AutoView(Protocol):
+    """A live view of the run."""
+
+    def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
+        """A joint's search begins."""
+        ...
+
+    def sample(self, name: str, phase: str, side: str, sample: StopSample) -> None:
+        """One reading of the joint being searched."""
+        ...
+
+    def joint_done(self, outcome: JointOutcome) -> None:
+        """A joint finished (passed or failed)."""
+        ...
+
+
+@dataclass(frozen=True)
+class JointOutcome:
+    """One joint's auto-calibration.
+
+    Attributes:
+        stops: The combined stops, zero and verdict (:class:`JointStops`).
+        cap_nm: Torque cap used.
+        speed_rad_s: Approach speed used.
+        time_s: Time the joint took (search, back-off, parking).
+    """
+
+    stops: JointStops
+    cap_nm: float
+    speed_rad_s: float
+    time_s: float
+
+    @property
+    def name(self) -> str:
+        """Joint name."""
+        return self.stops.name
+
+    @property
+    def ok(self) -> bool:
+        """Whether the joint passed."""
+        return self.stops.ok
+
+    def to_report(self) -> dict[str, Any]:
+        """The joint's report entry."""
+        d = self.stops.to_report()
+        d.update(cap_nm=round(self.cap_nm, 4), speed_deg_s=round(math.degrees(self.speed_rad_s), 3))
+        d["time_s"] = round(self.time_s, 3)
+        return d
+
+
+@dataclass(frozen=True)
+class AutoCalResult:
+    """A whole run: the outcome of every searched joint in search order.
+
+    Attributes:
+        joints: Outcomes in order.
+        total_time_s: Time of the whole run (driver clock).
+        interrupted: The run was interrupted (the joints after the interruption are missing).
+    """
+
+    joints: tuple[JointOutcome, ...]
+    total_time_s: float
+    interrupted: bool = False
+
+    def __getitem__(self, name: str) -> JointOutcome:
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise KeyError(name)
+
+    @property
+    def failed(self) -> tuple[JointOutcome, ...]:
+        """Joints that failed."""
+        return tuple(j for j in self.joints if not j.ok)
+
+    @property
+    def offsets_rad(self) -> dict[str, float]:
+        """Joint-frame position offsets (``q_joint = s − offset``) of the passing joints."""
+        return {j.name: j.stops.offset_rad for j in self.joints if j.ok}
+
+    def failure_summary(self) -> str:
+        """One line naming each failed joint with its code and reason."""
+        return "; ".join(f"{j.name}: {j.stops.code} ({j.stops.reason})" for j in self.failed)
+
+    def to_report(self) -> dict[str, Any]:
+        """The ``auto`` part of a sweep report."""
+        return {
+            "total_time_s": round(self.total_time_s, 3),
+            "interrupted": self.interrupted,
+            "joints": {j.name: j.to_report() for j in self.joints},
+        }
+
+
+# ------------------------------------------------------------------------------------------------ limp
+def limp_all(drivers: Mapping[str, JointDriver] | Sequence[JointDriver]) -> None:
+    """Torque off every driver (errors ignored: each motor gets its chance)."""
+    items = drivers.values() if isinstance(drivers, Mapping) else drivers
+    for d in items:
+        with suppress(Exception):  # a limp must reach every motor
+            d.limp()
+
+
+@contextmanager
+def limp_on_error(drivers: Mapping[str, JointDriver]) -> Iterator[None]:
+    """Any exception inside (Ctrl-C too): every driver goes limp, then the exception propagates."""
+    try:
+        yield
+    except BaseException:
+        limp_all(drivers)
+        raise
+
+
+# ------------------------------------------------------------------------------------------------ one joint
+def _config(
+    joint: AutoJoint,
+    section: AutoSection,
+    *,
+    max_travel_rad: float,
+    max_lag_rad: float,
+    gravity: Callable[[float], float] | None,
+) -> SearchConfig:
+    speed = joint.speed_rad_s
+    return SearchConfig(
+        speed_rad_s=speed,
+        torque_cap_nm=joint.torque_cap_nm,
+        max_travel_rad=max_travel_rad,
+        max_time_s=max_travel_rad / speed
+        + 2.0
+        + 2 * section.dwell_s
+        + 0.6
+        + math.radians(section.backoff_deg) / speed,
+        max_lag_rad=max_lag_rad,
+        dwell_s=section.dwell_s,
+        backoff_rad=math.radians(section.backoff_deg),
+        second_touch=section.second_touch,
+        gravity_nm=gravity,
+    )
+
+
+def run_search(
+    driver: JointDriver, search: StopSearch, view: AutoView | None = None, side: str = ""
+) -> StopResult:
+    """Run one stop search on ``driver`` to its end; a failed search leaves the joint limp."""
+    cmd = search.start(driver.read())
+    while not search.done:
+        s = driver.execute(cmd)
+        if view is not None:
+            view.sample(driver.name, search.phase, side, s)
+        cmd = search.step(s)
+    if cmd.action == "limp":
+        driver.limp()
+    else:
+        driver.execute(cmd)
+    return search.result
+
+
+def move_to(
+    driver: JointDriver,
+    target_rad: float,
+    speed_rad_s: float,
+    cap_nm: float,
+    max_lag_rad: float,
+    tol_rad: float = math.radians(1.0),
+    timeout_s: float | None = None,
+    stall_s: float | None = None,
+) -> tuple[StopSample, bool]:
+    """Ramp the joint to ``target_rad`` (torque limited: the target never leads by more than ``max_lag_rad``).
+
+    Args:
+        driver: The joint.
+        target_rad: Where to go (driver frame).
+        speed_rad_s: Ramp speed.
+        cap_nm: Torque limit of the move.
+        max_lag_rad: The largest lead of the target.
+        tol_rad: Arrival tolerance.
+        timeout_s: Time bound (default: distance/speed + 3 s).
+        stall_s: When given, a joint held back (target leading by ≥ 90 % of ``max_lag_rad`` and slower than
+            10 % of the speed) for this long ends the move early: returns ``(reading, True)``.
+
+    Returns:
+        The last reading and whether the move ended on a stall.
+
+    Raises:
+        AutoCalAbortedError: The joint does not get there in time (blocked, without ``stall_s``).
+    """
+    s = driver.read()
+    if not s.ok:
+        raise CalibTimeoutError(f"joint {driver.name}: no reply")
+    t0 = s.t_s
+    ref = s.q_rad
+    distance = abs(target_rad - ref)
+    limit = timeout_s if timeout_s is not None else distance / speed_rad_s + 3.0
+    last = s.t_s
+    stalled_since: float | None = None
+    while True:
+        dt = max(s.t_s - last, 0.0)
+        last = s.t_s
+        step = speed_rad_s * dt
+        ref = target_rad if abs(target_rad - ref) <= step else ref + math.copysign(step, target_rad - ref)
+        clamped = False
+        if s.ok and math.isfinite(s.q_rad):
+            held = min(max(ref, s.q_rad - max_lag_rad), s.q_rad + max_lag_rad)
+            clamped, ref = held != ref, held
+        at_end = ref == target_rad
+        # no velocity feed-forward while the target is held back: kd·(v_ref − v) would add to the capped kp·lag
+        v_ff = 0.0 if at_end or clamped else math.copysign(speed_rad_s, target_rad - ref)
+        s = driver.execute(Command("drive", ref, v_ff, cap_nm))
+        if s.ok and at_end and abs(s.q_rad - target_rad) <= tol_rad:
+            return s, False
+        if stall_s is not None and s.ok:
+            v = s.v_rad_s if math.isfinite(s.v_rad_s) else 0.0
+            held = abs(ref - s.q_rad) >= 0.9 * max_lag_rad and abs(v) < 0.1 * speed_rad_s
+            if held:
+                stalled_since = s.t_s if stalled_since is None else stalled_since
+                if s.t_s - stalled_since >= stall_s:
+                    return s, True
+            else:
+                stalled_since = None
+        if s.t_s - t0 > limit:
+            q = f"{math.degrees(s.q_rad):.1f}°" if s.ok else "unknown"
+            raise AutoCalAbortedError(
+                f"joint {driver.name}: could not reach {math.degrees(target_rad):.1f}° within {limit:.1f} s "
+                f"(at {q}): blocked?"
+            )
+
+
+TRANSIT_FACTOR = 5.0
+"""Moves that are not searches (to near the second stop, to the park angle) go this much faster than the search."""
+TRANSIT_MAX_RAD_S = math.radians(120.0)
+"""... but never faster than this."""
+
+
+def calibrate_joint(
+    driver: JointDriver,
+    joint: AutoJoint,
+    section: AutoSection,
+    expected_lower_rad: float | None,
+    expected_upper_rad: float | None,
+    *,
+    max_lag_rad: float,
+    gravity: Callable[[float], float] | None = None,
+    view: AutoView | None = None,
+) -> JointOutcome:
+    """Find the stop(s) of one joint, compute its zero, park it.
+
+    Two-sided: the lower stop first (travel bound: the expected span + tolerance, since the joint may start
+    anywhere), then the upper one (bound: span − back-off + tolerance), then the joint parks at ``park_deg``
+    (default: the middle of the measured stops). One-sided: only that stop (travel bound: the expected span +
+    tolerance when both expected angles are known, else one turn).
+
+    A failed search leaves the joint limp; the outcome carries its code and reason.
+    """
+    t0 = driver.read().t_s
+    cap = joint.torque_cap_nm
+    tol = math.radians(joint.tolerance_deg)
+    span = (
+        expected_upper_rad - expected_lower_rad
+        if expected_lower_rad is not None and expected_upper_rad is not None
+        else 2 * math.pi
+    )
+    if view is not None:
+        view.joint_start(joint.name, cap, joint.speed_rad_s)
+    lower: StopResult | None = None
+    upper: StopResult | None = None
+    first_dir = -1 if joint.stops in ("both", "lower") else 1
+    cfg = _config(joint, section, max_travel_rad=span + tol, max_lag_rad=max_lag_rad, gravity=gravity)
+    first = run_search(driver, StopSearch(first_dir, cfg), view, "lower" if first_dir < 0 else "upper")
+    if first_dir < 0:
+        lower = first
+    else:
+        upper = first
+    transit = min(TRANSIT_FACTOR * joint.speed_rad_s, TRANSIT_MAX_RAD_S)
+    if first.ok and joint.stops == "both":
+        backoff = math.radians(section.backoff_deg)
+        start = driver.read()
+        travel = span - backoff + tol
+        # fast to 2·tol short of where the upper stop is expected; a stall on the way is an early stop
+        near = first.q_stop_rad + span - 2 * tol
+        if start.ok and near - start.q_rad > math.radians(10.0):
+            s, stalled = move_to(driver, near, transit, cap, max_lag_rad, stall_s=section.dwell_s)
+            if stalled:
+                upper = StopResult(
+                    1,
+                    "ok",
+                    q_stop_rad=s.q_rad,
+                    q_pressed_rad=s.q_rad,
+                    torque_nm=s.torque_nm,
+                    test="transit-stall",
+                    t_detect_s=s.t_s - start.t_s,
+                    duration_s=s.t_s - start.t_s,
+                    travel_rad=abs(s.q_rad - start.q_rad),
+                )
+            else:
+                travel = first.q_stop_rad + span + tol - s.q_rad
+        if upper is None:
+            cfg2 = _config(joint, section, max_travel_rad=travel, max_lag_rad=max_lag_rad, gravity=gravity)
+            upper = run_search(driver, StopSearch(1, cfg2), view, "upper")
+    stops = joint_zero(
+        joint.name,
+        lower,
+        upper,
+        expected_lower_rad,
+        expected_upper_rad,
+        span_tol_rad=math.radians(section.span_tolerance_deg),
+    )
+    if stops.ok:
+        park = _park_target(joint, stops, expected_lower_rad, expected_upper_rad)
+        try:
+            move_to(driver, park, transit, cap, max_lag_rad)
+        except AutoCalAbortedError as exc:
+            driver.limp()
+            stops = JointStops(
+                joint.name,
+                "blocked",
+                str(exc),
+                lower,
+                upper,
+                math.nan,
+                stops.span_rad,
+                stops.expected_span_rad,
+            )
+    else:
+        driver.limp()
+    outcome = JointOutcome(stops, cap, joint.speed_rad_s, driver.read().t_s - t0)
+    if view is not None:
+        view.joint_done(outcome)
+    return outcome
+
+
+def _park_target(joint: AutoJoint, stops: JointStops, lo: float | None, hi: float | None) -> float:
+    """Where the joint parks, in the driver's frame ``s`` (the zero is known now: ``s = q + offset``)."""
+    if joint.park_deg is not None:
+        return math.radians(joint.park_deg) + stops.offset_rad
+    if stops.lower is not None and stops.upper is not None:
+        return 0.5 * (stops.lower.q_stop_rad + stops.upper.q_stop_rad)
+    res = stops.lower if stops.lower is not None else stops.upper
+    assert res is not None
+    return res.q_stop_rad - res.direction * math.radians(15.0)  # 15° off the one stop

@@ -1,0 +1,165 @@
+"""A Robstride motor as a joint driver of the automatic hard-stop calibration (MIT frames over python-can)."""
+
+from __future__ import annotations
+
+import math
+from contextlib import suppress
+from typing import Any
+
+from ..core.stop_search import Command, StopSample
+from ..errors import CalibTimeoutError, DeviceError
+from .autocal_joint import Clock
+
+LIMIT_TORQUE = 0x700B
+"""Robstride ``limit_torque`` parameter (f32, N·m; RAM until a type-22 save, which robocal never sends)."""
+
+__all__ = ["ROBSTRIDE_FATAL_BITS", "ROBSTRIDE_OVERCURRENT_BIT", "RobstrideJointDriver"]
+
+
+# ------------------------------------------------------------------------------------------------ Robstride
+ROBSTRIDE_OVERCURRENT_BIT = (1 << 4) | (1 << 1)
+"""Type-2 fault bits 20 (stall/overload) and 17 (over-current): suspect evidence only (re-read to confirm)."""
+ROBSTRIDE_FATAL_BITS = (1 << 0) | (1 << 2) | (1 << 3) | (1 << 5)
+"""Bits 16 under-voltage, 18 over-temperature, 19 magnetic encoder, 21 uncalibrated end the run."""
+
+
+class RobstrideJointDriver:
+    """A Robstride motor driven with MIT frames (type 1) through :class:`~robocal.backends.robstride.RobstrideBus`.
+
+    ``drive``/``hold``: position target with ``kp = cap / max_lag`` (scaled down for a lower limit) and a small
+    ``kd``, feed-forward velocity, no feed-forward torque, so ``|τ| ≤ kp·max_lag + kd·|v_ref − v|`` (the cap plus
+    a little damping). ``push``: ``kp = 0``, ``τ_ff = ±limit``, damping ``kd``. ``limp``: MIT ``(0, 0, 0, 0, 0)``
+    then type 4 (stop). ``reread``: type 4 stop with fault clear, type 3 enable, a zero-torque MIT read. Angles
+    are in the joint's identity frame ``s = direction·raw``. The firmware's ``limit_torque`` (0x700B, a RAM
+    parameter: type 18, never saved to flash) is set to ``1.05·cap`` when the motor is first enabled, so a
+    rebound or a control-period delay can never push harder than the cap + 5 %; :meth:`limp` writes the value
+    read before back (a power cycle restores it too).
+
+    Args:
+        bus: The bus the motor is on.
+        name: Joint (motor) name on that bus.
+        direction: URDF direction ±1.
+        cap_nm: Torque cap the gains are computed for.
+        max_lag_rad: The largest lead of the target (``kp = cap/max_lag``).
+        clock: Time source; :meth:`execute` lets ``period_s`` pass per command.
+        period_s: Control period.
+        kd: Damping gain, N·m·s/rad (default ``0.05·cap`` per rad/s: damping adds ≤ 5 % of the cap at 1 rad/s).
+    """
+
+    def __init__(
+        self,
+        bus: Any,
+        name: str,
+        direction: int,
+        cap_nm: float,
+        max_lag_rad: float,
+        clock: Clock,
+        *,
+        period_s: float = 0.01,
+        kd: float | None = None,
+    ) -> None:
+        self.bus = bus
+        self.name = name
+        self.direction = int(direction)
+        self.cap_nm = float(cap_nm)
+        self.kp = cap_nm / max_lag_rad
+        self.kd = 0.05 * cap_nm if kd is None else kd
+        self.clock = clock
+        self.period_s = period_s
+        self.enabled = False
+        self._last: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, self.kd, 0.0)
+        self._q = math.nan
+        self._saved_limit: float | None = None
+
+    def _sample(self, fb: Any) -> StopSample:
+        d = self.direction
+        if fb.faults & ROBSTRIDE_FATAL_BITS:
+            raise DeviceError(f"joint {self.name}: motor fault bits {fb.faults:#04x}")
+        s = StopSample(
+            self.clock.now(),
+            d * fb.position_rad,
+            d * fb.velocity_rad_s,
+            d * fb.torque_nm,
+            True,
+            bool(fb.faults & ROBSTRIDE_OVERCURRENT_BIT),
+        )
+        self._q = s.q_rad
+        return s
+
+    def _mit(self, cmd: tuple[float, float, float, float, float]) -> StopSample:
+        d = self.direction
+        p, v, kp, kd, t = cmd
+        t_send = self.clock.now()
+        try:
+            fb = self.bus.mit_command(self.name, d * p, d * v, kp, kd, d * t)
+        except CalibTimeoutError:
+            s = StopSample(self.clock.now(), math.nan, ok=False)
+        else:
+            s = self._sample(fb)
+        self.clock.sleep(self.period_s - (self.clock.now() - t_send))
+        return s
+
+    def _enable(self) -> StopSample:
+        try:
+            if self._saved_limit is None:
+                self._saved_limit = float(self.bus.read_param(self.name, LIMIT_TORQUE))
+                self.bus.write_param(self.name, LIMIT_TORQUE, 1.05 * self.cap_nm)
+            fb = self.bus.enable(self.name)
+        except CalibTimeoutError:
+            return StopSample(self.clock.now(), math.nan, ok=False)
+        self.enabled = True
+        s = self._sample(fb)
+        self._last = (
+            0.0,
+            0.0,
+            0.0,
+            self.kd,
+            0.0,
+        )  # damping only until the first command: enabling never moves
+        return s
+
+    def read(self) -> StopSample:
+        """Read the joint, repeating the last command (enable first, with damping only, if needed)."""
+        if not self.enabled:
+            s = self._enable()
+            if not s.ok:
+                return s
+        return self._mit(self._last)
+
+    def execute(self, cmd: Command) -> StopSample:
+        """One MIT frame for ``cmd``; its feedback frame is the reading."""
+        if cmd.action == "limp":
+            self.limp()
+            return StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q))
+        if not self.enabled:
+            s = self._enable()
+            if not s.ok:
+                return s
+        if cmd.action == "reread":
+            with suppress(CalibTimeoutError):
+                self.bus.stop(self.name, clear_faults=True)
+            self.enabled = False
+            s = self._enable()
+            if not s.ok:
+                return s
+            return self._mit(self._last)
+        if cmd.action == "push":
+            sign = 1.0 if not math.isfinite(self._q) or cmd.q_target_rad >= self._q else -1.0
+            self._last = (0.0, 0.0, 0.0, self.kd, sign * cmd.torque_limit_nm)
+        else:
+            kp = self.kp * min(1.0, cmd.torque_limit_nm / self.cap_nm)
+            self._last = (cmd.q_target_rad, cmd.v_target_rad_s, kp, self.kd, 0.0)
+        return self._mit(self._last)
+
+    def limp(self) -> None:
+        """MIT zero torque, then type 4 stop (reset mode); never raises."""
+        self._last = (0.0, 0.0, 0.0, 0.0, 0.0)
+        with suppress(Exception):
+            self.bus.mit_command(self.name, 0.0, 0.0, 0.0, 0.0, 0.0)
+        with suppress(Exception):
+            self.bus.stop(self.name)
+        if self._saved_limit is not None:
+            with suppress(Exception):
+                self.bus.write_param(self.name, LIMIT_TORQUE, self._saved_limit)
+                self._saved_limit = None
+        self.enabled = False

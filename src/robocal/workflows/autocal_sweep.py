@@ -1,0 +1,338 @@
+"""``robocal sweep --auto``: the Robstride joints find their own hard stops; same outputs as a hand sweep.
+
+The joints are driven (MIT frames over python-can, :class:`~robocal.workflows.autocal.RobstrideJointDriver`) in
+the order of the robot profile's ``auto_calibration`` section; the measured contact surfaces take the place of
+the hand sweep's sampled extremes in :func:`robocal.core.sweep.analyse_sweep` (so the bisection rule, the
+diagnostics and the written file are exactly those of ``robocal sweep``), and the report gains an ``auto``
+part: per joint q_stop−/q_stop+, span, estimated stiffness, detection torque, time and which test fired.
+
+Nothing is written when a joint fails (missing stop, snag, span mismatch, ...) unless ``partial`` is given; an
+interruption or a device fault leaves every motor limp and every file untouched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.profile import RobotProfile
+from ..core.sweep import SweepResult, analyse_sweep
+from ..errors import UsageError
+from ..fileio import atomic_write_text
+from ..formats.profiles import resolve_profile
+from .autocal import (
+    AutoCalAbortedError,
+    AutoCalFailedError,
+    AutoCalResult,
+    AutoView,
+    Clock,
+    JointDriver,
+    MonotonicClock,
+    RobstrideJointDriver,
+    limp_all,
+    run_autocal,
+    select_joints,
+)
+
+__all__ = ["AutoSweepOutcome", "auto_sweep_result", "run_sweep_auto"]
+
+MAX_LAG_RAD = math.radians(3.0)
+"""The position target leads the joint by at most this: ``kp = cap / 3°``."""
+
+
+@dataclass(frozen=True)
+class AutoSweepOutcome:
+    """What ``sweep --auto`` did.
+
+    Attributes:
+        auto: The stop searches.
+        result: The sweep result the file was computed from.
+        out: Calibration file written (None when nothing was written).
+        fmt: Its format.
+        report: Report written, or None.
+        exit_code: 0 all joints passed, 1 written with ``partial`` although a joint failed or has a warning.
+    """
+
+    auto: AutoCalResult
+    result: SweepResult
+    out: Path | None
+    fmt: str
+    report: Path | None
+    exit_code: int
+
+
+ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
+"""Asked before anything moves with the joints that will move and their torque caps (N·m); False: stop."""
+OpenDrivers = Callable[
+    [Any, Sequence[Any], RobotProfile], tuple[dict[str, JointDriver], Clock, Callable[[], None]]
+]
+"""Opens the drivers for (source spec, joints, profile): returns drivers, clock and a close function."""
+
+
+def auto_sweep_result(
+    auto: AutoCalResult,
+    joints: Sequence[Any],
+    *,
+    prior: Mapping[str, float] | None = None,
+    span_tolerance_rad: float,
+    expected: Mapping[str, tuple[float, float]],
+) -> SweepResult:
+    """The :class:`SweepResult` of an auto run: contact surfaces in place of the sampled extremes.
+
+    A one-sided joint gets the other extreme placed ``upper − lower`` away, which makes the bisection rule give
+    exactly the one-sided offset ``s_stop − stop``. Joints that failed or were not searched have no samples (the
+    prior offset is kept, as for a joint not swept).
+    """
+    names = [j.name for j in joints]
+    n = len(names)
+    smin = np.full(n, np.nan)
+    smax = np.full(n, np.nan)
+    lower = np.array([expected[j.name][0] for j in joints], dtype=float)
+    upper = np.array([expected[j.name][1] for j in joints], dtype=float)
+    for i, name in enumerate(names):
+        try:
+            out = auto[name]
+        except KeyError:
+            continue
+        st = out.stops
+        if not st.ok:
+            continue
+        span = upper[i] - lower[i]
+        lo = st.lower.q_stop_rad if st.lower is not None else None
+        hi = st.upper.q_stop_rad if st.upper is not None else None
+        if lo is None and hi is not None:
+            lo = hi - span
+        if hi is None and lo is not None:
+            hi = lo + span
+        assert lo is not None and hi is not None
+        smin[i], smax[i] = lo, hi
+    return analyse_sweep(
+        names,
+        [j.direction for j in joints],
+        lower,
+        upper,
+        smin,
+        smax,
+        prior=prior,
+        threshold_rad=0.0,
+        span_tolerance_rad=span_tolerance_rad,
+    )
+
+
+def _open_robstride(
+    spec: Any, joints: Sequence[Any], profile: RobotProfile
+) -> tuple[dict[str, JointDriver], Clock, Callable[[], None]]:
+    from ..backends.sources import open_source
+
+    if spec.kind != "can":
+        raise UsageError(f"--auto needs a live source (can:...) or sim:lite, not {spec.kind}")
+    src = open_source(spec, joints)
+    clock = MonotonicClock()
+    drivers: dict[str, JointDriver] = {}
+    auto = profile.auto
+    assert auto is not None
+    by_name = {j.name: j for j in joints}
+    for bus in getattr(src, "buses", []):
+        for name in bus.motors:
+            aj = auto.joint(name)
+            if aj is None:
+                continue
+            drivers[name] = RobstrideJointDriver(
+                bus, name, by_name[name].direction, aj.torque_cap_nm, MAX_LAG_RAD, clock
+            )
+    return drivers, clock, src.close
+
+
+@dataclass(frozen=True)
+class _SimSpec:
+    kind: str
+    options: dict[str, str]
+    text: str
+
+
+def _parse_auto_source(text: str) -> _SimSpec:
+    """``sim:lite[?seed=N&missing=a,b&...]`` (the options of :mod:`robocal.workflows.autocal_sim`)."""
+    from urllib.parse import parse_qs
+
+    from .autocal_sim import SIM_FAULTS
+
+    robot, _, query = text[len("sim:") :].partition("?")
+    if robot != "lite":
+        raise UsageError(
+            f"--source {text!r}: --auto simulates sim:lite only (LeRobot arms: lerobot calibrate --auto)"
+        )
+    opts: dict[str, str] = {}
+    if query:
+        try:
+            parsed = parse_qs(query, keep_blank_values=True, strict_parsing=True)
+        except ValueError:
+            raise UsageError(
+                f"--source {text!r}: malformed options {query!r}; expected key=value&..."
+            ) from None
+        for key, values in parsed.items():
+            if key not in ("seed", *SIM_FAULTS):
+                raise UsageError(
+                    f"--source {text!r}: unknown option {key!r}; valid with --auto: seed, {', '.join(SIM_FAULTS)}"
+                )
+            opts[key] = ",".join(values)
+    seed = opts.get("seed", "0")
+    if not (seed.isascii() and seed.isdigit()):
+        raise UsageError(f"--source {text!r}: seed must be a non-negative integer, got {seed!r}")
+    return _SimSpec("sim", opts, text)
+
+
+def run_sweep_auto(
+    urdf_path: str | Path,
+    source: str,
+    out: str | Path,
+    *,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
+    joints: Sequence[str] | None = None,
+    report: str | Path | None = None,
+    fmt: str | None = None,
+    partial: bool = False,
+    confirm_start: ConfirmStart | None = None,
+    view: AutoView | None = None,
+    open_drivers_fn: OpenDrivers | None = None,
+    gravity: Mapping[str, Callable[[float], float]] | None = None,
+) -> AutoSweepOutcome:
+    """Auto-calibrate the Robstride joints of a robot and write the calibration like ``robocal sweep``.
+
+    Args:
+        urdf_path: The robot's URDF (limits: the default expected stop angles).
+        source: ``can:<interface>:<channel>[,...]`` or ``sim:lite[?...]``.
+        out: Calibration file (updated in place when it exists; joints not searched keep their offsets).
+        robot: Profile name or file (default: recognised from the URDF); it needs an ``auto_calibration`` section.
+        joints: Subset to calibrate (``--joints``).
+        report: JSON report to write (the sweep report plus an ``auto`` part).
+        fmt: Output format (default as ``robocal sweep``).
+        partial: Write the joints that passed even when others failed.
+        confirm_start: Asked before anything moves; returning False ends the run with nothing moved.
+        view: Live view.
+        open_drivers_fn: Opens the drivers (default: Robstride buses from ``source``; the simulator passes its own).
+        gravity: Joint → gravity torque model, for the correction.
+
+    Raises:
+        UsageError: Bad options, no auto section, not a Robstride robot, the start not confirmed.
+        AutoCalFailedError: A joint failed and ``partial`` is not given (exit 3; nothing written).
+        AutoCalAbortedError: A device fault (exit 3; every motor limp, nothing written).
+        KeyboardInterrupt: Ctrl-C (every motor limp, nothing written; the CLI exits 130).
+    """
+    from ..backends.sources import parse_source
+    from ..formats.urdf import read_urdf
+    from .sweep import OUTPUT_FORMATS, _check_writable, _existing_output, _offsets, _write, joints_from_urdf
+
+    out_path = Path(out)
+    if fmt is not None and fmt not in OUTPUT_FORMATS:
+        raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
+    _check_writable(out_path, "--out")
+    report_path = Path(report) if report is not None else None
+    if report_path is not None:
+        _check_writable(report_path, "--report")
+        if report_path.resolve() == out_path.resolve():
+            raise UsageError(f"--report {report_path}: is the same file as --out")
+    spec = _parse_auto_source(source) if source.startswith("sim:") else parse_source(source)
+    urdf = read_urdf(urdf_path)
+    profile = resolve_profile(robot, urdf)
+    if profile is None or profile.auto is None:
+        who = "no robot profile is in effect" if profile is None else f"profile {profile.name} has none"
+        raise UsageError(
+            f"--auto needs a robot profile with an auto_calibration section; {who} (pass --robot NAME; "
+            "docs/profiles.md)"
+        )
+    if profile.actuator not in (None, "robstride"):
+        raise UsageError(
+            f"--auto: robot {profile.name} has {profile.actuator} actuators; sweep --auto drives Robstride motors "
+            "(LeRobot arms: robocal lerobot calibrate --auto)"
+        )
+    if fmt is None:
+        if out_path.suffix.lower() == ".json":
+            fmt = "lite-json"
+        elif profile.file_format in OUTPUT_FORMATS:
+            fmt = profile.file_format
+        else:
+            fmt = "lite-yaml"
+    existing = _existing_output(out_path, fmt, urdf, profile)
+    specs = joints_from_urdf(urdf, profile, existing)
+    order = select_joints(profile.auto, joints)
+    known = {j.name for j in specs}
+    lacking = [j.name for j in order if j.name not in known]
+    if lacking:
+        raise UsageError(
+            f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
+        )
+    caps = {j.name: j.torque_cap_nm for j in order}
+    if confirm_start is not None and not confirm_start(tuple(caps), caps):
+        raise UsageError("not confirmed: nothing moved, nothing written")
+    limits = {j.name: (j.lower, j.upper) for j in specs}
+    opener = open_drivers_fn
+    if opener is None:
+        if spec.kind == "sim":
+            from .autocal_sim import sim_opener
+
+            opener = sim_opener()
+        else:
+            opener = _open_robstride
+    drivers, clock, close = opener(spec, specs, profile)
+    try:
+        auto = run_autocal(
+            drivers,
+            profile.auto,
+            limits,
+            joints=[j.name for j in order],
+            max_lag_rad=MAX_LAG_RAD,
+            gravity=gravity,
+            view=view,
+            clock=clock,
+        )
+    except BaseException:
+        limp_all(drivers)
+        with contextlib.suppress(Exception):
+            close()
+        raise
+    # the run is over: the joints hold their park angles; nothing is written before this point
+    try:
+        prior = _offsets(existing) if existing is not None else {}
+        expected: dict[str, tuple[float, float]] = {}
+        for j in specs:
+            aj = profile.auto.joint(j.name)
+            lo, hi = aj.expected_rad(j.lower, j.upper) if aj is not None else (j.lower, j.upper)
+            expected[j.name] = (j.lower if lo is None else lo, j.upper if hi is None else hi)
+        searched = {o.name for o in auto.joints if o.ok}
+        rows = [j for j in specs if j.name in searched or j.name in prior]
+        result = auto_sweep_result(
+            auto,
+            rows,
+            prior=prior,
+            span_tolerance_rad=math.radians(profile.auto.span_tolerance_deg),
+            expected=expected,
+        )
+        if auto.failed and not partial:
+            raise AutoCalFailedError(
+                f"auto-calibration failed for {auto.failure_summary()}; nothing was written (pass --partial to "
+                "write the joints that passed)",
+                auto,
+            )
+        if report_path is not None:
+            doc = result.to_report()
+            doc["auto"] = auto.to_report()
+            atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
+        if rows:
+            _write(result, urdf, rows, out_path, fmt, None, existing, profile)
+    finally:
+        limp_all(drivers)
+        with contextlib.suppress(Exception):
+            close()
+    code = 0 if result.ok and not auto.failed else 1
+    return AutoSweepOutcome(auto, result, out_path if rows else None, fmt, report_path, code)
+
+
+__all__ += ["AutoCalAbortedError"]
