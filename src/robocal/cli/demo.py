@@ -43,6 +43,9 @@ def demo(
         help="Then show the calibrated simulated Lite in the browser (robocal view; Ctrl-C to stop).",
     ),
     port: int = typer.Option(8080, "--port", help="With --view: TCP port of the page (0: any free one)."),
+    auto: bool = typer.Option(
+        False, "--auto", help="The simulated joints find their own hard stops (lite; docs/auto_calibration.md)."
+    ),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
     robot = robot.strip().lower()
@@ -57,6 +60,12 @@ def demo(
             raise UsageError(f"cannot create --out folder {out}: {exc.strerror or exc}") from None
     if identify and robot not in IDENTIFY_ROBOTS:
         raise UsageError(f"--identify works with {', '.join(IDENTIFY_ROBOTS)}, not {robot!r}")
+    if auto:
+        if identify or view:
+            raise UsageError("--auto is its own demo; it does not go with --identify or --view")
+        from ._autocal import run_auto_demo
+
+        raise typer.Exit(int(run_auto_demo(robot, out)))
     if view:
         if robot != "lite" or identify:
             raise UsageError(
