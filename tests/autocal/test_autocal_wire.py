@@ -200,3 +200,13 @@ def test_cli_demo_auto(tmp_path: Path) -> None:
     assert len(cal.calibration.joint_names) == 14
     doc = json.loads((tmp_path / "sweep_report.json").read_text())
     assert doc["auto"]["total_time_s"] < 180.0
+
+
+def test_joints_not_searched_keep_their_entries(urdf: Path, tmp_path: Path) -> None:
+    out = tmp_path / "cal.yaml"
+    out.write_text("right_elbow_pitch:\n  id: 24\n  direction: 1\n  homing_offset: 0.125\n")
+    outcome = run_sweep_auto(urdf, "sim:lite?seed=6", out, robot="bhl_arms", joints=JOINTS)
+    cal = read_calibration(out).calibration
+    assert set(cal.joint_names) == {"right_elbow_pitch", *JOINTS}
+    assert cal.homing_offset[cal.index("right_elbow_pitch")] == 0.125
+    assert {j.name for j in outcome.result.joints} == set(JOINTS)

@@ -307,7 +307,7 @@ def run_sweep_auto(
             lo, hi = aj.expected_rad(j.lower, j.upper) if aj is not None else (j.lower, j.upper)
             expected[j.name] = (j.lower if lo is None else lo, j.upper if hi is None else hi)
         searched = {o.name for o in auto.joints if o.ok}
-        rows = [j for j in specs if j.name in searched or j.name in prior]
+        rows = [j for j in specs if j.name in searched]  # the others stay as the existing file has them
         result = auto_sweep_result(
             auto,
             rows,
