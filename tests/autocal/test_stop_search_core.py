@@ -89,10 +89,22 @@ def test_stiction_at_0_8_of_cap_is_no_false_stop() -> None:
 
 
 def test_unarmed_detector_ignores_a_stall_at_the_start() -> None:
-    # the joint starts 1° from the stop: never reaches min travel → no stop declared → travel/time bound
+    # the joint starts 1° from the stop: never reaches the minimum travel → no stop declared; held at the
+    # full push for 2 dwells it is reported blocked (not a stop), and left limp
     plant = Plant(q=1.0 - math.radians(1), seed=5)
-    s, _ = search(plant, +1, max_time_s=3.0)
-    assert s.result.code == "timeout"
+    s, cmds = search(plant, +1, max_time_s=3.0)
+    assert s.result.code == "blocked"
+    assert math.isnan(s.result.q_stop_rad)
+    assert s.result.q_pressed_rad == pytest.approx(1.0, abs=math.radians(1))
+    assert "before the stall test could arm" in s.result.reason
+    assert cmds[-1].action == "limp"
+
+
+def test_stiction_at_start_is_not_blocked() -> None:
+    # breakaway at 0.8× the cap builds 0.8× the push: below the 0.9 thresholds, so the joint is not "blocked"
+    plant = Plant(stiction=0.8 * CAP, coulomb=0.2, seed=12)
+    s, _ = search(plant, -1)
+    assert s.result.code == "ok"
 
 
 def test_obstacle_is_a_span_mismatch() -> None:

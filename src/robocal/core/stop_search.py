@@ -39,6 +39,7 @@ Failure codes (stable, in reports): ``missing_stop``, ``timeout``, ``no_reply``,
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -88,6 +89,7 @@ class StopSearch:
         self._target = math.nan
         self._armed = False
         self._stall_since: float | None = None
+        self._blocked_since: float | None = None
         self._window: list[StopSample] = []
         self._last_good: StopSample | None = None
         self._no_reply_since: float | None = None
@@ -219,6 +221,24 @@ class StopSearch:
         lag = d * (self._target - s.q_rad)
         torque_hit = math.isfinite(s.torque_nm) and d * s.torque_nm >= cfg.torque_fraction * cfg.torque_cap_nm
         lag_hit = lag >= cfg.lag_fraction * cfg.max_lag_rad
+        if not self._armed and slow and (torque_hit or lag_hit):
+            # held at the full push before the test could arm: something blocks the joint right here
+            if self._blocked_since is None:
+                self._blocked_since = s.t_s
+            elif s.t_s - self._blocked_since >= 2 * cfg.dwell_s:
+                self._result = replace(
+                    self._make_fail(
+                        "blocked",
+                        f"blocked {math.degrees(abs(s.q_rad - self._touch_start_q)):.1f}° after the start, "
+                        "before the stall test could arm",
+                        s,
+                    ),
+                    q_pressed_rad=s.q_rad,
+                )
+                self._phase = _DONE
+                return Command("limp")
+        else:
+            self._blocked_since = None
         if self._armed and slow and (torque_hit or lag_hit):
             if self._stall_since is None:
                 self._stall_since = s.t_s

@@ -22,7 +22,7 @@ FAIL_CODES = (
     "aborted",
 )
 """Why a search or a joint failed (``ok`` otherwise)."""
-TESTS = ("torque", "lag", "overload+reread", "no-reply+reread", "transit-stall")
+TESTS = ("torque", "lag", "overload+reread", "no-reply+reread", "transit-stall", "blocked")
 """Which test declared the stop."""
 
 

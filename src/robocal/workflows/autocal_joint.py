@@ -9,7 +9,7 @@ import math
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, suppress
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 from ..core.profile_auto import AutoJoint, AutoSection
@@ -403,6 +403,9 @@ def calibrate_joint(
         if upper is None:
             cfg2 = _config(joint, section, max_travel_rad=travel, max_lag_rad=max_lag_rad, gravity=gravity)
             upper = run_search(driver, StopSearch(1, cfg2), view, "upper")
+            if upper.code == "blocked" and math.isfinite(upper.q_pressed_rad):
+                # blocked right after the transit: an early stop (obstacle, cable), judged by the span check
+                upper = replace(upper, code="ok", reason="", q_stop_rad=upper.q_pressed_rad, test="blocked")
     stops = joint_zero(
         joint.name,
         lower,
