@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from robocal.backends.sim.physics import Drive, JointPlant, PlantParams, Scenario, make_plant
 
+from robocal.backends.sim.physics import Drive, JointPlant, PlantParams, Scenario, make_plant
 from robocal.core.profile_auto import AutoJoint, AutoSection
 from robocal.core.stop_search import Command, StopSample
 from robocal.workflows.autocal import calibrate_joint
