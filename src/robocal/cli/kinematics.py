@@ -13,7 +13,7 @@ from rich.table import Table
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
-from ._common import EXIT_OK, EXIT_WARNINGS, console, print_warning
+from ._common import EXIT_INTERRUPTED, EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
 
 app = typer.Typer(
     help="Kinematic identification: measure an arm, identify its URDF errors, export a corrected URDF.",
@@ -238,6 +238,95 @@ def plan(
     for w in warnings:
         print_warning(w)
     raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
+
+
+def _stdin_ask(prompt: str) -> str:
+    """Show ``prompt`` on stderr and read one line from stdin (EOFError at the end of input)."""
+    import sys
+
+    err_console.print(prompt + ": ", end="")
+    line = sys.stdin.readline()
+    if line == "":
+        raise EOFError
+    return line.rstrip("\n")
+
+
+@app.command("record")
+def record(
+    out: Annotated[Path, typer.Option("--out", help="Session CSV to write (what identify --data reads).")],
+    urdf: Annotated[
+        Path | None, typer.Option("--urdf", help="Expanded URDF (default for --robot so101_*/koch_*: shipped).")
+    ] = None,
+    base_link: _BaseLinkOption = None,
+    tip_link: _TipLinkOption = None,
+    kind: Annotated[str, typer.Option("--kind", help="points, touch, gauge or tag.")] = "points",
+    lerobot_port: Annotated[
+        str | None, typer.Option("--lerobot-port", help="Serial port of a LeRobot arm (torque is switched off).")
+    ] = None,
+    robot: Annotated[
+        str | None, typer.Option("--robot", help="LeRobot arm: so101_follower, so101_leader, koch_follower, ...")
+    ] = None,
+    robot_id: Annotated[str | None, typer.Option("--id", help="LeRobot robot id: its calibration <id>.json.")] = None,
+    calibration_dir: Annotated[
+        Path | None, typer.Option("--calibration-dir", help="LeRobot calibration root.")
+    ] = None,
+    file: Annotated[Path | None, typer.Option("--file", help="LeRobot calibration JSON (instead of --id).")] = None,
+    source: Annotated[
+        str | None, typer.Option("--source", help="Any robocal source: sim:lite, can:<if>:<ch>, replay:<file>.")
+    ] = None,
+    joint_map: Annotated[
+        Path | None,
+        typer.Option(
+            "--joint-map",
+            help="Raw → URDF joint map (lerobot export-urdf output, or any calibration file for --source).",
+        ),
+    ] = None,
+    poses: Annotated[int | None, typer.Option("--poses", help="Stop after this many poses.")] = None,
+    image_pattern: Annotated[
+        str, typer.Option("--image-pattern", help="Default image per pose (tag), e.g. shots/pose_{pose:03d}.png.")
+    ] = "pose_{pose:03d}.png",
+) -> None:
+    """Record a session: move the arm by hand, press Enter per pose, give the measurement; writes the CSV."""
+    from ..workflows import kinematic_record as rec_wf
+
+    if (lerobot_port is None) == (source is None):
+        raise UsageError("give either --lerobot-port (with --robot) or --source")
+    kind = kind.strip().lower()
+    reader, chain = rec_wf.open_reader(
+        urdf=urdf,
+        base_link=base_link,
+        tip_link=tip_link,
+        lerobot_port=lerobot_port,
+        robot=robot,
+        robot_id=robot_id,
+        calibration_dir=calibration_dir,
+        calibration_file=file,
+        source=source,
+        joint_map=joint_map,
+    )
+    try:
+        err_console.print(
+            f"recording {kind} poses of {', '.join(chain.joint_names)} (chain {chain.base_link} → {chain.tip_link})"
+        )
+        result = rec_wf.record(
+            reader,
+            chain,
+            out,
+            kind=kind,
+            ask=_stdin_ask,
+            say=lambda m: err_console.print(m, markup=False),
+            poses=poses,
+            image_pattern=image_pattern,
+        )
+    finally:
+        reader.close()
+    console.print(f"wrote {result.out} ({result.measurements.n_poses} poses)")
+    if result.interrupted:
+        print_warning(f"interrupted: the {result.measurements.n_poses} poses recorded so far were written")
+        raise typer.Exit(EXIT_INTERRUPTED)
+    for s in result.skipped:
+        print_warning(s)
+    raise typer.Exit(EXIT_WARNINGS if result.skipped else EXIT_OK)
 
 
 def run_demo(robot: str, out_dir: Path | None) -> int:

@@ -19,7 +19,7 @@ import csv
 import io
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
 from ._numbers import format_float
 
-__all__ = ["IGNORED_COLUMNS", "measurements_to_csv", "parse_measurements", "read_measurements"]
+__all__ = ["IGNORED_COLUMNS", "measurements_to_csv", "parse_measurements", "read_measurements", "session_csv"]
 
 IGNORED_COLUMNS: tuple[str, ...] = ("pose", "id", "t", "time", "timestamp", "note")
 
@@ -177,4 +177,20 @@ def measurements_to_csv(data: Measurements, joint_names: Sequence[str], labels: 
             else:
                 row.append(labels[g] if g < len(labels) else f"P{g}")
         writer.writerow(row)
+    return out.getvalue()
+
+
+def session_csv(q_rad: np.ndarray, joint_names: Sequence[str], extra: Mapping[str, Sequence[str]]) -> str:
+    """CSV text of a session: ``pose``, the joints (radians, shortest round-trip floats), then ``extra`` columns.
+
+    Args:
+        q_rad: ``(N, n_q)`` joint readings.
+        joint_names: Column names of the joints.
+        extra: Further columns in order, each with ``N`` values already formatted.
+    """
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["pose", *joint_names, *extra])
+    for i, row in enumerate(np.asarray(q_rad, dtype=np.float64)):
+        writer.writerow([str(i + 1), *(format_float(float(v)) for v in row), *(col[i] for col in extra.values())])
     return out.getvalue()
