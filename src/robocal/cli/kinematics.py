@@ -10,6 +10,7 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
+from ..core.jointmap import RobotCalibration
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
@@ -92,11 +93,43 @@ def _print(result: wf.IdentifyResult) -> int:
         )
     if result.urdf_out is not None:
         console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
+    if "joint_map" in rep:
+        console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
+    if "ur_yaml" in rep:
+        console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
     if result.report_out is not None:
         console.print(f"wrote {result.report_out}")
     for w in result.warnings:
         print_warning(w)
     return EXIT_WARNINGS if result.warnings else EXIT_OK
+
+
+def _identify_joint_map(
+    joint_map: Path | None,
+    robot: str | None,
+    robot_id: str | None,
+    calibration_dir: Path | None,
+    calibration_file: Path | None,
+) -> tuple[RobotCalibration | None, dict[str, int]]:
+    """The joint map given to ``identify`` (``--joint-map`` file, or a LeRobot arm's calibration), with ids."""
+    if joint_map is not None:
+        if robot is not None or robot_id is not None or calibration_file is not None:
+            raise UsageError("give --joint-map or --robot with --id/--calibration-file, not both")
+        from ..formats import read_calibration
+
+        cf = read_calibration(joint_map)
+        return cf.calibration, dict(cf.ids)
+    if robot is None:
+        if robot_id is not None or calibration_file is not None:
+            raise UsageError("--id and --calibration-file need --robot")
+        return None, {}
+    from ..workflows.kinematic_record import lerobot_joint_map
+    from ..workflows.lerobot import robot_spec
+
+    spec = robot_spec(robot)
+    return lerobot_joint_map(spec, robot_id, calibration_dir, calibration_file), {
+        m.name: m.motor_id for m in spec.motors
+    }
 
 
 @app.command("identify")
@@ -136,8 +169,33 @@ def identify(
     out: Annotated[Path | None, typer.Option("--out", help="Corrected URDF to write.")] = None,
     report: Annotated[Path | None, typer.Option("--report", help="JSON report to write.")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the validation split.")] = 0,
+    joint_map: Annotated[
+        Path | None,
+        typer.Option("--joint-map", help="Joint map the readings went through (lerobot export-urdf output)."),
+    ] = None,
+    robot: Annotated[
+        str | None, typer.Option("--robot", help="LeRobot arm whose calibration made the readings (no --joint-map).")
+    ] = None,
+    robot_id: Annotated[str | None, typer.Option("--id", help="LeRobot robot id of that calibration.")] = None,
+    calibration_dir: Annotated[
+        Path | None, typer.Option("--calibration-dir", help="LeRobot calibration root.")
+    ] = None,
+    calibration_file: Annotated[
+        Path | None, typer.Option("--calibration-file", help="LeRobot calibration JSON (instead of --id).")
+    ] = None,
+    joint_map_out: Annotated[
+        Path | None,
+        typer.Option("--joint-map-out", help="Joint map with the identified zero offsets (export-urdf format)."),
+    ] = None,
+    ur_yaml: Annotated[
+        Path | None, typer.Option("--ur-yaml", help="ur_description kinematics YAML of the corrected UR chain.")
+    ] = None,
+    ur_hash: Annotated[
+        str | None, typer.Option("--ur-hash", help="calib_<number> written into --ur-yaml (your robot's).")
+    ] = None,
 ) -> None:
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
+    jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     result = wf.identify(
         urdf,
         data,
@@ -154,6 +212,11 @@ def identify(
         out=out,
         report=report,
         seed=seed,
+        joint_map=jm,
+        joint_map_out=joint_map_out,
+        joint_map_ids=ids,
+        ur_yaml=ur_yaml,
+        ur_hash=ur_hash,
     )
     raise typer.Exit(_print(result))
 

@@ -35,6 +35,7 @@ __all__ = [
     "RecordResult",
     "SourceReader",
     "calibration_for_chain",
+    "lerobot_joint_map",
     "open_reader",
     "record",
 ]
@@ -329,13 +330,20 @@ def _chain(
     return chain_from_urdf(model, base_link, tip_link), model
 
 
-def _lerobot_map(
+def lerobot_joint_map(
     spec: Any,
     robot_id: str | None,
     calibration_dir: str | os.PathLike[str] | None,
     calibration_file: str | os.PathLike[str] | None,
 ) -> RobotCalibration:
-    """The ``lerobot export-urdf`` map (sign +1, offset 0) of the arm's LeRobot calibration file."""
+    """The ``lerobot export-urdf`` map (sign +1, offset 0) of an arm's LeRobot calibration file.
+
+    Args:
+        spec: The arm's :class:`~robocal.core.lerobot.RobotSpec`.
+        robot_id: LeRobot id (the file is found like LeRobot does, pre-v0.4.3 folder as a fallback).
+        calibration_dir: LeRobot calibration root (default: LeRobot's).
+        calibration_file: The JSON itself (instead of ``robot_id``).
+    """
     from ..lerobot import calibration_path, read_calibration
     from .lerobot import export_joint_map
 
@@ -399,7 +407,7 @@ def open_reader(
                 f"{robot} has no motor(s) {', '.join(missing)}; its motors are {', '.join(ids)}"
             )
         jm = file_map or calibration_for_chain(
-            _lerobot_map(spec, robot_id, calibration_dir, calibration_file), chain, f"{robot} calibration"
+            lerobot_joint_map(spec, robot_id, calibration_dir, calibration_file), chain, f"{robot} calibration"
         )
         bus = open_bus(spec, lerobot_port)
         try:

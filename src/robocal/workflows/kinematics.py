@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ..core.chain import SerialChain
 from ..core.identifiability import Identifiability
+from ..core.jointmap import RobotCalibration
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
     KINDS,
@@ -34,10 +35,13 @@ from ..core.kinematic_problem import (
 )
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
+from ..formats import write_calibration
 from ..formats._numbers import format_float
 from ..formats.kinematic_data import read_measurements
+from ..formats.ur_kinematics import kinematics_to_text
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
+from .kinematic_export import identified_joint_map, ur_kinematics_from_chain
 from .kinematic_fit import FitResult, PriorSigmas, fit, split_validation, validation_errors
 
 __all__ = [
@@ -168,6 +172,11 @@ def identify(
     out: str | os.PathLike[str] | None = None,
     report: str | os.PathLike[str] | None = None,
     seed: int = 0,
+    joint_map: RobotCalibration | None = None,
+    joint_map_out: str | os.PathLike[str] | None = None,
+    joint_map_ids: Mapping[str, int] | None = None,
+    ur_yaml: str | os.PathLike[str] | None = None,
+    ur_hash: str | None = None,
 ) -> IdentifyResult:
     """Identify a URDF chain's geometric errors from a measurement session.
 
@@ -187,6 +196,13 @@ def identify(
         out: Corrected URDF to write.
         report: JSON report to write.
         seed: Seed of the validation split.
+        joint_map: The raw → URDF joint map the readings went through (``lerobot export-urdf``); needed for
+            ``joint_map_out``.
+        joint_map_out: Write ``joint_map`` with the identified zero offsets in it (robocal joint-map YAML, the
+            ``export-urdf`` format); the corrected URDF then leaves the offsets out of its origins.
+        joint_map_ids: Motor ids written with the joint map.
+        ur_yaml: Write ur_description's kinematics YAML of the corrected chain (UR chains only).
+        ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
 
     Returns:
         The :class:`IdentifyResult`; files are written only after everything succeeded.
@@ -208,8 +224,13 @@ def identify(
         raise UsageError(f"--huber must be a positive distance, got {huber_m}")
     out_path = check_output_path(out, "--out") if out is not None else None
     report_path = check_output_path(report, "--report") if report is not None else None
-    if out_path is not None and report_path is not None and out_path.resolve() == report_path.resolve():
-        raise UsageError("--out and --report must be different files")
+    map_path = check_output_path(joint_map_out, "--joint-map-out") if joint_map_out is not None else None
+    ur_path = check_output_path(ur_yaml, "--ur-yaml") if ur_yaml is not None else None
+    if map_path is not None and joint_map is None:
+        raise UsageError("--joint-map-out needs the joint map the readings went through (--joint-map or --robot)")
+    outputs = [p.resolve() for p in (out_path, report_path, map_path, ur_path) if p is not None]
+    if len(set(outputs)) != len(outputs):
+        raise UsageError("--out, --report, --joint-map-out and --ur-yaml must be different files")
     doc = UrdfDocument.load(urdf)
     chain = chain_from_urdf(doc.model(), base_link, tip_link)
     measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=gauge_distance_m)
@@ -328,9 +349,33 @@ def identify(
         },
         "warnings": warnings,
     }
-    urdf_bytes = corrected_urdf_bytes(doc, corrected, _origin_changed(chain, corrected)) if out_path else None
+    urdf_chain = corrected
+    new_map = None
+    if map_path is not None:
+        assert joint_map is not None
+        urdf_chain = model.corrected(result.x, fold_offsets=False)[0]
+        new_map = identified_joint_map(joint_map, model.offsets(result.x))
+        rep["joint_map"] = {
+            "file": str(map_path),
+            "homing_offset": {n: float(v) for n, v in zip(new_map.joint_names, new_map.homing_offset, strict=True)},
+            "note": "the zero offsets are in the joint map; the URDF written with it leaves them out",
+        }
+    ur_text = None
+    if ur_path is not None:
+        if ur_hash is None:
+            warnings.append(
+                "--ur-yaml without --ur-hash: hash calib_0 written; the UR driver will report that it differs from "
+                "the robot's own calibration (pass your robot's hash to silence it)"
+            )
+        ur_text = kinematics_to_text(ur_kinematics_from_chain(corrected, ur_hash or "calib_0"))
+        rep["ur_yaml"] = str(ur_path)
+    urdf_bytes = corrected_urdf_bytes(doc, urdf_chain, _origin_changed(chain, urdf_chain)) if out_path else None
     report_text = json.dumps(_finite(rep), indent=2, allow_nan=False) + "\n"
     written_urdf = atomic_write_bytes(out_path, urdf_bytes) if out_path and urdf_bytes is not None else None
+    if map_path is not None and new_map is not None:
+        write_calibration(map_path, new_map, "robocal", ids=dict(joint_map_ids or {}) or None)
+    if ur_path is not None and ur_text is not None:
+        atomic_write_text(ur_path, ur_text)
     written_report = atomic_write_text(report_path, report_text) if report_path else None
     return IdentifyResult(
         fit=result,
