@@ -13,17 +13,18 @@ import numpy as np
 import pytest
 
 from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, SimArm
-from robocal.core.lerobot import ROBOTS, MotorCalibration
+from robocal.core.lerobot import MotorCalibration
 from robocal.errors import JointMismatchError, UsageError
 from robocal.formats.kinematic_data import read_measurements
 from robocal.lerobot import write_calibration
 from robocal.workflows.kinematic_record import open_reader, record
 from robocal.workflows.kinematic_sim import shipped_urdf
+from robocal.workflows.lerobot import robot_spec
 
 pytest.importorskip("scservo_sdk")
 
 ROBOT = "so101_follower"
-SPEC = ROBOTS[ROBOT]
+SPEC = robot_spec(ROBOT)
 TICK = 2 * math.pi / 4095  # LeRobot DEGREES: 360° per 4095 ticks
 CHAIN = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
 TARGETS = np.array(
@@ -72,7 +73,7 @@ def _actual_ticks(cals: dict[str, MotorCalibration], q_rad: np.ndarray) -> dict[
 @pytest.fixture
 def arm(tmp_path: Path):
     eeprom = {n: {"Homing_Offset": h} for n, h in _homing().items()}
-    with SimArm(ROBOT, eeprom=eeprom) as sim:
+    with SimArm(SPEC, eeprom=eeprom) as sim:
         cals = _calibration(tmp_path / "cal.json")
         yield sim, cals, tmp_path / "cal.json"
 
