@@ -210,20 +210,27 @@ class ErrorModel:
         """``p_world_tool`` (m) for joint readings ``(N, n_q)``: ``(N, 3)``."""
         return self.tool_poses(q_rad, x)[:, :3, 3]
 
-    def point_jacobian(self, q_rad: ArrayLike, x: ArrayLike | None = None) -> tuple[FloatArray, FloatArray]:
+    def point_jacobian(
+        self, q_rad: ArrayLike, x: ArrayLike | None = None, point_in_tool_m: ArrayLike | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """Tool points and their exact derivatives with respect to every parameter.
 
         Args:
             q_rad: ``(N, n_q)`` joint readings.
             x: ``(P,)`` parameters (default: nominal, all zero).
+            point_in_tool_m: ``(3,)`` or ``(N, 3)`` point(s) fixed in the tool frame (default: its origin), e.g.
+                the corners of a target on the tool.
 
         Returns:
-            ``p_world_tool`` ``(N, 3)`` in metres, and ``∂p/∂x`` ``(N, 3, P)`` (m per m or m per rad).
+            ``p_world`` ``(N, 3)`` in metres, and ``∂p/∂x`` ``(N, 3, P)`` (m per m or m per rad).
         """
         xa = self._check_x(x)
         q = self._q(q_rad)
         T_tool, blocks = self._walk(xa, q)
         p = T_tool[:, :3, 3]
+        if point_in_tool_m is not None:
+            c = np.broadcast_to(np.asarray(point_in_tool_m, dtype=np.float64), p.shape)
+            p = p + np.einsum("nij,nj->ni", T_tool[:, :3, :3], c)
         n = q.shape[0]
         J = np.zeros((n, 3, self.n_params))
         starts = self._joint_start()

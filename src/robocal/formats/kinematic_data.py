@@ -20,6 +20,7 @@ import io
 import math
 import os
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -28,7 +29,7 @@ from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
 from ._numbers import format_float
 
-__all__ = ["IGNORED_COLUMNS", "measurements_to_csv", "parse_measurements", "read_measurements", "session_csv"]
+__all__ = ["IGNORED_COLUMNS", "measurements_to_csv", "parse_measurements", "read_image_session", "read_measurements", "session_csv"]
 
 IGNORED_COLUMNS: tuple[str, ...] = ("pose", "id", "t", "time", "timestamp", "note")
 
@@ -194,3 +195,69 @@ def session_csv(q_rad: np.ndarray, joint_names: Sequence[str], extra: Mapping[st
     for i, row in enumerate(np.asarray(q_rad, dtype=np.float64)):
         writer.writerow([str(i + 1), *(format_float(float(v)) for v in row), *(col[i] for col in extra.values())])
     return out.getvalue()
+
+
+def read_image_session(
+    path: str | os.PathLike[str], joint_names: Sequence[str]
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Read an image session CSV: the joints and an ``image`` column (a path, relative to the CSV's folder).
+
+    Returns:
+        ``(q_rad (N, n_q), image paths)``, the paths resolved against the CSV's folder.
+
+    Raises:
+        FileFormatError: As :func:`parse_measurements` (missing/unknown columns, non-numbers), or an empty image.
+    """
+    source = str(path)
+    text = read_text(path, "measurement file")
+    lines = [
+        (n, line)
+        for n, line in enumerate(text.splitlines(), 1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not lines:
+        raise FileFormatError(f"{source}: no header row and no poses")
+    rows = list(csv.reader(io.StringIO("\n".join(line for _, line in lines))))
+    header = [h.strip() for h in rows[0]]
+    if len(set(header)) != len(header):
+        dup = sorted({h for h in header if header.count(h) > 1})
+        raise FileFormatError(f"{source}: duplicate columns {', '.join(dup)}")
+    cols: list[tuple[int, float]] = []
+    missing = []
+    for name in joint_names:
+        if name in header:
+            cols.append((header.index(name), 1.0))
+        elif f"{name}_deg" in header:
+            cols.append((header.index(f"{name}_deg"), math.pi / 180.0))
+        else:
+            missing.append(name)
+    if "image" not in header:
+        missing.append("image")
+    if missing:
+        raise FileFormatError(
+            f"{source}: missing columns {', '.join(missing)} (header: {', '.join(header)}); an image session has "
+            "the URDF's joints and an image column"
+        )
+    known = {header[i] for i, _ in cols} | {"image"} | set(IGNORED_COLUMNS)
+    unknown = [h for h in header if h not in known]
+    if unknown:
+        raise FileFormatError(
+            f"{source}: unknown columns {', '.join(unknown)}; expected the chain's joints ({', '.join(joint_names)}) "
+            "and image"
+        )
+    if len(rows) < 2:
+        raise FileFormatError(f"{source}: has a header but no poses")
+    base = Path(path).parent
+    q = np.zeros((len(rows) - 1, len(joint_names)))
+    images: list[str] = []
+    for r, row in enumerate(rows[1:]):
+        where = f"{source} line {lines[r + 1][0]}"
+        if len(row) != len(header):
+            raise FileFormatError(f"{where}: {len(row)} fields, the header has {len(header)}")
+        for k, (col, scale) in enumerate(cols):
+            q[r, k] = _float(row[col].strip(), where, header[col]) * scale
+        image = row[header.index("image")].strip()
+        if not image:
+            raise FileFormatError(f"{where}: empty image")
+        images.append(str(base / image))
+    return q, tuple(images)

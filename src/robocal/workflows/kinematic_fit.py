@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.identifiability import Identifiability
+from ..core.kinematic_images import ImageProblem
 from ..core.kinematic_problem import Measurements, Problem, analyse
 from ..errors import BackendNotAvailableError, UsageError
 
@@ -65,15 +66,16 @@ class FitResult:
         sigma: ``(n_theta,)`` one-σ uncertainty of each unknown (NaN for those not estimated).
         covariance: ``(k, k)`` covariance of the base-set unknowns, in base-set order.
         x: The full model parameter vector after the fit.
-        train_errors_m: Per-pose error norm on the poses used for the fit (m).
-        nominal_train_errors_m: The same for the nominal model (m).
+        train_errors_m: Per-pose error norm on the poses used for the fit (m); image problems: RMS
+            reprojection error per image (pixels).
+        nominal_train_errors_m: The same for the nominal model (start values for image problems).
         method: scipy method used (``lm`` or ``trf``).
         loss: ``linear`` or ``huber``.
         iterations: Function evaluations.
         success: Whether scipy reports convergence.
     """
 
-    problem: Problem
+    problem: Problem | ImageProblem
     identifiability: Identifiability
     theta: FloatArray
     sigma: FloatArray
@@ -97,13 +99,15 @@ def _structural_rank(problem: Problem) -> int:
     return analyse(Problem(problem.model, data, problem.free, problem.x_fixed)).rank
 
 
-def _pose_errors(problem: Problem, theta: FloatArray) -> FloatArray:
+def _pose_errors(problem: Problem | ImageProblem, theta: FloatArray) -> FloatArray:
+    if isinstance(problem, ImageProblem):
+        return problem.pose_errors(theta)
     r = problem.residuals(theta)[: 3 * problem.data.n_poses]
     return np.asarray(np.linalg.norm(r.reshape(-1, 3), axis=1), dtype=np.float64)
 
 
 def fit(
-    problem: Problem,
+    problem: Problem | ImageProblem,
     *,
     huber_m: float | None = None,
     prior: PriorSigmas | None = None,
@@ -132,13 +136,22 @@ def fit(
     if problem.data.n_poses == 0:
         raise UsageError("no poses to fit")
     theta0 = problem.initial_theta()
-    ident = analyse(problem, theta0, tolerance=tolerance)
+    if isinstance(problem, ImageProblem):
+        ident = problem.analyse(theta0, tolerance=tolerance)
+    else:
+        ident = analyse(problem, theta0, tolerance=tolerance)
     base = list(ident.base)
     if restrict is not None:
         allowed = set(restrict)
         base = [i for i in base if i in allowed]
     n_res = problem.residuals(theta0).size
+    if n_res <= len(base) and isinstance(problem, ImageProblem):
+        raise UsageError(
+            f"too few target corners: {problem.data.n_poses} images give {n_res} equations for {len(base)} "
+            "parameters; take at least 20 images (40 or more for a useful result)"
+        )
     if n_res <= len(base):
+        assert isinstance(problem, Problem)
         full = _structural_rank(problem)
         need = (full + 3 * len(problem.group_ids)) // 3 + 2
         raise UsageError(

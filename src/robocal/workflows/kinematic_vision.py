@@ -1,0 +1,511 @@
+"""Kinematic identification from camera images: camera calibration, tag sessions, and their simulation.
+
+Supported set-up: a camera fixed in the world, the target (AprilTag or ChArUco, :mod:`robocal.backends.vision`)
+on the tool. ``camera_calibrate`` estimates the intrinsics from ChArUco images (``cv2.calibrateCamera``);
+``identify_images`` detects the target in each image of a session, starts the camera pose and the target's
+mounting from a closed-form hand-eye solution, then estimates both jointly with the kinematic parameters from the
+reprojection errors (:class:`robocal.core.kinematic_images.ImageProblem`). A camera on the tool looking at a
+fixed target is not supported. ``simulate_images`` renders such a session from a simulated arm with hidden
+errors, plus calibration images of a ChArUco board, for the tests and ``demo --identify``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
+from ..backends.vision import (
+    CameraIntrinsics,
+    Target,
+    calibrate_camera,
+    detect,
+    normalised,
+    parse_target,
+    read_image,
+    render,
+    solve_pnp,
+    write_image,
+)
+from ..core.chain import SerialChain
+from ..core.kinematic_errors import ErrorModel
+from ..core.kinematic_images import ImageObservations, ImageProblem, hand_eye
+from ..core.kinematic_problem import plan_poses
+from ..errors import UsageError
+from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
+from ..formats.camera_info import read_camera_info, write_camera_info
+from ..formats.kinematic_data import read_image_session, session_csv
+from ..formats.urdf import UrdfDocument
+from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
+from .kinematic_fit import FitResult, fit
+
+__all__ = [
+    "CameraCalibrationResult",
+    "ImageIdentifyResult",
+    "SimImagesResult",
+    "camera_calibrate",
+    "detect_session",
+    "identify_images",
+    "look_at",
+    "simulate_images",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class CameraCalibrationResult:
+    """Intrinsics from ``camera_calibrate``.
+
+    Attributes:
+        camera: The intrinsics (with the RMS reprojection error).
+        out: The camera_info YAML written.
+        used: Images the board was found in.
+        warnings: Skipped images.
+    """
+
+    camera: CameraIntrinsics
+    out: Path
+    used: int
+    warnings: tuple[str, ...]
+
+
+def camera_calibrate(
+    images: Sequence[str | os.PathLike[str]], board: str, out: str | os.PathLike[str]
+) -> CameraCalibrationResult:
+    """Calibrate a camera from ChArUco board images and write its ROS camera_info YAML.
+
+    Raises:
+        UsageError: Not a ChArUco board, fewer than 4 images with the board, images of different sizes.
+        FileFormatError: An unreadable image.
+    """
+    out_path = check_output_path(out, "--out")
+    target = parse_target(board, "--board")
+    if target.kind != "charuco":
+        raise UsageError(
+            "--board must be a ChArUco board (charuco:<cols>x<rows>:<square_mm>:<marker_mm>[:<dict>])"
+        )
+    if not images:
+        raise UsageError("no images given")
+    loaded = [(str(p), read_image(p)) for p in images]
+    camera, warnings = calibrate_camera(loaded, target)
+    written = write_camera_info(out_path, camera)
+    return CameraCalibrationResult(camera, written, len(loaded) - len(warnings), tuple(warnings))
+
+
+def detect_session(
+    q_rad: FloatArray, images: Sequence[str], target: Target, camera: CameraIntrinsics
+) -> tuple[ImageObservations, NDArray[np.int64], list[str]]:
+    """Detect the target in every image of a session.
+
+    Returns:
+        The observations of the images the target was found in, the session rows they come from, and one
+        warning per image without the target (that pose is skipped).
+
+    Raises:
+        FileFormatError: An image that cannot be read, or whose size differs from the camera's.
+    """
+    from ..errors import FileFormatError
+
+    obj = target.object_points()
+    rows: list[int] = []
+    poses: list[NDArray[np.int64]] = []
+    corners: list[FloatArray] = []
+    uvs: list[FloatArray] = []
+    Ts: list[FloatArray] = []
+    warnings: list[str] = []
+    for i, path in enumerate(images):
+        img = read_image(path)
+        if img.shape[:2] != (camera.height, camera.width):
+            raise FileFormatError(
+                f"image {path} is {img.shape[1]}x{img.shape[0]}; the camera was calibrated at "
+                f"{camera.width}x{camera.height}"
+            )
+        det = detect(img, target)
+        if det is None:
+            warnings.append(f"pose {i + 1} ({path}): target {target.text} not found; pose skipped")
+            continue
+        k = len(rows)
+        rows.append(i)
+        poses.append(np.full(det.corner_ids.size, k))
+        corners.append(obj[det.corner_ids])
+        uvs.append(normalised(det.pixels, camera))
+        Ts.append(solve_pnp(obj[det.corner_ids], det.pixels, camera))
+    r = np.asarray(rows, dtype=np.int64)
+    if r.size == 0:
+        return (
+            ImageObservations(
+                q_rad[:0], np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 2)), camera.focal_px
+            ),
+            r,
+            warnings,
+        )
+    return (
+        ImageObservations(
+            q_rad[r],
+            np.concatenate(poses),
+            np.concatenate(corners),
+            np.concatenate(uvs),
+            camera.focal_px,
+            np.asarray(Ts),
+        ),
+        r,
+        warnings,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ImageIdentifyResult:
+    """What ``identify_images`` found and wrote.
+
+    Attributes:
+        fit: The fit (its pose errors are RMS reprojection errors per image, pixels).
+        validation: Held-out observations.
+        validation_px: RMS reprojection error per held-out image with the identified model, pixels.
+        start_validation_px: The same with the nominal kinematics and the hand-eye start values.
+        chain: Corrected chain (offsets folded into the origins).
+        T_cam_base: Identified camera → base pose.
+        T_tip_target: Identified target pose on the tip link.
+        model: The error model (camera frame as its world).
+        urdf_out: Corrected URDF written, or None.
+        report_out: JSON report written, or None.
+        report: The report.
+        warnings: Per-pose and other warnings.
+    """
+
+    fit: FitResult
+    validation: ImageObservations
+    validation_px: FloatArray
+    start_validation_px: FloatArray
+    chain: SerialChain
+    T_cam_base: FloatArray
+    T_tip_target: FloatArray
+    model: ErrorModel
+    urdf_out: Path | None
+    report_out: Path | None
+    report: dict[str, Any]
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _px_stats(e: FloatArray) -> dict[str, float] | None:
+    return None if e.size == 0 else {"mean": float(np.mean(e)), "max": float(np.max(e))}
+
+
+def identify_images(
+    urdf: str | os.PathLike[str],
+    data: str | os.PathLike[str],
+    *,
+    camera: str | os.PathLike[str],
+    target: str,
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    validate_fraction: float = 0.25,
+    huber_px: float | None = None,
+    seed: int = 0,
+    out: str | os.PathLike[str] | None = None,
+    report: str | os.PathLike[str] | None = None,
+) -> ImageIdentifyResult:
+    """Identify a chain, the fixed camera's pose and the target's mounting from images of a target on the tool.
+
+    Args:
+        urdf: Expanded URDF.
+        data: Session CSV: the chain's joints and an ``image`` column.
+        camera: The camera's intrinsics (ROS camera_info YAML, e.g. from ``camera_calibrate``).
+        target: ``apriltag:…`` or ``charuco:…`` (see :func:`robocal.backends.vision.parse_target`).
+        base_link: First link of the chain.
+        tip_link: Link carrying the target.
+        validate_fraction: Share of images held out.
+        huber_px: Huber loss scale in pixels (None: plain least squares).
+        seed: Seed of the validation split.
+        out: Corrected URDF to write.
+        report: JSON report to write.
+
+    Raises:
+        CalibError: Unreadable files or images, poses outside the limits, too few images with the target.
+    """
+    if not 0.0 <= validate_fraction < 1.0:
+        raise UsageError(f"--validate-fraction must be in [0, 1), got {validate_fraction}")
+    if huber_px is not None and not (math.isfinite(huber_px) and huber_px > 0):
+        raise UsageError(f"--huber must be a positive number of pixels, got {huber_px}")
+    out_path = check_output_path(out, "--out") if out is not None else None
+    report_path = check_output_path(report, "--report") if report is not None else None
+    if out_path is not None and report_path is not None and out_path.resolve() == report_path.resolve():
+        raise UsageError("--out and --report must be different files")
+    tgt = parse_target(target)
+    cam = read_camera_info(camera)
+    doc = UrdfDocument.load(urdf)
+    chain = chain_from_urdf(doc.model(), base_link, tip_link)
+    q, images = read_image_session(data, chain.joint_names)
+    chain.check_q(q, what=f"{data}: pose")
+    obs, rows, warnings = detect_session(q, images, tgt, cam)
+    if obs.n_poses < 3:
+        raise UsageError(
+            f"the target was found in {obs.n_poses} of {len(images)} images; at least 3 are needed (20 or more "
+            "for a useful result)"
+        )
+    nominal = ErrorModel(chain)
+    assert obs.T_cam_target is not None
+    X, Y = hand_eye(obs.T_cam_target, nominal.tool_poses(obs.q_rad))
+    model = ErrorModel(chain, T_world_base=X, T_tip_tool=Y)
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(obs.n_poses)
+    n_val = round(validate_fraction * obs.n_poses)
+    val_rows, train_rows = np.sort(order[:n_val]), np.sort(order[n_val:])
+    train, val = obs.subset(train_rows), obs.subset(val_rows)
+    problem = ImageProblem(model, train, tuple(range(model.n_params)), np.zeros(model.n_params))
+    result = fit(problem, huber_m=huber_px)
+    if not result.success:
+        warnings.append("the optimiser stopped before converging; check the images and joint readings")
+    val_problem = ImageProblem(model, val, problem.free, np.zeros(model.n_params))
+    val_px = val_problem.pose_errors(result.theta) if val.n_poses else np.zeros(0)
+    start_px = val_problem.pose_errors(np.zeros(model.n_params)) if val.n_poses else np.zeros(0)
+    corrected, T_cam_base, T_tip_target = model.corrected(result.x)
+    ident = result.identifiability
+    if ident.observability.condition > 100:
+        warnings.append(
+            f"condition number {ident.observability.condition:.0f} is above 100: show the target from more "
+            "different arm poses"
+        )
+    rep: dict[str, Any] = {
+        "tool": "robocal kinematics identify --kind tag",
+        "urdf": str(urdf),
+        "data": str(data),
+        "camera": str(camera),
+        "target": tgt.text,
+        "setup": "camera fixed in the world, target on the tool",
+        "chain": {
+            "base_link": chain.base_link,
+            "tip_link": chain.tip_link,
+            "joints": list(chain.joint_names),
+        },
+        "images": {
+            "total": len(images),
+            "with_target": obs.n_poses,
+            "fit": train.n_poses,
+            "validation": val.n_poses,
+        },
+        "rank": ident.rank,
+        "unknowns": problem.n_theta,
+        "observability": {
+            "O1": ident.observability.O1,
+            "condition": ident.observability.condition,
+            "O3": ident.observability.O3,
+            "O5": ident.observability.O5,
+        },
+        "fit": {
+            "method": result.method,
+            "loss": result.loss,
+            "evaluations": result.iterations,
+            "converged": result.success,
+        },
+        "reprojection_px": {
+            "fit": {
+                "start": _px_stats(result.nominal_train_errors_m),
+                "identified": _px_stats(result.train_errors_m),
+            },
+            "validation": {"start": _px_stats(start_px), "identified": _px_stats(val_px)},
+        },
+        "parameters": [
+            {
+                "name": name,
+                "unit": model.parameters[i].unit,
+                "estimate": float(result.theta[i]),
+                "sigma": float(result.sigma[i]) if i in ident.base else None,
+                "identified": i in ident.base,
+            }
+            for i, name in enumerate(problem.names)
+        ],
+        "unidentifiable": [
+            {"name": u.name, "reason": u.reason, "same_as": [[n, c] for n, c in u.same_as]}
+            for u in ident.unidentifiable
+        ],
+        "joint_offsets": model.offsets(result.x),
+        "corrected_origins": {
+            j.name: {"xyz": list(j.origin_xyz_m), "rpy": list(j.origin_rpy_rad)} for j in corrected.movable
+        },
+        "T_cam_base": T_cam_base.tolist(),
+        "T_tip_target": T_tip_target.tolist(),
+        "warnings": warnings,
+    }
+    urdf_bytes = None
+    if out_path is not None:
+        from .kinematics import _origin_changed
+
+        urdf_bytes = corrected_urdf_bytes(doc, corrected, _origin_changed(chain, corrected))
+    report_text = json.dumps(rep, indent=2, allow_nan=False) + "\n"
+    written_urdf = atomic_write_bytes(out_path, urdf_bytes) if out_path and urdf_bytes is not None else None
+    written_report = atomic_write_text(report_path, report_text) if report_path else None
+    _ = rows
+    return ImageIdentifyResult(
+        result, val, val_px, start_px, corrected, T_cam_base, T_tip_target, model, written_urdf, written_report,
+        rep, tuple(warnings),
+    )  # fmt: skip
+
+
+def look_at(
+    eye: Sequence[float], centre: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0)
+) -> FloatArray:
+    """``T_base_cam`` ``(4, 4)`` of a camera at ``eye`` looking at ``centre`` (OpenCV: z forward, y down)."""
+    e, c, u = (np.asarray(v, dtype=np.float64) for v in (eye, centre, up))
+    z = c - e
+    z /= np.linalg.norm(z)
+    x = np.cross(z, u)
+    if np.linalg.norm(x) < 1e-9:
+        x = np.cross(z, np.array([1.0, 0.0, 0.0]))
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, y, z])
+    T[:3, 3] = e
+    return T
+
+
+SIM_CAMERA_K = np.array([[905.0, 0.0, 645.0], [0.0, 902.0, 478.0], [0.0, 0.0, 1.0]])
+"""The simulated camera's true intrinsics (1280 × 960, no distortion)."""
+SIM_CAMERA_SIZE = (1280, 960)
+SIM_VIEW = {"so101": ((-0.08, 0.0, 0.55), (0.11, 0.0, 0.19))}
+"""Where the simulated camera is (eye, looked-at point), base frame, m."""
+SIM_MOUNT = {"so101": (0.0121, 0.0, -0.0981)}
+"""Where the simulated tag sits on the tip link (its face along the tip link's +z), m."""
+
+
+@dataclass(frozen=True, eq=False)
+class SimImagesResult:
+    """A simulated image session.
+
+    Attributes:
+        urdf: Nominal URDF.
+        data: Session CSV (joints + image).
+        calibration_images: ChArUco images for ``camera-calibrate``.
+        truth: JSON with the hidden parameters, the camera and the mounting.
+        tip_link: Link carrying the target.
+        target: The target string.
+        board: The calibration board string.
+        arm: The true arm (its model's world is the true camera frame).
+    """
+
+    urdf: Path
+    data: Path
+    calibration_images: tuple[Path, ...]
+    truth: Path
+    tip_link: str
+    target: str
+    board: str
+    arm: SimulatedKinematicArm
+
+
+def _visible(
+    T_cam_target: FloatArray, target: Target, K: FloatArray, size: tuple[int, int]
+) -> NDArray[np.bool_]:
+    """Which target poses a camera sees whole, facing it within 60°, 20 px inside the image."""
+    obj = target.object_points()
+    n = np.einsum("nij,j->ni", T_cam_target[:, :3, :3], target.front_normal())
+    to_cam = -T_cam_target[:, :3, 3] / np.linalg.norm(T_cam_target[:, :3, 3], axis=1)[:, None]
+    facing = np.sum(n * to_cam, axis=1) > math.cos(math.radians(60))
+    pc = np.einsum("nij,kj->nki", T_cam_target[:, :3, :3], obj) + T_cam_target[:, None, :3, 3]
+    z = pc[..., 2]
+    uv = np.einsum("ij,nkj->nki", K, pc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v = uv[..., 0] / uv[..., 2], uv[..., 1] / uv[..., 2]
+    inside = (z > 0.15) & (u > 20) & (u < size[0] - 20) & (v > 20) & (v < size[1] - 20)
+    return np.asarray(facing & inside.all(axis=1), dtype=np.bool_)
+
+
+def simulate_images(
+    robot: str,
+    out_dir: str | os.PathLike[str],
+    *,
+    poses: int = 50,
+    seed: int = 0,
+    target: str = "apriltag:36h11:0:60",
+    board: str = "charuco:7x5:30:22:4x4_50",
+    calibration_images: int = 20,
+    noise_grey: float = 2.0,
+) -> SimImagesResult:
+    """Render a tag session of a simulated arm with hidden errors, seen by a fixed simulated camera.
+
+    Writes ``<robot>.urdf``, ``images/pose_NNN.png`` and ``tag.csv`` (joints + image), ``calibration/
+    board_NN.png`` (a ChArUco board in front of the camera) and ``truth.json`` into ``out_dir``. Joint readings
+    are quantised to 4096 ticks; images have Gaussian pixel noise; poses are chosen (greedy O1) among random
+    ones where the camera sees the whole target.
+    """
+    from .kinematic_sim import SIM_ROBOTS, shipped_urdf
+
+    if robot not in SIM_ROBOTS:
+        raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
+    if robot not in SIM_VIEW:
+        raise UsageError(f"tag images are simulated for {', '.join(SIM_VIEW)} only, not {robot!r}")
+    if poses < 3:
+        raise UsageError(f"--poses must be at least 3 for images, got {poses}")
+    folder = Path(out_dir)
+    if not folder.is_dir():
+        raise UsageError(f"--out {folder}: not a folder")
+    tgt = parse_target(target)
+    brd = parse_target(board, "--board")
+    spec = SIM_ROBOTS[robot]
+    src = shipped_urdf(robot)
+    urdf_bytes = src.read_bytes()
+    chain = chain_from_urdf(UrdfDocument.from_bytes(urdf_bytes, str(src)).model(), tip_link=spec.tip_link)
+    eye, centre = SIM_VIEW[robot]
+    T_cam_base = np.asarray(np.linalg.inv(look_at(eye, centre)), dtype=np.float64)
+    mount = np.eye(4)
+    mount[:3, 3] = SIM_MOUNT[robot]
+    model = ErrorModel(chain, T_world_base=T_cam_base, T_tip_tool=mount)
+    rng = np.random.default_rng(seed)
+    arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
+    cand = arm.sample_q(4000, rng)
+    seen = cand[_visible(model.tool_poses(cand, arm.x_true), tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE)]
+    if seen.shape[0] < poses:
+        raise UsageError(f"the simulated camera sees the target in only {seen.shape[0]} candidate poses")
+    q = seen[plan_poses(ErrorModel(chain, T_tip_tool=mount), seen, poses)]
+    T_true = model.tool_poses(q, arm.x_true)
+    (folder / "images").mkdir(exist_ok=True)
+    names = []
+    for i, T in enumerate(T_true):
+        name = f"images/pose_{i + 1:03d}.png"
+        write_image(
+            folder / name, render(tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE, T, noise_grey=noise_grey, rng=rng)
+        )
+        names.append(name)
+    (folder / "calibration").mkdir(exist_ok=True)
+    calib = []
+    from ..core.se3 import matrix_from_rotvec
+
+    board_centre = np.array([brd.cols * brd.size_m / 2, brd.rows * brd.size_m / 2, 0.0])
+    for k in range(calibration_images):  # tilted up to 40°, 0.3-0.5 m away, spread over the image
+        R = matrix_from_rotvec([rng.uniform(-0.7, 0.7), rng.uniform(-0.7, 0.7), rng.uniform(-0.3, 0.3)])
+        pixel = [rng.uniform(250, SIM_CAMERA_SIZE[0] - 250), rng.uniform(200, SIM_CAMERA_SIZE[1] - 200), 1.0]
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = rng.uniform(0.3, 0.5) * np.linalg.solve(SIM_CAMERA_K, pixel) - R @ board_centre
+        path = folder / "calibration" / f"board_{k + 1:02d}.png"
+        write_image(path, render(brd, SIM_CAMERA_K, SIM_CAMERA_SIZE, T, noise_grey=noise_grey, rng=rng))
+        calib.append(path)
+    urdf_path = atomic_write_bytes(folder / f"{robot}.urdf", urdf_bytes)
+    data_path = atomic_write_text(
+        folder / "tag.csv", session_csv(arm.read(q), chain.joint_names, {"image": names})
+    )
+    truth = {
+        "robot": robot,
+        "seed": seed,
+        "tip_link": spec.tip_link,
+        "target": target,
+        "board": board,
+        "camera_K": SIM_CAMERA_K.tolist(),
+        "camera_size": list(SIM_CAMERA_SIZE),
+        "T_cam_base": T_cam_base.tolist(),
+        "T_tip_target_nominal": mount.tolist(),
+        "ticks_per_turn": arm.ticks_per_turn,
+        "pixel_noise_grey": noise_grey,
+        "hidden_parameters": {n: float(v) for n, v in zip(model.names, arm.x_true, strict=True)},
+    }
+    truth_path = atomic_write_text(folder / "truth.json", json.dumps(truth, indent=2) + "\n")
+    return SimImagesResult(urdf_path, data_path, tuple(calib), truth_path, spec.tip_link, target, board, arm)
