@@ -150,3 +150,30 @@ def test_touch_and_gauge_sessions() -> None:
     U, _, Vt = np.linalg.svd(a0.T @ b0)
     R = (U @ Vt).T
     assert np.linalg.norm((R @ a0.T).T - b0, axis=1).max() < 1e-6
+
+
+def test_accuracy_bars_per_draw_over_twenty_seeds() -> None:
+    """Issue 13's bars checked per draw of the hidden errors (seeds 0-19), not only on average.
+
+    Measured (greedy O1 selection of 50 / 20 of 2000 candidates): 50 poses, mean 0.275-0.439 mm (average
+    0.365), max 0.61-0.98 mm (average 0.83); 20 poses, mean 0.41-0.69 mm. The averaged bars (mean <= 0.4, max
+    <= 0.9) and "20 poses: mean <= 0.8" hold for every draw; "50 poses: mean <= 0.4 and max <= 0.9" does not
+    hold for every single draw (5 draws exceed 0.4 mm mean, 7 exceed 0.9 mm max). The held-out readings' own
+    4096-tick quantisation already costs 0.19 mm mean / 0.51 mm max; an I-optimal selection (average prediction
+    variance) and 10000 candidates were measured too and did not change this.
+    """
+    q50 = CANDIDATES[plan_poses(MODEL, CANDIDATES, 50)]
+    q20 = CANDIDATES[plan_poses(MODEL, CANDIDATES, 20)]
+    m50, x50, m20 = [], [], []
+    for seed in range(20):
+        for q, means, maxima in ((q50, m50, x50), (q20, m20, None)):
+            arm, rng = _arm(seed)
+            result = fit(Problem(MODEL, _measure(arm, q, 0.5e-3, rng), FREE, np.zeros(MODEL.n_params)))
+            err = _held_out_errors(arm, result.x, rng)[0]
+            means.append(err.mean())
+            if maxima is not None:
+                maxima.append(err.max())
+    assert np.mean(m50) <= 0.4e-3 and np.mean(x50) <= 0.9e-3
+    assert max(m50) <= 0.45e-3 and max(x50) <= 1.0e-3
+    assert 3 <= sum(m > 0.4e-3 for m in m50) <= 8  # the per-draw mean bar is missed by a few draws
+    assert max(m20) <= 0.8e-3
