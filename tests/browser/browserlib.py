@@ -60,8 +60,15 @@ def find_chromium() -> str | None:
     return "/usr/bin/chromium" if Path("/usr/bin/chromium").is_file() else None
 
 
+def _truthy(value: Any) -> bool:
+    """False for None, False, 0 and empty containers; an array (an image) counts as a value, so it is True."""
+    if isinstance(value, np.ndarray):
+        return True
+    return bool(value)
+
+
 def wait_until(predicate: Callable[[], T], timeout_s: float = DEFAULT_TIMEOUT_S, what: str = "") -> T:
-    """Poll ``predicate`` until it returns a truthy value and return that value.
+    """Poll ``predicate`` until it returns a truthy value (any array counts as one) and return that value.
 
     Raises:
         AssertionError: after ``timeout_s`` without success, naming ``what`` and the last value seen.
@@ -70,7 +77,7 @@ def wait_until(predicate: Callable[[], T], timeout_s: float = DEFAULT_TIMEOUT_S,
     last: Any = None
     while True:
         last = predicate()
-        if last:
+        if _truthy(last):
             return last
         if time.monotonic() > deadline:
             raise AssertionError(
@@ -134,13 +141,19 @@ def screenshot(page: Any, path: str | Path | None = None) -> np.ndarray:
 
 
 def scene_region(page: Any, img: np.ndarray) -> np.ndarray:
-    """The part of ``img`` left of viser's control panel (the 3D view), same shape convention."""
-    x = page.evaluate(
-        "() => { const p = document.querySelector('.mantine-Paper-root, [class*=ControlPanel]');"
-        " if (!p) return -1; const r = p.getBoundingClientRect(); return r.left; }"
+    """``img`` with viser's control panel painted white, so only the 3D view's pixels count (same shape).
+
+    The panel may be docked (a column) or floating (a box over the canvas); only its rectangle is blanked.
+    """
+    rect = page.evaluate(
+        "() => { const p = document.querySelector('.mantine-Paper-root');"
+        " if (!p) return null; const r = p.getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; }"
     )
-    x = int(x)
-    return img[:, :x] if 0 < x < img.shape[1] else img
+    out = img.copy()
+    if rect:
+        x0, y0, x1, y1 = (max(0, int(v)) for v in rect)
+        out[y0 : max(y0, y1), x0 : max(x0, x1)] = 255
+    return out
 
 
 def color_mask(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 40) -> np.ndarray:

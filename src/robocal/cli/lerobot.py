@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import pathlib
 import tempfile
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.table import Table
@@ -88,6 +88,15 @@ def _cal_file(
     return path
 
 
+def _web_view(robot: str, spec: Any, inner: Any, port: int) -> Any:
+    """``--view``: the page drawing the recorded ranges on the arm (robocal.viewer.sweep_page); URL printed."""
+    from ..viewer.sweep_page import open_lerobot_sweep_page
+
+    web = open_lerobot_sweep_page(robot, spec.motor_names, inner=inner, port=port)
+    _common.err_console.print(f"calibration view: {web.app.url}")
+    return web
+
+
 @app.command()
 def calibrate(
     robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
@@ -101,6 +110,10 @@ def calibrate(
         False, "--sweep-full-turn", help="Also sweep wrist_roll (and Koch shoulder_pan) instead of 0..4095."
     ),
     use_file: bool = typer.Option(False, "--use-file", help="Write the existing file to the motors instead."),
+    web_view: bool = typer.Option(
+        False, "--view", help="Also draw the recorded ranges on the arm in the browser (robocal[view])."
+    ),
+    view_port: int = typer.Option(8080, "--view-port", help="TCP port of the --view page (0: any)."),
 ) -> None:
     """Calibrate a LeRobot arm (mid pose, then sweep every joint) and write LeRobot's JSON."""
     from ..formats.lerobot import dumps_current
@@ -126,6 +139,7 @@ def calibrate(
     # the calibration folder must be writable before the port is even opened (the workflow checks again)
     check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
     update, close = sweep_renderer()
+    web = _web_view(robot, spec, update, view_port) if web_view else None
     with open_arm(spec, port) as (bus, arm):
         operator: object = sim_operator(arm) if arm is not None else ConsoleOperator()
 
@@ -141,7 +155,7 @@ def calibrate(
                 path=path,
                 home_after_sweep=home_after_sweep,
                 sweep_full_turn=sweep_full_turn,
-                on_sweep=update,
+                on_sweep=update if web is None else web,
                 on_status=status_line,
             )
         except KeyboardInterrupt as exc:
@@ -160,6 +174,8 @@ def calibrate(
             ) from None
         finally:
             close()
+            if web is not None:
+                web.app.stop()
     print_calibration(result.calibration)
     for note in result.notes:
         _common.print_warning(note)

@@ -461,6 +461,24 @@ def make_confirm(lines: StdinLines) -> Callable[[SweepResult, Sequence[str]], se
 
 
 @contextlib.contextmanager
+def _web_view(
+    enabled: bool, urdf: Path, port: int, inner: Any, threshold: float | None, span_tolerance: float
+) -> Iterator[Any]:
+    """``--view``: the sweep drawn on the robot in the browser (robocal.viewer.sweep_page), else ``inner``."""
+    if not enabled:
+        yield inner
+        return
+    from ..viewer.sweep_page import open_sweep_page
+
+    web = open_sweep_page(urdf, inner=inner, port=port, threshold_rad=threshold, span_tolerance_rad=span_tolerance)
+    _common.err_console.print(f"sweep view: {web.app.url}", markup=False)
+    try:
+        yield web
+    finally:
+        web.app.stop()
+
+
+@contextlib.contextmanager
 def _not_lost() -> Iterator[None]:
     """When the sweep's calibration could not be saved, show it (table, warnings, the file's text) first."""
     try:
@@ -555,10 +573,17 @@ def sweep(
     partial: Annotated[
         bool, typer.Option("--partial", help="--auto: write the joints that passed even if others failed.")
     ] = False,
+    web_view: Annotated[
+        bool, typer.Option("--view", help="Also draw the sweep on the robot in the browser (robocal[view]).")
+    ] = False,
+    view_port: Annotated[int, typer.Option("--view-port", help="TCP port of the --view page (0: any).")] = 8080,
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     if auto:
         from ._autocal import sweep_auto
+
+        if web_view:
+            raise UsageError("--view does not work with --auto yet: the automatic stop search is not drawn")
 
         if prior is not None or threshold is not None or method is not None or direction_check or frame:
             raise UsageError(
@@ -576,7 +601,8 @@ def sweep(
     confirm = make_confirm(lines) if lines is not None and _terminal() and not yes else None
     with (
         _not_lost(),
-        LiveView(threshold_rad=threshold, span_tolerance_rad=span_tolerance) as view,
+        LiveView(threshold_rad=threshold, span_tolerance_rad=span_tolerance) as live_view,
+        _web_view(web_view, urdf, view_port, live_view, threshold, span_tolerance) as view,
     ):
         outcome = run_sweep(
             urdf,

@@ -247,7 +247,8 @@ class _Robot:
         for handle, own in self.meshes.get(link, []):
             want = own if rgb is None else rgb
             if self.rgb_now.get(link) != want:
-                handle.color = want
+                # viser's mesh colour property is 0..255 integers: 0..1 floats would be truncated to black
+                handle.color = tuple(round(255.0 * min(1.0, max(0.0, c))) for c in want)
         if link in self.meshes:
             self.rgb_now[link] = rgb if rgb is not None else self.meshes[link][0][1]
 

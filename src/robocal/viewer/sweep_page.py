@@ -1,0 +1,596 @@
+"""The sweep on the model: each joint's swept arc drawn against its URDF limits, coloured by status code.
+
+``robocal sweep … --view`` (and ``robocal lerobot calibrate … --view``) open a :class:`~robocal.viewer.app.ViewerApp`
+on the robot's URDF and add a :class:`SweepOverlay` to it. Per joint, in the joint's own frame (so the arcs move
+with the parent link):
+
+* a thin dark arc over the URDF range ``[lower, upper]``;
+* a thick arc over the swept range ``[sampled_min, sampled_max]`` (identity frame ``direction·raw``: the
+  values the report's codes are computed from), coloured by the joint's status code, the same code the sweep
+  report gives (:attr:`robocal.core.sweep.JointSweep.status`): ``ok`` green, ``not_swept`` grey,
+  ``span_mismatch`` orange, ``no_overlap`` red, ``wrap_in_travel`` purple, any other warning yellow;
+* the robot itself posed at the newest reading (identity frame), so a joint beyond its limits turns red.
+
+A flipped direction shows as a swept arc on the wrong side of the limits (``no_overlap``), a stop that is not
+where the URDF says as an arc longer or shorter than the limit arc (``span_mismatch``).
+
+The overlay's state is published in the page as JSON (``#robocal-sweep[data-sweep]``): per joint the status,
+colour, both ranges and the current reading.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..core.sweep import SweepResult
+from .app import PageUpdate, ViewerApp
+from .model import RobotModel
+
+__all__ = [
+    "LIMIT_RGB",
+    "OTHER_RGB",
+    "STATUS_RGB",
+    "JointArc",
+    "LeRobotSweepWebView",
+    "SweepOverlay",
+    "SweepWebView",
+    "arc_points",
+    "lerobot_shapes_urdf",
+    "open_lerobot_sweep_page",
+    "open_sweep_page",
+    "status_rgb",
+]
+
+FloatArray = npt.NDArray[np.float64]
+STATUS_RGB: dict[str, tuple[int, int, int]] = {
+    "ok": (30, 170, 60),
+    "not_swept": (150, 150, 150),
+    "span_mismatch": (245, 150, 0),
+    "no_overlap": (225, 20, 20),
+    "wrap_in_travel": (150, 50, 210),
+}
+"""Colour of a swept arc per status code (the codes of the sweep report)."""
+OTHER_RGB = (225, 200, 0)
+"""Colour of a swept arc whose status is another warning (offset_large, direction_flipped, …)."""
+LIMIT_RGB = (40, 40, 40)
+"""Colour of the URDF limit arcs."""
+ARC_SEGMENTS = 48
+
+
+def status_rgb(status: str) -> tuple[int, int, int]:
+    """The colour of a status code."""
+    return STATUS_RGB.get(status, OTHER_RGB)
+
+
+def arc_points(
+    axis: npt.ArrayLike, start_rad: float, end_rad: float, radius_m: float, n: int = ARC_SEGMENTS
+) -> FloatArray:
+    """Points of an arc about ``axis`` (unit, joint frame) from ``start_rad`` to ``end_rad``, shape ``(n+1, 3)``.
+
+    The angle is measured from a fixed direction ``u`` perpendicular to the axis (the joint frame's x axis,
+    or y when the axis is x), counter-clockwise about the axis: the joint's rotation by ``θ`` carries ``u``
+    to the arc point at ``θ``.
+    """
+    a = np.asarray(axis, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = ref - a * float(ref @ a)
+    u /= np.linalg.norm(u)
+    v = np.cross(a, u)
+    th = np.linspace(start_rad, end_rad, n + 1)
+    out: FloatArray = radius_m * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * v)
+    return out
+
+
+def line_rgb(rgb: tuple[int, int, int]) -> npt.NDArray[np.uint8]:
+    """The colour to give viser's line segments so that ``rgb`` (sRGB) is what reaches the screen.
+
+    viser's line material takes its vertex colours as linear values and encodes them to sRGB again, which
+    washes them out (orange turned yellow); decoding them once here cancels that.
+    """
+    c = np.asarray(rgb, dtype=np.float64) / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return np.asarray(np.round(lin * 255.0), dtype=np.uint8)
+
+
+def _segments(points: FloatArray) -> npt.NDArray[np.float32]:
+    return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class JointArc:
+    """What the overlay shows for one joint.
+
+    Attributes:
+        name: Joint name.
+        status: Status code (``ok``, ``not_swept``, …), or ``waiting`` before any reading.
+        lower: URDF lower limit, rad.
+        upper: URDF upper limit, rad.
+        sampled_min: Swept minimum (identity frame), rad; NaN before a reading.
+        sampled_max: Swept maximum, rad.
+        current: Newest reading, rad.
+    """
+
+    name: str
+    status: str
+    lower: float
+    upper: float
+    sampled_min: float
+    sampled_max: float
+    current: float
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain data for the page state (NaN becomes None)."""
+
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {
+            "name": self.name,
+            "status": self.status,
+            "color": list(status_rgb(self.status)) if self.status != "waiting" else None,
+            "lower": num(self.lower),
+            "upper": num(self.upper),
+            "sampled_min": num(self.sampled_min),
+            "sampled_max": num(self.sampled_max),
+            "current": num(self.current),
+        }
+
+
+class SweepOverlay:
+    """A :meth:`ViewerApp.add_hook` hook drawing the limit and swept arcs of each joint.
+
+    Args:
+        app: The started page.
+        radius_m: Arc radius; default: a tenth of the robot's size at rest (at least 2 cm).
+    """
+
+    def __init__(self, app: ViewerApp, radius_m: float | None = None) -> None:
+        self.app = app
+        self.model: RobotModel = app.model
+        self.names = tuple(self.model.actuated)
+        if radius_m is None:
+            rest = self.model.link_poses(np.zeros(len(self.names)))
+            size = max((float(np.linalg.norm(T[:3, 3])) for T in rest.values()), default=0.2)
+            radius_m = max(0.02, 0.1 * size)
+        self.radius_m = float(radius_m)
+        self._lock = threading.Lock()
+        self._draw_lock = threading.Lock()
+        self._arcs: dict[str, JointArc] = {
+            n: JointArc(
+                n,
+                "waiting",
+                float(self.model.joint(n).lower),
+                float(self.model.joint(n).upper),
+                math.nan,
+                math.nan,
+                math.nan,
+            )
+            for n in self.names
+        }
+        self._drawn: dict[str, tuple[str, float, float]] = {}
+        self._handles: dict[str, Any] = {}
+        self._state: Any = None
+        self.updates = 0
+        self._build()
+        app.add_hook(self)
+
+    # --------------------------------------------------------------------------------------- data in
+    def set_ranges(
+        self,
+        sampled_min: Mapping[str, float],
+        sampled_max: Mapping[str, float],
+        current: Mapping[str, float],
+        status: Mapping[str, str],
+    ) -> None:
+        """Update the joints named in the mappings (thread-safe; drawn at the next page update)."""
+        with self._lock:
+            for n in self.names:
+                if n not in status:
+                    continue
+                old = self._arcs[n]
+                self._arcs[n] = JointArc(
+                    n,
+                    status[n],
+                    old.lower,
+                    old.upper,
+                    float(sampled_min.get(n, math.nan)),
+                    float(sampled_max.get(n, math.nan)),
+                    float(current.get(n, math.nan)),
+                )
+
+    def set_result(self, result: SweepResult, current: Mapping[str, float] | None = None) -> None:
+        """Show a sweep result (live or final): ranges and each joint's status code as the report has it."""
+        cur = current or {}
+        self.set_ranges(
+            {j.name: j.sampled_min for j in result.joints},
+            {j.name: j.sampled_max for j in result.joints},
+            {j.name: cur.get(j.name, math.nan) for j in result.joints},
+            {j.name: j.status for j in result.joints},
+        )
+        with self._lock:  # the report's limits win (a profile may narrow the URDF's)
+            for j in result.joints:
+                if j.name in self._arcs:
+                    a = self._arcs[j.name]
+                    self._arcs[j.name] = JointArc(
+                        a.name, a.status, j.lower, j.upper, a.sampled_min, a.sampled_max, a.current
+                    )
+
+    def arcs(self) -> tuple[JointArc, ...]:
+        """The current per-joint state."""
+        with self._lock:
+            return tuple(self._arcs[n] for n in self.names)
+
+    def status(self) -> dict[str, Any]:
+        """The overlay's page state."""
+        return {
+            "updates": self.updates,
+            "radius_m": self.radius_m,
+            "joints": [a.to_json() for a in self.arcs()],
+        }
+
+    # --------------------------------------------------------------------------------------- drawing
+    def _joint_path(self, name: str) -> str:
+        j = self.model.joint(name)
+        robot = self.app.robot
+        assert robot is not None
+        return f"{robot.paths[j.parent]}/sweep_{self.names.index(name)}"
+
+    def _build(self) -> None:
+        server = self.app.server
+        if server is None:
+            return
+        for k, n in enumerate(self.names):
+            j = self.model.joint(n)
+            T = j.T_parent_joint
+            frame = server.scene.add_frame(
+                self._joint_path(n),
+                show_axes=False,
+                wxyz=_wxyz(T[:3, :3]),
+                position=tuple(float(v) for v in T[:3, 3]),
+            )
+            lo, hi = self._arcs[n].lower, self._arcs[n].upper
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                lo, hi = -math.pi, math.pi
+            limit = server.scene.add_line_segments(
+                f"{self._joint_path(n)}/limits",
+                _segments(arc_points(j.axis, lo, hi, self.radius_m)),
+                line_rgb(LIMIT_RGB),
+                thickness=0.15 * self.radius_m,
+            )
+            swept = server.scene.add_line_segments(
+                f"{self._joint_path(n)}/swept",
+                _segments(arc_points(j.axis, 0.0, 0.0, 1.25 * self.radius_m, 1)),
+                line_rgb(STATUS_RGB["not_swept"]),
+                thickness=0.35 * self.radius_m,
+                visible=False,
+            )
+            self._handles[n] = {"frame": frame, "limit": limit, "swept": swept, "k": k}
+        legend = " · ".join(
+            f'<span style="color:rgb{c}">■</span> {html.escape(code)}' for code, c in STATUS_RGB.items()
+        )
+        server.gui.add_html(
+            f'<div style="font-size:0.8em">swept arcs: {legend} · <span style="color:rgb{OTHER_RGB}">■</span> '
+            "other warning; thin dark arc: URDF limits</div>"
+        )
+        self._state = server.gui.add_html(self._state_html())
+
+    def _state_html(self) -> str:
+        state = html.escape(json.dumps(self.status(), separators=(",", ":")), quote=True)
+        return f'<div id="robocal-sweep" data-updates="{self.updates}" data-sweep="{state}"></div>'
+
+    def __call__(self, app: ViewerApp, update: PageUpdate) -> None:
+        """The page hook: redraw the arcs that changed, publish the state."""
+        self.redraw()
+
+    def redraw(self) -> None:
+        """Redraw what changed since the last call (the page thread calls it after each pose)."""
+        with self._draw_lock:
+            self._redraw()
+
+    def _redraw(self) -> None:
+        if self.app.server is None or not self._handles:
+            return
+        changed = False
+        for a in self.arcs():
+            key = (a.status, a.sampled_min, a.sampled_max)
+            if self._drawn.get(a.name) == key:
+                continue
+            self._drawn[a.name] = key
+            changed = True
+            h = self._handles[a.name]["swept"]
+            if not (math.isfinite(a.sampled_min) and math.isfinite(a.sampled_max)):
+                h.visible = False
+                continue
+            hi = a.sampled_max if a.sampled_max > a.sampled_min else a.sampled_min + 1e-3
+            axis = self.model.joint(a.name).axis
+            h.points = _segments(arc_points(axis, a.sampled_min, hi, 1.25 * self.radius_m))
+            h.colors = np.tile(line_rgb(status_rgb(a.status)), (ARC_SEGMENTS, 2, 1))
+            h.visible = True
+        self.updates += 1
+        if changed or self.updates == 1:
+            assert self._state is not None
+            self._state.content = self._state_html()
+
+
+def _wxyz(R: FloatArray) -> tuple[float, float, float, float]:
+    from .app import _wxyz as app_wxyz
+
+    return app_wxyz(R)
+
+
+class SweepWebView:
+    """The sweep workflow's view (:class:`robocal.workflows.sweep.SweepView`) on a web page.
+
+    Poses the robot at the newest reading, shows the live status codes (rate-limited) and the final result;
+    forwards every call to ``inner`` (the terminal's live table) too.
+
+    Args:
+        app: The started page (its model's joints are matched by name).
+        inner: Another view to forward to, or None.
+        period_s: Smallest interval between two status computations.
+        threshold_rad: The sweep's not-swept threshold (None: the method's default).
+        span_tolerance_rad: The sweep's span tolerance.
+        clock: Monotonic clock, s.
+    """
+
+    def __init__(
+        self,
+        app: ViewerApp,
+        inner: Any = None,
+        *,
+        period_s: float = 0.1,
+        threshold_rad: float | None = None,
+        span_tolerance_rad: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.app = app
+        self.overlay = SweepOverlay(app)
+        self.inner = inner
+        self.period_s = period_s
+        self.threshold_rad = threshold_rad
+        self.span_tolerance_rad = span_tolerance_rad
+        self.clock = clock
+        self._last = -math.inf
+        self._index: dict[str, int] = {n: i for i, n in enumerate(app.joint_names)}
+        self._current: dict[str, float] = {}
+        self._t_s = 0.0
+        self.result: SweepResult | None = None
+
+    def _push(self, names: Sequence[str], values: FloatArray, t_s: float) -> None:
+        raw = np.full(len(self.app.joint_names), np.nan)
+        for n, v in zip(names, values, strict=True):
+            i = self._index.get(n)
+            if i is not None:
+                raw[i] = v
+        self.app.push(t_s, raw)
+
+    def update(self, session: Any) -> None:
+        """After every sample: pose the robot; every ``period_s`` the status codes as the report computes them."""
+        if self.inner is not None:
+            self.inner.update(session)
+        cur = session.tracker.current
+        self._current = dict(zip(session.names, (float(v) for v in cur), strict=True))
+        self._t_s = float(session.t_s)
+        self._push(session.names, cur, float(session.t_s))
+        now = self.clock()
+        if now - self._last < self.period_s:
+            return
+        self._last = now
+        kwargs: dict[str, float] = {}
+        if self.threshold_rad is not None:
+            kwargs["threshold_rad"] = self.threshold_rad
+        elif session.method == "one-sided":
+            from ..core.sweep import DEFAULT_ONE_SIDED_THRESHOLD_RAD
+
+            kwargs["threshold_rad"] = DEFAULT_ONE_SIDED_THRESHOLD_RAD
+        if self.span_tolerance_rad is not None:
+            kwargs["span_tolerance_rad"] = self.span_tolerance_rad
+        result = session.result(**kwargs)
+        self.overlay.set_result(result, self._current)
+
+    def prompt(self, joint: str) -> None:
+        """The direction check asks for a motion: shown on the page too."""
+        if self.inner is not None:
+            self.inner.prompt(joint)
+        self.app.message(f"direction check: move {joint} toward its + limit")
+
+    def direction_result(self, joint: str, verdict: int) -> None:
+        """The direction check's verdict, shown on the page too."""
+        if self.inner is not None:
+            self.inner.direction_result(joint, verdict)
+        text = {1: "direction ok", -1: "direction FLIPPED", 0: "direction not verified (no motion)"}[verdict]
+        self.app.message(f"{joint}: {text}", "info" if verdict == 1 else "warning")
+
+    def finish(self, result: SweepResult) -> None:
+        """The final result: the arcs take the report's codes."""
+        if self.inner is not None:
+            self.inner.finish(result)
+        self.result = result
+        self.overlay.set_result(result, self._current)
+        bad = [f"{j.name}: {j.status}" for j in result.joints if j.status != "ok"]
+        self.app.message(
+            "sweep finished: every joint ok" if not bad else "sweep finished: " + ", ".join(bad),
+            "info" if not bad else "warning",
+        )
+        self.app.set_source_state("finished")
+        if self._current:  # one more page update, so the page state carries the final messages too
+            names = tuple(self._current)
+            self._push(names, np.array([self._current[n] for n in names]), self._t_s)
+        self.overlay.redraw()
+
+
+def _plain_lights(app: ViewerApp) -> None:
+    """Plain lights instead of viser's image-based lighting, which costs ~20 s per page load without a GPU."""
+    scene = app.server.scene
+    scene.configure_environment_map(hdri=None)
+    scene.add_light_ambient("/light/ambient", intensity=1.2)
+    scene.add_light_directional("/light/sun", intensity=1.8, position=(2.0, -2.0, 3.0))
+
+
+def open_sweep_page(
+    urdf: str | Any,
+    *,
+    inner: Any = None,
+    host: str = "127.0.0.1",
+    port: int = 8080,
+    threshold_rad: float | None = None,
+    span_tolerance_rad: float | None = None,
+    title: str = "sweep",
+) -> SweepWebView:
+    """Load the URDF, start the page and return the sweep view that draws on it.
+
+    Raises:
+        CalibError: A URDF that does not load, a port in use, viser missing — before the sweep starts.
+    """
+    from .model import load_robot_model
+
+    model = load_robot_model(urdf)
+    app = ViewerApp(model, host=host, port=port, title=f"{title}: {model.name}", rate_hz=20.0).start()
+    try:
+        app.server.gui.main_panel.dock_right()  # the robot beside the joint table, not under it
+        _plain_lights(app)
+        for w in model.warnings:
+            app.message(w, "warning")
+        app.set_source_state("running")
+        return SweepWebView(app, inner, threshold_rad=threshold_rad, span_tolerance_rad=span_tolerance_rad)
+    except BaseException:
+        app.stop()
+        raise
+
+
+TICKS_PER_TURN = 4096
+"""Feetech STS3215 / Dynamixel XL330 resolution: the LeRobot arms' ticks per turn."""
+
+
+class LeRobotSweepWebView:
+    """``robocal lerobot calibrate --view``: the range-of-motion recording drawn on the arm.
+
+    LeRobot's calibration first homes every motor so that the middle pose reads half a turn (2048 ticks), then
+    records each motor's min and max while the operator moves every joint through its range. The arm's URDF
+    (``so101_new_calib`` convention) has its zero at that middle pose, so ``(ticks − 2048)·2π/4096`` is the joint
+    angle, and the recorded range is compared with the URDF limits by :func:`robocal.core.sweep.analyse_sweep`
+    — the codes of ``robocal sweep``'s report (``not_swept``, ``span_mismatch``, ``no_overlap``, …).
+
+    Call it with each :class:`robocal.workflows.lerobot.SweepView` (it is an ``on_sweep`` callback); it forwards
+    to ``inner`` (the terminal's table) too.
+
+    Args:
+        app: The started page on the arm's URDF.
+        joint_of: Motor name → URDF joint name (motors without one are not drawn).
+        inner: Another ``on_sweep`` callback, or None.
+        period_s: Smallest interval between two status computations.
+        clock: Monotonic clock, s.
+    """
+
+    def __init__(
+        self,
+        app: ViewerApp,
+        joint_of: Mapping[str, str],
+        inner: Callable[[Any], None] | None = None,
+        *,
+        period_s: float = 0.1,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.app = app
+        self.overlay = SweepOverlay(app)
+        self.joint_of = dict(joint_of)
+        self.inner = inner
+        self.period_s = period_s
+        self.clock = clock
+        self._last = -math.inf
+        self._index = {n: i for i, n in enumerate(app.joint_names)}
+        self.result: SweepResult | None = None
+
+    @staticmethod
+    def to_rad(ticks: Sequence[int] | npt.ArrayLike) -> FloatArray:
+        """Ticks about the half turn → rad."""
+        return (np.asarray(ticks, dtype=np.float64) - TICKS_PER_TURN / 2) * (2.0 * math.pi / TICKS_PER_TURN)
+
+    def __call__(self, view: Any, *, final: bool = False) -> None:
+        """One reading of the range recording (``SweepView``: names, present, minimum, maximum in ticks)."""
+        if self.inner is not None and not final:
+            self.inner(view)
+        motors = [m for m in view.names if m in self.joint_of]
+        sel = [i for i, m in enumerate(view.names) if m in self.joint_of]
+        joints = [self.joint_of[m] for m in motors]
+        present = self.to_rad([view.present[i] for i in sel])
+        raw = np.full(len(self.app.joint_names), np.nan)
+        for j, v in zip(joints, present, strict=True):
+            if j in self._index:
+                raw[self._index[j]] = v
+        self.app.push(float(view.step), raw)
+        now = self.clock()
+        if not final and now - self._last < self.period_s:
+            return
+        self._last = now
+        from ..core.sweep import analyse_sweep
+
+        model = self.app.model
+        known = [(j, k) for k, j in enumerate(joints) if j in self._index]
+        names = [j for j, _ in known]
+        lo = [model.joint(j).lower for j in names]
+        hi = [model.joint(j).upper for j in names]
+        s_min = self.to_rad([view.minimum[sel[k]] for _, k in known])
+        s_max = self.to_rad([view.maximum[sel[k]] for _, k in known])
+        result = analyse_sweep(names, np.ones(len(names)), lo, hi, s_min, s_max, wraps=False)
+        self.result = result
+        self.overlay.set_result(result, {j: float(present[k]) for j, k in known})
+        if final:
+            self.overlay.redraw()
+
+
+def lerobot_shapes_urdf(robot: str) -> Any:
+    """The URDF drawn for a LeRobot arm: SO-100/SO-101 simple shapes, Koch's URDF (its meshes fall back)."""
+    from importlib import resources
+    from pathlib import Path
+
+    name = "koch.urdf" if robot.startswith("koch") else "so101_shapes.urdf"
+    return Path(str(resources.files("robocal") / "data" / name))
+
+
+def open_lerobot_sweep_page(
+    robot: str,
+    motor_names: Sequence[str],
+    *,
+    inner: Callable[[Any], None] | None = None,
+    host: str = "127.0.0.1",
+    port: int = 8080,
+) -> LeRobotSweepWebView:
+    """Start the page for ``robocal lerobot calibrate --view`` and return its ``on_sweep`` callback.
+
+    Motors map to URDF joints by name (SO-100/SO-101), else in order (Koch: ``joint1`` … in motor order).
+
+    Raises:
+        CalibError: The URDF does not load, a port in use, viser missing.
+    """
+    from .model import load_robot_model
+
+    model = load_robot_model(lerobot_shapes_urdf(robot))
+    names = list(model.actuated)
+    motors = list(motor_names)
+    joint_of = (
+        {m: m for m in motors} if all(m in names for m in motors) else dict(zip(motors, names, strict=False))
+    )
+    app = ViewerApp(model, host=host, port=port, title=f"lerobot calibrate: {robot}", rate_hz=20.0).start()
+    try:
+        app.server.gui.main_panel.dock_right()
+        _plain_lights(app)
+        for w in model.warnings:
+            app.message(w, "warning")
+        app.message("move every joint through its whole range; the arcs show the recorded range")
+        app.set_source_state("running")
+        return LeRobotSweepWebView(app, joint_of, inner)
+    except BaseException:
+        app.stop()
+        raise

@@ -1,0 +1,78 @@
+"""``robocal sweep --view`` in headless Chromium: the arcs carry the report's status codes and colours."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import browserlib
+import numpy as np
+import pytest
+
+from robocal.viewer.sweep_page import STATUS_RGB, open_sweep_page
+from robocal.workflows.sweep import run_sweep
+
+pytest.importorskip("viser", reason="viser comes with robocal[view]")
+
+LITE_URDF = Path(__file__).resolve().parents[2] / "examples" / "lite" / "lite_bimanual.urdf"
+# The demo's clean robot, with the left elbow never moved and the right elbow stopped 1 rad short of a stop.
+SOURCE = "sim:lite?seed=8&skip=left_elbow_pitch&short=right_elbow_pitch:1.0"
+
+
+def _shot(name: str, tmp_path: Path) -> Path:
+    folder = os.environ.get("ROBOCAL_SCREENSHOT_DIR")
+    return Path(folder) / name if folder else tmp_path / name
+
+
+def _sweep_state(page: Any) -> dict[str, Any] | None:
+    raw = page.evaluate(
+        "() => { const e = document.getElementById('robocal-sweep'); return e ? e.getAttribute('data-sweep') : null; }"
+    )
+    return None if raw is None else dict(json.loads(raw))
+
+
+def test_sweep_arcs_have_the_report_codes(page: Any, tmp_path: Path) -> None:
+    web = open_sweep_page(LITE_URDF, port=0)
+    try:
+        cam = web.app.server.initial_camera  # in front of the robot (it faces +x), a little above
+        cam.position = (0.8, -0.2, 0.2)
+        cam.look_at = (0.0, 0.0, 0.0)
+        cam.up_direction = (0.0, 0.0, 1.0)
+        report = tmp_path / "report.json"
+        prior = tmp_path / "previous.yaml"  # an earlier clean sweep: the un-swept elbow keeps its offset
+        run_sweep(LITE_URDF, "sim:lite?seed=8", prior)
+        outcome = run_sweep(LITE_URDF, SOURCE, tmp_path / "cal.yaml", prior=prior, report=report, view=web)
+        assert web.result is outcome.result
+        codes = {
+            name: (entry["warnings"] or ["ok"])[0]
+            for name, entry in json.loads(report.read_text())["joints"].items()
+        }
+        assert codes["left_elbow_pitch"] == "not_swept" and codes["right_elbow_pitch"] == "span_mismatch"
+        assert sum(c == "ok" for c in codes.values()) == 12
+
+        browserlib.open_viser(page, web.app.url)
+        state = browserlib.wait_until(lambda: _sweep_state(page), what="the sweep overlay state")
+        shown = {j["name"]: j for j in state["joints"]}
+        assert {n: j["status"] for n, j in shown.items()} == codes  # the same codes as the report
+        for name, entry in json.loads(report.read_text())["joints"].items():
+            assert shown[name]["color"] == list(STATUS_RGB[codes[name]])
+            assert shown[name]["sampled_min"] == pytest.approx(entry["sampled_min"])
+            assert shown[name]["sampled_max"] == pytest.approx(entry["sampled_max"])
+        msgs = browserlib.page_state(page)
+        assert msgs is not None and msgs["source"] == "finished"
+        assert any("right_elbow_pitch: span_mismatch" in m["text"] for m in msgs["messages"])
+
+        # Pixels: green arcs (ok) and the orange arc (span_mismatch) are on the canvas.
+        def arcs_drawn() -> np.ndarray | None:
+            img = browserlib.scene_region(
+                page, browserlib.screenshot(page, _shot("view_sweep.png", tmp_path))
+            )
+            green = browserlib.shade_mask(img, STATUS_RGB["ok"]).sum()
+            orange = browserlib.shade_mask(img, STATUS_RGB["span_mismatch"]).sum()
+            return img if green > 300 and orange > 30 else None
+
+        browserlib.wait_until(arcs_drawn, what="green and orange arcs on the canvas")
+    finally:
+        web.app.stop()
