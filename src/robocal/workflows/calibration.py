@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..core.profile import RobotProfile
 from ..errors import UsageError
-from ..formats import CalibrationFile, read_calibration, write_calibration
+from ..formats import FORMATS, CalibrationFile, read_calibration, write_calibration
 from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 
@@ -126,12 +126,6 @@ class CheckReport:
         return not self.warnings
 
 
-DIRECTION_FORMATS = ("lite-json", "lite-yaml", "robocal", "ros2-transmission", "lerobot-legacy")
-"""Formats that store a direction per joint (``berkeley-offsets`` takes it from the URDF or the profile)."""
-ID_FORMATS = ("lite-json", "lite-yaml", "robocal")
-"""Formats that store a motor id per joint."""
-
-
 def check_calibration(
     cf: CalibrationFile, urdf: UrdfModel, profile: RobotProfile | None = None
 ) -> CheckReport:
@@ -151,8 +145,9 @@ def check_calibration(
     matched = tuple(n for n in expected if n in cal)
     missing = tuple(n for n in expected if n not in cal)
     extra = tuple(n for n in cal.joint_names if n not in expected_set)
-    file_dirs = cf.fmt in DIRECTION_FORMATS
-    file_ids = cf.fmt in ID_FORMATS
+    spec = FORMATS.get(cf.fmt)  # berkeley-offsets takes directions from the URDF or the profile
+    file_dirs = spec is not None and spec.stores_directions
+    file_ids = spec is not None and spec.stores_ids
     pname = f"profile {profile.name}" if profile is not None else ""
     results = []
     for name in matched:
