@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
 from pytransform3d.urdf import UrdfTransformManager
 
-from robocal.core.chain import ChainJoint, SerialChain, fk_chain
+from robocal.core.chain import ChainJoint, SerialChain, fk_chain, rotation_about_axis
+from robocal.core.se3 import rot_x, rot_y, rot_z
 from robocal.errors import (
     InvalidCalibrationError,
     JointMismatchError,
@@ -108,3 +110,18 @@ def test_chain_must_connect() -> None:
         SerialChain((a, b), "base", "l2")
     with pytest.raises(InvalidCalibrationError, match="zero vector"):
         ChainJoint("j", "revolute", "a", "b", axis=(0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize(
+    ("axis", "rot", "sign"),
+    [((1, 0, 0), rot_x, 1), ((0, 1, 0), rot_y, 1), ((0, 0, 1), rot_z, 1), ((0, 0, -1), rot_z, -1)],
+)
+def test_rotation_about_a_coordinate_axis_is_exactly_the_coordinate_rotation(
+    axis: tuple[int, int, int], rot: Any, sign: int
+) -> None:
+    q = np.linspace(-7.0, 7.0, 101)
+    assert np.array_equal(rotation_about_axis(axis, q), rot(sign * q))  # bit for bit (no 1 - (1 - cos))
+    tilted = np.array([0.0, 0.6, 0.8])
+    R = rotation_about_axis(tilted, q)
+    np.testing.assert_allclose(R @ tilted, np.broadcast_to(tilted, (101, 3)), atol=1e-15)  # Rodrigues
+    assert np.array_equal(rotation_about_axis(tilted, 0.0), np.eye(3))

@@ -18,7 +18,7 @@ from robocal.core.ur import correct_kinematics, default_kinematics, nominal_dh
 from robocal.core.urhash import calib_hash, kinematics_hash_string
 from robocal.errors import FileFormatError, JointMismatchError, UsageError
 from robocal.formats.ur_kinematics import kinematics_to_text, read_dh, read_kinematics, write_kinematics
-from robocal.workflows.ur import urdf_fk
+from robocal.workflows.ur_verify import urdf_fk
 
 from .test_ur_urdf import pytransform3d_fk, ur_urdf_text
 

@@ -15,7 +15,7 @@ from robocal.core.dh import DHParameters, fk_dh
 from robocal.core.se3 import rotation_angle_between
 from robocal.core.ur import JOINT_NAMES, UrKinematics, correct_kinematics
 from robocal.formats.ur_kinematics import read_kinematics, update_urdf_origins, write_kinematics
-from robocal.workflows.ur import urdf_fk
+from robocal.workflows.ur_verify import urdf_fk
 
 from .test_ur_core import make_realistic, realistic
 
@@ -146,3 +146,25 @@ def test_update_urdf_missing_joint_writes_nothing(tmp_path: Path, dh_sets: dict[
     with pytest.raises(Exception, match="missing UR joint"):
         update_urdf_origins(src, dst, correct_kinematics(dh_sets[1]))
     assert not dst.exists()
+
+
+def test_yaml_and_urdf_fk_are_one_chain_fk(tmp_path: Path, dh_sets: dict[int, DHParameters]) -> None:
+    # both sides of `ur verify` evaluate the URDF chain through core.chain.fk_chain: a URDF whose origins come
+    # from the YAML gives bit-identical wrist_3 poses, and the DH FK is the independent reference
+    from robocal.core.chain import fk_chain
+    from robocal.core.ur import fk_origins
+    from robocal.formats.urdf import read_urdf
+    from robocal.formats.urdf_chain import chain_from_urdf
+
+    kin = correct_kinematics(dh_sets[3], "urdf")
+    p = tmp_path / "ur.urdf"
+    p.write_text(ur_urdf_text(kin))
+    q = np.random.default_rng(5).uniform(-6.0, 6.0, (200, 6))
+    chain = chain_from_urdf(read_urdf(p), "base_link_inertia", "wrist_3_link")
+    assert chain.joint_names == JOINT_NAMES
+    T_yaml = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
+    assert np.array_equal(fk_chain(chain, q), T_yaml)
+    assert np.array_equal(
+        urdf_fk(p, q)[:, :3, 3], T_yaml[:, :3, 3]
+    )  # flange and tool0 sit at wrist_3's origin
+    np.testing.assert_allclose(T_yaml[:, :3, 3], fk_dh(dh_sets[3], q)[:, :3, 3], rtol=0, atol=1e-9)

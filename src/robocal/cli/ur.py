@@ -17,6 +17,7 @@ from ..core.ur import RPY_CONVENTIONS, TEST_SET_3_DELTAS, UR_MODELS, deviation_f
 from ..errors import UsageError
 from ..viewer.ur_page import parse_q
 from ..workflows import ur as wf
+from ..workflows import ur_verify
 from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
 
 app = typer.Typer(
@@ -110,7 +111,7 @@ def defaults(
     raise typer.Exit(_print_result(wf.defaults(model, out, rpy=rpy), replaced))
 
 
-def _print_reports(reports: list[wf.VerifyReport], input_warnings: list[str] | None = None) -> int:
+def _print_reports(reports: list[ur_verify.VerifyReport], input_warnings: list[str] | None = None) -> int:
     table = Table(box=None)
     table.add_column("source", overflow="fold")
     for col in ("samples", "max Δp (m)", "max Δrot (rad)", "hash"):
@@ -158,18 +159,18 @@ def verify(
     With --host, also compare the YAML's FK with the controller's own base→flange pose for live joint states
     (the DH then defaults to the controller's).
     """
-    reports: list[wf.VerifyReport] = []
+    reports: list[ur_verify.VerifyReport] = []
     input_warnings: list[str] = []
     if host is not None:
         if file is None:
             raise UsageError("--host needs the kinematics FILE to compare")
         reports.append(
-            wf.verify_controller(file, host, port=port, timeout_s=timeout, samples=controller_samples)
+            ur_verify.verify_controller(file, host, port=port, timeout_s=timeout, samples=controller_samples)
         )
     if dh is not None or model is not None or deltas is not None or host is None:
         params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
         q_rad = None if q is None else np.array([parse_q(q)])
-        reports.extend(wf.verify(file, params, urdf_path=urdf, samples=samples, seed=seed, q_rad=q_rad))
+        reports.extend(ur_verify.verify(file, params, urdf_path=urdf, samples=samples, seed=seed, q_rad=q_rad))
     raise typer.Exit(_print_reports(reports, input_warnings))
 
 
@@ -275,7 +276,7 @@ def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
             host, port = sim.address
             console.print(f"[bold]UR demo[/]: simulated {robot} controller on {host}:{port}")
             result = wf.extract(host, out, port=port, timeout_s=5.0)
-        reports = wf.verify(out, result.dh, samples=1000, seed=0)
+        reports = ur_verify.verify(out, result.dh, samples=1000, seed=0)
         forearm, wrist_1 = result.kinematics.links[2], result.kinematics.links[3]
         console.print(
             f"controller DH: d2 = {result.dh.d_m[1]:.3f} m, d3 = {result.dh.d_m[2]:.3f} m → corrected "

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError, UsageError
-from .se3 import transform_from_xyz_rpy_urdf
+from .se3 import rot_x, rot_y, rot_z, transform_from_xyz_rpy_urdf
 
 __all__ = ["JOINT_TYPES", "ChainJoint", "SerialChain", "axis_motion", "fk_chain", "rotation_about_axis"]
 
@@ -164,10 +164,21 @@ class SerialChain:
         return q
 
 
+_COORDINATE_ROTATIONS = (rot_x, rot_y, rot_z)
+
+
 def rotation_about_axis(axis: ArrayLike, angle_rad: ArrayLike) -> FloatArray:
-    """Rotations by ``angle_rad`` about a unit ``axis`` (Rodrigues), shape ``S + (3, 3)`` for angles of shape S."""
+    """Rotations by ``angle_rad`` about a unit ``axis``, shape ``S + (3, 3)`` for angles of shape S.
+
+    A coordinate axis (``±x``, ``±y``, ``±z``) gives the exact ``cos``/``sin`` entries of
+    :func:`~robocal.core.se3.rot_z` and its siblings; any other axis goes through Rodrigues' formula.
+    """
     k = np.asarray(axis, dtype=np.float64)
     a = np.asarray(angle_rad, dtype=np.float64)
+    nonzero = np.flatnonzero(k)
+    if nonzero.size == 1 and abs(float(k[nonzero[0]])) == 1.0:
+        i = int(nonzero[0])
+        return _COORDINATE_ROTATIONS[i](a if k[i] > 0 else -a)
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
     s = np.sin(a)[..., None, None]
     c = np.cos(a)[..., None, None]

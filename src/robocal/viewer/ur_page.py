@@ -48,6 +48,7 @@ from ..core.ur import (
 )
 from ..errors import BackendNotAvailableError, UsageError
 from ..workflows import ur as ur_wf
+from ..workflows import ur_verify
 
 __all__ = [
     "CALIBRATED_RGB",
@@ -175,7 +176,7 @@ class UrViewModel:
             path = Path(tmp) / "calibration.yaml"
             ur_wf.correct(self.dh, path)
             q = None if q_rad is None else np.asarray(q_rad, dtype=np.float64).reshape(1, 6)
-            report = ur_wf.verify(path, self.nominal_dh, samples=samples, seed=seed, q_rad=q)[0]
+            report = ur_verify.verify(path, self.nominal_dh, samples=samples, seed=seed, q_rad=q)[0]
         return report.max_position_error_m
 
 
