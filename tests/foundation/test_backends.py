@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import sys
+from typing import ClassVar
 
 import pytest
 
@@ -27,3 +28,38 @@ def test_missing_optional_dependency_names_the_extra(monkeypatch: pytest.MonkeyP
     monkeypatch.setitem(sys.modules, "scservo_sdk", None)
     with pytest.raises(BackendNotAvailableError, match=r"robocal\[feetech\]"):
         require("scservo_sdk", "the Feetech backend")
+
+
+class _RecordingBus:
+    """Stands in for a registered backend class: records how robocal constructed it."""
+
+    made: ClassVar[list[tuple[str, str, tuple[str, ...]]]] = []
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        channel = str(args[0])
+        names = tuple(getattr(m, "name", "?") for m in args[1])  # type: ignore[attr-defined]
+        self.made.append((channel, str(kwargs.get("interface", "")), names))
+        self.motors = names
+
+    def close(self) -> None:
+        pass
+
+
+def test_sources_and_workflows_pick_backends_through_the_registry(monkeypatch: pytest.MonkeyPatch) -> None:
+    # re-point the registry: what robocal opens then is the registered class, not a hand-picked import
+    import types
+
+    from robocal.backends.sources import JointSpec, RobstrideSource, open_source
+    from robocal.workflows.lerobot import open_bus, robot_spec
+
+    fake = types.ModuleType("robocal_test_fake_backend")
+    fake.Bus = _RecordingBus  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "robocal_test_fake_backend", fake)
+    for name in ("robstride", "feetech"):
+        monkeypatch.setitem(BACKENDS, name, ("robocal_test_fake_backend", "Bus"))
+    _RecordingBus.made.clear()
+    src = open_source("can:virtual:chan0", [JointSpec("left_hip", can_id=11, model="rs-02")])
+    assert isinstance(src, RobstrideSource) and isinstance(src.buses[0], _RecordingBus)
+    assert _RecordingBus.made == [("chan0", "virtual", ("left_hip",))]
+    bus = open_bus(robot_spec("so101_follower"), "/dev/ttyFAKE")
+    assert isinstance(bus, _RecordingBus) and _RecordingBus.made[-1][0] == "/dev/ttyFAKE"

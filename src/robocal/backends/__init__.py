@@ -3,14 +3,22 @@
 Backends are looked up by name through :data:`BACKENDS`, a registry of lazy imports (module path, attribute),
 extended by the ``robocal.backends`` entry-point group, so an optional dependency that is not installed gives a
 clear :class:`~robocal.errors.BackendNotAvailableError` naming the extra to install instead of an ImportError at
-start-up.
+start-up. :func:`load_backend` is the one way robocal picks a bus or client class: the ``--source`` sources
+(Robstride, live and simulated), the LeRobot workflow (Feetech or Dynamixel by the robot's vendor) and the UR
+workflows (primary interface) all go through it.
 """
 
 from __future__ import annotations
 
 import importlib
 from importlib.metadata import entry_points
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, overload
+
+if TYPE_CHECKING:
+    from .dynamixel import DynamixelBus
+    from .feetech import FeetechBus
+    from .robstride import RobstrideBus
+    from .ur_primary import PrimaryClient
 
 from ..errors import BackendNotAvailableError, UsageError
 
@@ -66,6 +74,18 @@ def _registry() -> dict[str, tuple[str, str]]:
 def list_backends() -> list[str]:
     """Names of every registered backend (built-in and entry points), sorted."""
     return sorted(_registry())
+
+
+@overload
+def load_backend(name: Literal["robstride"]) -> type[RobstrideBus]: ...
+@overload
+def load_backend(name: Literal["feetech"]) -> type[FeetechBus]: ...
+@overload
+def load_backend(name: Literal["dynamixel"]) -> type[DynamixelBus]: ...
+@overload
+def load_backend(name: Literal["ur_primary"]) -> type[PrimaryClient]: ...
+@overload
+def load_backend(name: str) -> Any: ...
 
 
 def load_backend(name: str) -> Any:

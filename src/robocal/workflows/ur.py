@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ..backends import require
+from ..backends import load_backend, require
 from ..core.dh import DHParameters
 from ..core.ur import (
     UrKinematics,
@@ -209,9 +209,7 @@ def extract(
     _check_connection(host, port, timeout_s)
     check_out_path(out)
     _check_urdf_pair(urdf_in, urdf_out, out)
-    from ..backends.ur_primary import PrimaryClient
-
-    with PrimaryClient(host, port, timeout_s) as client:
+    with load_backend("ur_primary")(host, port, timeout_s) as client:
         info = client.read_kinematics()
         warnings = tuple(client.warnings)
     return correct(info.dh, out, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out, warnings=warnings)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from ..backends import load_backend
 from ..core.chain import fk_chain
 from ..core.dh import DHParameters, fk_dh
 from ..core.se3 import homogeneous, rotation_angle_between
@@ -246,10 +247,9 @@ def verify_controller(
     check_connection_args(host, port, timeout_s)
     _check_samples(samples, "--controller-samples", 10_000)
     kin = read_kinematics(kinematics_path)
-    from ..backends.ur_primary import PrimaryClient
     from ..core.se3 import matrix_from_rotvec
 
-    with PrimaryClient(host, port, timeout_s) as client:
+    with load_backend("ur_primary")(host, port, timeout_s) as client:
         info = client.read_kinematics()
         got = client.read_pose_samples(samples)
         warnings = list(client.warnings)

@@ -8,6 +8,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from ...backends import load_backend
 from ...backends.servo_bus import ServoBus
 from ...core.lerobot import (
     RobotSpec,
@@ -48,13 +49,8 @@ def robot_spec(robot: str | os.PathLike[str]) -> RobotSpec:
 def open_bus(spec: RobotSpec, port: str, *, retries: int = 3) -> ServoBus:
     """Open the vendor-SDK bus of an arm on ``port``."""
     motors = {m.motor_id: m.model for m in spec.motors}
-    if spec.vendor == "feetech":
-        from ...backends.feetech import FeetechBus
-
-        return FeetechBus(port, motors, retries=retries)
-    from ...backends.dynamixel import DynamixelBus
-
-    return DynamixelBus(port, motors, retries=retries)
+    bus_class = load_backend("feetech") if spec.vendor == "feetech" else load_backend("dynamixel")
+    return bus_class(port, motors, retries=retries)
 
 def norm_modes(
     spec: RobotSpec, *, use_degrees: bool | None = None, overrides: Mapping[str, str] | None = None
