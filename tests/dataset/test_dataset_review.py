@@ -225,7 +225,7 @@ def test_overwrite_keeps_old_destination_when_the_final_rename_fails(
             raise OSError(28, "No space left on device")
         real_replace(a, b)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(_driver.os, "replace", failing_replace)
+    monkeypatch.setattr(os, "replace", failing_replace)
     with pytest.raises(FileFormatError, match=r"cannot move the new dataset into place \(No space left"):
         recalibrate_dataset(src, dst, A, B, overwrite=True)
     assert (dst / "keep.txt").read_text() == "old"

@@ -70,8 +70,8 @@ def test_deep_yaml_in_every_yaml_reader(tmp_path: Path, reader: str, doc: str) -
 
 
 def test_dataset_metadata_too_deep(tmp_path: Path) -> None:
-    from robocal.dataset._driver import _read_stats
     from robocal.dataset._layout import read_layout
+    from robocal.dataset._metadata import _read_stats
 
     (tmp_path / "meta").mkdir()
     (tmp_path / "meta" / "info.json").write_text('{"features": ' + DEEP_JSON + "}")

@@ -397,7 +397,7 @@ def test_dataset_info_with_an_integer_beyond_the_int_string_limit_is_a_file_form
 
 def test_dataset_stats_with_an_integer_beyond_the_int_string_limit_is_a_file_format_error() -> None:
     from robocal.dataset import read_layout
-    from robocal.dataset._driver import check_metadata
+    from robocal.dataset._metadata import check_metadata
 
     with scratch() as root:
         seeds.write_tree(root / "ds", seeds.dataset_seed())

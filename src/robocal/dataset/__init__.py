@@ -24,9 +24,9 @@ from ._convention import ValueConvention as ValueConvention  # noqa: E402
 from ._driver import DatasetReport as DatasetReport  # noqa: E402
 from ._driver import recalibrate_dataset as recalibrate_dataset  # noqa: E402
 from ._engine import FeaturePlan as FeaturePlan  # noqa: E402
-from ._engine import recalibrate_file as recalibrate_file  # noqa: E402
 from ._engine import recalibrate_table as recalibrate_table  # noqa: E402
 from ._engine import recalibrate_values as recalibrate_values  # noqa: E402
+from ._file import recalibrate_file as recalibrate_file  # noqa: E402
 from ._generate import SO_ARM_JOINTS as SO_ARM_JOINTS  # noqa: E402
 from ._generate import GeneratedDataset as GeneratedDataset  # noqa: E402
 from ._generate import generate_dataset as generate_dataset  # noqa: E402

@@ -1,43 +1,39 @@
 """Re-calibrate a whole LeRobot v3 dataset root into a new root.
 
-Everything is validated before anything is written (features, joint names, destination). The new root
-is built in a temporary sibling folder ``.DST.robocal-*`` and renamed to ``DST`` only when every file is
-done, so a failure midway leaves no ``DST``. Data files are processed in a
-:class:`~concurrent.futures.ProcessPoolExecutor` (or in-process with one worker); videos are hard-linked
-(copied where linking fails), other files copied.
+Everything is validated before anything is written (features, joint names, destination, metadata). The new
+root is built in a temporary sibling folder ``.DST.robocal-*`` (:mod:`._root`) and renamed to ``DST`` only when
+every file is done, so a failure midway leaves no ``DST``. Data files (:mod:`._file`) are processed in a
+:class:`~concurrent.futures.ProcessPoolExecutor` (or in-process with one worker); the statistics metadata is
+rewritten from their results (:mod:`._metadata`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
-import os
 import shutil
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
-from ..errors import CalibError, FileFormatError, FileWriteError, UsageError
+from ..errors import CalibError, FileWriteError, UsageError
 from ._convention import ValueConvention
-from ._engine import FeaturePlan, FileResult, feature_convention, recalibrate_file
+from ._engine import FeaturePlan, feature_convention
+from ._file import FileResult, recalibrate_file
 from ._layout import DatasetLayout, read_layout
-from ._stats import StatAccumulator, is_known_stat, merge_all, merge_into
+from ._metadata import check_metadata, rewrite_episode_stats, write_dataset_stats
+from ._root import check_destination, make_temp_root, prepare_root, publish_root
+from ._stats import StatAccumulator, merge_all, merge_into
 
 __all__ = [
     "DatasetReport",
+    "DatasetWorkerError",
     "build_plans",
-    "check_destination",
+    "finish_root",
     "recalibrate_dataset",
-    "rewrite_episode_stats",
-    "write_dataset_stats",
 ]
 
 ProgressCallback = Callable[[str, int], None]
@@ -102,176 +98,9 @@ def build_plans(
     ]
 
 
-def check_destination(src: Path, dst: Path, overwrite: bool) -> None:
-    """Refuse a destination that exists (without ``overwrite``), overlaps the source or has no parent.
-
-    Raises:
-        UsageError: Naming the problem.
-    """
-    s, d = src.resolve(), dst.resolve()
-    if s == d or s in d.parents or d in s.parents:
-        raise UsageError(f"destination {dst} overlaps the source {src}; choose a separate folder")
-    if dst.exists() and not overwrite:
-        raise UsageError(f"destination {dst} already exists; pass --overwrite to replace it")
-    if dst.exists() and not dst.is_dir():
-        raise UsageError(f"destination {dst} exists and is not a folder")
-    if dst.is_symlink() and not dst.exists():
-        raise UsageError(f"destination {dst} is a broken symbolic link; remove it or choose another folder")
-    if not dst.parent.is_dir():
-        raise UsageError(f"destination {dst}: parent folder {dst.parent} does not exist")
-
-
-def check_metadata(layout: DatasetLayout) -> None:
-    """Check ``meta/stats.json`` and the episode files can be rewritten, before anything is written.
-
-    Raises:
-        FileFormatError: Naming the file.
-    """
-    stats = layout.root / "meta" / "stats.json"
-    if stats.is_file():
-        _read_stats(stats)
-    for rel in layout.episode_files:
-        try:
-            names = pq.read_schema(layout.root / rel).names
-        except (pa.ArrowException, OSError) as exc:
-            raise FileFormatError(f"episodes file {rel}: cannot read Parquet ({exc})") from None
-        if "episode_index" not in names:
-            raise FileFormatError(f"episodes file {rel}: no 'episode_index' column")
-
-
-def _read_stats(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
-    except RecursionError:
-        raise FileFormatError(f"{path}: statistics JSON nested too deeply") from None
-    except ValueError as exc:  # e.g. an integer of more digits than Python converts
-        raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise FileFormatError(f"{path}: expected a JSON object of features")
-    return data
-
-
-def _carry(src: Path, dst: Path, link: bool) -> None:
-    """Hard-link (``link``, copy where the file system cannot) or copy the file ``src`` is or points to."""
-    real = Path(os.path.realpath(src))  # a relative symbolic link would break in another folder
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    if link:
-        try:
-            os.link(real, dst)
-            return
-        except OSError:
-            pass
-    shutil.copy2(real, dst)
-
-
 def _work(args: tuple[str, str, str, list[FeaturePlan]]) -> FileResult:
     src, dst, rel, plans = args
     return recalibrate_file(src, dst, plans, rel)
-
-
-def rewrite_episode_stats(
-    src: Path,
-    dst: Path,
-    episode_stats: Mapping[int, Mapping[str, StatAccumulator]],
-    features: Sequence[str],
-    rel: str = "",
-    *,
-    keep_missing: bool = False,
-) -> list[str]:
-    """Copy an episodes metadata file, replacing ``stats/<feature>/<stat>`` columns of ``features``.
-
-    Row groups, schema and metadata are kept; statistics robocal cannot compute are left out of the
-    replacement and reported.
-
-    Args:
-        src: Source episodes file.
-        dst: Destination file.
-        episode_stats: Episode → feature → statistics of the new values.
-        features: Converted feature keys.
-        rel: Path used in messages.
-        keep_missing: An episode without statistics keeps its source values (reported) instead of being an
-            error; used when some data files have no ``episode_index`` column.
-
-    Returns:
-        Warnings (statistics kept from the source because they cannot be recomputed).
-    """
-    name = rel or str(src)
-    warnings: list[str] = []
-    kept: set[int] = set()
-    try:
-        pf = pq.ParquetFile(src)
-        schema = pf.schema_arrow
-        with pq.ParquetWriter(dst, schema=schema) as writer:
-            for g in range(pf.metadata.num_row_groups):
-                table = pf.read_row_group(g)
-                if "episode_index" not in table.schema.names:
-                    raise FileFormatError(f"episodes file {name}: no 'episode_index' column")
-                eps = [int(e) for e in table.column("episode_index").to_pylist()]
-                for i, col_name in enumerate(table.schema.names):
-                    parts = col_name.split("/")
-                    if len(parts) != 3 or parts[0] != "stats" or parts[1] not in features:
-                        continue
-                    key, stat = parts[1], parts[2]
-                    if not is_known_stat(stat):
-                        warnings.append(f"{name}: statistic {col_name!r} cannot be recomputed; kept as is")
-                        continue
-                    values: list[Any] = []
-                    source = table.column(i).to_pylist() if keep_missing else []
-                    for row, e in enumerate(eps):
-                        acc = episode_stats.get(e, {}).get(key)
-                        if acc is None:
-                            if not keep_missing:
-                                raise FileFormatError(
-                                    f"episodes file {name}: episode {e} has no frames in data/"
-                                )
-                            kept.add(e)
-                            values.append(source[row])
-                            continue
-                        values.append(acc.get(stat))
-                    field_ = table.schema.field(i)
-                    table = table.set_column(i, field_, pa.array(values, type=field_.type))
-                writer.write_table(table, row_group_size=max(table.num_rows, 1))
-    except (pa.ArrowException, OSError) as exc:
-        raise FileFormatError(f"episodes file {name}: cannot read or write Parquet ({exc})") from None
-    if kept:
-        listed = ", ".join(str(e) for e in sorted(kept)[:10]) + (", ..." if len(kept) > 10 else "")
-        warnings.append(
-            f"{name}: per-episode statistics of {', '.join(features)} for {len(kept)} episode(s) "
-            f"({listed}) could not be updated (their frames are in data files without 'episode_index'); "
-            "they still describe the old calibration"
-        )
-    return warnings
-
-
-def write_dataset_stats(
-    src: Path, dst: Path, totals: Mapping[str, StatAccumulator], features: Sequence[str]
-) -> list[str]:
-    """Write ``meta/stats.json`` with the statistics of ``features`` recomputed; others copied as they are.
-
-    Returns:
-        Warnings (statistics kept from the source because they cannot be recomputed).
-    """
-    warnings: list[str] = []
-    stats = _read_stats(src)
-    for key in features:
-        total = totals.get(key)
-        if total is None:
-            continue
-        entry = stats.get(key)
-        names = list(entry) if isinstance(entry, dict) else ["min", "max", "mean", "std", "count"]
-        new_entry: dict[str, Any] = {}
-        for stat in names:
-            value = total.get(stat)
-            if value is None:
-                warnings.append(f"{src.name}: statistic {key}/{stat} cannot be recomputed; kept unchanged")
-                assert isinstance(entry, dict)
-                value = entry[stat]
-            new_entry[stat] = value
-        stats[key] = new_entry
-    dst.write_text(json.dumps(stats, indent=4), encoding="utf-8")
-    return warnings
 
 
 def recalibrate_dataset(
@@ -329,52 +158,6 @@ def recalibrate_dataset(
             ) from None
         raise
     return report
-
-
-def _source_files(root: Path) -> list[tuple[str, Path]]:
-    """Every file under ``root`` as (relative POSIX path, path), following symbolic links to folders.
-
-    Raises:
-        FileFormatError: A broken symbolic link (naming it).
-    """
-    out: list[tuple[str, Path]] = []
-    seen: set[str] = set()
-    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
-        real = os.path.realpath(dirpath)
-        if real in seen:  # a link loop
-            dirnames.clear()
-            continue
-        seen.add(real)
-        for name in filenames:
-            path = Path(dirpath) / name
-            rel = path.relative_to(root).as_posix()
-            if not path.exists():
-                raise FileFormatError(f"dataset {root}: {rel} is a broken symbolic link")
-            out.append((rel, path))
-    return sorted(out)
-
-
-def prepare_root(layout: DatasetLayout, tmp: Path) -> None:
-    """Carry every file that is not re-calibrated into ``tmp`` (videos linked) and create the data folders.
-
-    Symbolic links (to files or folders) are followed: the new root holds the files themselves.
-
-    Raises:
-        FileFormatError: A broken symbolic link or a file that cannot be read or written.
-    """
-    root = layout.root
-    special = set(layout.data_files) | set(layout.episode_files) | {"meta/stats.json"}
-    try:
-        for rel, path in _source_files(root):
-            if rel not in special:
-                _carry(path, tmp / rel, link=rel.startswith("videos/") or path.suffix in _VIDEO_SUFFIXES)
-        for rel in layout.data_files:
-            (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise FileFormatError(f"dataset {root}: cannot copy {exc.filename or ''} ({exc.strerror})") from None
-
-
-_VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi")
 
 
 def _build(
@@ -470,45 +253,3 @@ def finish_root(
         shutil.copystat(root, tmp)
 
 
-def make_temp_root(dst: Path, kind: str = "robocal") -> Path:
-    """Create an empty temporary folder beside ``dst`` (same file system, so the final rename is atomic)."""
-    final = Path(os.path.abspath(dst))  # "." or "out/.." have no usable name or parent otherwise
-    prefix = f".{final.name}.{kind}-"
-    if len(os.fsencode(prefix)) + 8 > 255:  # a long DST name: a short temporary name still fits
-        prefix = f".rc-{kind}-"
-    try:
-        return Path(tempfile.mkdtemp(prefix=prefix, dir=final.parent))
-    except OSError as exc:
-        raise FileWriteError(
-            f"cannot write {dst}: cannot create a folder in {final.parent} ({exc.strerror or exc}); nothing written"
-        ) from None
-    except UnicodeError:
-        raise FileWriteError(
-            f"cannot write {str(dst)!a}: the name is not valid Unicode (a lone surrogate)"
-        ) from None
-
-
-def publish_root(tmp: Path, dst: Path) -> None:
-    """Rename the finished ``tmp`` root to ``dst``, replacing an existing ``dst`` only now.
-
-    Raises:
-        FileFormatError: The rename failed; an existing ``dst`` is put back.
-    """
-    final = Path(os.path.abspath(dst))
-    try:
-        if not final.exists():
-            os.replace(tmp, final)
-            return
-        old_dir = make_temp_root(final, "old")
-        os.replace(final, old_dir / "root")
-        try:
-            os.replace(tmp, final)
-        except OSError:
-            os.replace(old_dir / "root", final)
-            os.rmdir(old_dir)
-            raise
-        shutil.rmtree(old_dir, ignore_errors=True)
-    except OSError as exc:
-        raise FileFormatError(
-            f"destination {dst}: cannot move the new dataset into place ({exc.strerror})"
-        ) from None

@@ -26,18 +26,12 @@ from typing import Any
 
 from ..errors import BackendNotAvailableError, FileFormatError, UsageError
 from ._convention import ValueConvention
-from ._driver import (
-    DatasetReport,
-    build_plans,
-    check_destination,
-    check_metadata,
-    finish_root,
-    make_temp_root,
-    prepare_root,
-    publish_root,
-)
-from ._engine import FeaturePlan, FileResult, recalibrate_file
+from ._driver import DatasetReport, build_plans, finish_root
+from ._engine import FeaturePlan
+from ._file import FileResult, recalibrate_file
 from ._layout import read_layout
+from ._metadata import check_metadata
+from ._root import check_destination, make_temp_root, prepare_root, publish_root
 
 try:
     from datatrove.pipeline.base import PipelineStep
