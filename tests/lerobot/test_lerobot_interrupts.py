@@ -288,7 +288,6 @@ def test_calibrate_final_write_failure_prints_the_calibration(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The folder passes the preflight, then the disk fills up: the JSON is printed and the EEPROM restored."""
-    import robocal.fileio as fileio
 
     real_replace = os.replace
 
@@ -297,7 +296,7 @@ def test_calibrate_final_write_failure_prints_the_calibration(
             raise OSError(28, "No space left on device")
         real_replace(src, dst)
 
-    monkeypatch.setattr(fileio.os, "replace", full)
+    monkeypatch.setattr(os, "replace", full)
     assert main(_args(tmp_path)) == 2
     cap = capsys.readouterr()
     path = tmp_path / "robots" / "so_follower" / "a.json"

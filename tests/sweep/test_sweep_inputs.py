@@ -155,19 +155,19 @@ def test_urdf_ids_checked_before_sampling(
 def test_unwritable_out_folder_is_refused_up_front(
     urdf: Path, tmp_path: Path, capsys: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import robocal.fileio as fileio
+    import tempfile
 
     rec = _full_sweep(tmp_path)
     locked = tmp_path / "locked"
     locked.mkdir()
-    real = fileio.tempfile.mkstemp
+    real = tempfile.mkstemp
 
     def mkstemp(*a: Any, **k: Any) -> Any:  # the preflight's probe file meets a folder it may not write in
         if Path(str(k.get("dir", ""))) == locked:
             raise PermissionError(13, "Permission denied")
         return real(*a, **k)
 
-    monkeypatch.setattr(fileio.tempfile, "mkstemp", mkstemp)
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
     out = locked / "c.yaml"
     rc, err = _run(["sweep", "--urdf", str(urdf), "--source", f"replay:{rec}", "--out", str(out)], capsys)
     assert rc == 2 and "permission denied" in _one_error(err).lower() and not out.exists()

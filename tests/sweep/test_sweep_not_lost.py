@@ -70,9 +70,9 @@ def test_unwritable_output_is_refused_before_the_source_opens(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # the preflight is fileio.check_output_path's real probe; simulate the read-only file system it meets
-    import robocal.fileio as fileio
+    import tempfile
 
-    real = fileio.tempfile.mkstemp
+    real = tempfile.mkstemp
     ro = tmp_path / "ro"
     ro.mkdir()
 
@@ -81,7 +81,7 @@ def test_unwritable_output_is_refused_before_the_source_opens(
             raise OSError(30, "Read-only file system")
         return real(*a, **k)
 
-    monkeypatch.setattr(fileio.tempfile, "mkstemp", mkstemp)
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
     opened: list[Any] = []
     with pytest.raises(FileWriteError, match=r"--out .*ro/cal.yaml: cannot write in .*Read-only file system"):
         run_sweep(urdf, "sim:lite", ro / "cal.yaml", open_source_fn=lambda *a, **k: opened.append(1))
