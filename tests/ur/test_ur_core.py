@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from robocal.backends.ur_primary import encode_kinematics_info, parse_kinematics_info
 from robocal.core.dh import DHParameters, fk_dh, fk_dh_loop
 from robocal.core.se3 import (
     eigen_euler_xyz,
@@ -29,7 +30,12 @@ from robocal.core.ur import (
     six_transforms,
 )
 from robocal.core.urhash import calib_hash, cpp_ostream_format, hash_bytes_libstdcxx, kinematics_hash_string
-from robocal.errors import InvalidCalibrationError, ShapeMismatchError, UsageError
+from robocal.errors import (
+    InvalidCalibrationError,
+    ShapeMismatchError,
+    UsageError,
+)
+from robocal.formats.ur_kinematics import kinematics_to_text
 
 PI_2 = 1.570796327
 
@@ -444,3 +450,61 @@ def test_rotvec_round_trip(axis: list[float], angle: float) -> None:
     R = matrix_from_rotvec(v)
     np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-14)
     np.testing.assert_allclose(rotvec_from_matrix(R), v, atol=1e-9)
+
+
+def test_negative_zero_in_raw_dh_is_hashed_like_the_driver() -> None:
+    # the driver prints the controller's raw doubles with ostream <<, so -0.0 hashes as "-0"
+    nom = nominal_dh("ur5e")
+    a_raw = (*nom.a_m[:5], -0.0)
+    dh = DHParameters(nom.theta_rad, a_raw, nom.d_m, nom.alpha_rad)
+    assert math.copysign(1.0, dh.a_m[5]) == -1.0
+    assert kinematics_hash_string(dh.theta_rad, dh.d_m, dh.a_m, dh.alpha_rad).endswith("0.0996-00")
+    expected = calib_hash(nom.theta_rad, nom.d_m, a_raw, nom.alpha_rad)
+    assert expected != "calib_12788084448423163542"
+    assert correct_kinematics(dh).hash == expected
+    # the same through the wire format
+    info, _ = parse_kinematics_info(encode_kinematics_info(dh))
+    assert correct_kinematics(info.dh).hash == expected
+    # the written file still never contains -0
+    assert ": -0.0\n" not in kinematics_to_text(correct_kinematics(dh))
+
+
+def test_rotations_are_exactly_the_textbook_matrices() -> None:
+    from robocal.core.se3 import rot_x, rot_y, rot_z
+
+    a = 0.3
+    c, s = math.cos(a), math.sin(a)
+    assert rot_x(a).tolist() == [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
+    assert rot_y(a).tolist() == [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+    assert rot_z(a).tolist() == [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    assert rot_z(np.zeros((2, 5))).shape == (2, 5, 3, 3)
+
+
+def test_huge_next_d_is_corrected_not_a_zero_division() -> None:
+    # d3 = 1e300: |d3·u|² overflowed, the normalised axis became 0 and the division raised ZeroDivisionError
+    n = nominal_dh("ur10e")
+    dh = DHParameters(
+        n.theta_rad,
+        n.a_m,
+        (0.1807, 1.0, 1e300, 0.17415, 0.11985, 0.11655),
+        (1.570796327, 0.01, 0.0, 1.570796327, -1.570796327, 0.0),
+    )
+    kin = correct_kinematics(dh)
+    forearm = kin.links[2]
+    assert forearm.xyz_m[0] == pytest.approx(-math.hypot(-0.6127, math.tan(0.01)), abs=1e-15)
+    assert kin.links[3].xyz_m[2] == 1e300
+
+
+def test_deviation_of_absurd_lengths_does_not_overflow() -> None:
+    import warnings
+
+    from robocal.core.ur import deviation_from_nominal
+
+    n = nominal_dh("ur10e")
+    kin = correct_kinematics(
+        DHParameters(n.theta_rad, (0.0, -1e300, -0.5, 0.0, 0.0, 0.0), n.d_m, n.alpha_rad)
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's overflow RuntimeWarning would print on the CLI's stderr
+        dev = deviation_from_nominal(kin)
+    assert dev.length_m == 1e300 and dev.length_field == "a2"

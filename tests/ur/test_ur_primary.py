@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import socket
 import struct
+import threading
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,12 +19,18 @@ from robocal.backends.ur_primary import (
     encode_kinematics_info,
     iter_subpackages,
     parse_kinematics_info,
+    resolve_host,
 )
 from robocal.cli.main import main
 from robocal.core.dh import DHParameters
 from robocal.core.ur import nominal_dh
 from robocal.core.urhash import calib_hash
-from robocal.errors import CalibTimeoutError, DeviceError, ProtocolError
+from robocal.errors import (
+    CalibTimeoutError,
+    DeviceError,
+    ProtocolError,
+    UsageError,
+)
 
 SHORT = 0.6  # seconds; every network wait in these tests is bounded by this
 
@@ -307,3 +315,83 @@ def test_pose_sample_timeout_on_a_silent_stream_names_the_sample() -> None:
     msg = str(exc.value)
     assert "no RobotState with Joint data and CartesianInfo within" in msg
     assert "of 5" in msg and "KinematicsInfo" not in msg
+
+
+@pytest.mark.parametrize("port", [0, -1, 70000])
+def test_client_refuses_port_out_of_range(port: int) -> None:
+    # 70000 used to be wrapped by getaddrinfo to port 4464 and connected there
+    with pytest.raises(UsageError, match=rf"--port {port}: expected 1\.\.65535"):
+        PrimaryClient("127.0.0.1", port, 0.5).read_kinematics()
+
+
+@pytest.mark.parametrize("host", ["", "  "])
+def test_client_refuses_empty_host(host: str) -> None:
+    with pytest.raises(UsageError, match="--host: expected a controller address"):
+        PrimaryClient(host, 30001, 0.5).read_kinematics()
+
+
+def test_sub_package_size_field_is_unsigned() -> None:
+    from robocal.backends.ur_primary import iter_subpackages
+    from robocal.errors import ProtocolError
+
+    with pytest.raises(ProtocolError, match="claims 4294967295 bytes"):
+        list(iter_subpackages(struct.pack(">IB", 0xFFFFFFFF, 5) + bytes(10)))
+
+
+def test_simulator_serves_after_a_client_left() -> None:
+    with SimUrController(nominal_dh("ur3e")) as sim:
+        for _ in range(2):
+            with PrimaryClient(*sim.address, timeout_s=5.0) as client:
+                assert client.read_kinematics().dh == nominal_dh("ur3e")
+        assert sim.connections == 2
+
+
+def _one_error_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), lines
+    return lines[0]
+
+
+def test_unresolvable_host_is_one_error_exit_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "k.yaml"
+    assert main(["ur", "extract", "--host", "nonexistent.invalid", "--out", str(out), "--timeout", "3"]) == 3
+    line = _one_error_line(capsys.readouterr().err)
+    assert "UR controller nonexistent.invalid:30001: cannot resolve host name 'nonexistent.invalid'" in line
+    assert not out.exists()
+
+
+def test_resolution_that_never_answers_hits_the_timeout(monkeypatch: pytest.MonkeyPatch) -> None:
+    release = threading.Event()
+    real = socket.getaddrinfo
+
+    def stuck(host: str, *args: Any, **kw: Any) -> Any:
+        if kw.get("flags", 0) & socket.AI_NUMERICHOST:
+            return real(host, *args, **kw)
+        release.wait(30)  # a dead DNS server
+        raise socket.gaierror(socket.EAI_AGAIN, "Temporary failure in name resolution")
+
+    monkeypatch.setattr(socket, "getaddrinfo", stuck)
+    try:
+        with pytest.raises(
+            CalibTimeoutError, match=r"cannot resolve host name 'robot\.example' within 0\.2 s"
+        ):
+            PrimaryClient("robot.example", 30001, 0.2).read_kinematics()
+        # numeric addresses never wait for the resolver
+        assert resolve_host("127.0.0.1", 30001, 0.2)[0][4] == ("127.0.0.1", 30001)
+    finally:
+        release.set()
+
+
+def test_resolver_error_is_a_device_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = socket.getaddrinfo
+
+    def fails(host: str, *args: Any, **kw: Any) -> Any:
+        if kw.get("flags", 0) & socket.AI_NUMERICHOST:
+            return real(host, *args, **kw)
+        raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+
+    monkeypatch.setattr(socket, "getaddrinfo", fails)
+    with pytest.raises(
+        DeviceError, match=r"cannot resolve host name 'robot\.example' \(Name or service not known\)"
+    ):
+        resolve_host("robot.example", 30001, 5.0)
