@@ -5,12 +5,29 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from dataset_testutil import HI, HOMING_A, HOMING_B, LO, RANGE_A, RANGE_B, all_values, cals, tree
+from dataset_testutil import (
+    FEATURES,
+    HI,
+    HOMING_A,
+    HOMING_B,
+    LO,
+    RANGE_A,
+    RANGE_B,
+    all_values,
+    cals,
+    lekiwi_cals,
+    lekiwi_conv,
+    tree,
+)
 
 from robocal.cli.main import main
 from robocal.core.jointmap import RobotCalibration
 from robocal.core.lerobot import LegacyCalibration
-from robocal.dataset import SO_ARM_JOINTS, generate_dataset
+from robocal.dataset import (
+    SO_ARM_JOINTS,
+    generate_dataset,
+    recalibrate_dataset,
+)
 from robocal.dataset.lerobot import LeRobotConvention, preset_modes
 from robocal.formats import write_calibration as write_joint_map
 from robocal.lerobot import MotorCalibration, write_calibration
@@ -308,3 +325,28 @@ def test_overwrite_and_joint_map_inspect(
     )
     assert (code, err) == (0, "")
     assert "95 frames" in out
+
+
+def test_mixed_feature_through_the_cli_with_wheel_motors(
+    lekiwi: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    write_calibration(tmp_path / "a.json", lekiwi_cals(HOMING_A, RANGE_A))
+    write_calibration(tmp_path / "b.json", lekiwi_cals(HOMING_B, RANGE_B))
+    code = main(
+        ["dataset", "recalibrate", str(lekiwi), str(tmp_path / "dst"), "--old", str(tmp_path / "a.json"),
+         "--new", str(tmp_path / "b.json")]
+    )  # fmt: skip
+    out, err = capsys.readouterr()
+    assert (code, err) == (0, "")
+    assert "95 frames" in out
+    expected = recalibrate_dataset(
+        lekiwi, tmp_path / "api", lekiwi_conv(HOMING_A, RANGE_A), lekiwi_conv(HOMING_B, RANGE_B)
+    )
+    assert expected.warnings == []
+    for key in FEATURES:
+        np.testing.assert_array_equal(all_values(tmp_path / "dst", key), all_values(tmp_path / "api", key))
+    # the LeKiwi preset gives arm_gripper range_0_100, like LeRobot's LeKiwi
+    assert preset_modes("lekiwi", ["arm_gripper", "arm_elbow_flex"], True) == {
+        "arm_gripper": "range_0_100",
+        "arm_elbow_flex": "degrees",
+    }

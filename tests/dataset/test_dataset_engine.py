@@ -7,7 +7,25 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from dataset_testutil import TICK_RAD, A, B, all_values, column, joint_map, tree
+from dataset_testutil import (
+    ARM,
+    FEATURES,
+    HOMING_A,
+    HOMING_B,
+    RANGE_A,
+    RANGE_B,
+    TICK_RAD,
+    A,
+    B,
+    all_values,
+    column,
+    column_of,
+    joint_map,
+    lekiwi_cals,
+    lekiwi_conv,
+    raw_values,
+    tree,
+)
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -17,7 +35,9 @@ from robocal.dataset import (
     read_layout,
     recalibrate_dataset,
     recalibrate_table,
+    recalibrate_values,
 )
+from robocal.dataset.lerobot import LeRobotConvention, preset_modes
 from robocal.errors import FileFormatError, JointMismatchError, ShapeMismatchError, UsageError
 
 
@@ -256,3 +276,82 @@ def test_unknown_feature_and_joint_mismatch(src: Path, tmp_path: Path) -> None:
     with pytest.raises(UsageError, match="overlaps the source"):
         recalibrate_dataset(src, src / "inner", A, B)
     assert not (tmp_path / "d").exists()
+
+
+def test_recalibrate_table_bad_inputs() -> None:
+    vals = pa.FixedSizeListArray.from_arrays(pa.array(np.zeros(12, np.float32)), 6)
+    table = pa.table({"action": vals})
+    with pytest.raises(UsageError, match=r"feature 'action': no new calibration for it \(given for: obs\)"):
+        recalibrate_table(table, {"action": A}, {"obs": B})
+    with pytest.raises(
+        UsageError, match=r"none of the columns observation\.state, action; name the features"
+    ):
+        recalibrate_table(pa.table({"joints": vals}), A, B)
+    with pytest.raises(UsageError, match=r"expected a pyarrow\.Table, got FixedSizeListArray"):
+        recalibrate_table(vals, A, B)  # type: ignore[arg-type]
+    with pytest.raises(UsageError, match="the old calibration is a str; expected a ValueConvention"):
+        recalibrate_table(table, "a.json", B)  # type: ignore[arg-type]
+    ints = pa.FixedSizeListArray.from_arrays(pa.array(np.zeros(12, np.int64)), 6)
+    with pytest.raises(FileFormatError, match=r"'action': expected fixed_size_list<float>, found fixed_size"):
+        recalibrate_table(pa.table({"action": ints}), A, B)
+
+
+def test_mixed_feature_converts_positions_and_passes_the_rest_bit_identical(
+    lekiwi: Path, tmp_path: Path
+) -> None:
+    old, new = lekiwi_conv(HOMING_A, RANGE_A), lekiwi_conv(HOMING_B, RANGE_B)
+    rep = recalibrate_dataset(lekiwi, tmp_path / "dst", old, new, workers=2)
+    assert rep.joint_names == dict.fromkeys(FEATURES, ARM)  # the converted joints
+    assert set(rep.out_of_range["action"]) == set(ARM)
+    for key in FEATURES:
+        src, dst = raw_values(lekiwi, key), raw_values(tmp_path / "dst", key)
+        assert dst.dtype == np.float32 and dst.shape == (95, 9)
+        # velocities: the same bits (−0.0 and the subnormal included)
+        np.testing.assert_array_equal(dst[:, 6:].view(np.uint32), src[:, 6:].view(np.uint32))
+        # arm: exactly what the arm alone converts to
+        expected, _ = recalibrate_values(src[:, :6].astype(np.float64), old.select(ARM), new.select(ARM))
+        np.testing.assert_array_equal(dst[:, :6], expected.astype(np.float32))
+        assert not np.array_equal(dst[:, :6], src[:, :6])
+        # dataset stats of the whole feature recomputed from the new values, velocities included
+        stats = json.loads((tmp_path / "dst/meta/stats.json").read_text())[key]
+        np.testing.assert_array_equal(stats["min"], dst.min(axis=0).astype(np.float64))
+        np.testing.assert_array_equal(stats["max"], dst.max(axis=0).astype(np.float64))
+        assert stats["count"] == [95]
+    # and back: A → B → A reproduces every value
+    recalibrate_dataset(tmp_path / "dst", tmp_path / "back", new, old)
+    for key in FEATURES:
+        back, src = raw_values(tmp_path / "back", key), raw_values(lekiwi, key)
+        np.testing.assert_array_equal(back.view(np.uint32), src.view(np.uint32))
+
+
+def test_position_entry_without_calibration_is_an_error_naming_it(lekiwi: Path, tmp_path: Path) -> None:
+    cals = lekiwi_cals(HOMING_B, RANGE_B)
+    del cals["arm_wrist_roll"]
+    partial = LeRobotConvention.from_calibrations(cals, preset_modes("lekiwi", list(cals)), "feetech")
+    with pytest.raises(JointMismatchError, match=r"entry 'arm_wrist_roll.pos' not in the new calibration"):
+        recalibrate_dataset(lekiwi, tmp_path / "dst", lekiwi_conv(HOMING_A, RANGE_A), partial)
+    assert not (tmp_path / "dst").exists()
+    # a feature with nothing to convert is refused too
+    table = pa.table({"observation.velocity": pa.FixedSizeListArray.from_arrays(pa.array([0.5]), 1)})
+    conv = lekiwi_conv(HOMING_A, RANGE_A)
+    with pytest.raises(JointMismatchError, match=r"no joint-position entry .* entries: x.vel"):
+        recalibrate_table(table, conv, conv, features={"observation.velocity": ["x.vel"]})
+
+
+def test_recalibrate_table_keeps_nan_in_passed_through_entries() -> None:
+    conv_a, conv_b = lekiwi_conv(HOMING_A, RANGE_A), lekiwi_conv(HOMING_B, RANGE_B)
+    arm = conv_a.select(ARM).from_actual(np.full((2, 6), 2000.0))[0].astype(np.float32)
+    nan = np.frombuffer(np.array([0x7FC01234], dtype=np.uint32).tobytes(), dtype=np.float32)[0]
+    vel = np.array([[nan, 1.5, -0.0], [0.25, nan, 2.0]], dtype=np.float32)
+    vals = np.concatenate([vel[:, :1], arm, vel[:, 1:]], axis=1)  # entries may come in any order
+    names = ["x.vel", *(f"{j}.pos" for j in ARM), "y.vel", "theta.vel"]
+    table = pa.table({"action": pa.FixedSizeListArray.from_arrays(pa.array(vals.reshape(-1)), 9)})
+    out = column_of(recalibrate_table(table, conv_a, conv_b, features={"action": names}), "action")
+    keep = [0, 7, 8]
+    np.testing.assert_array_equal(out[:, keep].view(np.uint32), vals[:, keep].view(np.uint32))
+    expected = conv_b.select(ARM).from_actual(np.full((2, 6), 2000.0))[0].astype(np.float32)
+    np.testing.assert_array_equal(out[:, 1:7], expected)
+    vals[1, 3] = np.nan  # NaN in a converted entry is still refused
+    table = pa.table({"action": pa.FixedSizeListArray.from_arrays(pa.array(vals.reshape(-1)), 9)})
+    with pytest.raises(FileFormatError, match=r"1 NaN or inf entries \(first at row 1, entry 3\)"):
+        recalibrate_table(table, conv_a, conv_b, features={"action": names})

@@ -2,9 +2,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
+from dataset_testutil import (
+    HOMING_A,
+    RANGE_A,
+    A,
+    column,
+    lekiwi_conv,
+)
 
-from robocal.dataset import SO_ARM_JOINTS, generate_dataset, inspect_dataset
+from robocal.dataset import (
+    SO_ARM_JOINTS,
+    generate_dataset,
+    inspect_dataset,
+)
 from robocal.dataset.lerobot import LeRobotConvention, preset_modes
 from robocal.lerobot import MotorCalibration
 
@@ -42,3 +56,34 @@ def test_full_turn_jump_flagged(tmp_path: Path) -> None:
     assert pan.range_lo == pytest.approx(-1000 * 360 / 4095)
     assert pan.range_hi == pytest.approx(1000 * 360 / 4095)
     assert -1000 * 360 / 4095 <= pan.min < pan.mean < pan.max <= 1000 * 360 / 4095
+
+
+@pytest.fixture()
+def src(tmp_path: Path) -> Path:
+    root = tmp_path / "src"
+    generate_dataset(root, n_episodes=4, frames_per_episode=[30, 40, 25, 12], convention=A)
+    return root
+
+
+def test_inspect_counts_and_flags_nan(src: Path) -> None:
+    path = src / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(path)
+    vals = column(path, "action").astype(np.float32)
+    vals[3, 2] = np.nan
+    vals[4, 2] = np.inf
+    col = pa.FixedSizeListArray.from_arrays(pa.array(vals.ravel()), 6)
+    pq.write_table(table.set_column(1, table.schema.field(1), col), path)
+    rep = inspect_dataset(src, features=["action"])
+    elbow = next(j for j in rep.joints if j.joint == "elbow_flex")
+    assert elbow.non_finite == 2 and elbow.flagged
+    finite = vals[np.isfinite(vals[:, 2]), 2]
+    assert elbow.min <= finite.min() and np.isfinite(elbow.max) and np.isfinite(elbow.mean)
+    assert [j.joint for j in rep.flagged] == ["elbow_flex"]
+
+
+def test_inspect_mixed_feature_with_calibration(lekiwi: Path) -> None:
+    rep = inspect_dataset(lekiwi, calibration=lekiwi_conv(HOMING_A, RANGE_A))
+    by_joint = {(j.feature, j.joint): j for j in rep.joints}
+    assert by_joint[("action", "x.vel")].range_lo is None
+    assert by_joint[("action", "arm_gripper")].range_lo == pytest.approx(0.0)
+    assert rep.flagged == ()

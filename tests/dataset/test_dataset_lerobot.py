@@ -3,14 +3,31 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from dataset_testutil import HI, HOMING_A, HOMING_B, LO, RANGE_A, RANGE_B, all_values, cals, tree
+from dataset_testutil import (
+    HI,
+    HOMING_A,
+    HOMING_B,
+    LO,
+    RANGE_A,
+    RANGE_B,
+    all_values,
+    cals,
+    column,
+    tree,
+)
 from hypothesis import given
 from hypothesis import strategies as st
 
 from robocal.core.lerobot import LegacyCalibration
-from robocal.dataset import SO_ARM_JOINTS, generate_dataset, recalibrate_dataset, recalibrate_values
+from robocal.dataset import (
+    SO_ARM_JOINTS,
+    generate_dataset,
+    recalibrate_dataset,
+    recalibrate_values,
+)
 from robocal.dataset.lerobot import (
     LegacyConvention,
     LeRobotConvention,
@@ -255,3 +272,61 @@ def test_legacy_dataset_to_current_and_back(tmp_path: Path) -> None:
     cur = all_values(tmp_path / "current", "observation.state")[:, 0]
     actual = np.round(leg / 180 * 2048 + 2048)
     np.testing.assert_allclose(cur, (actual - 100 - 1925) * 360 / 4095, atol=1e-4)
+
+
+def test_legacy_degree_motor_with_equal_start_and_end() -> None:
+    # start_pos/end_pos only matter for LINEAR motors
+    cal = LegacyCalibration(["j"], [-2048], [0], [0], [0], ["DEGREE"])
+    values, mask = LegacyConvention(cal).from_actual(np.array([[3072.0]]))
+    assert values.tolist() == [[90.0]] and not mask.any()
+
+
+def _degrees_feetech(homing: int) -> LeRobotConvention:
+    cal = {"j": MotorCalibration(1, 0, homing, 0, 4095)}
+    return LeRobotConvention.from_calibrations(cal, {"j": "degrees"}, "feetech")
+
+
+@pytest.mark.parametrize("rows", [3, 20000])  # per-frame path and the distinct-value/tick look-up paths
+def test_feetech_value_from_no_single_turn_is_counted(rows: int) -> None:
+    a, b = _degrees_feetech(100), _degrees_feetech(-50)
+    values = np.zeros((rows, 1))
+    values[1, 0] = 1e6  # present ≈ 11.4 M ticks: no single-turn reading gives that
+    values[2, 0] = -200.0  # present 2047 − 2275 < 0: below the turn
+    new, mask = recalibrate_values(values, a, b)
+    assert mask[:, 0].tolist() == [False, True, True] + [False] * (rows - 3)
+    assert np.isfinite(new).all()
+    # inside the turn and wrapped once by the new homing: not counted (179° is present 4084 < 4096,
+    # actual 4184, new present 4234 → 138)
+    new, mask = recalibrate_values(np.array([[179.0]]), a, b)
+    assert not mask.any()
+    assert new[0, 0] == pytest.approx((138 - 2047.5) * 360 / 4095)
+
+
+def test_feetech_unreachable_values_are_reported_per_joint(tmp_path: Path) -> None:
+    conv = LeRobotConvention.from_calibrations(
+        {n: MotorCalibration(i + 1, 0, 0, 0, 4095) for i, n in enumerate(SO_ARM_JOINTS)},
+        preset_modes("so101_follower", SO_ARM_JOINTS),
+        "feetech",
+    )
+    src = tmp_path / "src"
+    generate_dataset(src, n_episodes=2, frames_per_episode=10, convention=conv, actual_lo=LO, actual_hi=HI)
+    path = src / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(path)
+    vals = column(path, "action").astype(np.float32)
+    vals[3, 1] = 1e6  # shoulder_lift, degrees mode
+    arr = pa.FixedSizeListArray.from_arrays(pa.array(vals.reshape(-1)), 6)
+    table = table.set_column(table.schema.get_field_index("action"), table.schema.field("action"), arr)
+    pq.write_table(table, path, row_group_size=10)
+    rep = recalibrate_dataset(src, tmp_path / "dst", conv, conv)  # same calibration: nothing else moves
+    assert rep.out_of_range["action"] == {n: int(n == "shoulder_lift") for n in SO_ARM_JOINTS}
+    assert rep.out_of_range["observation.state"] == dict.fromkeys(SO_ARM_JOINTS, 0)
+    assert rep.warnings == [
+        "action: values outside the new calibrated range (clamped where the mode clamps): shoulder_lift 1"
+    ]
+
+
+def test_far_actual_position_is_counted_on_the_feetech_side() -> None:
+    b = _degrees_feetech(0)
+    _, mask = b.from_actual(np.array([[2000.0], [2000.0 + 4096], [2000.0 + 3 * 4096], [-5000.0]]))
+    # one wrap is what two calibrations produce; more than one turn away is counted
+    assert mask[:, 0].tolist() == [False, False, True, True]

@@ -1,4 +1,4 @@
-"""Regression tests from the review of the dataset area (each failed before its fix)."""
+"""dataset/_driver.py, _root.py, _metadata.py: whole-root re-calibration (symbolic links, interrupts, workers, destinations, statistics)."""
 
 from __future__ import annotations
 
@@ -9,23 +9,34 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from dataset_testutil import A, B, all_values, column, tree
+from dataset_testutil import (
+    FEATURES,
+    HI,
+    HOMING_A,
+    HOMING_B,
+    LO,
+    RANGE_A,
+    RANGE_B,
+    A,
+    B,
+    all_values,
+    tree,
+)
 
 from robocal.cli.main import main
-from robocal.core.lerobot import LegacyCalibration
 from robocal.dataset import (
+    SO_ARM_JOINTS,
     _driver,
     generate_dataset,
     inspect_dataset,
     recalibrate_dataset,
-    recalibrate_table,
 )
-from robocal.dataset.lerobot import LegacyConvention
+from robocal.dataset.lerobot import LeRobotConvention, preset_modes
 from robocal.errors import FileFormatError, UsageError
 from robocal.formats import write_calibration
+from robocal.lerobot import MotorCalibration
 
 VIDEO = "videos/observation.images.front/chunk-000/file-000.mp4"
 
@@ -46,6 +57,19 @@ def _split_episode_across_files(root: Path) -> None:
     with pq.ParquetWriter(root / "data/chunk-001/file-000.parquet", table.schema) as writer:
         writer.write_table(table.slice(10, 7), row_group_size=7)
         writer.write_table(table.slice(17), row_group_size=100)
+
+
+def _slow_work(args: tuple[str, str, str, list[object]]) -> object:
+    import time
+
+    with open(os.environ["ROBOCAL_TEST_LOG"], "a") as log:
+        log.write(args[2] + "\n")
+    time.sleep(0.05)
+    return _driver.recalibrate_file(*args[:2], args[3], args[2])  # type: ignore[arg-type]
+
+
+def _dying_work(args: object) -> object:
+    os._exit(1)  # a worker killed mid-file (e.g. by the OOM killer)
 
 
 def test_episode_spanning_files_has_exact_quantiles(src: Path, tmp_path: Path) -> None:
@@ -118,15 +142,6 @@ def test_broken_symlink_in_source_is_an_error(src: Path, tmp_path: Path) -> None
     assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
 
 
-def _slow_work(args: tuple[str, str, str, list[object]]) -> object:
-    import time
-
-    with open(os.environ["ROBOCAL_TEST_LOG"], "a") as log:
-        log.write(args[2] + "\n")
-    time.sleep(0.05)
-    return _driver.recalibrate_file(*args[:2], args[3], args[2])  # type: ignore[arg-type]
-
-
 @pytest.mark.skipif(multiprocessing.get_start_method() != "fork", reason="patches the worker function")
 def test_interrupt_cancels_queued_files(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     src = tmp_path / "src"
@@ -165,51 +180,10 @@ def test_empty_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     assert np.isnan(summary.joints[0].min) and np.isnan(summary.joints[0].mean)
 
 
-def test_recalibrate_table_bad_inputs() -> None:
-    vals = pa.FixedSizeListArray.from_arrays(pa.array(np.zeros(12, np.float32)), 6)
-    table = pa.table({"action": vals})
-    with pytest.raises(UsageError, match=r"feature 'action': no new calibration for it \(given for: obs\)"):
-        recalibrate_table(table, {"action": A}, {"obs": B})
-    with pytest.raises(
-        UsageError, match=r"none of the columns observation\.state, action; name the features"
-    ):
-        recalibrate_table(pa.table({"joints": vals}), A, B)
-    with pytest.raises(UsageError, match=r"expected a pyarrow\.Table, got FixedSizeListArray"):
-        recalibrate_table(vals, A, B)  # type: ignore[arg-type]
-    with pytest.raises(UsageError, match="the old calibration is a str; expected a ValueConvention"):
-        recalibrate_table(table, "a.json", B)  # type: ignore[arg-type]
-    ints = pa.FixedSizeListArray.from_arrays(pa.array(np.zeros(12, np.int64)), 6)
-    with pytest.raises(FileFormatError, match=r"'action': expected fixed_size_list<float>, found fixed_size"):
-        recalibrate_table(pa.table({"action": ints}), A, B)
-
-
 def test_dataset_per_feature_mapping_without_the_feature(src: Path, tmp_path: Path) -> None:
     with pytest.raises(UsageError, match="feature 'action': no old calibration for it"):
         recalibrate_dataset(src, tmp_path / "dst", {"observation.state": A}, B)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
-
-
-def test_inspect_counts_and_flags_nan(src: Path) -> None:
-    path = src / "data/chunk-000/file-000.parquet"
-    table = pq.read_table(path)
-    vals = column(path, "action").astype(np.float32)
-    vals[3, 2] = np.nan
-    vals[4, 2] = np.inf
-    col = pa.FixedSizeListArray.from_arrays(pa.array(vals.ravel()), 6)
-    pq.write_table(table.set_column(1, table.schema.field(1), col), path)
-    rep = inspect_dataset(src, features=["action"])
-    elbow = next(j for j in rep.joints if j.joint == "elbow_flex")
-    assert elbow.non_finite == 2 and elbow.flagged
-    finite = vals[np.isfinite(vals[:, 2]), 2]
-    assert elbow.min <= finite.min() and np.isfinite(elbow.max) and np.isfinite(elbow.mean)
-    assert [j.joint for j in rep.flagged] == ["elbow_flex"]
-
-
-def test_legacy_degree_motor_with_equal_start_and_end() -> None:
-    # start_pos/end_pos only matter for LINEAR motors
-    cal = LegacyCalibration(["j"], [-2048], [0], [0], [0], ["DEGREE"])
-    values, mask = LegacyConvention(cal).from_actual(np.array([[3072.0]]))
-    assert values.tolist() == [[90.0]] and not mask.any()
 
 
 def test_overwrite_keeps_old_destination_when_the_final_rename_fails(
@@ -256,10 +230,6 @@ def test_relative_paths_and_dot_destination(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.yaml", "b.yaml", "out", "src"]
 
 
-def _dying_work(args: object) -> object:
-    os._exit(1)  # a worker killed mid-file (e.g. by the OOM killer)
-
-
 def test_dead_worker_is_one_error_not_a_traceback(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -271,3 +241,56 @@ def test_dead_worker_is_one_error_not_a_traceback(
     assert info.value.exit_code == 3
     assert multiprocessing.active_children() == []
     assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
+
+
+def _so_conv(homing: list[int]) -> LeRobotConvention:
+    ranges = RANGE_A if homing is HOMING_A else RANGE_B
+    return LeRobotConvention.from_calibrations(
+        {n: MotorCalibration(i + 1, 0, homing[i], *ranges[i]) for i, n in enumerate(SO_ARM_JOINTS)},
+        preset_modes("so101_follower", SO_ARM_JOINTS),
+        "feetech",
+    )
+
+
+def test_data_without_episode_index_recomputes_dataset_stats(tmp_path: Path) -> None:
+    src = tmp_path / "src"
+    generate_dataset(
+        src,
+        n_episodes=4,
+        frames_per_episode=[30, 40, 25, 12],
+        convention=_so_conv(HOMING_A),
+        actual_lo=LO,
+        actual_hi=HI,
+    )
+    path = src / "data/chunk-000/file-001.parquet"  # episodes 2 and 3
+    pf = pq.ParquetFile(path)
+    parts = [pf.read_row_group(g).drop(["episode_index"]) for g in range(pf.metadata.num_row_groups)]
+    with pq.ParquetWriter(path, parts[0].schema) as writer:
+        for t in parts:
+            writer.write_table(t, row_group_size=t.num_rows)
+    old_episodes = pq.read_table(src / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    rep = recalibrate_dataset(src, tmp_path / "dst", _so_conv(HOMING_A), _so_conv(HOMING_B))
+    assert rep.frames == 107
+    assert rep.warnings[0] == (
+        "data file data/chunk-000/file-001.parquet has no 'episode_index' column: meta/stats.json is "
+        "recomputed from its 37 frames, but per-episode statistics cannot be updated for them"
+    )
+    assert rep.warnings[1].startswith(
+        "meta/episodes/chunk-000/file-000.parquet: per-episode statistics of observation.state, action "
+        "for 2 episode(s) (2, 3) could not be updated"
+    )
+    assert len(rep.warnings) == 2
+    stats = json.loads((tmp_path / "dst/meta/stats.json").read_text())
+    for key in FEATURES:
+        values = all_values(tmp_path / "dst", key)
+        assert stats[key]["count"] == [107]
+        np.testing.assert_array_equal(stats[key]["min"], values.min(axis=0))
+        np.testing.assert_array_equal(stats[key]["max"], values.max(axis=0))
+        np.testing.assert_allclose(stats[key]["mean"], values.mean(axis=0), rtol=1e-12)
+        np.testing.assert_allclose(stats[key]["std"], values.std(axis=0), rtol=1e-9)
+    episodes = pq.read_table(tmp_path / "dst/meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    values = all_values(tmp_path / "dst", "action")
+    # episodes 0 and 1 (first file) updated; 2 and 3 kept as they were
+    np.testing.assert_array_equal(episodes[0]["stats/action/min"], values[:30].min(axis=0))
+    for e in (2, 3):
+        assert episodes[e]["stats/action/min"] == old_episodes[e]["stats/action/min"]
