@@ -24,6 +24,8 @@ from .se3 import eigen_euler_xyz, rot_z, rpy_urdf_from_matrix, transform_from_xy
 from .ur_correction import MIN_ABS_COS_ALPHA, correct_chain, six_transforms, split_chain
 from .urhash import calib_hash
 
+FloatArray = NDArray[np.float64]
+
 __all__ = [
     "JOINT_NAMES",
     "LINK_NAMES",
@@ -46,7 +48,6 @@ __all__ = [
     "split_chain",
 ]
 
-FloatArray = NDArray[np.float64]
 
 LINK_NAMES: tuple[str, ...] = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
 """Keys under ``kinematics`` in ur_description's YAML, in file order."""

@@ -17,13 +17,14 @@ before writing, writes atomically and keeps ``NAME.bak``.
 
 from __future__ import annotations
 
-from ._base import CalibrationFile, FormatSpec
+from ._base import CalibrationFile, FormatSpec, Traits
 from .registry import FORMATS, detect_format, read_calibration, read_existing_output, write_calibration
 
 __all__ = [
     "FORMATS",
     "CalibrationFile",
     "FormatSpec",
+    "Traits",
     "detect_format",
     "read_calibration",
     "read_existing_output",

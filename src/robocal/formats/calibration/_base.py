@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from enum import Flag, auto
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
@@ -19,7 +20,7 @@ from ...fileio import read_text
 from .._yaml import load_yaml
 from ..urdf import UrdfModel
 
-__all__ = ["CalibrationFile", "Content", "FormatSpec", "Reader", "Writer"]
+__all__ = ["CalibrationFile", "Content", "FormatSpec", "Reader", "Traits", "Writer"]
 
 
 @dataclass(frozen=True)
@@ -85,13 +86,24 @@ class Writer(Protocol):
     ) -> None: ...
 
 
+class Traits(Flag):
+    """What a format's files hold besides the homing offsets."""
+
+    NONE = 0
+    DIRECTIONS = auto()
+    """A direction per joint."""
+    IDS = auto()
+    """A motor id per joint."""
+    SELF_CONTAINED = auto()
+    """A file reads back without a URDF, profile or joint order."""
+
+
 @dataclass(frozen=True)
 class FormatSpec:
-    """One calibration file format, as the registry knows it.
+    """One calibration file format, as the registry knows it (the format's module describes the format).
 
     Attributes:
         name: The format name users pass (``--from``/``--to``).
-        description: One line for help texts.
         reader: Reads a file of this format.
         writer: Writes one; None for a read-only format.
         sniff: True when parsed content (see :class:`Content`) is this format; may raise
@@ -99,21 +111,31 @@ class FormatSpec:
         sniff_rank: Sniffers run in ascending rank (then registry order): 0 a format tag, 1 a distinctive
             key, 2 only the shape of the data.
         suffixes: File suffixes (lower case) a new destination of this format is recognised by.
-        self_contained: A file reads back without a URDF, profile or joint order.
-        stores_directions: The file holds a direction per joint.
-        stores_ids: The file holds a motor id per joint.
+        traits: What the files hold (:class:`Traits`).
     """
 
     name: str
-    description: str
     reader: Reader
     writer: Writer | None
     sniff: Callable[[Content], bool]
     sniff_rank: int
     suffixes: tuple[str, ...] = ()
-    self_contained: bool = False
-    stores_directions: bool = False
-    stores_ids: bool = False
+    traits: Traits = Traits.NONE
+
+    @property
+    def self_contained(self) -> bool:
+        """A file reads back without a URDF, profile or joint order."""
+        return Traits.SELF_CONTAINED in self.traits
+
+    @property
+    def stores_directions(self) -> bool:
+        """The file holds a direction per joint."""
+        return Traits.DIRECTIONS in self.traits
+
+    @property
+    def stores_ids(self) -> bool:
+        """The file holds a motor id per joint."""
+        return Traits.IDS in self.traits
 
 
 def first_value(data: Mapping[Any, Any]) -> Any:

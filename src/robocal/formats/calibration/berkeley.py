@@ -200,11 +200,4 @@ def sniff(content: Content) -> bool:
     return content.kind != "xml" and "position_offsets" in content.data
 
 
-SPEC = FormatSpec(
-    name="berkeley-offsets",
-    description="Berkeley-Humanoid-Lite-Lowlevel {position_offsets: [...]} (joint frame, positional)",
-    reader=read,
-    writer=write,
-    sniff=sniff,
-    sniff_rank=1,
-)
+SPEC = FormatSpec("berkeley-offsets", read, write, sniff, sniff_rank=1)

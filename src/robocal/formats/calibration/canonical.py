@@ -15,7 +15,7 @@ from ...fileio import atomic_write_text
 from .._numbers import parse_direction, parse_finite, parse_motor_id
 from .._yaml import yaml_float
 from ..urdf import UrdfModel
-from ._base import CalibrationFile, Content, FormatSpec, check_unique_ids, ids_from, yaml_data
+from ._base import CalibrationFile, Content, FormatSpec, Traits, check_unique_ids, ids_from, yaml_data
 
 ROBOCAL_FORMAT_TAG = "robocal-joint-map"
 
@@ -90,14 +90,5 @@ def sniff(content: Content) -> bool:
     return content.kind == "yaml" and content.data.get("format") == ROBOCAL_FORMAT_TAG
 
 
-SPEC = FormatSpec(
-    name="robocal",
-    description="robocal canonical joint map YAML (direction, homing_offset, scale)",
-    reader=read,
-    writer=write,
-    sniff=sniff,
-    sniff_rank=0,
-    self_contained=True,
-    stores_directions=True,
-    stores_ids=True,
-)
+_TRAITS = Traits.DIRECTIONS | Traits.IDS | Traits.SELF_CONTAINED
+SPEC = FormatSpec("robocal", read, write, sniff, sniff_rank=0, traits=_TRAITS)

@@ -6,7 +6,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from ._base import CalibrationFile, Content, FormatSpec
+from ._base import CalibrationFile, Content, FormatSpec, Traits
 
 
 def read(path: Path, **_: Any) -> CalibrationFile:
@@ -29,12 +29,4 @@ def sniff(content: Content) -> bool:
     return content.kind == "json" and "motor_names" in content.data and "homing_offset" in content.data
 
 
-SPEC = FormatSpec(
-    name="lerobot-legacy",
-    description="LeRobot legacy array JSON (read only; DEGREE joints)",
-    reader=read,
-    writer=None,
-    sniff=sniff,
-    sniff_rank=1,
-    stores_directions=True,
-)
+SPEC = FormatSpec("lerobot-legacy", read, None, sniff, sniff_rank=1, traits=Traits.DIRECTIONS)

@@ -11,7 +11,7 @@ from ...errors import FileFormatError
 from ...fileio import atomic_write_text, read_text
 from .._json import load_json
 from ..urdf import UrdfModel
-from ._base import CalibrationFile, Content, FormatSpec, first_value
+from ._base import CalibrationFile, Content, FormatSpec, Traits, first_value
 from ._lite import lite_entries, parse_lite
 
 _MOTOR_CONFIG_KEYS = ("position_controller", "current_controller", "powerstage")
@@ -58,15 +58,5 @@ def sniff(content: Content) -> bool:
     return isinstance(first, dict) and "range_min" not in first
 
 
-SPEC = FormatSpec(
-    name="lite-json",
-    description="Lite-Lowlevel-Python calibration.json {joint: {id, direction, homing_offset}}",
-    reader=read,
-    writer=write,
-    sniff=sniff,
-    sniff_rank=2,
-    suffixes=(".json",),
-    self_contained=True,
-    stores_directions=True,
-    stores_ids=True,
-)
+_TRAITS = Traits.DIRECTIONS | Traits.IDS | Traits.SELF_CONTAINED
+SPEC = FormatSpec("lite-json", read, write, sniff, sniff_rank=2, suffixes=(".json",), traits=_TRAITS)

@@ -16,7 +16,7 @@ from ...errors import FileFormatError
 from ...fileio import atomic_write_text, read_text
 from .._yaml import dump_yaml, load_yaml
 from ..urdf import UrdfModel
-from ._base import CalibrationFile, Content, FormatSpec, first_value, yaml_data
+from ._base import CalibrationFile, Content, FormatSpec, Traits, first_value, yaml_data
 from ._lite import LITE_KEYS, lite_entries, parse_lite
 
 
@@ -63,15 +63,5 @@ def sniff(content: Content) -> bool:
     return content.kind == "yaml" and isinstance(first_value(content.data), Mapping)
 
 
-SPEC = FormatSpec(
-    name="lite-yaml",
-    description="Humanoid-Control calibration.yaml (same schema; updated in place)",
-    reader=read,
-    writer=write,
-    sniff=sniff,
-    sniff_rank=2,
-    suffixes=(".yaml", ".yml"),
-    self_contained=True,
-    stores_directions=True,
-    stores_ids=True,
-)
+_TRAITS = Traits.DIRECTIONS | Traits.IDS | Traits.SELF_CONTAINED
+SPEC = FormatSpec("lite-yaml", read, write, sniff, sniff_rank=2, suffixes=(".yaml", ".yml"), traits=_TRAITS)

@@ -26,16 +26,6 @@ from ..urdf import UrdfModel
 from . import berkeley, canonical, lerobot_legacy, lite_json, lite_yaml, transmission
 from ._base import CalibrationFile, Content, FormatSpec, first_value
 
-__all__ = [
-    "FORMATS",
-    "CalibrationFile",
-    "FormatSpec",
-    "detect_format",
-    "read_calibration",
-    "read_existing_output",
-    "write_calibration",
-]
-
 FORMATS: dict[str, FormatSpec] = {
     spec.name: spec
     for spec in (

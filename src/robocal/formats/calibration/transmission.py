@@ -17,7 +17,7 @@ from ...errors import FileFormatError
 from ...fileio import atomic_write_bytes, read_bytes
 from .._numbers import format_float, parse_finite
 from ..urdf import UrdfDocument, UrdfModel, _model_from_tree, _parse_tree
-from ._base import CalibrationFile, Content, FormatSpec
+from ._base import CalibrationFile, Content, FormatSpec, Traits
 
 _SIMPLE = "SimpleTransmission"
 
@@ -213,13 +213,4 @@ def sniff(content: Content) -> bool:
     return content.kind == "xml"
 
 
-SPEC = FormatSpec(
-    name="ros2-transmission",
-    description="URDF <transmission> SimpleTransmission (mechanical_reduction, offset)",
-    reader=read,
-    writer=write,
-    sniff=sniff,
-    sniff_rank=1,
-    suffixes=(".urdf", ".xml"),
-    stores_directions=True,
-)
+SPEC = FormatSpec("ros2-transmission", read, write, sniff, 1, (".urdf", ".xml"), Traits.DIRECTIONS)
