@@ -78,8 +78,9 @@ def test_a_file_over_the_input_limit_is_named_as_too_large(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import robocal.fileio as fileio
+    import robocal.fileio.read as fileio_read
 
-    monkeypatch.setattr(fileio, "MAX_FILE_BYTES", 10)
+    monkeypatch.setattr(fileio_read, "MAX_FILE_BYTES", 10)  # the limit read_bytes applies
     big = tmp_path / "robot.urdf"
     big.write_bytes(b"x" * 11)
     with pytest.raises(FileFormatError) as err:
