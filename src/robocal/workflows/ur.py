@@ -231,9 +231,7 @@ def read_controller_dh(host: str, *, port: int = 30001, timeout_s: float = 10.0)
         CalibTimeoutError, ProtocolError, DeviceError: As :class:`~robocal.backends.ur_primary.PrimaryClient`.
     """
     _check_connection(host, port, timeout_s)
-    from ..backends.ur_primary import PrimaryClient
-
-    with PrimaryClient(host, port, timeout_s) as client:
+    with load_backend("ur_primary")(host, port, timeout_s) as client:
         info = client.read_kinematics()
         return info.dh, list(client.warnings)
 
