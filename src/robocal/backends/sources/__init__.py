@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ...errors import UsageError
-from .can import RobstrideSource, SimLiteSource, open_can, open_sim_lite
+from .can import RobstrideSource, SimLiteSource, open_can, open_sim_lite_source
 from .recording import ReplaySource, StreamReplaySource
 from .spec import FRAMES, SIM_OPTIONS, JointSpec, Sample, Source, SourceSpec, parse_source
 
@@ -64,7 +64,7 @@ def open_source(
     if frame is not None and frame not in FRAMES:
         raise UsageError(f"--frame {frame!r}: expected one of {', '.join(FRAMES)}")
     if spec.kind == "sim":
-        return open_sim_lite(spec, joints)
+        return open_sim_lite_source(spec, joints)
     if spec.kind == "can":
         return open_can(spec, joints, timeout_s)
     from ..replay import open_recording

@@ -17,7 +17,7 @@ from ...errors import CalibTimeoutError, JointMismatchError, UsageError
 from .. import load_backend
 from .spec import JointSpec, Sample, SourceSpec
 
-__all__ = ["RobstrideSource", "SimLiteSource", "open_can", "open_sim_lite"]
+__all__ = ["RobstrideSource", "SimLiteSource", "open_can", "open_sim_lite_source"]
 
 
 class RobstrideSource:
@@ -137,7 +137,7 @@ class SimLiteSource(RobstrideSource):
         self.sim.stop()
 
 
-def open_sim_lite(spec: SourceSpec, joints: Sequence[JointSpec]) -> SimLiteSource:
+def open_sim_lite_source(spec: SourceSpec, joints: Sequence[JointSpec]) -> SimLiteSource:
     """Start the simulated Lite with the ``sim:lite?...`` options and read ``joints`` from it."""
     from ..sim.lite import SimLite
 
