@@ -257,6 +257,21 @@ class _Robot:
             h.visible = visible
 
 
+TABLE_HZ = 10.0
+"""Most redraws of the joint table per second (the pose and the page state follow every update)."""
+
+
+def plain_lights(server: Any) -> None:
+    """Plain ambient + directional lights instead of viser's image-based lighting.
+
+    The default environment map costs about 20 s per page load on a software renderer (no GPU) and slows every
+    frame there; simple-shape robots gain nothing from it.
+    """
+    server.scene.configure_environment_map(hdri=None)
+    server.scene.add_light_ambient("/light/ambient", intensity=1.2)
+    server.scene.add_light_directional("/light/sun", intensity=1.8, position=(2.0, -2.0, 3.0))
+
+
 class ViewerApp:
     """A local web page showing ``model`` posed by the newest joint frame.
 
@@ -317,6 +332,8 @@ class ViewerApp:
         self.robot: _Robot | None = None
         self.ghost: _Robot | None = None
         self._panel: Any = None
+        self._status_el: Any = None
+        self._table_drawn_s = -math.inf
         self._banner: Any = None
         self._outside_now = np.zeros(len(self.joint_names), dtype=bool)
 
@@ -491,7 +508,7 @@ class ViewerApp:
             self._outside_now = update.outside.copy()
             if self.ghost is not None and update.ghost_local is not None:
                 self.ghost.pose(update.ghost_local)
-            self._render_panel(update)
+            self._render_panel(update, force_table=changed.size > 0)
             self._sync_replay()
             for hook in self._hooks:
                 hook(self, update)
@@ -543,6 +560,7 @@ class ViewerApp:
         server = self.server
         server.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
         server.scene.set_up_direction("+z")
+        plain_lights(server)
         server.scene.add_grid("/grid", width=2.0, height=2.0, cell_size=0.1, plane="xy")
         self.robot = _Robot(server, self.model, "/robot", rgb=None, opacity=None)
         if self.compare is not None:
@@ -560,7 +578,8 @@ class ViewerApp:
 
             toggle.on_update(show_ghost)
 
-        self._panel = server.gui.add_html(self._panel_html(None))
+        self._panel = server.gui.add_html(self._table_html(None))
+        self._status_el = server.gui.add_html(self._status_html())
         world, rest = self.model.poses(np.zeros(len(self.joint_names)))
         pts = np.array([T[:3, 3] for T in world.values()])
         centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
@@ -627,7 +646,7 @@ class ViewerApp:
         if self._banner is not None:
             self._banner.content = self._banner_html()
 
-    def _panel_html(self, update: PageUpdate | None) -> str:
+    def _table_html(self, update: PageUpdate | None) -> str:
         unit = html.escape(self.raw_unit)
         head = (
             '<table id="robocal-joints" style="width:100%;font-size:0.8em;border-collapse:collapse">'
@@ -663,15 +682,25 @@ class ViewerApp:
                 '<td style="width:25%"><div style="position:relative;height:8px;background:#ddd;'
                 f'border:1px solid {"#d00" if outside else "#bbb"}">{bar}</div></td></tr>'
             )
+        return head + "".join(rows) + "</table>"
+
+    def _status_html(self) -> str:
         status = html.escape(json.dumps(self.status(), separators=(",", ":")), quote=True)
         return (
-            head
-            + "".join(rows)
-            + "</table>"
-            + f'<div id="robocal-status" data-updates="{self.updates}" data-status="{status}" '
+            f'<div id="robocal-status" data-updates="{self.updates}" data-status="{status}" '
             f'style="font-size:0.7em;color:#666">updates {self.updates} · dropped {self.slot.dropped}</div>'
         )
 
-    def _render_panel(self, update: PageUpdate) -> None:
-        if self._panel is not None:
-            self._panel.content = self._panel_html(update)
+    def _render_panel(self, update: PageUpdate, *, force_table: bool = False) -> None:
+        """Draw the page state every update, the joint table at most :data:`TABLE_HZ` times a second.
+
+        The table is also redrawn when a joint crosses a limit; redrawing it is most of a GPU-less browser's work.
+        """
+        if self._status_el is not None:
+            self._status_el.content = self._status_html()
+        if self._panel is None:
+            return
+        now = self.clock()
+        if force_table or now - self._table_drawn_s >= 1.0 / TABLE_HZ:
+            self._panel.content = self._table_html(update)
+            self._table_drawn_s = now

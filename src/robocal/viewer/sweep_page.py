@@ -430,14 +430,6 @@ class SweepWebView:
         self.overlay.redraw()
 
 
-def _plain_lights(app: ViewerApp) -> None:
-    """Plain lights instead of viser's image-based lighting, which costs ~20 s per page load without a GPU."""
-    scene = app.server.scene
-    scene.configure_environment_map(hdri=None)
-    scene.add_light_ambient("/light/ambient", intensity=1.2)
-    scene.add_light_directional("/light/sun", intensity=1.8, position=(2.0, -2.0, 3.0))
-
-
 def open_sweep_page(
     urdf: str | Any,
     *,
@@ -459,7 +451,6 @@ def open_sweep_page(
     app = ViewerApp(model, host=host, port=port, title=f"{title}: {model.name}", rate_hz=20.0).start()
     try:
         app.server.gui.main_panel.dock_right()  # the robot beside the joint table, not under it
-        _plain_lights(app)
         for w in model.warnings:
             app.message(w, "warning")
         app.set_source_state("running")
@@ -585,7 +576,6 @@ def open_lerobot_sweep_page(
     app = ViewerApp(model, host=host, port=port, title=f"lerobot calibrate: {robot}", rate_hz=20.0).start()
     try:
         app.server.gui.main_panel.dock_right()
-        _plain_lights(app)
         for w in model.warnings:
             app.message(w, "warning")
         app.message("move every joint through its whole range; the arcs show the recorded range")

@@ -49,6 +49,7 @@ from ..core.ur import (
 from ..errors import BackendNotAvailableError, UsageError
 from ..workflows import ur as ur_wf
 from ..workflows import ur_verify
+from .app import plain_lights
 
 __all__ = [
     "CALIBRATED_RGB",
@@ -346,11 +347,7 @@ class UrViewPage:
         server.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
         server.gui.main_panel.dock_right()  # the 3D view beside the panel, not under it
         server.scene.set_up_direction("+z")
-        # Plain lights instead of the default image-based lighting, which costs seconds per page load on a
-        # software renderer (no GPU) and adds nothing to two stick arms.
-        server.scene.configure_environment_map(hdri=None)
-        server.scene.add_light_ambient("/light/ambient", intensity=1.2)
-        server.scene.add_light_directional("/light/sun", intensity=1.5, position=(2.0, -3.0, 4.0))
+        plain_lights(server)
         r = self.view.reach_m
         server.scene.add_grid(
             "/grid", width=4 * r, height=4 * r, cell_size=0.1, plane="xy", position=(0, r / 2, 0)
