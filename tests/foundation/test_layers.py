@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 SRC = Path(__file__).resolve().parents[2] / "src" / "robocal"
 LAYERS = ["core", "backends", "formats", "workflows", "cli"]  # imports point down (left) only
 HEAVY = [
@@ -49,30 +51,168 @@ def test_core_imports_with_numpy_alone() -> None:
     assert "jointmap" in modules and "lerobot.normalisation" in modules
 
 
-def _robocal_imports(path: Path) -> set[str]:
-    tree = ast.parse(path.read_text())
-    found: set[str] = set()
+def _resolve(path: Path, node: ast.ImportFrom) -> str:
+    """The absolute module an ``ImportFrom`` names (relative imports resolved against ``path``)."""
+    if not node.level:
+        return node.module or ""
     pkg = path.relative_to(SRC.parent).with_suffix("").parts
+    base = list(pkg[: len(pkg) - node.level])
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _robocal_imports(path: Path, text: str | None = None) -> set[str]:
+    """Every ``robocal`` module ``path`` imports, at module level or lazily inside a function.
+
+    ``from robocal import errors`` / ``from .. import errors`` count as importing ``robocal.errors``.
+    """
+    tree = ast.parse(path.read_text() if text is None else text)
+    found: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = list(pkg[: len(pkg) - node.level])
-                target = ".".join(base + ([node.module] if node.module else []))
+            target = _resolve(path, node)
+            if target == "robocal":
+                found.update(f"robocal.{alias.name}" for alias in node.names)
             else:
-                target = node.module or ""
-            found.add(target)
+                found.add(target)
         elif isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
-    return {t for t in found if t.startswith("robocal")}
+    return {t for t in found if t == "robocal" or t.startswith("robocal.")}
+
+
+# Every package and top-level module under src/robocal, lowest first. A module may import from its own entry
+# and from entries to its left, never from one to its right (that import would run back up).
+LAYERS = [
+    "errors",  # the exception tree
+    "fileio",  # atomic writes, bounded reads
+    "core",  # pure numpy
+    "backends",  # hardware, recordings, simulators
+    "formats",  # calibration files in and out
+    "lerobot",  # the public LeRobot facade (normalisation, calibration paths, legacy files)
+    "dataset",  # dataset recalibration engine
+    "workflows",  # one module per job
+    "cli",  # typer commands
+    "__main__",  # python -m robocal
+]
+_RANK = {name: i for i, name in enumerate(LAYERS)}
+
+# Imports that still run back up, each with what removes it (issue 16). This list only shrinks: an import
+# that runs back up and is not listed here fails the test.
+UPWARD_PENDING = {
+    "formats/calibration.py imports robocal.lerobot": "lr: legacy LeRobot conversion moves below formats",
+}
+
+
+def _entry(path: Path) -> str:
+    """The LAYERS entry of a file: its top-level package, or its module name for a top-level module."""
+    return path.relative_to(SRC).parts[0].removesuffix(".py")
+
+
+def _upward_imports() -> list[str]:
+    violations = []
+    for path in sorted(SRC.rglob("*.py")):
+        if path == SRC / "__init__.py":
+            continue  # the package root re-exports the public API (only robocal.errors today)
+        own = _RANK[_entry(path)]
+        for target in sorted(_robocal_imports(path)):
+            parts = target.split(".")
+            if len(parts) < 2 or parts[1] not in _RANK:
+                continue  # importlib.metadata-style names are not robocal modules
+            if _RANK[parts[1]] > own:
+                violations.append(f"{path.relative_to(SRC).as_posix()} imports robocal.{parts[1]}")
+    return violations
+
+
+def test_every_package_has_a_layer() -> None:
+    entries = {
+        p.name.removesuffix(".py")
+        for p in SRC.iterdir()
+        if (p.is_dir() and (p / "__init__.py").exists()) or (p.suffix == ".py" and p.name != "__init__.py")
+    }
+    assert entries == set(LAYERS), "place each package of src/robocal in LAYERS"
+    assert {"lerobot", "dataset"} <= entries
+
+
+def test_root_package_imports_errors_only() -> None:
+    assert _robocal_imports(SRC / "__init__.py") == {"robocal.errors"}
 
 
 def test_imports_point_down_only() -> None:
-    violations = []
-    for i, layer in enumerate(LAYERS):
-        above = LAYERS[i + 1 :]
-        for path in (SRC / layer).rglob("*.py"):
-            for target in _robocal_imports(path):
-                parts = target.split(".")
-                if len(parts) > 1 and parts[1] in above:
-                    violations.append(f"{path.relative_to(SRC)} imports {target}")
-    assert violations == []
+    violations = set(_upward_imports())
+    assert violations - set(UPWARD_PENDING) == set()
+
+
+def test_the_checker_sees_an_upward_import() -> None:
+    """The import walker finds lazy, relative and ``from .. import`` imports (so the check can fail)."""
+    text = "import numpy\n\ndef f() -> None:\n    from ..workflows import sweep\n    from .. import cli\n"
+    found = _robocal_imports(SRC / "core" / "_probe.py", text)
+    assert found == {"robocal.workflows", "robocal.cli"}
+    assert _entry(SRC / "core" / "_probe.py") == "core"
+
+
+# --- one job per module, one meaning per class name (issue 16) ---------------------------------------------
+
+MAX_LINES = 500
+
+# Modules still over MAX_LINES, each with the helper splitting it. This list only shrinks.
+OVERSIZE_PENDING = {
+    "fileio.py": "st1",
+    "formats/calibration.py": "st1",
+    "backends/sources.py": "st1",
+    "dataset/_driver.py": "st1",
+    "dataset/_engine.py": "st1",
+    "core/ur.py": "st1",
+    "workflows/ur.py": "st1",
+    "core/lerobot.py": "lr",
+    "workflows/lerobot.py": "lr",
+    "cli/lerobot.py": "lr",
+    "core/sweep.py": "st2",
+    "workflows/sweep.py": "st2",
+    "cli/sweep.py": "st2",
+    "backends/sim/servo.py": "phys",
+}
+
+# Class names still defined in more than one module, with the helper renaming them. This list only shrinks.
+DUPLICATE_CLASS_PENDING = {
+    "SweepView": "st2 (workflows/sweep.py) and lr (workflows/lerobot.py)",
+    "SimOperator": "lr (backends/sim/lerobot_arms.py)",
+    "MotorSpec": "lr (core/lerobot.py)",
+    "RangeTracker": "lr (one wrap-aware tracker in core)",
+}
+
+
+def _line_counts() -> dict[str, int]:
+    return {p.relative_to(SRC).as_posix(): len(p.read_text().splitlines()) for p in sorted(SRC.rglob("*.py"))}
+
+
+def _class_definitions() -> dict[str, list[str]]:
+    found: dict[str, list[str]] = {}
+    for path in sorted(SRC.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef):
+                found.setdefault(node.name, []).append(path.relative_to(SRC).as_posix())
+    return found
+
+
+def test_no_module_over_500_lines() -> None:
+    counts = _line_counts()
+    over = {name: n for name, n in counts.items() if n > MAX_LINES and name not in OVERSIZE_PENDING}
+    assert over == {}, f"split these by job (at most {MAX_LINES} lines each)"
+    assert counts["errors.py"] < MAX_LINES  # the walk sees the top-level modules
+
+
+def test_no_class_name_defined_twice() -> None:
+    defined = _class_definitions()
+    twice = {name: where for name, where in defined.items() if len(where) > 1}
+    assert set(twice) - set(DUPLICATE_CLASS_PENDING) == set(), twice
+    assert "CalibError" in defined  # the walk sees the classes
+
+
+@pytest.mark.xfail(
+    strict=False,
+    reason="issue 16 in progress: "
+    + "; ".join(
+        [*UPWARD_PENDING, *(f"{k} > {MAX_LINES} lines" for k in OVERSIZE_PENDING), *DUPLICATE_CLASS_PENDING]
+    ),
+)
+def test_issue16_nothing_pending() -> None:
+    assert (UPWARD_PENDING, OVERSIZE_PENDING, DUPLICATE_CLASS_PENDING) == ({}, {}, {})
