@@ -165,15 +165,12 @@ OVERSIZE_PENDING = {
     "core/lerobot.py": "lr",
     "workflows/lerobot.py": "lr",
     "cli/lerobot.py": "lr",
-    "core/sweep.py": "st2",
-    "workflows/sweep.py": "st2",
-    "cli/sweep.py": "st2",
     "backends/sim/servo.py": "phys",
 }
 
 # Class names still defined in more than one module, with the helper renaming them. This list only shrinks.
 DUPLICATE_CLASS_PENDING = {
-    "SweepView": "st2 (workflows/sweep.py) and lr (workflows/lerobot.py)",
+    "SweepView": "lr (workflows/lerobot.py; the sweep's is HardStopSweepView now)",
     "SimOperator": "lr (backends/sim/lerobot_arms.py)",
     "MotorSpec": "lr (core/lerobot.py)",
     "RangeTracker": "lr (one wrap-aware tracker in core)",

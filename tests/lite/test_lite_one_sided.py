@@ -24,12 +24,14 @@ from rich.console import Console
 from ruamel.yaml import YAML
 
 from robocal.backends.sources import open_source
+from robocal.cli._sweep_view import LiveView
 from robocal.cli.main import main
-from robocal.cli.sweep import LiveView
 from robocal.core.sweep import analyse_sweep, one_sided_position_offset
 from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
-from robocal.workflows.sweep import SweepSession, joints_from_urdf, run_sweep
+from robocal.workflows.joint_specs import joints_from_urdf
+from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep_session import SweepSession
 
 
 def _replay(path: Path = REPLAY) -> tuple[list[str], np.ndarray]:

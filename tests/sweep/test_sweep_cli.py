@@ -265,9 +265,10 @@ def test_live_view_table_and_plain_lines(urdf: Path, tmp_path: Path, h: Any) -> 
     from rich.console import Console
 
     from robocal.backends.sources import ReplaySource
-    from robocal.cli.sweep import LiveView
+    from robocal.cli._sweep_view import LiveView
     from robocal.formats.urdf import read_urdf
-    from robocal.workflows.sweep import SweepSession, joints_from_urdf
+    from robocal.workflows.joint_specs import joints_from_urdf
+    from robocal.workflows.sweep_session import SweepSession
 
     joints = joints_from_urdf(read_urdf(urdf))
     n = len(joints)
@@ -312,7 +313,7 @@ class _StillSource:
 
 def test_direction_check_waits_by_time_not_samples() -> None:
     from robocal.backends.sources import JointSpec
-    from robocal.workflows.sweep import run_direction_check
+    from robocal.workflows.sweep_session import run_direction_check
 
     j = [JointSpec("j", 1, "rs-00", 1, -1.0, 1.0)]
     # a person who starts moving 2.5 s after the prompt on a 1 kHz bus (2,500 samples) is still seen

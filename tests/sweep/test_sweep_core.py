@@ -11,13 +11,13 @@ from hypothesis import strategies as st
 
 from robocal.core import RobotCalibration
 from robocal.core.sweep import (
-    CODES,
     RangeTracker,
     analyse_sweep,
     bisect_homing_offset,
     direction_from_motion,
     wrap_in_travel,
 )
+from robocal.core.sweep_result import CODES
 from robocal.errors import InvalidCalibrationError, ShapeMismatchError
 
 TWO_PI = 2 * math.pi

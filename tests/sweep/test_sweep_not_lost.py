@@ -17,7 +17,8 @@ from robocal.cli.main import main
 from robocal.errors import FileWriteError
 from robocal.formats import read_calibration
 from robocal.workflows import sweep as wf
-from robocal.workflows.sweep import SweepNotSavedError, run_sweep
+from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep_output import SweepNotSavedError
 
 ELBOW = "left_elbow_pitch"
 

@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 from rich.console import Console
 
+from robocal.cli._sweep_view import LiveView
 from robocal.cli.main import main
-from robocal.cli.sweep import DEMO_SOURCE, LiveView, run_demo
-from robocal.core.sweep import WARNING_CODES, JointSweep, SweepResult, analyse_sweep, explain_warning
+from robocal.cli.sweep import DEMO_SOURCE, run_demo
+from robocal.core.sweep import analyse_sweep
+from robocal.core.sweep_result import WARNING_CODES, JointSweep, SweepResult, explain_warning
 
 ELBOW = "left_elbow_pitch"  # dir -1, limits [-2.356, 0]
 
@@ -113,7 +115,7 @@ def test_sweep_prints_the_sentence_with_the_measured_numbers(
 def test_live_view_explains_a_warning_as_soon_as_it_shows(urdf: Path, tmp_path: Path, h: Any) -> None:
     from robocal.backends.sim.lite import LITE_JOINTS
     from robocal.backends.sources import JointSpec, ReplaySource
-    from robocal.workflows.sweep import SweepSession
+    from robocal.workflows.sweep_session import SweepSession
 
     joints = [JointSpec(j.name, j.can_id, j.model, j.direction, j.lower, j.upper) for j in LITE_JOINTS]
     n = len(joints)

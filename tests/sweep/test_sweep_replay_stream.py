@@ -222,8 +222,8 @@ def _write_bag_with_stamps(path: Path, receive_s: np.ndarray, stamp_s: np.ndarra
 def test_terminal_live_view_draws_a_progress_bar_over_the_table(urdf: Path, tmp_path: Path) -> None:
     from rich.console import Console
 
-    from robocal.cli.sweep import LiveView
-    from robocal.workflows.sweep import SweepSession
+    from robocal.cli._sweep_view import LiveView
+    from robocal.workflows.sweep_session import SweepSession
 
     rec = tmp_path / "r.csv"
     write_sweep_csv(rec, 4 * BLOCK_ROWS)

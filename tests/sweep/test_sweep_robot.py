@@ -15,8 +15,9 @@ from robocal.core import RobotCalibration
 from robocal.errors import ShapeMismatchError, UsageError
 from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
+from robocal.workflows.joint_specs import joints_from_urdf
 from robocal.workflows.robot import CalibratedRobot, open_robot
-from robocal.workflows.sweep import joints_from_urdf, run_sweep
+from robocal.workflows.sweep import run_sweep
 
 
 def _robot(urdf: Path, cal_path: Path, sim: SimLite) -> CalibratedRobot:

@@ -13,7 +13,8 @@ import pytest
 from robocal.backends.sim.lite import SimLite
 from robocal.core.sweep import wrap_in_travel
 from robocal.formats import read_calibration
-from robocal.workflows.sweep import SweepAbortedError, check_source, run_sweep
+from robocal.workflows.power_on_check import check_source
+from robocal.workflows.sweep import SweepAbortedError, run_sweep
 
 TOL = 2e-3
 

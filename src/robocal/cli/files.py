@@ -80,7 +80,7 @@ def check(
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
     if source is not None:  # a malformed --source / --frame fails before anything is printed
-        from ..workflows.sweep import check_source_options
+        from ..workflows.power_on_check import check_source_options
 
         check_source_options(source, frame)
     model = read_urdf(urdf)
@@ -124,8 +124,8 @@ def check(
     ok = report.ok and not cf.notes
     if (
         source is not None
-    ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.sweep)
-        from ..workflows.sweep import check_source
+    ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.power_on_check)
+        from ..workflows.power_on_check import check_source
 
         for c in check_source(urdf, calibration, source, topic=topic, frame=frame, robot=profile):
             turns = f" ({c.turns:+d} turn)" if c.turns else ""

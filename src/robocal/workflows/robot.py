@@ -32,7 +32,7 @@ from ..errors import CalibError, JointMismatchError, ShapeMismatchError, UsageEr
 from ..formats import read_calibration
 from ..formats.profiles import resolve_profile
 from ..formats.urdf import read_urdf
-from .sweep import joints_from_urdf
+from .joint_specs import joints_from_urdf
 
 __all__ = ["FEEDBACK_WRAP_PERIOD_RAD", "CalibratedRobot", "JointState", "open_robot"]
 
