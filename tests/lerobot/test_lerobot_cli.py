@@ -11,7 +11,6 @@ import pytest
 
 from robocal.backends.sim import lerobot_arms
 from robocal.backends.sim.lerobot_arms import SimArm
-from robocal.cli.lerobot import run_demo
 from robocal.cli.main import main
 from robocal.formats import read_calibration as read_joint_map
 from robocal.lerobot import MotorCalibration, normalize, read_calibration
@@ -308,7 +307,7 @@ def test_show_prints_normalised_values(tmp_path: Path, capsys: pytest.CaptureFix
 
 @pytest.mark.parametrize("robot", ["so101", "koch"])
 def test_run_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str], robot: str) -> None:
-    assert run_demo(robot, tmp_path) == 0
+    assert main(["demo", "--robot", robot, "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert out.count("6 motors in LeRobot's format") == 2 and "shoulder_pan" in out
     files = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*.json"))
@@ -317,7 +316,7 @@ def test_run_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str], robot: str
         "koch": ["robots/koch_follower/demo.json", "teleoperators/koch_leader/demo.json"],
     }
     assert files == expected[robot]
-    assert run_demo(robot, None) == 0
+    assert main(["demo", "--robot", robot]) == 0
 
 
 def test_old_so101_folder_is_found(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

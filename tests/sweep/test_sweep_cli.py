@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from robocal.cli.main import main
-from robocal.cli.sweep import run_demo
 from robocal.formats import read_calibration
 
 ELBOW = "left_elbow_pitch"  # dir -1, limits [-2.356, 0]
@@ -218,7 +217,7 @@ def test_malformed_urdf(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
 
 
 def test_run_demo_recovers_offsets(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert run_demo("lite", tmp_path) == 0
+    assert main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "true vs recovered homing_offset" in out and "left_elbow_pitch" in out
     assert (tmp_path / "calibration.yaml").exists() and (tmp_path / "sweep_report.json").exists()

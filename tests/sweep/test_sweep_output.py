@@ -15,9 +15,9 @@ from rich.console import Console
 
 from robocal.cli._sweep_view import LiveView
 from robocal.cli.main import main
-from robocal.cli.sweep import DEMO_SOURCE, run_demo
 from robocal.core.sweep import analyse_sweep
 from robocal.core.sweep_result import WARNING_CODES, JointSweep, SweepResult, explain_warning
+from robocal.workflows.demo import LITE_DEMO_SOURCE, run_demo
 
 ELBOW = "left_elbow_pitch"  # dir -1, limits [-2.356, 0]
 
@@ -137,10 +137,10 @@ def test_live_view_explains_a_warning_as_soon_as_it_shows(urdf: Path, tmp_path: 
 
 def test_demo_and_sweep_agree_on_the_exit_code(urdf: Path, tmp_path: Path) -> None:
     # seed 7: one joint has wrap_in_travel (exit 1 for both); the default demo seed is clean (0 for both)
-    for source, code in (("sim:lite?seed=7", 1), (DEMO_SOURCE, 0)):
+    for source, code in (("sim:lite?seed=7", 1), (LITE_DEMO_SOURCE, 0)):
         d = tmp_path / source.replace("?", "_").replace(":", "_").replace("=", "_")
         d.mkdir()
-        assert run_demo("lite", d, source=source) == code
+        assert run_demo("lite", d, source=source).exit_code == code
         assert main(["sweep", "--urdf", str(urdf), "--source", source, "--out", str(d / "c.yaml")]) == code
     assert main(["demo", "--out", str(tmp_path / "default")]) == 0
 

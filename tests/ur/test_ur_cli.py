@@ -1,4 +1,4 @@
-"""``robocal ur defaults/verify/plot/correct --urdf-in`` and ``run_demo`` via the CLI entry point."""
+"""``robocal ur defaults/verify/plot/correct --urdf-in`` and ``demo --robot ur10e`` via the CLI entry point."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import pytest
 
 import robocal.workflows.ur as wf
 from robocal.cli.main import main
-from robocal.cli.ur import run_demo
 from robocal.core.dh import DHParameters
 from robocal.core.ur import check_rpy_convention, correct_kinematics, default_kinematics, nominal_dh
 from robocal.errors import UsageError
@@ -124,7 +123,7 @@ def test_plot_writes_png(tmp_path: Path, dh_sets: dict[int, DHParameters]) -> No
 
 
 def test_run_demo_writes_verified_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert run_demo("ur10e", tmp_path) == 0
+    assert main(["demo", "--robot", "ur10e", "--out", str(tmp_path)]) == 0
     out = tmp_path / "ur10e_calibration.yaml"
     kin = read_kinematics(out)
     assert kin.hash == "calib_8779175261365510310"

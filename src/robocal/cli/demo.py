@@ -1,41 +1,65 @@
-"""``robocal demo``: the main job end to end on a simulated robot."""
+"""``robocal demo``: the main job end to end on a simulated robot (run by :mod:`robocal.workflows.demo`)."""
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import typer
+from rich.table import Table
 
 from ..errors import UsageError
+from ..workflows.demo import (
+    DEMO_ROBOTS,
+    IDENTIFY_ROBOTS,
+    LITE_DEMO_SOURCE,
+    DemoResult,
+    TruthTable,
+    demo_folder,
+    prepare_demo,
+    run_demo,
+)
+from . import _common
 
-ROBOTS: dict[str, str] = {
-    "lite": "robocal.cli.sweep",
-    "so101": "robocal.cli.lerobot",
-    "koch": "robocal.cli.lerobot",
-    "ur3": "robocal.cli.ur",
-    "ur5": "robocal.cli.ur",
-    "ur10": "robocal.cli.ur",
-    "ur3e": "robocal.cli.ur",
-    "ur5e": "robocal.cli.ur",
-    "ur10e": "robocal.cli.ur",
-    "ur16e": "robocal.cli.ur",
-    "ur20": "robocal.cli.ur",
-    "ur30": "robocal.cli.ur",
-}
-"""Demo robot → CLI module providing ``run_demo(robot, out_dir) -> int``."""
 
-IDENTIFY_ROBOTS: tuple[str, ...] = ("so101", "koch")
-"""Robots ``demo --identify`` simulates (``robocal.cli.kinematics.run_demo``)."""
+def truth_table(table: TruthTable) -> Table:
+    """A rich table of a demo's truth table (name and status columns left, numbers right)."""
+    t = Table(title=table.title)
+    for i, col in enumerate(table.columns):
+        t.add_column(col, justify="left" if i == 0 or col == "status" else "right")
+    for row in table.rows:
+        t.add_row(*row)
+    return t
+
+
+def render(result: DemoResult) -> int:
+    """Print a demo's result (tables, the job's own output, lines, warnings); return the exit code."""
+    con = _common.console
+    for section in result.sections:
+        con.print(truth_table(section.table))
+        for line in section.lines:
+            con.print(line, markup=False)
+    code = result.exit_code
+    if result.job == "ur":
+        from .ur import print_reports
+
+        assert isinstance(result.detail, list)
+        code = max(code, print_reports(result.detail))
+    for line in result.lines:
+        con.print(line, markup=False)
+    for warning in result.warnings:
+        _common.print_warning(warning)
+    return code
 
 
 def demo(
-    robot: str = typer.Option("lite", "--robot", help="Simulated robot: " + ", ".join(ROBOTS) + "."),
+    robot: str = typer.Option("lite", "--robot", help="Simulated robot: " + ", ".join(DEMO_ROBOTS) + "."),
     out: Path | None = typer.Option(
         None, "--out", help="Folder for the files written (default: a temporary one)."
     ),
     identify: bool = typer.Option(
-        False, "--identify", help="Kinematic identification instead (so101, koch): simulate, identify, check."
+        False,
+        "--identify",
+        help=f"Kinematic identification instead ({', '.join(IDENTIFY_ROBOTS)}): simulate, identify, check.",
     ),
     view: bool = typer.Option(
         False,
@@ -48,18 +72,8 @@ def demo(
     ),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
-    robot = robot.strip().lower()
-    if robot not in ROBOTS:
-        raise UsageError(f"unknown demo robot {robot!r}; valid: {', '.join(ROBOTS)}")
-    if out is not None:
-        if out.exists() and not out.is_dir():
-            raise UsageError(f"--out {out} is a file; give a folder for the demo's files")
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise UsageError(f"cannot create --out folder {out}: {exc.strerror or exc}") from None
-    if identify and robot not in IDENTIFY_ROBOTS:
-        raise UsageError(f"--identify works with {', '.join(IDENTIFY_ROBOTS)}, not {robot!r}")
+    mode = "identify" if identify else None
+    robot = prepare_demo(robot, out, mode)
     if auto:
         if identify or view:
             raise UsageError("--auto is its own demo; it does not go with --identify or --view")
@@ -73,28 +87,26 @@ def demo(
                 "`robocal view --urdf URDF --lerobot-port sim --robot so101_follower --calibration FILE`"
             )
         raise typer.Exit(_demo_view(out, port))
-    module = importlib.import_module("robocal.cli.kinematics" if identify else ROBOTS[robot])
-    run = getattr(module, "run_demo", None)
-    if run is None:
-        raise UsageError(f"the {robot} demo is not available in this build")
-    raise typer.Exit(int(run(robot, out)))
+    if identify:  # kinematic identification (+ camera images for so101): robocal.cli.kinematics.run_demo
+        from .kinematics import run_demo as identify_demo
+
+        raise typer.Exit(int(identify_demo(robot, out)))
+    result = run_demo(robot, out, mode=mode, say=_common.console.print)
+    raise typer.Exit(render(result))
 
 
 def _demo_view(out: Path | None, port: int) -> int:
     """Run the Lite sweep demo, then serve the calibrated simulated Lite; the worse of the two exit codes."""
-    import tempfile
-
     from ..viewer.app import check_port_free
     from ..viewer.demo import lite_view_options
-    from . import sweep, view
+    from . import view
 
     check_port_free("127.0.0.1", port)  # before the sweep, not after it
-    with tempfile.TemporaryDirectory(prefix="robocal-demo-") as tmp:
-        folder = out if out is not None else Path(tmp)
-        code = int(sweep.run_demo("lite", folder))
+    with demo_folder(out, "sweep") as (folder, _temporary):
+        code = render(run_demo("lite", folder, say=_common.console.print))
         if code not in (0, 1):
             return code
-        opts = lite_view_options(folder / "calibration.yaml", sweep.DEMO_SOURCE, port=port)
+        opts = lite_view_options(folder / "calibration.yaml", LITE_DEMO_SOURCE, port=port)
         return max(code, view.serve(opts))
 
 

@@ -1,4 +1,4 @@
-"""``robocal kinematics`` commands: identify, simulate (and the ``run_demo`` helper for ``demo --identify``)."""
+"""``robocal kinematics`` commands: identify, simulate."""
 
 from __future__ import annotations
 
@@ -51,7 +51,8 @@ def _stats(s: dict[str, float] | None) -> str:
     return "—" if s is None else f"mean {s['mean']:.3f} mm, max {s['max']:.3f} mm"
 
 
-def _print(result: wf.IdentifyResult) -> int:
+def print_identification(result: wf.IdentifyResult) -> int:
+    """Print the identified parameters, validation and warnings; return the exit code (0 ok, 1 warnings)."""
     rep = result.report
     table = Table("parameter", "estimate", "± σ", box=None, pad_edge=False)
     for p in rep["parameters"]:
@@ -237,7 +238,7 @@ def identify(
         ur_yaml=ur_yaml,
         ur_hash=ur_hash,
     )
-    raise typer.Exit(_print(result))
+    raise typer.Exit(print_identification(result))
 
 
 def _command(sim: sim_wf.SimulationResult, kind: str, gauge_mm: float) -> str:
@@ -522,7 +523,7 @@ def run_demo(robot: str, out_dir: Path | None) -> int:
             out=folder / f"{robot}_identified.urdf",
             report=folder / "report.json",
         )
-        code = _print(result)
+        code = print_identification(result)
         rng = np.random.default_rng(1)
         q = sim.arm.sample_q(500, rng)
         model = result.fit.problem.model
@@ -574,4 +575,4 @@ def _demo_images(robot: str, folder: Path) -> int:
     return code
 
 
-__all__ = ["app", "run_demo"]
+__all__ = ["app", "print_identification", "run_demo"]

@@ -1,10 +1,8 @@
-"""``robocal lerobot`` commands: calibrate, configure, check, migrate, show, export-urdf (and the demo runner)."""
+"""``robocal lerobot`` commands: calibrate, configure, check, migrate, show, export-urdf."""
 
 from __future__ import annotations
 
-import json
 import pathlib
-import tempfile
 from typing import Annotated, Any
 
 import typer
@@ -403,67 +401,3 @@ def export_urdf(
     if skipped:
         _common.print_warning(f"not exported (range modes, no angle): {', '.join(skipped)}")
     raise typer.Exit(_common.exit_code_for([*skipped, *beyond]))
-
-
-def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
-    """Calibrate the simulated follower and leader through the real SDK on a pty; print recovered vs true.
-
-    Args:
-        robot: ``so101`` or ``koch``.
-        out_dir: Calibration root to write the JSON files into (a temporary folder when None).
-
-    Returns:
-        Exit code (0 when every recovered hard stop matches the simulator's truth within 2 ticks).
-    """
-    from ..backends.sim.lerobot_arms import SimArm, SimArmOperator
-    from ..lerobot import calibration_path
-    from ..workflows.lerobot import calibrate as run
-    from ..workflows.lerobot import open_bus, robot_spec
-
-    if robot not in ("so101", "koch"):
-        raise UsageError(f"demo robot {robot!r}: expected so101 or koch")
-    tmp: tempfile.TemporaryDirectory[str] | None = None
-    root = out_dir
-    if root is None:
-        tmp = tempfile.TemporaryDirectory(prefix="robocal-lerobot-demo-")
-        root = pathlib.Path(tmp.name)
-    ok = True
-    try:
-        for name in (f"{robot}_follower", f"{robot}_leader"):
-            spec = robot_spec(name)
-            with SimArm(spec, noise_ticks=1, seed=1) as arm:
-                bus = open_bus(spec, arm.port)
-                try:
-                    path = calibration_path(spec.kind, spec.device_name, "demo", root=root)
-                    result = run(bus, spec, SimArmOperator(arm), path=path, sweep_full_turn=True)
-                finally:
-                    bus.close()
-                t = Table(title=f"{name}: simulated {spec.vendor} servos on {arm.port}")
-                for col in ("motor", "true stops (ticks)", "recovered stops", "homing_offset", "range"):
-                    t.add_column(col)
-                stops = arm.recovered_stops(result.calibration)
-                for n, c in result.calibration.items():
-                    tr = arm.truth[n]
-                    lo, hi = stops[n]
-                    shift = 4096 * round((tr.stop_low_ticks - lo) / 4096) if spec.vendor == "feetech" else 0
-                    lo, hi = lo + shift, hi + shift
-                    good = abs(lo - tr.stop_low_ticks) <= 2 and abs(hi - tr.stop_high_ticks) <= 2
-                    ok = ok and good
-                    t.add_row(
-                        n,
-                        f"{tr.stop_low_ticks:g}..{tr.stop_high_ticks:g}",
-                        f"{lo}..{hi}" + ("" if good else " !"),
-                        str(c.homing_offset),
-                        f"{c.range_min}..{c.range_max}",
-                    )
-                _common.console.print(t)
-                where = (
-                    " (temporary folder, removed on exit; keep it with --out DIR)" if tmp is not None else ""
-                )
-                _common.console.print(f"wrote {result.path}{where}", markup=False)
-                data = json.loads(pathlib.Path(str(result.path)).read_text())
-                _common.console.print(f"{len(data)} motors in LeRobot's format", markup=False)
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
-    return _common.EXIT_OK if ok else _common.EXIT_WARNINGS

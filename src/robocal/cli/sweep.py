@@ -1,17 +1,15 @@
-"""``robocal sweep`` (hard-stop sweep calibration of Robstride joints) and the ``lite`` demo."""
+"""``robocal sweep``: hard-stop sweep calibration of Robstride joints."""
 
 from __future__ import annotations
 
 import contextlib
 import sys
-import tempfile
 import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from rich.table import Table
 
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD
 from ..errors import UsageError
@@ -21,9 +19,6 @@ from ..workflows.sweep_session import DEFAULT_DIRECTION_STEP_S
 from . import _common
 from ._sweep_confirm import StdinLines, make_confirm, stdin_is_terminal, terminal
 from ._sweep_view import LiveView, print_warnings, result_table
-
-DEMO_SOURCE = "sim:lite?seed=8"
-"""The demo's simulated robot (a seed whose sweep raises no warning, so the demo exits 0 like a clean sweep)."""
 
 
 @contextlib.contextmanager
@@ -202,82 +197,6 @@ def sweep(
     if outcome.report is not None:
         _common.console.print(f"wrote {outcome.report}", markup=False)
     raise typer.Exit(outcome.exit_code)
-
-
-def run_demo(robot: str, out_dir: Path | None, *, source: str = DEMO_SOURCE) -> int:
-    """Sweep-calibrate the simulated Lite (14 Robstride joints) and print true vs recovered offsets.
-
-    Args:
-        robot: ``"lite"``.
-        out_dir: Folder for ``lite_bimanual.urdf``, ``calibration.yaml`` and ``sweep_report.json``
-            (a temporary folder when None).
-        source: The simulated robot (``sim:lite?...``).
-
-    Returns:
-        The exit code ``robocal sweep`` gives for the same sweep (0 clean, 1 warnings), and 1 as well when a
-        recovered offset is more than 2e-3 rad from the simulator's truth.
-    """
-    from ..backends.sim.lite import lite_urdf_text
-    from ..backends.sources import open_source
-    from ..errors import UsageError
-    from ..fileio import atomic_write_text
-
-    if robot != "lite":
-        raise UsageError(f"run_demo: robot {robot!r} is not a sweep demo; expected 'lite'")
-    tmp = None
-    if out_dir is None:
-        tmp = tempfile.TemporaryDirectory(prefix="robocal-demo-")
-        out_dir = Path(tmp.name)
-    try:
-        urdf = out_dir / "lite_bimanual.urdf"
-        atomic_write_text(urdf, lite_urdf_text(), backup=False)
-        opened: list[Any] = []
-
-        def capture(*args: Any, **kwargs: Any) -> Any:
-            src = open_source(*args, **kwargs)
-            opened.append(src)
-            return src
-
-        con = _common.console
-        con.print("robocal demo: simulated Lite bimanual robot, 14 Robstride joints on two virtual CAN buses")
-        con.print("a simulated operator pushes every joint into both hard stops (encoder noise 3e-4 rad)")
-        outcome = run_sweep(
-            urdf,
-            source,
-            out_dir / "calibration.yaml",
-            report=out_dir / "sweep_report.json",
-            open_source_fn=capture,
-        )
-        truth = opened[0].sim.true_offsets()
-        t = Table(title=f"true vs recovered homing_offset (rad), {outcome.samples} samples")
-        for col in ("joint", "true", "recovered", "error", "status"):
-            t.add_column(col, justify="left" if col in ("joint", "status") else "right")
-        worst = 0.0
-        for j in outcome.result.joints:
-            err = j.homing_offset - truth[j.name]
-            worst = max(worst, abs(err))
-            t.add_row(
-                j.name,
-                f"{truth[j.name]:+.4f}",
-                f"{j.homing_offset:+.4f}",
-                f"{err:+.1e}",
-                ", ".join(j.warnings) or "ok",
-            )
-        con.print(t)
-        print_warnings(outcome.result)
-        where = (
-            " (temporary folder, removed on exit; keep the files with --out DIR)" if tmp is not None else ""
-        )
-        con.print(
-            f"largest error {worst:.1e} rad; wrote {outcome.out} and {outcome.report}{where}", markup=False
-        )
-        if worst > 2e-3:
-            _common.print_warning(f"largest error {worst:.1e} rad is above the demo's 2e-3 rad tolerance")
-            return 1
-        return outcome.exit_code
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
 
 
 def register(app: typer.Typer) -> None:

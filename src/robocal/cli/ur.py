@@ -1,10 +1,8 @@
-"""``robocal ur`` commands: extract, correct, defaults, verify, plot (and the ``run_demo`` helper)."""
+"""``robocal ur`` commands: extract, correct, defaults, verify, plot."""
 
 from __future__ import annotations
 
 import contextlib
-import pathlib
-import tempfile
 import time
 from pathlib import Path
 from typing import Annotated
@@ -13,7 +11,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from ..core.ur import RPY_CONVENTIONS, TEST_SET_3_DELTAS, UR_MODELS, deviation_from_nominal, nominal_dh
+from ..core.ur import RPY_CONVENTIONS, UR_MODELS, deviation_from_nominal
 from ..errors import UsageError
 from ..viewer.ur_page import parse_q
 from ..workflows import ur as wf
@@ -111,7 +109,8 @@ def defaults(
     raise typer.Exit(_print_result(wf.defaults(model, out, rpy=rpy), replaced))
 
 
-def _print_reports(reports: list[ur_verify.VerifyReport], input_warnings: list[str] | None = None) -> int:
+def print_reports(reports: list[ur_verify.VerifyReport], input_warnings: list[str] | None = None) -> int:
+    """Print the verification table and warnings; return 1 when there are warnings, else 0."""
     table = Table(box=None)
     table.add_column("source", overflow="fold")
     for col in ("samples", "max Δp (m)", "max Δrot (rad)", "hash"):
@@ -171,7 +170,7 @@ def verify(
         params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
         q_rad = None if q is None else np.array([parse_q(q)])
         reports.extend(ur_verify.verify(file, params, urdf_path=urdf, samples=samples, seed=seed, q_rad=q_rad))
-    raise typer.Exit(_print_reports(reports, input_warnings))
+    raise typer.Exit(print_reports(reports, input_warnings))
 
 
 @app.command("plot")
@@ -253,39 +252,4 @@ def view(
     raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
 
 
-def run_demo(robot: str, out_dir: pathlib.Path | None) -> int:
-    """End-to-end demo against the simulated controller: extract → YAML → verify, with a short summary.
-
-    The simulated controller reports ``robot``'s nominal DH plus the calibration deltas of a real UR10e
-    (ur_calibration's test set 3: d2 ≈ 439 m, d3 ≈ −446 m).
-
-    Args:
-        robot: UR model (``ur10e``, ``ur5e``, …).
-        out_dir: Folder for ``<robot>_calibration.yaml``; a temporary folder when None.
-
-    Returns:
-        Exit code (0 ok, 1 warnings).
-    """
-    from ..backends.sim.ur_controller import SimUrController
-
-    dh_params = nominal_dh(robot) + TEST_SET_3_DELTAS
-    with tempfile.TemporaryDirectory(prefix="robocal-ur-demo-") as tmp:
-        folder = out_dir if out_dir is not None else Path(tmp)
-        out = folder / f"{robot.lower()}_calibration.yaml"
-        with SimUrController(dh_params) as sim:
-            host, port = sim.address
-            console.print(f"[bold]UR demo[/]: simulated {robot} controller on {host}:{port}")
-            result = wf.extract(host, out, port=port, timeout_s=5.0)
-        reports = ur_verify.verify(out, result.dh, samples=1000, seed=0)
-        forearm, wrist_1 = result.kinematics.links[2], result.kinematics.links[3]
-        console.print(
-            f"controller DH: d2 = {result.dh.d_m[1]:.3f} m, d3 = {result.dh.d_m[2]:.3f} m → corrected "
-            f"forearm x = {forearm.xyz_m[0]:.6f} m, wrist_1 x = {wrist_1.xyz_m[0]:.6f} m"
-        )
-        code = _print_reports(reports)
-        console.print(f"hash: {result.kinematics.hash}")
-        console.print(f"wrote {out}" + (" (temporary folder, removed on exit)" if out_dir is None else ""))
-        return max(code, EXIT_WARNINGS if result.warnings else EXIT_OK)
-
-
-__all__ = ["RPY_CONVENTIONS", "app", "run_demo"]
+__all__ = ["RPY_CONVENTIONS", "app", "print_reports"]
