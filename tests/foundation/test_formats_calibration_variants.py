@@ -1,4 +1,4 @@
-"""Regression tests from the foundation audit: real-world file variants and edge inputs."""
+"""formats/calibration.py on real-world file variants and edge inputs (found by the foundation audit)."""
 
 from __future__ import annotations
 
