@@ -11,14 +11,17 @@ import threading
 import time
 import tty
 from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING
 
 from rich.console import Console, Group
 from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from ..backends.sim.operator import HandOperator, JointView
 from ..errors import CalibError
+
+if TYPE_CHECKING:
+    from ..backends.sim.operator import HandOperator, JointView
 
 __all__ = ["KEYS", "run_view"]
 
