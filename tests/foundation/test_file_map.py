@@ -47,3 +47,10 @@ def test_each_system_has_a_section() -> None:
     headings = re.findall(r"^### (.+)$", _file_map(), flags=re.MULTILINE)
     for system in ("sweep", "LeRobot", "Universal Robots", "Datasets", "Kinematic identification"):
         assert any(system in h for h in headings), system
+
+
+def test_every_module_is_on_the_map() -> None:
+    """Every module of src/robocal (package ``__init__`` files aside) is a row of some system or the shared one."""
+    on_map = set(_paths(_file_map()))
+    modules = sorted(p.relative_to(SRC).as_posix() for p in SRC.rglob("*.py") if p.name != "__init__.py")
+    assert [m for m in modules if m not in on_map] == [], "add these to the file map in docs/design.md"
