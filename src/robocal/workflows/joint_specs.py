@@ -5,13 +5,19 @@ Used by the sweep, the power-on check and the runtime robot.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
 from ..backends.sources import JointSpec
+from ..core.jointmap import RobotCalibration
 from ..core.profile import RobotProfile
 from ..errors import FileFormatError
-from ..formats import CalibrationFile
-from ..formats.urdf import UrdfModel
+from ..formats import CalibrationFile, read_calibration
+from ..formats.profiles import resolve_profile
+from ..formats.urdf import UrdfModel, read_urdf
 
-__all__ = ["joints_from_urdf"]
+__all__ = ["joint_calibration", "joints_from_urdf", "read_joints"]
 
 
 def joints_from_urdf(
@@ -71,3 +77,31 @@ def joints_from_urdf(
                 f"URDF {urdf.source}: joints {owner[j.can_id]!r} and {j.name!r} share CAN id {j.can_id}"
             )
     return out
+
+
+def read_joints(
+    urdf_path: str | Path,
+    calibration_path: str | Path,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
+) -> tuple[list[JointSpec], CalibrationFile]:
+    """Read a URDF and a calibration file (any format robocal reads): the robot's joints and the file.
+
+    Args:
+        urdf_path: The URDF.
+        calibration_path: The calibration file.
+        robot: Robot profile (default: the built-in robot the URDF's joint names match).
+
+    Returns:
+        The joints of :func:`joints_from_urdf` (URDF order) and the calibration file as read.
+    """
+    urdf = read_urdf(urdf_path)
+    profile = resolve_profile(robot, urdf)
+    cf = read_calibration(calibration_path, urdf=urdf, robot=profile)
+    return joints_from_urdf(urdf, profile, cf), cf
+
+
+def joint_calibration(cf: CalibrationFile, joints: Sequence[JointSpec]) -> RobotCalibration:
+    """The file's calibration of ``joints``, in their order, with their directions (the URDF's or profile's)."""
+    return cf.calibration.select([j.name for j in joints]).with_directions(
+        {j.name: j.direction for j in joints}
+    )

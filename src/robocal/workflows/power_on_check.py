@@ -16,10 +16,7 @@ import numpy as np
 from ..backends.sources import Source, open_source
 from ..core.profile import RobotProfile
 from ..errors import FileFormatError, JointMismatchError
-from ..formats import read_calibration
-from ..formats.profiles import resolve_profile
-from ..formats.urdf import read_urdf
-from .joint_specs import joints_from_urdf
+from .joint_specs import joint_calibration, read_joints
 from .sweep_session import check_source_options
 
 __all__ = ["BranchCheck", "check_source", "check_source_options"]
@@ -88,16 +85,13 @@ def check_source(
         the joints it lacks).
     """
     spec = check_source_options(source, frame)
-    urdf = read_urdf(urdf_path)
-    profile = resolve_profile(robot, urdf)
-    cf = read_calibration(calibration_path, urdf=urdf, robot=profile)
-    all_joints = joints_from_urdf(urdf, profile, cf)
+    all_joints, cf = read_joints(urdf_path, calibration_path, robot)
     keep = [i for i, j in enumerate(all_joints) if j.name in cf.calibration]
     if not keep:
         raise JointMismatchError(f"calibration {calibration_path}: no offset for any joint of the URDF")
     joints = [all_joints[i] for i in keep]
     names = [j.name for j in joints]
-    cal = cf.calibration.select(names).with_directions({j.name: j.direction for j in joints})
+    cal = joint_calibration(cf, joints)
     src = (open_source_fn or open_source)(spec, all_joints, topic=topic, frame=frame)
     try:
         sample = src.read()

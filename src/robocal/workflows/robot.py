@@ -29,10 +29,7 @@ from ..backends.robstride.protocol import model_limits
 from ..backends.sources import RobstrideSource, open_source, parse_source
 from ..core.jointmap import RobotCalibration
 from ..errors import CalibError, JointMismatchError, ShapeMismatchError, UsageError
-from ..formats import read_calibration
-from ..formats.profiles import resolve_profile
-from ..formats.urdf import read_urdf
-from .joint_specs import joints_from_urdf
+from .joint_specs import joint_calibration, read_joints
 
 __all__ = ["FEEDBACK_WRAP_PERIOD_RAD", "CalibratedRobot", "JointState", "open_robot"]
 
@@ -286,15 +283,11 @@ def open_robot(
     spec = parse_source(source)
     if spec.kind == "replay":
         raise UsageError("a robot needs sim: or can: buses, not a replay")
-    urdf = read_urdf(urdf_path)
-    profile = resolve_profile(None, urdf)
-    cf = read_calibration(calibration_path, urdf=urdf, robot=profile)
-    joints = joints_from_urdf(urdf, profile, cf)
-    names = [j.name for j in joints]
-    missing = [n for n in names if n not in cf.calibration]
+    joints, cf = read_joints(urdf_path, calibration_path)
+    missing = [j.name for j in joints if j.name not in cf.calibration]
     if missing:
         raise JointMismatchError(f"calibration {calibration_path}: no offset for {', '.join(missing)}")
-    cal = cf.calibration.select(names).with_directions({j.name: j.direction for j in joints})
+    cal = joint_calibration(cf, joints)
     src = open_source(spec, joints, timeout_s=timeout_s)
     assert isinstance(src, RobstrideSource)
     lower = np.array([j.lower for j in joints])
