@@ -88,9 +88,9 @@ def test_render_prints_sections_lines_and_warnings(
         tmp_path,
         False,
         1,
-        (DemoSection(table, ("wrote A",)),),
-        ("largest error",),
-        ("j1: offset_large: beyond ±π",),
+        sections=(DemoSection(table, ("wrote A",)),),
+        lines=("largest error",),
+        warnings=("j1: offset_large: beyond ±π",),
     )
     assert render(result) == 1
     out, err = capsys.readouterr()

@@ -113,12 +113,12 @@ class DemoResult:
         folder: Where the files were written.
         temporary: True when ``folder`` was a temporary folder (removed when the demo returned).
         exit_code: 0 ok, 1 warnings or a recovered value outside the demo's tolerance.
-        sections: Truth tables, each with its lines.
-        lines: Lines printed after the sections and the job's own output.
-        warnings: Warning sentences (printed as ``warning: …``).
         detail: The job's own result for its printer (``ur``: the verification reports; ``identify``: the
             :class:`~robocal.workflows.kinematics.IdentifyResult`; ``sweep``: the
             :class:`~robocal.workflows.sweep.SweepOutcome`), or None.
+        sections: Truth tables, each with its lines.
+        lines: Lines printed after the sections and the job's own output.
+        warnings: Warning sentences (printed as ``warning: …``).
     """
 
     robot: str
@@ -126,10 +126,10 @@ class DemoResult:
     folder: Path
     temporary: bool
     exit_code: int
+    detail: object = None
     sections: tuple[DemoSection, ...] = ()
     lines: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
-    detail: object = None
 
 
 def prepare_demo(robot: str, out: Path | None, mode: str | None = None) -> str:
@@ -260,7 +260,15 @@ def _sweep_demo(
         f"largest error {worst:.1e} rad; wrote {outcome.out} and {outcome.report}{_temporary_note(temporary)}"
     )
     return DemoResult(
-        robot, "sweep", folder, temporary, code, (DemoSection(table),), (line,), tuple(warnings), outcome
+        robot,
+        "sweep",
+        folder,
+        temporary,
+        code,
+        outcome,
+        sections=(DemoSection(table),),
+        lines=(line,),
+        warnings=tuple(warnings),
     )
 
 
@@ -309,7 +317,7 @@ def _lerobot_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoRe
         motors = len(json.loads(Path(str(result.path)).read_text()))
         lines = (f"wrote {result.path}{_temporary_note(temporary)}", f"{motors} motors in LeRobot's format")
         sections.append(DemoSection(table, lines))
-    return DemoResult(robot, "lerobot", folder, temporary, 0 if ok else 1, tuple(sections))
+    return DemoResult(robot, "lerobot", folder, temporary, 0 if ok else 1, sections=tuple(sections))
 
 
 def _ur_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoResult:

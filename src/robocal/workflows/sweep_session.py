@@ -129,8 +129,7 @@ class SweepSession:
     @property
     def first(self) -> FloatArray:
         """First finite identity-frame reading per joint, shape ``(N,)``, rad (NaN before one)."""
-        out: FloatArray = self._first.copy()
-        return out
+        return np.array(self._first, dtype=np.float64)  # a copy
 
     @property
     def exact_minimum(self) -> FloatArray:
