@@ -177,8 +177,6 @@ OVERSIZE_PENDING = {
     "dataset/_engine.py": "st1",
     "core/ur.py": "st1",
     "workflows/ur.py": "st1",
-    "backends/sim/servo.py": "phys",
-    "backends/sim/physics.py": "phys",
     "core/stop_search.py": "auto",
     "workflows/autocal.py": "auto",
     "viewer/app.py": "view",
