@@ -275,7 +275,7 @@ def _sweep_demo(
 def _lerobot_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoResult:
     """Calibrate the simulated follower and leader through the real SDK on a pty; recovered vs true stops."""
     from ..backends.sim.lerobot_arms import SimArm, SimArmOperator
-    from ..lerobot import calibration_path
+    from ..formats.lerobot import calibration_path
     from .lerobot import calibrate, open_bus, robot_spec
 
     ok = True
