@@ -145,7 +145,7 @@ def sweep_auto(
 ) -> None:
     """``robocal sweep --auto``: run, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C)."""
     from ..workflows.autocal_sweep import run_sweep_auto
-    from .sweep import print_warnings, result_table
+    from ._sweep_view import print_warnings, result_table
 
     names = [n.strip() for n in joints.split(",") if n.strip()] if joints else None
     try:

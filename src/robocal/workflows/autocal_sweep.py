@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from ..core.profile import RobotProfile
-from ..core.sweep import SweepResult, analyse_sweep
+from ..core.sweep import analyse_sweep
+from ..core.sweep_result import SweepResult
 from ..errors import UsageError
 from ..fileio import atomic_write_text
 from ..formats.profiles import resolve_profile
@@ -228,7 +229,8 @@ def run_sweep_auto(
     """
     from ..backends.sources import parse_source
     from ..formats.urdf import read_urdf
-    from .sweep import OUTPUT_FORMATS, _check_writable, _existing_output, _offsets, _write, joints_from_urdf
+    from .joint_specs import joints_from_urdf
+    from .sweep import OUTPUT_FORMATS, _check_writable, _existing_output, _offsets, _write
 
     out_path = Path(out)
     if fmt is not None and fmt not in OUTPUT_FORMATS:
