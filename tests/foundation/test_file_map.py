@@ -17,12 +17,16 @@ def _file_map() -> str:
 
 
 def _paths(section: str) -> list[str]:
-    """The backticked paths in the ``file`` column (the second cell) of the map's table rows."""
+    """The backticked paths (with a ``/``) in the ``file`` column (the second cell) of the map's table rows."""
     paths: list[str] = []
     for line in section.splitlines():
         cells = line.split("|")
         if line.startswith("|") and len(cells) > 3:
-            paths += re.findall(r"`([^`\s]+)`", cells[2])
+            paths += [
+                t
+                for t in re.findall(r"`([^`\s]+)`", cells[2])
+                if ("/" in t and "(" not in t) or (SRC / t).is_file()
+            ]
     return paths
 
 

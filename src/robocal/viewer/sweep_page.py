@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..core.sweep import SweepResult
+from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
 from .model import RobotModel
 

@@ -344,7 +344,8 @@ def lerobot_joint_map(
         calibration_dir: LeRobot calibration root (default: LeRobot's).
         calibration_file: The JSON itself (instead of ``robot_id``).
     """
-    from ..lerobot import calibration_path, read_calibration
+    from ..formats.lerobot import calibration_path
+    from ..formats.lerobot import read_current as read_calibration
     from .lerobot import export_joint_map
 
     if calibration_file is not None:
