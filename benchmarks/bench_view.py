@@ -38,7 +38,7 @@ sys.path.insert(0, str(REPO / "tests" / "browser"))
 import browserlib  # noqa: E402
 
 from robocal.viewer import ViewerApp, load_robot_model  # noqa: E402
-from robocal.viewer.app import _wxyz  # noqa: E402
+from robocal.viewer.scene import _wxyz  # noqa: E402
 from robocal.viewer.feeds import CallableFeed  # noqa: E402
 
 LITE_URDF = REPO / "examples" / "lite" / "lite_bimanual.urdf"

@@ -6,25 +6,37 @@ See :mod:`robocal.viewer` for the public API and the page state a browser test c
 from __future__ import annotations
 
 import contextlib
-import errno
 import html
 import io
 import json
 import math
-import socket
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import BackendNotAvailableError, UsageError
+from ..errors import UsageError
 from .latest import Frame, LatestFrame
 from .mapping import JointMapper
 from .model import RobotModel
+from .scene import (
+    GHOST_OPACITY,
+    GHOST_RGB,
+    OUTSIDE_RGB,
+    TABLE_HZ,
+    JointReadout,
+    PageUpdate,
+    ReplayControl,
+    _fmt,
+    _lim,
+    _Robot,
+    _viser,
+    check_port_free,
+    plain_lights,
+)
 
 __all__ = [
     "GHOST_RGB",
@@ -34,242 +46,8 @@ __all__ = [
     "ReplayControl",
     "ViewerApp",
     "check_port_free",
+    "plain_lights",
 ]
-
-FloatArray = npt.NDArray[np.float64]
-OUTSIDE_RGB = (0.86, 0.08, 0.08)
-"""Colour of a link whose joint is outside its URDF limits (model and panel)."""
-GHOST_RGB = (0.25, 0.55, 1.0)
-"""Colour of the ``--compare`` ghost."""
-GHOST_OPACITY = 0.35
-
-
-@dataclass(frozen=True)
-class JointReadout:
-    """One joint at one page update.
-
-    Attributes:
-        name: Joint name.
-        raw: Raw value from the source (its unit: rad of the motor, ticks, …); NaN when not read.
-        q: Calibrated position, rad (m for prismatic).
-        q_compare: Position through the ``--compare`` calibration, or NaN without one.
-        lower: URDF lower limit (``-inf`` when none).
-        upper: URDF upper limit (``+inf`` when none).
-        outside: True when ``q`` is outside ``[lower, upper]``.
-    """
-
-    name: str
-    raw: float
-    q: float
-    q_compare: float
-    lower: float
-    upper: float
-    outside: bool
-
-
-@dataclass(frozen=True)
-class PageUpdate:
-    """What one page update showed; handed to every hook added with :meth:`ViewerApp.add_hook`.
-
-    Attributes:
-        frame: The source frame shown.
-        q: Calibrated joint positions, shape ``(N,)`` in :attr:`RobotModel.actuated` order.
-        q_compare: Ghost joint positions, shape ``(N,)``, or None without a ghost.
-        outside: Shape ``(N,)``, joints outside their limits.
-        poses: Link → 4×4 world pose of the robot.
-        ghost_poses: Link → 4×4 world pose of the ghost, or None.
-        joints: Per-joint readouts.
-        local: Link → 4×4 pose relative to its parent link (what is sent to the page).
-        ghost_local: The same for the ghost, or None.
-    """
-
-    frame: Frame
-    q: FloatArray
-    q_compare: FloatArray | None
-    outside: npt.NDArray[np.bool_]
-    poses: dict[str, FloatArray]
-    ghost_poses: dict[str, FloatArray] | None
-    joints: tuple[JointReadout, ...]
-    local: dict[str, FloatArray]
-    ghost_local: dict[str, FloatArray] | None
-
-
-class ReplayControl:
-    """What the page's replay controls drive (implemented by :class:`robocal.viewer.feeds.ReplayFeed`)."""
-
-    t_start_s: float
-    t_end_s: float
-
-    @property
-    def playing(self) -> bool:
-        """True while playing."""
-        raise NotImplementedError
-
-    @property
-    def position_s(self) -> float:
-        """Current recording time, s."""
-        raise NotImplementedError
-
-    def play(self) -> None:
-        """Start or resume playing."""
-        raise NotImplementedError
-
-    def pause(self) -> None:
-        """Pause."""
-        raise NotImplementedError
-
-    def seek(self, t_s: float) -> None:
-        """Jump to recording time ``t_s`` (clamped to the recording) and show that frame."""
-        raise NotImplementedError
-
-
-def check_port_free(host: str, port: int) -> None:
-    """Refuse a port another program listens on (viser would silently move to the next one).
-
-    Raises:
-        UsageError: The port is in use or the host cannot be bound.
-    """
-    if not (0 <= port <= 65535):
-        raise UsageError(f"--port {port}: expected 0..65535")
-    if port == 0:
-        return
-    try:
-        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
-    except socket.gaierror as exc:
-        raise UsageError(f"--host {host!r}: cannot resolve it ({exc.strerror})") from None
-    family, _, _, _, addr = infos[0]
-    with socket.socket(family, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind(addr)
-        except OSError as exc:
-            if exc.errno == errno.EADDRINUSE:
-                raise UsageError(
-                    f"port {port} on {host} is in use by another program; pass --port with a free one "
-                    "(or --port 0 for any)"
-                ) from None
-            raise UsageError(f"cannot serve on {host}:{port}: {exc.strerror or exc}") from None
-
-
-def _fmt(x: float, digits: int = 3) -> str:
-    if math.isnan(x):
-        return "—"
-    if math.isinf(x):
-        return "∞" if x > 0 else "−∞"
-    return f"{x:+.{digits}f}"
-
-
-def _lim(x: float) -> str:
-    if math.isinf(x):
-        return "∞" if x > 0 else "−∞"
-    return f"{x:.2f}"
-
-
-def _wxyz(R: FloatArray) -> tuple[float, float, float, float]:
-    """Rotation matrix → unit quaternion (w, x, y, z)."""
-    m = R
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        w, x, y, z = 0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        w, x, y, z = (m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s
-    elif m[1, 1] > m[2, 2]:
-        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        w, x, y, z = (m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s
-    else:
-        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        w, x, y, z = (m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    return (w / n, x / n, y / n, z / n)
-
-
-def _viser() -> Any:
-    try:
-        import viser
-    except ImportError:
-        raise BackendNotAvailableError("robocal view needs viser: pip install 'robocal[view]'") from None
-    return viser
-
-
-class _Robot:
-    """One drawn copy of the model (the robot or its ghost): a frame per link, meshes under it."""
-
-    def __init__(
-        self,
-        server: Any,
-        model: RobotModel,
-        root: str,
-        *,
-        rgb: tuple[float, float, float] | None,
-        opacity: float | None,
-    ) -> None:
-        self.root = root
-        self.frames: dict[str, Any] = {}
-        self.meshes: dict[str, list[tuple[Any, tuple[float, float, float]]]] = {}
-        self.last: dict[str, FloatArray] = {}
-        self.rgb_now: dict[str, tuple[float, float, float]] = {}
-        server.scene.add_frame(root, show_axes=False)
-        parent_of = {j.child: j.parent for j in model.joints}
-        index = {link: k for k, link in enumerate(model.links)}
-        self.paths: dict[str, str] = {}
-        for link in model.links:  # parents first: nested frames, so a joint move is one rotation message
-            parent = parent_of.get(link)
-            base = root if parent is None else self.paths[parent]
-            self.paths[link] = f"{base}/L{index[link]}"
-            self.frames[link] = server.scene.add_frame(self.paths[link], show_axes=False)
-        count: dict[str, int] = {}
-        for shape in model.shapes:
-            i = count.get(shape.link, 0)
-            count[shape.link] = i + 1
-            color = rgb if rgb is not None else shape.rgba[:3]
-            alpha = opacity if opacity is not None else (shape.rgba[3] if shape.rgba[3] < 1.0 else None)
-            handle = server.scene.add_mesh_simple(
-                f"{self.paths[shape.link]}/s{i}", shape.vertices, shape.faces, color=color, opacity=alpha
-            )
-            self.meshes.setdefault(shape.link, []).append((handle, color))
-            self.rgb_now[shape.link] = color
-
-    def pose(self, local: dict[str, FloatArray]) -> None:
-        """Set every link's pose relative to its parent link (only what changed is sent)."""
-        for link, T in local.items():
-            last = self.last.get(link)
-            h = self.frames[link]
-            if last is None or not np.array_equal(last[:3, :3], T[:3, :3]):
-                h.wxyz = _wxyz(T[:3, :3])
-            if last is None or not np.array_equal(last[:3, 3], T[:3, 3]):
-                h.position = (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]))
-            self.last[link] = T
-
-    def tint(self, link: str, rgb: tuple[float, float, float] | None) -> None:
-        """Colour a link's meshes ``rgb`` (None: back to their own colour)."""
-        for handle, own in self.meshes.get(link, []):
-            want = own if rgb is None else rgb
-            if self.rgb_now.get(link) != want:
-                # viser's mesh colour property is 0..255 integers: 0..1 floats would be truncated to black
-                handle.color = tuple(round(255.0 * min(1.0, max(0.0, c))) for c in want)
-        if link in self.meshes:
-            self.rgb_now[link] = rgb if rgb is not None else self.meshes[link][0][1]
-
-    def set_visible(self, visible: bool) -> None:
-        for h in self.frames.values():
-            h.visible = visible
-
-
-TABLE_HZ = 10.0
-"""Most redraws of the joint table per second (the pose and the page state follow every update)."""
-
-
-def plain_lights(server: Any) -> None:
-    """Plain ambient + directional lights instead of viser's image-based lighting.
-
-    The default environment map costs about 20 s per page load on a software renderer (no GPU) and slows every
-    frame there; simple-shape robots gain nothing from it.
-    """
-    server.scene.configure_environment_map(hdri=None)
-    server.scene.add_light_ambient("/light/ambient", intensity=1.2)
-    server.scene.add_light_directional("/light/sun", intensity=1.8, position=(2.0, -2.0, 3.0))
 
 
 class ViewerApp:

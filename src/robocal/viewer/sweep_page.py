@@ -324,7 +324,7 @@ class SweepOverlay:
 
 
 def _wxyz(R: FloatArray) -> tuple[float, float, float, float]:
-    from .app import _wxyz as app_wxyz
+    from .scene import _wxyz as app_wxyz
 
     return app_wxyz(R)
 
