@@ -178,7 +178,6 @@ MAX_LINES = 500
 OVERSIZE_PENDING = {
     "viewer/sweep_page.py": "view2",
     "cli/kinematics.py": "kin",
-    "workflows/kinematic_vision.py": "kin",
 }
 
 # Class names still defined in more than one module, with the helper renaming them. This list only shrinks.
