@@ -14,7 +14,7 @@ from robocal.cli.main import main
 pytest.importorskip("viser")
 pytest.importorskip("yourdfpy")
 
-from robocal.viewer.sweep_page import LeRobotSweepWebView, open_lerobot_sweep_page
+from robocal.viewer.lerobot_sweep_page import LeRobotSweepWebView, open_lerobot_sweep_page
 
 pytestmark = pytest.mark.timeout(120)
 MOTORS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")

@@ -88,7 +88,7 @@ def _cal_file(
 
 def _web_view(robot: str, spec: Any, inner: Any, port: int) -> Any:
     """``--view``: the page drawing the recorded ranges on the arm (robocal.viewer.sweep_page); URL printed."""
-    from ..viewer.sweep_page import open_lerobot_sweep_page
+    from ..viewer.lerobot_sweep_page import open_lerobot_sweep_page
 
     web = open_lerobot_sweep_page(robot, spec.motor_names, inner=inner, port=port)
     _common.err_console.print(f"calibration view: {web.app.url}")
