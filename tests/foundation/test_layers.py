@@ -145,9 +145,7 @@ def _runtime_robocal_imports(path: Path) -> set[str]:
 
 
 # CLI modules that still import a backend at run time, with the helper moving that into a workflow. Only shrinks.
-CLI_BACKEND_PENDING = {
-    "cli/_autocal.py": "auto: demo --auto writes the Lite URDF itself (a workflows/demo.py job)"
-}
+CLI_BACKEND_PENDING: dict[str, str] = {}
 
 
 def test_cli_calls_workflows_not_backends() -> None:

@@ -187,9 +187,7 @@ def run_auto_demo(robot: str, out_dir: Path | None) -> int:
     """
     import tempfile
 
-    from ..backends.sim.lite import lite_urdf_text
-    from ..fileio import atomic_write_text
-    from ..workflows.autocal_sim import SimAutoLite, sim_opener
+    from ..workflows.autocal_sim import SimAutoLite, sim_opener, write_sim_lite_urdf
     from ..workflows.autocal_sweep import run_sweep_auto
 
     if robot != "lite":
@@ -201,8 +199,7 @@ def run_auto_demo(robot: str, out_dir: Path | None) -> int:
         tmp = tempfile.TemporaryDirectory(prefix="robocal-demo-auto-")
         out_dir = Path(tmp.name)
     try:
-        urdf = out_dir / "lite_bimanual.urdf"
-        atomic_write_text(urdf, lite_urdf_text(), backup=False)
+        urdf = write_sim_lite_urdf(out_dir / "lite_bimanual.urdf")
         con = _common.console
         con.print(
             "robocal demo --auto: simulated Lite, 14 Robstride joints on two virtual CAN buses, physics on a "

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,7 +25,7 @@ from ..core.profile import RobotProfile
 from ..errors import UsageError
 from .autocal import JointDriver, RobstrideJointDriver
 
-__all__ = ["SIM_FAULTS", "SimAutoLite", "open_sim_lite", "sim_opener"]
+__all__ = ["SIM_FAULTS", "SimAutoLite", "open_sim_lite", "sim_opener", "write_sim_lite_urdf"]
 
 SIM_FAULTS = ("missing", "obstacle", "snag", "soft", "overload", "silent", "stiction")
 """Per-joint scenario options of ``sim:lite`` for ``--auto``."""
@@ -196,3 +197,12 @@ def sim_opener(holder: list[SimAutoLite] | None = None) -> Callable[..., Any]:
         return sim.drivers, sim.clock, sim.close
 
     return open_
+
+
+def write_sim_lite_urdf(path: Path) -> Path:
+    """Write the simulated Lite's URDF (14 arm joints) to ``path`` atomically; return ``path``."""
+    from ..backends.sim.lite import lite_urdf_text
+    from ..fileio import atomic_write_text
+
+    atomic_write_text(path, lite_urdf_text(), backup=False)
+    return path
