@@ -7,8 +7,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 SRC = Path(__file__).resolve().parents[2] / "src" / "robocal"
 LAYERS = ["core", "backends", "formats", "workflows", "cli"]  # imports point down (left) only
 HEAVY = [
@@ -173,9 +171,7 @@ def test_the_checker_sees_an_upward_import() -> None:
 MAX_LINES = 500
 
 # Modules still over MAX_LINES, each with the helper splitting it. This list only shrinks.
-OVERSIZE_PENDING = {
-    "cli/kinematics.py": "kin",
-}
+OVERSIZE_PENDING: dict[str, str] = {}
 
 # Class names still defined in more than one module, with the helper renaming them. This list only shrinks.
 DUPLICATE_CLASS_PENDING: dict[str, str] = {}
@@ -208,16 +204,6 @@ def test_no_class_name_defined_twice() -> None:
     assert "CalibError" in defined  # the walk sees the classes
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="issue 16 in progress: "
-    + "; ".join(
-        [
-            *(f"{k} > {MAX_LINES} lines" for k in OVERSIZE_PENDING),
-            *DUPLICATE_CLASS_PENDING,
-            *(f"{k} imports a backend" for k in CLI_BACKEND_PENDING),
-        ]
-    ),
-)
 def test_issue16_nothing_pending() -> None:
+    """Every module is under the size limit, every class name unique, no CLI module imports a backend."""
     assert (OVERSIZE_PENDING, DUPLICATE_CLASS_PENDING, CLI_BACKEND_PENDING) == ({}, {}, {})

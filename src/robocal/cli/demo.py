@@ -87,8 +87,8 @@ def demo(
                 "`robocal view --urdf URDF --lerobot-port sim --robot so101_follower --calibration FILE`"
             )
         raise typer.Exit(_demo_view(out, port))
-    if identify:  # kinematic identification (+ camera images for so101): robocal.cli.kinematics.run_demo
-        from .kinematics import run_demo as identify_demo
+    if identify:  # kinematic identification (+ camera images for so101): robocal.cli._kinematics_demo.run_demo
+        from ._kinematics_demo import run_demo as identify_demo
 
         raise typer.Exit(int(identify_demo(robot, out)))
     result = run_demo(robot, out, mode=mode, say=_common.console.print)

@@ -12,7 +12,7 @@ The jobs:
   vendor SDKs on a pseudo-terminal.
 * ``ur`` (``ur3`` … ``ur30``): extract + verify against a simulated controller on loopback TCP.
 * ``identify`` (``so101``, ``koch`` with ``--identify``): kinematic identification of an arm with hidden errors,
-  still run by :func:`robocal.cli.kinematics.run_demo` (its image part landed there; to move into :data:`JOBS`).
+  still run by :func:`robocal.cli._kinematics_demo.run_demo` (its image part landed there; to move into :data:`JOBS`).
 
 A new mode adds a function ``(robot, folder, say, **options) -> DemoResult`` to :data:`JOBS` and the robots it
 works with to :data:`MODE_ROBOTS` (see :func:`run_demo`).
