@@ -174,7 +174,10 @@ def inspect_dataset(
                             f"data file {rel}: column {feat.key!r} is {arr.type}; expected "
                             f"fixed_size_list<float>[{d_of[feat.key]}]"
                         )
-                    v = np.asarray(arr.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
+                    # a damaged file's values may not fit a float64 (or be inf / NaN): counted below as not
+                    # finite, never a numpy warning
+                    with np.errstate(invalid="ignore", over="ignore"):
+                        v = np.asarray(arr.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
                     v = v.reshape(-1, d_of[feat.key])
                     if v.shape[0] == 0:
                         continue
@@ -184,7 +187,8 @@ def inspect_dataset(
                     a["min"] = np.minimum(a["min"], np.where(finite, v, np.inf).min(axis=0))
                     a["max"] = np.maximum(a["max"], np.where(finite, v, -np.inf).max(axis=0))
                     a["sum"] += np.where(finite, v, 0.0).sum(axis=0)
-                    jump = (np.abs(np.diff(v, axis=0)) > 0.5 * turn) & same_ep[:, None]
+                    with np.errstate(invalid="ignore", over="ignore"):  # inf − inf in a damaged file
+                        jump = (np.abs(np.diff(v, axis=0)) > 0.5 * turn) & same_ep[:, None]
                     a["jumps"] += jump.sum(axis=0)
                     if lo is not None and hi is not None:
                         a["oor"] += ((v < lo - tolerance) | (v > hi + tolerance)).sum(axis=0)
