@@ -161,8 +161,7 @@ class _SimSpec:
 
 def _parse_auto_source(text: str) -> _SimSpec:
     """``sim:lite[?seed=N&missing=a,b&...]`` (the options of :mod:`robocal.workflows.autocal_sim`)."""
-    from urllib.parse import parse_qs
-
+    from ..backends.sources.spec import parse_sim_options
     from .autocal_sim import SIM_FAULTS
 
     robot, _, query = text[len("sim:") :].partition("?")
@@ -170,23 +169,8 @@ def _parse_auto_source(text: str) -> _SimSpec:
         raise UsageError(
             f"--source {text!r}: --auto simulates sim:lite only (LeRobot arms: lerobot calibrate --auto)"
         )
-    opts: dict[str, str] = {}
-    if query:
-        try:
-            parsed = parse_qs(query, keep_blank_values=True, strict_parsing=True)
-        except ValueError:
-            raise UsageError(
-                f"--source {text!r}: malformed options {query!r}; expected key=value&..."
-            ) from None
-        for key, values in parsed.items():
-            if key not in ("seed", *SIM_FAULTS):
-                raise UsageError(
-                    f"--source {text!r}: unknown option {key!r}; valid with --auto: seed, {', '.join(SIM_FAULTS)}"
-                )
-            opts[key] = ",".join(values)
-    seed = opts.get("seed", "0")
-    if not (seed.isascii() and seed.isdigit()):
-        raise UsageError(f"--source {text!r}: seed must be a non-negative integer, got {seed!r}")
+    valid = ("seed", *SIM_FAULTS)
+    opts = parse_sim_options(text, query, valid, joined=valid, valid_label="valid with --auto")
     return _SimSpec("sim", opts, text)
 
 

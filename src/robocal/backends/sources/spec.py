@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 from urllib.parse import parse_qs
@@ -13,7 +13,16 @@ import numpy.typing as npt
 
 from ...errors import UsageError
 
-__all__ = ["FRAMES", "SIM_OPTIONS", "JointSpec", "Sample", "Source", "SourceSpec", "parse_source"]
+__all__ = [
+    "FRAMES",
+    "SIM_OPTIONS",
+    "JointSpec",
+    "Sample",
+    "Source",
+    "SourceSpec",
+    "parse_sim_options",
+    "parse_source",
+]
 
 FRAMES = ("identity", "motor")
 """The frames a source reads in: ``direction·raw`` (a robot publishing with an empty calibration) or raw."""
@@ -84,6 +93,51 @@ class SourceSpec:
 SIM_OPTIONS = ("seed", "noise", "skip", "short", "flip", "zero_sta", "single_turn")
 
 
+def parse_sim_options(
+    text: str,
+    query: str,
+    valid: Sequence[str],
+    *,
+    joined: Sequence[str] = (),
+    valid_label: str = "valid",
+) -> dict[str, str]:
+    """The ``key=value&...`` options of a ``sim:`` source, checked.
+
+    Args:
+        text: The whole ``--source`` text, for messages.
+        query: The part after ``?`` (may be empty).
+        valid: The option names accepted.
+        joined: Options that may repeat; their values are joined with commas (``skip=a&skip=b`` is ``a,b``).
+            Any other option given twice is refused.
+        valid_label: How the message introduces the valid names.
+
+    Raises:
+        UsageError: Malformed text, an unknown or repeated option, a seed that is not a non-negative integer.
+    """
+    opts: dict[str, str] = {}
+    if query:
+        try:
+            parsed = parse_qs(query, keep_blank_values=True, strict_parsing=True)
+        except ValueError:
+            raise UsageError(
+                f"--source {text!r}: malformed options {query!r}; expected key=value&..."
+            ) from None
+        for key, values in parsed.items():
+            if key not in valid:
+                raise UsageError(
+                    f"--source {text!r}: unknown option {key!r}; {valid_label}: {', '.join(valid)}"
+                )
+            if key in joined:
+                opts[key] = ",".join(values)
+            elif len(values) > 1:
+                raise UsageError(f"--source {text!r}: option {key!r} is given {len(values)} times")
+            else:
+                opts[key] = values[0]
+    if "seed" in opts and not (opts["seed"].isascii() and opts["seed"].isdigit()):
+        raise UsageError(f"--source {text!r}: seed must be a non-negative integer, got {opts['seed']!r}")
+    return opts
+
+
 def parse_source(text: str) -> SourceSpec:
     """Parse a ``--source`` string.
 
@@ -98,27 +152,7 @@ def parse_source(text: str) -> SourceSpec:
         robot, _, query = rest.partition("?")
         if robot != "lite":
             raise UsageError(f"--source {text!r}: unknown simulated robot {robot!r}; expected sim:lite")
-        opts: dict[str, str] = {}
-        if query:
-            try:
-                parsed = parse_qs(query, keep_blank_values=True, strict_parsing=True)
-            except ValueError:
-                raise UsageError(
-                    f"--source {text!r}: malformed options {query!r}; expected key=value&..."
-                ) from None
-            for key, values in parsed.items():
-                if key not in SIM_OPTIONS:
-                    raise UsageError(
-                        f"--source {text!r}: unknown option {key!r}; valid: {', '.join(SIM_OPTIONS)}"
-                    )
-                if key in ("skip", "short", "flip"):
-                    opts[key] = ",".join(values)  # skip=a&skip=b means skip=a,b
-                elif len(values) > 1:
-                    raise UsageError(f"--source {text!r}: option {key!r} is given {len(values)} times")
-                else:
-                    opts[key] = values[0]
-        if "seed" in opts and not (opts["seed"].isascii() and opts["seed"].isdigit()):
-            raise UsageError(f"--source {text!r}: seed must be a non-negative integer, got {opts['seed']!r}")
+        opts = parse_sim_options(text, query, SIM_OPTIONS, joined=("skip", "short", "flip"))
         for key in ("zero_sta", "single_turn"):
             if key in opts and opts[key] not in ("0", "1"):
                 raise UsageError(f"--source {text!r}: {key} must be 0 or 1, got {opts[key]!r}")
