@@ -336,7 +336,7 @@ def test_feetech_read_answered_without_data_is_a_protocol_error(model: str) -> N
 
     with (
         ShortReplyServoBus([SimServo(1, model)]) as sim,
-        FeetechBus(sim.port, {1: model}, retries=1, packet_timeout_ms=20) as bus,
+        FeetechBus(sim.port, {1: model}, retries=1, packet_timeout_ms=500) as bus,
     ):
         with pytest.raises(
             ProtocolError,
