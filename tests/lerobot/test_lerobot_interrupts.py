@@ -20,30 +20,17 @@ from rich.console import Console
 import robocal.workflows.lerobot as wf
 import robocal.workflows.lerobot.arms as wf_arms
 from robocal.backends.sim import lerobot_arms
-from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, SimArm, SimArmOperator
+from robocal.backends.sim.lerobot_arms import SimArm, SimArmOperator
 from robocal.cli import _common
 from robocal.cli.main import main
 from robocal.errors import UsageError
 from robocal.lerobot import MotorCalibration
 from robocal.workflows.lerobot import calibrate, open_bus, robot_spec
 
+from .conftest import PREVIOUS
+
 pytestmark = pytest.mark.timeout(60)
 
-PREVIOUS = {
-    "so101_follower": {
-        n: {"Homing_Offset": -100 - i, "Min_Position_Limit": 500 + i, "Max_Position_Limit": 3500 - i}
-        for i, n in enumerate(DEFAULT_TRUTH["so101_follower"])
-    },
-    "koch_leader": {
-        n: {
-            "Homing_Offset": -3000 + i,
-            "Min_Position_Limit": 100 + i,
-            "Max_Position_Limit": 3900 - i,
-            "Drive_Mode": 0,
-        }
-        for i, n in enumerate(DEFAULT_TRUTH["koch_leader"])
-    },
-}
 
 
 class CtrlCDuringRollback:

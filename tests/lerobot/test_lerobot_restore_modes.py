@@ -11,30 +11,17 @@ import pytest
 
 import robocal.workflows.lerobot as wf
 import robocal.workflows.lerobot.arms as wf_arms
-from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, SimArm
+from robocal.backends.sim.lerobot_arms import SimArm
 from robocal.cli.main import main
 from robocal.errors import CalibError, CalibTimeoutError
 from robocal.formats import read_calibration as read_joint_map
 from robocal.lerobot import MotorCalibration, normalize, read_calibration, unnormalize, write_calibration
 from robocal.workflows.lerobot import calibrate, configure, open_bus, restore, robot_spec
 
+from .conftest import PREVIOUS
+
 pytestmark = pytest.mark.timeout(60)
 
-PREVIOUS = {
-    "so101_follower": {
-        n: {"Homing_Offset": -100 - i, "Min_Position_Limit": 500 + i, "Max_Position_Limit": 3500 - i}
-        for i, n in enumerate(DEFAULT_TRUTH["so101_follower"])
-    },
-    "koch_leader": {
-        n: {
-            "Homing_Offset": -3000 + i,
-            "Min_Position_Limit": 100 + i,
-            "Max_Position_Limit": 3900 - i,
-            "Drive_Mode": 0,
-        }
-        for i, n in enumerate(DEFAULT_TRUTH["koch_leader"])
-    },
-}
 # restore's writes: torque (and Feetech Lock) off on every motor, then per motor its registers in bus order
 TORQUE_WRITES = {"so101_follower": 12, "koch_leader": 6}
 REGS_PER_MOTOR = {"so101_follower": 3, "koch_leader": 4}

@@ -17,6 +17,8 @@ from robocal.errors import CalibTimeoutError, DeviceError, ProtocolError
 from robocal.lerobot import MotorCalibration, read_calibration
 from robocal.workflows.lerobot import calibrate, check, open_bus, restore, robot_spec
 
+from .conftest import PREVIOUS
+
 pytestmark = pytest.mark.timeout(60)
 
 
@@ -219,21 +221,6 @@ def test_full_turn_joints_can_be_swept(tmp_path: Path) -> None:
     assert (kcal["shoulder_pan"].range_min, kcal["shoulder_pan"].range_max) == (500 - 1, 3600 - 1)
 
 
-PREVIOUS = {
-    "so101_follower": {
-        n: {"Homing_Offset": -100 - i, "Min_Position_Limit": 500 + i, "Max_Position_Limit": 3500 - i}
-        for i, n in enumerate(DEFAULT_TRUTH["so101_follower"])
-    },
-    "koch_leader": {
-        n: {
-            "Homing_Offset": -3000 + i,
-            "Min_Position_Limit": 100 + i,
-            "Max_Position_Limit": 3900 - i,
-            "Drive_Mode": 0,
-        }
-        for i, n in enumerate(DEFAULT_TRUTH["koch_leader"])
-    },
-}
 
 
 @pytest.mark.parametrize("robot", ["so101_follower", "koch_leader"])
