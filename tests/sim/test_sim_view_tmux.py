@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import sys
@@ -19,17 +20,22 @@ pytestmark = [
 ]
 
 
+# A private tmux server per test run: a server another program started keeps that program's environment (a
+# COLUMNS=80 there cuts the table's joint names off) and its size options.
+SOCKET = f"robocal-test-{os.getpid()}"
+
+
 def _tmux(*args: str) -> str:
-    return subprocess.run(["tmux", *args], check=True, capture_output=True, text=True).stdout
+    return subprocess.run(["tmux", "-L", SOCKET, *args], check=True, capture_output=True, text=True).stdout
 
 
 @pytest.fixture
 def session(tmp_path: Path) -> Iterator[str]:
     name = f"robocal-sim-{time.monotonic_ns()}"
-    cmd = f"cd {tmp_path} && {sys.executable} -m robocal sim so101_follower --link arm.port; echo EXITED $?; sleep 30"
+    cmd = f"cd {tmp_path} && env -u COLUMNS -u LINES {sys.executable} -m robocal sim so101_follower --link arm.port; echo EXITED $?; sleep 30"
     _tmux("new-session", "-d", "-s", name, "-x", "200", "-y", "40", cmd)
     yield name
-    subprocess.run(["tmux", "kill-session", "-t", name], capture_output=True)
+    subprocess.run(["tmux", "-L", SOCKET, "kill-server"], capture_output=True)
 
 
 def _screen(name: str) -> str:
@@ -59,13 +65,16 @@ def test_keys_select_move_and_push_joints_and_q_quits(session: str, tmp_path: Pa
     _tmux("send-keys", "-t", session, "Down")
     screen = _wait_for(session, "▶ │ shoulder_lift")
     _tmux("send-keys", "-t", session, "[")  # push shoulder_lift into its low stop (780 ticks)
-    time.sleep(0.5)
+    deadline = time.monotonic() + 20.0
+    while " 780 " not in _row(_screen(session), "shoulder_lift").replace("│", " ") and time.monotonic() < deadline:
+        time.sleep(0.1)  # the view redraws on its own clock: wait for it, however loaded the machine is
     row = _row(_screen(session), "shoulder_lift")
-    assert "│ 780 " in row.replace("  ", " ") or " 780 " in row
+    assert " 780 " in row.replace("│", " "), row
     _tmux("send-keys", "-t", session, "Right", "Right")  # two steps of 20 ticks off the stop
-    time.sleep(0.5)
     with SimControl(tmp_path / "arm.port.control") as ctl:
-        state = ctl.state()
+        deadline = time.monotonic() + 20.0
+        while (state := ctl.state())["shoulder_lift"]["position"] != 820.0 and time.monotonic() < deadline:
+            time.sleep(0.1)
     assert state["shoulder_lift"]["position"] == 820.0
     assert state["shoulder_pan"]["position"] == 2100.0
     _tmux("send-keys", "-t", session, "q")
