@@ -185,3 +185,39 @@ def test_abort() -> None:
 def test_bad_config(bad: dict[str, float]) -> None:
     with pytest.raises(InvalidCalibrationError, match="must be a positive finite number"):
         config(**bad)
+
+
+def test_gravity_in_the_joint_frame_corrects_the_zero_with_an_unknown_offset() -> None:
+    """A URDF gravity model is known in the joint frame; the driver frame is ``s = q + z`` with z unknown."""
+    from robocal.core.gravity import JointGravity
+
+    z = 0.4  # the zero to find: the stops in the driver frame are at −1 + z and 1 + z
+    g_joint = JointGravity("j", 0.25, 0.15)  # τ_g(q) = 0.25 cos q + 0.15 sin q  (joint frame)
+    plant = Plant(q_lo=-1.0 + z, q_hi=1.0 + z, k_lo=15, k_hi=15, gravity=lambda s: g_joint(s - z), seed=12, q=z)
+    lo, _ = search(plant, -1)
+    hi, _ = search(plant, +1, max_travel_rad=2.5, max_time_s=20.0)
+    plain = joint_zero("j", lo.result, hi.result, -1.0, 1.0)
+    fixed = joint_zero("j", lo.result, hi.result, -1.0, 1.0, gravity=g_joint)
+    # uncorrected: the midpoint moves by ≈ ½(τ_g(−1) + τ_g(1))/k = ½·2·0.25·cos(1)/15 ≈ 0.0090 rad (0.5°)
+    assert plain.offset_rad - z == pytest.approx(0.25 * math.cos(1.0) / 15, abs=math.radians(0.15))
+    assert abs(fixed.offset_rad - z) < math.radians(0.15)
+    # each stop moved by its own τ_g(q_joint)/k̂ (k̂ from the press), the span too
+    for res, res0, q_joint in ((fixed.lower, lo.result, -1.0), (fixed.upper, hi.result, 1.0)):
+        assert res is not None
+        shift = res0.q_stop_rad - res.q_stop_rad
+        assert shift == pytest.approx(g_joint(q_joint) / res0.stiffness_nm_per_rad, abs=1.5e-4)
+    assert abs(fixed.span_rad - 2.0) < abs(plain.span_rad - 2.0) + 1e-9
+
+
+def test_gravity_correction_of_a_one_sided_stop_and_without_stiffness() -> None:
+    from robocal.core.stop_types import StopResult
+    from robocal.core.stop_zero import gravity_corrected
+
+    up = StopResult(1, "ok", q_stop_rad=1.5, stiffness_nm_per_rad=50.0)
+    j = joint_zero("j", None, up, None, 1.0, gravity=lambda q: 2.0 * q)
+    # one-sided: the stop is at its profile angle 1.0 in the joint frame: τ_g = 2 N·m, sink 0.04 rad
+    assert j.offset_rad == pytest.approx(1.5 - 0.04 - 1.0)
+    assert j.upper is not None and j.upper.q_stop_rad == pytest.approx(1.46)
+    # no stiffness estimate (a transit stall): nothing to divide by, left as measured
+    stalled = StopResult(1, "ok", q_stop_rad=1.5, test="transit-stall")
+    assert gravity_corrected(None, stalled, None, 1.0, lambda q: 2.0) == (None, stalled)

@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import InvalidCalibrationError
 from .stop_types import SearchConfig, StopResult
 
-__all__ = ["JointStops", "joint_zero", "summarise", "with_gravity"]
+__all__ = ["JointStops", "gravity_corrected", "joint_zero", "summarise", "with_gravity"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,7 @@ def joint_zero(
     expected_upper_rad: float | None,
     span_tol_rad: float = math.radians(5.0),
     stop_tol_rad: float = math.radians(10.0),
+    gravity: Callable[[float], float] | None = None,
 ) -> JointStops:
     """Combine the stop searches of one joint into its offset (``q_joint = s − offset``).
 
@@ -87,6 +88,9 @@ def joint_zero(
         expected_upper_rad: Expected upper stop angle (joint frame), or None.
         span_tol_rad: Span plausibility tolerance.
         stop_tol_rad: One-sided: how far the raw stop may be from… (unused for two-sided); kept for reports.
+        gravity: The joint's gravity torque ``τ_g(q)`` in the joint (URDF) frame, e.g. a
+            :class:`~robocal.core.gravity.JointGravity` from the URDF: each stop is corrected by
+            :func:`gravity_corrected` before the midpoint and the span.
 
     Raises:
         InvalidCalibrationError: No search given, or a one-sided search without its expected angle.
@@ -98,6 +102,8 @@ def joint_zero(
         if res is not None and not res.ok:
             side = "lower" if res.direction < 0 else "upper"
             return JointStops(name, res.code, f"{side} stop: {res.reason}", lower, upper, math.nan)
+    if gravity is not None:
+        lower, upper = gravity_corrected(lower, upper, expected_lower_rad, expected_upper_rad, gravity)
     if lower is not None and upper is not None:
         s_lo, s_hi = lower.q_stop_rad, upper.q_stop_rad
         span = s_hi - s_lo
@@ -126,6 +132,64 @@ def joint_zero(
     if expected is None:
         raise InvalidCalibrationError(f"joint {name}: a one-sided stop needs its expected angle")
     return JointStops(name, "ok", "", lower, upper, res.q_stop_rad - expected)
+
+
+def _offset(
+    lower: StopResult | None, upper: StopResult | None, exp_lo: float | None, exp_hi: float | None
+) -> float:
+    """The offset :func:`joint_zero` would give (``q_joint = s − offset``), without any check."""
+    if lower is not None and upper is not None:
+        mid = 0.5 * (lower.q_stop_rad + upper.q_stop_rad)
+        return mid if exp_lo is None or exp_hi is None else mid - 0.5 * (exp_lo + exp_hi)
+    res = lower if lower is not None else upper
+    expected = exp_lo if res is lower else exp_hi
+    assert res is not None
+    return res.q_stop_rad - (0.0 if expected is None else expected)
+
+
+def gravity_corrected(
+    lower: StopResult | None,
+    upper: StopResult | None,
+    expected_lower_rad: float | None,
+    expected_upper_rad: float | None,
+    gravity: Callable[[float], float],
+    iterations: int = 3,
+) -> tuple[StopResult | None, StopResult | None]:
+    """The stops with the gravity sink removed: ``q_stop − τ_g(q_joint)/k̂`` for each stop.
+
+    A stop of stiffness ``k`` pressed by the motor and by gravity sits at ``q = q_surface + (τ + τ_g)/k``; the
+    search removed the motor's part (``τ/k̂``). Gravity is known in the joint (URDF) frame, while the stops are
+    in the driver's frame ``s = q_joint + offset`` with the offset not known yet: it is estimated from the stops
+    (the midpoint rule, or the one-sided stop angle), the stops are corrected at ``q_joint = s − offset``, and
+    that is repeated ``iterations`` times (the offset moves by ``τ_g/k``, a small angle, so it converges at once).
+
+    A stop without a stiffness estimate (NaN, e.g. a ``transit-stall``) is left as it is.
+
+    Args:
+        lower: Lower-stop result (ok) or None.
+        upper: Upper-stop result (ok) or None.
+        expected_lower_rad: Expected lower stop angle (joint frame) or None.
+        expected_upper_rad: Expected upper stop angle or None.
+        gravity: ``τ_g(q_joint)``, N·m, positive towards +q.
+        iterations: Fixed-point iterations of the offset.
+
+    Returns:
+        ``(lower, upper)`` with corrected ``q_stop_rad``.
+    """
+    originals = (lower, upper)
+    corrected = originals
+    for _ in range(max(1, iterations)):
+        offset = _offset(*corrected, expected_lower_rad, expected_upper_rad)
+        new: list[StopResult | None] = []
+        for res, cur in zip(originals, corrected, strict=True):
+            k = math.nan if res is None else res.stiffness_nm_per_rad
+            if res is None or cur is None or not (math.isfinite(k) and k > 0):
+                new.append(res)
+                continue
+            tau_g = float(gravity(cur.q_stop_rad - offset))  # the surface in the joint frame
+            new.append(replace(res, q_stop_rad=res.q_stop_rad - tau_g / k))
+        corrected = (new[0], new[1])
+    return corrected
 
 
 def with_gravity(config: SearchConfig, gravity_nm: Callable[[float], float] | None) -> SearchConfig:

@@ -16,6 +16,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from ..core.gravity import GravityModel, JointGravity, joint_gravity
 from ..core.profile_auto import AutoJoint, AutoSection
 from ..errors import DeviceError, UsageError
 from .autocal_joint import (
@@ -46,6 +47,7 @@ __all__ = [
     "MonotonicClock",
     "RobstrideJointDriver",
     "calibrate_joint",
+    "joint_gravity_for",
     "limp_all",
     "run_autocal",
     "select_joints",
@@ -83,6 +85,7 @@ def run_autocal(
     joints: Sequence[str] | None = None,
     max_lag_rad: Mapping[str, float] | float = math.radians(3.0),
     gravity: Mapping[str, Callable[[float], float]] | None = None,
+    gravity_model: GravityModel | None = None,
     view: AutoView | None = None,
     clock: Clock | None = None,
 ) -> AutoCalResult:
@@ -101,6 +104,10 @@ def run_autocal(
         max_lag_rad: Per joint or for all: the most the position target may lead the joint (the drive's
             ``cap/kp``).
         gravity: Joint → gravity torque model ``τ_g(s)`` in the driver's frame, for the correction.
+        gravity_model: The URDF's gravity model (:func:`robocal.formats.urdf_gravity.gravity_model_from_urdf`):
+            each joint's stops are corrected with its gravity torque in the joint frame, the joints its profile
+            ``pose`` names at those angles and every other joint at 0 (:func:`joint_gravity_for`). Joints that
+            ``gravity`` covers are left to it.
         view: Live view.
         clock: Clock for the total time (default: the first driver's readings).
 
@@ -136,6 +143,9 @@ def run_autocal(
                     hi,
                     max_lag_rad=_lag(max_lag_rad, joint.name),
                     gravity=None if gravity is None else gravity.get(joint.name),
+                    gravity_joint=None
+                    if gravity is not None and joint.name in gravity
+                    else joint_gravity_for(gravity_model, joint),
                     view=view,
                 )
                 outcomes.append(outcome)
@@ -146,6 +156,18 @@ def run_autocal(
             raise AutoCalAbortedError(f"auto-calibration aborted, every motor limp: {exc}") from None
     t_end = clock.now() if clock is not None else drivers[order[-1].name].read().t_s
     return AutoCalResult(tuple(outcomes), t_end - t_start)
+
+
+def joint_gravity_for(model: GravityModel | None, joint: AutoJoint) -> JointGravity | None:
+    """The gravity torque of ``joint`` from ``model`` in its search pose (None: no model, or not a revolute joint of it).
+
+    The joints the profile's ``pose`` names hold those angles; every other joint is taken at 0 (the URDF's zero
+    pose), so the correction is exact for a profile that names the pose of every joint that carries weight.
+    """
+    if model is None or joint.name not in model.joint_names or model.joint(joint.name).type != "revolute":
+        return None
+    pose = {name: math.radians(deg) for name, deg in joint.pose if name in model.joint_names}
+    return joint_gravity(model, joint.name, pose)
 
 
 def _lag(value: Mapping[str, float] | float, name: str) -> float:

@@ -347,6 +347,7 @@ def calibrate_joint(
     *,
     max_lag_rad: float,
     gravity: Callable[[float], float] | None = None,
+    gravity_joint: Callable[[float], float] | None = None,
     view: AutoView | None = None,
 ) -> JointOutcome:
     """Find the stop(s) of one joint, compute its zero, park it.
@@ -355,6 +356,10 @@ def calibrate_joint(
     anywhere), then the upper one (bound: span − back-off + tolerance), then the joint parks at ``park_deg``
     (default: the middle of the measured stops). One-sided: only that stop (travel bound: the expected span +
     tolerance when both expected angles are known, else one turn).
+
+    Gravity: ``gravity`` is a model in the driver's frame ``s`` (a simulator's truth), used by the search at the
+    press; ``gravity_joint`` one in the joint (URDF) frame (:func:`robocal.core.gravity.joint_gravity`), used by
+    :func:`~robocal.core.stop_zero.joint_zero` once both stops are known. Give at most one.
 
     A failed search leaves the joint limp; the outcome carries its code and reason.
     """
@@ -413,6 +418,7 @@ def calibrate_joint(
         expected_lower_rad,
         expected_upper_rad,
         span_tol_rad=math.radians(section.span_tolerance_deg),
+        gravity=gravity_joint,
     )
     if stops.ok:
         park = _park_target(joint, stops, expected_lower_rad, expected_upper_rad)

@@ -203,7 +203,9 @@ def run_sweep_auto(
         confirm_start: Asked before anything moves; returning False ends the run with nothing moved.
         view: Live view.
         open_drivers_fn: Opens the drivers (default: Robstride buses from ``source``; the simulator passes its own).
-        gravity: Joint → gravity torque model, for the correction.
+        gravity: Joint → gravity torque model in the driver's frame, for the correction (a simulator's truth).
+            Without it, a URDF with ``<inertial>`` masses gives the correction
+            (:func:`robocal.formats.urdf_gravity.gravity_model_if_any`).
 
     Raises:
         UsageError: Bad options, no auto section, not a Robstride robot, the start not confirmed.
@@ -213,6 +215,7 @@ def run_sweep_auto(
     """
     from ..backends.sources import parse_source
     from ..formats.urdf import read_urdf
+    from ..formats.urdf_gravity import gravity_model_if_any
     from .joint_specs import joints_from_urdf
     from .sweep import OUTPUT_FORMATS, _check_writable, _existing_output, _offsets, _write
 
@@ -227,6 +230,7 @@ def run_sweep_auto(
             raise UsageError(f"--report {report_path}: is the same file as --out")
     spec = _parse_auto_source(source) if source.startswith("sim:") else parse_source(source)
     urdf = read_urdf(urdf_path)
+    gravity_model = gravity_model_if_any(urdf_path) if gravity is None else None
     profile = resolve_profile(robot, urdf)
     if profile is None or profile.auto is None:
         who = "no robot profile is in effect" if profile is None else f"profile {profile.name} has none"
@@ -276,6 +280,7 @@ def run_sweep_auto(
             joints=[j.name for j in order],
             max_lag_rad=MAX_LAG_RAD,
             gravity=gravity,
+            gravity_model=gravity_model,
             view=view,
             clock=clock,
         )
