@@ -104,3 +104,29 @@ def test_cli_demo_identify_refuses_a_robot_without_it(capsys: pytest.CaptureFixt
     assert main(["demo", "--robot", "ur10e", "--identify"]) == 2
     err = capsys.readouterr().err
     assert err == "error: --identify works with so101, koch, not 'ur10e'\n"
+
+
+def test_demo_auto_is_a_job_for_the_lite_and_refuses_other_robots_in_its_own_words(tmp_path: Path) -> None:
+    assert MODE_ROBOTS["auto"] == ("lite",) and "auto" in JOBS
+    assert prepare_demo("LITE", None, "auto") == "lite"
+    with pytest.raises(
+        UsageError, match=r"^demo --auto simulates the lite \(14 Robstride joints\); 'so101' is not available yet$"
+    ):
+        run_demo("so101", tmp_path, mode="auto")
+    assert list(tmp_path.iterdir()) == []  # refused before anything ran
+
+
+def test_render_prints_the_auto_table_before_the_truth_table(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    from robocal.workflows.autocal_joint import AutoCalResult
+    from robocal.workflows.autocal_sweep import AutoSweepOutcome
+
+    outcome = AutoSweepOutcome(AutoCalResult((), 12.5), None, None, "robocal", None, 0)  # type: ignore[arg-type]
+    table = TruthTable("true vs recovered homing_offset (rad)", ("joint", "true"), (("j1", "+0.1000"),))
+    result = DemoResult("lite", "auto", tmp_path, False, 1, outcome, (DemoSection(table),), ("largest error",))
+    assert render(result) == 1
+    out = capsys.readouterr().out
+    assert out.index("automatic hard-stop calibration (12.5 s)") < out.index("true vs recovered") < out.index(
+        "largest error"
+    )

@@ -1,7 +1,8 @@
 """CLI side of the automatic hard-stop calibration (``sweep --auto``, ``lerobot calibrate --auto``, ``demo --auto``).
 
 The clear-workspace prompt, the live view and the result table; the logic lives in
-:mod:`robocal.workflows.autocal` and :mod:`robocal.workflows.autocal_sweep`.
+:mod:`robocal.workflows.autocal` and :mod:`robocal.workflows.autocal_sweep` (``demo --auto``: a job of
+:mod:`robocal.workflows.demo`).
 """
 
 from __future__ import annotations
@@ -174,68 +175,3 @@ def sweep_auto(
     if outcome.report is not None:
         _common.console.print(f"wrote {outcome.report}", markup=False)
     raise typer.Exit(outcome.exit_code)
-
-
-def run_auto_demo(robot: str, out_dir: Path | None) -> int:
-    """``robocal demo --auto``: the simulated robot finds its own hard stops; true vs recovered zeros.
-
-    The Lite's 14 Robstride joints are simulated motors on two ``virtual`` CAN channels, each moving a physics
-    plant on one simulated clock; robocal drives them with MIT frames through its Robstride bus code.
-
-    Returns:
-        0 when every joint passed and every recovered zero is within 0.5° of the simulator's truth, else 1.
-    """
-    import tempfile
-
-    from ..workflows.autocal_sim import SimAutoLite, sim_opener, write_sim_lite_urdf
-    from ..workflows.autocal_sweep import run_sweep_auto
-
-    if robot != "lite":
-        raise UsageError(
-            f"demo --auto simulates the lite (14 Robstride joints); {robot!r} is not available yet"
-        )
-    tmp = None
-    if out_dir is None:
-        tmp = tempfile.TemporaryDirectory(prefix="robocal-demo-auto-")
-        out_dir = Path(tmp.name)
-    try:
-        urdf = write_sim_lite_urdf(out_dir / "lite_bimanual.urdf")
-        con = _common.console
-        con.print(
-            "robocal demo --auto: simulated Lite, 14 Robstride joints on two virtual CAN buses, physics on a "
-            "simulated clock; each joint finds its own hard stops (no operator)",
-            markup=False,
-        )
-        holder: list[SimAutoLite] = []
-        outcome = run_sweep_auto(
-            urdf,
-            "sim:lite?seed=0",
-            out_dir / "calibration.yaml",
-            robot="bhl_arms",
-            report=out_dir / "sweep_report.json",
-            view=AutoLiveView(),
-            open_drivers_fn=sim_opener(holder),
-        )
-        con.print(auto_table(outcome.auto))
-        truth = holder[0].true_offsets()
-        t = Table(title="true vs recovered homing_offset (rad)")
-        for col in ("joint", "true", "recovered", "error °"):
-            t.add_column(col, justify="left" if col == "joint" else "right")
-        worst = 0.0
-        for j in outcome.result.joints:
-            err = j.homing_offset - truth[j.name]
-            worst = max(worst, abs(err))
-            t.add_row(j.name, f"{truth[j.name]:+.4f}", f"{j.homing_offset:+.4f}", f"{math.degrees(err):+.3f}")
-        con.print(t)
-        where = (
-            " (temporary folder, removed on exit; keep the files with --out DIR)" if tmp is not None else ""
-        )
-        con.print(
-            f"largest error {math.degrees(worst):.3f}°, {outcome.auto.total_time_s:.1f} s simulated; wrote "
-            f"{outcome.out} and {outcome.report}{where}",
-            markup=False,
-        )
-        return 0 if worst <= math.radians(0.5) and not outcome.auto.failed else 1
-    finally:
-        if tmp is not None:
-            tmp.cleanup()

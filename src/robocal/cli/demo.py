@@ -34,6 +34,12 @@ def truth_table(table: TruthTable) -> Table:
 def render(result: DemoResult) -> int:
     """Print a demo's result (tables, the job's own output, lines, warnings); return the exit code."""
     con = _common.console
+    if result.job == "auto":
+        from ..workflows.autocal_sweep import AutoSweepOutcome
+        from ._autocal import auto_table
+
+        assert isinstance(result.detail, AutoSweepOutcome)
+        con.print(auto_table(result.detail.auto))
     for section in result.sections:
         con.print(truth_table(section.table))
         for line in section.lines:
@@ -77,9 +83,10 @@ def demo(
     if auto:
         if identify or view:
             raise UsageError("--auto is its own demo; it does not go with --identify or --view")
-        from ._autocal import run_auto_demo
+        from ._autocal import AutoLiveView
 
-        raise typer.Exit(int(run_auto_demo(robot, out)))
+        result = run_demo(robot, out, mode="auto", say=_common.console.print, view=AutoLiveView())
+        raise typer.Exit(render(result))
     if view:
         if robot != "lite" or identify:
             raise UsageError(

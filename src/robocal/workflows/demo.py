@@ -13,6 +13,9 @@ The jobs:
 * ``ur`` (``ur3`` … ``ur30``): extract + verify against a simulated controller on loopback TCP.
 * ``identify`` (``so101``, ``koch`` with ``--identify``): kinematic identification of an arm with hidden errors,
   still run by :func:`robocal.cli._kinematics_demo.run_demo` (its image part landed there; to move into :data:`JOBS`).
+* ``auto`` (``lite`` with ``--auto``): zero-touch calibration, each simulated joint finds its own hard stops
+  (physics on a simulated clock behind the Robstride wire protocol); :attr:`DemoResult.detail` is the
+  :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`.
 
 A new mode adds a function ``(robot, folder, say, **options) -> DemoResult`` to :data:`JOBS` and the robots it
 works with to :data:`MODE_ROBOTS` (see :func:`run_demo`).
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
@@ -31,6 +35,7 @@ from typing import Any
 from ..errors import UsageError
 
 __all__ = [
+    "AUTO_ROBOTS",
     "DEMO_ROBOTS",
     "IDENTIFY_ROBOTS",
     "JOBS",
@@ -63,8 +68,23 @@ DEMO_ROBOTS: dict[str, str] = {
 IDENTIFY_ROBOTS: tuple[str, ...] = ("so101", "koch")
 """Robots ``demo --identify`` simulates."""
 
-MODE_ROBOTS: dict[str, tuple[str, ...]] = {"identify": IDENTIFY_ROBOTS}
+AUTO_ROBOTS: tuple[str, ...] = ("lite",)
+"""Robots ``demo --auto`` simulates."""
+
+MODE_ROBOTS: dict[str, tuple[str, ...]] = {"identify": IDENTIFY_ROBOTS, "auto": AUTO_ROBOTS}
 """Demo mode (a flag of ``robocal demo``) → the robots it works with; the mode is also the job it runs."""
+
+MODE_REFUSALS: dict[str, str] = {
+    "auto": "demo --auto simulates the lite (14 Robstride joints); {robot!r} is not available yet",
+}
+"""Demo mode → its own message for a robot it does not work with (``{robot!r}``); default
+``--MODE works with …, not 'ROBOT'``."""
+
+AUTO_DEMO_SOURCE = "sim:lite?seed=0"
+"""The ``demo --auto`` Lite's simulated robot."""
+
+AUTO_TOLERANCE_RAD = math.radians(0.5)
+"""Largest recovered-offset error ``demo --auto`` accepts, rad."""
 
 LITE_DEMO_SOURCE = "sim:lite?seed=8"
 """The Lite demo's simulated robot (a seed whose sweep raises no warning, so the demo exits 0 like a clean
@@ -109,13 +129,14 @@ class DemoResult:
 
     Attributes:
         robot: Demo robot name.
-        job: ``sweep``, ``lerobot``, ``ur``, ``identify`` (or a mode added later).
+        job: ``sweep``, ``lerobot``, ``ur``, ``identify``, ``auto`` (or a mode added later).
         folder: Where the files were written.
         temporary: True when ``folder`` was a temporary folder (removed when the demo returned).
         exit_code: 0 ok, 1 warnings or a recovered value outside the demo's tolerance.
         detail: The job's own result for its printer (``ur``: the verification reports; ``identify``: the
             :class:`~robocal.workflows.kinematics.IdentifyResult`; ``sweep``: the
-            :class:`~robocal.workflows.sweep.SweepOutcome`), or None.
+            :class:`~robocal.workflows.sweep.SweepOutcome`; ``auto``: the
+            :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`), or None.
         sections: Truth tables, each with its lines.
         lines: Lines printed after the sections and the job's own output.
         warnings: Warning sentences (printed as ``warning: …``).
@@ -153,6 +174,9 @@ def prepare_demo(robot: str, out: Path | None, mode: str | None = None) -> str:
         if robots is None:
             raise UsageError(f"unknown demo mode {mode!r}; valid: {', '.join(MODE_ROBOTS)}")
         if robot not in robots:
+            refusal = MODE_REFUSALS.get(mode)
+            if refusal is not None:
+                raise UsageError(refusal.format(robot=robot))
             raise UsageError(f"--{mode} works with {', '.join(robots)}, not {robot!r}")
     return robot
 
@@ -187,7 +211,8 @@ def run_demo(
             None.
         mode: A :data:`MODE_ROBOTS` mode, or None for the robot's calibration job.
         say: Prints progress lines while the demo runs.
-        **options: Passed to the job (``source=`` for the Lite sweep's simulated robot).
+        **options: Passed to the job (``source=`` for the Lite sweep's simulated robot, ``view=`` for the
+            live view of ``auto``).
 
     Returns:
         The :class:`DemoResult`.
@@ -350,9 +375,56 @@ def _ur_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoResult:
     )
 
 
+def _auto_demo(robot: str, folder: Path, say: Say, temporary: bool, *, view: Any = None) -> DemoResult:
+    """``demo --auto``: the simulated Lite's joints find their own hard stops; true vs recovered zeros.
+
+    The Lite's 14 Robstride joints are simulated motors on two ``virtual`` CAN channels, each moving a physics
+    plant on one simulated clock; robocal drives them with MIT frames through its Robstride bus code. Exit code
+    0 when every joint passed and every recovered zero is within :data:`AUTO_TOLERANCE_RAD` of the truth, else 1.
+    ``view`` is the live view of the stop searches (an :class:`~robocal.workflows.autocal.AutoView`), or None.
+    """
+    from .autocal_sim import SimAutoLite, sim_opener, write_sim_lite_urdf
+    from .autocal_sweep import run_sweep_auto
+
+    urdf = write_sim_lite_urdf(folder / "lite_bimanual.urdf")
+    say(
+        "robocal demo --auto: simulated Lite, 14 Robstride joints on two virtual CAN buses, physics on a "
+        "simulated clock; each joint finds its own hard stops (no operator)"
+    )
+    holder: list[SimAutoLite] = []
+    outcome = run_sweep_auto(
+        urdf,
+        AUTO_DEMO_SOURCE,
+        folder / "calibration.yaml",
+        robot="bhl_arms",
+        report=folder / "sweep_report.json",
+        view=view,
+        open_drivers_fn=sim_opener(holder),
+    )
+    truth = holder[0].true_offsets()
+    rows = []
+    worst = 0.0
+    for j in outcome.result.joints:
+        err = j.homing_offset - truth[j.name]
+        worst = max(worst, abs(err))
+        rows.append((j.name, f"{truth[j.name]:+.4f}", f"{j.homing_offset:+.4f}", f"{math.degrees(err):+.3f}"))
+    table = TruthTable(
+        "true vs recovered homing_offset (rad)", ("joint", "true", "recovered", "error °"), tuple(rows)
+    )
+    line = (
+        f"largest error {math.degrees(worst):.3f}°, {outcome.auto.total_time_s:.1f} s simulated; wrote "
+        f"{outcome.out} and {outcome.report}{_temporary_note(temporary)}"
+    )
+    code = 0 if worst <= AUTO_TOLERANCE_RAD and not outcome.auto.failed else 1
+    return DemoResult(
+        robot, "auto", folder, temporary, code, outcome, sections=(DemoSection(table),), lines=(line,)
+    )
+
+
 JOBS: dict[str, Callable[..., DemoResult]] = {
     "sweep": _sweep_demo,
     "lerobot": _lerobot_demo,
     "ur": _ur_demo,
+    "auto": _auto_demo,
 }
 """Job name → ``job(robot, folder, say, temporary, **options) -> DemoResult``, run in the demo's folder."""
