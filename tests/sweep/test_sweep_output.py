@@ -149,3 +149,22 @@ def test_result_explain_uses_the_result_tolerances() -> None:
     res: SweepResult = analyse_sweep([ELBOW], -1, -2.356, 0.0, -3.056, -1.0, span_tolerance_rad=0.2)
     assert res.explain(ELBOW, "span_mismatch").startswith("swept 2.056 rad but the URDF span is 2.356 rad")
     assert "tolerance 0.2 rad" in res.explain(ELBOW, "span_mismatch")
+
+
+def test_the_output_checks_and_default_format_shared_by_sweep_and_sweep_auto(tmp_path: Path) -> None:
+    from robocal.errors import UsageError
+    from robocal.formats.profiles import load_profile
+    from robocal.workflows.sweep_output import check_outputs, output_format
+
+    out = tmp_path / "cal.yaml"
+    assert check_outputs(str(out), None, None) == (out, None)
+    assert check_outputs(out, tmp_path / "r.json", "lite-json") == (out, tmp_path / "r.json")
+    with pytest.raises(UsageError, match=r"^--format 'yaml': expected one of lite-yaml, lite-json, berkeley-offsets$"):
+        check_outputs(out, None, "yaml")
+    with pytest.raises(UsageError, match=r"--report .*cal\.yaml: is the same file as --out$"):
+        check_outputs(out, tmp_path / "." / "cal.yaml", None)
+    assert not out.exists()  # a probe, nothing left behind
+    biped = load_profile("bhl_biped")
+    assert output_format(Path("c.JSON"), biped) == "lite-json"  # the suffix first
+    assert output_format(Path("c.yaml"), biped) == "berkeley-offsets"  # then the profile's format
+    assert output_format(Path("c.yaml"), None) == "lite-yaml"

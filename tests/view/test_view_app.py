@@ -270,3 +270,13 @@ def test_a_websocket_client_receives_the_pose_and_the_red_joint(served: ViewerAp
     assert wxyz is not None
     np.testing.assert_allclose(wxyz, y_rotation(1.3), atol=1e-6)
     assert red
+
+
+def test_page_url_of_every_page_names_a_host_a_browser_can_open() -> None:
+    from robocal.viewer.scene import page_url
+
+    assert page_url("127.0.0.1", 8080) == "http://127.0.0.1:8080/"
+    assert page_url("0.0.0.0", 80) == "http://localhost:80/"
+    assert page_url("", 81) == "http://localhost:81/"
+    assert page_url("::", 82) == "http://localhost:82/"
+    assert page_url("::1", 83) == "http://[::1]:83/"

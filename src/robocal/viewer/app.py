@@ -5,9 +5,7 @@ See :mod:`robocal.viewer` for the public API and the page state a browser test c
 
 from __future__ import annotations
 
-import contextlib
 import html
-import io
 import json
 import math
 import threading
@@ -35,7 +33,10 @@ from .scene import (
     _Robot,
     _viser,
     check_port_free,
+    open_server,
+    page_url,
     plain_lights,
+    stop_server,
 )
 
 __all__ = [
@@ -128,13 +129,7 @@ class ViewerApp:
         """
         viser = _viser()
         check_port_free(self.host, self.requested_port)
-        with contextlib.redirect_stdout(io.StringIO()):  # viser prints its own URL box; the CLI prints ours
-            server = viser.ViserServer(
-                host=self.host, port=self.requested_port, label="robocal", verbose=False
-            )
-        if self.requested_port and server.get_port() != self.requested_port:  # lost a race for the port
-            server.stop()
-            raise UsageError(f"port {self.requested_port} on {self.host} is in use by another program")
+        server = open_server(viser, self.host, self.requested_port)
         self.server = server
         try:
             self._build()
@@ -154,12 +149,7 @@ class ViewerApp:
     @property
     def url(self) -> str:
         """The page's address."""
-        host = self.host
-        if host in ("0.0.0.0", "::", ""):
-            host = "localhost"
-        if ":" in host:
-            host = f"[{host}]"
-        return f"http://{host}:{self.port}/"
+        return page_url(self.host, self.port)
 
     def stop(self) -> None:
         """Stop the page loop and the server (idempotent)."""
@@ -169,8 +159,7 @@ class ViewerApp:
         self._thread = None
         if self.server is not None:
             server, self.server = self.server, None
-            with contextlib.redirect_stdout(io.StringIO()):  # "(viser) Server stopped"
-                server.stop()
+            stop_server(server)
 
     def __enter__(self) -> ViewerApp:
         return self

@@ -5,7 +5,9 @@ See :mod:`robocal.viewer` for the public API and the page state a browser test c
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import io
 import math
 import socket
 from dataclasses import dataclass
@@ -27,7 +29,10 @@ __all__ = [
     "PageUpdate",
     "ReplayControl",
     "check_port_free",
+    "open_server",
+    "page_url",
     "plain_lights",
+    "stop_server",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -179,12 +184,41 @@ def _wxyz(R: FloatArray) -> tuple[float, float, float, float]:
     return (w / n, x / n, y / n, z / n)
 
 
-def _viser() -> Any:
+def _viser(command: str = "robocal view") -> Any:
     try:
         import viser
     except ImportError:
-        raise BackendNotAvailableError("robocal view needs viser: pip install 'robocal[view]'") from None
+        raise BackendNotAvailableError(f"{command} needs viser: pip install 'robocal[view]'") from None
     return viser
+
+
+def open_server(viser: Any, host: str, port: int) -> Any:
+    """A ``viser.ViserServer`` on ``host:port`` (0: any free port), without viser's own console output.
+
+    Raises:
+        UsageError: Another program took ``port`` after the port check (viser would have moved to the next).
+    """
+    with contextlib.redirect_stdout(io.StringIO()):  # viser prints its own URL box; the CLI prints ours
+        server = viser.ViserServer(host=host, port=port, label="robocal", verbose=False)
+    if port and server.get_port() != port:  # lost a race for the port
+        server.stop()
+        raise UsageError(f"port {port} on {host} is in use by another program")
+    return server
+
+
+def stop_server(server: Any) -> None:
+    """Stop a server made by :func:`open_server` (without its "(viser) Server stopped" line)."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        server.stop()
+
+
+def page_url(host: str, port: int) -> str:
+    """The address of a page served on ``host:port`` (a wildcard host as ``localhost``, IPv6 in brackets)."""
+    if host in ("0.0.0.0", "::", ""):
+        host = "localhost"
+    if ":" in host:
+        host = f"[{host}]"
+    return f"http://{host}:{port}/"
 
 
 class _Robot:

@@ -21,9 +21,7 @@ positions, the error vector and both numbers, for tests and scripts.
 
 from __future__ import annotations
 
-import contextlib
 import html
-import io
 import json
 import math
 import socket
@@ -46,10 +44,10 @@ from ..core.ur import (
     fk_origins,
     nominal_dh,
 )
-from ..errors import BackendNotAvailableError, UsageError
+from ..errors import UsageError
 from ..workflows import ur as ur_wf
 from ..workflows import ur_verify
-from .app import plain_lights
+from .scene import _viser, open_server, page_url, plain_lights, stop_server
 
 __all__ = [
     "CALIBRATED_RGB",
@@ -181,14 +179,6 @@ class UrViewModel:
         return report.max_position_error_m
 
 
-def _viser() -> Any:
-    try:
-        import viser
-    except ImportError:
-        raise BackendNotAvailableError("robocal ur view needs viser: pip install 'robocal[view]'") from None
-    return viser
-
-
 def _check_port_free(host: str, port: int) -> None:
     """Refuse a port another program listens on (viser would quietly move to the next one)."""
     if port == 0:
@@ -261,16 +251,9 @@ class UrViewPage:
             UsageError: The port is in use.
             BackendNotAvailableError: viser is not installed.
         """
-        viser = _viser()
+        viser = _viser("robocal ur view")
         _check_port_free(self.host, self.requested_port)
-        with contextlib.redirect_stdout(io.StringIO()):
-            server = viser.ViserServer(
-                host=self.host, port=self.requested_port, label="robocal", verbose=False
-            )
-        if self.requested_port and server.get_port() != self.requested_port:
-            server.stop()
-            raise UsageError(f"port {self.requested_port} on {self.host} is in use by another program")
-        self.server = server
+        self.server = open_server(viser, self.host, self.requested_port)
         try:
             self._build()
         except BaseException:
@@ -286,15 +269,13 @@ class UrViewPage:
     @property
     def url(self) -> str:
         """The page's address."""
-        host = "localhost" if self.host in ("0.0.0.0", "::", "") else self.host
-        return f"http://{f'[{host}]' if ':' in host else host}:{self.port}/"
+        return page_url(self.host, self.port)
 
     def stop(self) -> None:
         """Stop the server (idempotent)."""
         if self.server is not None:
             server, self.server = self.server, None
-            with contextlib.redirect_stdout(io.StringIO()):
-                server.stop()
+            stop_server(server)
 
     def __enter__(self) -> UrViewPage:
         return self

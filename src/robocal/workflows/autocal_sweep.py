@@ -217,17 +217,10 @@ def run_sweep_auto(
     from ..formats.urdf import read_urdf
     from ..formats.urdf_gravity import gravity_model_if_any
     from .joint_specs import joints_from_urdf
-    from .sweep import OUTPUT_FORMATS, _check_writable, _existing_output, _offsets, _write
+    from .sweep import _existing_output, _offsets, _write
+    from .sweep_output import check_outputs, output_format
 
-    out_path = Path(out)
-    if fmt is not None and fmt not in OUTPUT_FORMATS:
-        raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
-    _check_writable(out_path, "--out")
-    report_path = Path(report) if report is not None else None
-    if report_path is not None:
-        _check_writable(report_path, "--report")
-        if report_path.resolve() == out_path.resolve():
-            raise UsageError(f"--report {report_path}: is the same file as --out")
+    out_path, report_path = check_outputs(out, report, fmt)
     spec = _parse_auto_source(source) if source.startswith("sim:") else parse_source(source)
     urdf = read_urdf(urdf_path)
     gravity_model = gravity_model_if_any(urdf_path) if gravity is None else None
@@ -244,12 +237,7 @@ def run_sweep_auto(
             "(LeRobot arms: robocal lerobot calibrate --auto)"
         )
     if fmt is None:
-        if out_path.suffix.lower() == ".json":
-            fmt = "lite-json"
-        elif profile.file_format in OUTPUT_FORMATS:
-            fmt = profile.file_format
-        else:
-            fmt = "lite-yaml"
+        fmt = output_format(out_path, profile)
     existing = _existing_output(out_path, fmt, urdf, profile)
     specs = joints_from_urdf(urdf, profile, existing)
     order = select_joints(profile.auto, joints)

@@ -22,18 +22,21 @@ from ..core.profile import METHODS, RobotProfile
 from ..core.sweep import DEFAULT_ONE_SIDED_THRESHOLD_RAD
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
 from ..errors import CalibError, FileFormatError, JointMismatchError, UsageError
-from ..fileio import atomic_write_text, check_output_path
+from ..fileio import atomic_write_text
 from ..formats import CalibrationFile, read_calibration, write_calibration
 from ..formats.calibration import read_existing_output
 from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 from .joint_specs import joints_from_urdf
 from .sweep_output import (
+    OUTPUT_FORMATS,
     ConfirmFn,
     SweepNotSavedError,
     calibration_text,
     changes_to_confirm,
+    check_outputs,
     keep_prior,
+    output_format,
 )
 from .sweep_session import (
     DEFAULT_DIRECTION_STEP_S,
@@ -49,9 +52,6 @@ __all__ = [
     "SweepOutcome",
     "run_sweep",
 ]
-
-OUTPUT_FORMATS = ("lite-yaml", "lite-json", "berkeley-offsets")
-
 
 class SweepAbortedError(CalibError):
     """A second Ctrl-C aborted the sweep; nothing was written (exit 130)."""
@@ -95,11 +95,6 @@ def _check_number(value: float, flag: str) -> float:
     if not (math.isfinite(value) and value >= 0):
         raise UsageError(f"{flag} {value}: expected a finite number of rad >= 0")
     return float(value)
-
-
-def _check_writable(path: Path, flag: str) -> None:
-    """Refuse, before the sweep starts, an output the end of the sweep could not write (a real probe)."""
-    check_output_path(path, flag)
 
 
 def _existing_output(
@@ -197,27 +192,14 @@ def run_sweep(
     span_tolerance_rad = _check_number(span_tolerance_rad, "--span-tolerance")
     if not (math.isfinite(direction_step_s) and direction_step_s > 0):
         raise UsageError(f"--direction-time {direction_step_s}: expected a finite number of seconds > 0")
-    out_path = Path(out)
-    if fmt is not None and fmt not in OUTPUT_FORMATS:
-        raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
-    _check_writable(out_path, "--out")
-    report_path = Path(report) if report is not None else None
-    if report_path is not None:
-        _check_writable(report_path, "--report")
-        if report_path.resolve() == out_path.resolve():
-            raise UsageError(f"--report {report_path}: is the same file as --out")
+    out_path, report_path = check_outputs(out, report, fmt)
     spec = check_source_options(source, frame)
     if direction_check and spec.kind == "replay":
         raise UsageError("--direction-check needs a live or simulated source, not a replay")
     urdf = read_urdf(urdf_path)
     profile = resolve_profile(robot, urdf)
     if fmt is None:
-        if out_path.suffix.lower() == ".json":
-            fmt = "lite-json"
-        elif profile is not None and profile.file_format in OUTPUT_FORMATS:
-            fmt = profile.file_format
-        else:
-            fmt = "lite-yaml"
+        fmt = output_format(out_path, profile)
     if fmt == "berkeley-offsets" and profile is None:
         raise UsageError(
             "--format berkeley-offsets is positional in the order of the robot's low-level code; "

@@ -1,7 +1,8 @@
 """The guards around what a finished sweep writes.
 
-Confirming changes that would replace a good offset, and the calibration text that travels with
-:class:`SweepNotSavedError` when the file could not be written.
+The output checks made before anything moves (``--out``, ``--report``, ``--format`` and its default; shared by
+``sweep`` and ``sweep --auto``), confirming changes that would replace a good offset, and the calibration text
+that travels with :class:`SweepNotSavedError` when the file could not be written.
 """
 
 from __future__ import annotations
@@ -12,17 +13,60 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..backends.sources import JointSpec
+from ..core.profile import RobotProfile
 from ..core.sweep_result import SweepResult
-from ..errors import CalibError
+from ..errors import CalibError, UsageError
+from ..fileio import check_output_path
 
 __all__ = [
     "CONFIRM_CODES",
+    "OUTPUT_FORMATS",
     "ConfirmFn",
     "SweepNotSavedError",
     "calibration_text",
     "changes_to_confirm",
+    "check_outputs",
     "keep_prior",
+    "output_format",
 ]
+
+OUTPUT_FORMATS = ("lite-yaml", "lite-json", "berkeley-offsets")
+"""Formats a sweep writes (``--format``)."""
+
+
+def check_outputs(
+    out: str | Path, report: str | Path | None, fmt: str | None
+) -> tuple[Path, Path | None]:
+    """Refuse, before the sweep starts, outputs the end of the sweep could not write (a real probe of each).
+
+    Returns:
+        ``(out_path, report_path)``.
+
+    Raises:
+        UsageError: ``fmt`` not in :data:`OUTPUT_FORMATS`, an output not writable, or ``--report`` is ``--out``.
+    """
+    out_path = Path(out)
+    if fmt is not None and fmt not in OUTPUT_FORMATS:
+        raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
+    check_output_path(out_path, "--out")
+    report_path = Path(report) if report is not None else None
+    if report_path is not None:
+        check_output_path(report_path, "--report")
+        if report_path.resolve() == out_path.resolve():
+            raise UsageError(f"--report {report_path}: is the same file as --out")
+    return out_path, report_path
+
+
+def output_format(out_path: Path, profile: RobotProfile | None) -> str:
+    """The format written without ``--format``.
+
+    ``lite-json`` for a ``.json`` file, else the profile's format when a sweep writes it, else ``lite-yaml``.
+    """
+    if out_path.suffix.lower() == ".json":
+        return "lite-json"
+    if profile is not None and profile.file_format in OUTPUT_FORMATS:
+        return profile.file_format
+    return "lite-yaml"
 
 
 CONFIRM_CODES = ("span_mismatch", "no_overlap", "offset_large", "wrong_side")
