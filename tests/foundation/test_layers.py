@@ -158,6 +158,38 @@ def test_cli_calls_workflows_not_backends() -> None:
     assert _robocal_imports(probe, text) == {"robocal.backends"}
 
 
+def _backend_classes_imported(path: Path, text: str | None = None) -> set[str]:
+    """The registered backend classes (``BACKENDS``) ``path`` imports by name at run time."""
+    from robocal.backends import BACKENDS
+
+    registered = set(BACKENDS.values())
+    tree = ast.parse(path.read_text() if text is None else text)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and ast.unparse(node.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING"):
+            node.body = [ast.Pass()]
+    return {
+        f"{_resolve(path, node)}.{alias.name}"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom)
+        for alias in node.names
+        if (_resolve(path, node), alias.name) in registered
+    }
+
+
+def test_bus_and_client_classes_come_from_the_backend_registry() -> None:
+    """Outside ``backends/``, a bus or client class is picked by ``load_backend(name)``, never imported."""
+    found = {
+        f"{path.relative_to(SRC).as_posix()}: {name}"
+        for path in sorted(SRC.rglob("*.py"))
+        if _entry(path) != "backends"
+        for name in _backend_classes_imported(path)
+    }
+    assert found == set()
+    probe = SRC / "viewer" / "_probe.py"
+    text = "def f():\n    from ..backends.ur_primary import PrimaryClient, DEFAULT_PORT\n"
+    assert _backend_classes_imported(probe, text) == {"robocal.backends.ur_primary.PrimaryClient"}
+
+
 def test_the_checker_sees_an_upward_import() -> None:
     """The import walker finds lazy, relative and ``from .. import`` imports (so the check can fail)."""
     text = "import numpy\n\ndef f() -> None:\n    from ..workflows import sweep\n    from .. import cli\n"

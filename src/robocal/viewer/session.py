@@ -407,7 +407,7 @@ def _open_lerobot(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> 
 
 
 def _open_ur(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> ViewSession:
-    from ..backends.ur_primary import PrimaryClient
+    from ..backends import load_backend
 
     assert opts.ur_host is not None
     host, _, port_text = opts.ur_host.partition(":")
@@ -423,7 +423,7 @@ def _open_ur(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> ViewS
     names = model.actuated
     if len(names) < 6:
         raise JointMismatchError(f"URDF {opts.urdf}: {len(names)} movable joints; a UR arm has 6")
-    client = PrimaryClient(host, port)
+    client = load_backend("ur_primary")(host, port)
     client.connect()
     n = len(names)
 

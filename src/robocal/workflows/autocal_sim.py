@@ -84,7 +84,8 @@ def open_sim_lite(
     Raises:
         UsageError: A joint the simulated Lite does not have, or a bad option.
     """
-    from ..backends.robstride import MotorSpec, RobstrideBus
+    from ..backends import load_backend
+    from ..backends.robstride import MotorSpec
     from ..backends.sim.lite import LITE_JOINTS
     from ..backends.sim.physics import PlantParams, Scenario, SimClock, make_plant
     from ..backends.sim.robstride import SimMotor, SimMotorBus
@@ -166,7 +167,7 @@ def open_sim_lite(
             sim_bus = SimMotorBus(channel, [motors[j.name] for j in on_bus], interface="virtual")
             sim_bus.start()
             buses.append(sim_bus)
-            bus = RobstrideBus(
+            bus = load_backend("robstride")(
                 channel,
                 [MotorSpec(j.name, j.can_id, j.model) for j in on_bus],
                 interface="virtual",
