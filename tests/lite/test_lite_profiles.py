@@ -130,3 +130,27 @@ def test_own_profile_file_with_robot_flag(tmp_path: Path, capsys: pytest.Capture
     assert rc == 1
     assert "robot profile: mine (--robot)" in out.out
     assert "leg_left_hip_roll_joint: direction -1 in the file disagrees with +1 in profile mine" in out.err
+
+
+def test_joint_direction_and_id_precedence_is_urdf_then_file_then_profile() -> None:
+    from robocal.formats.profiles import joint_direction, joint_motor_id
+    from robocal.formats.urdf import parse_urdf
+
+    hip, yaw = "leg_left_hip_roll_joint", "leg_left_hip_yaw_joint"  # profile: direction -1 / +1, ids 1 / 3
+    urdf = parse_urdf(
+        '<robot name="r"><link name="a"/><link name="b"/><link name="c"/>'
+        f'<joint name="{hip}" type="revolute"><parent link="a"/><child link="b"/><axis xyz="1 0 0"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        f'<joint name="{yaw}" type="revolute"><parent link="b"/><child link="c"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '<ros2_control name="s" type="system">'
+        f'<joint name="{hip}"><param name="direction">1</param><param name="can_id">21</param></joint>'
+        f'<joint name="{yaw}"/></ros2_control></robot>'
+    )
+    biped = load_profile("bhl_biped")
+    assert joint_direction(hip, urdf, biped, {hip: -1}) == 1  # the URDF's param first
+    assert joint_direction(yaw, urdf, biped, {yaw: -1}) == -1  # then the file's
+    assert joint_direction(yaw, urdf, biped) == 1  # then the profile's
+    assert joint_direction(yaw, None, None) is None
+    assert (joint_motor_id(hip, urdf, biped), joint_motor_id(yaw, urdf, biped)) == (21, 3)
+    assert joint_motor_id(yaw, urdf, None) is None

@@ -38,6 +38,8 @@ __all__ = [
     "builtin_lerobot_profiles",
     "builtin_profile_names",
     "builtin_profiles",
+    "joint_direction",
+    "joint_motor_id",
     "load_profile",
     "parse_profile",
     "profile_for_joints",
@@ -383,3 +385,43 @@ def resolve_profile(
                 f"--robot {profile.name}: URDF {urdf.source} has no joint {', '.join(lacking)}"
             )
     return profile
+
+
+def joint_direction(
+    name: str,
+    urdf: UrdfModel | None,
+    profile: RobotProfile | None,
+    file_directions: Mapping[str, int] | None = None,
+) -> int | None:
+    """A joint's direction by robocal's one precedence: the URDF, else the calibration file, else the profile.
+
+    Args:
+        name: URDF joint name.
+        urdf: The URDF (its ``<param name='direction'>``), or None.
+        profile: The robot profile in effect, or None.
+        file_directions: Joint → direction of a calibration file whose format stores one, or None.
+
+    Returns:
+        ±1, or None when no source has a direction for ``name``.
+
+    Raises:
+        FileFormatError: The URDF's ``direction`` param is not ±1.
+    """
+    d = urdf.direction(name) if urdf is not None else None
+    if d is None and file_directions is not None:
+        d = file_directions.get(name)
+    if d is None and profile is not None:
+        d = profile.direction(name)
+    return d
+
+
+def joint_motor_id(name: str, urdf: UrdfModel | None, profile: RobotProfile | None) -> int | None:
+    """A joint's motor (CAN) id: the URDF's ``id``/``can_id``/``motor_id`` param, else the profile's, else None.
+
+    Raises:
+        FileFormatError: The URDF's id param is not a valid id.
+    """
+    mid = urdf.motor_id(name) if urdf is not None else None
+    if mid is None and profile is not None:
+        mid = profile.motor_id(name)
+    return mid

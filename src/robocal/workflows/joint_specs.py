@@ -14,7 +14,7 @@ from ..core.jointmap import RobotCalibration
 from ..core.profile import RobotProfile
 from ..errors import FileFormatError
 from ..formats import CalibrationFile, read_calibration
-from ..formats.profiles import resolve_profile
+from ..formats.profiles import joint_direction, joint_motor_id, resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 
 __all__ = ["joint_calibration", "joints_from_urdf", "read_joints"]
@@ -46,18 +46,12 @@ def joints_from_urdf(
     out = []
     lacking = []
     for name in names:
-        d = urdf.direction(name)
-        if d is None:
-            d = file_dirs.get(name)
-        if d is None and profile is not None:
-            d = profile.direction(name)
+        d = joint_direction(name, urdf, profile, file_dirs)
         if d is None:
             lacking.append(name)
             continue
         lo, up = urdf.limits(name)
-        can_id = urdf.motor_id(name)
-        if can_id is None and profile is not None:
-            can_id = profile.motor_id(name)
+        can_id = joint_motor_id(name, urdf, profile)
         model = urdf.param(name, "model") or (
             profile.joint(name).model if profile and name in profile else None
         )

@@ -18,6 +18,7 @@ from ...core.profile import RobotProfile
 from ...errors import FileFormatError, UsageError
 from ...fileio import read_text
 from .._yaml import load_yaml
+from ..profiles import joint_motor_id
 from ..urdf import UrdfModel
 
 __all__ = ["CalibrationFile", "Content", "FormatSpec", "Reader", "Traits", "Writer"]
@@ -171,12 +172,9 @@ def ids_from(
     """Motor ids: the calibration's own, else the URDF's ``id``/``can_id`` params, else the profile's."""
     out: dict[str, int] = {}
     for name in cal.joint_names:
-        if name in ids:
-            out[name] = int(ids[name])
-        elif urdf is not None and name in urdf.joint_params and urdf.motor_id(name) is not None:
-            out[name] = int(urdf.motor_id(name))  # type: ignore[arg-type]
-        elif profile is not None and profile.motor_id(name) is not None:
-            out[name] = int(profile.motor_id(name))  # type: ignore[arg-type]
+        mid = int(ids[name]) if name in ids else joint_motor_id(name, urdf, profile)
+        if mid is not None:
+            out[name] = mid
     return out
 
 

@@ -20,7 +20,7 @@ from ...errors import FileFormatError, JointMismatchError, UsageError
 from ...fileio import atomic_write_text, read_text
 from .._numbers import format_float, parse_finite
 from .._yaml import load_yaml
-from ..profiles import builtin_profile_names, profile_for_joints
+from ..profiles import builtin_profile_names, joint_direction, joint_motor_id, profile_for_joints
 from ..urdf import UrdfModel
 from ._base import CalibrationFile, Content, FormatSpec, require_rad
 
@@ -68,9 +68,7 @@ def _berkeley_directions(
     for name in order:
         if urdf is not None and not urdf.has_joint(name) and name not in urdf.joint_params:
             raise JointMismatchError(f"{source}: joint {name!r} is not in URDF {urdf.source}")
-        d = urdf.direction(name) if urdf is not None else None
-        if d is None and profile is not None:
-            d = profile.direction(name)
+        d = joint_direction(name, urdf, profile)  # the file stores none
         if d is None:
             lacking.append(name)
             continue
@@ -142,9 +140,7 @@ def read(
     h = homing_from_berkeley_offset(np.array(dirs, float), np.array(offsets))
     ids: dict[str, int] = {}
     for n in order:
-        mid = urdf.motor_id(n) if urdf is not None else None
-        if mid is None and profile is not None:
-            mid = profile.motor_id(n)
+        mid = joint_motor_id(n, urdf, profile)
         if mid is not None:
             ids[n] = int(mid)
     return CalibrationFile(
