@@ -50,6 +50,12 @@ def render(result: DemoResult) -> int:
 
         assert isinstance(result.detail, list)
         code = max(code, print_reports(result.detail))
+    if result.job == "identify":
+        from ..workflows.demo_identify import IdentifyDemo
+        from ._kinematics_demo import print_identify_demo
+
+        assert isinstance(result.detail, IdentifyDemo)
+        code = max(code, print_identify_demo(result.detail))
     for line in result.lines:
         con.print(line, markup=False)
     for warning in result.warnings:
@@ -94,10 +100,6 @@ def demo(
                 "`robocal view --urdf URDF --lerobot-port sim --robot so101_follower --calibration FILE`"
             )
         raise typer.Exit(_demo_view(out, port))
-    if identify:  # kinematic identification (+ camera images for so101): robocal.cli._kinematics_demo.run_demo
-        from ._kinematics_demo import run_demo as identify_demo
-
-        raise typer.Exit(int(identify_demo(robot, out)))
     result = run_demo(robot, out, mode=mode, say=_common.console.print)
     raise typer.Exit(render(result))
 

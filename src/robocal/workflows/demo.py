@@ -11,8 +11,9 @@ The jobs:
 * ``lerobot`` (``so101``, ``koch``): LeRobot calibration of the simulated follower and leader arms through the
   vendor SDKs on a pseudo-terminal.
 * ``ur`` (``ur3`` … ``ur30``): extract + verify against a simulated controller on loopback TCP.
-* ``identify`` (``so101``, ``koch`` with ``--identify``): kinematic identification of an arm with hidden errors,
-  still run by :func:`robocal.cli._kinematics_demo.run_demo` (its image part landed there; to move into :data:`JOBS`).
+* ``identify`` (``so101``, ``koch`` with ``--identify``): kinematic identification of an arm with hidden errors
+  (:mod:`robocal.workflows.demo_identify`; :attr:`DemoResult.detail` is its
+  :class:`~robocal.workflows.demo_identify.IdentifyDemo`).
 * ``auto`` (``lite`` with ``--auto``): zero-touch calibration, each simulated joint finds its own hard stops
   (physics on a simulated clock behind the Robstride wire protocol); :attr:`DemoResult.detail` is the
   :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`.
@@ -134,7 +135,7 @@ class DemoResult:
         temporary: True when ``folder`` was a temporary folder (removed when the demo returned).
         exit_code: 0 ok, 1 warnings or a recovered value outside the demo's tolerance.
         detail: The job's own result for its printer (``ur``: the verification reports; ``identify``: the
-            :class:`~robocal.workflows.kinematics.IdentifyResult`; ``sweep``: the
+            :class:`~robocal.workflows.demo_identify.IdentifyDemo`; ``sweep``: the
             :class:`~robocal.workflows.sweep.SweepOutcome`; ``auto``: the
             :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`), or None.
         sections: Truth tables, each with its lines.
@@ -421,10 +422,21 @@ def _auto_demo(robot: str, folder: Path, say: Say, temporary: bool, *, view: Any
     )
 
 
+def _identify_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoResult:
+    """``demo --identify``: simulated kinematic identification checked against the hidden truth."""
+    from .demo_identify import IDENTIFY_INTRO, identify_demo
+
+    say(IDENTIFY_INTRO.format(robot=robot))
+    found = identify_demo(robot, folder)
+    lines = ("(temporary folder, removed on exit)",) if temporary else ()
+    return DemoResult(robot, "identify", folder, temporary, 1 if found.has_warnings else 0, found, lines=lines)
+
+
 JOBS: dict[str, Callable[..., DemoResult]] = {
     "sweep": _sweep_demo,
     "lerobot": _lerobot_demo,
     "ur": _ur_demo,
     "auto": _auto_demo,
+    "identify": _identify_demo,
 }
 """Job name → ``job(robot, folder, say, temporary, **options) -> DemoResult``, run in the demo's folder."""
