@@ -9,7 +9,16 @@ from typing import Any
 
 from ..errors import InvalidCalibrationError
 
-__all__ = ["FAIL_CODES", "TESTS", "Command", "SearchConfig", "StopResult", "StopSample"]
+__all__ = [
+    "FAIL_CODES",
+    "TESTS",
+    "Command",
+    "SearchConfig",
+    "StopResult",
+    "StopSample",
+    "report_deg",
+    "report_num",
+]
 
 FAIL_CODES = (
     "missing_stop",
@@ -185,24 +194,27 @@ class StopResult:
 
     def to_report(self) -> dict[str, Any]:
         """Plain values for a JSON report (degrees where a person reads them)."""
-
-        def deg(x: float) -> float | None:
-            return None if not math.isfinite(x) else round(math.degrees(x), 4)
-
-        def num(x: float, nd: int = 4) -> float | None:
-            return None if not math.isfinite(x) else round(x, nd)
-
         return {
             "code": self.code,
             "reason": self.reason,
-            "q_stop_deg": deg(self.q_stop_rad),
-            "q_pressed_deg": deg(self.q_pressed_rad),
-            "detection_torque_nm": num(self.torque_nm),
-            "stiffness_nm_per_rad": num(self.stiffness_nm_per_rad, 2),
+            "q_stop_deg": report_deg(self.q_stop_rad),
+            "q_pressed_deg": report_deg(self.q_pressed_rad),
+            "detection_torque_nm": report_num(self.torque_nm),
+            "stiffness_nm_per_rad": report_num(self.stiffness_nm_per_rad, 2),
             "test": self.test,
-            "t_detect_s": num(self.t_detect_s, 3),
-            "duration_s": num(self.duration_s, 3),
-            "travel_deg": deg(self.travel_rad),
-            "peak_torque_nm": num(self.peak_torque_nm),
-            "touches_deg": [deg(x) for x in self.touches],
+            "t_detect_s": report_num(self.t_detect_s, 3),
+            "duration_s": report_num(self.duration_s, 3),
+            "travel_deg": report_deg(self.travel_rad),
+            "peak_torque_nm": report_num(self.peak_torque_nm),
+            "touches_deg": [report_deg(x) for x in self.touches],
         }
+
+
+def report_deg(x_rad: float) -> float | None:
+    """An angle for a JSON report: degrees to 4 decimals, None when not finite (not measured)."""
+    return None if not math.isfinite(x_rad) else round(math.degrees(x_rad), 4)
+
+
+def report_num(x: float, nd: int = 4) -> float | None:
+    """A number for a JSON report: ``nd`` decimals, None when not finite (not measured)."""
+    return None if not math.isfinite(x) else round(x, nd)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidCalibrationError
-from .stop_types import SearchConfig, StopResult
+from .stop_types import SearchConfig, StopResult, report_deg
 
 __all__ = ["JointStops", "gravity_corrected", "joint_zero", "summarise", "with_gravity"]
 
@@ -46,18 +46,14 @@ class JointStops:
 
     def to_report(self) -> dict[str, Any]:
         """Plain values for a JSON report."""
-
-        def deg(x: float) -> float | None:
-            return None if not math.isfinite(x) else round(math.degrees(x), 4)
-
         return {
             "code": self.code,
             "reason": self.reason,
             "offset_rad": None if not math.isfinite(self.offset_rad) else self.offset_rad,
-            "q_stop_minus_deg": None if self.lower is None else deg(self.lower.q_stop_rad),
-            "q_stop_plus_deg": None if self.upper is None else deg(self.upper.q_stop_rad),
-            "span_deg": deg(self.span_rad),
-            "expected_span_deg": deg(self.expected_span_rad),
+            "q_stop_minus_deg": None if self.lower is None else report_deg(self.lower.q_stop_rad),
+            "q_stop_plus_deg": None if self.upper is None else report_deg(self.upper.q_stop_rad),
+            "span_deg": report_deg(self.span_rad),
+            "expected_span_deg": report_deg(self.expected_span_rad),
             "lower": None if self.lower is None else self.lower.to_report(),
             "upper": None if self.upper is None else self.upper.to_report(),
         }

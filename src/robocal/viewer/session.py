@@ -223,20 +223,22 @@ def open_view(opts: ViewOptions) -> ViewSession:
         else:
             path = Path(opts.compare)
             compare = _mapper(_read_cal(path, opts.urdf, opts.profile), names, dirs, path.name, warnings)
-    app = ViewerApp(
-        model,
-        calibration=cal,
-        compare=compare,
-        host=opts.host,
-        port=opts.port,
-        rate_hz=opts.rate_hz,
-        title=f"{model.name} — {spec.text}",
-    )
+    app = _app(opts, model, spec.text, calibration=cal, compare=compare)
     if spec.kind == "replay":
         feed: Feed = _replay_feed(app, spec.path, opts, joints)
     else:
         feed = _live_feed(app, spec, joints, opts.keep_moving)
     return _start(app, feed, warnings)
+
+
+def _app(opts: ViewOptions, model: RobotModel, what: str, **mapping: Any) -> ViewerApp:
+    """The page of ``model`` titled ``model — what``, served on the options' host, port and rate.
+
+    ``mapping`` holds the page's ``calibration``, ``compare`` and ``raw_unit`` arguments.
+    """
+    return ViewerApp(
+        model, host=opts.host, port=opts.port, rate_hz=opts.rate_hz, title=f"{model.name} — {what}", **mapping
+    )
 
 
 def _start(app: ViewerApp, feed: Feed, warnings: list[str]) -> ViewSession:
@@ -361,15 +363,8 @@ def _open_lerobot(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> 
             compare = JointMapper(
                 names, _lerobot_maps(spec, read_calibration(cmp_path), names)[1], cmp_path.name
             )
-    app = ViewerApp(
-        model,
-        calibration=mapper,
-        compare=compare,
-        host=opts.host,
-        port=opts.port,
-        rate_hz=opts.rate_hz,
-        title=f"{model.name} — {spec.name} on {opts.lerobot_port}",
-        raw_unit="ticks",
+    app = _app(
+        opts, model, f"{spec.name} on {opts.lerobot_port}", calibration=mapper, compare=compare, raw_unit="ticks"
     )
     arm: Any = None
     port = opts.lerobot_port
@@ -433,12 +428,6 @@ def _open_ur(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> ViewS
         out[:6] = q[:6]
         return out
 
-    app = ViewerApp(
-        model,
-        host=opts.host,
-        port=opts.port,
-        rate_hz=opts.rate_hz,
-        title=f"{model.name} — UR at {opts.ur_host}",
-    )
+    app = _app(opts, model, f"UR at {opts.ur_host}")
     feed = PollFeed(app, poll, f"ur@{opts.ur_host}", max_rate_hz=125.0, on_close=client.close)
     return _start(app, feed, warnings)
