@@ -28,13 +28,13 @@ from .scene import (
     JointReadout,
     PageUpdate,
     ReplayControl,
+    ServedPage,
     _fmt,
     _lim,
     _Robot,
     _viser,
     check_port_free,
     open_server,
-    page_url,
     plain_lights,
     stop_server,
 )
@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 
-class ViewerApp:
+class ViewerApp(ServedPage):
     """A local web page showing ``model`` posed by the newest joint frame.
 
     Args:
@@ -140,16 +140,6 @@ class ViewerApp:
             self._thread = threading.Thread(target=self._loop, name="robocal-view-page", daemon=True)
             self._thread.start()
         return self
-
-    @property
-    def port(self) -> int:
-        """The port served on (after :meth:`start`)."""
-        return int(self.server.get_port()) if self.server is not None else self.requested_port
-
-    @property
-    def url(self) -> str:
-        """The page's address."""
-        return page_url(self.host, self.port)
 
     def stop(self) -> None:
         """Stop the page loop and the server (idempotent)."""

@@ -28,6 +28,7 @@ __all__ = [
     "JointReadout",
     "PageUpdate",
     "ReplayControl",
+    "ServedPage",
     "check_port_free",
     "open_server",
     "page_url",
@@ -210,6 +211,30 @@ def stop_server(server: Any) -> None:
     """Stop a server made by :func:`open_server` (without its "(viser) Server stopped" line)."""
     with contextlib.redirect_stdout(io.StringIO()):
         server.stop()
+
+
+class ServedPage:
+    """A page a viser server serves (``robocal view``, ``robocal ur view``): its port and address.
+
+    Attributes:
+        host: Interface served on.
+        requested_port: The port asked for (0: any free one).
+        server: The ``viser.ViserServer`` while started, else None.
+    """
+
+    host: str
+    requested_port: int
+    server: Any
+
+    @property
+    def port(self) -> int:
+        """The port served on (the requested one before :meth:`start`)."""
+        return int(self.server.get_port()) if self.server is not None else self.requested_port
+
+    @property
+    def url(self) -> str:
+        """The page's address."""
+        return page_url(self.host, self.port)
 
 
 def page_url(host: str, port: int) -> str:

@@ -47,7 +47,7 @@ from ..core.ur import (
 from ..errors import UsageError
 from ..workflows import ur as ur_wf
 from ..workflows import ur_verify
-from .scene import _viser, open_server, page_url, plain_lights, stop_server
+from .scene import ServedPage, _viser, open_server, plain_lights, stop_server
 
 __all__ = [
     "CALIBRATED_RGB",
@@ -199,7 +199,7 @@ def _segments(frames: FloatArray, offset: FloatArray) -> FloatArray:
     return np.stack([p[:-1], p[1:]], axis=1).astype(np.float32)
 
 
-class UrViewPage:
+class UrViewPage(ServedPage):
     """The viser page of ``robocal ur view``.
 
     Args:
@@ -260,16 +260,6 @@ class UrViewPage:
             self.stop()
             raise
         return self
-
-    @property
-    def port(self) -> int:
-        """The port served on."""
-        return int(self.server.get_port()) if self.server is not None else self.requested_port
-
-    @property
-    def url(self) -> str:
-        """The page's address."""
-        return page_url(self.host, self.port)
 
     def stop(self) -> None:
         """Stop the server (idempotent)."""
