@@ -130,3 +130,35 @@ def test_render_prints_the_auto_table_before_the_truth_table(
     assert out.index("automatic hard-stop calibration (12.5 s)") < out.index("true vs recovered") < out.index(
         "largest error"
     )
+
+
+def test_demo_auto_job_recovers_the_simulated_zeros_and_hands_its_urdf_to_the_view(tmp_path: Path) -> None:
+    from robocal.workflows.autocal_sweep import AutoSweepOutcome
+
+    urdfs: list[Path] = []
+    started: list[str] = []
+
+    class View:
+        def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
+            started.append(name)
+
+        def sample(self, *args: object) -> None:
+            pass
+
+        def joint_done(self, outcome: object) -> None:
+            pass
+
+    def view_for(urdf: Path) -> View:
+        urdfs.append(urdf)
+        return View()
+
+    said: list[str] = []
+    result = run_demo("lite", tmp_path, mode="auto", say=said.append, view_for=view_for)
+    assert (result.job, result.exit_code, result.temporary) == ("auto", 0, False)
+    assert urdfs == [tmp_path / "lite_bimanual.urdf"] and len(started) == 14
+    assert said[0].startswith("robocal demo --auto: simulated Lite, 14 Robstride joints")
+    assert isinstance(result.detail, AutoSweepOutcome) and result.detail.out == tmp_path / "calibration.yaml"
+    table = result.sections[0].table
+    assert table.columns == ("joint", "true", "recovered", "error °") and len(table.rows) == 14
+    assert all(abs(float(row[3])) <= 0.5 for row in table.rows)  # degrees, the demo's tolerance
+    assert result.lines[0].startswith("largest error ") and result.lines[0].endswith("sweep_report.json")

@@ -15,8 +15,8 @@ The jobs:
   (:mod:`robocal.workflows.demo_identify`; :attr:`DemoResult.detail` is its
   :class:`~robocal.workflows.demo_identify.IdentifyDemo`).
 * ``auto`` (``lite`` with ``--auto``): zero-touch calibration, each simulated joint finds its own hard stops
-  (physics on a simulated clock behind the Robstride wire protocol); :attr:`DemoResult.detail` is the
-  :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`.
+  (physics on a simulated clock behind the Robstride wire protocol; :mod:`robocal.workflows.demo_auto`);
+  :attr:`DemoResult.detail` is the :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`.
 
 A new mode adds a function ``(robot, folder, say, **options) -> DemoResult`` to :data:`JOBS` and the robots it
 works with to :data:`MODE_ROBOTS` (see :func:`run_demo`).
@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
@@ -48,6 +47,7 @@ __all__ = [
     "demo_folder",
     "prepare_demo",
     "run_demo",
+    "temporary_note",
 ]
 
 DEMO_ROBOTS: dict[str, str] = {
@@ -81,11 +81,6 @@ MODE_REFUSALS: dict[str, str] = {
 """Demo mode → its own message for a robot it does not work with (``{robot!r}``); default
 ``--MODE works with …, not 'ROBOT'``."""
 
-AUTO_DEMO_SOURCE = "sim:lite?seed=0"
-"""The ``demo --auto`` Lite's simulated robot."""
-
-AUTO_TOLERANCE_RAD = math.radians(0.5)
-"""Largest recovered-offset error ``demo --auto`` accepts, rad."""
 
 LITE_DEMO_SOURCE = "sim:lite?seed=8"
 """The Lite demo's simulated robot (a seed whose sweep raises no warning, so the demo exits 0 like a clean
@@ -192,7 +187,8 @@ def demo_folder(out_dir: Path | None, job: str) -> Iterator[tuple[Path, bool]]:
         yield Path(tmp), True
 
 
-def _temporary_note(temporary: bool) -> str:
+def temporary_note(temporary: bool) -> str:
+    """The note after a written file's name when the demo's folder is temporary (else empty)."""
     return " (temporary folder, removed on exit; keep the files with --out DIR)" if temporary else ""
 
 
@@ -283,7 +279,7 @@ def _sweep_demo(
         )
         code = max(code, 1)
     line = (
-        f"largest error {worst:.1e} rad; wrote {outcome.out} and {outcome.report}{_temporary_note(temporary)}"
+        f"largest error {worst:.1e} rad; wrote {outcome.out} and {outcome.report}{temporary_note(temporary)}"
     )
     return DemoResult(
         robot,
@@ -341,7 +337,7 @@ def _lerobot_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoRe
                 tuple(rows),
             )
         motors = len(json.loads(Path(str(result.path)).read_text()))
-        lines = (f"wrote {result.path}{_temporary_note(temporary)}", f"{motors} motors in LeRobot's format")
+        lines = (f"wrote {result.path}{temporary_note(temporary)}", f"{motors} motors in LeRobot's format")
         sections.append(DemoSection(table, lines))
     return DemoResult(robot, "lerobot", folder, temporary, 0 if ok else 1, sections=tuple(sections))
 
@@ -376,50 +372,11 @@ def _ur_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoResult:
     )
 
 
-def _auto_demo(robot: str, folder: Path, say: Say, temporary: bool, *, view: Any = None) -> DemoResult:
-    """``demo --auto``: the simulated Lite's joints find their own hard stops; true vs recovered zeros.
+def _auto_demo(robot: str, folder: Path, say: Say, temporary: bool, **options: Any) -> DemoResult:
+    """``demo --auto``: :func:`robocal.workflows.demo_auto.auto_demo`."""
+    from .demo_auto import auto_demo
 
-    The Lite's 14 Robstride joints are simulated motors on two ``virtual`` CAN channels, each moving a physics
-    plant on one simulated clock; robocal drives them with MIT frames through its Robstride bus code. Exit code
-    0 when every joint passed and every recovered zero is within :data:`AUTO_TOLERANCE_RAD` of the truth, else 1.
-    ``view`` is the live view of the stop searches (an :class:`~robocal.workflows.autocal.AutoView`), or None.
-    """
-    from .autocal_sim import SimAutoLite, sim_opener, write_sim_lite_urdf
-    from .autocal_sweep import run_sweep_auto
-
-    urdf = write_sim_lite_urdf(folder / "lite_bimanual.urdf")
-    say(
-        "robocal demo --auto: simulated Lite, 14 Robstride joints on two virtual CAN buses, physics on a "
-        "simulated clock; each joint finds its own hard stops (no operator)"
-    )
-    holder: list[SimAutoLite] = []
-    outcome = run_sweep_auto(
-        urdf,
-        AUTO_DEMO_SOURCE,
-        folder / "calibration.yaml",
-        robot="bhl_arms",
-        report=folder / "sweep_report.json",
-        view=view,
-        open_drivers_fn=sim_opener(holder),
-    )
-    truth = holder[0].true_offsets()
-    rows = []
-    worst = 0.0
-    for j in outcome.result.joints:
-        err = j.homing_offset - truth[j.name]
-        worst = max(worst, abs(err))
-        rows.append((j.name, f"{truth[j.name]:+.4f}", f"{j.homing_offset:+.4f}", f"{math.degrees(err):+.3f}"))
-    table = TruthTable(
-        "true vs recovered homing_offset (rad)", ("joint", "true", "recovered", "error °"), tuple(rows)
-    )
-    line = (
-        f"largest error {math.degrees(worst):.3f}°, {outcome.auto.total_time_s:.1f} s simulated; wrote "
-        f"{outcome.out} and {outcome.report}{_temporary_note(temporary)}"
-    )
-    code = 0 if worst <= AUTO_TOLERANCE_RAD and not outcome.auto.failed else 1
-    return DemoResult(
-        robot, "auto", folder, temporary, code, outcome, sections=(DemoSection(table),), lines=(line,)
-    )
+    return auto_demo(robot, folder, say, temporary, **options)
 
 
 def _identify_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoResult:
