@@ -18,8 +18,9 @@ The jobs:
   (physics on a simulated clock behind the Robstride wire protocol; :mod:`robocal.workflows.demo_auto`);
   :attr:`DemoResult.detail` is the :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`.
 
-A new mode adds a function ``(robot, folder, say, **options) -> DemoResult`` to :data:`JOBS` and the robots it
-works with to :data:`MODE_ROBOTS` (see :func:`run_demo`).
+A new mode adds a function ``(robot, folder, say, temporary, **options) -> DemoResult`` to :data:`JOBS`, the
+robots it works with to :data:`MODE_ROBOTS` (and, optionally, its own refusal to :data:`MODE_REFUSALS`), and a
+flag to ``robocal demo`` (see :func:`run_demo`).
 """
 
 from __future__ import annotations
