@@ -111,3 +111,25 @@ def test_select_joints() -> None:
         select_joints(SECTION, ["zz"])
     with pytest.raises(UsageError, match="no motor for joint"):
         run_autocal({}, SECTION, LIMITS)
+
+
+def test_joint_without_stops_is_reported_not_searched_and_never_moves() -> None:
+    section = AutoSection(
+        joints=(
+            joint("pan", stops="none", reason="full-turn motor: no hard stop"),
+            *SECTION.joints,
+        )
+    )
+    plants = default_plants()
+    d = drivers(**plants)  # no driver for "pan": it needs none
+    res = run_autocal(d, section, LIMITS)
+    assert [j.name for j in res.joints] == ["pan", "a", "b", "c"]
+    pan = res["pan"]
+    assert pan.stops.code == "not_searched" and pan.stops.reason == "full-turn motor: no hard stop"
+    assert not pan.ok and res.failed == () and res.not_searched == (pan,)
+    assert "pan" not in res.offsets_rad and res.offsets_rad["a"] == pytest.approx(0.1, abs=math.radians(0.3))
+    assert res.to_report()["joints"]["pan"]["code"] == "not_searched"
+    assert res.failure_summary() == ""
+    # a run of only such joints moves nothing and takes no time
+    alone = run_autocal({}, section, LIMITS, joints=["pan"])
+    assert [o.stops.code for o in alone.joints] == ["not_searched"] and alone.total_time_s == 0.0

@@ -89,6 +89,20 @@ def test_builtin_lite_profile_has_14_joints() -> None:
         ({"auto_calibration__second_touch": "yes"}, "second_touch"),
         ({"auto_calibration__joints": []}, "non-empty list"),
         ({"auto_calibration__joints__0__rated_nm": math.nan}, "rated_nm"),
+        ({"auto_calibration__joints__1__stops": "none"}, "takes no pose"),
+        (
+            {"auto_calibration__joints__0__stops": "none", "auto_calibration__joints__1__pose": None},
+            "needs a reason",
+        ),
+        (
+            {
+                "auto_calibration__joints__0__stops": "none",
+                "auto_calibration__joints__0__reason": "full turn",
+            },
+            "pose names 'a', which is not searched",
+        ),
+        ({"auto_calibration__joints__0__reason": "why"}, "reason is for joints that are not searched"),
+        ({"auto_calibration__joints__1__reason": 5}, "reason must be text"),
     ],
 )
 def test_refused(changes: dict[str, Any], message: str) -> None:
@@ -122,3 +136,26 @@ def test_lerobot_followers_have_auto_sections() -> None:
     # LeRobot's full-turn motors are not searched
     assert "shoulder_pan" not in koch.joint_names and "wrist_roll" not in koch.joint_names
     assert koch.joint("elbow_flex").torque_cap_nm == pytest.approx(0.13)  # type: ignore[union-attr]
+
+
+def test_joint_without_stops_is_not_searched() -> None:
+    d = doc()
+    d["auto_calibration"]["joints"].append({"name": "c", "stops": "none", "reason": "  full-turn motor  "})
+    d["joints"].append({"name": "c", "model": "xl330-m288"})
+    p = parse_profile(d, "t.yaml")
+    assert p.auto is not None
+    c = p.auto.joint("c")
+    assert c is not None and c.stops == "none" and not c.searched and c.reason == "full-turn motor"
+    assert c.torque_cap_nm == 0.0
+    assert [j.name for j in p.auto.searched_joints] == ["a", "b"]
+    # a none joint takes no torque or speed of its own
+    d["auto_calibration"]["joints"][2]["torque_fraction"] = 0.2
+    with pytest.raises(
+        FileFormatError, match=r"'c': a joint that is not searched .* takes no torque_fraction"
+    ):
+        parse_profile(d, "t.yaml")
+    # at least one joint must move
+    only = doc()
+    only["auto_calibration"]["joints"] = [{"name": "a", "stops": "none", "reason": "x"}]
+    with pytest.raises(FileFormatError, match="every joint has stops: none"):
+        parse_profile(only, "t.yaml")

@@ -17,14 +17,18 @@ __all__ = [
     "AUTO_STOPS",
     "HARD_MAX_SPEED_DEG_S",
     "HARD_MAX_TORQUE_FRACTION",
+    "NOT_SEARCHED",
     "RATED_TORQUE_NM",
     "AutoJoint",
     "AutoSection",
     "rated_torque_nm",
 ]
 
-AUTO_STOPS = ("both", "lower", "upper")
-"""Which stops of a joint exist (and are searched): both, or only one (one-sided zero from the stop angle)."""
+AUTO_STOPS = ("both", "lower", "upper", "none")
+"""Which stops of a joint exist (and are searched): both, only one (one-sided zero from the stop angle), or none
+(a full-turn joint: never moved, reported ``not_searched`` with the profile's ``reason``)."""
+NOT_SEARCHED = "not_searched"
+"""The outcome code of a joint without stops (``stops: none``): not a failure, nothing measured."""
 HARD_MAX_TORQUE_FRACTION = 0.5
 """No profile may push harder than this fraction of the rated torque."""
 HARD_MAX_SPEED_DEG_S = 30.0
@@ -67,6 +71,7 @@ class AutoJoint:
         speed_deg_s: Approach speed.
         park_deg: Angle the joint moves to and holds once calibrated (None: the middle of its stops).
         pose: Angles other joints hold while this one is searched; only joints calibrated before it.
+        reason: Why a joint with ``stops: none`` is not searched (shown with its ``not_searched`` outcome).
     """
 
     name: str
@@ -79,6 +84,12 @@ class AutoJoint:
     upper_deg: float | None = None
     park_deg: float | None = None
     pose: tuple[tuple[str, float], ...] = ()
+    reason: str = ""
+
+    @property
+    def searched(self) -> bool:
+        """Whether the joint is driven into a stop (False for ``stops: none``)."""
+        return self.stops != "none"
 
     @property
     def torque_cap_nm(self) -> float:
@@ -123,6 +134,11 @@ class AutoSection:
     def joint_names(self) -> tuple[str, ...]:
         """Joint names in search order."""
         return tuple(j.name for j in self.joints)
+
+    @property
+    def searched_joints(self) -> tuple[AutoJoint, ...]:
+        """The joints that move (``stops`` other than ``none``), in search order."""
+        return tuple(j for j in self.joints if j.searched)
 
     def joint(self, name: str) -> AutoJoint | None:
         """The entry of joint ``name`` or None."""

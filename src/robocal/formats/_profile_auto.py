@@ -41,6 +41,7 @@ _JOINT_KEYS = (
     "speed_deg_s",
     "park_deg",
     "pose",
+    "reason",
 )
 
 
@@ -65,6 +66,37 @@ def _positive(value: float | None, key: str, where: str, upper: float | None = N
     if upper is not None and value > upper:
         raise FileFormatError(f"{where}: {key} {value:g} is above the hard limit {upper:g}")
     return value
+
+
+def _not_searched(
+    row: Mapping[str, Any],
+    name: str,
+    reason: str,
+    where: str,
+    model: str | None,
+    speed: float | None,
+    tolerance: float | None,
+) -> AutoJoint:
+    """A ``stops: none`` entry: nothing moves, so only a reason (and no pose, torque or angles) goes with it."""
+    moving = [k for k in ("torque_fraction", "speed_deg_s", "park_deg", "pose") if row.get(k) is not None]
+    if moving:
+        raise FileFormatError(
+            f"{where}: a joint that is not searched (stops: none) takes no {', '.join(moving)} (it never moves)"
+        )
+    if not reason:
+        raise FileFormatError(f"{where}: stops: none needs a reason (why the joint has no hard stop)")
+    rated = _num(row, "rated_nm", where, rated_torque_nm(model))
+    return AutoJoint(
+        name=name,
+        stops="none",
+        rated_nm=0.0 if rated is None else rated,
+        torque_fraction=0.0,
+        speed_deg_s=speed or 10.0,
+        tolerance_deg=tolerance or 15.0,
+        lower_deg=_num(row, "lower_deg", where, None),
+        upper_deg=_num(row, "upper_deg", where, None),
+        reason=reason,
+    )
 
 
 def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSection:
@@ -125,6 +157,14 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
             raise FileFormatError(
                 f"{jw}: a one-sided joint (stops: {stops}) needs {stops}_deg, its stop angle"
             )
+        reason = row.get("reason", "")
+        if not isinstance(reason, str):
+            raise FileFormatError(f"{jw}: reason must be text, not {reason!r}")
+        if stops == "none":
+            out.append(_not_searched(row, name, reason.strip(), jw, models[name], speed, tolerance))
+            continue
+        if reason:
+            raise FileFormatError(f"{jw}: reason is for joints that are not searched (stops: none)")
         rated = _num(row, "rated_nm", jw, rated_torque_nm(models[name]))
         if rated is None:
             raise FileFormatError(
@@ -142,9 +182,11 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
         pose_raw = row.get("pose") or {}
         if not isinstance(pose_raw, Mapping):
             raise FileFormatError(f"{jw}: pose must map joint names to angles in degrees")
-        done = {j.name for j in out}
+        done = {j.name for j in out if j.searched}
         pose: list[tuple[str, float]] = []
         for other in pose_raw:
+            if any(j.name == other and not j.searched for j in out):
+                raise FileFormatError(f"{jw}: pose names {other!r}, which is not searched (stops: none)")
             if other not in done:
                 raise FileFormatError(
                     f"{jw}: pose names {other!r}, which is not calibrated before it (only joints earlier in "
@@ -167,6 +209,8 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
                 pose=tuple(pose),
             )
         )
+    if not any(j.searched for j in out):
+        raise FileFormatError(f"{where}: every joint has stops: none; at least one must be searched")
     if not math.isfinite(cap):  # pragma: no cover - _positive refuses
         raise FileFormatError(f"{where}: max_torque_fraction must be finite")
     return AutoSection(

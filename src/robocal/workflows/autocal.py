@@ -18,8 +18,10 @@ from dataclasses import dataclass, field
 
 from ..core.gravity import GravityModel, JointGravity, joint_gravity
 from ..core.profile_auto import AutoJoint, AutoSection
+from ..core.stop_zero import JointStops
 from ..errors import DeviceError, UsageError
 from .autocal_joint import (
+    NOT_SEARCHED,
     TRANSIT_FACTOR,
     AutoCalAbortedError,
     AutoCalFailedError,
@@ -92,7 +94,8 @@ def run_autocal(
     """Auto-calibrate the joints of ``section`` (or the ``joints`` subset) in order.
 
     Before each joint, the joints already calibrated that its ``pose`` names move to those angles (their zero
-    is known by then). A joint that fails is left limp and the run goes on with the next one. Any exception —
+    is known by then). A joint without stops (``stops: none``, a full-turn joint) never moves and needs no
+    driver: its outcome is ``not_searched`` with the profile's reason (not a failure). A joint that fails is left limp and the run goes on with the next one. Any exception —
     Ctrl-C, a lost bus — makes every driver limp before it propagates (as :class:`AutoCalAbortedError` for a
     device error, unchanged for ``KeyboardInterrupt``).
 
@@ -116,15 +119,21 @@ def run_autocal(
         AutoCalAbortedError: A device fault (every motor is limp).
     """
     order = select_joints(section, joints)
-    lacking = [j.name for j in order if j.name not in drivers]
+    lacking = [j.name for j in order if j.searched and j.name not in drivers]
     if lacking:
         raise UsageError(f"no motor for joint(s) {', '.join(lacking)}")
     run = _Run()
     outcomes: list[JointOutcome] = []
-    t_start = clock.now() if clock is not None else drivers[order[0].name].read().t_s
+    moving = [j for j in order if j.searched]
+    if not moving:
+        return AutoCalResult(tuple(_not_searched(j) for j in order), 0.0)
+    t_start = clock.now() if clock is not None else drivers[moving[0].name].read().t_s
     with limp_on_error(drivers):
         try:
             for joint in order:
+                if not joint.searched:
+                    outcomes.append(_not_searched(joint))
+                    continue
                 for other, angle_deg in joint.pose:
                     if other in run.offsets and other in drivers:
                         move_to(
@@ -154,8 +163,15 @@ def run_autocal(
         except (DeviceError, AutoCalAbortedError) as exc:
             limp_all(drivers)
             raise AutoCalAbortedError(f"auto-calibration aborted, every motor limp: {exc}") from None
-    t_end = clock.now() if clock is not None else drivers[order[-1].name].read().t_s
+    t_end = clock.now() if clock is not None else drivers[moving[-1].name].read().t_s
     return AutoCalResult(tuple(outcomes), t_end - t_start)
+
+
+def _not_searched(joint: AutoJoint) -> JointOutcome:
+    """The outcome of a joint without stops: nothing moved, the profile's reason."""
+    reason = joint.reason or "the profile gives it no hard stop"
+    stops = JointStops(joint.name, NOT_SEARCHED, reason, None, None, math.nan)
+    return JointOutcome(stops, 0.0, joint.speed_rad_s, 0.0)
 
 
 def joint_gravity_for(model: GravityModel | None, joint: AutoJoint) -> JointGravity | None:

@@ -12,7 +12,7 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
-from ..core.profile_auto import AutoJoint, AutoSection
+from ..core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
 from ..core.stop_search import (
     Command,
     JointStops,
@@ -25,6 +25,7 @@ from ..core.stop_search import (
 from ..errors import CalibError, CalibTimeoutError
 
 __all__ = [
+    "NOT_SEARCHED",
     "TRANSIT_FACTOR",
     "TRANSIT_MAX_RAD_S",
     "AutoCalAbortedError",
@@ -178,8 +179,13 @@ class AutoCalResult:
 
     @property
     def failed(self) -> tuple[JointOutcome, ...]:
-        """Joints that failed."""
-        return tuple(j for j in self.joints if not j.ok)
+        """Joints that failed (a joint without stops, ``not_searched``, did not fail)."""
+        return tuple(j for j in self.joints if not j.ok and j.stops.code != NOT_SEARCHED)
+
+    @property
+    def not_searched(self) -> tuple[JointOutcome, ...]:
+        """Joints the profile gives no stop (``stops: none``): never moved, nothing measured."""
+        return tuple(j for j in self.joints if j.stops.code == NOT_SEARCHED)
 
     @property
     def offsets_rad(self) -> dict[str, float]:
