@@ -314,3 +314,30 @@ def test_plan_writes_poses_inside_the_limits(tmp_path: Path, capsys) -> None:
     assert main([*args[:-4], "--tool-xyz", "0,0,-0.0981", "--poses", "30", "--out", str(out)]) == 1
     assert "the marker is on the wrist_roll axis" in capsys.readouterr().err
     assert main([*args[:-2], "--out", str(tmp_path / "nofolder" / "p.csv")]) == 2
+
+
+def test_prior_options_reach_the_fit_and_the_report(session: Path, tmp_path: Path, capsys) -> None:
+    assert _identify(session, session / "points.csv", tmp_path, "--prior-mm", "2", "--prior-offset-deg", "3") in (0, 1)
+    rep = json.loads((tmp_path / "report.json").read_text())
+    prior = dict(rep["fit"]["prior"])
+    assert prior.pop("noise_mm") is None
+    assert prior == pytest.approx({"length_mm": 2.0, "angle_deg": 0.5, "offset_deg": 3.0})
+    assert rep["fit"]["method"] == "lm"
+    # every parameter is estimated with the prior: the ones outside the base set get an estimate and a σ too
+    outside = [p for p in rep["parameters"] if not p["identified"]]
+    assert outside and all(p["sigma"] is not None and p["sigma"] > 0 for p in outside)
+    assert rep["errors_mm"]["validation"]["corrected"]["mean"] < 1.2
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    assert _identify(session, session / "points.csv", plain) in (0, 1)
+    rep0 = json.loads((plain / "report.json").read_text())
+    assert rep0["fit"]["prior"] is None
+    assert all(p["sigma"] is None for p in rep0["parameters"] if not p["identified"])
+
+
+@pytest.mark.parametrize("flag", ["--prior-mm", "--prior-deg", "--prior-offset-deg"])
+def test_bad_prior_sigma_is_one_error_line(session: Path, tmp_path: Path, capsys, flag: str) -> None:
+    assert _identify(session, session / "points.csv", tmp_path, flag, "0") == 2
+    err = capsys.readouterr().err
+    assert err.strip() == f"error: {flag} must be a positive number, got 0.0"
+    assert not (tmp_path / "id.urdf").exists() and not (tmp_path / "report.json").exists()

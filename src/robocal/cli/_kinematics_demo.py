@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..workflows.demo_identify import IMAGES_INTRO, IdentifyDemo
 from ._common import EXIT_WARNINGS, console, print_warning
-from .kinematics import _print_images, print_identification
+from ._kinematics_print import print_identification, print_images
 
 __all__ = ["print_identify_demo"]
 
@@ -25,6 +25,6 @@ def print_identify_demo(found: IdentifyDemo) -> int:
             return max(code, EXIT_WARNINGS)
         assert images.result is not None
         console.print(images.camera_line)
-        code = max(code, _print_images(images.result))
+        code = max(code, print_images(images.result))
         console.print(images.truth_line)
     return code

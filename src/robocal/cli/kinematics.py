@@ -7,13 +7,13 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.table import Table
 
 from ..core.jointmap import RobotCalibration
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
 from ._common import EXIT_INTERRUPTED, EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
+from ._kinematics_print import print_identification, print_images
 
 app = typer.Typer(
     help="Kinematic identification: measure an arm, identify its URDF errors, export a corrected URDF.",
@@ -40,68 +40,6 @@ def _parse_xyz(text: str) -> tuple[float, float, float]:
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise UsageError(f"--tool-xyz {text!r}: expected three finite numbers in metres")
     return values[0], values[1], values[2]
-
-
-def _fmt(value: float, unit: str) -> str:
-    return f"{value * 1e3:+.3f} mm" if unit == "m" else f"{math.degrees(value):+.4f}°"
-
-
-def _stats(s: dict[str, float] | None) -> str:
-    return "—" if s is None else f"mean {s['mean']:.3f} mm, max {s['max']:.3f} mm"
-
-
-def print_identification(result: wf.IdentifyResult) -> int:
-    """Print the identified parameters, validation and warnings; return the exit code (0 ok, 1 warnings)."""
-    rep = result.report
-    table = Table("parameter", "estimate", "± σ", box=None, pad_edge=False)
-    for p in rep["parameters"]:
-        if p["identified"]:
-            table.add_row(p["name"], _fmt(p["estimate"], p["unit"]), _fmt(p["sigma"], p["unit"]).lstrip("+"))
-    console.print(table)
-    obs = rep["observability"]
-    console.print(
-        f"rank {rep['rank']} of {rep['unknowns']} unknowns; condition number {obs['condition']:.1f}, "
-        f"O1 {obs['O1']:.3g}, O3 {obs['O3']:.3g}"
-    )
-    if rep["unidentifiable"]:
-        console.print(f"not identifiable ({len(rep['unidentifiable'])}, kept nominal):")
-        for u in rep["unidentifiable"]:
-            console.print(f"  {u['name']}: {u['reason']}")
-    err = rep["errors_mm"]
-    console.print(
-        f"fit poses ({rep['poses']['fit']}): nominal {_stats(err['fit']['nominal'])} → corrected "
-        f"{_stats(err['fit']['corrected'])}"
-    )
-    if rep["poses"]["validation"]:
-        nominal = err["validation"]["nominal"]
-        console.print(
-            f"validation poses ({rep['poses']['validation']}): "
-            + (f"nominal {_stats(nominal)} → " if nominal else "")
-            + f"corrected {_stats(err['validation']['corrected'])}"
-        )
-    if rep["dh_like"] is not None:
-        dh = rep["dh_like"]
-        held = ", ".join(dh["held_joints"]) or "none"
-        console.print(
-            f"DH-like fit (no tilt towards a parallel neighbour for: {held}): fit {_stats(dh['errors_mm']['fit'])}, "
-            f"validation {_stats(dh['errors_mm']['validation'])}"
-            + (
-                " — DH is biased on parallel-axis arms; this floor stays with perfect data"
-                if dh["held_joints"]
-                else ""
-            )
-        )
-    if result.urdf_out is not None:
-        console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
-    if "joint_map" in rep:
-        console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
-    if "ur_yaml" in rep:
-        console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
-    if result.report_out is not None:
-        console.print(f"wrote {result.report_out}")
-    for w in result.warnings:
-        print_warning(w)
-    return EXIT_WARNINGS if result.warnings else EXIT_OK
 
 
 def _identify_joint_map(
@@ -132,6 +70,21 @@ def _identify_joint_map(
     }
 
 
+def _prior(on: bool, mm: float | None, deg: float | None, offset_deg: float | None) -> bool | wf.PriorSigmas:
+    """``--prior`` and its σ options (any σ option switches the prior on)."""
+    if mm is None and deg is None and offset_deg is None:
+        return on
+    d = wf.PriorSigmas()
+    for flag, v in (("--prior-mm", mm), ("--prior-deg", deg), ("--prior-offset-deg", offset_deg)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise UsageError(f"{flag} must be a positive number, got {v}")
+    return wf.PriorSigmas(
+        length_m=d.length_m if mm is None else mm * 1e-3,
+        angle_rad=d.angle_rad if deg is None else math.radians(deg),
+        offset_rad=d.offset_rad if offset_deg is None else math.radians(offset_deg),
+    )
+
+
 @app.command("identify")
 def identify(
     urdf: _UrdfOption,
@@ -158,8 +111,19 @@ def identify(
         float | None, typer.Option("--huber", help="Huber loss scale in mm (robust to outliers).")
     ] = None,
     prior: Annotated[
-        bool, typer.Option("--prior", help="Pull parameters towards nominal (few poses).")
+        bool,
+        typer.Option("--prior", help="Gaussian prior around nominal (the URDF's tolerance); estimates every parameter."),
     ] = False,
+    prior_mm: Annotated[
+        float | None, typer.Option("--prior-mm", help="Prior σ of origins and tool point, mm (default 1; implies --prior).")
+    ] = None,
+    prior_deg: Annotated[
+        float | None, typer.Option("--prior-deg", help="Prior σ of axis tilts, degrees (default 0.5; implies --prior).")
+    ] = None,
+    prior_offset_deg: Annotated[
+        float | None,
+        typer.Option("--prior-offset-deg", help="Prior σ of joint zero offsets, degrees (default 2; implies --prior)."),
+    ] = None,
     gauge_mm: Annotated[
         float | None, typer.Option("--gauge-mm", help="Distance between gauge sockets A and B, mm.")
     ] = None,
@@ -213,7 +177,7 @@ def identify(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
             validate_fraction=validate_fraction, huber_px=huber, seed=seed, out=out, report=report,
         )  # fmt: skip
-        raise typer.Exit(_print_images(img))
+        raise typer.Exit(print_images(img))
     jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     result = wf.identify(
         urdf,
@@ -225,7 +189,7 @@ def identify(
         frame=frame.strip().lower(),
         validate_fraction=validate_fraction,
         huber_m=None if huber is None else huber * 1e-3,
-        prior=prior,
+        prior=_prior(prior, prior_mm, prior_deg, prior_offset_deg),
         gauge_distance_m=None if gauge_mm is None else gauge_mm * 1e-3,
         dh=dh,
         out=out,
@@ -337,47 +301,6 @@ def plan(
     for w in warnings:
         print_warning(w)
     raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
-
-
-def _print_images(result: object) -> int:
-    from ..workflows.kinematic_vision import ImageIdentifyResult
-
-    assert isinstance(result, ImageIdentifyResult)
-    rep = result.report
-    table = Table("parameter", "estimate", "± σ", box=None, pad_edge=False)
-    for p in rep["parameters"]:
-        if p["identified"]:
-            table.add_row(p["name"], _fmt(p["estimate"], p["unit"]), _fmt(p["sigma"], p["unit"]).lstrip("+"))
-    console.print(table)
-    obs = rep["observability"]
-    im = rep["images"]
-    console.print(
-        f"{im['with_target']} of {im['total']} images show the target; rank {rep['rank']} of {rep['unknowns']} "
-        f"unknowns (base.* = camera pose, tool.* = target on {rep['chain']['tip_link']}); condition number "
-        f"{obs['condition']:.1f}"
-    )
-    if rep["unidentifiable"]:
-        console.print(f"not identifiable ({len(rep['unidentifiable'])}, kept nominal):")
-        for u in rep["unidentifiable"]:
-            console.print(f"  {u['name']}: {u['reason']}")
-
-    def px(s: dict[str, float] | None) -> str:
-        return "—" if s is None else f"mean {s['mean']:.3f} px, max {s['max']:.3f} px"
-
-    err = rep["reprojection_px"]
-    console.print(f"reprojection, fit images: start {px(err['fit']['start'])} → identified {px(err['fit']['identified'])}")
-    if im["validation"]:
-        console.print(
-            f"reprojection, validation images ({im['validation']}): start {px(err['validation']['start'])} → "
-            f"identified {px(err['validation']['identified'])}"
-        )
-    if result.urdf_out is not None:
-        console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
-    if result.report_out is not None:
-        console.print(f"wrote {result.report_out} (camera pose T_cam_base and target mounting T_tip_target in it)")
-    for w in result.warnings:
-        print_warning(w)
-    return EXIT_WARNINGS if result.warnings else EXIT_OK
 
 
 @app.command("camera-calibrate")

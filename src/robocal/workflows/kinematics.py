@@ -49,6 +49,7 @@ __all__ = [
     "DhComparison",
     "IdentifyResult",
     "PlanResult",
+    "PriorSigmas",
     "identify",
     "plan",
     "tool_frame",
@@ -166,7 +167,7 @@ def identify(
     frame: str = "base",
     validate_fraction: float = 0.25,
     huber_m: float | None = None,
-    prior: bool = False,
+    prior: bool | PriorSigmas = False,
     gauge_distance_m: float | None = None,
     dh: bool = False,
     out: str | os.PathLike[str] | None = None,
@@ -190,7 +191,8 @@ def identify(
         frame: ``base`` or ``tracker`` (points only): the frame the points are measured in.
         validate_fraction: Share of poses held out for validation.
         huber_m: Huber loss scale (m); None for plain least squares.
-        prior: Regularise towards nominal (for short sessions).
+        prior: A Gaussian prior around nominal (True: the default tolerance, :class:`PriorSigmas`); every
+            parameter with a prior is then estimated (maximum a posteriori).
         gauge_distance_m: Socket distance of the gauge (``gauge`` only).
         dh: Also fit a DH-like model and report its (biased) errors.
         out: Corrected URDF to write.
@@ -245,7 +247,8 @@ def identify(
     train, val = measurements.subset(train_rows), measurements.subset(val_rows)
     free = free_indices(model, [] if frame == "tracker" else ["base"])
     problem = Problem(model, train, free, np.zeros(model.n_params))
-    result = fit(problem, huber_m=huber_m, prior=PriorSigmas() if prior else None)
+    prior_s = prior if isinstance(prior, PriorSigmas) else (PriorSigmas() if prior else None)
+    result = fit(problem, huber_m=huber_m, prior=prior_s)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the data for gross errors")
     val_err = validation_errors(result, val) if val.n_poses else np.zeros(0)
@@ -258,7 +261,7 @@ def identify(
     dh_cmp = None
     if dh:
         C, held = dh_like_constraints(problem)
-        dh_fit = fit(problem, huber_m=huber_m, prior=PriorSigmas() if prior else None, constraints=C)
+        dh_fit = fit(problem, huber_m=huber_m, prior=prior_s, constraints=C)
         dh_cmp = DhComparison(
             held, dh_fit.train_errors_m, validation_errors(dh_fit, val) if val.n_poses else np.zeros(0)
         )
@@ -282,7 +285,7 @@ def identify(
                 "name": name,
                 "unit": unit,
                 "estimate": float(result.theta[i]),
-                "sigma": float(result.sigma[i]) if identified else None,
+                "sigma": float(result.sigma[i]) if math.isfinite(result.sigma[i]) else None,
                 "identified": identified,
             }
         )
@@ -311,6 +314,14 @@ def identify(
             "loss": result.loss,
             "evaluations": result.iterations,
             "converged": result.success,
+            "prior": None
+            if prior_s is None
+            else {
+                "length_mm": prior_s.length_m * 1e3,
+                "angle_deg": math.degrees(prior_s.angle_rad),
+                "offset_deg": math.degrees(prior_s.offset_rad),
+                "noise_mm": None if prior_s.noise_m is None else prior_s.noise_m * 1e3,
+            },
         },
         "errors_mm": {
             "fit": {

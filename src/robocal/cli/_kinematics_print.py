@@ -1,0 +1,116 @@
+"""What ``robocal kinematics identify`` prints: the parameter table, errors, reasons and the files written."""
+
+from __future__ import annotations
+
+import math
+
+from rich.table import Table
+
+from ..workflows import kinematics as wf
+from ._common import EXIT_OK, EXIT_WARNINGS, console, print_warning
+
+__all__ = ["print_identification", "print_images"]
+
+
+def _fmt(value: float, unit: str) -> str:
+    return f"{value * 1e3:+.3f} mm" if unit == "m" else f"{math.degrees(value):+.4f}°"
+
+
+def _stats(s: dict[str, float] | None) -> str:
+    return "—" if s is None else f"mean {s['mean']:.3f} mm, max {s['max']:.3f} mm"
+
+
+def print_identification(result: wf.IdentifyResult) -> int:
+    """Print the identified parameters, validation and warnings; return the exit code (0 ok, 1 warnings)."""
+    rep = result.report
+    table = Table("parameter", "estimate", "± σ", box=None, pad_edge=False)
+    for p in rep["parameters"]:
+        if p["identified"]:
+            table.add_row(p["name"], _fmt(p["estimate"], p["unit"]), _fmt(p["sigma"], p["unit"]).lstrip("+"))
+    console.print(table)
+    obs = rep["observability"]
+    console.print(
+        f"rank {rep['rank']} of {rep['unknowns']} unknowns; condition number {obs['condition']:.1f}, "
+        f"O1 {obs['O1']:.3g}, O3 {obs['O3']:.3g}"
+    )
+    if rep["unidentifiable"]:
+        console.print(f"not identifiable ({len(rep['unidentifiable'])}, kept nominal):")
+        for u in rep["unidentifiable"]:
+            console.print(f"  {u['name']}: {u['reason']}")
+    err = rep["errors_mm"]
+    console.print(
+        f"fit poses ({rep['poses']['fit']}): nominal {_stats(err['fit']['nominal'])} → corrected "
+        f"{_stats(err['fit']['corrected'])}"
+    )
+    if rep["poses"]["validation"]:
+        nominal = err["validation"]["nominal"]
+        console.print(
+            f"validation poses ({rep['poses']['validation']}): "
+            + (f"nominal {_stats(nominal)} → " if nominal else "")
+            + f"corrected {_stats(err['validation']['corrected'])}"
+        )
+    if rep["dh_like"] is not None:
+        dh = rep["dh_like"]
+        held = ", ".join(dh["held_joints"]) or "none"
+        console.print(
+            f"DH-like fit (no tilt towards a parallel neighbour for: {held}): fit {_stats(dh['errors_mm']['fit'])}, "
+            f"validation {_stats(dh['errors_mm']['validation'])}"
+            + (
+                " — DH is biased on parallel-axis arms; this floor stays with perfect data"
+                if dh["held_joints"]
+                else ""
+            )
+        )
+    if result.urdf_out is not None:
+        console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
+    if "joint_map" in rep:
+        console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
+    if "ur_yaml" in rep:
+        console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
+    if result.report_out is not None:
+        console.print(f"wrote {result.report_out}")
+    for w in result.warnings:
+        print_warning(w)
+    return EXIT_WARNINGS if result.warnings else EXIT_OK
+
+
+def print_images(result: object) -> int:
+    """Print an image identification (``--kind tag``); return the exit code (0 ok, 1 warnings)."""
+    from ..workflows.kinematic_vision import ImageIdentifyResult
+
+    assert isinstance(result, ImageIdentifyResult)
+    rep = result.report
+    table = Table("parameter", "estimate", "± σ", box=None, pad_edge=False)
+    for p in rep["parameters"]:
+        if p["identified"]:
+            table.add_row(p["name"], _fmt(p["estimate"], p["unit"]), _fmt(p["sigma"], p["unit"]).lstrip("+"))
+    console.print(table)
+    obs = rep["observability"]
+    im = rep["images"]
+    console.print(
+        f"{im['with_target']} of {im['total']} images show the target; rank {rep['rank']} of {rep['unknowns']} "
+        f"unknowns (base.* = camera pose, tool.* = target on {rep['chain']['tip_link']}); condition number "
+        f"{obs['condition']:.1f}"
+    )
+    if rep["unidentifiable"]:
+        console.print(f"not identifiable ({len(rep['unidentifiable'])}, kept nominal):")
+        for u in rep["unidentifiable"]:
+            console.print(f"  {u['name']}: {u['reason']}")
+
+    def px(s: dict[str, float] | None) -> str:
+        return "—" if s is None else f"mean {s['mean']:.3f} px, max {s['max']:.3f} px"
+
+    err = rep["reprojection_px"]
+    console.print(f"reprojection, fit images: start {px(err['fit']['start'])} → identified {px(err['fit']['identified'])}")
+    if im["validation"]:
+        console.print(
+            f"reprojection, validation images ({im['validation']}): start {px(err['validation']['start'])} → "
+            f"identified {px(err['validation']['identified'])}"
+        )
+    if result.urdf_out is not None:
+        console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
+    if result.report_out is not None:
+        console.print(f"wrote {result.report_out} (camera pose T_cam_base and target mounting T_tip_target in it)")
+    for w in result.warnings:
+        print_warning(w)
+    return EXIT_WARNINGS if result.warnings else EXIT_OK
