@@ -215,3 +215,63 @@ def test_image_problem_jacobian_matches_central_differences() -> None:
         d[i] = 1e-7
         Jn[:, i] = (problem.residuals(theta + d) - problem.residuals(theta - d)) / 2e-7
     np.testing.assert_allclose(J, Jn, atol=1e-4 * np.abs(J).max())
+
+
+def test_tag_with_joint_map_out_reaches_the_truth_through_the_map(session: Path, tmp_path: Path, capsys) -> None:
+    """--kind tag with --joint-map-out: the map carries the zero offsets, the URDF leaves them out."""
+    from robocal.core.jointmap import RobotCalibration
+    from robocal.formats import read_calibration, write_calibration
+
+    k = 2 * math.pi / 4095
+    names = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]
+    jm = RobotCalibration(names, [1, -1, 1, 1, -1, 1], [2047.5, 2100.0, 1980.0, 2001.5, 2047.5, 2500.0], k)
+    write_calibration(tmp_path / "map.yaml", jm, "robocal", ids={n: i + 1 for i, n in enumerate(names)})
+    code = _identify(
+        session, session / "tag.csv", tmp_path, "--joint-map", str(tmp_path / "map.yaml"),
+        "--joint-map-out", str(tmp_path / "map_id.yaml"),
+    )  # fmt: skip
+    assert code in (0, 1)
+    assert "(joint map with the zero offsets; the URDF leaves them out)" in capsys.readouterr().out
+    rep = json.loads((tmp_path / "r.json").read_text())
+    new = read_calibration(tmp_path / "map_id.yaml").calibration
+    raw = np.random.default_rng(1).uniform(1500, 2600, (30, 6))
+    offsets = np.array([rep["joint_offsets"][n] for n in names[:5]])
+    np.testing.assert_allclose(new.to_joint(raw)[:, :5], jm.to_joint(raw)[:, :5] + offsets, atol=1e-12)
+    assert np.abs(offsets).max() > math.radians(0.5)
+    assert rep["joint_map"]["file"] == str(tmp_path / "map_id.yaml")
+    # the URDF without the offsets, fed with the readings the new map gives, matches the hidden truth
+    truth = json.loads((session / "truth.json").read_text())
+    true_model = ErrorModel(
+        so101_model((0.0, 0.0, 0.0)).chain,
+        T_world_base=np.array(truth["T_cam_base"]),
+        T_tip_tool=np.array(truth["T_tip_target_nominal"]),
+    )
+    x_true = np.array([truth["hidden_parameters"][n] for n in true_model.names])
+    from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm
+
+    arm = SimulatedKinematicArm(true_model, x_true)
+    q = arm.sample_q(300, np.random.default_rng(8))
+    err = np.linalg.norm(_corrected_points(tmp_path, rep, arm.read(q) + offsets) - arm.true_points(q), axis=1)
+    assert err.mean() <= 1e-3
+    # without the offsets the same URDF is off: they are really in the map, not in the URDF
+    off = np.linalg.norm(_corrected_points(tmp_path, rep, arm.read(q)) - arm.true_points(q), axis=1)
+    assert off.mean() > 3e-3
+
+
+def test_tag_ur_yaml_needs_a_ur_chain_and_writes_nothing(session: Path, tmp_path: Path, capsys) -> None:
+    code = _identify(session, session / "tag.csv", tmp_path, "--ur-yaml", str(tmp_path / "k.yaml"))
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: --ur-yaml needs a UR chain (shoulder_pan_joint") and "\n" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_tag_joint_map_out_without_a_map_is_refused_before_any_image_is_read(
+    session: Path, tmp_path: Path, capsys
+) -> None:
+    code = _identify(session, tmp_path / "missing.csv", tmp_path, "--joint-map-out", str(tmp_path / "m.yaml"))
+    assert code == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: --joint-map-out needs the joint map the readings went through (--joint-map or --robot)"
+    )
+    assert list(tmp_path.iterdir()) == []

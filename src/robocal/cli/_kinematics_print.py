@@ -109,6 +109,10 @@ def print_images(result: object) -> int:
         )
     if result.urdf_out is not None:
         console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
+    if "joint_map" in rep:
+        console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
+    if "ur_yaml" in rep:
+        console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
     if result.report_out is not None:
         console.print(f"wrote {result.report_out} (camera pose T_cam_base and target mounting T_tip_target in it)")
     for w in result.warnings:

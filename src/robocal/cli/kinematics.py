@@ -166,19 +166,18 @@ def identify(
     ] = None,
 ) -> None:
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
+    jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     if kind.strip().lower() == "tag":
         if camera is None or target is None:
             raise UsageError("--kind tag needs --camera (intrinsics from camera-calibrate) and --target")
-        if joint_map_out is not None or ur_yaml is not None:
-            raise UsageError("--joint-map-out and --ur-yaml are not available with --kind tag yet")
         from ..workflows import kinematic_vision as vis_wf
 
         img = vis_wf.identify_images(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
             validate_fraction=validate_fraction, huber_px=huber, seed=seed, out=out, report=report,
+            joint_map=jm, joint_map_out=joint_map_out, joint_map_ids=ids, ur_yaml=ur_yaml, ur_hash=ur_hash,
         )  # fmt: skip
         raise typer.Exit(print_images(img))
-    jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     result = wf.identify(
         urdf,
         data,

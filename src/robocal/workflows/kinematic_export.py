@@ -14,16 +14,148 @@
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..core.chain import SerialChain
 from ..core.jointmap import RobotCalibration
+from ..core.kinematic_errors import ErrorModel
 from ..core.ur import JOINT_NAMES, LINK_NAMES, LinkOrigin, UrKinematics
 from ..errors import JointMismatchError, UsageError
+from ..fileio import atomic_write_text, check_output_path
+from ..formats import write_calibration
+from ..formats.ur_kinematics import kinematics_to_text
 
-__all__ = ["identified_joint_map", "is_ur_chain", "ur_kinematics_from_chain"]
+__all__ = [
+    "ExportPaths",
+    "Exports",
+    "check_export_paths",
+    "identified_joint_map",
+    "is_ur_chain",
+    "prepare_exports",
+    "ur_kinematics_from_chain",
+    "write_exports",
+]
+
+
+@dataclass(frozen=True)
+class ExportPaths:
+    """Checked output paths of an identification (None: not asked for).
+
+    Attributes:
+        out: Corrected URDF.
+        report: JSON report.
+        joint_map_out: LeRobot export-urdf joint map with the identified offsets.
+        ur_yaml: ur_description kinematics YAML.
+    """
+
+    out: Path | None
+    report: Path | None
+    joint_map_out: Path | None
+    ur_yaml: Path | None
+
+
+def check_export_paths(
+    out: str | os.PathLike[str] | None,
+    report: str | os.PathLike[str] | None,
+    joint_map_out: str | os.PathLike[str] | None,
+    ur_yaml: str | os.PathLike[str] | None,
+    joint_map: RobotCalibration | None,
+) -> ExportPaths:
+    """Check the output options before anything is read or fitted.
+
+    Raises:
+        UsageError: An output in a missing folder, two outputs on one file, or ``--joint-map-out`` without the
+            joint map the readings went through.
+    """
+    paths = ExportPaths(
+        check_output_path(out, "--out") if out is not None else None,
+        check_output_path(report, "--report") if report is not None else None,
+        check_output_path(joint_map_out, "--joint-map-out") if joint_map_out is not None else None,
+        check_output_path(ur_yaml, "--ur-yaml") if ur_yaml is not None else None,
+    )
+    if paths.joint_map_out is not None and joint_map is None:
+        raise UsageError("--joint-map-out needs the joint map the readings went through (--joint-map or --robot)")
+    given = [p.resolve() for p in (paths.out, paths.report, paths.joint_map_out, paths.ur_yaml) if p is not None]
+    if len(set(given)) != len(given):
+        raise UsageError("--out, --report, --joint-map-out and --ur-yaml must be different files")
+    return paths
+
+
+@dataclass(frozen=True, eq=False)
+class Exports:
+    """What an identification writes besides its report, prepared before anything is written.
+
+    Attributes:
+        urdf_chain: The chain for ``--out``: zero offsets folded into the origins, or left out when a joint map
+            with them is written.
+        joint_map: The joint map with the identified offsets, or None.
+        ur_text: The UR kinematics YAML text, or None.
+        report: Report entries (``joint_map``, ``ur_yaml``) to merge into the report.
+        warnings: E.g. a UR YAML written without the robot's hash.
+    """
+
+    urdf_chain: SerialChain
+    joint_map: RobotCalibration | None
+    ur_text: str | None
+    report: dict[str, Any]
+    warnings: tuple[str, ...]
+
+
+def prepare_exports(
+    model: ErrorModel,
+    x: ArrayLike,
+    paths: ExportPaths,
+    *,
+    joint_map: RobotCalibration | None = None,
+    ur_hash: str | None = None,
+) -> Exports:
+    """The corrected chain, joint map and UR YAML of identified parameters ``x`` (nothing is written).
+
+    Raises:
+        JointMismatchError: A chain joint the joint map lacks, or ``--ur-yaml`` for a chain that is not UR's.
+        UsageError: A malformed ``ur_hash``.
+    """
+    folded = model.corrected(x)[0]
+    urdf_chain = folded
+    rep: dict[str, Any] = {}
+    warnings: list[str] = []
+    new_map = None
+    if paths.joint_map_out is not None:
+        assert joint_map is not None
+        urdf_chain = model.corrected(x, fold_offsets=False)[0]
+        new_map = identified_joint_map(joint_map, model.offsets(x))
+        rep["joint_map"] = {
+            "file": str(paths.joint_map_out),
+            "homing_offset": {
+                n: float(v) for n, v in zip(new_map.joint_names, new_map.homing_offset, strict=True)
+            },
+            "note": "the zero offsets are in the joint map; the URDF written with it leaves them out",
+        }
+    ur_text = None
+    if paths.ur_yaml is not None:
+        if ur_hash is None:
+            warnings.append(
+                "--ur-yaml without --ur-hash: hash calib_0 written; the UR driver will report that it differs "
+                "from the robot's own calibration (pass your robot's hash to silence it)"
+            )
+        ur_text = kinematics_to_text(ur_kinematics_from_chain(folded, ur_hash or "calib_0"))
+        rep["ur_yaml"] = str(paths.ur_yaml)
+    return Exports(urdf_chain, new_map, ur_text, rep, tuple(warnings))
+
+
+def write_exports(exports: Exports, paths: ExportPaths, ids: Mapping[str, int] | None = None) -> None:
+    """Write the joint map and UR YAML of ``exports`` (atomically, keeping a ``.bak``)."""
+    if paths.joint_map_out is not None and exports.joint_map is not None:
+        write_calibration(paths.joint_map_out, exports.joint_map, "robocal", ids=dict(ids or {}) or None)
+    if paths.ur_yaml is not None and exports.ur_text is not None:
+        atomic_write_text(paths.ur_yaml, exports.ur_text)
 
 
 def identified_joint_map(joint_map: RobotCalibration, offsets: Mapping[str, float]) -> RobotCalibration:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +33,7 @@ from ..backends.vision import (
     solve_pnp,
 )
 from ..core.chain import SerialChain
+from ..core.jointmap import RobotCalibration
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_images import ImageObservations, ImageProblem, hand_eye
 from ..errors import UsageError
@@ -41,6 +42,7 @@ from ..formats.camera_info import read_camera_info, write_camera_info
 from ..formats.kinematic_data import read_image_session
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
+from .kinematic_export import check_export_paths, prepare_exports, write_exports
 from .kinematic_fit import FitResult, fit
 
 __all__ = [
@@ -209,6 +211,11 @@ def identify_images(
     seed: int = 0,
     out: str | os.PathLike[str] | None = None,
     report: str | os.PathLike[str] | None = None,
+    joint_map: RobotCalibration | None = None,
+    joint_map_out: str | os.PathLike[str] | None = None,
+    joint_map_ids: Mapping[str, int] | None = None,
+    ur_yaml: str | os.PathLike[str] | None = None,
+    ur_hash: str | None = None,
 ) -> ImageIdentifyResult:
     """Identify a chain, the fixed camera's pose and the target's mounting from images of a target on the tool.
 
@@ -224,6 +231,11 @@ def identify_images(
         seed: Seed of the validation split.
         out: Corrected URDF to write.
         report: JSON report to write.
+        joint_map: The raw → URDF joint map the readings went through (for ``joint_map_out``).
+        joint_map_out: Write ``joint_map`` with the identified zero offsets (the URDF then leaves them out).
+        joint_map_ids: Motor ids written with the joint map.
+        ur_yaml: Write ur_description's kinematics YAML of the corrected chain (UR chains only).
+        ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
 
     Raises:
         CalibError: Unreadable files or images, poses outside the limits, too few images with the target.
@@ -232,10 +244,7 @@ def identify_images(
         raise UsageError(f"--validate-fraction must be in [0, 1), got {validate_fraction}")
     if huber_px is not None and not (math.isfinite(huber_px) and huber_px > 0):
         raise UsageError(f"--huber must be a positive number of pixels, got {huber_px}")
-    out_path = check_output_path(out, "--out") if out is not None else None
-    report_path = check_output_path(report, "--report") if report is not None else None
-    if out_path is not None and report_path is not None and out_path.resolve() == report_path.resolve():
-        raise UsageError("--out and --report must be different files")
+    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map)
     tgt = parse_target(target)
     cam = read_camera_info(camera)
     doc = UrdfDocument.load(urdf)
@@ -332,14 +341,18 @@ def identify_images(
         "T_tip_target": T_tip_target.tolist(),
         "warnings": warnings,
     }
+    exports = prepare_exports(model, result.x, paths, joint_map=joint_map, ur_hash=ur_hash)
+    rep.update(exports.report)
+    warnings += exports.warnings
     urdf_bytes = None
-    if out_path is not None:
+    if paths.out is not None:
         from .kinematics import _origin_changed
 
-        urdf_bytes = corrected_urdf_bytes(doc, corrected, _origin_changed(chain, corrected))
+        urdf_bytes = corrected_urdf_bytes(doc, exports.urdf_chain, _origin_changed(chain, exports.urdf_chain))
     report_text = json.dumps(rep, indent=2, allow_nan=False) + "\n"
-    written_urdf = atomic_write_bytes(out_path, urdf_bytes) if out_path and urdf_bytes is not None else None
-    written_report = atomic_write_text(report_path, report_text) if report_path else None
+    written_urdf = atomic_write_bytes(paths.out, urdf_bytes) if paths.out and urdf_bytes is not None else None
+    write_exports(exports, paths, joint_map_ids)
+    written_report = atomic_write_text(paths.report, report_text) if paths.report else None
     _ = rows
     return ImageIdentifyResult(
         result, val, val_px, start_px, corrected, T_cam_base, T_tip_target, model, written_urdf, written_report,

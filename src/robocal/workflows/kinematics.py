@@ -35,13 +35,11 @@ from ..core.kinematic_problem import (
 )
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
-from ..formats import write_calibration
 from ..formats._numbers import format_float
 from ..formats.kinematic_data import read_measurements
-from ..formats.ur_kinematics import kinematics_to_text
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
-from .kinematic_export import identified_joint_map, ur_kinematics_from_chain
+from .kinematic_export import check_export_paths, prepare_exports, write_exports
 from .kinematic_fit import FitResult, PriorSigmas, fit, split_validation, validation_errors
 
 __all__ = [
@@ -224,15 +222,7 @@ def identify(
         raise UsageError("--kind gauge needs the socket distance (--gauge-mm)")
     if huber_m is not None and not (math.isfinite(huber_m) and huber_m > 0):
         raise UsageError(f"--huber must be a positive distance, got {huber_m}")
-    out_path = check_output_path(out, "--out") if out is not None else None
-    report_path = check_output_path(report, "--report") if report is not None else None
-    map_path = check_output_path(joint_map_out, "--joint-map-out") if joint_map_out is not None else None
-    ur_path = check_output_path(ur_yaml, "--ur-yaml") if ur_yaml is not None else None
-    if map_path is not None and joint_map is None:
-        raise UsageError("--joint-map-out needs the joint map the readings went through (--joint-map or --robot)")
-    outputs = [p.resolve() for p in (out_path, report_path, map_path, ur_path) if p is not None]
-    if len(set(outputs)) != len(outputs):
-        raise UsageError("--out, --report, --joint-map-out and --ur-yaml must be different files")
+    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map)
     doc = UrdfDocument.load(urdf)
     chain = chain_from_urdf(doc.model(), base_link, tip_link)
     measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=gauge_distance_m)
@@ -360,34 +350,18 @@ def identify(
         },
         "warnings": warnings,
     }
-    urdf_chain = corrected
-    new_map = None
-    if map_path is not None:
-        assert joint_map is not None
-        urdf_chain = model.corrected(result.x, fold_offsets=False)[0]
-        new_map = identified_joint_map(joint_map, model.offsets(result.x))
-        rep["joint_map"] = {
-            "file": str(map_path),
-            "homing_offset": {n: float(v) for n, v in zip(new_map.joint_names, new_map.homing_offset, strict=True)},
-            "note": "the zero offsets are in the joint map; the URDF written with it leaves them out",
-        }
-    ur_text = None
-    if ur_path is not None:
-        if ur_hash is None:
-            warnings.append(
-                "--ur-yaml without --ur-hash: hash calib_0 written; the UR driver will report that it differs from "
-                "the robot's own calibration (pass your robot's hash to silence it)"
-            )
-        ur_text = kinematics_to_text(ur_kinematics_from_chain(corrected, ur_hash or "calib_0"))
-        rep["ur_yaml"] = str(ur_path)
-    urdf_bytes = corrected_urdf_bytes(doc, urdf_chain, _origin_changed(chain, urdf_chain)) if out_path else None
+    exports = prepare_exports(model, result.x, paths, joint_map=joint_map, ur_hash=ur_hash)
+    rep.update(exports.report)
+    warnings += exports.warnings
+    urdf_bytes = (
+        corrected_urdf_bytes(doc, exports.urdf_chain, _origin_changed(chain, exports.urdf_chain))
+        if paths.out
+        else None
+    )
     report_text = json.dumps(_finite(rep), indent=2, allow_nan=False) + "\n"
-    written_urdf = atomic_write_bytes(out_path, urdf_bytes) if out_path and urdf_bytes is not None else None
-    if map_path is not None and new_map is not None:
-        write_calibration(map_path, new_map, "robocal", ids=dict(joint_map_ids or {}) or None)
-    if ur_path is not None and ur_text is not None:
-        atomic_write_text(ur_path, ur_text)
-    written_report = atomic_write_text(report_path, report_text) if report_path else None
+    written_urdf = atomic_write_bytes(paths.out, urdf_bytes) if paths.out and urdf_bytes is not None else None
+    write_exports(exports, paths, joint_map_ids)
+    written_report = atomic_write_text(paths.report, report_text) if paths.report else None
     return IdentifyResult(
         fit=result,
         validation=val,
