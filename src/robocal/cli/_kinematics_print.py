@@ -85,11 +85,17 @@ def print_images(result: object) -> int:
         if p["identified"]:
             table.add_row(p["name"], _fmt(p["estimate"], p["unit"]), _fmt(p["sigma"], p["unit"]).lstrip("+"))
     console.print(table)
+    on_tool = "T_target_base" in rep
+    frames = (
+        ("target place", "camera", "target place T_target_base and camera mounting T_tip_camera")
+        if on_tool
+        else ("camera pose", "target", "camera pose T_cam_base and target mounting T_tip_target")
+    )
     obs = rep["observability"]
     im = rep["images"]
     console.print(
         f"{im['with_target']} of {im['total']} images show the target; rank {rep['rank']} of {rep['unknowns']} "
-        f"unknowns (base.* = camera pose, tool.* = target on {rep['chain']['tip_link']}); condition number "
+        f"unknowns (base.* = {frames[0]}, tool.* = {frames[1]} on {rep['chain']['tip_link']}); condition number "
         f"{obs['condition']:.1f}"
     )
     if rep["unidentifiable"]:
@@ -114,7 +120,7 @@ def print_images(result: object) -> int:
     if "ur_yaml" in rep:
         console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
     if result.report_out is not None:
-        console.print(f"wrote {result.report_out} (camera pose T_cam_base and target mounting T_tip_target in it)")
+        console.print(f"wrote {result.report_out} ({frames[2]} in it)")
     for w in result.warnings:
         print_warning(w)
     return EXIT_WARNINGS if result.warnings else EXIT_OK

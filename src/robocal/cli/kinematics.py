@@ -164,9 +164,14 @@ def identify(
         str | None,
         typer.Option("--target", help="--kind tag: apriltag:<family>:<id>:<size_mm> or charuco:<c>x<r>:<sq_mm>:<mk_mm>."),
     ] = None,
+    camera_on_tool: Annotated[
+        bool, typer.Option("--camera-on-tool", help="--kind tag: the camera is on the tool, the target fixed.")
+    ] = False,
 ) -> None:
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
     jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
+    if camera_on_tool and kind.strip().lower() != "tag":
+        raise UsageError("--camera-on-tool applies to --kind tag (camera images)")
     if kind.strip().lower() == "tag":
         if camera is None or target is None:
             raise UsageError("--kind tag needs --camera (intrinsics from camera-calibrate) and --target")
@@ -176,6 +181,7 @@ def identify(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
             validate_fraction=validate_fraction, huber_px=huber, seed=seed, out=out, report=report,
             joint_map=jm, joint_map_out=joint_map_out, joint_map_ids=ids, ur_yaml=ur_yaml, ur_hash=ur_hash,
+            camera_on_tool=camera_on_tool,
         )  # fmt: skip
         raise typer.Exit(print_images(img))
     result = wf.identify(
@@ -227,15 +233,20 @@ def simulate(
         bool, typer.Option("--random-poses", help="Random poses instead of a greedy O1 selection.")
     ] = False,
     gauge_mm: Annotated[float, typer.Option("--gauge-mm", help="Gauge socket distance, mm.")] = 50.0,
+    camera_on_tool: Annotated[
+        bool, typer.Option("--camera-on-tool", help="--kind tag: camera on the tool, tag fixed in front of the arm.")
+    ] = False,
 ) -> None:
     """Simulate a measurement session on an arm with hidden errors (1 mm, 0.5°, 2° σ; 4096-tick joints)."""
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder")
     kind = kind.strip().lower()
+    if camera_on_tool and kind != "tag":
+        raise UsageError("--camera-on-tool applies to --kind tag (camera images)")
     if kind == "tag":
         from ..workflows import kinematic_vision as vis_wf
 
-        img = vis_wf.simulate_images(robot.strip().lower(), out, poses=poses, seed=seed)
+        img = vis_wf.simulate_images(robot.strip().lower(), out, poses=poses, seed=seed, camera_on_tool=camera_on_tool)
         console.print(
             f"wrote {img.urdf}, {img.data} ({poses} images of {img.target}), {len(img.calibration_images)} "
             f"calibration images of {img.board} in {out / 'calibration'}, {img.truth}"
@@ -247,6 +258,7 @@ def simulate(
         console.print(
             f"then: robocal kinematics identify --kind tag --urdf {img.urdf} --data {img.data} --camera "
             f"{out / 'camera.yaml'} --target {img.target} --tip-link {img.tip_link}"
+            + (" --camera-on-tool" if camera_on_tool else "")
         )
         raise typer.Exit(EXIT_OK)
     sim = sim_wf.simulate(

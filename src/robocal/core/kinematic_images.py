@@ -1,19 +1,27 @@
-"""Kinematic identification from camera images of a target on the tool (pure numpy).
+"""Kinematic identification from camera images of a planar target (pure numpy).
 
-Set-up: a camera fixed in the world looks at a planar target (an AprilTag or a ChArUco board) carried by the
-tool. The error model's measurement frame is the camera's: ``T_world_base`` is the camera → base pose (``base.*``
-parameters, the hand-eye of the fixed camera) and ``T_tip_tool`` the target's pose on the tip link (``tool.*``,
-the target mounting). Both are estimated jointly with the kinematic parameters, from the image positions of the
-target's corners (detected and undistorted with the camera's intrinsics from a separate calibration).
+Two set-ups, both estimated jointly with the kinematic parameters from the image positions of the target's
+corners (detected and undistorted with the camera's intrinsics from a separate calibration):
+
+* **camera fixed, target on the tool** (``camera_on_tool=False``): a camera fixed in the world looks at a target
+  (an AprilTag or a ChArUco board) carried by the tool. The error model's measurement frame is the camera's:
+  ``T_world_base`` is the camera → base pose (``base.*``, the hand-eye of the fixed camera) and ``T_tip_tool``
+  the target's pose on the tip link (``tool.*``, the target mounting). A corner ``c`` is seen at
+  ``T_world_tool · c``.
+* **camera on the tool, target fixed** (``camera_on_tool=True``, eye-in-hand): the measurement frame is the
+  target's: ``T_world_base`` is the target → base pose (``base.*``, where the target stands) and ``T_tip_tool``
+  the camera's pose on the tip link (``tool.*``, the camera mounting). A corner ``c`` (fixed in the target
+  frame) is seen at ``T_world_tool⁻¹ · c``; its derivative comes from the body twist of the tool frame, which
+  three tool-point Jacobians of the error model give exactly.
 
 Residuals are reprojection errors in pixels: ``f·(π(p_cam) − m)`` per corner, where ``π(p) = (x/z, y/z)``,
-``m`` is the detected corner in normalised (undistorted) coordinates and ``f`` the mean focal length. The
-reverse set-up (camera on the tool, target fixed in the world) is not supported.
+``m`` is the detected corner in normalised (undistorted) coordinates and ``f`` the mean focal length.
 
 Start values come from :func:`hand_eye`: with ``C_i = T_cam_target`` from PnP per image and ``F_i`` the nominal
 ``T_base_tip``, ``C_i = X·F_i·Y`` is solved for the camera pose ``X`` and the target mounting ``Y`` in closed
 form (relative motions ``A = C_i C_j⁻¹``, ``B = F_i F_j⁻¹``, ``A X = X B``: rotation from the rotation axes,
-translation by least squares).
+translation by least squares). With the camera on the tool the same equation holds for ``C_i⁻¹ = T_target_cam``:
+``X`` is then the target → base pose and ``Y`` the camera mounting.
 """
 
 from __future__ import annotations
@@ -165,14 +173,18 @@ def hand_eye(T_cam_target: ArrayLike, T_base_tip: ArrayLike) -> tuple[FloatArray
 
 @dataclass(frozen=True, eq=False)
 class ImageProblem:
-    """Reprojection residuals of image observations over the free model parameters (camera fixed, target on tool).
+    """Reprojection residuals of image observations over the free model parameters.
 
     Attributes:
-        model: Error model whose ``T_world_base`` is the camera → base start value and ``T_tip_tool`` the target
-            mounting's start value.
+        model: Error model. Camera fixed: ``T_world_base`` is the camera → base start value and ``T_tip_tool``
+            the target mounting's. Camera on the tool: ``T_world_base`` is the target → base start value and
+            ``T_tip_tool`` the camera mounting's.
         data: The observations.
         free: Estimated model parameter indices.
         x_fixed: ``(P,)`` values of all model parameters.
+        group_ids: No contact groups (the interface of :class:`~robocal.core.kinematic_problem.Problem`).
+        camera_on_tool: The set-up: False for a fixed camera and the target on the tool, True for a camera on
+            the tool and a fixed target.
     """
 
     model: ErrorModel
@@ -181,6 +193,7 @@ class ImageProblem:
     x_fixed: FloatArray
 
     group_ids: tuple[int, ...] = ()
+    camera_on_tool: bool = False
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -207,12 +220,38 @@ class ImageProblem:
         return np.asarray(self.x_fixed, dtype=np.float64)[list(self.free)]
 
     def _points(self, theta: ArrayLike, jacobian: bool) -> tuple[FloatArray, FloatArray | None]:
+        """Corners in the camera frame ``(M, 3)`` and, when asked, their Jacobian ``(M, 3, n_theta)``."""
+        if self.camera_on_tool:
+            return self._points_seen_from_tool(theta, jacobian)
         q = self.data.q_rad[self.data.pose]
         if jacobian:
             p, J = self.model.point_jacobian(q, self.x_of(theta), self.data.corner_m)
             return p, J[:, :, list(self.free)]
         T = self.model.tool_poses(q, self.x_of(theta))
         return T[:, :3, 3] + np.einsum("nij,nj->ni", T[:, :3, :3], self.data.corner_m), None
+
+    def _points_seen_from_tool(self, theta: ArrayLike, jacobian: bool) -> tuple[FloatArray, FloatArray | None]:
+        """Camera on the tool: ``p = T_target_cam⁻¹ · c`` per corner, and ``∂p/∂θ = −(v + ω × p)``.
+
+        ``v`` and ``ω`` are the tool frame's body twist per unit parameter: a tool point ``a`` moves by
+        ``R (v + ω × a)``, so the error model's Jacobians of the points ``0``, ``e_x`` and ``e_y`` give both.
+        """
+        x = self.x_of(theta)
+        q = self.data.q_rad
+        T = self.model.tool_poses(q, x)  # (N, 4, 4): T_target_cam per image
+        R = T[self.data.pose, :3, :3]
+        p = np.einsum("mji,mj->mi", R, self.data.corner_m - T[self.data.pose, :3, 3])
+        if not jacobian:
+            return np.asarray(p, dtype=np.float64), None
+        cols = list(self.free)
+        Rt = np.transpose(T[:, :3, :3], (0, 2, 1))
+        J0 = self.model.point_jacobian(q, x)[1][:, :, cols]
+        dx = Rt @ (self.model.point_jacobian(q, x, (1.0, 0.0, 0.0))[1][:, :, cols] - J0)  # ω × e_x
+        dy = Rt @ (self.model.point_jacobian(q, x, (0.0, 1.0, 0.0))[1][:, :, cols] - J0)  # ω × e_y
+        v = (Rt @ J0)[self.data.pose]
+        w = np.stack([dy[:, 2, :], -dx[:, 2, :], dx[:, 1, :]], axis=1)[self.data.pose]
+        Jp = -(v + np.cross(w, p[:, :, None], axisa=1, axisb=1, axisc=1))
+        return np.asarray(p, dtype=np.float64), np.asarray(Jp, dtype=np.float64)
 
     def residuals(self, theta: ArrayLike) -> FloatArray:
         """Reprojection errors, pixels, ``(2M,)``."""
@@ -239,7 +278,7 @@ class ImageProblem:
             return np.asarray(np.sqrt(sq / count), dtype=np.float64)
 
     def priority(self) -> FloatArray:
-        """Base-set preference: camera pose first, then offsets, origin translations, tilts, target."""
+        """Base-set preference: camera pose or target place, then offsets, origin translations, tilts, mounting."""
         return _priority(self.model)[list(self.free)]
 
     def analyse(self, theta: ArrayLike | None = None, *, tolerance: float = 1e-8) -> Identifiability:
@@ -266,8 +305,9 @@ class ImageProblem:
                 if o_group == group and o_kind == "offset" and kind.startswith("r"):
                     return f"a rotation about {group}'s own axis is the same as its zero offset ({other})"
                 if o_group == "base":
+                    frame = "target's place" if self.camera_on_tool else "camera pose"
                     return (
-                        f"moves the target exactly like the camera pose {other} (×{c:.3g}); the camera pose is "
+                        f"moves the image exactly like the {frame} {other} (×{c:.3g}); the {frame} is "
                         "identified instead"
                     )
                 return f"moves the target exactly like {other} (×{c:.3g}); {other} is identified instead"

@@ -1,11 +1,10 @@
 """Kinematic identification from camera images: camera calibration, tag sessions, and their simulation.
 
-Supported set-up: a camera fixed in the world, the target (AprilTag or ChArUco, :mod:`robocal.backends.vision`)
-on the tool. ``camera_calibrate`` estimates the intrinsics from ChArUco images (``cv2.calibrateCamera``);
+Set-ups: a camera fixed in the world and the target (AprilTag or ChArUco, :mod:`robocal.backends.vision`) on the
+tool, or a camera on the tool and the target fixed in the world (``camera_on_tool``). ``camera_calibrate`` estimates the intrinsics from ChArUco images (``cv2.calibrateCamera``);
 ``identify_images`` detects the target in each image of a session, starts the camera pose and the target's
 mounting from a closed-form hand-eye solution, then estimates both jointly with the kinematic parameters from the
-reprojection errors (:class:`robocal.core.kinematic_images.ImageProblem`). A camera on the tool looking at a
-fixed target is not supported. ``simulate_images`` renders such a session from a simulated arm with hidden
+reprojection errors (:class:`robocal.core.kinematic_images.ImageProblem`). ``simulate_images`` renders such a session from a simulated arm with hidden
 errors, plus calibration images of a ChArUco board, for the tests and ``demo --identify``.
 """
 
@@ -171,8 +170,8 @@ class ImageIdentifyResult:
         validation_px: RMS reprojection error per held-out image with the identified model, pixels.
         start_validation_px: The same with the nominal kinematics and the hand-eye start values.
         chain: Corrected chain (offsets folded into the origins).
-        T_cam_base: Identified camera → base pose.
-        T_tip_target: Identified target pose on the tip link.
+        T_cam_base: Identified camera → base pose (camera on the tool: the target → base pose).
+        T_tip_target: Identified target pose on the tip link (camera on the tool: the camera's pose on it).
         model: The error model (camera frame as its world).
         urdf_out: Corrected URDF written, or None.
         report_out: JSON report written, or None.
@@ -216,6 +215,7 @@ def identify_images(
     joint_map_ids: Mapping[str, int] | None = None,
     ur_yaml: str | os.PathLike[str] | None = None,
     ur_hash: str | None = None,
+    camera_on_tool: bool = False,
 ) -> ImageIdentifyResult:
     """Identify a chain, the fixed camera's pose and the target's mounting from images of a target on the tool.
 
@@ -236,6 +236,9 @@ def identify_images(
         joint_map_ids: Motor ids written with the joint map.
         ur_yaml: Write ur_description's kinematics YAML of the corrected chain (UR chains only).
         ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
+        camera_on_tool: The camera is on the tip link and the target fixed in the world (eye-in-hand); the
+            camera's mounting and the target's place are estimated instead of the camera pose and the target
+            mounting.
 
     Raises:
         CalibError: Unreadable files or images, poses outside the limits, too few images with the target.
@@ -259,18 +262,21 @@ def identify_images(
         )
     nominal = ErrorModel(chain)
     assert obs.T_cam_target is not None
-    X, Y = hand_eye(obs.T_cam_target, nominal.tool_poses(obs.q_rad))
+    seen = np.linalg.inv(obs.T_cam_target) if camera_on_tool else obs.T_cam_target
+    X, Y = hand_eye(seen, nominal.tool_poses(obs.q_rad))
     model = ErrorModel(chain, T_world_base=X, T_tip_tool=Y)
     rng = np.random.default_rng(seed)
     order = rng.permutation(obs.n_poses)
     n_val = round(validate_fraction * obs.n_poses)
     val_rows, train_rows = np.sort(order[:n_val]), np.sort(order[n_val:])
     train, val = obs.subset(train_rows), obs.subset(val_rows)
-    problem = ImageProblem(model, train, tuple(range(model.n_params)), np.zeros(model.n_params))
+    problem = ImageProblem(
+        model, train, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=camera_on_tool
+    )
     result = fit(problem, huber_m=huber_px)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the images and joint readings")
-    val_problem = ImageProblem(model, val, problem.free, np.zeros(model.n_params))
+    val_problem = ImageProblem(model, val, problem.free, np.zeros(model.n_params), camera_on_tool=camera_on_tool)
     val_px = val_problem.pose_errors(result.theta) if val.n_poses else np.zeros(0)
     start_px = val_problem.pose_errors(np.zeros(model.n_params)) if val.n_poses else np.zeros(0)
     corrected, T_cam_base, T_tip_target = model.corrected(result.x)
@@ -286,7 +292,9 @@ def identify_images(
         "data": str(data),
         "camera": str(camera),
         "target": tgt.text,
-        "setup": "camera fixed in the world, target on the tool",
+        "setup": "camera on the tool, target fixed in the world"
+        if camera_on_tool
+        else "camera fixed in the world, target on the tool",
         "chain": {
             "base_link": chain.base_link,
             "tip_link": chain.tip_link,
@@ -337,8 +345,11 @@ def identify_images(
         "corrected_origins": {
             j.name: {"xyz": list(j.origin_xyz_m), "rpy": list(j.origin_rpy_rad)} for j in corrected.movable
         },
-        "T_cam_base": T_cam_base.tolist(),
-        "T_tip_target": T_tip_target.tolist(),
+        **(
+            {"T_target_base": T_cam_base.tolist(), "T_tip_camera": T_tip_target.tolist()}
+            if camera_on_tool
+            else {"T_cam_base": T_cam_base.tolist(), "T_tip_target": T_tip_target.tolist()}
+        ),
         "warnings": warnings,
     }
     exports = prepare_exports(model, result.x, paths, joint_map=joint_map, ur_hash=ur_hash)

@@ -2,8 +2,9 @@
 
 A session rendered from a simulated arm with hidden errors, plus calibration images of a ChArUco board, for the
 tests and ``demo --identify``.
-The simulated camera is fixed in the world and looks at a target on the tool, the set-up
-:mod:`robocal.workflows.kinematic_vision` identifies.
+The simulated camera is fixed in the world and looks at a target on the tool, or (``camera_on_tool``) sits on the
+tool and looks at a target fixed in the world: the two set-ups :mod:`robocal.workflows.kinematic_vision`
+identifies.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from ..backends.vision import (
 )
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import plan_poses
+from ..core.se3 import homogeneous, matrix_from_rpy_urdf
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text
 from ..formats.kinematic_data import session_csv
@@ -63,6 +65,10 @@ SIM_VIEW = {"so101": ((-0.08, 0.0, 0.55), (0.11, 0.0, 0.19))}
 """Where the simulated camera is (eye, looked-at point), base frame, m."""
 SIM_MOUNT = {"so101": (0.0121, 0.0, -0.0981)}
 """Where the simulated tag sits on the tip link (its face along the tip link's +z), m."""
+SIM_TARGET_PLACE = {"so101": ((0.4, 0.0, 0.15), (0.0, -math.pi / 2, 0.0))}
+"""Camera on the tool: where the fixed tag stands (xyz m, URDF rpy; upright, its face towards the arm), base frame."""
+SIM_CAMERA_MOUNT = {"so101": ((0.0, 0.0, -0.03), (math.pi - 0.5, 0.0, 0.0))}
+"""Camera on the tool: the camera's pose on the tip link (xyz m, URDF rpy): looking along the gripper, tilted."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,13 +123,15 @@ def simulate_images(
     board: str = "charuco:7x5:30:22:4x4_50",
     calibration_images: int = 20,
     noise_grey: float = 2.0,
+    camera_on_tool: bool = False,
 ) -> SimImagesResult:
     """Render a tag session of a simulated arm with hidden errors, seen by a fixed simulated camera.
 
     Writes ``<robot>.urdf``, ``images/pose_NNN.png`` and ``tag.csv`` (joints + image), ``calibration/
     board_NN.png`` (a ChArUco board in front of the camera) and ``truth.json`` into ``out_dir``. Joint readings
     are quantised to 4096 ticks; images have Gaussian pixel noise; poses are chosen (greedy O1) among random
-    ones where the camera sees the whole target.
+    ones where the camera sees the whole target. ``camera_on_tool``: the camera is on the tip link and the tag
+    stands fixed in front of the arm (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
     """
     from .kinematic_sim import SIM_ROBOTS, shipped_urdf
 
@@ -142,15 +150,27 @@ def simulate_images(
     src = shipped_urdf(robot)
     urdf_bytes = src.read_bytes()
     chain = chain_from_urdf(UrdfDocument.from_bytes(urdf_bytes, str(src)).model(), tip_link=spec.tip_link)
-    eye, centre = SIM_VIEW[robot]
-    T_cam_base = np.asarray(np.linalg.inv(look_at(eye, centre)), dtype=np.float64)
-    mount = np.eye(4)
-    mount[:3, 3] = SIM_MOUNT[robot]
-    model = ErrorModel(chain, T_world_base=T_cam_base, T_tip_tool=mount)
     rng = np.random.default_rng(seed)
+    if camera_on_tool:
+        xyz, rpy = SIM_TARGET_PLACE[robot]
+        T_world_base = np.asarray(np.linalg.inv(homogeneous(matrix_from_rpy_urdf(np.array(rpy)), xyz)), np.float64)
+        xyz, rpy = SIM_CAMERA_MOUNT[robot]
+        mount = homogeneous(matrix_from_rpy_urdf(np.array(rpy)), xyz)
+        n_candidates = 100_000  # a camera on the wrist faces the tag in under 1 % of random poses
+    else:
+        eye, centre = SIM_VIEW[robot]
+        T_world_base = np.asarray(np.linalg.inv(look_at(eye, centre)), dtype=np.float64)
+        mount = np.eye(4)
+        mount[:3, 3] = SIM_MOUNT[robot]
+        n_candidates = 4000
+    model = ErrorModel(chain, T_world_base=T_world_base, T_tip_tool=mount)
     arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
-    cand = arm.sample_q(4000, rng)
-    seen = cand[_visible(model.tool_poses(cand, arm.x_true), tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE)]
+
+    def cam_target(T_world_tool: FloatArray) -> FloatArray:
+        return np.asarray(np.linalg.inv(T_world_tool), dtype=np.float64) if camera_on_tool else T_world_tool
+
+    cand = arm.sample_q(n_candidates, rng)
+    seen = cand[_visible(cam_target(model.tool_poses(cand, arm.x_true)), tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE)]
     if seen.shape[0] < poses:
         raise UsageError(f"the simulated camera sees the target in only {seen.shape[0]} candidate poses")
     q = seen[plan_poses(ErrorModel(chain, T_tip_tool=mount), seen, poses)]
@@ -160,7 +180,8 @@ def simulate_images(
     for i, T in enumerate(T_true):
         name = f"images/pose_{i + 1:03d}.png"
         write_image(
-            folder / name, render(tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE, T, noise_grey=noise_grey, rng=rng)
+            folder / name,
+            render(tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE, cam_target(T), noise_grey=noise_grey, rng=rng),
         )
         names.append(name)
     (folder / "calibration").mkdir(exist_ok=True)
@@ -189,8 +210,12 @@ def simulate_images(
         "board": board,
         "camera_K": SIM_CAMERA_K.tolist(),
         "camera_size": list(SIM_CAMERA_SIZE),
-        "T_cam_base": T_cam_base.tolist(),
-        "T_tip_target_nominal": mount.tolist(),
+        "setup": "camera on the tool, target fixed" if camera_on_tool else "camera fixed, target on the tool",
+        **(
+            {"T_target_base": T_world_base.tolist(), "T_tip_camera_nominal": mount.tolist()}
+            if camera_on_tool
+            else {"T_cam_base": T_world_base.tolist(), "T_tip_target_nominal": mount.tolist()}
+        ),
         "ticks_per_turn": arm.ticks_per_turn,
         "pixel_noise_grey": noise_grey,
         "hidden_parameters": {n: float(v) for n, v in zip(model.names, arm.x_true, strict=True)},
