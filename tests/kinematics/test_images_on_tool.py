@@ -148,6 +148,26 @@ def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
     assert np.linalg.norm(mount - np.array(truth["T_tip_camera_nominal"])[:3, 3]) < 5e-3
 
 
+@pytest.mark.timeout(900)
+def test_refine_intrinsics_from_the_cli_reports_the_camera_matrix(
+    session: Path, tmp_path: Path, capsys
+) -> None:
+    from robocal.workflows.kinematic_vision import SIM_CAMERA_K
+
+    assert _identify(session, tmp_path, "--camera-on-tool", "--refine-intrinsics") in (0, 1)
+    out = capsys.readouterr().out
+    assert "rank 30 of 51 unknowns" in out  # 26 + fx, fy, cx, cy
+    rep = json.loads((tmp_path / "r.json").read_text())
+    intr = rep["intrinsics"]
+    assert intr["refined"] is True and intr["K_calibrated"] == SIM_CAMERA_K.tolist()
+    K = np.array(intr["K"])
+    assert np.abs(K[[0, 1, 0, 1], [0, 1, 2, 2]] - SIM_CAMERA_K[[0, 1, 0, 1], [0, 1, 2, 2]]).max() < 15.0
+    assert all(0.0 < v < 10.0 for v in intr["sigma_px"].values())
+    assert [p["name"] for p in rep["parameters"][-4:]] == ["camera.fx", "camera.fy", "camera.cx", "camera.cy"]
+    assert {p["unit"] for p in rep["parameters"][-4:]} == {"px"}
+    assert rep["reprojection_px"]["validation"]["identified"]["mean"] < 2.5
+
+
 def test_camera_on_tool_needs_tag_images(tmp_path: Path, capsys) -> None:
     code = main(["kinematics", "simulate", "--out", str(tmp_path), "--camera-on-tool"])
     assert code == 2

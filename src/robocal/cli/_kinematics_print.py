@@ -13,6 +13,8 @@ __all__ = ["print_identification", "print_images"]
 
 
 def _fmt(value: float, unit: str) -> str:
+    if unit == "px":
+        return f"{value:+.2f} px"
     return f"{value * 1e3:+.3f} mm" if unit == "m" else f"{math.degrees(value):+.4f}°"
 
 

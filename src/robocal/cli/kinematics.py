@@ -167,11 +167,15 @@ def identify(
     camera_on_tool: Annotated[
         bool, typer.Option("--camera-on-tool", help="--kind tag: the camera is on the tool, the target fixed.")
     ] = False,
+    refine_intrinsics: Annotated[
+        bool, typer.Option("--refine-intrinsics", help="--kind tag: estimate fx, fy, cx, cy with the kinematics.")
+    ] = False,
 ) -> None:
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
     jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
-    if camera_on_tool and kind.strip().lower() != "tag":
-        raise UsageError("--camera-on-tool applies to --kind tag (camera images)")
+    for flag, on in (("--camera-on-tool", camera_on_tool), ("--refine-intrinsics", refine_intrinsics)):
+        if on and kind.strip().lower() != "tag":
+            raise UsageError(f"{flag} applies to --kind tag (camera images)")
     if kind.strip().lower() == "tag":
         if camera is None or target is None:
             raise UsageError("--kind tag needs --camera (intrinsics from camera-calibrate) and --target")
@@ -181,7 +185,7 @@ def identify(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
             validate_fraction=validate_fraction, huber_px=huber, seed=seed, out=out, report=report,
             joint_map=jm, joint_map_out=joint_map_out, joint_map_ids=ids, ur_yaml=ur_yaml, ur_hash=ur_hash,
-            camera_on_tool=camera_on_tool,
+            camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
         )  # fmt: skip
         raise typer.Exit(print_images(img))
     result = wf.identify(

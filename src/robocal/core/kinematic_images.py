@@ -38,10 +38,14 @@ from .kinematic_errors import ErrorModel
 from .kinematic_problem import _priority
 from .se3 import homogeneous, matrix_from_rotvec, rotvec_from_matrix
 
-__all__ = ["ImageObservations", "ImageProblem", "hand_eye", "project"]
+__all__ = ["INTRINSICS", "ImageObservations", "ImageProblem", "hand_eye", "project"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+
+
+INTRINSICS: tuple[str, ...] = ("camera.fx", "camera.fy", "camera.cx", "camera.cy")
+"""The refined intrinsics (pixels), in ``θ`` after the model parameters."""
 
 
 def project(p_cam: ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -67,6 +71,7 @@ class ImageObservations:
         uv: ``(M, 2)`` detected corner in normalised image coordinates (undistorted, ``x/z, y/z``).
         focal_px: Mean focal length, pixels (scales residuals to pixels).
         T_cam_target: ``(N, 4, 4)`` per-image target pose from PnP (start values and validation), or None.
+        K: ``(3, 3)`` camera matrix the corners were normalised with (needed to refine the intrinsics), or None.
     """
 
     q_rad: FloatArray
@@ -75,6 +80,7 @@ class ImageObservations:
     uv: FloatArray
     focal_px: float
     T_cam_target: FloatArray | None = None
+    K: FloatArray | None = None
 
     def __post_init__(self) -> None:
         q = np.asarray(self.q_rad, dtype=np.float64)
@@ -96,6 +102,11 @@ class ImageObservations:
         object.__setattr__(self, "pose", pose)
         object.__setattr__(self, "corner_m", c)
         object.__setattr__(self, "uv", uv)
+        if self.K is not None:
+            K = np.asarray(self.K, dtype=np.float64)
+            if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+                raise InvalidCalibrationError("the camera matrix must be a finite (3, 3) with positive fx, fy")
+            object.__setattr__(self, "K", K)
 
     @property
     def n_poses(self) -> int:
@@ -115,6 +126,7 @@ class ImageObservations:
             self.uv[keep],
             self.focal_px,
             None if self.T_cam_target is None else self.T_cam_target[r],
+            self.K,
         )
 
 
@@ -185,6 +197,9 @@ class ImageProblem:
         group_ids: No contact groups (the interface of :class:`~robocal.core.kinematic_problem.Problem`).
         camera_on_tool: The set-up: False for a fixed camera and the target on the tool, True for a camera on
             the tool and a fixed target.
+        refine_intrinsics: Estimate ``fx, fy, cx, cy`` too (four more unknowns after the model parameters, in
+            pixels, changes to ``data.K``); residuals are then ``K'·π(p) − K·m``, the pinhole pixels of the
+            undistorted corners (the lens distortion stays as calibrated).
     """
 
     model: ErrorModel
@@ -194,30 +209,49 @@ class ImageProblem:
 
     group_ids: tuple[int, ...] = ()
     camera_on_tool: bool = False
+    refine_intrinsics: bool = False
+
+    def __post_init__(self) -> None:
+        if self.refine_intrinsics and self.data.K is None:
+            raise UsageError("refining the intrinsics needs the camera matrix the corners were normalised with")
 
     @property
     def names(self) -> tuple[str, ...]:
-        """Names of the unknowns (``base.*`` is the camera pose, ``tool.*`` the target on the tip link)."""
-        return tuple(self.model.names[i] for i in self.free)
+        """Names of the unknowns: model parameters, then ``camera.fx/fy/cx/cy`` when the intrinsics are refined."""
+        extra = INTRINSICS if self.refine_intrinsics else ()
+        return tuple(self.model.names[i] for i in self.free) + extra
 
     @property
     def n_theta(self) -> int:
         """Number of unknowns."""
-        return len(self.free)
+        return len(self.free) + (len(INTRINSICS) if self.refine_intrinsics else 0)
 
     def x_of(self, theta: ArrayLike) -> FloatArray:
         """The full parameter vector for unknowns ``θ``."""
         x = np.array(self.x_fixed, dtype=np.float64)
-        x[list(self.free)] = np.asarray(theta, dtype=np.float64)
+        x[list(self.free)] = np.asarray(theta, dtype=np.float64)[: len(self.free)]
         return x
+
+    def camera_matrix(self, theta: ArrayLike) -> FloatArray:
+        """The camera matrix under ``θ`` (``data.K`` plus the refined changes), ``(3, 3)``."""
+        assert self.data.K is not None
+        K = np.array(self.data.K, dtype=np.float64)
+        if self.refine_intrinsics:
+            d = np.asarray(theta, dtype=np.float64)[len(self.free) :]
+            K[0, 0] += d[0]
+            K[1, 1] += d[1]
+            K[0, 2] += d[2]
+            K[1, 2] += d[3]
+        return K
 
     def points_of(self, theta: ArrayLike) -> FloatArray:
         """No contact points: ``(0, 3)``."""
         return np.zeros((0, 3))
 
     def initial_theta(self) -> FloatArray:
-        """The free parameters of ``x_fixed``."""
-        return np.asarray(self.x_fixed, dtype=np.float64)[list(self.free)]
+        """The free parameters of ``x_fixed`` (and no change to the intrinsics)."""
+        t = np.asarray(self.x_fixed, dtype=np.float64)[list(self.free)]
+        return np.concatenate([t, np.zeros(self.n_theta - len(self.free))])
 
     def _points(self, theta: ArrayLike, jacobian: bool) -> tuple[FloatArray, FloatArray | None]:
         """Corners in the camera frame ``(M, 3)`` and, when asked, their Jacobian ``(M, 3, n_theta)``."""
@@ -257,6 +291,10 @@ class ImageProblem:
         """Reprojection errors, pixels, ``(2M,)``."""
         p, _ = self._points(theta, False)
         uv, _ = project(p)
+        if self.refine_intrinsics:
+            K, K0 = self.camera_matrix(theta), self.camera_matrix(np.zeros(self.n_theta))
+            r = uv * K[[0, 1], [0, 1]] + K[:2, 2] - (self.data.uv * K0[[0, 1], [0, 1]] + K0[:2, 2])
+            return np.asarray(r.reshape(-1), dtype=np.float64)
         return np.asarray((self.data.focal_px * (uv - self.data.uv)).reshape(-1), dtype=np.float64)
 
     def residuals_and_jacobian(self, theta: ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -264,10 +302,21 @@ class ImageProblem:
         p, Jp = self._points(theta, True)
         assert Jp is not None
         uv, D = project(p)
-        f = self.data.focal_px
-        r = (f * (uv - self.data.uv)).reshape(-1)
-        J = f * np.einsum("mij,mjk->mik", D, Jp)
-        return np.asarray(r, dtype=np.float64), np.asarray(J.reshape(-1, J.shape[2]), dtype=np.float64)
+        if not self.refine_intrinsics:
+            f = self.data.focal_px
+            r = (f * (uv - self.data.uv)).reshape(-1)
+            J = f * np.einsum("mij,mjk->mik", D, Jp)
+            return np.asarray(r, dtype=np.float64), np.asarray(J.reshape(-1, J.shape[2]), dtype=np.float64)
+        fxy = self.camera_matrix(theta)[[0, 1], [0, 1]]
+        r = self.residuals(theta)
+        Jg = fxy[None, :, None] * np.einsum("mij,mjk->mik", D, Jp)
+        Jk = np.zeros((p.shape[0], 2, len(INTRINSICS)))
+        Jk[:, 0, 0] = uv[:, 0]
+        Jk[:, 1, 1] = uv[:, 1]
+        Jk[:, 0, 2] = 1.0
+        Jk[:, 1, 3] = 1.0
+        J = np.concatenate([Jg, Jk], axis=2)
+        return r, np.asarray(J.reshape(-1, J.shape[2]), dtype=np.float64)
 
     def pose_errors(self, theta: ArrayLike) -> FloatArray:
         """RMS reprojection error per image, pixels ``(N,)`` (NaN for an image without corners)."""
@@ -279,7 +328,8 @@ class ImageProblem:
 
     def priority(self) -> FloatArray:
         """Base-set preference: camera pose or target place, then offsets, origin translations, tilts, mounting."""
-        return _priority(self.model)[list(self.free)]
+        pri = _priority(self.model)[list(self.free)]
+        return np.concatenate([pri, np.full(self.n_theta - len(self.free), 7.0)])  # intrinsics last
 
     def analyse(self, theta: ArrayLike | None = None, *, tolerance: float = 1e-8) -> Identifiability:
         """Identifiability of the unknowns at ``θ`` (default: the start values)."""

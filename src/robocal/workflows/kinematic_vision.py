@@ -34,7 +34,7 @@ from ..backends.vision import (
 from ..core.chain import SerialChain
 from ..core.jointmap import RobotCalibration
 from ..core.kinematic_errors import ErrorModel
-from ..core.kinematic_images import ImageObservations, ImageProblem, hand_eye
+from ..core.kinematic_images import INTRINSICS, ImageObservations, ImageProblem, hand_eye
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
 from ..formats.camera_info import read_camera_info, write_camera_info
@@ -154,6 +154,7 @@ def detect_session(
             np.concatenate(uvs),
             camera.focal_px,
             np.asarray(Ts),
+            camera.K,
         ),
         r,
         warnings,
@@ -193,6 +194,20 @@ class ImageIdentifyResult:
     warnings: tuple[str, ...] = field(default_factory=tuple)
 
 
+def _intrinsics_report(problem: ImageProblem, result: FitResult, K: FloatArray) -> dict[str, Any]:
+    """The camera matrix used (calibrated, or refined with the σ of each refined value)."""
+    if not problem.refine_intrinsics:
+        return {"refined": False, "K": np.asarray(K).tolist()}
+    n = len(problem.free)
+    sig = result.sigma[n:]
+    return {
+        "refined": True,
+        "K_calibrated": np.asarray(K).tolist(),
+        "K": problem.camera_matrix(result.theta).tolist(),
+        "sigma_px": {k.split(".")[1]: float(v) if math.isfinite(v) else None for k, v in zip(INTRINSICS, sig, strict=True)},
+    }
+
+
 def _px_stats(e: FloatArray) -> dict[str, float] | None:
     return None if e.size == 0 else {"mean": float(np.mean(e)), "max": float(np.max(e))}
 
@@ -216,6 +231,7 @@ def identify_images(
     ur_yaml: str | os.PathLike[str] | None = None,
     ur_hash: str | None = None,
     camera_on_tool: bool = False,
+    refine_intrinsics: bool = False,
 ) -> ImageIdentifyResult:
     """Identify a chain, the fixed camera's pose and the target's mounting from images of a target on the tool.
 
@@ -239,6 +255,8 @@ def identify_images(
         camera_on_tool: The camera is on the tip link and the target fixed in the world (eye-in-hand); the
             camera's mounting and the target's place are estimated instead of the camera pose and the target
             mounting.
+        refine_intrinsics: Estimate the camera's ``fx, fy, cx, cy`` jointly with the rest (the lens distortion
+            stays as calibrated); the refined values and their σ are in the report.
 
     Raises:
         CalibError: Unreadable files or images, poses outside the limits, too few images with the target.
@@ -271,14 +289,18 @@ def identify_images(
     val_rows, train_rows = np.sort(order[:n_val]), np.sort(order[n_val:])
     train, val = obs.subset(train_rows), obs.subset(val_rows)
     problem = ImageProblem(
-        model, train, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=camera_on_tool
-    )
+        model, train, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=camera_on_tool,
+        refine_intrinsics=refine_intrinsics,
+    )  # fmt: skip
     result = fit(problem, huber_m=huber_px)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the images and joint readings")
-    val_problem = ImageProblem(model, val, problem.free, np.zeros(model.n_params), camera_on_tool=camera_on_tool)
+    val_problem = ImageProblem(
+        model, val, problem.free, np.zeros(model.n_params), camera_on_tool=camera_on_tool,
+        refine_intrinsics=refine_intrinsics,
+    )  # fmt: skip
     val_px = val_problem.pose_errors(result.theta) if val.n_poses else np.zeros(0)
-    start_px = val_problem.pose_errors(np.zeros(model.n_params)) if val.n_poses else np.zeros(0)
+    start_px = val_problem.pose_errors(np.zeros(problem.n_theta)) if val.n_poses else np.zeros(0)
     corrected, T_cam_base, T_tip_target = model.corrected(result.x)
     ident = result.identifiability
     if ident.observability.condition > 100:
@@ -330,13 +352,14 @@ def identify_images(
         "parameters": [
             {
                 "name": name,
-                "unit": model.parameters[i].unit,
+                "unit": model.parameters[i].unit if i < model.n_params else "px",
                 "estimate": float(result.theta[i]),
                 "sigma": float(result.sigma[i]) if i in ident.base else None,
                 "identified": i in ident.base,
             }
             for i, name in enumerate(problem.names)
         ],
+        "intrinsics": _intrinsics_report(problem, result, cam.K),
         "unidentifiable": [
             {"name": u.name, "reason": u.reason, "same_as": [[n, c] for n, c in u.same_as]}
             for u in ident.unidentifiable
