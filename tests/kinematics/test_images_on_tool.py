@@ -173,3 +173,23 @@ def test_camera_on_tool_needs_tag_images(tmp_path: Path, capsys) -> None:
     assert code == 2
     assert capsys.readouterr().err.strip() == "error: --camera-on-tool applies to --kind tag (camera images)"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_camera_on_tool_is_simulated_for_the_so101_only(tmp_path: Path, capsys) -> None:
+    code = main(
+        [
+            "kinematics",
+            "simulate",
+            "--robot",
+            "koch",
+            "--kind",
+            "tag",
+            "--camera-on-tool",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: tag images with the camera on the tool are simulated for so101 only, not 'koch'"
+    assert list(tmp_path.iterdir()) == []

@@ -61,9 +61,9 @@ def look_at(
 SIM_CAMERA_K = np.array([[905.0, 0.0, 645.0], [0.0, 902.0, 478.0], [0.0, 0.0, 1.0]])
 """The simulated camera's true intrinsics (1280 × 960, no distortion)."""
 SIM_CAMERA_SIZE = (1280, 960)
-SIM_VIEW = {"so101": ((-0.08, 0.0, 0.55), (0.11, 0.0, 0.19))}
+SIM_VIEW = {"so101": ((-0.08, 0.0, 0.55), (0.11, 0.0, 0.19)), "koch": ((-0.1, 0.0, 0.5), (0.0, 0.0, 0.15))}
 """Where the simulated camera is (eye, looked-at point), base frame, m."""
-SIM_MOUNT = {"so101": (0.0121, 0.0, -0.0981)}
+SIM_MOUNT = {"so101": (0.0121, 0.0, -0.0981), "koch": (0.02, 0.0, -0.06)}
 """Where the simulated tag sits on the tip link (its face along the tip link's +z), m."""
 SIM_TARGET_PLACE = {"so101": ((0.4, 0.0, 0.15), (0.0, -math.pi / 2, 0.0))}
 """Camera on the tool: where the fixed tag stands (xyz m, URDF rpy; upright, its face towards the arm), base frame."""
@@ -137,8 +137,10 @@ def simulate_images(
 
     if robot not in SIM_ROBOTS:
         raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
-    if robot not in SIM_VIEW:
-        raise UsageError(f"tag images are simulated for {', '.join(SIM_VIEW)} only, not {robot!r}")
+    if robot not in (SIM_TARGET_PLACE if camera_on_tool else SIM_VIEW):
+        where = SIM_TARGET_PLACE if camera_on_tool else SIM_VIEW
+        setup = "with the camera on the tool " if camera_on_tool else ""
+        raise UsageError(f"tag images {setup}are simulated for {', '.join(where)} only, not {robot!r}")
     if poses < 3:
         raise UsageError(f"--poses must be at least 3 for images, got {poses}")
     folder = Path(out_dir)

@@ -1,0 +1,66 @@
+"""Rendered tag images of a simulated Koch v1.1 (fixed camera, tag on the gripper): identified below a millimetre."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocal.cli.main import main
+
+pytest.importorskip("cv2")
+
+
+@pytest.mark.timeout(900)
+def test_koch_tag_images_identify_the_arm(tmp_path: Path, capsys) -> None:
+    from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm
+    from robocal.backends.vision import CameraIntrinsics
+    from robocal.core.chain import fk_chain
+    from robocal.core.kinematic_errors import ErrorModel
+    from robocal.formats.camera_info import write_camera_info
+    from robocal.formats.urdf import read_urdf
+    from robocal.formats.urdf_chain import chain_from_urdf
+    from robocal.workflows.kinematic_vision import SIM_CAMERA_K
+
+    code = main(
+        [
+            "kinematics",
+            "simulate",
+            "--robot",
+            "koch",
+            "--kind",
+            "tag",
+            "--poses",
+            "24",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    assert code == 0
+    assert "--tip-link gripper_static_1" in capsys.readouterr().out
+    write_camera_info(tmp_path / "camera.yaml", CameraIntrinsics(1280, 960, SIM_CAMERA_K, np.zeros(5)))
+    code = main(
+        ["kinematics", "identify", "--kind", "tag", "--urdf", str(tmp_path / "koch.urdf"), "--data",
+         str(tmp_path / "tag.csv"), "--camera", str(tmp_path / "camera.yaml"), "--target", "apriltag:36h11:0:60",
+         "--tip-link", "gripper_static_1", "--out", str(tmp_path / "id.urdf"), "--report", str(tmp_path / "r.json")]
+    )  # fmt: skip
+    assert code in (0, 1)
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["rank"] == 26 and rep["images"]["with_target"] == 24
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    assert truth["robot"] == "koch"
+    chain = chain_from_urdf(read_urdf(tmp_path / "koch.urdf"), tip_link="gripper_static_1")
+    true_model = ErrorModel(
+        chain, T_world_base=np.array(truth["T_cam_base"]), T_tip_tool=np.array(truth["T_tip_target_nominal"])
+    )
+    arm = SimulatedKinematicArm(
+        true_model, np.array([truth["hidden_parameters"][n] for n in true_model.names])
+    )
+    q = arm.sample_q(400, np.random.default_rng(7))
+    found = chain_from_urdf(read_urdf(tmp_path / "id.urdf"), tip_link="gripper_static_1")
+    T = np.array(rep["T_cam_base"]) @ fk_chain(found, arm.read(q)) @ np.array(rep["T_tip_target"])
+    err = np.linalg.norm(T[:, :3, 3] - arm.true_points(q), axis=1)
+    nominal = np.linalg.norm(true_model.points(arm.read(q)) - arm.true_points(q), axis=1)
+    assert err.mean() <= 1e-3 and nominal.mean() > 4e-3
