@@ -87,25 +87,28 @@ def _accuracy_per_seed(model: ErrorModel, seeds: int = 20) -> None:
 
     cand = SimulatedKinematicArm(model, np.zeros(model.n_params)).sample_q(2000, np.random.default_rng(99))
     free = free_indices(model, ["base"])
+    from robocal.workflows.kinematic_fit import PriorSigmas
+
     for n, bar in ((50, "mean <= 0.4, max <= 0.9 mm"), (20, "mean <= 0.8 mm")):
         q = cand[plan_poses(model, cand, n)]
-        means, maxima = [], []
-        for seed in range(seeds):
-            rng = np.random.default_rng(seed)
-            arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
-            truth = arm.true_points(q)
-            data = Measurements("points", arm.read(q), truth + rng.normal(0.0, 0.5e-3, truth.shape))
-            res = fit(Problem(model, data, free, np.zeros(model.n_params)))
-            qv = arm.sample_q(200, rng)
-            e = np.linalg.norm(model.points(arm.read(qv), res.x) - arm.true_points(qv), axis=1) * 1e3
-            means.append(e.mean())
-            maxima.append(e.max())
-        print(
-            f"{n} poses, seeds 0-{seeds - 1} [{bar}]: mean {min(means):.3f}-{max(means):.3f} (avg {np.mean(means):.3f}), "
-            f"max {min(maxima):.3f}-{max(maxima):.3f} (avg {np.mean(maxima):.3f}) mm; draws over 0.4 mm mean: "
-            f"{sum(m > 0.4 for m in means)}, over 0.9 mm max: {sum(m > 0.9 for m in maxima)}"
-        )
-
+        for prior in (None, PriorSigmas()):
+            means, maxima = [], []
+            for seed in range(seeds):
+                rng = np.random.default_rng(seed)
+                arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
+                truth = arm.true_points(q)
+                data = Measurements("points", arm.read(q), truth + rng.normal(0.0, 0.5e-3, truth.shape))
+                res = fit(Problem(model, data, free, np.zeros(model.n_params)), prior=prior)
+                qv = arm.sample_q(200, rng)
+                e = np.linalg.norm(model.points(arm.read(qv), res.x) - arm.true_points(qv), axis=1) * 1e3
+                means.append(e.mean())
+                maxima.append(e.max())
+            label = "--prior" if prior is not None else "plain"
+            print(
+                f"{n} poses, {label}, seeds 0-{seeds - 1} [{bar}]: mean {min(means):.3f}-{max(means):.3f} "
+                f"(avg {np.mean(means):.3f}), max {min(maxima):.3f}-{max(maxima):.3f} (avg {np.mean(maxima):.3f}) mm; "
+                f"draws over 0.4 mm mean: {sum(m > 0.4 for m in means)}, over 0.9 mm max: {sum(m > 0.9 for m in maxima)}"
+            )
 
 if __name__ == "__main__":
     main()

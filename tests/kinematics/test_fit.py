@@ -206,8 +206,8 @@ def test_accuracy_bars_per_draw_over_twenty_seeds() -> None:
     so the maximum a posteriori fit is the best any estimator can do on these poses): mean 0.266-0.431 (average
     0.352), max 0.57-0.97 (average 0.80). The averaged bars (mean <= 0.4, max <= 0.9) and "20 poses: mean <= 0.8"
     hold for every draw; "50 poses: mean <= 0.4 and max <= 0.9" does not hold for every single draw, with or
-    without the prior (4 draws exceed 0.4 mm mean, 7 exceed 0.9 mm max). The held-out readings' own 4096-tick
-    quantisation already costs 0.19 mm mean / 0.53 mm max; the parameters' part is 0.29 / 0.61 on average
+    without the prior (5 and 4 draws exceed 0.4 mm mean, 8 and 7 exceed 0.9 mm max). The held-out readings' own
+    4096-tick quantisation already costs 0.19 mm mean / 0.53 mm max; the parameters' part is 0.29 / 0.61 on average
     (information-bound: 150 equations at 0.5 mm for 23 identifiable parameters). Weighting by the joint
     quantisation propagated through the Jacobian, I-optimal selection, 10000 candidates and poses above the
     table were measured too and change the averages by under 0.015 mm.
@@ -233,9 +233,10 @@ def test_accuracy_bars_per_draw_over_twenty_seeds() -> None:
     m20 = np.array(stats[20, False][0])
     assert m50.mean() <= 0.4e-3 and x50.mean() <= 0.9e-3
     assert m50.max() <= 0.45e-3 and x50.max() <= 1.0e-3
-    assert 3 <= np.sum(m50 > 0.4e-3) <= 8  # the per-draw mean bar is missed by a few draws
+    # the per-draw bars are missed by a few draws (measured 5 and 8; ±1 for another BLAS)
+    assert 4 <= np.sum(m50 > 0.4e-3) <= 6 and 7 <= np.sum(x50 > 0.9e-3) <= 9
     assert m20.max() <= 0.8e-3 and np.array(stats[20, True][0]).max() <= 0.8e-3
     # the prior helps on average and in the worst draw, but not enough for every draw
     assert p50.mean() < m50.mean() - 0.005e-3 and px50.mean() < x50.mean() - 0.01e-3
     assert p50.max() < m50.max()
-    assert 2 <= np.sum(p50 > 0.4e-3) <= 6 and 4 <= np.sum(px50 > 0.9e-3) <= 9
+    assert 3 <= np.sum(p50 > 0.4e-3) <= 5 and 6 <= np.sum(px50 > 0.9e-3) <= 8  # measured 4 and 7
