@@ -112,3 +112,23 @@ def test_refine_intrinsics_is_for_tag_images(tmp_path, capsys) -> None:
     assert (
         capsys.readouterr().err.strip() == "error: --refine-intrinsics applies to --kind tag (camera images)"
     )
+
+
+def test_prior_on_image_data_estimates_every_joint_parameter_but_not_the_camera() -> None:
+    from robocal.workflows.kinematic_fit import PriorSigmas
+
+    obs, model, x_true = _session(SIM_CAMERA_K, n=30, seed=4)
+    problem = ImageProblem(model, obs, tuple(range(model.n_params)), np.zeros(model.n_params))
+    plain = fit(problem)
+    with_prior = fit(problem, prior=PriorSigmas())
+    estimated = np.isfinite(with_prior.sigma)
+    names = problem.names
+    joint = [i for i, n in enumerate(names) if not n.startswith(("base.", "tool."))]
+    assert estimated[joint].all()  # every joint parameter, the unidentifiable ones too
+    assert not np.isfinite(plain.sigma[joint]).all()
+    # the camera pose and the target mounting have no prior: only their identifiable part is estimated
+    others = [i for i in range(len(names)) if i not in joint]
+    assert set(np.flatnonzero(estimated[others])) == set(np.flatnonzero(np.isfinite(plain.sigma[others])))
+    q = np.random.default_rng(9).uniform(-0.9, 0.9, (300, 5))
+    truth = model.points(q, x_true)
+    assert np.linalg.norm(model.points(q, with_prior.x) - truth, axis=1).mean() < 1e-3

@@ -186,6 +186,7 @@ def identify(
             validate_fraction=validate_fraction, huber_px=huber, seed=seed, out=out, report=report,
             joint_map=jm, joint_map_out=joint_map_out, joint_map_ids=ids, ur_yaml=ur_yaml, ur_hash=ur_hash,
             camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
+            prior=wf.as_prior(_prior(prior, prior_mm, prior_deg, prior_offset_deg)),
         )  # fmt: skip
         raise typer.Exit(print_images(img))
     result = wf.identify(

@@ -42,7 +42,7 @@ from ..formats.kinematic_data import read_image_session
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
 from .kinematic_export import check_export_paths, prepare_exports, write_exports
-from .kinematic_fit import FitResult, fit
+from .kinematic_fit import FitResult, PriorSigmas, fit
 
 __all__ = [
     "SIM_CAMERA_K",
@@ -232,6 +232,7 @@ def identify_images(
     ur_hash: str | None = None,
     camera_on_tool: bool = False,
     refine_intrinsics: bool = False,
+    prior: PriorSigmas | None = None,
 ) -> ImageIdentifyResult:
     """Identify a chain, the fixed camera's pose and the target's mounting from images of a target on the tool.
 
@@ -257,6 +258,8 @@ def identify_images(
             mounting.
         refine_intrinsics: Estimate the camera's ``fx, fy, cx, cy`` jointly with the rest (the lens distortion
             stays as calibrated); the refined values and their σ are in the report.
+        prior: A Gaussian prior around the nominal kinematics (not on the camera pose, the mounting or the
+            intrinsics); the noise that weighs it is estimated from the reprojection errors, pixels.
 
     Raises:
         CalibError: Unreadable files or images, poses outside the limits, too few images with the target.
@@ -292,7 +295,7 @@ def identify_images(
         model, train, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=camera_on_tool,
         refine_intrinsics=refine_intrinsics,
     )  # fmt: skip
-    result = fit(problem, huber_m=huber_px)
+    result = fit(problem, huber_m=huber_px, prior=prior)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the images and joint readings")
     val_problem = ImageProblem(
@@ -341,6 +344,13 @@ def identify_images(
             "loss": result.loss,
             "evaluations": result.iterations,
             "converged": result.success,
+            "prior": None
+            if prior is None
+            else {
+                "length_mm": prior.length_m * 1e3,
+                "angle_deg": math.degrees(prior.angle_rad),
+                "offset_deg": math.degrees(prior.offset_rad),
+            },
         },
         "reprojection_px": {
             "fit": {
@@ -354,7 +364,7 @@ def identify_images(
                 "name": name,
                 "unit": model.parameters[i].unit if i < model.n_params else "px",
                 "estimate": float(result.theta[i]),
-                "sigma": float(result.sigma[i]) if i in ident.base else None,
+                "sigma": float(result.sigma[i]) if math.isfinite(result.sigma[i]) else None,
                 "identified": i in ident.base,
             }
             for i, name in enumerate(problem.names)

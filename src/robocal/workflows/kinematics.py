@@ -48,6 +48,7 @@ __all__ = [
     "IdentifyResult",
     "PlanResult",
     "PriorSigmas",
+    "as_prior",
     "identify",
     "plan",
     "tool_frame",
@@ -154,6 +155,11 @@ def _origin_changed(old: SerialChain, new: SerialChain) -> dict[str, bool]:
     }
 
 
+def as_prior(prior: bool | PriorSigmas) -> PriorSigmas | None:
+    """``--prior`` as given: a :class:`PriorSigmas`, True for the default tolerance, False for none."""
+    return prior if isinstance(prior, PriorSigmas) else (PriorSigmas() if prior else None)
+
+
 def identify(
     urdf: str | os.PathLike[str],
     data: str | os.PathLike[str],
@@ -237,7 +243,7 @@ def identify(
     train, val = measurements.subset(train_rows), measurements.subset(val_rows)
     free = free_indices(model, [] if frame == "tracker" else ["base"])
     problem = Problem(model, train, free, np.zeros(model.n_params))
-    prior_s = prior if isinstance(prior, PriorSigmas) else (PriorSigmas() if prior else None)
+    prior_s = as_prior(prior)
     result = fit(problem, huber_m=huber_m, prior=prior_s)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the data for gross errors")
