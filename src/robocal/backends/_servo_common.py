@@ -259,6 +259,39 @@ class SdkBusBase:
         raw = self._call("sync read", None, register, call)
         return {i: self._decode(i, register, v) for i, v in raw.items()}
 
+    def sync_read_block(self, registers: Sequence[str], motor_ids: Sequence[int]) -> dict[int, dict[str, int]]:
+        """Read several registers of several motors with one SYNC_READ of the address span that holds them all.
+
+        The span runs from the lowest register's address to the end of the highest one (e.g. Feetech
+        Present_Position … Status, 10 bytes): one instruction instead of one per register.
+
+        Returns:
+            Motor id → register → decoded value.
+        """
+        entries = {r: self._shared_entry(motor_ids, r) for r in registers}
+        start = min(a for a, _ in entries.values())
+        length = max(a + k for a, k in entries.values()) - start
+        self._select_protocol()
+        group = self._sdk.GroupSyncRead(self._port_handler, self._ph, start, length)
+        for i in motor_ids:
+            group.addParam(i)
+
+        def call() -> tuple[Any, int, int]:
+            result = group.txRxPacket()
+            if result != COMM_SUCCESS:
+                return None, result, 0
+            for i in motor_ids:
+                if not group.isAvailable(i, start, length):
+                    return None, self._sdk.COMM_RX_CORRUPT, 0
+            return (
+                {i: {r: int(group.getData(i, a, k)) for r, (a, k) in entries.items()} for i in motor_ids},
+                result,
+                0,
+            )
+
+        raw = self._call("sync read", None, "+".join(registers), call)
+        return {i: {r: self._decode(i, r, v) for r, v in values.items()} for i, values in raw.items()}
+
     def sync_write(self, register: str, values: Mapping[int, int]) -> None:
         """Write one register of several motors with one SYNC_WRITE instruction (no status packets)."""
         addr, size = self._shared_entry(list(values), register)

@@ -18,7 +18,7 @@ Control laws (joint torque τ; ``e`` the setpoint error in ticks, ``ω`` the vel
 * Dynamixel X: ``Operating_Mode`` 5 (current-based position): ``τ = clip(kt·i_unit·(P/128·e − D/16·ω_ms),
   ±kt·i_unit·min(|Goal_Current|, Current_Limit))`` with ``Position_P_Gain``, ``Position_D_Gain`` (``ω_ms`` in
   ticks/ms), setpoint ramped at ``Profile_Velocity`` (0.229 rev/min; 0: at once); modes 3/4 the same law capped
-  at ``τ_stall·PWM_Limit/885``; mode 1 velocity, mode 0 current (``Goal_Current``), mode 16 PWM.
+  at ``τ_stall·min(PWM_Limit, |Goal_PWM|)/885`` (``Goal_PWM`` also limits mode 5); mode 1 velocity, mode 0 current (``Goal_Current``), mode 16 PWM.
   ``Present_Current`` in the model's current unit, ``Present_Velocity`` in 0.229 rev/min, ``Moving`` above
   ``Moving_Threshold``. Overload: ≥ 95 % of the mode's maximum output for 1 s sets ``Hardware_Error_Status``
   bit 5, switches the torque off and keeps it off (the alert bit 0x80 in every status packet) until a REBOOT.
@@ -31,10 +31,10 @@ defaults of Dynamixel and the Goal_Position update at torque-on are assumptions 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from ...core.lerobot import encode_sign_magnitude, encode_twos_complement
+from ..servo_ratings import RATINGS, MotorRating
 from .physics import Drive, JointPlant, OverloadLatch, SimClock
 
 if TYPE_CHECKING:
@@ -47,43 +47,6 @@ RPM_UNIT = 0.229
 """Dynamixel velocity unit, rev/min."""
 PWM_FULL = 885
 """Dynamixel X PWM register value for 100 % duty."""
-
-
-@dataclass(frozen=True)
-class MotorRating:
-    """Datasheet numbers of a servo model.
-
-    Attributes:
-        stall_torque_nm: Stall torque at the nominal voltage.
-        stall_current_a: Stall current.
-        current_unit_a: One unit of ``Present_Current`` / ``Goal_Current``.
-        current_limit: Factory ``Current_Limit`` (Dynamixel; 0 where there is none).
-    """
-
-    stall_torque_nm: float
-    stall_current_a: float
-    current_unit_a: float
-    current_limit: int = 0
-
-    @property
-    def kt_nm_a(self) -> float:
-        """Torque per ampere."""
-        return self.stall_torque_nm / self.stall_current_a
-
-
-RATINGS: dict[str, MotorRating] = {
-    "sts3215": MotorRating(1.91, 2.7, 0.0065),  # 7.4 V, 19.5 kg·cm
-    "sts3250": MotorRating(4.9, 3.0, 0.0065),
-    "sm8512bl": MotorRating(11.8, 7.0, 0.0065),
-    "scs0009": MotorRating(0.23, 0.7, 0.0065),
-    "xl330-m077": MotorRating(0.228, 1.47, 0.001, 1750),
-    "xl330-m288": MotorRating(0.52, 1.47, 0.001, 1750),
-    "xl430-w250": MotorRating(1.5, 1.4, 0.00269),  # no current sensing: no current modes
-    "xc430-w150": MotorRating(1.4, 1.4, 0.00269),
-    "xm430-w350": MotorRating(4.1, 2.3, 0.00269, 1193),
-    "xm540-w270": MotorRating(10.6, 4.4, 0.00269, 2047),
-}
-"""Model → rating."""
 
 _CHUNK_S = 0.005  # the setpoint ramp is updated at least every 5 ms of simulated time
 
@@ -115,6 +78,7 @@ class ServoFirmware:
             s.set_reg("Current_Limit", self.rating.current_limit)
             s.set_reg("Goal_Current", self.rating.current_limit)
             s.set_reg("PWM_Limit", PWM_FULL)
+            s.set_reg("Goal_PWM", PWM_FULL)  # RAM: PWM_Limit at power-on
             s.set_reg("Position_P_Gain", 800)
             s.set_reg("Moving_Threshold", 10)
             s.set_reg("Shutdown", 0x34)
@@ -169,7 +133,10 @@ class ServoFirmware:
         r = self.rating
         if not self.dxl:
             return r.stall_torque_nm * min(1000, self._reg("Torque_Limit", 1000)) / 1000
-        pwm_cap = r.stall_torque_nm * min(PWM_FULL, self._reg("PWM_Limit")) / PWM_FULL
+        pwm = min(PWM_FULL, self._reg("PWM_Limit"))
+        if self._reg("Operating_Mode") in (3, 4, 5):  # Goal_PWM limits the output of the position modes
+            pwm = min(pwm, abs(self._reg("Goal_PWM")))
+        pwm_cap = r.stall_torque_nm * pwm / PWM_FULL
         if self._reg("Operating_Mode") in (0, 5):
             amps = min(abs(self._reg("Goal_Current")), self._reg("Current_Limit")) * r.current_unit_a
             return min(pwm_cap, amps * r.kt_nm_a)

@@ -1,0 +1,395 @@
+"""``robocal lerobot calibrate --auto``: a LeRobot arm finds its own hard stops and writes LeRobot's calibration.
+
+The joints of the profile's ``auto_calibration`` section are driven into their stops one after the other by
+:func:`robocal.workflows.autocal.run_autocal` through the servo drivers of :mod:`robocal.workflows.autocal_servo`
+(real registers through the vendor SDK). The result has the manual procedure's conventions
+(:func:`robocal.workflows.lerobot.calibrate` with ``home_after_sweep``): per searched joint the range is the two
+contact surfaces found, ``range_min``/``range_max`` in Present ticks, and the homing offset puts the middle of
+that range at half a turn (Present 2047); the Dynamixel ``drive_mode`` is the profile's. Motors that are not
+searched (LeRobot's full-turn joints, ``joints`` left out, failed joints with ``partial``) keep the calibration
+their EEPROM holds now.
+
+Safety and all-or-nothing (docs/auto_calibration.md): before anything moves every register the search changes is
+read (the snapshot); on Ctrl-C or a fault every motor gets ``Torque_Enable`` 0 in one SYNC_WRITE, latched
+Dynamixels are rebooted, and the snapshot is written back (EEPROM and RAM) — the file is not written. A joint
+that fails (missing stop, snag, span mismatch) fails the run with its code and reason, EEPROM restored, nothing
+written, unless ``partial``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from contextlib import suppress
+from dataclasses import dataclass
+from pathlib import Path
+
+from ...backends.servo_bus import ServoBus
+from ...core.lerobot import MotorCalibration, RobotSpec, centre_homing, wrap_feetech_offset
+from ...core.profile_auto import AutoSection
+from ...core.stop_search import JointStops
+from ...errors import CalibError, UsageError
+from ...fileio import check_output_path
+from ...formats.lerobot import write_current
+from ..autocal import (
+    AutoCalFailedError,
+    AutoCalResult,
+    AutoView,
+    Clock,
+    JointDriver,
+    run_autocal,
+    select_joints,
+)
+from ..autocal_servo import DynamixelJointDriver, servo_driver
+from .calibrate import CalibrationNotSavedError
+from .eeprom import (
+    EEPROM_FIELDS,
+    RollbackReport,
+    _reraise_after_rollback,
+    _restore_plan,
+    _rollback,
+    _write_plan,
+)
+
+__all__ = [
+    "MAX_LAG_DEG",
+    "AutoCalibrationResult",
+    "ConfirmStart",
+    "auto_calibrate",
+    "auto_section",
+    "calibration_from_stops",
+    "search_registers",
+]
+
+MAX_LAG_DEG = {"feetech": 3.0, "dynamixel": 10.0}
+"""How far the position goal may lead the joint, per vendor: above the firmware's lag at the torque cap (the
+Feetech P gain reaches the cap within ~1–2°, the Dynamixel current-based position gain within ~2–6°)."""
+
+_RAM = {
+    "feetech": ("Torque_Limit", "Goal_Velocity", "Acceleration"),
+    "dynamixel": ("Goal_Current", "Goal_PWM", "Profile_Velocity", "Profile_Acceleration"),
+}
+
+ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
+"""The clear-workspace question: joints that will move (in order), their torque caps; False: nothing moves."""
+
+
+@dataclass(frozen=True)
+class AutoCalibrationResult:
+    """The outcome of :func:`auto_calibrate`.
+
+    Attributes:
+        calibration: Motor → calibration, bus order (every motor of the arm).
+        auto: The per-joint stop searches (stops, spans, stiffness, tests, times).
+        path: The JSON written, or None.
+        kept: Motors whose calibration is the one their EEPROM held (not searched or failed with ``partial``).
+    """
+
+    calibration: dict[str, MotorCalibration]
+    auto: AutoCalResult
+    path: Path | None
+    kept: tuple[str, ...]
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every searched joint passed, 1 when written with ``partial`` although one failed."""
+        return 1 if self.auto.failed else 0
+
+
+def auto_section(robot: str | os.PathLike[str]) -> AutoSection:
+    """The ``auto_calibration`` section of a LeRobot arm's profile.
+
+    Raises:
+        UsageError: The profile has no such section (leader arms cannot drive themselves).
+    """
+    from ...formats.profiles import load_profile
+
+    profile = load_profile(robot)
+    if profile.auto is None:
+        raise UsageError(
+            f"robot profile {profile.name} has no auto_calibration section: --auto needs one "
+            "(leader arms, whose gears are removed, cannot drive themselves)"
+        )
+    return profile.auto
+
+
+def search_registers(bus: ServoBus, spec: RobotSpec, motor_id: int) -> tuple[str, ...]:
+    """The registers the search changes on a motor, in the order a restore writes them (EEPROM, RAM, Lock)."""
+    names = ["Operating_Mode", *EEPROM_FIELDS, *_RAM[spec.vendor]]
+    if spec.vendor == "feetech":
+        names.append("Lock")
+    return tuple(n for n in names if bus.has_register(motor_id, n))
+
+
+def _snapshot(bus: ServoBus, spec: RobotSpec, searched: Sequence[str]) -> dict[str, dict[str, int]]:
+    out: dict[str, dict[str, int]] = {}
+    for m in spec.motors:
+        names = search_registers(bus, spec, m.motor_id) if m.name in searched else (*EEPROM_FIELDS, "Lock")
+        out[m.name] = {f: bus.read(f, m.motor_id) for f in names if bus.has_register(m.motor_id, f)}
+    return out
+
+
+def _limp_all_at_once(bus: ServoBus, spec: RobotSpec) -> None:
+    """Torque off on every motor in one SYNC_WRITE (then once more per motor); never raises."""
+    with suppress(Exception):
+        bus.sync_write("Torque_Enable", {m.motor_id: 0 for m in spec.motors})
+    for m in spec.motors:
+        with suppress(Exception):
+            bus.sync_write("Torque_Enable", {m.motor_id: 0})
+
+
+def _restore(
+    bus: ServoBus,
+    spec: RobotSpec,
+    before: Mapping[str, Mapping[str, int]],
+    on_status: Callable[[str], None] | None,
+) -> RollbackReport:
+    """Every motor limp, latched Dynamixels rebooted, the snapshot written back (checked)."""
+    _limp_all_at_once(bus, spec)
+    if spec.vendor == "dynamixel":
+        reboot = getattr(bus, "reboot", None)
+        for m in spec.motors:
+            with suppress(Exception):
+                if reboot is not None and bus.sync_read("Hardware_Error_Status", [m.motor_id])[m.motor_id]:
+                    reboot(m.motor_id)
+    return _rollback(bus, spec, before, on_status)
+
+
+def _prepare(
+    bus: ServoBus,
+    spec: RobotSpec,
+    section: AutoSection,
+    searched: Sequence[str],
+    clock: Clock,
+    period_s: float,
+) -> dict[str, JointDriver]:
+    """Torque off; per searched motor the search's mode, full-turn limits, homing and RAM limits; the drivers."""
+    drivers: dict[str, JointDriver] = {}
+    ids = {m.name: m.motor_id for m in spec.motors}
+    for m in spec.motors:
+        bus.write("Torque_Enable", m.motor_id, 0)
+        if spec.vendor == "feetech" and bus.has_register(m.motor_id, "Lock"):
+            bus.write("Lock", m.motor_id, 0)
+    for name in searched:
+        i = ids[name]
+        joint = section.joint(name)
+        assert joint is not None
+        res = bus.resolution(i)
+        offset = 0
+        if spec.vendor == "feetech":
+            bus.write("Operating_Mode", i, 0)
+            bus.write("Min_Position_Limit", i, 0)
+            bus.write("Max_Position_Limit", i, res - 1)
+            # the joint reads mid-turn where it is now, so the seam is half a turn away
+            present = bus.read("Present_Position", i)
+            actual = (present + bus.read("Homing_Offset", i)) % res
+            limit = res // 2 - 1
+            offset = max(-limit, min(limit, actual - (res - 1) // 2))
+            bus.write("Homing_Offset", i, offset)
+            bus.write("Goal_Velocity", i, 0)
+            bus.write("Acceleration", i, 0)
+        drv = servo_driver(
+            bus,
+            spec.vendor,
+            name,
+            i,
+            rated_nm=joint.rated_nm,
+            cap_nm=joint.torque_cap_nm,
+            clock=clock,
+            period_s=period_s,
+            homing_offset=offset,
+        )
+        if isinstance(drv, DynamixelJointDriver):
+            bus.write("Operating_Mode", i, drv.operating_mode)
+            bus.write("Drive_Mode", i, 1 if name in spec.inverted else 0)
+            bus.write("Homing_Offset", i, 0)
+            bus.write("Profile_Velocity", i, 0)
+            bus.write("Profile_Acceleration", i, 0)
+        drivers[name] = drv
+    return drivers
+
+
+def calibration_from_stops(
+    spec: RobotSpec,
+    motor: str,
+    resolution: int,
+    lower_rad: float,
+    upper_rad: float,
+    *,
+    full_range: bool = False,
+) -> MotorCalibration:
+    """LeRobot's calibration of one motor from its two contact surfaces (driver frame: unwrapped ticks·2π/res).
+
+    The same rule as the manual procedure's ``home_after_sweep``: the homing centres the travel on half a turn
+    (:func:`~robocal.core.lerobot.centre_homing`), the range is the travel in Present ticks; Feetech offsets
+    are brought into the sign-magnitude register's reach. The driver frame is Present at ``Homing_Offset`` 0
+    (Feetech: modulo a turn; Dynamixel: ``Drive_Mode`` applied). ``full_range``: LeRobot's convention for its
+    full-turn joints (SO ``wrist_roll``): the homing as above, the range ``0..resolution − 1``.
+    """
+    m = spec.motors[spec.motor_names.index(motor)]
+    lo = math.ceil(lower_rad * resolution / (2 * math.pi) - 1e-9)
+    hi = math.floor(upper_rad * resolution / (2 * math.pi) + 1e-9)
+    shift, rmin, rmax = centre_homing(lo, hi, resolution=resolution)
+    dm = 1 if (spec.vendor == "dynamixel" and motor in spec.inverted) else 0
+    if spec.vendor == "feetech":
+        offset, rmin, rmax = wrap_feetech_offset(shift, rmin, rmax, resolution)
+    else:
+        offset = -shift
+    if full_range:
+        rmin, rmax = 0, resolution - 1
+    return MotorCalibration(m.motor_id, dm, offset, rmin, rmax)
+
+
+def _stop_pair(section: AutoSection, stops: JointStops) -> tuple[float, float]:
+    """The two stop surfaces of a passed joint (driver frame); a one-sided joint's other end from the profile."""
+    joint = section.joint(stops.name)
+    assert joint is not None
+    exp_lo, exp_hi = joint.expected_rad(None, None)
+    lo = stops.lower.q_stop_rad if stops.lower is not None else None
+    hi = stops.upper.q_stop_rad if stops.upper is not None else None
+    if lo is None:
+        if exp_lo is None:
+            raise UsageError(f"joint {stops.name}: a one-sided joint needs lower_deg in the profile")
+        lo = exp_lo + stops.offset_rad
+    if hi is None:
+        if exp_hi is None:
+            raise UsageError(f"joint {stops.name}: a one-sided joint needs upper_deg in the profile")
+        hi = exp_hi + stops.offset_rad
+    return lo, hi
+
+
+def _eeprom_calibration(spec: RobotSpec, motor: str, regs: Mapping[str, int]) -> MotorCalibration:
+    m = spec.motors[spec.motor_names.index(motor)]
+    dm = regs.get("Drive_Mode", 0) & 1 if spec.vendor == "dynamixel" else 0
+    return MotorCalibration(
+        m.motor_id,
+        dm,
+        regs.get("Homing_Offset", 0),
+        regs.get("Min_Position_Limit", 0),
+        regs.get("Max_Position_Limit", 4095),
+    )
+
+
+def auto_calibrate(
+    bus: ServoBus,
+    spec: RobotSpec,
+    section: AutoSection,
+    *,
+    clock: Clock,
+    path: str | os.PathLike[str] | None = None,
+    joints: Sequence[str] | None = None,
+    partial: bool = False,
+    confirm_start: ConfirmStart | None = None,
+    view: AutoView | None = None,
+    on_status: Callable[[str], None] | None = None,
+    sweep_full_turn: bool = False,
+    period_s: float = 0.01,
+    max_lag_deg: float | None = None,
+) -> AutoCalibrationResult:
+    """Find every selected joint's stops, then write LeRobot's calibration to the EEPROM and the JSON file.
+
+    Args:
+        bus: The arm's bus (real port or a simulator's pseudo-terminal).
+        spec: The arm.
+        section: Its profile's ``auto_calibration`` section (:func:`auto_section`).
+        clock: Time of the control loop (:class:`~robocal.workflows.autocal.MonotonicClock` on hardware, the
+            simulator's clock in a simulation).
+        path: LeRobot JSON to write (None: EEPROM only).
+        joints: Subset to search (``--joints``), run in the profile's order.
+        partial: Write the joints that passed although others failed (those keep their EEPROM values).
+        confirm_start: Asked before anything moves (the clear-workspace prompt); False ends with nothing moved.
+        view: Live view (the observer the Robstride auto sweep uses).
+        on_status: One-line status while the snapshot is written back.
+        sweep_full_turn: LeRobot's full-turn joints that were searched get the found range (as the manual
+            ``--sweep-full-turn``) instead of ``0..resolution − 1``.
+        period_s: Control period.
+        max_lag_deg: The most the goal leads the joint (default :data:`MAX_LAG_DEG` of the vendor).
+
+    Returns:
+        The calibration of every motor, the searches, the file written.
+
+    Raises:
+        UsageError: An unknown joint, a joint the arm lacks, an unwritable file, or not confirmed (nothing
+            moved, nothing written).
+        AutoCalFailedError: A joint failed and ``partial`` is not given (EEPROM restored, nothing written;
+            exit 3).
+        AutoCalAbortedError: A device fault (every motor limp, EEPROM restored; exit 3).
+        KeyboardInterrupt: Ctrl-C, after every motor went limp and the EEPROM was restored.
+        CalibrationNotSavedError: The file write failed at the end (EEPROM restored, result attached).
+    """
+    order = select_joints(section, joints)
+    missing = [j.name for j in order if j.name not in spec.motor_names]
+    if missing:
+        raise UsageError(
+            f"{spec.name} has no motor(s) {', '.join(missing)} named by its auto_calibration section"
+        )
+    if path is not None:
+        check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
+    searched = [j.name for j in order]
+    caps = {j.name: j.torque_cap_nm for j in order}
+    if confirm_start is not None and not confirm_start(tuple(searched), caps):
+        raise UsageError("not confirmed: nothing moved, nothing written")
+    lag = math.radians(max_lag_deg if max_lag_deg is not None else MAX_LAG_DEG[spec.vendor])
+    ids = {m.name: m.motor_id for m in spec.motors}
+    before = _snapshot(bus, spec, searched)
+    failed: tuple[AutoCalResult, RollbackReport] | None = None
+    try:
+        drivers = _prepare(bus, spec, section, searched, clock, period_s)
+        auto = run_autocal(drivers, section, {}, joints=searched, max_lag_rad=lag, view=view, clock=clock)
+        _limp_all_at_once(bus, spec)
+        if auto.failed and not partial:
+            failed = (auto, _restore(bus, spec, before, on_status))
+        else:
+            cals: dict[str, MotorCalibration] = {}
+            kept: list[str] = []
+            passed = {o.name: o for o in auto.joints if o.ok}
+            for m in spec.motors:
+                o = passed.get(m.name)
+                if o is None:
+                    cals[m.name] = _eeprom_calibration(spec, m.name, before[m.name])
+                    kept.append(m.name)
+                    continue
+                lo, hi = _stop_pair(section, o.stops)
+                cals[m.name] = calibration_from_stops(
+                    spec,
+                    m.name,
+                    bus.resolution(m.motor_id),
+                    lo,
+                    hi,
+                    full_range=m.name in spec.full_turn and not sweep_full_turn,
+                )
+            plan = _restore_plan(bus, spec, cals)
+            for name in searched:  # the search's RAM values and modes back as they were; then the calibration
+                if name not in passed:
+                    continue
+                for reg, value in before[name].items():
+                    if reg not in EEPROM_FIELDS and reg not in ("Operating_Mode", "Lock"):
+                        bus.write(reg, ids[name], value)
+            _write_plan(bus, spec, plan)
+            for name in searched:
+                if name in passed:
+                    bus.write("Operating_Mode", ids[name], spec.operating_mode)
+                else:  # failed with --partial: everything as it was
+                    for reg, value in before[name].items():
+                        bus.write(reg, ids[name], value)
+            for m in spec.motors:  # _write_plan unlocked every Feetech EEPROM
+                if "Lock" in before[m.name]:
+                    bus.write("Lock", m.motor_id, before[m.name]["Lock"])
+            written = None
+            if path is not None:
+                try:
+                    written = write_current(path, cals)
+                except CalibError as exc:
+                    raise CalibrationNotSavedError(str(exc), cals) from None
+    except BaseException as exc:
+        _reraise_after_rollback(exc, _restore(bus, spec, before, on_status))
+        raise
+    if failed is not None:
+        auto, report = failed
+        raise AutoCalFailedError(
+            f"auto-calibration failed for {auto.failure_summary()}; nothing was written, {report.summary()} "
+            "(pass --partial to write the joints that passed)",
+            auto,
+        )
+    return AutoCalibrationResult(cals, auto, written, tuple(kept))

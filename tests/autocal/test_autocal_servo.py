@@ -1,0 +1,191 @@
+"""LeRobot arms find their own hard stops: the Feetech / Dynamixel stop-search drivers over the real SDKs.
+
+Every test runs the unmodified vendor SDK (through robocal's FeetechBus / DynamixelBus) against the simulated
+firmware with physics on a pseudo-terminal (``open_auto_arm(spec, "sim...")``), on a simulated clock.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from robocal.core.lerobot import MotorCalibration
+from robocal.workflows.autocal import AutoCalFailedError
+from robocal.workflows.autocal_servo import DynamixelJointDriver, FeetechJointDriver
+from robocal.workflows.lerobot import robot_spec
+from robocal.workflows.lerobot.auto import auto_calibrate, auto_section, search_registers
+from robocal.workflows.lerobot.auto_sim import open_auto_arm
+
+pytestmark = pytest.mark.timeout(600)
+
+
+def registers(arm: Any, spec: Any) -> dict[str, dict[str, int]]:
+    """Every register a search may change, read straight from the simulated servos (no bus traffic)."""
+    out = {}
+    for m in spec.motors:
+        servo = arm.sim.servo(m.name)
+        names = [*search_registers(arm.bus, spec, m.motor_id), "Torque_Enable"]
+        out[m.name] = {n: servo.get_reg(n) for n in names}
+    return out
+
+
+class Recorder:
+    """A live view that records the searches (and can press Ctrl-C at a chosen sample)."""
+
+    def __init__(self, interrupt_at: int | None = None) -> None:
+        self.started: list[tuple[str, float]] = []
+        self.samples = 0
+        self.done: list[str] = []
+        self.interrupt_at = interrupt_at
+
+    def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
+        self.started.append((name, cap_nm))
+
+    def sample(self, name: str, phase: str, side: str, sample: Any) -> None:
+        self.samples += 1
+        if self.interrupt_at is not None and self.samples >= self.interrupt_at:
+            raise KeyboardInterrupt
+
+    def joint_done(self, outcome: Any) -> None:
+        self.done.append(outcome.name)
+
+
+def test_so101_finds_its_stops_through_the_feetech_registers(tmp_path: Path) -> None:
+    spec = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    out = tmp_path / "so101.json"
+    view = Recorder()
+    with open_auto_arm(spec, "sim", section) as arm:
+        before = registers(arm, spec)
+        res = auto_calibrate(
+            arm.bus, spec, section, clock=arm.clock, path=out, joints=["wrist_flex", "elbow_flex"], view=view
+        )
+        after = registers(arm, spec)
+        truth = arm.sim.truth
+        recovered = arm.sim.recovered_stops(res.calibration)
+        eeprom = arm.sim.eeprom()
+    assert [n for n, _ in view.started] == ["elbow_flex", "wrist_flex"]  # the profile's order
+    assert view.started[0][1] == pytest.approx(0.3 * 2.9)
+    assert res.exit_code == 0 and res.path == out
+    for name in ("elbow_flex", "wrist_flex"):
+        lo, hi = recovered[name]
+        t = truth[name]
+        # the contact surfaces, within 2 ticks (0.18°) of the simulated stops (wrist_flex across the seam)
+        assert (lo - t.stop_low_ticks + 2048) % 4096 - 2048 == pytest.approx(0, abs=2)
+        assert (hi - t.stop_high_ticks + 2048) % 4096 - 2048 == pytest.approx(0, abs=2)
+        c = res.calibration[name]
+        assert (c.range_min + c.range_max) // 2 in (2046, 2047, 2048)  # homing: the middle reads half a turn
+        assert eeprom[name] == {
+            "Homing_Offset": c.homing_offset,
+            "Min_Position_Limit": c.range_min,
+            "Max_Position_Limit": c.range_max,
+        }
+        # the search's RAM values and mode are back; torque off
+        assert {k: v for k, v in after[name].items() if k not in eeprom[name]} == {
+            k: v for k, v in before[name].items() if k not in eeprom[name]
+        }
+    assert res.kept == ("shoulder_pan", "shoulder_lift", "wrist_roll", "gripper")
+    for name in res.kept:
+        assert after[name] == before[name]
+    # LeRobot's file: every motor, the manual procedure's keys
+    doc = json.loads(out.read_text())
+    assert list(doc) == list(spec.motor_names)
+    assert set(doc["elbow_flex"]) == {"id", "drive_mode", "homing_offset", "range_min", "range_max"}
+    assert MotorCalibration(**doc["wrist_flex"]) == res.calibration["wrist_flex"]
+
+
+def test_feetech_search_across_the_seam_rehomes_wrist_roll() -> None:
+    spec = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    with open_auto_arm(spec, "sim?seed=2", section) as arm:
+        res = auto_calibrate(
+            arm.bus, spec, section, clock=arm.clock, joints=["wrist_roll"], sweep_full_turn=True
+        )
+        truth = arm.sim.truth["wrist_roll"]
+        lo, hi = arm.sim.recovered_stops(res.calibration)["wrist_roll"]
+    stops = res.auto["wrist_roll"].stops
+    assert math.degrees(stops.span_rad) == pytest.approx(
+        (truth.stop_high_ticks - truth.stop_low_ticks) * 360 / 4096, abs=0.3
+    )  # ~340°: more than half a turn, so the joint was re-homed on the way
+    assert (lo - truth.stop_low_ticks + 2048) % 4096 - 2048 == pytest.approx(0, abs=2)
+    assert (hi - truth.stop_high_ticks + 2048) % 4096 - 2048 == pytest.approx(0, abs=2)
+
+
+def test_koch_current_based_and_pwm_capped_dynamixels(tmp_path: Path) -> None:
+    spec = robot_spec("koch_follower")
+    section = auto_section("koch_follower")
+    with open_auto_arm(spec, "sim", section) as arm:
+        res = auto_calibrate(
+            arm.bus,
+            spec,
+            section,
+            clock=arm.clock,
+            path=tmp_path / "k.json",
+            joints=["shoulder_lift", "gripper"],
+        )
+        truth = arm.sim.truth
+        recovered = arm.sim.recovered_stops(res.calibration)
+        modes = {m.name: arm.sim.servo(m.name).get_reg("Operating_Mode") for m in spec.motors}
+    for name in ("shoulder_lift", "gripper"):  # XL430 (Goal_PWM cap, mode 4) and XL330 (Goal_Current, mode 5)
+        lo, hi = recovered[name]
+        assert lo == pytest.approx(truth[name].stop_low_ticks, abs=3)
+        assert hi == pytest.approx(truth[name].stop_high_ticks, abs=3)
+    assert modes["gripper"] == 4 and modes["shoulder_lift"] == 4  # the profile's mode again (LeRobot: 4)
+    assert res.calibration["gripper"].drive_mode == 0
+
+
+def test_missing_stop_fails_the_joint_and_writes_nothing(tmp_path: Path) -> None:
+    spec = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    out = tmp_path / "cal.json"
+    with open_auto_arm(spec, "sim?missing=gripper", section) as arm:
+        before = registers(arm, spec)
+        with pytest.raises(AutoCalFailedError, match=r"gripper: missing_stop .*nothing was written") as err:
+            auto_calibrate(arm.bus, spec, section, clock=arm.clock, path=out, joints=["gripper"])
+        after = registers(arm, spec)
+    assert err.value.exit_code == 3
+    assert err.value.result["gripper"].stops.code == "missing_stop"
+    assert after == before and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "at", [2, 120, 700]
+)  # before contact, pressed into the lower stop, on the upper side
+def test_ctrl_c_limps_every_motor_and_restores_every_register(tmp_path: Path, at: int) -> None:
+    spec = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    out = tmp_path / "cal.json"
+    with open_auto_arm(spec, "sim", section) as arm:
+        arm.bus.write("Torque_Limit", 3, 777)  # a user's RAM setting survives
+        before = registers(arm, spec)
+        view = Recorder(interrupt_at=at)
+        with pytest.raises(KeyboardInterrupt):
+            auto_calibrate(
+                arm.bus, spec, section, clock=arm.clock, path=out, joints=["gripper", "elbow_flex"], view=view
+            )
+        after = registers(arm, spec)
+        torque = {m.name: arm.sim.servo(m.name).get_reg("Torque_Enable") for m in spec.motors}
+    assert view.samples == at
+    assert after == before and not out.exists()
+    assert set(torque.values()) == {0}
+
+
+def test_driver_types_per_vendor() -> None:
+    spec = robot_spec("koch_follower")
+    section = auto_section("koch_follower")
+    from robocal.workflows.autocal_servo import servo_driver
+
+    with open_auto_arm(spec, "sim", section) as arm:
+        d = servo_driver(arm.bus, "dynamixel", "elbow_flex", 3, rated_nm=0.52, cap_nm=0.13, clock=arm.clock)
+        assert isinstance(d, DynamixelJointDriver) and d.operating_mode == 5
+        d2 = servo_driver(
+            arm.bus, "dynamixel", "shoulder_lift", 2, rated_nm=1.4, cap_nm=0.42, clock=arm.clock
+        )
+        assert isinstance(d2, DynamixelJointDriver) and d2.operating_mode == 4
+        s = d.read()
+        assert s.ok and s.q_rad == pytest.approx(2100 * 2 * math.pi / 4096)
+    assert FeetechJointDriver.__mro__[1] is DynamixelJointDriver.__mro__[1]
