@@ -112,8 +112,30 @@ def calibrate(
         False, "--view", help="Also draw the recorded ranges on the arm in the browser (robocal[view])."
     ),
     view_port: int = typer.Option(8080, "--view-port", help="TCP port of the --view page (0: any)."),
+    auto: bool = typer.Option(
+        False,
+        "--auto",
+        help="The joints find their own hard stops (low torque, bounded travel and time); --port "
+        "'sim?missing=gripper&seed=3' for a simulated arm with faults. docs/auto_calibration.md.",
+    ),
+    joints: str | None = typer.Option(None, "--joints", help="--auto: only these joints (comma-separated)."),
+    partial: bool = typer.Option(
+        False, "--partial", help="--auto: write the joints that passed although others failed (exit 1)."
+    ),
+    yes: bool = typer.Option(False, "--yes", help="--auto: skip the clear-workspace question (scripts)."),
 ) -> None:
-    """Calibrate a LeRobot arm (mid pose, then sweep every joint) and write LeRobot's JSON."""
+    """Calibrate a LeRobot arm (mid pose, then sweep every joint, or --auto) and write LeRobot's JSON."""
+    from ._lerobot_auto import calibrate_auto, check_auto_options
+
+    check_auto_options(
+        auto=auto,
+        joints=joints,
+        partial=partial,
+        yes=yes,
+        use_file=use_file,
+        home_after_sweep=home_after_sweep,
+        web_view=web_view,
+    )
     from ..formats.lerobot import dumps_current
     from ..lerobot import read_calibration
     from ..workflows.lerobot import CalibrationNotSavedError, open_arm, restore, sim_operator
@@ -136,6 +158,10 @@ def calibrate(
 
     # the calibration folder must be writable before the port is even opened (the workflow checks again)
     check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
+    if auto:
+        calibrate_auto(
+            robot, spec, port, path, joints=joints, partial=partial, yes=yes, sweep_full_turn=sweep_full_turn
+        )
     update, close = sweep_renderer()
     web = _web_view(robot, spec, update, view_port) if web_view else None
     with open_arm(spec, port) as (bus, arm):

@@ -1,0 +1,127 @@
+"""``robocal lerobot calibrate --auto``: the arm finds its own hard stops (CLI side).
+
+Parses the options, asks the clear-workspace question (:func:`robocal.cli._autocal.make_confirm_start`), shows
+the live view (:class:`robocal.cli._autocal.AutoLiveView`, the observer the Robstride ``sweep --auto`` uses) and
+prints the per-joint table and the calibration; the job is :func:`robocal.workflows.lerobot.auto.auto_calibrate`
+on :func:`robocal.workflows.lerobot.auto_sim.open_auto_arm` (a real port or ``sim``/``sim?...``).
+"""
+
+from __future__ import annotations
+
+import pathlib
+from typing import Any
+
+import typer
+
+from ..core.lerobot import RobotSpec
+from ..errors import UsageError
+from . import _common
+from ._autocal import AutoLiveView, auto_table, make_confirm_start
+from ._lerobot_render import print_calibration, status
+
+__all__ = ["calibrate_auto", "check_auto_options"]
+
+
+def check_auto_options(
+    *,
+    auto: bool,
+    joints: str | None,
+    partial: bool,
+    yes: bool,
+    use_file: bool,
+    home_after_sweep: bool,
+    web_view: bool,
+) -> None:
+    """Refuse option combinations that mean nothing (before any file or port is touched).
+
+    Raises:
+        UsageError: ``--joints``/``--partial``/``--yes`` without ``--auto``; ``--auto`` with ``--use-file``,
+            ``--home-after-sweep`` (the auto homing is always centred on the found stops) or ``--view``.
+    """
+    if not auto:
+        given = [
+            flag
+            for flag, on in (("--joints", joints is not None), ("--partial", partial), ("--yes", yes))
+            if on
+        ]
+        if given:
+            raise UsageError(f"{', '.join(given)} only apply with --auto")
+        return
+    clash = [
+        flag
+        for flag, on in (
+            ("--use-file", use_file),
+            ("--home-after-sweep", home_after_sweep),
+            ("--view", web_view),
+        )
+        if on
+    ]
+    if clash:
+        why = {
+            "--use-file": "--use-file writes an existing file, --auto finds the stops",
+            "--home-after-sweep": "--auto always centres the homing on the stops it finds",
+            "--view": "the browser view of --auto is not available yet (the terminal shows each joint)",
+        }
+        raise UsageError(
+            f"--auto cannot be combined with {', '.join(clash)}: {'; '.join(why[c] for c in clash)}"
+        )
+
+
+def calibrate_auto(
+    robot: str,
+    spec: RobotSpec,
+    port: str,
+    path: pathlib.Path,
+    *,
+    joints: str | None,
+    partial: bool,
+    yes: bool,
+    sweep_full_turn: bool,
+    view: Any = None,
+) -> None:
+    """Run the automatic calibration, print the tables, exit 0 / 1 (``--partial`` with a failed joint).
+
+    Ctrl-C: every motor limp, every register restored, no file (exit 130); a fault or a failed joint: exit 3
+    with one ``error:`` line (the CLI's error handler).
+    """
+    from ..workflows.lerobot.auto import auto_calibrate, auto_section
+    from ..workflows.lerobot.auto_sim import open_auto_arm, parse_sim_port
+    from ._lerobot_render import interrupted
+
+    section = auto_section(robot)
+    names = _common.parse_csv_list(joints, "--joints") if joints is not None else None
+    if joints is not None and not names:
+        raise UsageError("--joints: give at least one joint name")
+    parse_sim_port(port, spec)  # bad sim options are refused before the port opens
+    confirm = make_confirm_start(yes, what=spec.name)
+    with open_auto_arm(spec, port, section) as arm:
+        try:
+            result = auto_calibrate(
+                arm.bus,
+                spec,
+                section,
+                clock=arm.clock,
+                path=path,
+                joints=names,
+                partial=partial,
+                confirm_start=confirm,
+                view=view if view is not None else AutoLiveView(),
+                on_status=status,
+                sweep_full_turn=sweep_full_turn,
+            )
+        except KeyboardInterrupt as exc:
+            raise interrupted(
+                exc,
+                "every motor is limp, every register the search changed was written back; no file was written",
+                "; no file was written",
+            ) from None
+    _common.console.print(auto_table(result.auto, title=f"{spec.name}: automatic hard-stop calibration"))
+    print_calibration(result.calibration)
+    if result.kept:
+        _common.console.print(
+            f"kept the calibration their EEPROM holds: {', '.join(result.kept)}", markup=False
+        )
+    if result.auto.failed:
+        _common.print_warning(f"written with --partial although {result.auto.failure_summary()}")
+    _common.console.print(f"calibration saved to {result.path} and written to the motors", markup=False)
+    raise typer.Exit(result.exit_code)
