@@ -189,3 +189,78 @@ def test_driver_types_per_vendor() -> None:
         s = d.read()
         assert s.ok and s.q_rad == pytest.approx(2100 * 2 * math.pi / 4096)
     assert FeetechJointDriver.__mro__[1] is DynamixelJointDriver.__mro__[1]
+
+
+def test_obstacle_near_the_transit_end_is_a_span_mismatch_not_an_abort() -> None:
+    # the simulated block sits 1.25° short of where the fast transit ends: held short of its target at the cap
+    spec = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    with open_auto_arm(spec, "sim?obstacle=gripper", section) as arm:
+        before = registers(arm, spec)
+        with pytest.raises(
+            AutoCalFailedError,
+            match=r"gripper: span_mismatch \(span 9\d\.\d° differs from the expected 125\.0°",
+        ):
+            auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"])
+        assert registers(arm, spec) == before
+
+
+def test_dynamixel_overload_shutdown_is_rebooted_and_the_search_goes_on() -> None:
+    spec = robot_spec("koch_follower")
+    section = auto_section("koch_follower")
+    flagged: list[int] = []
+
+    with open_auto_arm(spec, "sim", section) as arm:
+        servo = arm.sim.servo("gripper")
+
+        class Latch(Recorder):
+            def sample(self, name: str, phase: str, side: str, sample: Any) -> None:
+                super().sample(name, phase, side, sample)
+                if sample.overload:
+                    flagged.append(self.samples)
+                if (
+                    self.samples == 60
+                ):  # the firmware's overload shutdown: torque off, error bit until a REBOOT
+                    with arm.sim.bus.lock:
+                        servo.set_reg("Hardware_Error_Status", 0x20)
+                        servo.set_reg("Torque_Enable", 0)
+
+        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"], view=Latch())
+        lo, hi = arm.sim.recovered_stops(res.calibration)["gripper"]
+        errors = servo.get_reg("Hardware_Error_Status")
+    assert flagged and flagged[0] == 61  # the next reading carries the flag; the REBOOT then clears it
+    assert res.auto["gripper"].ok and errors == 0
+    assert (lo, hi) == pytest.approx((2000, 3000), abs=3)
+
+
+def test_feetech_silent_at_the_stop_is_confirmed_by_a_reread() -> None:
+    spec = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    with open_auto_arm(spec, "sim?silent=gripper", section) as arm:
+        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"])
+        lo, hi = arm.sim.recovered_stops(res.calibration)["gripper"]
+    stops = res.auto["gripper"].stops
+    assert (stops.lower.test, stops.upper.test) == ("no-reply+reread", "no-reply+reread")  # type: ignore[union-attr]
+    assert (lo, hi) == pytest.approx((2000, 3400), abs=2)
+
+
+def test_not_confirmed_nothing_moves() -> None:
+    spec = robot_spec("koch_follower")
+    section = auto_section("koch_follower")
+    asked: list[tuple[tuple[str, ...], dict[str, float]]] = []
+
+    def confirm(names: Any, caps: Any) -> bool:
+        asked.append((tuple(names), dict(caps)))
+        return False
+
+    with open_auto_arm(spec, "sim", section) as arm:
+        before = registers(arm, spec)
+        instructions = arm.sim.bus.instructions
+        with pytest.raises(Exception, match="not confirmed: nothing moved, nothing written"):
+            auto_calibrate(arm.bus, spec, section, clock=arm.clock, confirm_start=confirm)
+        assert arm.sim.bus.instructions == instructions  # not one packet sent
+        assert registers(arm, spec) == before
+    assert asked[0][0] == ("shoulder_lift", "elbow_flex", "wrist_flex", "gripper")
+    assert asked[0][1]["shoulder_lift"] == pytest.approx(0.42) and asked[0][1]["gripper"] == pytest.approx(
+        0.13
+    )

@@ -288,8 +288,9 @@ def move_to(
         max_lag_rad: The largest lead of the target.
         tol_rad: Arrival tolerance.
         timeout_s: Time bound (default: distance/speed + 3 s).
-        stall_s: When given, a joint held back (target leading by ≥ 90 % of ``max_lag_rad`` and slower than
-            10 % of the speed) for this long ends the move early: returns ``(reading, True)``.
+        stall_s: When given, a joint held back (target leading by ≥ 90 % of ``max_lag_rad``, or the ramp over
+            and the joint more than ``tol_rad`` short of the target while pushing at ≥ 90 % of ``cap_nm``; and
+            slower than 10 % of the speed) for this long ends the move early: returns ``(reading, True)``.
 
     Returns:
         The last reading and whether the move ended on a stall.
@@ -323,7 +324,10 @@ def move_to(
             return s, False
         if stall_s is not None and s.ok:
             v = s.v_rad_s if math.isfinite(s.v_rad_s) else 0.0
-            held = abs(ref - s.q_rad) >= 0.9 * max_lag_rad and abs(v) < 0.1 * speed_rad_s
+            # held back by the lead, or (the ramp over) stuck short of the target while pushing at the cap
+            pushing = math.isfinite(s.torque_nm) and abs(s.torque_nm) >= 0.9 * cap_nm
+            short = at_end and abs(target_rad - s.q_rad) > tol_rad and pushing
+            held = (abs(ref - s.q_rad) >= 0.9 * max_lag_rad or short) and abs(v) < 0.1 * speed_rad_s
             if held:
                 stalled_since = s.t_s if stalled_since is None else stalled_since
                 if s.t_s - stalled_since >= stall_s:

@@ -3,6 +3,8 @@
 * :mod:`.arms` — the arms (robot profiles), opening their bus (``sim`` starts a simulated arm), norm modes;
 * :mod:`.files` — where an arm's calibration file is;
 * :mod:`.calibrate` — LeRobot's current calibration and the legacy (2024) one, with robocal's fixes;
+* :mod:`.auto` — ``calibrate --auto``: the joints find their own stops (:mod:`.auto_sim`: the arm it drives, real
+  or simulated with physics); not re-exported here;
 * :mod:`.eeprom` — EEPROM snapshot, all-or-nothing restore with rollback, check against a file;
 * :mod:`.configure` — LeRobot's ``configure()`` presets;
 * :mod:`.show` — live normalised positions;

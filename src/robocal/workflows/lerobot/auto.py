@@ -59,7 +59,10 @@ __all__ = [
     "auto_calibrate",
     "auto_section",
     "calibration_from_stops",
+    "prepare_search",
+    "restore_registers",
     "search_registers",
+    "snapshot_registers",
 ]
 
 MAX_LAG_DEG = {"feetech": 3.0, "dynamixel": 10.0}
@@ -122,7 +125,8 @@ def search_registers(bus: ServoBus, spec: RobotSpec, motor_id: int) -> tuple[str
     return tuple(n for n in names if bus.has_register(motor_id, n))
 
 
-def _snapshot(bus: ServoBus, spec: RobotSpec, searched: Sequence[str]) -> dict[str, dict[str, int]]:
+def snapshot_registers(bus: ServoBus, spec: RobotSpec, searched: Sequence[str]) -> dict[str, dict[str, int]]:
+    """Per motor the registers the search changes (searched motors) or the calibration ones (the others)."""
     out: dict[str, dict[str, int]] = {}
     for m in spec.motors:
         names = search_registers(bus, spec, m.motor_id) if m.name in searched else (*EEPROM_FIELDS, "Lock")
@@ -139,7 +143,7 @@ def _limp_all_at_once(bus: ServoBus, spec: RobotSpec) -> None:
             bus.sync_write("Torque_Enable", {m.motor_id: 0})
 
 
-def _restore(
+def restore_registers(
     bus: ServoBus,
     spec: RobotSpec,
     before: Mapping[str, Mapping[str, int]],
@@ -156,7 +160,7 @@ def _restore(
     return _rollback(bus, spec, before, on_status)
 
 
-def _prepare(
+def prepare_search(
     bus: ServoBus,
     spec: RobotSpec,
     section: AutoSection,
@@ -164,7 +168,11 @@ def _prepare(
     clock: Clock,
     period_s: float,
 ) -> dict[str, JointDriver]:
-    """Torque off; per searched motor the search's mode, full-turn limits, homing and RAM limits; the drivers."""
+    """Torque off; per searched motor the search's mode, full-turn limits, homing and RAM limits; the drivers.
+
+    The caller snapshots the registers first (:func:`snapshot_registers`) and writes them back
+    (:func:`restore_registers`) when the run ends without a calibration to write.
+    """
     drivers: dict[str, JointDriver] = {}
     ids = {m.name: m.motor_id for m in spec.motors}
     for m in spec.motors:
@@ -332,14 +340,14 @@ def auto_calibrate(
         raise UsageError("not confirmed: nothing moved, nothing written")
     lag = math.radians(max_lag_deg if max_lag_deg is not None else MAX_LAG_DEG[spec.vendor])
     ids = {m.name: m.motor_id for m in spec.motors}
-    before = _snapshot(bus, spec, searched)
+    before = snapshot_registers(bus, spec, searched)
     failed: tuple[AutoCalResult, RollbackReport] | None = None
     try:
-        drivers = _prepare(bus, spec, section, searched, clock, period_s)
+        drivers = prepare_search(bus, spec, section, searched, clock, period_s)
         auto = run_autocal(drivers, section, {}, joints=searched, max_lag_rad=lag, view=view, clock=clock)
         _limp_all_at_once(bus, spec)
         if auto.failed and not partial:
-            failed = (auto, _restore(bus, spec, before, on_status))
+            failed = (auto, restore_registers(bus, spec, before, on_status))
         else:
             cals: dict[str, MotorCalibration] = {}
             kept: list[str] = []
@@ -383,7 +391,7 @@ def auto_calibrate(
                 except CalibError as exc:
                     raise CalibrationNotSavedError(str(exc), cals) from None
     except BaseException as exc:
-        _reraise_after_rollback(exc, _restore(bus, spec, before, on_status))
+        _reraise_after_rollback(exc, restore_registers(bus, spec, before, on_status))
         raise
     if failed is not None:
         auto, report = failed

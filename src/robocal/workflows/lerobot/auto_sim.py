@@ -63,8 +63,13 @@ def parse_sim_port(port: str, spec: RobotSpec) -> dict[str, str] | None:
 
 
 @contextlib.contextmanager
-def open_auto_arm(spec: RobotSpec, port: str, section: AutoSection) -> Iterator[AutoArm]:
+def open_auto_arm(
+    spec: RobotSpec, port: str, section: AutoSection, *, truth: Mapping[str, Any] | None = None
+) -> Iterator[AutoArm]:
     """Open the arm on ``port``; ``sim``/``sim?...`` starts a simulated arm with physics first.
+
+    ``truth`` (simulated arm only): joint → :class:`~robocal.backends.sim.lerobot_arms.JointTruth` instead of
+    the seed's.
 
     The simulated scenarios scale with the torque the search pushes with: each joint's profile fraction of the
     model's stall torque (what ``Torque_Limit`` / ``Goal_Current`` give on the simulated firmware).
@@ -102,7 +107,7 @@ def open_auto_arm(spec: RobotSpec, port: str, section: AutoSection) -> Iterator[
         fraction = joint.torque_cap_nm / joint.rated_nm if joint is not None else 0.25
         push[m.name] = fraction * RATINGS[m.model].stall_torque_nm
     clock = SimClock()
-    with SimArm(spec, truth=seeded_truth(spec.name, seed)) as arm:
+    with SimArm(spec, truth=truth if truth is not None else seeded_truth(spec.name, seed)) as arm:
         plants = attach_physics(arm, clock, scenarios=scenarios, search_torque_nm=push, seed=seed or 0)
         bus = open_bus(spec, arm.port)
         try:
