@@ -264,3 +264,34 @@ def test_not_confirmed_nothing_moves() -> None:
     assert asked[0][1]["shoulder_lift"] == pytest.approx(0.42) and asked[0][1]["gripper"] == pytest.approx(
         0.13
     )
+
+
+def test_ctrl_c_while_the_calibration_is_written_restores_it(tmp_path: Path) -> None:
+    spec = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    out = tmp_path / "cal.json"
+
+    class CtrlCOnThirdLimit:
+        """The arm's bus, but Ctrl-C arrives at the third Max_Position_Limit write (the final EEPROM plan)."""
+
+        def __init__(self, bus: Any) -> None:
+            self._bus = bus
+            self.limit_writes = 0
+
+        def __getattr__(self, name: str) -> Any:
+            return getattr(self._bus, name)
+
+        def write(self, register: str, motor_id: int, value: int) -> None:
+            if register == "Max_Position_Limit":
+                self.limit_writes += 1
+                if self.limit_writes == 3:
+                    raise KeyboardInterrupt
+            self._bus.write(register, motor_id, value)
+
+    with open_auto_arm(spec, "sim", section) as arm:
+        before = registers(arm, spec)
+        bus = CtrlCOnThirdLimit(arm.bus)
+        with pytest.raises(KeyboardInterrupt):
+            auto_calibrate(bus, spec, section, clock=arm.clock, path=out, joints=["gripper"])  # type: ignore[arg-type]
+        assert bus.limit_writes >= 3
+        assert registers(arm, spec) == before and not out.exists()
