@@ -327,6 +327,10 @@ def auto_calibrate(
         CalibrationNotSavedError: The file write failed at the end (EEPROM restored, result attached).
     """
     order = select_joints(section, joints)
+    kept_by_profile = [j.name for j in order if not j.searched]  # stops: none (a full-turn joint): never moves
+    order = tuple(j for j in order if j.searched)
+    if not order:
+        raise UsageError(f"no joint to search: {', '.join(kept_by_profile)} have no hard stops in the profile")
     missing = [j.name for j in order if j.name not in spec.motor_names]
     if missing:
         raise UsageError(
