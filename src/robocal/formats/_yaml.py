@@ -20,6 +20,7 @@ from ruamel.yaml.scalarfloat import ScalarFloat
 
 from ..errors import FileFormatError
 from ._json import MAX_NESTING, check_tree
+from ._yaml_fast import fast_dump, fast_load
 
 __all__ = ["dump_yaml", "load_yaml", "yaml_float"]
 
@@ -109,18 +110,31 @@ def _line_of(data: Any) -> Callable[[Sequence[Any]], int | None]:
     return line
 
 
-def load_yaml(text: str, source: str, *, item: str = "key") -> Any:
+def load_yaml(text: str, source: str, *, item: str = "key", round_trip: bool = False) -> Any:
     """Parse YAML text (round-trip types: ``CommentedMap`` / ``CommentedSeq``).
+
+    The plain block layout robocal writes is read by :func:`~._yaml_fast.fast_load` (the same values, types
+    and line records as ruamel.yaml gives, about 50× faster); anything else by ruamel.yaml.
 
     Args:
         text: The YAML document.
         source: File name for messages.
         item: What the top-level keys are (``"joint"``), for messages.
+        round_trip: The document will be written back (:func:`dump_yaml`): its comments must be kept, so a
+            document with comments is read by ruamel.yaml.
 
     Raises:
         FileFormatError: Syntax errors or duplicate keys, naming the file and line; a document nested more than
             :data:`~robocal.formats._json.MAX_NESTING` levels deep; a key or string that is not valid Unicode.
     """
+    fast = fast_load(text, allow_comments=not round_trip)
+    if fast is not None:  # ASCII, at most 16 levels, no NaN constants: nothing for check_tree to refuse
+        return fast
+    return load_yaml_ruamel(text, source, item=item)
+
+
+def load_yaml_ruamel(text: str, source: str, *, item: str = "key") -> Any:
+    """:func:`load_yaml` through ruamel.yaml only (the reference the fast path is tested against)."""
     if _flow_depth(text) > MAX_NESTING:  # ruamel takes seconds for a few thousand levels: refuse them first
         raise FileFormatError(f"{source}: nested more than {MAX_NESTING} levels deep; not a robocal file")
     try:
@@ -146,12 +160,38 @@ def load_yaml(text: str, source: str, *, item: str = "key") -> Any:
         ) from None
     except (ValueError, OverflowError) as exc:  # a constructor refused a value, e.g. an int of 5000 digits
         raise FileFormatError(f"{source}: invalid YAML: {exc}") from None
+    except TypeError as exc:  # ruamel: a complex key (``? {a: 1}``) that is a mapping is unhashable
+        raise FileFormatError(f"{source}: invalid YAML: a key that is not a scalar ({exc})") from None
     check_tree(data, source, item=item, line_of=_line_of(data))
     return data
 
 
+_REPRESENTER: list[Any] = []
+
+
+def _float_text(value: float) -> str:
+    """A float as :func:`dump_yaml` writes it (a loaded ``ScalarFloat`` keeps its spelling where exact)."""
+    if type(value) is ScalarFloat:
+        if not _REPRESENTER:
+            _REPRESENTER.append(_yaml().representer)
+        return str(_represent_scalar_float(_REPRESENTER[0], value).value)
+    return yaml_float(value)
+
+
 def dump_yaml(data: Any) -> str:
-    """Serialise to YAML text, preserving comments and order of round-trip objects."""
+    """Serialise to YAML text, preserving comments and order of round-trip objects.
+
+    A comment-free mapping of mappings of plain scalars is written by :func:`~._yaml_fast.fast_dump` (the same
+    text ruamel.yaml writes); anything else by ruamel.yaml.
+    """
+    fast = fast_dump(data, _float_text)
+    if fast is not None:
+        return fast
+    return dump_yaml_ruamel(data)
+
+
+def dump_yaml_ruamel(data: Any) -> str:
+    """:func:`dump_yaml` through ruamel.yaml only (the reference the fast path is tested against)."""
     buf = io.StringIO()
     _yaml().dump(data, buf)
     return buf.getvalue()

@@ -33,7 +33,7 @@ def write(
     doc: Any = None
     if path.exists():
         try:
-            doc = load_yaml(read_text(path, "calibration file"), str(path), item="joint")
+            doc = load_yaml(read_text(path, "calibration file"), str(path), item="joint", round_trip=True)
             parse_lite(doc, str(path), "lite-yaml")
         except FileFormatError:
             doc = None  # not a lite-yaml file we can update: replace it (the old one is kept as .bak)
