@@ -280,3 +280,27 @@ def test_page_url_of_every_page_names_a_host_a_browser_can_open() -> None:
     assert page_url("", 81) == "http://localhost:81/"
     assert page_url("::", 82) == "http://localhost:82/"
     assert page_url("::1", 83) == "http://[::1]:83/"
+
+
+def test_stop_thread_ends_a_loop_and_never_joins_the_calling_thread() -> None:
+    import threading
+
+    from robocal.viewer.scene import stop_thread
+
+    stop = threading.Event()
+    ran = threading.Event()
+
+    def loop() -> None:
+        ran.set()
+        while not stop.wait(0.01):
+            pass
+
+    thread = threading.Thread(target=loop, daemon=True)
+    thread.start()
+    assert ran.wait(30)
+    stop_thread(stop, thread, timeout_s=30)
+    assert stop.is_set() and not thread.is_alive()
+    own = threading.Event()
+    stop_thread(own, threading.current_thread())  # a loop stopping itself returns at once
+    assert own.is_set()
+    stop_thread(threading.Event(), None)  # never started

@@ -37,6 +37,7 @@ from .scene import (
     open_server,
     plain_lights,
     stop_server,
+    stop_thread,
 )
 
 __all__ = [
@@ -143,9 +144,7 @@ class ViewerApp(ServedPage):
 
     def stop(self) -> None:
         """Stop the page loop and the server (idempotent)."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
+        stop_thread(self._stop, self._thread)
         self._thread = None
         if self.server is not None:
             server, self.server = self.server, None

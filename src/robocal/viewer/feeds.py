@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from ..errors import CalibError, UsageError
 from .app import ReplayControl, ViewerApp
+from .scene import stop_thread
 
 __all__ = ["CallableFeed", "Feed", "PollFeed", "ReplayFeed", "SourceFeed"]
 
@@ -54,9 +55,7 @@ class Feed:
 
     def stop(self) -> None:
         """Ask the thread to stop and wait for it (bounded), then release the source."""
-        self._stop.set()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
+        stop_thread(self._stop, self._thread)
         self.close()
 
     def close(self) -> None:

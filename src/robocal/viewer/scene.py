@@ -10,6 +10,7 @@ import errno
 import io
 import math
 import socket
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,6 +35,7 @@ __all__ = [
     "page_url",
     "plain_lights",
     "stop_server",
+    "stop_thread",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -235,6 +237,16 @@ class ServedPage:
     def url(self) -> str:
         """The page's address."""
         return page_url(self.host, self.port)
+
+
+def stop_thread(stop: threading.Event, thread: threading.Thread | None, timeout_s: float = 5.0) -> None:
+    """Ask a loop thread to end (set ``stop``) and wait for it, at most ``timeout_s``.
+
+    The calling thread is never joined (a loop may stop its own page or feed).
+    """
+    stop.set()
+    if thread is not None and thread is not threading.current_thread():
+        thread.join(timeout=timeout_s)
 
 
 def page_url(host: str, port: int) -> str:
