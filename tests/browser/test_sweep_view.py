@@ -76,3 +76,36 @@ def test_sweep_arcs_have_the_report_codes(page: Any, tmp_path: Path) -> None:
         browserlib.wait_until(arcs_drawn, what="green and orange arcs on the canvas")
     finally:
         web.app.stop()
+
+
+def test_arcs_change_colour_while_the_page_is_open(page: Any) -> None:
+    """The arcs drawn after the page connected (the usual case: the page is open during the sweep) have their
+    colour: a line node created with one colour was drawn white after its per-vertex colour update."""
+    web = open_sweep_page(LITE_URDF, port=0)
+    try:
+        app = web.app
+        cam = app.server.initial_camera
+        cam.position = (0.8, -0.2, 0.2)
+        cam.look_at = (0.0, 0.0, 0.0)
+        cam.up_direction = (0.0, 0.0, 1.0)
+        browserlib.open_viser(page, app.url)
+        names = list(app.joint_names)
+        img = browserlib.scene_region(page, browserlib.screenshot(page))
+        assert browserlib.shade_mask(img, STATUS_RGB["ok"]).sum() == 0  # nothing swept yet
+        web.overlay.set_ranges(
+            dict.fromkeys(names, -1.0),
+            dict.fromkeys(names, 0.0),
+            dict.fromkeys(names, -0.5),
+            dict.fromkeys(names, "ok"),
+        )
+        app.push(0.0, np.full(len(names), -0.5))
+
+        def green() -> int:
+            browserlib.next_frames(page)
+            shot = browserlib.scene_region(page, browserlib.screenshot(page))
+            n = int(browserlib.shade_mask(shot, STATUS_RGB["ok"]).sum())
+            return n if n > 1000 else 0
+
+        browserlib.wait_until(green, what="green arcs drawn while the page is open")
+    finally:
+        web.app.stop()

@@ -7,10 +7,11 @@ The clear-workspace prompt, the live view and the result table; the logic lives 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,14 @@ from ..errors import UsageError
 from ..workflows.autocal import AutoCalResult, JointOutcome
 from . import _common
 
-__all__ = ["AutoLiveView", "auto_table", "make_confirm_start", "sweep_auto"]
+__all__ = [
+    "AutoLiveView",
+    "auto_demo_view",
+    "auto_table",
+    "auto_web_view",
+    "make_confirm_start",
+    "sweep_auto",
+]
 
 
 def make_confirm_start(yes: bool, what: str = "robot") -> Any:
@@ -89,6 +97,36 @@ class AutoLiveView:
             _common.err_console.print(f"{outcome.name}: FAILED {st.code}: {st.reason}", markup=False)
 
 
+@contextlib.contextmanager
+def auto_web_view(port: int | None, urdf: Path, inner: Any, title: str) -> Iterator[Any]:
+    """``--view``: the stop search drawn on the robot in the browser (robocal.viewer.autocal_page), else ``inner``.
+
+    The page opens before anything moves (a port in use or a URDF that does not load ends the command first);
+    the run's end, failure or interruption is shown on it; it closes when the command ends.
+    """
+    if port is None:
+        yield inner
+        return
+    from ..viewer.autocal_page import open_auto_sweep_page
+    from ..workflows.autocal import AutoCalAbortedError, AutoCalFailedError
+
+    web = open_auto_sweep_page(urdf, inner=inner, port=port, title=title)
+    _common.err_console.print(f"auto-calibration view: {web.app.url}", markup=False)
+    try:
+        yield web
+    except AutoCalFailedError as exc:
+        web.finish(exc.result)
+        raise
+    except AutoCalAbortedError as exc:
+        web.failed(str(exc))
+        raise
+    except KeyboardInterrupt:
+        web.failed("interrupted: every motor is limp; nothing was written")
+        raise
+    finally:
+        web.app.stop()
+
+
 def _deg(x: float | None) -> str:
     return "-" if x is None or not math.isfinite(x) else f"{math.degrees(x):+.2f}"
 
@@ -143,28 +181,36 @@ def sweep_auto(
     fmt: str | None,
     partial: bool,
     yes: bool,
+    view_port: int | None = None,
 ) -> None:
-    """``robocal sweep --auto``: run, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C)."""
+    """``robocal sweep --auto``: run, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C).
+
+    With ``view_port`` (``--view``), the search is drawn on the robot in the browser as well.
+    """
     from ..workflows.autocal_sweep import run_sweep_auto
     from ._sweep_view import print_warnings, result_table
 
     names = [n.strip() for n in joints.split(",") if n.strip()] if joints else None
-    try:
-        outcome = run_sweep_auto(
-            urdf,
-            source,
-            out,
-            robot=robot,
-            joints=names,
-            report=report,
-            fmt=fmt,
-            partial=partial,
-            confirm_start=make_confirm_start(yes),
-            view=AutoLiveView(),
-        )
-    except KeyboardInterrupt:
-        _common.err_console.print("interrupted: every motor is limp; nothing was written", markup=False)
-        raise
+    confirm = make_confirm_start(yes)
+    with auto_web_view(view_port, urdf, AutoLiveView(), "sweep --auto") as live:
+        try:
+            outcome = run_sweep_auto(
+                urdf,
+                source,
+                out,
+                robot=robot,
+                joints=names,
+                report=report,
+                fmt=fmt,
+                partial=partial,
+                confirm_start=confirm,
+                view=live,
+            )
+        except KeyboardInterrupt:
+            _common.err_console.print("interrupted: every motor is limp; nothing was written", markup=False)
+            raise
+        if view_port is not None:
+            live.finish(outcome.auto, outcome.result)
     _common.console.print(auto_table(outcome.auto))
     _common.console.print(result_table(outcome.result))
     print_warnings(outcome.result)
@@ -175,3 +221,31 @@ def sweep_auto(
     if outcome.report is not None:
         _common.console.print(f"wrote {outcome.report}", markup=False)
     raise typer.Exit(outcome.exit_code)
+
+
+def auto_demo_view(run: Callable[[Any], Any], render: Callable[[Any], int], port: int) -> int:
+    """``robocal demo --auto --view``: the simulated Lite's stop searches drawn in the browser as they run.
+
+    ``run(view)`` runs the demo with the given live view and returns its result, ``render(result)`` prints it
+    and returns the exit code. The page opens before anything moves and keeps serving the result after the run
+    until Ctrl-C; the exit code is the demo's.
+    """
+    import tempfile
+
+    from ..workflows.autocal_sim import write_sim_lite_urdf
+
+    with tempfile.TemporaryDirectory(prefix="robocal-demo-auto-view-") as folder:
+        urdf = write_sim_lite_urdf(Path(folder) / "lite_bimanual.urdf")
+        with auto_web_view(port, urdf, AutoLiveView(), "demo --auto") as live:
+            result = run(live)
+            outcome = result.detail
+            if outcome is not None:
+                live.finish(outcome.auto, outcome.result)
+            code = render(result)
+            try:  # Ctrl-C may come as soon as the line is out
+                _common.console.print(f"serving the result at {live.app.url} (Ctrl-C to stop)", markup=False)
+                while not live.app.wait(0.2):
+                    pass
+            except KeyboardInterrupt:
+                pass
+    return code

@@ -76,7 +76,8 @@ def demo(
     view: bool = typer.Option(
         False,
         "--view",
-        help="Then show the calibrated simulated Lite in the browser (robocal view; Ctrl-C to stop).",
+        help="Then show the calibrated simulated Lite in the browser (robocal view; Ctrl-C to stop); with "
+        "--auto, the stop search drawn on the robot as it runs.",
     ),
     port: int = typer.Option(8080, "--port", help="With --view: TCP port of the page (0: any free one)."),
     auto: bool = typer.Option(
@@ -87,10 +88,16 @@ def demo(
     mode = "identify" if identify else None
     robot = prepare_demo(robot, out, mode)
     if auto:
-        if identify or view:
-            raise UsageError("--auto is its own demo; it does not go with --identify or --view")
-        from ._autocal import AutoLiveView
+        if identify:
+            raise UsageError("--auto is its own demo; it does not go with --identify")
+        from ._autocal import AutoLiveView, auto_demo_view
 
+        if view:
+
+            def run_auto(live: object) -> DemoResult:
+                return run_demo(robot, out, mode="auto", say=_common.console.print, view=live)
+
+            raise typer.Exit(auto_demo_view(run_auto, render, port))
         result = run_demo(robot, out, mode="auto", say=_common.console.print, view=AutoLiveView())
         raise typer.Exit(render(result))
     if view:

@@ -143,16 +143,22 @@ def sweep(
     if auto:
         from ._autocal import sweep_auto
 
-        if web_view:
-            raise UsageError("--view does not work with --auto yet: the automatic stop search is not drawn")
-
         if prior is not None or threshold is not None or method is not None or direction_check or frame:
             raise UsageError(
                 "--auto finds the stops itself: --prior, --threshold, --method, --direction-check "
                 "and --frame do not apply"
             )
         sweep_auto(
-            urdf, source, out, robot=robot, joints=joints, report=report, fmt=fmt, partial=partial, yes=yes
+            urdf,
+            source,
+            out,
+            robot=robot,
+            joints=joints,
+            report=report,
+            fmt=fmt,
+            partial=partial,
+            yes=yes,
+            view_port=view_port if web_view else None,
         )
         return
     if joints is not None or partial:

@@ -32,12 +32,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.stop_types import FAIL_CODES
 from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
 from .model import RobotModel
 
 __all__ = [
+    "FAIL_RGB",
     "LIMIT_RGB",
+    "LIVE_RGB",
     "OTHER_RGB",
     "STATUS_RGB",
     "JointArc",
@@ -61,12 +64,20 @@ OTHER_RGB = (225, 200, 0)
 """Colour of a swept arc whose status is another warning (offset_large, direction_flipped, …)."""
 LIMIT_RGB = (40, 40, 40)
 """Colour of the URDF limit arcs."""
+LIVE_RGB: dict[str, tuple[int, int, int]] = {"searching": (20, 110, 240)}
+"""Colour of a joint the automatic stop search is moving (its range travelled so far)."""
+FAIL_RGB = (200, 0, 110)
+"""Colour of a joint whose automatic stop search failed (its auto report code: missing_stop, blocked, …)."""
 ARC_SEGMENTS = 48
 
 
 def status_rgb(status: str) -> tuple[int, int, int]:
-    """The colour of a status code."""
-    return STATUS_RGB.get(status, OTHER_RGB)
+    """The colour of a status code (sweep report codes, ``searching``, auto-search failure codes)."""
+    if status in STATUS_RGB:
+        return STATUS_RGB[status]
+    if status in LIVE_RGB:
+        return LIVE_RGB[status]
+    return FAIL_RGB if status in FAIL_CODES else OTHER_RGB
 
 
 def arc_points(
@@ -267,8 +278,10 @@ class SweepOverlay:
             )
             swept = server.scene.add_line_segments(
                 f"{self._joint_path(n)}/swept",
-                _segments(arc_points(j.axis, 0.0, 0.0, 1.25 * self.radius_m, 1)),
-                line_rgb(STATUS_RGB["not_swept"]),
+                _segments(arc_points(j.axis, 0.0, 0.0, 1.25 * self.radius_m)),
+                # one colour per vertex from the start: a line node created with a single colour is drawn
+                # white by the page after a per-vertex colour update (until a reload)
+                np.tile(line_rgb(STATUS_RGB["not_swept"]), (ARC_SEGMENTS, 2, 1)),
                 thickness=0.35 * self.radius_m,
                 visible=False,
             )

@@ -1,0 +1,235 @@
+"""``sweep --auto --view`` / ``demo --auto --view``: the stop search drawn on the model (server side).
+
+The browser side (pixels, the page's JSON) is tests/browser/test_autocal_view.py.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
+
+from robocal.cli.main import main
+from robocal.viewer.autocal_page import open_auto_sweep_page
+from robocal.viewer.sweep_page import FAIL_RGB, LIVE_RGB, STATUS_RGB, status_rgb
+from robocal.workflows.autocal_sweep import run_sweep_auto
+
+from .conftest import LITE_URDF, REPO
+
+JOINTS = ["left_wrist_roll", "left_wrist_pitch", "right_elbow_pitch"]
+SOURCE = "sim:lite?seed=0&missing=left_wrist_roll"
+
+
+class Recorder:
+    """An inner auto view: what the page view forwards."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[str, str]] = []
+        self.q: dict[str, list[float]] = {}
+
+    def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
+        self.calls.append(("start", name))
+
+    def sample(self, name: str, phase: str, side: str, sample: Any) -> None:
+        if sample.ok:
+            self.q.setdefault(name, []).append(sample.q_rad)
+
+    def joint_done(self, outcome: Any) -> None:
+        self.calls.append(("done", outcome.name))
+
+
+def test_status_colours_of_the_auto_codes() -> None:
+    assert status_rgb("searching") == LIVE_RGB["searching"]
+    assert status_rgb("missing_stop") == FAIL_RGB and status_rgb("blocked") == FAIL_RGB
+    assert status_rgb("span_mismatch") == STATUS_RGB["span_mismatch"]  # the report's colour wins
+    assert status_rgb("wrap_in_travel") == STATUS_RGB["wrap_in_travel"]
+    assert status_rgb("offset_large") not in (FAIL_RGB, *STATUS_RGB.values())
+
+
+def test_the_search_drawn_with_the_report_codes(tmp_path: Path) -> None:
+    rec = Recorder()
+    web = open_auto_sweep_page(LITE_URDF, inner=rec, port=0)
+    try:
+        report = tmp_path / "report.json"
+        outcome = run_sweep_auto(
+            LITE_URDF, SOURCE, tmp_path / "cal.yaml", joints=JOINTS, report=report, partial=True, view=web
+        )
+        web.finish(outcome.auto, outcome.result)
+        # every call reached the terminal's view too, in the search order
+        assert [c for c in rec.calls if c[0] == "start"] == [("start", o.name) for o in outcome.auto.joints]
+        doc = json.loads(report.read_text())
+        state = {j["name"]: j for j in web.status()["joints"]}
+        assert web.status()["finished"] is True and web.status()["active"] is None
+        for name in JOINTS:
+            entry = state[name]
+            auto = doc["auto"]["joints"][name]
+            # a passed joint has the sweep report's code, a failed one the auto report's
+            code = (doc["joints"][name]["warnings"] or ["ok"])[0] if auto["code"] == "ok" else auto["code"]
+            assert entry["status"] == code
+            assert entry["color"] == list(status_rgb(code))
+            for key, rep in (("stop_minus", "q_stop_minus_deg"), ("stop_plus", "q_stop_plus_deg")):
+                if auto[rep] is None:
+                    assert entry[key] is None
+                else:
+                    assert math.degrees(entry[key]) == pytest.approx(auto[rep], abs=1e-3)
+            # the travelled range is what the joint read, and it reaches the found stops
+            q = np.array(rec.q[name])
+            assert entry["seen_min"] == pytest.approx(q.min()) and entry["seen_max"] == pytest.approx(q.max())
+            assert entry["current"] == pytest.approx(q[-1])
+        assert state["left_wrist_roll"]["status"] == "missing_stop"
+        assert state["left_wrist_roll"]["color"] == list(FAIL_RGB)
+        # a joint not searched has no arc
+        assert (
+            state["left_shoulder_pitch"]["status"] == "waiting"
+            and state["left_shoulder_pitch"]["color"] is None
+        )
+
+        # the overlay's arcs: the found stops of a passed joint, the travelled range of the failed one
+        arcs = {a.name: a for a in web.overlay.arcs()}
+        passed = outcome.auto["left_wrist_pitch"].stops
+        assert passed.ok and passed.lower is not None and passed.upper is not None
+        assert arcs["left_wrist_pitch"].sampled_min == pytest.approx(passed.lower.q_stop_rad)
+        assert arcs["left_wrist_pitch"].sampled_max == pytest.approx(passed.upper.q_stop_rad)
+        assert arcs["left_wrist_roll"].sampled_min == pytest.approx(min(rec.q["left_wrist_roll"]))
+        assert arcs["left_wrist_roll"].status == "missing_stop"
+
+        # the robot is posed by the readings: after a page update every searched joint is at its last reading
+        web.app.step()
+        u = web.app.last_update
+        assert u is not None
+        for name in JOINTS:
+            assert u.q[web.app.joint_names.index(name)] == pytest.approx(rec.q[name][-1])
+        assert web.app.slot.frames_in >= sum(len(v) for v in rec.q.values())
+        # the found-stop ticks: two for a joint with both stops, one for the missing upper stop
+        web.app.step()
+        assert web._ticks["left_wrist_pitch"].points.shape == (2, 2, 3)
+        assert web._ticks["left_wrist_roll"].points.shape == (1, 2, 3)
+        assert web._ticks["left_shoulder_pitch"].visible is False
+    finally:
+        web.app.stop()
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_cli_sweep_auto_view(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "cal.yaml"
+    args = ["sweep", "--auto", "--urdf", str(LITE_URDF), "--source", "sim:lite?seed=0", "--out", str(out)]
+    code, stdout, err = run_cli(
+        [*args, "--joints", "right_elbow_pitch,right_wrist_pitch", "--yes", "--view", "--view-port", "0"],
+        capsys,
+    )
+    assert code == 0, err
+    assert err.startswith("auto-calibration view: http://127.0.0.1:")
+    assert "right_wrist_pitch: ok" in err and f"wrote {out}" in stdout
+    assert out.is_file()
+
+
+def test_cli_sweep_auto_view_port_in_use_moves_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cal.yaml"
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen(1)
+        port = s.getsockname()[1]
+        code, _, err = run_cli(
+            [
+                "sweep",
+                "--auto",
+                "--urdf",
+                str(LITE_URDF),
+                "--source",
+                "sim:lite?seed=0",
+                "--out",
+                str(out),
+                "--yes",
+                "--view",
+                "--view-port",
+                str(port),
+            ],
+            capsys,
+        )
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: port {port} on 127.0.0.1 is in use")
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_cli_sweep_auto_view_failed_joint_shown_exit_3(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cal.yaml"
+    code, _, err = run_cli(
+        [
+            "sweep",
+            "--auto",
+            "--urdf",
+            str(LITE_URDF),
+            "--source",
+            SOURCE,
+            "--out",
+            str(out),
+            "--joints",
+            "left_wrist_roll",
+            "--yes",
+            "--view",
+            "--view-port",
+            "0",
+        ],
+        capsys,
+    )
+    assert code == 3
+    assert (
+        err.strip()
+        .splitlines()[-1]
+        .startswith("error: auto-calibration failed for left_wrist_roll: missing_stop")
+    )
+    assert not out.exists()
+
+
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def test_demo_auto_view_serves_the_result_until_ctrl_c() -> None:
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocal", "demo", "--auto", "--view", "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        preexec_fn=_default_sigint,
+    )
+    try:
+        assert proc.stdout is not None
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith("serving the result at http://127.0.0.1:"):
+                break
+        assert lines and lines[-1].startswith("serving the result at"), "".join(lines[-5:])
+        assert any("largest error" in ln for ln in lines)
+        proc.send_signal(signal.SIGINT)
+        _out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert err.startswith("auto-calibration view: http://127.0.0.1:")
+    assert "Traceback" not in err
