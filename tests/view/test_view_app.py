@@ -304,3 +304,72 @@ def test_stop_thread_ends_a_loop_and_never_joins_the_calling_thread() -> None:
     stop_thread(own, threading.current_thread())  # a loop stopping itself returns at once
     assert own.is_set()
     stop_thread(threading.Event(), None)  # never started
+
+
+def test_page_loop_sends_the_page_state_at_most_ten_times_a_second(two_joint_urdf: Path) -> None:
+    """Per update the page gets the pose and a small counter; the page state (JSON) at most 10 Hz, when a joint
+    crosses a limit, and once due after the updates stop (so the page always ends with the newest state)."""
+    import html
+    import json
+
+    clock = FakeClock()
+    app = ViewerApp(load_robot_model(two_joint_urdf), port=0, clock=clock).start(loop=False)
+
+    def state() -> dict[str, object]:
+        m = re.search(r'data-status="([^"]*)"', app._status_el.content)
+        assert m is not None
+        return dict(json.loads(html.unescape(m.group(1))))
+
+    def state_updates() -> int:
+        return int(state()["updates"])  # type: ignore[call-overload]
+
+    def counter() -> int:
+        m = re.search(r'id="robocal-frame" data-updates="(\d+)"', app._frame_el.content)
+        assert m is not None
+        return int(m.group(1))
+
+    try:
+        for k, t in enumerate((0.0, 0.03, 0.06)):
+            clock.t = t
+            app.push(t, [0.1 * k, 0.0])
+            assert app.tick()
+        assert counter() == 3  # every update reaches the page
+        assert state_updates() == 1  # the page state of the first one only: the next were within 0.1 s
+        clock.t = 0.08
+        assert not app.tick() and state_updates() == 1  # idle, but not due yet
+        clock.t = 0.101
+        assert not app.tick() and state_updates() == 3  # idle and due: the newest state goes out
+        assert not app.tick() and state_updates() == 3
+        clock.t = 0.11
+        app.push(0.11, [1.5, 0.0])  # the shoulder crosses its +1.0 limit: the state goes out at once
+        assert app.tick() and counter() == 4 and state_updates() == 4
+        assert app.status()["joints"][0]["outside"] is True
+        clock.t = 0.12
+        app.push(0.12, [1.4, 0.0])
+        assert app.step() and state_updates() == 5  # step() (tests, scripts) sends the state every time
+        app.message("hello")  # a message makes the state newer than the page's: sent when due
+        clock.t = 0.3
+        assert not app.tick()
+        assert {"level": "info", "text": "hello"} in state()["messages"]  # type: ignore[operator]
+    finally:
+        app.stop()
+
+
+def test_page_loop_keeps_its_rate_when_it_wakes_late() -> None:
+    from robocal.viewer.latest import next_tick
+
+    assert next_tick(1.0, 1.01, 0.1) == pytest.approx((1.1, 0.09))
+    assert next_tick(1.0, 1.15, 0.1) == pytest.approx((1.1, 0.0))  # late: the next tick at once, same grid
+    assert next_tick(1.1, 1.16, 0.1) == pytest.approx((1.2, 0.04))
+    assert next_tick(1.0, 1.5, 0.1) == pytest.approx((1.5, 0.0))  # far behind: a new grid, no burst
+
+    # A simulated loop at 30 Hz on a machine whose scheduler wakes it 12 ms late every time, for 10 s:
+    # it still makes 30 ticks a second (restarting the schedule at each late wake made 1/(33.3+12 ms) = 22).
+    period, latency = 1.0 / 30.0, 0.012
+    now, deadline, ticks = 0.0, 0.0, 0
+    while now < 10.0:
+        ticks += 1
+        now += 0.0016  # the update's own work
+        deadline, wait = next_tick(deadline, now, period)
+        now += wait + latency
+    assert 295 <= ticks <= 301

@@ -49,7 +49,9 @@ Page state (for tests and browsers):
   ``start_s``, ``end_s``) and ``joints``: ``[{name, raw, q, q_compare, lower, upper, outside, color}]``
   (``color`` is ``"red"`` outside the limits, else ``"normal"``; NaN and infinite limits are ``null``).
 * In the page: ``#robocal-status`` carries the same JSON in its ``data-status`` attribute and the update
-  count in ``data-updates``; the joint table ``#robocal-joints`` has one ``tr.robocal-joint`` per joint with
+  count in ``data-updates`` (the page loop sends it at most 10 times a second, when a joint crosses a limit,
+  and once due after the updates stop; :meth:`ViewerApp.step` sends it with every update);
+  ``#robocal-frame[data-updates]`` counts every page update; the joint table ``#robocal-joints`` has one ``tr.robocal-joint`` per joint with
   ``data-joint``, ``data-q`` and ``data-outside`` (``1`` when red); ``#robocal-messages`` holds the messages
   (``.robocal-error`` for errors) and ``data-source``.
 """

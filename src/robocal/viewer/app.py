@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import UsageError
-from .latest import Frame, LatestFrame
+from .latest import Frame, LatestFrame, next_tick
 from .mapping import JointMapper
 from .model import RobotModel
 from .scene import (
@@ -29,11 +29,10 @@ from .scene import (
     PageUpdate,
     ReplayControl,
     ServedPage,
-    _fmt,
-    _lim,
     _Robot,
     _viser,
     check_port_free,
+    joint_table_html,
     open_server,
     plain_lights,
     stop_server,
@@ -113,6 +112,9 @@ class ViewerApp(ServedPage):
         self.ghost: _Robot | None = None
         self._panel: Any = None
         self._status_el: Any = None
+        self._frame_el: Any = None
+        self._status_drawn_s = -math.inf
+        self._status_pending = False
         self._table_drawn_s = -math.inf
         self._banner: Any = None
         self._outside_now = np.zeros(len(self.joint_names), dtype=bool)
@@ -204,15 +206,11 @@ class ViewerApp(ServedPage):
         next_t = time.monotonic()
         while not self._stop.is_set():
             try:
-                self.step()
+                self.tick()
             except Exception as exc:  # a hook or the server failed: show it, keep serving
                 self.message(f"page update failed: {type(exc).__name__}: {exc}", "error")
                 self._stop.wait(1.0)
-            next_t += period
-            delay = next_t - time.monotonic()
-            if delay < 0:  # fell behind (a slow machine): skip ahead, never catch up in a burst
-                next_t = time.monotonic()
-                delay = 0.0
+            next_t, delay = next_tick(next_t, time.monotonic(), period)
             self._stop.wait(delay)
 
     def readouts(self, frame: Frame) -> PageUpdate:
@@ -239,9 +237,29 @@ class ViewerApp(ServedPage):
     def step(self) -> bool:
         """One page update: take the newest frame (if any new), pose the robot and ghost, refresh the panel.
 
+        The page state (``#robocal-status``) is sent with every update; the page loop runs :meth:`tick` instead.
+
         Returns:
             True when a new frame was shown.
         """
+        return self._update(throttle=False)
+
+    def tick(self) -> bool:
+        """One iteration of the page loop: :meth:`step` with the page state sent at most :data:`TABLE_HZ` a second.
+
+        The page state also goes out when a joint crosses a limit, and, without a new frame, once a state newer
+        than the page's is due. Per update the page gets the pose and a small counter (``#robocal-frame``).
+
+        Returns:
+            True when a new frame was shown.
+        """
+        if self._update(throttle=True):
+            return True
+        if self._status_pending:
+            self._render_status(force=False, throttle=True)
+        return False
+
+    def _update(self, *, throttle: bool) -> bool:
         frame = self.slot.take()
         if frame is None:
             return False
@@ -264,7 +282,7 @@ class ViewerApp(ServedPage):
             self._outside_now = update.outside.copy()
             if self.ghost is not None and update.ghost_local is not None:
                 self.ghost.pose(update.ghost_local)
-            self._render_panel(update, force_table=changed.size > 0)
+            self._render_panel(update, force_table=changed.size > 0, throttle=throttle)
             self._sync_replay()
             for hook in self._hooks:
                 hook(self, update)
@@ -335,6 +353,7 @@ class ViewerApp(ServedPage):
             toggle.on_update(show_ghost)
 
         self._panel = server.gui.add_html(self._table_html(None))
+        self._frame_el = server.gui.add_html(self._frame_html())
         self._status_el = server.gui.add_html(self._status_html())
         world, rest = self.model.poses(np.zeros(len(self.joint_names)))
         pts = np.array([T[:3, 3] for T in world.values()])
@@ -399,61 +418,44 @@ class ViewerApp(ServedPage):
         return f'<div id="robocal-messages" data-source="{self.source_state}">{rows}</div>'
 
     def _render_banner(self) -> None:
+        self._status_pending = True  # the page state carries the messages and the source state too
         if self._banner is not None:
             self._banner.content = self._banner_html()
 
     def _table_html(self, update: PageUpdate | None) -> str:
-        unit = html.escape(self.raw_unit)
-        head = (
-            '<table id="robocal-joints" style="width:100%;font-size:0.8em;border-collapse:collapse">'
-            f"<tr><th align=left>joint</th><th align=right>raw ({unit})</th><th align=right>q (rad)</th>"
-            + ("<th align=right>ghost</th>" if self.compare is not None else "")
-            + "<th align=right>limits</th><th>range</th></tr>"
-        )
-        rows = []
-        for i, name in enumerate(self.joint_names):
-            j = update.joints[i] if update is not None else None
-            raw = j.raw if j else math.nan
-            q = j.q if j else math.nan
-            qc = j.q_compare if j else math.nan
-            lo, hi = float(self.model.lower[i]), float(self.model.upper[i])
-            outside = bool(j.outside) if j else False
-            colour = "#c00" if outside else "#222"
-            if math.isfinite(lo) and math.isfinite(hi) and hi > lo and not math.isnan(q):
-                frac = min(1.0, max(0.0, (q - lo) / (hi - lo)))
-            else:
-                frac = 0.5 if not math.isnan(q) else math.nan
-            bar = ""
-            if not math.isnan(frac):
-                bar = (
-                    f'<div style="position:absolute;left:calc({100 * frac:.1f}% - 2px);top:0;width:4px;'
-                    f'height:100%;background:{"#d00" if outside else "#36c"}"></div>'
-                )
-            rows.append(
-                f'<tr class="robocal-joint" data-joint="{html.escape(name)}" data-outside="{int(outside)}" '
-                f'data-q="{"" if math.isnan(q) else repr(q)}" style="color:{colour}">'
-                f"<td>{html.escape(name)}</td><td align=right>{_fmt(raw)}</td><td align=right>{_fmt(q)}</td>"
-                + (f"<td align=right>{_fmt(qc)}</td>" if self.compare is not None else "")
-                + f'<td align=right style="white-space:nowrap">{_lim(lo)}…{_lim(hi)}</td>'
-                '<td style="width:25%"><div style="position:relative;height:8px;background:#ddd;'
-                f'border:1px solid {"#d00" if outside else "#bbb"}">{bar}</div></td></tr>'
-            )
-        return head + "".join(rows) + "</table>"
+        return joint_table_html(self.model, update, ghost=self.compare is not None, raw_unit=self.raw_unit)
 
     def _status_html(self) -> str:
         status = html.escape(json.dumps(self.status(), separators=(",", ":")), quote=True)
+        return f'<div id="robocal-status" data-updates="{self.updates}" data-status="{status}"></div>'
+
+    def _frame_html(self) -> str:
         return (
-            f'<div id="robocal-status" data-updates="{self.updates}" data-status="{status}" '
-            f'style="font-size:0.7em;color:#666">updates {self.updates} · dropped {self.slot.dropped}</div>'
+            f'<div id="robocal-frame" data-updates="{self.updates}" style="font-size:0.7em;color:#666">'
+            f"updates {self.updates} · dropped {self.slot.dropped}</div>"
         )
 
-    def _render_panel(self, update: PageUpdate, *, force_table: bool = False) -> None:
-        """Draw the page state every update, the joint table at most :data:`TABLE_HZ` times a second.
-
-        The table is also redrawn when a joint crosses a limit; redrawing it is most of a GPU-less browser's work.
-        """
-        if self._status_el is not None:
+    def _render_status(self, *, force: bool, throttle: bool) -> None:
+        """The page state (JSON): when ``force`` or not ``throttle``, else at most :data:`TABLE_HZ` times a second."""
+        now = self.clock()
+        if self._status_el is None:
+            return
+        if force or not throttle or now - self._status_drawn_s >= 1.0 / TABLE_HZ:
+            self._status_pending = False
+            self._status_drawn_s = now
             self._status_el.content = self._status_html()
+        else:
+            self._status_pending = True
+
+    def _render_panel(self, update: PageUpdate, *, force_table: bool = False, throttle: bool = False) -> None:
+        """Per update a small counter; the page state and the joint table at most :data:`TABLE_HZ` times a second.
+
+        Both are also drawn when a joint crosses a limit, and the page state when the loop is idle with a newer
+        state than the page has; the page's work per update stays small (a GPU-less browser's is the limit).
+        """
+        if self._frame_el is not None:
+            self._frame_el.content = self._frame_html()
+        self._render_status(force=force_table, throttle=throttle)
         if self._panel is None:
             return
         now = self.clock()

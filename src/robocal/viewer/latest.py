@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Frame", "LatestFrame"]
+__all__ = ["Frame", "LatestFrame", "next_tick"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -81,3 +81,24 @@ class LatestFrame:
         """The newest frame, taken or not."""
         with self._lock:
             return self._frame
+
+
+def next_tick(deadline_s: float, now_s: float, period_s: float) -> tuple[float, float]:
+    """The page loop's schedule: the next deadline and how long to wait for it (never negative).
+
+    Deadlines stay on the grid ``deadline_s + k·period_s``: a tick that woke a little late (a loaded machine's
+    scheduling delay) is followed by one that waits less, so the loop keeps its rate. A loop more than a whole
+    period behind starts a new grid at ``now_s`` instead of catching up in a burst.
+
+    Args:
+        deadline_s: The deadline of the tick that just ran, s.
+        now_s: The time now, s.
+        period_s: The page period ``1/rate``, s.
+
+    Returns:
+        ``(next deadline, wait)`` in s.
+    """
+    nxt = deadline_s + period_s
+    if nxt < now_s - period_s:  # more than a period behind: skip, never burst
+        return now_s, 0.0
+    return nxt, max(0.0, nxt - now_s)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import html
 import io
 import math
 import socket
@@ -31,6 +32,7 @@ __all__ = [
     "ReplayControl",
     "ServedPage",
     "check_port_free",
+    "joint_table_html",
     "open_server",
     "page_url",
     "plain_lights",
@@ -335,3 +337,43 @@ def plain_lights(server: Any) -> None:
     server.scene.configure_environment_map(hdri=None)
     server.scene.add_light_ambient("/light/ambient", intensity=1.2)
     server.scene.add_light_directional("/light/sun", intensity=1.8, position=(2.0, -2.0, 3.0))
+
+
+def joint_table_html(model: RobotModel, update: PageUpdate | None, *, ghost: bool, raw_unit: str) -> str:
+    """The joint panel's table (``#robocal-joints``): raw, calibrated and ghost value, limits and a bar per joint."""
+    unit = html.escape(raw_unit)
+    head = (
+        '<table id="robocal-joints" style="width:100%;font-size:0.8em;border-collapse:collapse">'
+        f"<tr><th align=left>joint</th><th align=right>raw ({unit})</th><th align=right>q (rad)</th>"
+        + ("<th align=right>ghost</th>" if ghost else "")
+        + "<th align=right>limits</th><th>range</th></tr>"
+    )
+    rows = []
+    for i, name in enumerate(model.actuated):
+        j = update.joints[i] if update is not None else None
+        raw = j.raw if j else math.nan
+        q = j.q if j else math.nan
+        qc = j.q_compare if j else math.nan
+        lo, hi = float(model.lower[i]), float(model.upper[i])
+        outside = bool(j.outside) if j else False
+        colour = "#c00" if outside else "#222"
+        if math.isfinite(lo) and math.isfinite(hi) and hi > lo and not math.isnan(q):
+            frac = min(1.0, max(0.0, (q - lo) / (hi - lo)))
+        else:
+            frac = 0.5 if not math.isnan(q) else math.nan
+        bar = ""
+        if not math.isnan(frac):
+            bar = (
+                f'<div style="position:absolute;left:calc({100 * frac:.1f}% - 2px);top:0;width:4px;'
+                f'height:100%;background:{"#d00" if outside else "#36c"}"></div>'
+            )
+        rows.append(
+            f'<tr class="robocal-joint" data-joint="{html.escape(name)}" data-outside="{int(outside)}" '
+            f'data-q="{"" if math.isnan(q) else repr(q)}" style="color:{colour}">'
+            f"<td>{html.escape(name)}</td><td align=right>{_fmt(raw)}</td><td align=right>{_fmt(q)}</td>"
+            + (f"<td align=right>{_fmt(qc)}</td>" if ghost else "")
+            + f'<td align=right style="white-space:nowrap">{_lim(lo)}…{_lim(hi)}</td>'
+            '<td style="width:25%"><div style="position:relative;height:8px;background:#ddd;'
+            f'border:1px solid {"#d00" if outside else "#bbb"}">{bar}</div></td></tr>'
+        )
+    return head + "".join(rows) + "</table>"
