@@ -17,8 +17,9 @@ and shapes, posed by a plain loop at the same page rate and with the same pacing
 calibration mapping, no joint panel, no page state; fed by nothing), with the same kind of counter element.
 Printed as ratios robocal/baseline.
 
-``python benchmarks/run.py view`` (about a minute). ``VIEW_BENCH_WINDOW_S`` changes the window. Without Chromium
-only the server-side numbers are printed.
+``python benchmarks/run.py view`` (about three minutes: ``VIEW_BENCH_REPEATS`` alternating runs of each, default 3,
+medians and their ratios printed; ``VIEW_BENCH_WINDOW_S`` changes the window, ``VIEW_BENCH_SOURCE_HZ`` the source).
+Without Chromium only the server-side numbers are printed.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import io
 import math
 import os
 import resource
+import statistics
 import sys
 import tempfile
 import threading
@@ -50,6 +52,7 @@ from robocal.viewer.scene import _wxyz  # noqa: E402
 LITE_URDF = REPO / "examples" / "lite" / "lite_bimanual.urdf"
 WINDOW_S = float(os.environ.get("VIEW_BENCH_WINDOW_S", "8"))
 SETTLE_S = 1.0
+REPEATS = int(os.environ.get("VIEW_BENCH_REPEATS", "3"))
 SOURCE_HZ = float(os.environ.get("VIEW_BENCH_SOURCE_HZ", "1000"))
 PAGE_HZ = 30.0
 BENCH_VIEWPORT = {"width": 320, "height": 240}
@@ -268,9 +271,33 @@ def _load() -> str:
     return f"load average {one:.1f} (1 min), {five:.1f} (5 min) on {os.cpu_count()} cores"
 
 
+BASE = "baseline (bare viser, same links)"
+ROBOCAL = "robocal view"
+KEYS = (
+    "updates_hz",
+    "received_hz",
+    "rendered_hz",
+    "frames_hz",
+    "cpu_per_update_ms",
+    "loop_cpu_per_update_ms",
+)
+
+
+def _median(runs: list[dict[str, float]]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for k in runs[0]:
+        vals = [r[k] for r in runs if math.isfinite(r[k])]
+        out[k] = statistics.median(vals) if vals else math.nan
+    return out
+
+
+def _row(name: str, r: dict[str, float]) -> str:
+    return f"{name:40s} " + " ".join(f"{r[k]:11.2f}" for k in KEYS)
+
+
 def main() -> None:
     chromium = browserlib.find_chromium()
-    results: dict[str, dict[str, float]] = {}
+    runs: dict[str, list[dict[str, float]]] = {BASE: [], ROBOCAL: []}
     with contextlib.ExitStack() as stack:
         page = None
         if chromium is None:
@@ -291,25 +318,24 @@ def main() -> None:
             ctx.add_init_script(INSTRUMENT)
             page = ctx.new_page()
         print(f"before: {_load()}")
-        for name, fn in (("baseline (bare viser, same links)", run_baseline), ("robocal view", run_robocal)):
-            if page is not None:
-                page.goto("about:blank")
-            results[name] = fn(page)
+        for _ in range(REPEATS):  # alternating, so that a change of the machine's load hits both alike
+            for name, fn in ((BASE, run_baseline), (ROBOCAL, run_robocal)):
+                if page is not None:
+                    page.goto("about:blank")
+                runs[name].append(fn(page))
         print(f"after: {_load()}")
-    base, rob = results["baseline (bare viser, same links)"], results["robocal view"]
-    print(f"14 joints, source {SOURCE_HZ:.0f} Hz, page loop {PAGE_HZ:.0f} Hz, window {WINDOW_S:.0f} s")
+    print(
+        f"14 joints, source {SOURCE_HZ:.0f} Hz, page loop {PAGE_HZ:.0f} Hz, {REPEATS} alternating runs of "
+        f"{WINDOW_S:.0f} s each"
+    )
     cols = ("updates/s", "received/s", "rendered/s", "frames/s", "CPU ms/upd", "loop ms/upd")
-    print(f"{'':34s} " + " ".join(f"{c:>11s}" for c in cols))
-    for name, r in results.items():
-        vals = (
-            r["updates_hz"],
-            r["received_hz"],
-            r["rendered_hz"],
-            r["frames_hz"],
-            r["cpu_per_update_ms"],
-            r["loop_cpu_per_update_ms"],
-        )
-        print(f"{name:34s} " + " ".join(f"{v:11.2f}" for v in vals))
+    print(f"{'':40s} " + " ".join(f"{c:>11s}" for c in cols))
+    for k in range(REPEATS):
+        for name in (BASE, ROBOCAL):
+            print(_row(f"{name} #{k + 1}", runs[name][k]))
+    base, rob = _median(runs[BASE]), _median(runs[ROBOCAL])
+    print(_row(f"{BASE} median", base))
+    print(_row(f"{ROBOCAL} median", rob))
     print(
         f"robocal view: source ran at {rob['source_hz']:.0f} Hz, {100 * rob['dropped_fraction']:.1f} % of the frames "
         f"dropped as stale (newest frame wins), largest wait of a shown frame {rob['max_wait_ms']:.1f} ms"
@@ -320,9 +346,9 @@ def main() -> None:
         return f"{rob[key] / b:.2f}" if b and math.isfinite(b) and math.isfinite(rob[key]) else "n/a"
 
     print(
-        f"ratios robocal / baseline: updates made {ratio('updates_hz')}, received {ratio('received_hz')}, "
-        f"rendered {ratio('rendered_hz')}, server CPU per update {ratio('cpu_per_update_ms')} "
-        f"(page loop alone {ratio('loop_cpu_per_update_ms')})"
+        f"ratios robocal / baseline (medians): updates made {ratio('updates_hz')}, received "
+        f"{ratio('received_hz')}, rendered {ratio('rendered_hz')}, server CPU per update "
+        f"{ratio('cpu_per_update_ms')} (page loop alone {ratio('loop_cpu_per_update_ms')})"
     )
 
 
