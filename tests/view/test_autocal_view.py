@@ -233,3 +233,63 @@ def test_demo_auto_view_serves_the_result_until_ctrl_c() -> None:
     assert proc.returncode == 0, err
     assert err.startswith("auto-calibration view: http://127.0.0.1:")
     assert "Traceback" not in err
+
+
+def _outcome(name: str, lo_rad: float, hi_rad: float) -> Any:
+    """A passed joint's outcome as the auto run hands it to its view (name, ok, stops with both surfaces)."""
+    from types import SimpleNamespace
+
+    stops = SimpleNamespace(
+        name=name,
+        code="ok",
+        reason="",
+        lower=SimpleNamespace(q_stop_rad=lo_rad),
+        upper=SimpleNamespace(q_stop_rad=hi_rad),
+        span_rad=hi_rad - lo_rad,
+    )
+    return SimpleNamespace(name=name, ok=True, stops=stops)
+
+
+@pytest.mark.parametrize(
+    ("robot", "motor", "joint"),
+    [("so101_follower", "elbow_flex", "elbow_flex"), ("koch_follower", "shoulder_lift", "joint2")],
+)
+def test_lerobot_auto_page_draws_servo_angles_about_the_middle_pose(
+    robot: str, motor: str, joint: str
+) -> None:
+    """The servo drivers count ``ticks·2π/4096`` from 0; the arm's URDF has its zero at 2048 ticks."""
+    from robocal.core.stop_search import StopSample
+    from robocal.viewer.lerobot_sweep_page import open_lerobot_auto_page
+    from robocal.workflows.lerobot import robot_spec
+
+    spec = robot_spec(robot)
+    web = open_lerobot_auto_page(robot, spec.motor_names, port=0)
+    try:
+        tick = 2.0 * math.pi / 4096
+        web.joint_start(motor, 0.5, 0.3)
+        for k, ticks in enumerate((2048, 1500, 1024, 2600, 3072)):
+            web.sample(motor, "approach", "lower", StopSample(0.01 * k, ticks * tick, 0.0, 0.1))
+        assert web.status()["active"] == joint
+        web.joint_done(_outcome(motor, 1000 * tick, 3100 * tick))
+        web.finish(SimpleAuto([_outcome(motor, 1000 * tick, 3100 * tick)]))
+        entry = {j["name"]: j for j in web.status()["joints"]}[joint]
+        assert entry["status"] == "ok"
+        assert entry["seen_min"] == pytest.approx((1024 - 2048) * tick)
+        assert entry["seen_max"] == pytest.approx((3072 - 2048) * tick)
+        assert entry["stop_minus"] == pytest.approx((1000 - 2048) * tick)
+        assert entry["stop_plus"] == pytest.approx((3100 - 2048) * tick)
+        web.app.step()
+        u = web.app.last_update
+        assert u is not None
+        assert u.q[web.app.joint_names.index(joint)] == pytest.approx((3072 - 2048) * tick)
+        arcs = {a.name: a for a in web.overlay.arcs()}
+        assert arcs[joint].sampled_min == pytest.approx((1000 - 2048) * tick)
+    finally:
+        web.app.stop()
+
+
+class SimpleAuto:
+    """The run's result as :meth:`AutoSweepWebView.finish` reads it (its joints' outcomes)."""
+
+    def __init__(self, joints: list[Any]) -> None:
+        self.joints = tuple(joints)

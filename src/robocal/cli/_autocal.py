@@ -98,11 +98,19 @@ class AutoLiveView:
 
 
 @contextlib.contextmanager
-def auto_web_view(port: int | None, urdf: Path, inner: Any, title: str) -> Iterator[Any]:
+def auto_web_view(
+    port: int | None,
+    urdf: Path | None,
+    inner: Any,
+    title: str,
+    *,
+    page: Callable[[Any, int], Any] | None = None,
+) -> Iterator[Any]:
     """``--view``: the stop search drawn on the robot in the browser (robocal.viewer.autocal_page), else ``inner``.
 
     The page opens before anything moves (a port in use or a URDF that does not load ends the command first);
-    the run's end, failure or interruption is shown on it; it closes when the command ends.
+    the run's end, failure or interruption is shown on it; it closes when the command ends. ``page(inner,
+    port)`` opens another page than ``urdf``'s (a LeRobot arm's: its URDF, motor names and servo frame).
     """
     if port is None:
         yield inner
@@ -110,7 +118,11 @@ def auto_web_view(port: int | None, urdf: Path, inner: Any, title: str) -> Itera
     from ..viewer.autocal_page import open_auto_sweep_page
     from ..workflows.autocal import AutoCalAbortedError, AutoCalFailedError
 
-    web = open_auto_sweep_page(urdf, inner=inner, port=port, title=title)
+    if page is not None:
+        web = page(inner, port)
+    else:
+        assert urdf is not None
+        web = open_auto_sweep_page(urdf, inner=inner, port=port, title=title)
     _common.err_console.print(f"auto-calibration view: {web.app.url}", markup=False)
     try:
         yield web

@@ -101,6 +101,8 @@ class AutoSweepWebView:
         app: The started page.
         inner: Another auto view to forward to, or None.
         joint_of: Driver joint name → URDF joint name (default: the same names).
+        q_offset_rad: Subtracted from the driver's angles before they are drawn (a LeRobot servo's half turn:
+            its joint frame counts ticks from 0, the arm's URDF has its zero at the middle pose).
         period_s: Smallest interval between two redraws of the arcs while a joint moves.
         clock: Monotonic clock, s.
     """
@@ -111,6 +113,7 @@ class AutoSweepWebView:
         inner: Any = None,
         *,
         joint_of: Mapping[str, str] | None = None,
+        q_offset_rad: float = 0.0,
         period_s: float = 0.05,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
@@ -118,6 +121,7 @@ class AutoSweepWebView:
         self.overlay = SweepOverlay(app)
         self.inner = inner
         self.joint_of = dict(joint_of) if joint_of is not None else None
+        self.q_offset_rad = float(q_offset_rad)
         self.period_s = period_s
         self.clock = clock
         self._lock = threading.Lock()
@@ -172,7 +176,7 @@ class AutoSweepWebView:
             st = self.joints[j]
             st.samples += 1
             if sample.ok and math.isfinite(sample.q_rad):
-                q = float(sample.q_rad)
+                q = float(sample.q_rad) - self.q_offset_rad
                 st.current = q
                 st.seen_min = q if not math.isfinite(st.seen_min) else min(st.seen_min, q)
                 st.seen_max = q if not math.isfinite(st.seen_max) else max(st.seen_max, q)
@@ -237,8 +241,9 @@ class AutoSweepWebView:
         with self._lock:
             s = self.joints[j]
             s.status, s.reason, s.passed = st.code, st.reason, bool(outcome.ok)
-            s.stop_minus = st.lower.q_stop_rad if st.lower is not None else math.nan
-            s.stop_plus = st.upper.q_stop_rad if st.upper is not None else math.nan
+            off = self.q_offset_rad
+            s.stop_minus = st.lower.q_stop_rad - off if st.lower is not None else math.nan
+            s.stop_plus = st.upper.q_stop_rad - off if st.upper is not None else math.nan
             if self.active == j:
                 self.active = None
 
@@ -360,6 +365,7 @@ def open_auto_sweep_page(
     *,
     inner: Any = None,
     joint_of: Mapping[str, str] | None = None,
+    q_offset_rad: float = 0.0,
     host: str = "127.0.0.1",
     port: int = 8080,
     title: str = "sweep --auto",
@@ -381,7 +387,7 @@ def open_auto_sweep_page(
         for line in note:
             app.message(line)
         app.set_source_state("running")
-        return AutoSweepWebView(app, inner, joint_of=joint_of)
+        return AutoSweepWebView(app, inner, joint_of=joint_of, q_offset_rad=q_offset_rad)
     except BaseException:
         app.stop()
         raise

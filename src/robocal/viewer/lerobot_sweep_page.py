@@ -17,7 +17,13 @@ from ..core.sweep_result import SweepResult
 from .app import ViewerApp
 from .sweep_page import SweepOverlay
 
-__all__ = ["LeRobotSweepWebView", "lerobot_shapes_urdf", "open_lerobot_sweep_page"]
+__all__ = [
+    "LeRobotSweepWebView",
+    "lerobot_joint_map",
+    "lerobot_shapes_urdf",
+    "open_lerobot_auto_page",
+    "open_lerobot_sweep_page",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -130,11 +136,7 @@ def open_lerobot_sweep_page(
     from .model import load_robot_model
 
     model = load_robot_model(lerobot_shapes_urdf(robot))
-    names = list(model.actuated)
-    motors = list(motor_names)
-    joint_of = (
-        {m: m for m in motors} if all(m in names for m in motors) else dict(zip(motors, names, strict=False))
-    )
+    joint_of = lerobot_joint_map(model.actuated, motor_names)
     app = ViewerApp(model, host=host, port=port, title=f"lerobot calibrate: {robot}", rate_hz=20.0).start()
     try:
         app.server.gui.main_panel.dock_right()
@@ -146,3 +148,47 @@ def open_lerobot_sweep_page(
     except BaseException:
         app.stop()
         raise
+
+
+def lerobot_joint_map(joint_names: Sequence[str], motor_names: Sequence[str]) -> dict[str, str]:
+    """Motor → URDF joint: by name (SO-100/SO-101), else in order (Koch: ``joint1`` … in motor order)."""
+    names = list(joint_names)
+    motors = list(motor_names)
+    if all(m in names for m in motors):
+        return {m: m for m in motors}
+    return dict(zip(motors, names, strict=False))
+
+
+def open_lerobot_auto_page(
+    robot: str,
+    motor_names: Sequence[str],
+    *,
+    inner: Any = None,
+    host: str = "127.0.0.1",
+    port: int = 8080,
+) -> Any:
+    """Start the page for ``robocal lerobot calibrate --auto --view``: the stop search drawn on the arm.
+
+    The servo drivers' joint frame counts ticks from 0 (``ticks·2π/4096``); the arm's URDF has its zero at the
+    middle pose, half a turn, which is subtracted before drawing (as ``lerobot calibrate --view`` does).
+
+    Returns:
+        The :class:`~robocal.viewer.autocal_page.AutoSweepWebView` to pass as the run's view.
+
+    Raises:
+        CalibError: The URDF does not load, a port in use, viser missing — before anything moves.
+    """
+    from .autocal_page import open_auto_sweep_page
+    from .model import load_robot_model
+
+    urdf = lerobot_shapes_urdf(robot)
+    joint_of = lerobot_joint_map(load_robot_model(urdf).actuated, motor_names)
+    return open_auto_sweep_page(
+        urdf,
+        inner=inner,
+        joint_of=joint_of,
+        q_offset_rad=math.pi,
+        host=host,
+        port=port,
+        title=f"lerobot calibrate --auto: {robot}",
+    )
