@@ -293,3 +293,27 @@ class SimpleAuto:
 
     def __init__(self, joints: list[Any]) -> None:
         self.joints = tuple(joints)
+
+
+def test_cli_lerobot_calibrate_auto_view(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The simulated SO-101 through the real Feetech SDK, drawn on the arm's page; then the same with the page's
+    port in use: one error line before the port opens, nothing written."""
+    args = ["lerobot", "calibrate", "--auto", "--robot", "so101_follower", "--port", "sim", "--id", "a"]
+    code, stdout, err = run_cli(
+        [*args, "--calibration-dir", str(tmp_path / "ok"), "--yes", "--view", "--view-port", "0"], capsys
+    )
+    assert code == 0, err
+    assert err.startswith("auto-calibration view: http://127.0.0.1:")
+    assert "calibration saved to" in stdout
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen(1)
+        port = s.getsockname()[1]
+        code, _, err = run_cli(
+            [*args, "--calibration-dir", str(tmp_path / "busy"), "--yes", "--view", "--view-port", str(port)],
+            capsys,
+        )
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: port {port} on 127.0.0.1 is in use")
+    assert not list((tmp_path / "busy").rglob("*.json"))

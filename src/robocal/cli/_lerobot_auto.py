@@ -16,7 +16,7 @@ import typer
 from ..core.lerobot import RobotSpec
 from ..errors import UsageError
 from . import _common
-from ._autocal import AutoLiveView, auto_table, make_confirm_start
+from ._autocal import AutoLiveView, auto_table, auto_web_view, make_confirm_start
 from ._lerobot_render import print_calibration, status
 
 __all__ = ["calibrate_auto", "check_auto_options"]
@@ -52,7 +52,6 @@ def check_auto_options(
         for flag, on in (
             ("--use-file", use_file),
             ("--home-after-sweep", home_after_sweep),
-            ("--view", web_view),
         )
         if on
     ]
@@ -60,7 +59,6 @@ def check_auto_options(
         why = {
             "--use-file": "--use-file writes an existing file, --auto finds the stops",
             "--home-after-sweep": "--auto always centres the homing on the stops it finds",
-            "--view": "the browser view of --auto is not available yet (the terminal shows each joint)",
         }
         raise UsageError(
             f"--auto cannot be combined with {', '.join(clash)}: {'; '.join(why[c] for c in clash)}"
@@ -78,6 +76,7 @@ def calibrate_auto(
     yes: bool,
     sweep_full_turn: bool,
     view: Any = None,
+    view_port: int | None = None,
 ) -> None:
     """Run the automatic calibration, print the tables, exit 0 / 1 (``--partial`` with a failed joint).
 
@@ -94,7 +93,14 @@ def calibrate_auto(
         raise UsageError("--joints: give at least one joint name")
     parse_sim_port(port, spec)  # bad sim options are refused before the port opens
     confirm = make_confirm_start(yes, what=spec.name)
-    with open_auto_arm(spec, port, section) as arm:
+
+    def page(inner: Any, page_port: int) -> Any:  # --view: the stop search drawn on the arm in the browser
+        from ..viewer.lerobot_sweep_page import open_lerobot_auto_page
+
+        return open_lerobot_auto_page(robot, spec.motor_names, inner=inner, port=page_port)
+
+    live_view = view if view is not None else AutoLiveView()
+    with auto_web_view(view_port, None, live_view, "", page=page) as live, open_auto_arm(spec, port, section) as arm:
         try:
             result = auto_calibrate(
                 arm.bus,
@@ -105,7 +111,7 @@ def calibrate_auto(
                 joints=names,
                 partial=partial,
                 confirm_start=confirm,
-                view=view if view is not None else AutoLiveView(),
+                view=live,
                 on_status=status,
                 sweep_full_turn=sweep_full_turn,
             )
@@ -115,6 +121,8 @@ def calibrate_auto(
                 "every motor is limp, every register the search changed was written back; no file was written",
                 "; no file was written",
             ) from None
+        if view_port is not None:
+            live.finish(result.auto)
     _common.console.print(auto_table(result.auto, title=f"{spec.name}: automatic hard-stop calibration"))
     print_calibration(result.calibration)
     if result.kept:

@@ -160,7 +160,15 @@ def calibrate(
     check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
     if auto:
         calibrate_auto(
-            robot, spec, port, path, joints=joints, partial=partial, yes=yes, sweep_full_turn=sweep_full_turn
+            robot,
+            spec,
+            port,
+            path,
+            joints=joints,
+            partial=partial,
+            yes=yes,
+            sweep_full_turn=sweep_full_turn,
+            view_port=view_port if web_view else None,
         )
     update, close = sweep_renderer()
     web = _web_view(robot, spec, update, view_port) if web_view else None
