@@ -13,6 +13,7 @@ from dataset_testutil import (
     LO,
     RANGE_A,
     RANGE_B,
+    A,
     all_values,
     cals,
     column,
@@ -28,13 +29,14 @@ from robocal.dataset import (
     recalibrate_dataset,
     recalibrate_values,
 )
+from robocal.dataset._convention import select_indices
 from robocal.dataset.lerobot import (
     LegacyConvention,
     LeRobotConvention,
     motor_family_for_robot,
     preset_modes,
 )
-from robocal.errors import UsageError
+from robocal.errors import JointMismatchError, UsageError
 from robocal.lerobot import MotorCalibration, unnormalize
 
 
@@ -330,3 +332,27 @@ def test_far_actual_position_is_counted_on_the_feetech_side() -> None:
     _, mask = b.from_actual(np.array([[2000.0], [2000.0 + 4096], [2000.0 + 3 * 4096], [-5000.0]]))
     # one wrap is what two calibrations produce; more than one turn away is counted
     assert mask[:, 0].tolist() == [False, False, True, True]
+
+
+def test_select_reorders_and_names_what_is_missing_in_each_convention() -> None:
+    assert select_indices(["c", "a"], ["a", "b", "c", "a"], "x", "joint") == [2, 0]  # first occurrence
+    with pytest.raises(JointMismatchError, match=r"^x: no joint named d, e$"):
+        select_indices(["a", "d", "e"], ["a", "b"], "x", "joint")
+    sub = A.select(["elbow_flex", "shoulder_pan"])
+    assert sub.joint_names == ("elbow_flex", "shoulder_pan")
+    assert sub.calibration.homing_offset.tolist() == [2100, 2047]
+    with pytest.raises(JointMismatchError, match=r"^joint map: no joint named knee$"):
+        A.select(["shoulder_pan", "knee"])
+    cur = conv(HOMING_A, RANGE_A).select(["gripper", "shoulder_pan"])
+    assert cur.joint_names == ("gripper", "shoulder_pan")
+    assert cur.modes == ("range_0_100", "degrees")
+    with pytest.raises(JointMismatchError, match=r"^LeRobot calibration: no motor named knee$"):
+        conv(HOMING_A, RANGE_A).select(["knee"])
+    legacy = LegacyConvention(
+        LegacyCalibration(
+            ["shoulder_pan", "gripper"], [-2145, 0], [0, 0], [2085, 1983], [3169, 2793], ["DEGREE", "LINEAR"]
+        )
+    )
+    assert legacy.select(["gripper"]).calibration.homing_offset.tolist() == [0]
+    with pytest.raises(JointMismatchError, match=r"^legacy calibration: no motor named knee$"):
+        legacy.select(["knee", "gripper"])

@@ -121,3 +121,10 @@ def print_plain_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> 
 def exit_code_for(warnings: Sequence[object]) -> int:
     """0 when there were no warnings, else 1."""
     return EXIT_WARNINGS if warnings else EXIT_OK
+
+
+def print_warnings(warnings: Sequence[str]) -> int:
+    """Print each warning as one ``warning:`` line; return the exit code (0 without warnings, else 1)."""
+    for w in warnings:
+        print_warning(w)
+    return exit_code_for(warnings)

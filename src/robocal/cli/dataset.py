@@ -134,9 +134,7 @@ def recalibrate(
         f"wrote {report.dst}: {report.frames} frames in {report.files} files, "
         f"{report.row_groups} row groups; features {', '.join(report.features)}"
     )
-    for w in report.warnings:
-        _common.print_warning(w)
-    raise typer.Exit(_common.exit_code_for(report.warnings))
+    raise typer.Exit(_common.print_warnings(report.warnings))
 
 
 @app.command()

@@ -16,7 +16,7 @@ from ..errors import UsageError
 from ..viewer.ur_page import parse_q
 from ..workflows import ur as wf
 from ..workflows import ur_verify
-from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
+from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning, print_warnings
 
 app = typer.Typer(
     help="Universal Robots: calibrated kinematics for ur_description (extract, correct, defaults, verify, plot, view).",
@@ -32,6 +32,13 @@ DEFAULTS_RPY_HELP = (
     "Angle convention (any case): 'upstream' (default) writes ur_calibration's Eigen angles, as in the "
     "checked-in default_kinematics.yaml files; 'urdf' writes URDF-convention angles."
 )
+
+_YamlOut = Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")]
+_NominalModel = Annotated[str | None, typer.Option("--model", help=f"UR model for nominal DH ({MODELS}).")]
+_Deltas = Annotated[Path | None, typer.Option("--deltas", help=DELTAS_HELP)]
+_Rpy = Annotated[str, typer.Option("--rpy", help=RPY_HELP)]
+_UrdfIn = Annotated[Path | None, typer.Option("--urdf-in", help="Expanded URDF to update.")]
+_UrdfOut = Annotated[Path | None, typer.Option("--urdf-out", help="Updated URDF to write.")]
 
 
 def _print_result(result: wf.CorrectionResult, replaced: bool) -> int:
@@ -52,20 +59,18 @@ def _print_result(result: wf.CorrectionResult, replaced: bool) -> int:
         )
     if result.urdf_out is not None:
         console.print(f"wrote {result.urdf_out} (six joint origins updated)")
-    for w in result.warnings:
-        print_warning(w)
-    return EXIT_WARNINGS if result.warnings else EXIT_OK
+    return print_warnings(result.warnings)
 
 
 @app.command("extract")
 def extract(
     host: Annotated[str, typer.Option("--host", help="Controller IP or host name.")],
-    out: Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")],
+    out: _YamlOut,
     port: Annotated[int, typer.Option("--port", help="Primary interface port (30011 = read-only).")] = 30001,
     timeout: Annotated[float, typer.Option("--timeout", help="Seconds to wait for KinematicsInfo.")] = 10.0,
-    rpy: Annotated[str, typer.Option("--rpy", help=RPY_HELP)] = "urdf",
-    urdf_in: Annotated[Path | None, typer.Option("--urdf-in", help="Expanded URDF to update.")] = None,
-    urdf_out: Annotated[Path | None, typer.Option("--urdf-out", help="Updated URDF to write.")] = None,
+    rpy: _Rpy = "urdf",
+    urdf_in: _UrdfIn = None,
+    urdf_out: _UrdfOut = None,
 ) -> None:
     """Read the calibrated DH from a controller, correct it and write ur_description's kinematics YAML."""
     replaced = out.is_file()
@@ -75,13 +80,13 @@ def extract(
 
 @app.command("correct")
 def correct(
-    out: Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")],
+    out: _YamlOut,
     dh: Annotated[Path | None, typer.Option("--dh", help="DH YAML (dh_theta, dh_a, dh_d, dh_alpha).")] = None,
-    model: Annotated[str | None, typer.Option("--model", help=f"UR model for nominal DH ({MODELS}).")] = None,
-    deltas: Annotated[Path | None, typer.Option("--deltas", help=DELTAS_HELP)] = None,
-    rpy: Annotated[str, typer.Option("--rpy", help=RPY_HELP)] = "urdf",
-    urdf_in: Annotated[Path | None, typer.Option("--urdf-in", help="Expanded URDF to update.")] = None,
-    urdf_out: Annotated[Path | None, typer.Option("--urdf-out", help="Updated URDF to write.")] = None,
+    model: _NominalModel = None,
+    deltas: _Deltas = None,
+    rpy: _Rpy = "urdf",
+    urdf_in: _UrdfIn = None,
+    urdf_out: _UrdfOut = None,
 ) -> None:
     """Correct DH parameters offline (no robot) and write ur_description's kinematics YAML."""
     input_warnings: list[str] = []
@@ -96,7 +101,7 @@ def correct(
 @app.command("defaults")
 def defaults(
     model: Annotated[str, typer.Option("--model", help=f"UR model ({MODELS}).")],
-    out: Annotated[Path, typer.Option("--out", help="Kinematics YAML to write.")],
+    out: _YamlOut,
     rpy: Annotated[str, typer.Option("--rpy", help=DEFAULTS_RPY_HELP)] = "upstream",
 ) -> None:
     """Regenerate ur_description's default_kinematics.yaml for a model from URSim's nominal DH.
@@ -128,17 +133,15 @@ def print_reports(reports: list[ur_verify.VerifyReport], input_warnings: list[st
         )
         warnings.extend(r.warnings)
     console.print(table)
-    for w in warnings:
-        print_warning(w)
-    return EXIT_WARNINGS if warnings else EXIT_OK
+    return print_warnings(warnings)
 
 
 @app.command("verify")
 def verify(
     file: Annotated[Path | None, typer.Argument(help="Kinematics YAML to check.")] = None,
     dh: Annotated[Path | None, typer.Option("--dh", help="DH YAML the file was made from.")] = None,
-    model: Annotated[str | None, typer.Option("--model", help=f"UR model for nominal DH ({MODELS}).")] = None,
-    deltas: Annotated[Path | None, typer.Option("--deltas", help=DELTAS_HELP)] = None,
+    model: _NominalModel = None,
+    deltas: _Deltas = None,
     urdf: Annotated[Path | None, typer.Option("--urdf", help="Also check this expanded URDF.")] = None,
     samples: Annotated[int, typer.Option("--samples", help="Random joint vectors in [-2π, 2π].")] = 1000,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
@@ -177,16 +180,14 @@ def verify(
 def plot(
     out: Annotated[Path, typer.Option("--out", help="Figure to write (PNG, SVG, PDF).")],
     dh: Annotated[Path | None, typer.Option("--dh", help="DH YAML.")] = None,
-    model: Annotated[str | None, typer.Option("--model", help=f"UR model for nominal DH ({MODELS}).")] = None,
+    model: _NominalModel = None,
     deltas: Annotated[Path | None, typer.Option("--deltas", help="Calibration deltas.")] = None,
 ) -> None:
     """Plot the split DH model (arm links far away) next to the corrected model."""
     input_warnings: list[str] = []
     params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
     console.print(f"wrote {wf.plot(params, out)}")
-    for w in input_warnings:
-        print_warning(w)
-    raise typer.Exit(EXIT_WARNINGS if input_warnings else EXIT_OK)
+    raise typer.Exit(print_warnings(input_warnings))
 
 
 @app.command("view")

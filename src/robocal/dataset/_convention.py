@@ -6,14 +6,14 @@ units: ticks for servos, rad for Robstride) and back. The actual position is the
 the new calibration agree on, because it does not depend on any calibration.
 
 Implementations: :class:`JointMapConvention` (robocal's canonical joint map, joint-frame radians) and, in
-:mod:`robocal.dataset._lerobot`, LeRobot's current and legacy conventions.
+:mod:`robocal.dataset.lerobot`, LeRobot's current and legacy conventions.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Protocol, TypeAlias, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from ..core.jointmap import RobotCalibration
 from ..errors import InvalidCalibrationError, JointMismatchError
 
-__all__ = ["FloatArray", "JointMapConvention", "ValueConvention", "check_joint_names"]
+__all__ = ["Conventions", "FloatArray", "JointMapConvention", "ValueConvention", "check_joint_names", "select_indices"]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -63,6 +63,25 @@ class ValueConvention(Protocol):
     def full_turn(self) -> FloatArray:
         """Change of the stored value per full encoder turn, shape ``(D,)`` (absolute value)."""
         ...
+
+
+Conventions: TypeAlias = "ValueConvention | Mapping[str, ValueConvention]"
+"""One convention for every feature, or one per feature key."""
+
+
+def select_indices(wanted: Sequence[str], available: Sequence[str], owner: str, noun: str) -> list[int]:
+    """Where each of ``wanted`` is in ``available``, for a convention's ``select``.
+
+    Raises:
+        JointMismatchError: ``"<owner>: no <noun> named <the missing ones>"``.
+    """
+    first: dict[str, int] = {}
+    for i, name in enumerate(available):
+        first.setdefault(name, i)
+    missing = [n for n in wanted if n not in first]
+    if missing:
+        raise JointMismatchError(f"{owner}: no {noun} named {', '.join(missing)}")
+    return [first[n] for n in wanted]
 
 
 def check_joint_names(expected: Sequence[str], available: Sequence[str], where: str) -> None:
@@ -123,10 +142,7 @@ class JointMapConvention:
 
     def select(self, joint_names: Sequence[str]) -> JointMapConvention:
         """Restrict to and reorder as ``joint_names``."""
-        missing = [n for n in joint_names if n not in self.joint_names]
-        if missing:
-            raise JointMismatchError(f"joint map: no joint named {', '.join(missing)}")
-        idx = [self.calibration.index(n) for n in joint_names]
+        idx = select_indices(joint_names, self.joint_names, "joint map", "joint")
         return JointMapConvention(
             calibration=self.calibration.select(joint_names),
             lower=None if self.lower is None else self.lower[idx],

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import shutil
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CalibError, FileWriteError, UsageError
-from ._convention import ValueConvention
+from ._convention import Conventions
 from ._engine import FeaturePlan, feature_convention
 from ._file import FileResult, recalibrate_file
 from ._layout import DatasetLayout, read_layout
@@ -32,6 +32,7 @@ __all__ = [
     "DatasetReport",
     "DatasetWorkerError",
     "build_plans",
+    "check_job",
     "finish_root",
     "recalibrate_dataset",
 ]
@@ -77,8 +78,8 @@ class DatasetReport:
 
 def build_plans(
     layout: DatasetLayout,
-    old: ValueConvention | Mapping[str, ValueConvention],
-    new: ValueConvention | Mapping[str, ValueConvention],
+    old: Conventions,
+    new: Conventions,
     features: Sequence[str] | None = None,
 ) -> list[FeaturePlan]:
     """Resolve features and match their joint names against both calibrations.
@@ -98,6 +99,30 @@ def build_plans(
     ]
 
 
+def check_job(
+    src: str | Path,
+    dst: str | Path,
+    old: Conventions,
+    new: Conventions,
+    features: Sequence[str] | None,
+    overwrite: bool,
+) -> tuple[Path, Path, DatasetLayout, list[FeaturePlan]]:
+    """Read and check all a re-calibration needs before anything is written.
+
+    Returns:
+        ``src`` and ``dst`` as paths, the source layout and the feature plans.
+
+    Raises:
+        UsageError, JointMismatchError, FileFormatError: As :func:`recalibrate_dataset`.
+    """
+    src_p, dst_p = Path(src), Path(dst)
+    layout = read_layout(src_p)
+    plans = build_plans(layout, old, new, features)
+    check_destination(src_p, dst_p, overwrite)
+    check_metadata(layout)
+    return src_p, dst_p, layout, plans
+
+
 def _work(args: tuple[str, str, str, list[FeaturePlan]]) -> FileResult:
     src, dst, rel, plans = args
     return recalibrate_file(src, dst, plans, rel)
@@ -106,8 +131,8 @@ def _work(args: tuple[str, str, str, list[FeaturePlan]]) -> FileResult:
 def recalibrate_dataset(
     src: str | Path,
     dst: str | Path,
-    old: ValueConvention | Mapping[str, ValueConvention],
-    new: ValueConvention | Mapping[str, ValueConvention],
+    old: Conventions,
+    new: Conventions,
     *,
     features: Sequence[str] | None = None,
     workers: int = 1,
@@ -134,13 +159,9 @@ def recalibrate_dataset(
         JointMismatchError: Feature joints differ from a calibration's.
         FileFormatError: A malformed dataset file (then no ``dst`` exists, or the old one is kept).
     """
-    src_p, dst_p = Path(src), Path(dst)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise UsageError(f"--workers {workers}: expected a positive number of processes")
-    layout = read_layout(src_p)
-    plans = build_plans(layout, old, new, features)
-    check_destination(src_p, dst_p, overwrite)
-    check_metadata(layout)
+    src_p, dst_p, layout, plans = check_job(src, dst, old, new, features, overwrite)
     keys = tuple(p.key for p in plans)
     report = DatasetReport(
         src=src_p, dst=dst_p, features=keys, joint_names={p.key: p.joint_names for p in plans}

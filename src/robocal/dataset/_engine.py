@@ -23,7 +23,7 @@ from ..errors import (
     ShapeMismatchError,
     UsageError,
 )
-from ._convention import BoolArray, FloatArray, ValueConvention
+from ._convention import BoolArray, Conventions, FloatArray, ValueConvention
 from ._layout import DEFAULT_FEATURES, is_position_entry, joint_name
 
 NDArrayInt = NDArray[np.int64]
@@ -124,7 +124,7 @@ class FeaturePlan:
 
 
 def feature_convention(
-    conv: ValueConvention | Mapping[str, ValueConvention], key: str, role: str
+    conv: Conventions, key: str, role: str
 ) -> ValueConvention:
     """The convention for feature ``key``: ``conv`` itself, or its entry when it is a per-feature mapping.
 
@@ -305,8 +305,8 @@ def recalibrate_table_with_counts(
 
 def recalibrate_table(
     table: pa.Table,
-    old: ValueConvention | Mapping[str, ValueConvention],
-    new: ValueConvention | Mapping[str, ValueConvention],
+    old: Conventions,
+    new: Conventions,
     *,
     features: Mapping[str, Sequence[str]] | None = None,
 ) -> pa.Table:

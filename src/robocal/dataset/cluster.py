@@ -19,19 +19,18 @@ from __future__ import annotations
 
 import pickle
 import shutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..errors import BackendNotAvailableError, FileFormatError, UsageError
-from ._convention import ValueConvention
-from ._driver import DatasetReport, build_plans, finish_root
+from ._convention import Conventions
+from ._driver import DatasetReport, check_job, finish_root
 from ._engine import FeaturePlan
 from ._file import FileResult, recalibrate_file
 from ._layout import read_layout
-from ._metadata import check_metadata
-from ._root import check_destination, make_temp_root, prepare_root, publish_root
+from ._root import make_temp_root, prepare_root, publish_root
 
 try:
     from datatrove.pipeline.base import PipelineStep
@@ -67,8 +66,8 @@ class ClusterJob:
 def prepare(
     src: str | Path,
     dst: str | Path,
-    old: ValueConvention | Mapping[str, ValueConvention],
-    new: ValueConvention | Mapping[str, ValueConvention],
+    old: Conventions,
+    new: Conventions,
     *,
     features: Sequence[str] | None = None,
     overwrite: bool = False,
@@ -78,11 +77,7 @@ def prepare(
     Raises:
         UsageError, JointMismatchError, FileFormatError: As :func:`robocal.dataset.recalibrate_dataset`.
     """
-    src_p, dst_p = Path(src), Path(dst)
-    layout = read_layout(src_p)
-    plans = build_plans(layout, old, new, features)
-    check_destination(src_p, dst_p, overwrite)
-    check_metadata(layout)
+    src_p, dst_p, layout, plans = check_job(src, dst, old, new, features, overwrite)
     tmp = make_temp_root(dst_p)
     work = make_temp_root(dst_p, "robocal-work")
     try:
@@ -164,8 +159,8 @@ def abort(job: ClusterJob) -> None:
 def recalibrate_with_datatrove(
     src: str | Path,
     dst: str | Path,
-    old: ValueConvention | Mapping[str, ValueConvention],
-    new: ValueConvention | Mapping[str, ValueConvention],
+    old: Conventions,
+    new: Conventions,
     *,
     features: Sequence[str] | None = None,
     tasks: int = 1,

@@ -44,6 +44,54 @@ def _float(text: str, where: str, column: str) -> float:
     return value
 
 
+def _csv_rows(text: str, source: str) -> tuple[list[int], list[list[str]]]:
+    """The rows of a session CSV without blank and ``#`` lines: their line numbers, and the rows (header first).
+
+    The header's names are stripped of blanks.
+
+    Raises:
+        FileFormatError: No rows at all, or a column named twice.
+    """
+    lines = [
+        (n, line)
+        for n, line in enumerate(text.splitlines(), 1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not lines:
+        raise FileFormatError(f"{source}: no header row and no poses")
+    rows = list(csv.reader(io.StringIO("\n".join(line for _, line in lines))))
+    header = [h.strip() for h in rows[0]]
+    if len(set(header)) != len(header):
+        dup = sorted({h for h in header if header.count(h) > 1})
+        raise FileFormatError(f"{source}: duplicate columns {', '.join(dup)}")
+    return [n for n, _ in lines], [header, *rows[1:]]
+
+
+def _joint_columns(
+    header: Sequence[str], joint_names: Sequence[str]
+) -> tuple[list[tuple[int, float]], list[str]]:
+    """Each joint's column and its scale to radians (``<joint>`` or ``<joint>_deg``); the joints not found."""
+    cols: list[tuple[int, float]] = []
+    missing = []
+    for name in joint_names:
+        if name in header:
+            cols.append((header.index(name), 1.0))
+        elif f"{name}_deg" in header:
+            cols.append((header.index(f"{name}_deg"), math.pi / 180.0))
+        else:
+            missing.append(name)
+    return cols, missing
+
+
+def _joint_values(
+    row: Sequence[str], header: Sequence[str], cols: Sequence[tuple[int, float]], where: str
+) -> list[float]:
+    """One row's joint values in radians, after checking that it has as many fields as the header."""
+    if len(row) != len(header):
+        raise FileFormatError(f"{where}: {len(row)} fields, the header has {len(header)}")
+    return [_float(row[col].strip(), where, header[col]) * scale for col, scale in cols]
+
+
 def parse_measurements(
     text: str,
     kind: str,
@@ -69,27 +117,9 @@ def parse_measurements(
     """
     if kind not in KINDS:
         raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
-    lines = [
-        (n, line)
-        for n, line in enumerate(text.splitlines(), 1)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if not lines:
-        raise FileFormatError(f"{source}: no header row and no poses")
-    rows = list(csv.reader(io.StringIO("\n".join(line for _, line in lines))))
-    header = [h.strip() for h in rows[0]]
-    if len(set(header)) != len(header):
-        dup = sorted({h for h in header if header.count(h) > 1})
-        raise FileFormatError(f"{source}: duplicate columns {', '.join(dup)}")
-    joint_cols: list[tuple[int, float]] = []
-    missing = []
-    for name in joint_names:
-        if name in header:
-            joint_cols.append((header.index(name), 1.0))
-        elif f"{name}_deg" in header:
-            joint_cols.append((header.index(f"{name}_deg"), math.pi / 180.0))
-        else:
-            missing.append(name)
+    line_numbers, rows = _csv_rows(text, source)
+    header = rows[0]
+    joint_cols, missing = _joint_columns(header, joint_names)
     extra_cols: dict[str, list[str]] = {
         "points": ["x", "y", "z"],
         "touch": ["group"],
@@ -120,11 +150,8 @@ def parse_measurements(
     labels: list[str] = []
     group: list[int] = []
     for r, row in enumerate(rows[1:]):
-        where = f"{source} line {lines[r + 1][0]}"
-        if len(row) != len(header):
-            raise FileFormatError(f"{where}: {len(row)} fields, the header has {len(header)}")
-        for k, (col, scale) in enumerate(joint_cols):
-            q[r, k] = _float(row[col].strip(), where, header[col]) * scale
+        where = f"{source} line {line_numbers[r + 1]}"
+        q[r] = _joint_values(row, header, joint_cols, where)
         if kind == "points":
             for a, c in enumerate(need):
                 p[r, a] = _float(row[header.index(c)].strip(), where, c) * scale_xyz
@@ -209,28 +236,9 @@ def read_image_session(
         FileFormatError: As :func:`parse_measurements` (missing/unknown columns, non-numbers), or an empty image.
     """
     source = str(path)
-    text = read_text(path, "measurement file")
-    lines = [
-        (n, line)
-        for n, line in enumerate(text.splitlines(), 1)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if not lines:
-        raise FileFormatError(f"{source}: no header row and no poses")
-    rows = list(csv.reader(io.StringIO("\n".join(line for _, line in lines))))
-    header = [h.strip() for h in rows[0]]
-    if len(set(header)) != len(header):
-        dup = sorted({h for h in header if header.count(h) > 1})
-        raise FileFormatError(f"{source}: duplicate columns {', '.join(dup)}")
-    cols: list[tuple[int, float]] = []
-    missing = []
-    for name in joint_names:
-        if name in header:
-            cols.append((header.index(name), 1.0))
-        elif f"{name}_deg" in header:
-            cols.append((header.index(f"{name}_deg"), math.pi / 180.0))
-        else:
-            missing.append(name)
+    line_numbers, rows = _csv_rows(read_text(path, "measurement file"), source)
+    header = rows[0]
+    cols, missing = _joint_columns(header, joint_names)
     if "image" not in header:
         missing.append("image")
     if missing:
@@ -251,11 +259,8 @@ def read_image_session(
     q = np.zeros((len(rows) - 1, len(joint_names)))
     images: list[str] = []
     for r, row in enumerate(rows[1:]):
-        where = f"{source} line {lines[r + 1][0]}"
-        if len(row) != len(header):
-            raise FileFormatError(f"{where}: {len(row)} fields, the header has {len(header)}")
-        for k, (col, scale) in enumerate(cols):
-            q[r, k] = _float(row[col].strip(), where, header[col]) * scale
+        where = f"{source} line {line_numbers[r + 1]}"
+        q[r] = _joint_values(row, header, cols, where)
         image = row[header.index("image")].strip()
         if not image:
             raise FileFormatError(f"{where}: empty image")
