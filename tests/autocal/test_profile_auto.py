@@ -133,8 +133,9 @@ def test_lerobot_followers_have_auto_sections() -> None:
     assert so.joint("wrist_flex").pose == (("shoulder_lift", 0.0), ("elbow_flex", 0.0))  # type: ignore[union-attr]
     koch = load_profile("koch_follower").auto
     assert koch is not None
-    # LeRobot's full-turn motors are not searched
-    assert "shoulder_pan" not in koch.joint_names and "wrist_roll" not in koch.joint_names
+    # LeRobot's full-turn motors have no hard stop: listed with stops: none, never searched
+    assert [j.name for j in koch.joints if not j.searched] == ["shoulder_pan", "wrist_roll"]
+    assert koch.joint("wrist_roll").stops == "none"  # type: ignore[union-attr]
     assert koch.joint("elbow_flex").torque_cap_nm == pytest.approx(0.13)  # type: ignore[union-attr]
 
 

@@ -107,12 +107,14 @@ def test_cli_demo_identify_refuses_a_robot_without_it(capsys: pytest.CaptureFixt
 
 
 def test_demo_auto_is_a_job_for_the_lite_and_refuses_other_robots_in_its_own_words(tmp_path: Path) -> None:
-    assert MODE_ROBOTS["auto"] == ("lite",) and set(MODE_ROBOTS) <= set(JOBS)  # every mode is a job too
+    assert MODE_ROBOTS["auto"] == ("lite", "so101", "koch") and set(MODE_ROBOTS) <= set(JOBS)  # modes are jobs
     assert prepare_demo("LITE", None, "auto") == "lite"
     with pytest.raises(
-        UsageError, match=r"^demo --auto simulates the lite \(14 Robstride joints\); 'so101' is not available yet$"
+        UsageError,
+        match=r"^demo --auto simulates the lite \(14 Robstride joints\), so101 or koch \(LeRobot followers\); "
+        r"'ur10e' is not available$",
     ):
-        run_demo("so101", tmp_path, mode="auto")
+        run_demo("ur10e", tmp_path, mode="auto")
     assert list(tmp_path.iterdir()) == []  # refused before anything ran
 
 

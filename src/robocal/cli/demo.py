@@ -35,11 +35,12 @@ def render(result: DemoResult) -> int:
     """Print a demo's result (tables, the job's own output, lines, warnings); return the exit code."""
     con = _common.console
     if result.job == "auto":
-        from ..workflows.autocal_sweep import AutoSweepOutcome
+        from ..workflows.autocal import AutoCalResult
         from ._autocal import auto_table
 
-        assert isinstance(result.detail, AutoSweepOutcome)
-        con.print(auto_table(result.detail.auto))
+        auto = getattr(result.detail, "auto", None)  # AutoSweepOutcome (lite) or AutoCalibrationResult (arms)
+        assert isinstance(auto, AutoCalResult)
+        con.print(auto_table(auto))
     for section in result.sections:
         con.print(truth_table(section.table))
         for line in section.lines:
@@ -81,7 +82,7 @@ def demo(
     ),
     port: int = typer.Option(8080, "--port", help="With --view: TCP port of the page (0: any free one)."),
     auto: bool = typer.Option(
-        False, "--auto", help="The simulated joints find their own hard stops (lite; docs/auto_calibration.md)."
+        False, "--auto", help="The simulated joints find their own hard stops (lite, so101, koch; docs/auto_calibration.md)."
     ),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""

@@ -14,9 +14,10 @@ The jobs:
 * ``identify`` (``so101``, ``koch`` with ``--identify``): kinematic identification of an arm with hidden errors
   (:mod:`robocal.workflows.demo_identify`; :attr:`DemoResult.detail` is its
   :class:`~robocal.workflows.demo_identify.IdentifyDemo`).
-* ``auto`` (``lite`` with ``--auto``): zero-touch calibration, each simulated joint finds its own hard stops
-  (physics on a simulated clock behind the Robstride wire protocol; :mod:`robocal.workflows.demo_auto`);
-  :attr:`DemoResult.detail` is the :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`.
+* ``auto`` (``lite``, ``so101``, ``koch`` with ``--auto``): zero-touch calibration, each simulated joint finds its
+  own hard stops (physics on a simulated clock behind the Robstride wire protocol; the LeRobot followers behind
+  the vendor SDK on a pseudo-terminal, :mod:`robocal.workflows.demo_auto_arm`); :attr:`DemoResult.detail` is the
+  :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`.
 
 A new mode adds a function ``(robot, folder, say, temporary, **options) -> DemoResult`` to :data:`JOBS`, the
 robots it works with to :data:`MODE_ROBOTS` (and, optionally, its own refusal to :data:`MODE_REFUSALS`), and a
@@ -72,14 +73,15 @@ DEMO_ROBOTS: dict[str, str] = {
 IDENTIFY_ROBOTS: tuple[str, ...] = ("so101", "koch")
 """Robots ``demo --identify`` simulates."""
 
-AUTO_ROBOTS: tuple[str, ...] = ("lite",)
+AUTO_ROBOTS: tuple[str, ...] = ("lite", "so101", "koch")
 """Robots ``demo --auto`` simulates."""
 
 MODE_ROBOTS: dict[str, tuple[str, ...]] = {"identify": IDENTIFY_ROBOTS, "auto": AUTO_ROBOTS}
 """Demo mode (a flag of ``robocal demo``) → the robots it works with; the mode is also the job it runs."""
 
 MODE_REFUSALS: dict[str, str] = {
-    "auto": "demo --auto simulates the lite (14 Robstride joints); {robot!r} is not available yet",
+    "auto": "demo --auto simulates the lite (14 Robstride joints), so101 or koch (LeRobot followers); "
+    "{robot!r} is not available",
 }
 """Demo mode → its own message for a robot it does not work with (``{robot!r}``); default
 ``--MODE works with …, not 'ROBOT'``."""

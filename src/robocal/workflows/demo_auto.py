@@ -36,7 +36,7 @@ def auto_demo(
     """Auto-calibrate the simulated ``robot`` (``lite``) in ``folder``; compare with the simulator's zeros.
 
     Args:
-        robot: ``lite``.
+        robot: ``lite``, or ``so101`` / ``koch`` (:func:`robocal.workflows.demo_auto_arm.auto_arm_demo`).
         folder: Folder for the URDF, the calibration and the report (it exists).
         say: Prints progress lines.
         temporary: ``folder`` is removed when the demo returns.
@@ -49,6 +49,11 @@ def auto_demo(
         :class:`~robocal.workflows.autocal_sweep.AutoSweepOutcome`); exit code 0 when every joint passed and
         every recovered zero is within :data:`AUTO_TOLERANCE_RAD` of the truth, else 1.
     """
+    if robot != "lite":  # so101, koch: the LeRobot follower behind the vendor SDK (workflows.demo_auto_arm)
+        from .demo_auto_arm import auto_arm_demo
+
+        result: DemoResult = auto_arm_demo(robot, folder, say, temporary, view=view)
+        return result
     from .autocal_sim import SimAutoLite, sim_opener, write_sim_lite_urdf
     from .autocal_sweep import run_sweep_auto
 

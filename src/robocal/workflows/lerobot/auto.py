@@ -328,8 +328,7 @@ def auto_calibrate(
     """
     order = select_joints(section, joints)
     kept_by_profile = [j.name for j in order if not j.searched]  # stops: none (a full-turn joint): never moves
-    order = tuple(j for j in order if j.searched)
-    if not order:
+    if len(kept_by_profile) == len(order):
         raise UsageError(f"no joint to search: {', '.join(kept_by_profile)} have no hard stops in the profile")
     missing = [j.name for j in order if j.name not in spec.motor_names]
     if missing:
@@ -338,8 +337,8 @@ def auto_calibrate(
         )
     if path is not None:
         check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
-    searched = [j.name for j in order]
-    caps = {j.name: j.torque_cap_nm for j in order}
+    searched = [j.name for j in order if j.searched]  # stops: none joints never move
+    caps = {j.name: j.torque_cap_nm for j in order if j.searched}
     if confirm_start is not None and not confirm_start(tuple(searched), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
     lag = math.radians(max_lag_deg if max_lag_deg is not None else MAX_LAG_DEG[spec.vendor])
@@ -348,7 +347,9 @@ def auto_calibrate(
     failed: tuple[AutoCalResult, RollbackReport] | None = None
     try:
         drivers = prepare_search(bus, spec, section, searched, clock, period_s)
-        auto = run_autocal(drivers, section, {}, joints=searched, max_lag_rad=lag, view=view, clock=clock)
+        auto = run_autocal(  # the stops: none joints too: reported not_searched, never driven
+            drivers, section, {}, joints=[j.name for j in order], max_lag_rad=lag, view=view, clock=clock
+        )
         _limp_all_at_once(bus, spec)
         if auto.failed and not partial:
             failed = (auto, restore_registers(bus, spec, before, on_status))

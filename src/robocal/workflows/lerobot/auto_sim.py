@@ -104,7 +104,7 @@ def open_auto_arm(
     push: dict[str, float] = {}
     for m in spec.motors:
         joint = section.joint(m.name)
-        fraction = joint.torque_cap_nm / joint.rated_nm if joint is not None else 0.25
+        fraction = joint.torque_fraction if joint is not None and joint.searched else 0.25
         push[m.name] = fraction * RATINGS[m.model].stall_torque_nm
     clock = SimClock()
     with SimArm(spec, truth=truth if truth is not None else seeded_truth(spec.name, seed)) as arm:

@@ -1,0 +1,70 @@
+"""The Koch follower end to end on the Dynamixel firmware simulation: its full-turn joints have no hard stop, so
+the profile marks them ``stops: none`` and they are reported ``not_searched`` (never moved, calibration kept)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from robocal.workflows.lerobot import robot_spec
+from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto_sim import open_auto_arm
+
+pytestmark = pytest.mark.timeout(600)
+
+FULL_TURN = ("shoulder_pan", "wrist_roll")
+
+
+def test_koch_profile_marks_the_full_turn_joints() -> None:
+    section = auto_section("koch_follower")
+    none = [j for j in section.joints if not j.searched]
+    assert [j.name for j in none] == list(FULL_TURN)
+    assert all("full-turn" in j.reason for j in none)
+    assert set(robot_spec("koch_follower").full_turn) == set(FULL_TURN)  # the same joints LeRobot treats so
+
+
+def test_koch_auto_calibration_with_full_turn_joints_not_searched(tmp_path: Path) -> None:
+    # the joints without a pose of their own (the whole arm does not finish yet: holding elbow_flex at its pose
+    # angle during wrist_flex's search latches the simulated XL330's overload, docs/auto_calibration.md)
+    joints = ["shoulder_lift", "gripper", "shoulder_pan", "wrist_roll"]
+    spec = robot_spec("koch_follower")
+    section = auto_section("koch_follower")
+    out = tmp_path / "koch.json"
+    asked: list[tuple[str, ...]] = []
+
+    def confirm(joints: object, caps: object) -> bool:
+        asked.append(tuple(joints))  # type: ignore[arg-type]
+        return True
+
+    with open_auto_arm(spec, "sim", section) as arm:
+        eeprom_before = arm.sim.eeprom()
+        start = {n: arm.plants[n].q_rad for n in FULL_TURN}  # type: ignore[index]
+        res = auto_calibrate(
+            arm.bus, spec, section, clock=arm.clock, path=out, confirm_start=confirm, joints=joints
+        )
+        eeprom_after = arm.sim.eeprom()
+        recovered = arm.sim.recovered_stops(res.calibration)
+        truth = dict(arm.sim.truth)
+        moved = {n: abs(arm.plants[n].q_rad - start[n]) for n in FULL_TURN}  # type: ignore[index]
+        torque = {m.name: arm.sim.servo(m.name).get_reg("Torque_Enable") for m in spec.motors}
+    assert asked == [("shoulder_lift", "gripper")]  # only the joints that move
+    codes = {o.name: o.stops.code for o in res.auto.joints}
+    assert codes == {
+        "shoulder_lift": "ok",
+        "gripper": "ok",
+        "shoulder_pan": "not_searched",
+        "wrist_roll": "not_searched",
+    }
+    assert res.exit_code == 0 and res.auto.failed == ()
+    assert set(res.kept) == {*FULL_TURN, "elbow_flex", "wrist_flex"}  # not searched or not selected
+    for n in FULL_TURN:
+        assert moved[n] < 1e-9  # never driven
+        assert eeprom_after[n] == eeprom_before[n]  # their calibration untouched
+    for n in ("shoulder_lift", "gripper"):
+        lo, hi = recovered[n]
+        assert abs(lo - truth[n].stop_low_ticks) <= 3 and abs(hi - truth[n].stop_high_ticks) <= 3
+    assert set(torque.values()) == {0}  # every motor limp at the end
+    written = json.loads(out.read_text())
+    assert list(written) == list(spec.motor_names)
