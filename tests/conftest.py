@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 
 from hypothesis import HealthCheck, settings
 
@@ -11,3 +12,10 @@ settings.register_profile(
 )
 settings.register_profile("thorough", max_examples=1000, deadline=None)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+# A shell started in the background without job control (``cmd &`` in a script, nohup, some CI runners) starts
+# its children with SIGINT ignored, and Python then installs no KeyboardInterrupt handler: every Ctrl-C test
+# (a real SIGINT to this process or to a robocal subprocess) would fail for a reason outside robocal. Put the
+# interactive default back; subprocesses inherit it (an ignored signal is inherited across exec, a handler is not).
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
