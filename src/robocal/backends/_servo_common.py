@@ -241,23 +241,7 @@ class SdkBusBase:
 
     def sync_read(self, register: str, motor_ids: Sequence[int]) -> dict[int, int]:
         """Read one register of several motors with one SYNC_READ instruction."""
-        addr, size = self._shared_entry(motor_ids, register)
-        self._select_protocol()
-        group = self._sdk.GroupSyncRead(self._port_handler, self._ph, addr, size)
-        for i in motor_ids:
-            group.addParam(i)
-
-        def call() -> tuple[Any, int, int]:
-            result = group.txRxPacket()
-            if result != COMM_SUCCESS:
-                return None, result, 0
-            for i in motor_ids:
-                if not group.isAvailable(i, addr, size):
-                    return None, self._sdk.COMM_RX_CORRUPT, 0
-            return {i: int(group.getData(i, addr, size)) for i in motor_ids}, result, 0
-
-        raw = self._call("sync read", None, register, call)
-        return {i: self._decode(i, register, v) for i, v in raw.items()}
+        return {i: values[register] for i, values in self.sync_read_block([register], motor_ids).items()}
 
     def sync_read_block(self, registers: Sequence[str], motor_ids: Sequence[int]) -> dict[int, dict[str, int]]:
         """Read several registers of several motors with one SYNC_READ of the address span that holds them all.
