@@ -27,8 +27,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..errors import FileFormatError, JointMismatchError
 from ..fileio import MAX_FILE_BYTES
 from . import require
@@ -43,7 +43,6 @@ __all__ = [
     "read_rosbag_recording",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 Block = tuple[FloatArray, FloatArray]
 MAX_ROWS = 50_000_000
 MAX_ABS_POSITION_RAD = 1.0e4

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..core.arrays import FloatArray, IntArray
 from ..errors import BackendNotAvailableError, FileFormatError, UsageError
 
 __all__ = [
@@ -46,8 +47,6 @@ __all__ = [
     "write_image",
 ]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 APRILTAG_FAMILIES = ("16h5", "25h9", "36h10", "36h11")
 

@@ -15,14 +15,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError, UsageError
+from .arrays import FloatArray
 from .se3 import rot_x, rot_y, rot_z, transform_from_xyz_rpy_urdf
 
 __all__ = ["JOINT_TYPES", "ChainJoint", "SerialChain", "axis_motion", "fk_chain", "rotation_about_axis"]
 
-FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
 
 JOINT_TYPES: tuple[str, ...] = ("revolute", "prismatic", "fixed")

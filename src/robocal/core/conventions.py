@@ -12,6 +12,8 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .arrays import FloatArray
+
 __all__ = [
     "LEROBOT_LEGACY_RAD_PER_TICK",
     "berkeley_offset_from_homing",
@@ -24,7 +26,6 @@ __all__ = [
     "transmission_from_homing",
 ]
 
-FloatArray = NDArray[np.float64]
 
 LEROBOT_LEGACY_RAD_PER_TICK = math.pi / 2048.0
 """LeRobot legacy DEGREE mode: ``deg = (±raw + h)·180/2048``, i.e. π/2048 rad per tick."""

@@ -11,13 +11,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError
+from .arrays import FloatArray
 
 __all__ = ["DHParameters", "dh_joint_transforms", "fk_dh", "fk_dh_loop"]
 
-FloatArray = NDArray[np.float64]
 
 
 def _tuple6(values: Sequence[float] | ArrayLike, name: str, n: int) -> tuple[float, ...]:

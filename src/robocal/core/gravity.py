@@ -25,9 +25,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, JointMismatchError, ShapeMismatchError
+from .arrays import FloatArray
 from .chain import ChainJoint, SerialChain, fk_chain
 
 __all__ = [
@@ -39,7 +40,6 @@ __all__ = [
     "joint_gravity",
 ]
 
-FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
 
 STANDARD_GRAVITY_M_S2: Vec3 = (0.0, 0.0, -9.80665)

@@ -18,9 +18,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import ShapeMismatchError, UsageError
+from .arrays import FloatArray, IntArray
 
 __all__ = [
     "DEFAULT_RANK_TOLERANCE",
@@ -34,8 +35,6 @@ __all__ = [
     "select_poses",
 ]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 DEFAULT_RANK_TOLERANCE = 1e-8
 """Singular values below this fraction of the largest (of the column-scaled Jacobian) count as zero."""

@@ -21,13 +21,13 @@ from dataclasses import dataclass, field
 from typing import Any, SupportsFloat
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, JointMismatchError, ShapeMismatchError
+from .arrays import FloatArray
 
 __all__ = ["TWO_PI", "FloatArray", "JointMap", "RobotCalibration"]
 
-FloatArray = NDArray[np.float64]
 TWO_PI = 2.0 * math.pi
 _SMALLEST_SCALE = float(np.finfo(np.float64).tiny)
 """Smallest accepted scale: the smallest normal double, whose inverse is still finite."""

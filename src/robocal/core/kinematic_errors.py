@@ -25,9 +25,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import ShapeMismatchError
+from .arrays import FloatArray
 from .chain import ChainJoint, SerialChain, axis_motion
 from .se3 import homogeneous, matrix_from_rotvec, matrix_from_rpy_urdf, rpy_urdf_from_matrix
 
@@ -39,7 +40,6 @@ __all__ = [
     "so3_right_jacobian",
 ]
 
-FloatArray = NDArray[np.float64]
 
 ORIGIN_KINDS: tuple[str, ...] = ("x", "y", "z", "rx", "ry", "rz")
 """The six parameters of a frame: translation (m) then rotation vector (rad)."""

@@ -30,9 +30,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
+from .arrays import FloatArray, IntArray
 from .identifiability import Identifiability, analyse_columns
 from .kinematic_errors import ErrorModel
 from .kinematic_problem import _priority
@@ -40,8 +41,6 @@ from .se3 import homogeneous, matrix_from_rotvec, rotvec_from_matrix
 
 __all__ = ["INTRINSICS", "ImageObservations", "ImageProblem", "hand_eye", "project"]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 INTRINSICS: tuple[str, ...] = ("camera.fx", "camera.fy", "camera.cx", "camera.cy")

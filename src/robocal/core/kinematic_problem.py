@@ -21,9 +21,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
+from .arrays import FloatArray, IntArray
 from .identifiability import Explain, Identifiability, analyse_columns, select_poses
 from .kinematic_errors import ErrorModel
 
@@ -39,8 +40,6 @@ __all__ = [
     "scale_direction",
 ]
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 KINDS: tuple[str, ...] = ("points", "touch", "gauge")
 

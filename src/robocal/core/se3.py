@@ -16,7 +16,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
+
+from .arrays import FloatArray
 
 __all__ = [
     "eigen_euler_xyz",
@@ -32,7 +34,6 @@ __all__ = [
     "transform_from_xyz_rpy_urdf",
 ]
 
-FloatArray = NDArray[np.float64]
 
 
 def _angles(angle_rad: ArrayLike) -> FloatArray:

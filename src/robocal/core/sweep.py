@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError
+from .arrays import FloatArray
 from .sweep_result import (
     DEFAULT_SPAN_TOLERANCE_RAD,
     DEFAULT_THRESHOLD_RAD,
@@ -46,7 +47,6 @@ __all__ = [
     "wrap_in_travel",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_ONE_SIDED_THRESHOLD_RAD = 0.05

@@ -15,16 +15,15 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import ShapeMismatchError, UsageError
+from .arrays import FloatArray
 from .chain import ChainJoint, SerialChain, fk_chain
 from .dh import DHParameters
 from .se3 import eigen_euler_xyz, rot_z, rpy_urdf_from_matrix, transform_from_xyz_rpy_urdf
 from .ur_correction import MIN_ABS_COS_ALPHA, correct_chain, six_transforms, split_chain
 from .urhash import calib_hash
-
-FloatArray = NDArray[np.float64]
 
 __all__ = [
     "JOINT_NAMES",

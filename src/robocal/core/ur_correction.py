@@ -28,14 +28,14 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError
+from .arrays import FloatArray
 from .dh import DHParameters
 
 __all__ = ["MIN_ABS_COS_ALPHA", "correct_chain", "six_transforms", "split_chain"]
 
-FloatArray = NDArray[np.float64]
 Mat = list[list[float]]
 
 MIN_ABS_COS_ALPHA = 1e-3

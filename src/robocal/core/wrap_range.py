@@ -19,10 +19,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError
+from .arrays import FloatArray
 
 __all__ = ["RangeTracker"]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 class RangeTracker:

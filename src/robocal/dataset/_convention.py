@@ -16,15 +16,13 @@ from dataclasses import dataclass
 from typing import Protocol, TypeAlias, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
 
+from ..core.arrays import BoolArray, FloatArray
 from ..core.jointmap import RobotCalibration
 from ..errors import InvalidCalibrationError, JointMismatchError
 
 __all__ = ["Conventions", "FloatArray", "JointMapConvention", "ValueConvention", "check_joint_names", "select_indices"]
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 
 @runtime_checkable

@@ -17,13 +17,14 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from numpy.typing import NDArray
 
+from ..core.arrays import BoolArray, FloatArray
 from ..errors import (
     FileFormatError,
     JointMismatchError,
     ShapeMismatchError,
     UsageError,
 )
-from ._convention import BoolArray, Conventions, FloatArray, ValueConvention
+from ._convention import Conventions, ValueConvention
 from ._layout import DEFAULT_FEATURES, is_position_entry, joint_name
 
 NDArrayInt = NDArray[np.int64]

@@ -16,8 +16,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ..core.arrays import FloatArray
 from ..errors import FileFormatError
-from ._convention import FloatArray, ValueConvention
+from ._convention import ValueConvention
 from ._layout import is_position_entry, read_layout
 
 __all__ = ["InspectReport", "JointSummary", "inspect_dataset"]

@@ -17,6 +17,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.arrays import FloatArray
+
 __all__ = [
     "QUANTILES",
     "StatAccumulator",
@@ -26,7 +28,6 @@ __all__ = [
     "merge_into",
 ]
 
-FloatArray = NDArray[np.float64]
 
 QUANTILES: dict[str, float] = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
 """Quantile statistics LeRobot writes, name → fraction."""

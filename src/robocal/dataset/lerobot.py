@@ -23,6 +23,7 @@ from typing import Any, Literal, cast
 
 import numpy as np
 
+from ..core.arrays import BoolArray, FloatArray
 from ..core.lerobot import (
     LEGACY_BOUNDS,
     Compat,
@@ -38,7 +39,7 @@ from ..core.profile import RobotProfile
 from ..errors import FileFormatError, InvalidCalibrationError, UsageError
 from ..fileio import read_text
 from ..formats.lerobot import read_current, read_legacy
-from ._convention import BoolArray, FloatArray, JointMapConvention, ValueConvention, select_indices
+from ._convention import JointMapConvention, ValueConvention, select_indices
 
 __all__ = [
     "LeRobotConvention",

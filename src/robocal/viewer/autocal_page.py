@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from ..core.stop_search import StopSample
 from ..core.sweep_result import SweepResult
@@ -39,7 +38,6 @@ from .sweep_page import FAIL_RGB, LIVE_RGB, SweepOverlay, arc_points, line_rgb, 
 
 __all__ = ["AutoJointState", "AutoSweepWebView", "open_auto_sweep_page"]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass

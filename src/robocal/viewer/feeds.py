@@ -22,13 +22,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..errors import CalibError, UsageError
 from .app import ReplayControl, ViewerApp
 from .scene import stop_thread
 
 __all__ = ["CallableFeed", "Feed", "PollFeed", "ReplayFeed", "SourceFeed"]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 class Feed:

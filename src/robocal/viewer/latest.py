@@ -16,9 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from ..core.arrays import FloatArray
+
 __all__ = ["Frame", "LatestFrame", "next_tick"]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

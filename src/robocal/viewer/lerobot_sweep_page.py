@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..core.sweep_result import SweepResult
 from .app import ViewerApp
 from .sweep_page import SweepOverlay
@@ -25,7 +26,6 @@ __all__ = [
     "open_lerobot_sweep_page",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 TICKS_PER_TURN = 4096

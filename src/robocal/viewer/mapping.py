@@ -7,11 +7,11 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
 
 __all__ = ["JointMapper"]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 class JointMapper:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..errors import BackendNotAvailableError, FileFormatError, UsageError
 from ..fileio import read_bytes
 from ..formats.urdf import parse_urdf
@@ -44,7 +45,6 @@ __all__ = [
     "resolve_mesh",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 RGBA = tuple[float, float, float, float]
 DEFAULT_RGBA: RGBA = (0.42, 0.48, 0.58, 1.0)
 """Colour of a link without a URDF material."""

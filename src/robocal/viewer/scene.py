@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..errors import BackendNotAvailableError, UsageError
 from .latest import Frame
 from .model import RobotModel
@@ -40,7 +41,6 @@ __all__ = [
     "stop_thread",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 OUTSIDE_RGB = (0.86, 0.08, 0.08)
 """Colour of a link whose joint is outside its URDF limits (model and panel)."""
 GHOST_RGB = (0.25, 0.55, 1.0)

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from ..backends.sources import JointSpec, parse_source
+from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
 from ..errors import FileFormatError, JointMismatchError, UsageError
 from .app import ViewerApp
@@ -25,7 +25,6 @@ from .model import RobotModel, load_robot_model, parse_package_paths
 
 __all__ = ["COMPARE_IDENTITY", "ViewOptions", "ViewSession", "open_view"]
 
-FloatArray = npt.NDArray[np.float64]
 COMPARE_IDENTITY = ("none", "identity")
 """``--compare`` values meaning "no calibration" (``direction·raw``)."""
 MAX_REPLAY_ROWS = 5_000_000

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..core.stop_types import FAIL_CODES
 from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
@@ -51,7 +52,6 @@ __all__ = [
     "status_rgb",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 STATUS_RGB: dict[str, tuple[int, int, int]] = {
     "ok": (30, 170, 60),
     "not_swept": (150, 150, 150),

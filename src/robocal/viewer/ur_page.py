@@ -33,8 +33,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from ..core.arrays import FloatArray
 from ..core.dh import DHParameters, fk_dh
 from ..core.ur import (
     JOINT_NAMES,
@@ -59,7 +59,6 @@ __all__ = [
     "parse_q",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 NOMINAL_RGB = (90, 110, 150)
 """Colour of the nominal chain (grey blue)."""
 CALIBRATED_RGB = (235, 120, 20)

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from ..core.arrays import FloatArray
 from ..core.identifiability import Identifiability
 from ..core.kinematic_images import ImageProblem
 from ..core.kinematic_problem import Measurements, Problem, analyse
@@ -23,7 +24,6 @@ from ..errors import BackendNotAvailableError, UsageError
 
 __all__ = ["CONSTRAINT_WEIGHT", "FitResult", "PriorSigmas", "fit", "split_validation", "validation_errors"]
 
-FloatArray = NDArray[np.float64]
 
 
 CONSTRAINT_WEIGHT = 100.0

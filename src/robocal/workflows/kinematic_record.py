@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-from numpy.typing import NDArray
 
+from ..core.arrays import FloatArray
 from ..core.chain import SerialChain
 from ..core.jointmap import RobotCalibration
 from ..core.kinematic_problem import Measurements
@@ -40,7 +40,6 @@ __all__ = [
     "record",
 ]
 
-FloatArray = NDArray[np.float64]
 
 RECORD_KINDS: tuple[str, ...] = ("points", "touch", "gauge", "tag")
 """Kinds a session can be recorded for (``tag``: one image per pose, see ``kinematics identify --kind tag``)."""

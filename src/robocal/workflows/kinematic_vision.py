@@ -31,6 +31,7 @@ from ..backends.vision import (
     read_image,
     solve_pnp,
 )
+from ..core.arrays import FloatArray
 from ..core.chain import SerialChain
 from ..core.jointmap import RobotCalibration
 from ..core.kinematic_errors import ErrorModel
@@ -56,7 +57,6 @@ __all__ = [
     "simulate_images",
 ]
 
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

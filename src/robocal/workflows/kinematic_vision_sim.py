@@ -26,6 +26,7 @@ from ..backends.vision import (
     render,
     write_image,
 )
+from ..core.arrays import FloatArray
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import plan_poses
 from ..core.se3 import homogeneous, matrix_from_rpy_urdf
@@ -37,7 +38,6 @@ from ..formats.urdf_chain import chain_from_urdf
 
 __all__ = ["SIM_CAMERA_K", "SimImagesResult", "look_at", "simulate_images"]
 
-FloatArray = NDArray[np.float64]
 
 
 def look_at(

@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from ..core.arrays import FloatArray
 from ..core.chain import SerialChain
 from ..core.identifiability import Identifiability
 from ..core.jointmap import RobotCalibration
@@ -54,7 +54,6 @@ __all__ = [
     "tool_frame",
 ]
 
-FloatArray = NDArray[np.float64]
 
 FRAMES: tuple[str, ...] = ("base", "tracker")
 """``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""

@@ -27,13 +27,13 @@ import numpy.typing as npt
 
 from ..backends.robstride.protocol import model_limits
 from ..backends.sources import RobstrideSource, open_source, parse_source
+from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
 from ..errors import CalibError, JointMismatchError, ShapeMismatchError, UsageError
 from .joint_specs import joint_calibration, read_joints
 
 __all__ = ["FEEDBACK_WRAP_PERIOD_RAD", "CalibratedRobot", "JointState", "open_robot"]
 
-FloatArray = npt.NDArray[np.float64]
 FEEDBACK_WRAP_PERIOD_RAD = 8.0 * math.pi
 """Period of the type-2 feedback position, which loops within ±4π, rad."""
 

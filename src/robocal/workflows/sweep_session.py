@@ -13,9 +13,9 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Protocol
 
 import numpy as np
-import numpy.typing as npt
 
 from ..backends.sources import FRAMES, JointSpec, Source, SourceSpec, parse_source
+from ..core.arrays import FloatArray
 from ..core.sweep import RangeTracker, analyse_sweep, direction_from_motion
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
 from ..errors import UsageError
@@ -28,7 +28,6 @@ __all__ = [
     "run_direction_check",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 def check_source_options(source: str, frame: str | None = None) -> SourceSpec:

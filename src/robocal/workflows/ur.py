@@ -12,9 +12,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..backends import load_backend, require
+from ..core.arrays import FloatArray
 from ..core.dh import DHParameters
 from ..core.ur import (
     UrKinematics,
@@ -50,7 +50,6 @@ __all__ = [
 ]
 
 
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

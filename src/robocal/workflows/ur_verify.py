@@ -14,9 +14,9 @@ import os
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..backends import load_backend
+from ..core.arrays import FloatArray
 from ..core.chain import fk_chain
 from ..core.dh import DHParameters, fk_dh
 from ..core.se3 import homogeneous, rotation_angle_between
@@ -45,7 +45,6 @@ DEFAULT_TOLERANCE_RAD = 1e-9
 MAX_VERIFY_SAMPLES = 1_000_000
 """verify: most random joint vectors (bounds memory to a few hundred MB)."""
 
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -13,15 +13,15 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from ...core.arrays import FloatArray
 from ...core.kinematic_errors import ErrorModel
 from ...core.kinematic_problem import Measurements
 from ...errors import UsageError
 
 __all__ = ["ErrorSigmas", "SimulatedKinematicArm", "hidden_errors"]
 
-FloatArray = NDArray[np.float64]
 
 TICKS_PER_TURN = 4096
 

@@ -7,14 +7,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
+from ...core.arrays import FloatArray
 from ...errors import UsageError
 from .spec import Sample
 
 __all__ = ["ReplaySource", "StreamReplaySource"]
 
-FloatArray = npt.NDArray[np.float64]
 
 
 class StreamReplaySource:

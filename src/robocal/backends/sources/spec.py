@@ -8,9 +8,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 from urllib.parse import parse_qs
 
-import numpy as np
-import numpy.typing as npt
-
+from ...core.arrays import FloatArray
 from ...errors import UsageError
 
 __all__ = [
@@ -26,7 +24,6 @@ __all__ = [
 
 FRAMES = ("identity", "motor")
 """The frames a source reads in: ``direction·raw`` (a robot publishing with an empty calibration) or raw."""
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)

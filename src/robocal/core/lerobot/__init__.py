@@ -14,7 +14,8 @@ The names below are re-exported so ``from robocal.core.lerobot import normalize_
 
 from __future__ import annotations
 
-from ._values import FloatArray, IntArray, _as_float_array, _check_resolution, _check_values, _to_ticks
+from ..arrays import FloatArray, IntArray
+from ._values import _as_float_array, _check_resolution, _check_values, _to_ticks
 from .arm import LeRobotMotor, RobotSpec
 from .calibration import MotorCalibration, ranges_beyond_one_turn
 from .homing import centre_homing, half_turn_homing_offset, wrap_feetech_offset

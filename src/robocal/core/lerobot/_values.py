@@ -7,10 +7,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ...core.arrays import FloatArray, IntArray
 from ...errors import InvalidCalibrationError, ShapeMismatchError
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 def _check_resolution(resolution: int) -> int:

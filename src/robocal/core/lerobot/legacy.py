@@ -16,9 +16,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ...errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError
+from ..arrays import FloatArray, IntArray
 from ..conventions import homing_from_lerobot_legacy
 from ..jointmap import RobotCalibration
-from ._values import FloatArray, IntArray, _as_float_array, _check_resolution, _check_values, _to_ticks
+from ._values import _as_float_array, _check_resolution, _check_values, _to_ticks
 
 __all__ = [
     "HALF_TURN_DEGREE",

@@ -25,7 +25,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ...errors import InvalidCalibrationError, ShapeMismatchError, UsageError
-from ._values import FloatArray, IntArray, _as_float_array, _check_resolution, _check_values, _to_ticks
+from ..arrays import FloatArray, IntArray
+from ._values import _as_float_array, _check_resolution, _check_values, _to_ticks
 from .calibration import MotorCalibration
 
 __all__ = [
