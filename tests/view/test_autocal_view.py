@@ -13,6 +13,7 @@ import socket
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -55,6 +56,28 @@ def test_status_colours_of_the_auto_codes() -> None:
     assert status_rgb("span_mismatch") == STATUS_RGB["span_mismatch"]  # the report's colour wins
     assert status_rgb("wrap_in_travel") == STATUS_RGB["wrap_in_travel"]
     assert status_rgb("offset_large") not in (FAIL_RGB, *STATUS_RGB.values())
+    assert status_rgb("not_searched") == STATUS_RGB["not_swept"] == (150, 150, 150)  # grey, not a warning
+
+
+def test_lerobot_auto_page_draws_not_searched_joints_grey() -> None:
+    """The Koch's full-turn joints (``stops: none``) are never moved: grey on the page, in the legend too."""
+    from robocal.viewer.lerobot_sweep_page import open_lerobot_auto_page
+    from robocal.workflows.lerobot import robot_spec
+
+    spec = robot_spec("koch_follower")
+    web = open_lerobot_auto_page("koch_follower", spec.motor_names, port=0)
+    try:
+        stops = SimpleNamespace(
+            code="not_searched", reason="full turn: no hard stop", lower=None, upper=None, span_rad=math.nan
+        )
+        web.joint_done(SimpleNamespace(name="shoulder_pan", ok=True, stops=stops))
+        web.finish(SimpleAuto([SimpleNamespace(name="shoulder_pan", ok=True, stops=stops)]))
+        joints = web.status()["joints"]
+        entry = next(j for j in joints if j["status"] == "not_searched")
+        assert entry["color"] == [150, 150, 150]
+        assert entry["stop_minus"] is None and entry["stop_plus"] is None  # nothing found, nothing drawn
+    finally:
+        web.app.stop()
 
 
 def test_the_search_drawn_with_the_report_codes(tmp_path: Path) -> None:
@@ -237,7 +260,6 @@ def test_demo_auto_view_serves_the_result_until_ctrl_c() -> None:
 
 def _outcome(name: str, lo_rad: float, hi_rad: float) -> Any:
     """A passed joint's outcome as the auto run hands it to its view (name, ok, stops with both surfaces)."""
-    from types import SimpleNamespace
 
     stops = SimpleNamespace(
         name=name,

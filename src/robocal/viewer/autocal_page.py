@@ -11,7 +11,8 @@ It draws, with the arcs and colours of ``sweep --view`` (:mod:`robocal.viewer.sw
   travelled so far (``searching``, blue); once done, the range between its found stops (contact surfaces),
   coloured by its code; at the end, the codes of the sweep report the run wrote (``ok``, ``span_mismatch``,
   ``wrap_in_travel``, …) and, for a joint whose search failed, the auto report's code (``missing_stop``,
-  ``blocked``, ``timeout``, …: crimson);
+  ``blocked``, ``timeout``, …: crimson); a joint whose profile gives it no stop is never moved and stays grey
+  (``not_searched``, drawn as ``not_swept``);
 * a radial tick at each found stop, in the same colour.
 
 The state is published in the page as JSON (``#robocal-autocal[data-autocal]``): the joint being searched, its
@@ -31,13 +32,13 @@ from typing import Any
 
 import numpy as np
 
+from ..core.profile_auto import NOT_SEARCHED
 from ..core.stop_search import StopSample
 from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
 from .sweep_page import FAIL_RGB, LIVE_RGB, SweepOverlay, arc_points, line_rgb, status_rgb
 
 __all__ = ["AutoJointState", "AutoSweepWebView", "open_auto_sweep_page"]
-
 
 
 @dataclass
@@ -321,6 +322,7 @@ class AutoSweepWebView:
         legend = (
             f'<span style="color:rgb{LIVE_RGB["searching"]}">■</span> searching (range travelled so far) · '
             f'<span style="color:rgb{FAIL_RGB}">■</span> search failed (missing_stop, blocked, timeout, …) · '
+            f'<span style="color:rgb{status_rgb(NOT_SEARCHED)}">■</span> not_searched (no stop in the profile) · '
             "ticks: found stops"
         )
         server.gui.add_html(f'<div style="font-size:0.8em">{legend}</div>')

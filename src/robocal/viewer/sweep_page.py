@@ -33,6 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core.arrays import FloatArray
+from ..core.profile_auto import NOT_SEARCHED
 from ..core.stop_types import FAIL_CODES
 from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
@@ -72,9 +73,15 @@ ARC_SEGMENTS = 48
 
 
 def status_rgb(status: str) -> tuple[int, int, int]:
-    """The colour of a status code (sweep report codes, ``searching``, auto-search failure codes)."""
+    """The colour of a status code (sweep report codes, ``searching``, auto-search failure codes).
+
+    A joint the automatic search left alone because its profile gives it no stop (``not_searched``) is drawn
+    like a joint the sweep did not move (``not_swept``, grey): nothing was measured, and nothing failed.
+    """
     if status in STATUS_RGB:
         return STATUS_RGB[status]
+    if status == NOT_SEARCHED:
+        return STATUS_RGB["not_swept"]
     if status in LIVE_RGB:
         return LIVE_RGB[status]
     return FAIL_RGB if status in FAIL_CODES else OTHER_RGB
