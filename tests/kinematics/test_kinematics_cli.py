@@ -302,7 +302,8 @@ def test_plan_writes_poses_inside_the_limits(tmp_path: Path, capsys) -> None:
     ]
     assert main(args) == 0
     assert (
-        "30 poses for shoulder_pan, shoulder_lift, elbow_flex, wrist_flex, wrist_roll: rank 23"
+        "30 poses (I-optimal of 2000 candidates) for shoulder_pan, shoulder_lift, elbow_flex, wrist_flex, "
+        "wrist_roll: rank 23"
         in capsys.readouterr().out
     )
     lines = out.read_text().splitlines()

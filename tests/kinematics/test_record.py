@@ -234,3 +234,44 @@ def test_cli_needs_one_joint_source(tmp_path: Path, capsys) -> None:
     assert main(["kinematics", "record", "--out", str(tmp_path / "x.csv"), "--robot", ROBOT]) == 2
     assert capsys.readouterr().err.strip() == "error: give either --lerobot-port (with --robot) or --source"
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_planned_poses_are_shown_one_by_one(tmp_path: Path, capsys, monkeypatch) -> None:
+    """``record --plan``: each prompt names the planned pose, each recorded pose says how far off it was."""
+    import io
+
+    from robocal.cli.main import main
+
+    (tmp_path / "rec.csv").write_text(
+        "t," + ",".join(CHAIN) + "\n" + "".join(f"{i * 0.1}," + ",".join(map(str, r)) + "\n" for i, r in enumerate(TARGETS))
+    )
+    plan = TARGETS[:2].copy()
+    plan[1, 2] += math.radians(3.0)  # the arm reaches pose 2 with elbow_flex 3° short
+    (tmp_path / "plan.csv").write_text(
+        "pose," + ",".join(CHAIN) + "\n" + "".join(f"{i + 1}," + ",".join(str(float(v)) for v in r) + "\n" for i, r in enumerate(plan))
+    )
+    args = [
+        "kinematics", "record", "--source", f"replay:{tmp_path / 'rec.csv'}", "--urdf", str(shipped_urdf("so101")),
+        "--tip-link", "gripper_link", "--kind", "touch", "--out", str(tmp_path / "t.csv"), "--plan", str(tmp_path / "plan.csv"),
+    ]  # fmt: skip
+    monkeypatch.setattr("sys.stdin", io.StringIO("\nP1\n\nP1\n\nP1\n"))
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert (
+        "pose 1: move the arm to shoulder_pan +17.2°, shoulder_lift -22.9°, elbow_flex +28.6°, wrist_flex +11.5°, "
+        "wrist_roll -57.3°, then press Enter" in err
+    )
+    assert "(off the plan by at most +0.0°, shoulder_pan)" in err
+    assert "(off the plan by at most -3.0°, elbow_flex)" in err
+    assert "pose 3" not in err  # the plan has two poses: the session ends after them
+    assert len((tmp_path / "t.csv").read_text().splitlines()) == 3
+    # a planned pose outside the URDF limits is refused before the session starts; nothing is written
+    plan[0, 2] = 3.5
+    (tmp_path / "plan.csv").write_text(
+        "pose," + ",".join(CHAIN) + "\n" + "".join(f"{i + 1}," + ",".join(str(float(v)) for v in r) + "\n" for i, r in enumerate(plan))
+    )
+    args[args.index("--out") + 1] = str(tmp_path / "u.csv")
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'plan.csv'}: pose 1" in err and "elbow_flex" in err and err.count("error:") == 1
+    assert not (tmp_path / "u.csv").exists()

@@ -235,7 +235,7 @@ def simulate(
         bool, typer.Option("--on-axis", help="Put the marker on the wrist-roll axis.")
     ] = False,
     random_poses: Annotated[
-        bool, typer.Option("--random-poses", help="Random poses instead of a greedy O1 selection.")
+        bool, typer.Option("--random-poses", help="Random poses instead of a greedy I-optimal selection.")
     ] = False,
     gauge_mm: Annotated[float, typer.Option("--gauge-mm", help="Gauge socket distance, mm.")] = 50.0,
     camera_on_tool: Annotated[
@@ -292,28 +292,57 @@ def plan(
     tool_xyz: Annotated[
         str, typer.Option("--tool-xyz", help="Nominal marker position in the tip link, metres: x,y,z.")
     ] = "0,0,0",
+    kind: Annotated[str, typer.Option("--kind", help="Measurement kind: points (free poses).")] = "points",
+    frame: Annotated[
+        str, typer.Option("--frame", help="base: points in the base frame; tracker: in an unknown frame.")
+    ] = "base",
+    criterion: Annotated[
+        str, typer.Option("--criterion", help="i: smallest average prediction variance; d: largest O1.")
+    ] = "i",
+    prior: Annotated[
+        bool, typer.Option("--prior", help="Plan for a fit with the URDF tolerance prior (criterion i).")
+    ] = False,
+    noise_mm: Annotated[float, typer.Option("--noise-mm", help="Tracker noise per axis, mm.")] = 0.5,
+    candidates: Annotated[
+        int, typer.Option("--candidates", help="Random candidate poses inside the joint limits.")
+    ] = 2000,
+    candidates_file: Annotated[
+        Path | None,
+        typer.Option("--candidates-file", help="Choose among these poses (a joint CSV) instead of random ones."),
+    ] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the random candidates.")] = 0,
 ) -> None:
-    """Choose poses inside the joint limits that identify the arm best (greedy O1 over 2000 candidates)."""
-    result = wf.plan(
+    """Choose poses inside the joint limits that identify the arm best (greedy I- or D-optimal)."""
+    from ..workflows import kinematic_plan as plan_wf
+
+    result = plan_wf.plan(
         urdf,
         out,
         poses=poses,
         base_link=base_link,
         tip_link=tip_link,
         tool_xyz_m=_parse_xyz(tool_xyz),
+        kind=kind.strip().lower(),
+        frame=frame.strip().lower(),
+        criterion=criterion.strip(),
+        prior=prior,
+        noise_m=noise_mm * 1e-3,
+        candidates=candidates,
+        candidates_file=candidates_file,
         seed=seed,
     )
     ident = result.identifiability
     obs = ident.observability
     console.print(
-        f"{len(result.q_rad)} poses for {', '.join(result.joint_names)}: rank {ident.rank}, condition number "
-        f"{obs.condition:.1f}, O1 {obs.O1:.3g}, O3 {obs.O3:.3g}"
+        f"{len(result.q_rad)} poses ({result.criterion}-optimal of {result.candidates} candidates) for "
+        f"{', '.join(result.joint_names)}: rank {ident.rank}, condition number {obs.condition:.1f}, "
+        f"O1 {obs.O1:.3g}, O3 {obs.O3:.3g}; predicted tool-point σ {result.prediction_sigma_m * 1e3:.3f} mm "
+        f"(RMS over the candidates, {noise_mm:g} mm tracker noise)"
     )
     warnings = [
         f"{u.name}: {u.reason}" for u in ident.unidentifiable if u.reason.startswith("the marker is on")
     ]
-    console.print(f"wrote {result.out}; move the arm to each pose and add x,y,z (or group / socket) columns")
+    console.print(f"wrote {result.out}; move the arm to each pose and add x,y,z columns as you measure")
     for w in warnings:
         print_warning(w)
     raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
@@ -388,6 +417,9 @@ def record(
     image_pattern: Annotated[
         str, typer.Option("--image-pattern", help="Default image per pose (tag), e.g. shots/pose_{pose:03d}.png.")
     ] = "pose_{pose:03d}.png",
+    plan: Annotated[
+        Path | None, typer.Option("--plan", help="Poses to show one by one (kinematics plan output).")
+    ] = None,
 ) -> None:
     """Record a session: move the arm by hand, press Enter per pose, give the measurement; writes the CSV."""
     from ..workflows import kinematic_record as rec_wf
@@ -408,6 +440,11 @@ def record(
         joint_map=joint_map,
     )
     try:
+        targets = None
+        if plan is not None:
+            from ..formats.kinematic_data import read_joint_table
+
+            targets = chain.check_q(read_joint_table(plan, chain.joint_names), what=f"{plan}: pose")
         err_console.print(
             f"recording {kind} poses of {', '.join(chain.joint_names)} (chain {chain.base_link} → {chain.tip_link})"
         )
@@ -420,6 +457,7 @@ def record(
             say=lambda m: err_console.print(m, markup=False),
             poses=poses,
             image_pattern=image_pattern,
+            targets=targets,
         )
     finally:
         reader.close()

@@ -8,7 +8,9 @@ it is reported with the parameters it cannot be told apart from, in words a user
 
 Observability of a pose set (Sun & Hollerbach's naming) on the scaled base-set columns of ``M`` rows:
 ``O1 = (σ_1 ⋯ σ_m)^(1/m) / √M``, the condition number ``σ_1 / σ_m`` (below ~100 is reliable), ``O3 = σ_m`` and
-``O5 = σ_m² / σ_1``. :func:`select_poses` picks poses greedily, each maximising ``det(JᵀJ)`` (O1).
+``O5 = σ_m² / σ_1``. :func:`select_poses` picks poses greedily, each maximising ``det(JᵀJ)`` (D-optimal, O1);
+:func:`select_poses_i_optimal` each minimising the average prediction variance over a set of configurations
+(I-optimal), optionally with a Gaussian prior on the parameters (Bayesian).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ __all__ = [
     "observability",
     "pivoted_qr_order",
     "select_poses",
+    "select_poses_i_optimal",
 ]
 
 
@@ -270,6 +273,73 @@ def select_poses(
         Ainv = np.linalg.inv(A)
         S = np.einsum("mrk,kl,msl->mrs", Jc, Ainv, Jc)
         gain = np.linalg.slogdet(np.eye(S.shape[1]) + S)[1]
+        gain[~available] = -np.inf
+        best = int(np.argmax(gain))
+        chosen.append(best)
+        available[best] = False
+        A += Jc[best].T @ Jc[best]
+    return np.asarray(chosen, dtype=np.int64)
+
+
+def select_poses_i_optimal(
+    J_candidates: ArrayLike,
+    n_select: int,
+    *,
+    J_predict: ArrayLike | None = None,
+    prior_precision: ArrayLike | None = None,
+    start: Sequence[int] = (),
+    regularisation: float = 1e-9,
+) -> IntArray:
+    """Greedy I-optimal selection of poses: the smallest average prediction variance.
+
+    With ``A = P + Σ JᵢᵀJᵢ`` over the selected poses (``P`` the prior precision; ``J`` whitened by the
+    measurement noise) the posterior covariance is ``A⁻¹`` and the average prediction variance over the
+    prediction configurations ``trace(W A⁻¹)``, ``W = mean GₚᵀGₚ``. Each step adds the candidate that lowers
+    it most; by Woodbury the drop for candidate ``i`` is ``trace((I + Jᵢ A⁻¹ Jᵢᵀ)⁻¹ Jᵢ A⁻¹ W A⁻¹ Jᵢᵀ)``.
+
+    Args:
+        J_candidates: ``(M, r, k)`` Jacobian blocks per candidate pose, divided by the measurement noise.
+        n_select: How many poses to return (including ``start``).
+        J_predict: ``(Mp, s, k)`` Jacobians of the predicted quantity (e.g. the tool point) at the
+            configurations the model should predict well, in the same parameter units (default: the candidates).
+        prior_precision: ``(k,)`` or ``(k, k)`` prior information ``P`` (``1/σ²`` per parameter, 0 for none);
+            without it the first poses are D-optimal (:func:`select_poses`) until ``JᵀJ`` has full rank.
+        start: Indices selected beforehand.
+        regularisation: ``ε`` added to ``A``, relative to the mean squared column norm.
+
+    Returns:
+        ``(n_select,)`` candidate indices in the order chosen.
+    """
+    Jc = np.asarray(J_candidates, dtype=np.float64)
+    if Jc.ndim != 3:
+        raise ShapeMismatchError(f"candidate Jacobians must be (M, rows, k), got {Jc.shape}")
+    M, r, k = Jc.shape
+    if not 0 < n_select <= M:
+        raise UsageError(f"cannot select {n_select} poses from {M} candidates")
+    Jp = Jc if J_predict is None else np.asarray(J_predict, dtype=np.float64)
+    if Jp.ndim != 3 or Jp.shape[2] != k:
+        raise ShapeMismatchError(f"prediction Jacobians must be (M, rows, {k}), got {Jp.shape}")
+    W = np.einsum("mrk,mrl->kl", Jp, Jp) / max(Jp.shape[0], 1)
+    eps = regularisation * float(np.mean(np.sum(Jc * Jc, axis=(0, 1)))) + 1e-300
+    A = eps * np.eye(k)
+    chosen = [int(i) for i in start]
+    if prior_precision is None:
+        n_d = min(n_select, max(len(chosen), -(-k // r) + 1))
+        chosen = [int(i) for i in select_poses(Jc, n_d, start=chosen, regularisation=regularisation)]
+    else:
+        P = np.asarray(prior_precision, dtype=np.float64)
+        A += np.diag(P) if P.ndim == 1 else P
+    for i in chosen:
+        A += Jc[i].T @ Jc[i]
+    available = np.ones(M, dtype=bool)
+    available[chosen] = False
+    eye = np.eye(r)
+    while len(chosen) < n_select:
+        Ainv = np.linalg.inv(A)
+        JA = Jc @ Ainv  # (M, r, k)
+        S = JA @ Jc.transpose(0, 2, 1)
+        T = (JA @ W) @ JA.transpose(0, 2, 1)
+        gain = np.einsum("mii->m", np.linalg.solve(eye + S, T))
         gain[~available] = -np.inf
         best = int(np.argmax(gain))
         chosen.append(best)

@@ -25,11 +25,12 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
 from .arrays import FloatArray, IntArray
-from .identifiability import Explain, Identifiability, analyse_columns, select_poses
+from .identifiability import Explain, Identifiability, analyse_columns, select_poses, select_poses_i_optimal
 from .kinematic_errors import ErrorModel
 
 __all__ = [
     "KINDS",
+    "PLAN_CRITERIA",
     "Measurements",
     "Problem",
     "analyse",
@@ -367,10 +368,26 @@ def free_indices(model: ErrorModel, exclude_groups: Sequence[str] = ()) -> tuple
     return tuple(i for i, p in enumerate(model.parameters) if p.group not in exclude_groups)
 
 
+PLAN_CRITERIA: tuple[str, ...] = ("I", "D")
+"""Pose-planning criteria: ``I`` (smallest average prediction variance of the tool point), ``D`` (largest O1)."""
+
+
 def plan_poses(
-    model: ErrorModel, q_candidates: ArrayLike, n_poses: int, *, exclude_groups: Sequence[str] = ("base",)
+    model: ErrorModel,
+    q_candidates: ArrayLike,
+    n_poses: int,
+    *,
+    exclude_groups: Sequence[str] = ("base",),
+    criterion: str = "D",
+    prior_sigma: ArrayLike | None = None,
+    noise_m: float = 0.5e-3,
 ) -> IntArray:
-    """Pick ``n_poses`` of the candidate configurations that best identify the model (greedy O1).
+    """Pick ``n_poses`` of the candidate configurations that best identify the model, greedily.
+
+    ``D``: each pose maximises ``det(JᵀJ)`` of the identifiable base set (O1). ``I``: each pose minimises the
+    tool point's prediction variance averaged over the candidates (:func:`~robocal.core.identifiability.
+    select_poses_i_optimal`); with ``prior_sigma`` (Bayesian) every parameter that has a prior σ counts, the
+    poses then aim at what the prior does not already settle, weighed against the marker noise ``noise_m``.
 
     Args:
         model: The nominal error model (with the tool the measurements will see).
@@ -378,10 +395,17 @@ def plan_poses(
         n_poses: How many to pick.
         exclude_groups: Parameter groups that are not estimated (``base`` when the points are measured in the
             base frame).
+        criterion: ``D`` or ``I`` (:data:`PLAN_CRITERIA`).
+        prior_sigma: ``(P,)`` prior σ of each model parameter (``inf``: none); ``I`` only.
+        noise_m: Marker noise per axis (m) the prior is weighed against.
 
     Returns:
         ``(n_poses,)`` indices into ``q_candidates``, in the order chosen.
     """
+    if criterion not in PLAN_CRITERIA:
+        raise UsageError(f"pose-planning criterion {criterion!r}; valid: {', '.join(PLAN_CRITERIA)}")
+    if not (math.isfinite(noise_m) and noise_m > 0.0):
+        raise UsageError(f"marker noise must be a positive length, got {noise_m} m")
     q = model.chain.check_q(q_candidates, what="candidate pose")
     problem = Problem(
         model,
@@ -392,8 +416,22 @@ def plan_poses(
     ident = analyse(problem)
     _, J = problem.residuals_and_jacobian(problem.initial_theta())
     cols = list(ident.base)
-    Jc = (J[:, cols] / ident.column_norms[cols]).reshape(q.shape[0], 3, len(cols))
-    return select_poses(Jc, n_poses)
+    if criterion == "D":
+        Jc = (J[:, cols] / ident.column_norms[cols]).reshape(q.shape[0], 3, len(cols))
+        return select_poses(Jc, n_poses)
+    precision = None
+    if prior_sigma is not None:
+        sig = np.asarray(prior_sigma, dtype=np.float64)
+        if sig.shape != (model.n_params,) or np.any(np.isnan(sig)) or np.any(sig <= 0.0):
+            raise UsageError(f"prior σ must be {model.n_params} positive values (inf for none)")
+        sig_free = sig[list(problem.free)]
+        cols = sorted(set(cols) | {c for c in range(len(problem.free)) if math.isfinite(sig_free[c])})
+        precision = np.where(np.isfinite(sig_free[cols]), 1.0 / sig_free[cols] ** 2, 0.0)
+    Jc = (J[:, cols] / noise_m).reshape(q.shape[0], 3, len(cols))
+    # the prediction is the tool point in the chain's base frame: a registration (base) does not change it
+    seen = np.array([model.parameters[problem.free[c]].group != "base" for c in cols])
+    Jp = Jc * seen
+    return select_poses_i_optimal(Jc, n_poses, J_predict=Jp, prior_precision=precision)
 
 
 def dh_like_constraints(

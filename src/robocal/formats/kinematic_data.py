@@ -29,7 +29,16 @@ from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
 from ._numbers import format_float
 
-__all__ = ["IGNORED_COLUMNS", "measurements_to_csv", "parse_measurements", "read_image_session", "read_measurements", "session_csv"]
+__all__ = [
+    "IGNORED_COLUMNS",
+    "measurements_to_csv",
+    "parse_joint_table",
+    "parse_measurements",
+    "read_image_session",
+    "read_joint_table",
+    "read_measurements",
+    "session_csv",
+]
 
 IGNORED_COLUMNS: tuple[str, ...] = ("pose", "id", "t", "time", "timestamp", "note")
 
@@ -184,6 +193,49 @@ def read_measurements(
     return parse_measurements(
         read_text(path, "measurement file"), kind, joint_names, distance_m=distance_m, source=str(path)
     )
+
+
+MEASURED_COLUMNS: tuple[str, ...] = ("x", "y", "z", "x_mm", "y_mm", "z_mm", "group", "socket", "image")
+"""Columns of a measured session that a joints-only table (a pose plan) skips."""
+
+
+def parse_joint_table(text: str, joint_names: Sequence[str], *, source: str = "<string>") -> np.ndarray:
+    """Parse a table of joint positions: a pose plan, or the joints of a recorded session.
+
+    The chain's joints (radians, or ``<joint>_deg``) are read; the ignored columns and the measured ones
+    (``x,y,z``, ``group``, ``socket``, ``image``) are skipped; any other column is refused.
+
+    Returns:
+        ``(N, n_q)`` joint positions in radians (m for prismatic joints).
+
+    Raises:
+        FileFormatError: A missing, unknown or duplicate column, a non-number, NaN or inf, no rows.
+    """
+    line_numbers, rows = _csv_rows(text, source)
+    header = rows[0]
+    joint_cols, missing = _joint_columns(header, joint_names)
+    if missing:
+        raise FileFormatError(
+            f"{source}: missing joint columns {', '.join(missing)} (header: {', '.join(header)}); joints are "
+            "named as in the URDF (radians, or <joint>_deg for degrees)"
+        )
+    known = {header[i] for i, _ in joint_cols} | set(IGNORED_COLUMNS) | set(MEASURED_COLUMNS)
+    unknown = [h for h in header if h not in known]
+    if unknown:
+        raise FileFormatError(
+            f"{source}: unknown columns {', '.join(unknown)}; expected the chain's joints ({', '.join(joint_names)})"
+        )
+    if len(rows) < 2:
+        raise FileFormatError(f"{source}: has a header but no poses")
+    q = np.zeros((len(rows) - 1, len(joint_names)))
+    for r, row in enumerate(rows[1:]):
+        q[r] = _joint_values(row, header, joint_cols, f"{source} line {line_numbers[r + 1]}")
+    return q
+
+
+def read_joint_table(path: str | os.PathLike[str], joint_names: Sequence[str]) -> np.ndarray:
+    """Read a table of joint positions from a file; see :func:`parse_joint_table`."""
+    return parse_joint_table(read_text(path, "pose table"), joint_names, source=str(path))
 
 
 def measurements_to_csv(data: Measurements, joint_names: Sequence[str], labels: Sequence[str] = ()) -> str:

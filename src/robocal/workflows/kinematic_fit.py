@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 
 from ..core.arrays import FloatArray
 from ..core.identifiability import Identifiability
+from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_images import ImageProblem
 from ..core.kinematic_problem import Measurements, Problem, analyse
 from ..errors import BackendNotAvailableError, UsageError
@@ -70,6 +71,21 @@ class PriorSigmas:
         if self.noise_m is not None and not (math.isfinite(self.noise_m) and self.noise_m > 0):
             raise UsageError(f"prior noise: must be a positive number, got {self.noise_m}")
 
+    def model_sigmas(self, model: ErrorModel, *, tool_free: bool = False) -> FloatArray:
+        """Prior σ of each model parameter, ``(P,)``.
+
+        ``inf`` (no prior) for the base and, with ``tool_free``, the tool (a target's mounting on the tip link).
+        """
+        out = np.full(model.n_params, np.inf)
+        for i, p in enumerate(model.parameters):
+            if p.group == "base" or (tool_free and p.group == "tool"):
+                continue
+            if p.kind == "offset":
+                out[i] = self.offset_rad if p.unit == "rad" else self.length_m
+            else:
+                out[i] = self.length_m if p.unit == "m" else self.angle_rad
+        return out
+
     def sigmas(self, problem: Problem | ImageProblem) -> FloatArray:
         """Prior σ of each unknown ``θ`` of ``problem``, ``(n_theta,)``.
 
@@ -77,15 +93,8 @@ class PriorSigmas:
         target's mounting) and contact points.
         """
         out = np.full(problem.n_theta, np.inf)
-        images = isinstance(problem, ImageProblem)
-        for col, i in enumerate(problem.free):
-            p = problem.model.parameters[i]
-            if p.group == "base" or (images and p.group == "tool"):
-                continue
-            if p.kind == "offset":
-                out[col] = self.offset_rad if p.unit == "rad" else self.length_m
-            else:
-                out[col] = self.length_m if p.unit == "m" else self.angle_rad
+        per_param = self.model_sigmas(problem.model, tool_free=isinstance(problem, ImageProblem))
+        out[: len(problem.free)] = per_param[list(problem.free)]
         return out
 
 

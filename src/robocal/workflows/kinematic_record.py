@@ -171,6 +171,17 @@ def _ask_xyz(ask: Ask, pose: int) -> FloatArray | None:
     return None
 
 
+def _joint_text(chain: SerialChain, k: int, value: float) -> str:
+    """A joint value as a user reads it: degrees for rotations, millimetres for prismatic joints."""
+    if chain.movable[k].type == "prismatic":
+        return f"{value * 1e3:+.1f} mm"
+    return f"{math.degrees(value):+.1f}°"
+
+
+def _target_text(chain: SerialChain, q: FloatArray) -> str:
+    return ", ".join(f"{name} {_joint_text(chain, k, float(q[k]))}" for k, name in enumerate(chain.joint_names))
+
+
 def record(
     reader: JointReader,
     chain: SerialChain,
@@ -181,6 +192,7 @@ def record(
     say: Say,
     poses: int | None = None,
     image_pattern: str = "pose_{pose:03d}.png",
+    targets: FloatArray | None = None,
 ) -> RecordResult:
     """Run a recording session and write the measurement CSV.
 
@@ -198,6 +210,8 @@ def record(
         say: Shows a message.
         poses: Stop after this many poses (None: until the user finishes).
         image_pattern: Default image path per pose (``{pose}`` is the pose number), relative to the CSV.
+        targets: ``(N, n_q)`` planned poses (``kinematics plan``): pose ``n``'s prompt shows target ``n``, and
+            its reading is compared with it; ``poses`` defaults to ``N``.
 
     Returns:
         The :class:`RecordResult`.
@@ -214,6 +228,11 @@ def record(
             f"the reader gives {', '.join(reader.joint_names)}; the chain needs {', '.join(chain.joint_names)}"
         )
     out_path = check_output_path(out, "--out")
+    if targets is not None:
+        targets = np.atleast_2d(np.asarray(targets, dtype=np.float64))
+        if targets.shape[1:] != (chain.n_q,) or targets.shape[0] == 0:
+            raise JointMismatchError(f"the plan has shape {targets.shape}; expected (N, {chain.n_q}) poses")
+        poses = targets.shape[0] if poses is None else poses
     qs: list[FloatArray] = []
     points: list[FloatArray] = []
     labels: list[str] = []
@@ -227,7 +246,8 @@ def record(
         while poses is None or len(qs) < poses:
             n = len(qs) + 1
             try:
-                answer = ask(f"pose {n}: move the arm, then press Enter (q + Enter when done)")
+                goal = "" if targets is None or n > len(targets) else f" to {_target_text(chain, targets[n - 1])}"
+                answer = ask(f"pose {n}: move the arm{goal}, then press Enter (q + Enter when done)")
             except EOFError:
                 break
             if answer.strip().lower() in FINISH_WORDS:
@@ -279,9 +299,14 @@ def record(
             except EOFError:
                 break
             qs.append(q)
+            off = ""
+            if targets is not None and n <= len(targets):
+                k = int(np.argmax(np.abs(q - targets[n - 1])))
+                off = f" (off the plan by at most {_joint_text(chain, k, q[k] - targets[n - 1][k])}, {chain.joint_names[k]})"
             say(
                 f"pose {n} recorded: "
                 + ", ".join(f"{name} {v:+.4f}" for name, v in zip(chain.joint_names, q, strict=True))
+                + off
             )
     except KeyboardInterrupt:
         interrupted = True

@@ -111,7 +111,7 @@ def simulate(
         noise_m: Marker noise per axis (points only), m.
         seed: Seed of the hidden errors, the poses and the noise.
         on_axis: Put the marker on the last joint's axis (to see the identifiability report catch it).
-        plan: Choose the poses by greedy O1 selection from 2000 random candidates (points only).
+        plan: Choose the poses by greedy I-optimal selection from 2000 random candidates (points only).
         gauge_distance_m: Socket distance of the simulated gauge.
     """
     if kind not in KINDS:
@@ -137,7 +137,7 @@ def simulate(
     if kind == "points":
         if plan:
             cand = arm.sample_q(2000, rng)
-            q = cand[plan_poses(model, cand, poses)] if poses <= 2000 else arm.sample_q(poses, rng)
+            q = cand[plan_poses(model, cand, poses, criterion="I")] if poses <= 2000 else arm.sample_q(poses, rng)
         else:
             q = arm.sample_q(poses, rng)
         truth = arm.true_points(q)

@@ -4,7 +4,8 @@
 every pose against the joint limits, holds out a validation share, analyses identifiability, fits the base set
 (:mod:`robocal.workflows.kinematic_fit`), optionally compares with a DH-like fit, and only then writes the
 corrected URDF (joint origins with the zero offsets folded in; nothing else in the file changes) and a JSON
-report, atomically. ``simulate`` produces a session from a simulated SO-101 or Koch with hidden errors.
+report, atomically. ``simulate`` (:mod:`robocal.workflows.kinematic_sim`) produces a session from a simulated
+SO-101 or Koch with hidden errors; ``plan`` (:mod:`robocal.workflows.kinematic_plan`) chooses the poses.
 """
 
 from __future__ import annotations
@@ -21,21 +22,17 @@ import numpy as np
 
 from ..core.arrays import FloatArray
 from ..core.chain import SerialChain
-from ..core.identifiability import Identifiability
 from ..core.jointmap import RobotCalibration
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
     KINDS,
     Measurements,
     Problem,
-    analyse,
     dh_like_constraints,
     free_indices,
-    plan_poses,
 )
 from ..errors import UsageError
-from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
-from ..formats._numbers import format_float
+from ..fileio import atomic_write_bytes, atomic_write_text
 from ..formats.kinematic_data import read_measurements
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
@@ -46,11 +43,9 @@ __all__ = [
     "FRAMES",
     "DhComparison",
     "IdentifyResult",
-    "PlanResult",
     "PriorSigmas",
     "as_prior",
     "identify",
-    "plan",
     "tool_frame",
 ]
 
@@ -379,63 +374,3 @@ def identify(
         report=rep,
         warnings=tuple(warnings),
     )
-
-
-@dataclass(frozen=True, eq=False)
-class PlanResult:
-    """Poses chosen for a measurement session.
-
-    Attributes:
-        q_rad: ``(N, n_q)`` joint targets, rad (m for prismatic joints).
-        joint_names: Column order.
-        identifiability: What point measurements at these poses will identify.
-        out: CSV written.
-    """
-
-    q_rad: FloatArray
-    joint_names: tuple[str, ...]
-    identifiability: Identifiability
-    out: Path
-
-
-def plan(
-    urdf: str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    *,
-    poses: int = 50,
-    base_link: str | None = None,
-    tip_link: str | None = None,
-    tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0),
-    candidates: int = 2000,
-    margin_rad: float = 0.05,
-    seed: int = 0,
-) -> PlanResult:
-    """Choose ``poses`` configurations inside the joint limits that best identify the chain (greedy O1).
-
-    Writes a CSV with a ``pose`` column and one column per joint, ready to be filled with ``x,y,z`` (or a
-    ``group``/``socket`` column) as the poses are measured.
-    """
-    if poses < 1 or candidates < poses:
-        raise UsageError(f"--poses must be between 1 and the {candidates} candidates, got {poses}")
-    out_path = check_output_path(out, "--out")
-    chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
-    model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
-    lo, up = chain.limits()
-    lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
-    up = np.where(np.isfinite(up), up, math.pi) - margin_rad
-    if np.any(lo > up):
-        bad = chain.joint_names[int(np.argmax(lo > up))]
-        raise UsageError(f"joint {bad}: its range is narrower than twice the {margin_rad} rad margin")
-    cand = np.random.default_rng(seed).uniform(lo, up, (candidates, chain.n_q))
-    q = cand[plan_poses(model, cand, poses)]
-    problem = Problem(
-        model,
-        Measurements("points", q, model.points(q)),
-        free_indices(model, ["base"]),
-        np.zeros(model.n_params),
-    )
-    ident = analyse(problem)
-    lines = ["pose," + ",".join(chain.joint_names)]
-    lines += [f"{i + 1}," + ",".join(format_float(float(v)) for v in row) for i, row in enumerate(q)]
-    written = atomic_write_text(out_path, "\n".join(lines) + "\n")
-    return PlanResult(q, chain.joint_names, ident, written)

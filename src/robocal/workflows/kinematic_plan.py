@@ -1,0 +1,192 @@
+"""Pose planning for kinematic identification: which configurations to measure (``robocal kinematics plan``).
+
+Candidates are drawn uniformly inside the URDF's joint limits (or read from a joint table of poses known to be
+reachable); :func:`robocal.core.kinematic_problem.plan_poses` picks the poses greedily, I-optimal by default
+(the smallest average prediction variance of the tool point over the candidates), optionally Bayesian with the
+URDF's tolerance as a prior. The plan is a CSV (``pose`` + one column per joint, radians) the user drives the
+arm to, and that ``robocal kinematics record --plan`` shows pose by pose.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core.arrays import FloatArray
+from ..core.identifiability import Identifiability
+from ..core.kinematic_errors import ErrorModel
+from ..core.kinematic_problem import PLAN_CRITERIA, Measurements, Problem, analyse, free_indices, plan_poses
+from ..errors import UsageError
+from ..fileio import atomic_write_text, check_output_path
+from ..formats.kinematic_data import read_joint_table, session_csv
+from ..formats.urdf import UrdfDocument
+from ..formats.urdf_chain import chain_from_urdf
+from .kinematic_fit import PriorSigmas
+from .kinematics import FRAMES, as_prior, tool_frame
+
+__all__ = ["PlanResult", "plan"]
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """Poses chosen for a measurement session.
+
+    Attributes:
+        q_rad: ``(N, n_q)`` joint targets, rad (m for prismatic joints).
+        joint_names: Column order.
+        identifiability: What point measurements at these poses will identify.
+        out: CSV written.
+        criterion: ``I`` or ``D``.
+        candidates: How many candidate configurations the poses were chosen from.
+        prediction_sigma_m: Predicted one-σ error of the tool point averaged over the candidates after
+            identification from these poses (marker noise ``noise_m``; linearised at nominal), m.
+    """
+
+    q_rad: FloatArray
+    joint_names: tuple[str, ...]
+    identifiability: Identifiability
+    out: Path
+    criterion: str = "I"
+    candidates: int = 0
+    prediction_sigma_m: float = math.nan
+
+
+def plan(
+    urdf: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    poses: int = 50,
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0),
+    kind: str = "points",
+    frame: str = "base",
+    criterion: str = "I",
+    prior: bool | PriorSigmas = False,
+    noise_m: float = 0.5e-3,
+    candidates: int = 2000,
+    candidates_file: str | os.PathLike[str] | None = None,
+    margin_rad: float = 0.05,
+    seed: int = 0,
+) -> PlanResult:
+    """Choose ``poses`` configurations inside the joint limits that best identify the chain, greedily.
+
+    ``I`` (default): each pose lowers most the tool point's prediction variance averaged over the candidates
+    (I-optimal); ``D``: each raises most ``det(JᵀJ)`` (O1). With ``prior`` the I-optimal plan is Bayesian: it
+    counts the URDF tolerance as known already. Writes a CSV with a ``pose`` column and one column per joint
+    (radians), ready to be filled with ``x,y,z`` as the poses are measured.
+
+    Args:
+        urdf: Expanded URDF.
+        out: CSV to write (atomically; nothing is written on an error).
+        poses: How many poses.
+        base_link: First link of the chain (default: the URDF root).
+        tip_link: Link the marker is on (default: the only leaf).
+        tool_xyz_m: Nominal marker position in the tip link, m.
+        kind: ``points`` (the only kind whose poses are free to choose).
+        frame: ``base`` or ``tracker`` (the base pose is then estimated too).
+        criterion: ``I`` or ``D``.
+        prior: Plan for a fit with this prior (True: the default tolerance); ``I`` only.
+        noise_m: The tracker's noise per axis, m (weighs the data against the prior; the predicted σ).
+        candidates: Random candidates drawn uniformly inside the limits (minus ``margin_rad``).
+        candidates_file: Take the candidates from this joint table instead (e.g. poses known to be reachable
+            without collision); each is checked against the limits.
+        margin_rad: Distance kept from the joint limits by the random candidates.
+        seed: Seed of the random candidates.
+
+    Raises:
+        CalibError: Bad options, too few poses for the identifiable parameters, a candidate outside the limits
+            or not a number.
+    """
+    crit = criterion.upper()
+    if crit not in PLAN_CRITERIA:
+        raise UsageError(f"--criterion {criterion!r}; valid: {', '.join(c.lower() for c in PLAN_CRITERIA)}")
+    if kind != "points":
+        raise UsageError(
+            f"plan chooses free poses for --kind points; {kind} poses are set by where the touched points are "
+            "(touch each point from as many different configurations as the arm allows)"
+        )
+    if frame not in FRAMES:
+        raise UsageError(f"--frame {frame!r}; valid: {', '.join(FRAMES)}")
+    if not (math.isfinite(noise_m) and noise_m > 0):
+        raise UsageError(f"--noise-mm must be a positive number, got {noise_m * 1e3}")
+    prior_s = as_prior(prior)
+    if prior_s is not None and crit != "I":
+        raise UsageError("a prior applies to the I-optimal plan (--criterion i)")
+    if poses < 1:
+        raise UsageError(f"--poses must be at least 1, got {poses}")
+    out_path = check_output_path(out, "--out")
+    chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
+    model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
+    if candidates_file is not None:
+        cand = chain.check_q(
+            read_joint_table(candidates_file, chain.joint_names), what=f"{candidates_file}: pose"
+        )
+    else:
+        if candidates < 1:
+            raise UsageError(f"--candidates must be at least 1, got {candidates}")
+        lo, up = chain.limits()
+        lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
+        up = np.where(np.isfinite(up), up, math.pi) - margin_rad
+        if np.any(lo > up):
+            bad = chain.joint_names[int(np.argmax(lo > up))]
+            raise UsageError(f"joint {bad}: its range is narrower than twice the {margin_rad} rad margin")
+        cand = np.random.default_rng(seed).uniform(lo, up, (candidates, chain.n_q))
+    if cand.shape[0] < poses:
+        raise UsageError(f"--poses {poses}: only {cand.shape[0]} candidate poses to choose from")
+    exclude = [] if frame == "tracker" else ["base"]
+    everything = Problem(
+        model,
+        Measurements("points", cand, model.points(cand)),
+        free_indices(model, exclude),
+        np.zeros(model.n_params),
+    )
+    rank = analyse(everything).rank
+    if 3 * poses <= rank:
+        raise UsageError(
+            f"too few poses: {poses} poses give {3 * poses} equations, not more than the {rank} parameters the "
+            f"candidates can identify; plan at least {rank // 3 + 2} poses (20 or more for a useful result)"
+        )
+    sig = None if prior_s is None else prior_s.model_sigmas(model)
+    idx = plan_poses(
+        model, cand, poses, exclude_groups=exclude, criterion=crit, prior_sigma=sig, noise_m=noise_m
+    )
+    q = cand[idx]
+    problem = Problem(
+        model, Measurements("points", q, model.points(q)), everything.free, np.zeros(model.n_params)
+    )
+    ident = analyse(problem)
+    written = atomic_write_text(out_path, session_csv(q, chain.joint_names, {}))
+    return PlanResult(
+        q, chain.joint_names, ident, written, crit, int(cand.shape[0]),
+        _prediction_sigma(everything, problem, ident, noise_m, sig),
+    )  # fmt: skip
+
+
+def _prediction_sigma(
+    everything: Problem, problem: Problem, ident: Identifiability, noise_m: float, sig: FloatArray | None
+) -> float:
+    """RMS over the candidates of the tool point's predicted σ (m) after a fit from ``problem``'s poses."""
+    _, J = problem.residuals_and_jacobian(problem.initial_theta())
+    _, G = everything.residuals_and_jacobian(everything.initial_theta())
+    cols = list(ident.base)
+    info = J[:, cols].T @ J[:, cols] / noise_m**2
+    if sig is not None:
+        s = sig[list(problem.free)]
+        cols = sorted(set(cols) | {c for c in range(len(problem.free)) if math.isfinite(s[c])})
+        info = J[:, cols].T @ J[:, cols] / noise_m**2 + np.diag(
+            np.where(np.isfinite(s[cols]), s[cols] ** -2.0, 0.0)
+        )
+    seen = [problem.model.parameters[problem.free[c]].group != "base" for c in cols]
+    Gs = G[:, cols] * np.asarray(seen)
+    try:
+        cov = np.linalg.inv(info)
+    except np.linalg.LinAlgError:
+        return math.nan
+    per_row = np.einsum("rk,kl,rl->r", Gs, cov, Gs)
+    return float(np.sqrt(np.sum(per_row) / everything.data.n_poses))
