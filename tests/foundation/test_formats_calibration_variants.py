@@ -10,7 +10,7 @@ import pytest
 
 from robocal.cli.main import main
 from robocal.core.jointmap import RobotCalibration
-from robocal.errors import InvalidCalibrationError, JointMismatchError, ShapeMismatchError
+from robocal.errors import FileFormatError, InvalidCalibrationError, JointMismatchError, ShapeMismatchError
 from robocal.formats import CalibrationFile, read_calibration, write_calibration
 from robocal.formats.urdf import parse_urdf, read_urdf
 from robocal.workflows.calibration import check_calibration
@@ -192,7 +192,7 @@ def test_decimal_ids_with_leading_zero() -> None:
 
 
 def test_variant_files_convert_exactly(tmp_path: Path) -> None:
-    # PyYAML block list, a JSON file with integer offsets and string directions, BOM + CRLF, anchors + merge keys
+    # PyYAML block list, a JSON file with integer offsets and string directions, BOM + CRLF
     urdf = read_urdf(LITE_URDF)
     order = ["left_shoulder_pitch", "left_elbow_pitch"]
     block = tmp_path / "offsets.yaml"
@@ -212,8 +212,28 @@ def test_variant_files_convert_exactly(tmp_path: Path) -> None:
     bom = tmp_path / "bom.yaml"
     bom.write_bytes("\ufeffa:\r\n  id: 1\r\n  direction: -1\r\n  homing_offset: 0.5\r\n".encode())
     assert read_calibration(bom).calibration.is_close(RobotCalibration(["a"], [-1], [0.5]), atol=0.0)
+
+
+def test_anchors_aliases_and_merge_keys_are_refused(tmp_path: Path) -> None:
+    """Issue 9 (they were read before): an alias makes two entries one shared object, which an update in place
+    changes together, and a merge key hides which values a joint has. Anchors, aliases and merge keys are
+    refused at their line and column, in this reader as in every other YAML reader."""
     anchors = tmp_path / "anchors.yaml"
     anchors.write_text("a: &x {id: 1, direction: -1, homing_offset: 0.5}\nb:\n  <<: *x\n  id: 2\n")
-    got = read_calibration(anchors)
-    assert got.calibration.is_close(RobotCalibration(["a", "b"], [-1, -1], [0.5, 0.5]), atol=0.0)
-    assert dict(got.ids) == {"a": 1, "b": 2}
+    with pytest.raises(
+        FileFormatError, match=r"anchors\.yaml: invalid YAML \(line 1, column 4\): an anchor \(&x\)"
+    ):
+        read_calibration(anchors)
+    merge = tmp_path / "merge.yaml"
+    merge.write_text("a:\n  <<: {id: 1, direction: -1}\n  homing_offset: 0.5\n")
+    with pytest.raises(
+        FileFormatError, match=r"merge\.yaml: invalid YAML \(line 2, column 3\): a merge key \(<<\)"
+    ):
+        read_calibration(merge)
+    out = tmp_path / "out.yaml"
+    out.write_text("a: &x {id: 1, direction: -1, homing_offset: 0.5}\nb: *x\n")
+    before = out.read_bytes()
+    cal = RobotCalibration(["a", "b"], [-1, -1], [0.25, 0.75])
+    with pytest.raises(FileFormatError, match=r"exists but is not a lite-yaml calibration file .*an anchor"):
+        write_calibration(out, CalibrationFile(cal, ids={"a": 1, "b": 2}), "lite-yaml")
+    assert out.read_bytes() == before

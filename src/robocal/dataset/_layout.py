@@ -15,7 +15,6 @@ joint order is the feature's ``names`` list in ``info.json`` (``"shoulder_pan.po
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Any
 
 from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
+from ..formats._json import load_json
 
 __all__ = [
     "DEFAULT_FEATURES",
@@ -196,14 +196,7 @@ def read_layout(root: str | Path) -> DatasetLayout:
     info_path = r / "meta" / "info.json"
     if not info_path.is_file():
         raise FileFormatError(f"dataset {r}: missing meta/info.json (is this a LeRobot v3 dataset?)")
-    try:
-        info = json.loads(read_text(info_path, "dataset info"))
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{info_path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    except RecursionError:
-        raise FileFormatError(f"{info_path}: not valid JSON (nested too deeply)") from None
-    except ValueError as exc:  # e.g. an integer of more digits than Python converts
-        raise FileFormatError(f"{info_path}: not valid JSON ({exc})") from None
+    info = load_json(read_text(info_path, "dataset info"), str(info_path))
     if not isinstance(info, dict) or not isinstance(info.get("features"), dict):
         raise FileFormatError(f"{info_path}: expected an object with a 'features' object")
     version = info.get("codebase_version")

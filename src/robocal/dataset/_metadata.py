@@ -16,6 +16,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..errors import FileFormatError
+from ..fileio import read_text
+from ..formats._json import load_json
 from ._layout import DatasetLayout
 from ._stats import StatAccumulator, is_known_stat
 
@@ -41,14 +43,7 @@ def check_metadata(layout: DatasetLayout) -> None:
 
 
 def _read_stats(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
-    except RecursionError:
-        raise FileFormatError(f"{path}: statistics JSON nested too deeply") from None
-    except ValueError as exc:  # e.g. an integer of more digits than Python converts
-        raise FileFormatError(f"{path}: cannot read statistics JSON ({exc})") from None
+    data = load_json(read_text(path, "statistics JSON"), str(path), item="feature")
     if not isinstance(data, dict):
         raise FileFormatError(f"{path}: expected a JSON object of features")
     return data

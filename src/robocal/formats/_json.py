@@ -134,13 +134,22 @@ def load_json(text: str, source: str, *, item: str = "key", strict: bool = True)
         text: The JSON document.
         source: File name for messages.
         item: What the top-level keys are (``"joint"``, ``"motor"``), for messages.
-        strict: Refuse duplicate keys and ``NaN`` / ``Infinity`` (``False`` accepts them, like Python's
-            ``json``; depth and Unicode are always checked).
+        strict: Refuse duplicate keys, ``NaN`` / ``Infinity`` and numbers too large for a float (``1e999``)
+            (``False`` accepts them, like Python's ``json``; depth and Unicode are always checked).
 
     Raises:
         FileFormatError: Syntax errors (with line and column), duplicate keys, ``NaN`` / ``Infinity`` (with
             line and key path), nesting deeper than :data:`MAX_NESTING`, lone surrogates.
     """
+
+    def number(text: str) -> float:
+        value = float(text)
+        if value in (float("inf"), float("-inf")):
+            raise FileFormatError(
+                f"{source}: invalid JSON: the number {text[:40]} is beyond the range of a float (it reads as "
+                "infinity); expected a finite number"
+            )
+        return value
 
     def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -152,7 +161,7 @@ def load_json(text: str, source: str, *, item: str = "key", strict: bool = True)
 
     try:
         if strict:
-            data = json.loads(text, object_pairs_hook=pairs, parse_constant=_constant)
+            data = json.loads(text, object_pairs_hook=pairs, parse_constant=_constant, parse_float=number)
         else:
             data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -163,6 +172,8 @@ def load_json(text: str, source: str, *, item: str = "key", strict: bool = True)
         raise FileFormatError(
             f"{source}: nested more than {MAX_NESTING} levels deep; not a robocal file"
         ) from None
+    except FileFormatError:  # from the hooks (duplicate key, a number beyond a float): already worded
+        raise
     except ValueError as exc:  # e.g. an integer with more digits than Python converts
         raise FileFormatError(f"{source}: invalid JSON: {exc}") from None
     constants: list[int] | None = None

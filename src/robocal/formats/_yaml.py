@@ -14,7 +14,10 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from ruamel.yaml import YAML
+from ruamel.yaml.composer import Composer, ComposerError
 from ruamel.yaml.error import YAMLError, YAMLWarning
+from ruamel.yaml.events import AliasEvent
+from ruamel.yaml.nodes import MappingNode, ScalarNode, SequenceNode
 from ruamel.yaml.representer import RoundTripRepresenter
 from ruamel.yaml.scalarfloat import ScalarFloat
 
@@ -61,8 +64,63 @@ def _represent_scalar_float(representer: Any, data: Any) -> Any:
     return node if keep else _represent_float(representer, float(data))
 
 
+_STR_TAG = "tag:yaml.org,2002:str"
+_KEY_KINDS = {
+    "tag:yaml.org,2002:int": "a number",
+    "tag:yaml.org,2002:float": "a number",
+    "tag:yaml.org,2002:bool": "true/false",
+    "tag:yaml.org,2002:null": "null",
+    "tag:yaml.org,2002:timestamp": "a date",
+}
+
+
+class _PlainComposer(Composer):
+    """ruamel's composer, refusing what no robocal file holds, at its line and column.
+
+    Refused: anchors (``&a``), aliases (``*a``) and merge keys (``<<: *a``), which make two entries one shared
+    object (an update in place would change both); explicit tags (``!!binary``, ``!!python/object``, ``!foo``);
+    keys that are not text (a mapping or sequence used as a key, ``1:``, ``null:``, ``true:``); and dates
+    (``2001-12-14``), which no reader expects. Each is a ``ComposerError``, worded by :func:`load_yaml_ruamel`.
+    """
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        event = self.parser.peek_event()
+        if isinstance(event, AliasEvent):
+            self._refuse(f"an alias (*{event.anchor}); anchors and aliases are not allowed in robocal files", event)
+        if event.anchor is not None:
+            self._refuse(f"an anchor (&{event.anchor}); anchors and aliases are not allowed in robocal files", event)
+        tag = getattr(event, "tag", None)
+        if tag is not None:
+            shown = str(tag).replace("tag:yaml.org,2002:", "!!")
+            self._refuse(f"a tag ({shown}); tags are not allowed in robocal files", event)
+        node = super().compose_node(parent, index)
+        if isinstance(parent, MappingNode) and index is None:  # a key
+            self._check_key(node)
+        elif isinstance(node, ScalarNode) and str(node.tag) == "tag:yaml.org,2002:timestamp":
+            self._refuse(f"the date {node.value!r}; expected a number or text (quote it if it is a name)", node)
+        return node
+
+    def _check_key(self, node: Any) -> None:
+        if isinstance(node, MappingNode | SequenceNode):
+            what = "mapping" if isinstance(node, MappingNode) else "sequence"
+            self._refuse(f"a {what} used as a key (a complex key); keys must be names", node)
+        tag = str(node.tag)
+        if tag == "tag:yaml.org,2002:merge":
+            self._refuse("a merge key (<<); merge keys are not allowed in robocal files", node)
+        if tag != _STR_TAG:
+            kind = _KEY_KINDS.get(tag, tag)
+            self._refuse(
+                f"the key {node.value!r} is {kind}, not a name; quote it (\"{node.value}\") if it is a name", node
+            )
+
+    @staticmethod
+    def _refuse(problem: str, at: Any) -> None:
+        raise ComposerError(None, None, problem, at.start_mark)
+
+
 def _yaml() -> YAML:
     y = YAML(typ="rt")
+    y.Composer = _PlainComposer
     y.preserve_quotes = True
     y.indent(mapping=2, sequence=4, offset=2)
     y.width = 4096
@@ -124,8 +182,10 @@ def load_yaml(text: str, source: str, *, item: str = "key", round_trip: bool = F
             document with comments is read by ruamel.yaml.
 
     Raises:
-        FileFormatError: Syntax errors or duplicate keys, naming the file and line; a document nested more than
-            :data:`~robocal.formats._json.MAX_NESTING` levels deep; a key or string that is not valid Unicode.
+        FileFormatError: Syntax errors or duplicate keys, naming the file and line; what is not plain YAML
+            (anchors, aliases, merge keys, tags, keys that are not names, dates; see :class:`_PlainComposer`),
+            at its line and column; a document nested more than :data:`~robocal.formats._json.MAX_NESTING`
+            levels deep; a key or string that is not valid Unicode.
     """
     fast = fast_load(text, allow_comments=not round_trip)
     if fast is not None:  # ASCII, at most 16 levels, no NaN constants: nothing for check_tree to refuse

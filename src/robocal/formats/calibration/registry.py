@@ -86,7 +86,7 @@ def _parse_for_sniffing(text: str, source: str) -> Content | None:
     try:
         data = load_yaml(text, source, item="joint")
     except FileFormatError:
-        if stripped.startswith(("{", "[")):
+        if stripped.startswith(("{", "[")) and not source.lower().endswith((".yaml", ".yml")):
             load_json(stripped, source)  # raises: report the JSON syntax error (line, column)
         raise  # a YAML syntax error is reported as such (line, column), not as an unknown format
     return Content("yaml", data, source) if isinstance(data, Mapping) else None
