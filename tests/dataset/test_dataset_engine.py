@@ -228,7 +228,7 @@ def _put_nan(root: Path) -> None:
     ("mutate", "exc", "message"),
     [
         (lambda r: (r / "meta/info.json").unlink(), FileFormatError, "missing meta/info.json"),
-        (lambda r: (r / "meta/info.json").write_text("{not json"), FileFormatError, "not valid JSON"),
+        (lambda r: (r / "meta/info.json").write_text("{not json"), FileFormatError, "invalid JSON"),
         (
             lambda r: (r / "meta/info.json").write_text('{"codebase_version": "v2.1", "features": {}}'),
             FileFormatError,
@@ -238,7 +238,7 @@ def _put_nan(root: Path) -> None:
         (
             lambda r: (r / "meta/stats.json").write_text("[1, 2"),
             FileFormatError,
-            "cannot read statistics JSON",
+            r"stats\.json: invalid JSON \(line 1, column 6\)",
         ),
         (
             lambda r: (r / "meta/episodes/chunk-000/file-000.parquet").write_bytes(b"junk"),

@@ -391,7 +391,7 @@ def test_dataset_info_with_an_integer_beyond_the_int_string_limit_is_a_file_form
         info = root / "ds" / "meta" / "info.json"
         info.write_text(info.read_text().replace('"fps": 30', f'"fps": {HUGE_INT}', 1))
         assert HUGE_INT in info.read_text()
-        with pytest.raises(FileFormatError, match=r"info\.json: not valid JSON \(Exceeds the limit"):
+        with pytest.raises(FileFormatError, match=r"info\.json: invalid JSON: Exceeds the limit"):
             inspect_dataset(root / "ds")
 
 
@@ -402,7 +402,7 @@ def test_dataset_stats_with_an_integer_beyond_the_int_string_limit_is_a_file_for
     with scratch() as root:
         seeds.write_tree(root / "ds", seeds.dataset_seed())
         (root / "ds" / "meta" / "stats.json").write_text(f'{{"action": {{"count": [{HUGE_INT}]}}}}')
-        with pytest.raises(FileFormatError, match=r"stats\.json: cannot read statistics JSON"):
+        with pytest.raises(FileFormatError, match=r"stats\.json: invalid JSON: Exceeds the limit"):
             check_metadata(read_layout(root / "ds"))
 
 
