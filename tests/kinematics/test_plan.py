@@ -172,3 +172,70 @@ def test_joint_table_reader() -> None:
         parse_joint_table("shoulder_pan\n", ("shoulder_pan",))
     with pytest.raises(FileFormatError, match="line 2: 1 fields, the header has 2"):
         parse_joint_table("shoulder_pan,wrist_roll\n0\n", ("shoulder_pan", "wrist_roll"))
+
+
+def test_reach_point_lands_on_the_target_inside_the_limits() -> None:
+    from robocal.core.pose_plan import reach_point
+
+    model = so101_model()
+    lo, up = model.chain.limits()
+    starts = np.random.default_rng(1).uniform(lo, up, (200, 5))
+    target = np.array([0.2, 0.0, 0.05])
+    q = reach_point(model, target, starts, (lo, up))
+    assert q.shape[0] > 20  # most starts get there
+    assert np.abs(model.points(q) - target).max() < 1e-9
+    model.chain.check_q(q)
+    assert reach_point(model, np.array([2.0, 0.0, 0.0]), starts, (lo, up)).shape == (0, 5)  # out of reach
+
+
+@pytest.mark.parametrize("kind", ["touch", "gauge"])
+def test_contact_plans_touch_the_given_points(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str
+) -> None:
+    from robocal.core.kinematic_errors import ErrorModel
+    from robocal.formats.urdf import read_urdf
+    from robocal.formats.urdf_chain import chain_from_urdf
+
+    points = [[0.2, -0.025, 0.05], [0.2, 0.025, 0.05]] + ([[0.15, 0.0, 0.09]] if kind == "touch" else [])
+    arg = ";".join(",".join(map(str, p)) for p in points)
+    extra = ("--kind", kind, "--touch-points", arg, "--poses", "24", "--candidates", "300")
+    assert main(_plan(tmp_path, *extra)) == 0
+    out = capsys.readouterr().out
+    assert "24 poses (I-optimal of" in out and "touch the point it names" in out
+    text = (tmp_path / "plan.csv").read_text().splitlines()
+    column = "socket" if kind == "gauge" else "group"
+    assert text[0] == "pose," + ",".join(JOINTS) + "," + column
+    labels = [line.rsplit(",", 1)[1] for line in text[1:]]
+    names = ["A", "B"] if kind == "gauge" else ["P1", "P2", "P3"]
+    assert set(labels) <= set(names) and len(labels) == 24
+    q = parse_joint_table("\n".join(text), JOINTS)
+    chain = chain_from_urdf(read_urdf(shipped_urdf("so101")), tip_link="gripper_link")
+    chain.check_q(q)
+    T = np.eye(4)
+    T[:3, 3] = [float(v) for v in TOOL.split(",")]
+    tip = ErrorModel(chain, T_tip_tool=T).points(q)
+    target = np.array([points[names.index(label)] for label in labels])
+    assert np.abs(tip - target).max() < 1e-9  # every planned pose puts the nominal tool on its point
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (("--kind", "touch"), "--kind touch needs --touch-points with one or more points"),
+        (("--kind", "gauge", "--touch-points", "0.2,0,0.05"), "--kind gauge needs --touch-points with two points"),
+        (("--touch-points", "0.2,0,0.05"), "--touch-points applies to --kind touch or gauge"),
+        (("--kind", "touch", "--touch-points", "0.2,0,0.05", "--criterion", "d"), "apply to --kind points"),
+        (("--kind", "touch", "--touch-points", "0.2,0,nan"), "--touch-points '0.2,0,nan': expected three finite"),
+        (
+            ("--kind", "touch", "--touch-points", "0.2,0,0.05;2,0,0", "--candidates", "100"),
+            "--touch-points: point 2 [2.0, 0.0, 0.0] m is reached by 0 configurations",
+        ),
+    ],
+)
+def test_bad_contact_plans_write_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: tuple[str, ...], message: str
+) -> None:
+    assert main(_plan(tmp_path, *extra)) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("error:") == 1
+    assert not (tmp_path / "plan.csv").exists()

@@ -29,16 +29,14 @@ _TipLinkOption = Annotated[
 _KindOption = Annotated[str, typer.Option("--kind", help="points, touch or gauge.")]
 
 
-def _parse_xyz(text: str) -> tuple[float, float, float]:
+def _parse_xyz(text: str, flag: str = "--tool-xyz") -> tuple[float, float, float]:
     parts = [p for p in text.replace(",", " ").split() if p]
     try:
         values = [float(p) for p in parts]
     except ValueError:
-        raise UsageError(
-            f"--tool-xyz {text!r}: expected three numbers in metres, e.g. 0.012,0,-0.098"
-        ) from None
+        raise UsageError(f"{flag} {text!r}: expected three numbers in metres, e.g. 0.012,0,-0.098") from None
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise UsageError(f"--tool-xyz {text!r}: expected three finite numbers in metres")
+        raise UsageError(f"{flag} {text!r}: expected three finite numbers in metres")
     return values[0], values[1], values[2]
 
 
@@ -292,7 +290,13 @@ def plan(
     tool_xyz: Annotated[
         str, typer.Option("--tool-xyz", help="Nominal marker position in the tip link, metres: x,y,z.")
     ] = "0,0,0",
-    kind: Annotated[str, typer.Option("--kind", help="Measurement kind: points (free poses).")] = "points",
+    kind: Annotated[
+        str, typer.Option("--kind", help="points (free poses), touch or gauge (poses on --touch-points).")
+    ] = "points",
+    touch_points: Annotated[
+        str | None,
+        typer.Option("--touch-points", help="touch: fixed points, gauge: sockets A;B; x,y,z in metres, ';' between."),
+    ] = None,
     frame: Annotated[
         str, typer.Option("--frame", help="base: points in the base frame; tracker: in an unknown frame.")
     ] = "base",
@@ -330,19 +334,28 @@ def plan(
         candidates=candidates,
         candidates_file=candidates_file,
         seed=seed,
+        touch_points_m=[_parse_xyz(p, "--touch-points") for p in (touch_points or "").split(";") if p.strip()],
     )
     ident = result.identifiability
     obs = ident.observability
     console.print(
         f"{len(result.q_rad)} poses ({result.criterion}-optimal of {result.candidates} candidates) for "
         f"{', '.join(result.joint_names)}: rank {ident.rank}, condition number {obs.condition:.1f}, "
-        f"O1 {obs.O1:.3g}, O3 {obs.O3:.3g}; predicted tool-point σ {result.prediction_sigma_m * 1e3:.3f} mm "
-        f"(RMS over the candidates, {noise_mm:g} mm tracker noise)"
+        f"O1 {obs.O1:.3g}, O3 {obs.O3:.3g}"
+        + (
+            f"; predicted tool-point σ {result.prediction_sigma_m * 1e3:.3f} mm (RMS over the candidates, "
+            f"{noise_mm:g} mm tracker noise)"
+            if math.isfinite(result.prediction_sigma_m)
+            else ""
+        )
     )
     warnings = [
         f"{u.name}: {u.reason}" for u in ident.unidentifiable if u.reason.startswith("the marker is on")
     ]
-    console.print(f"wrote {result.out}; move the arm to each pose and add x,y,z columns as you measure")
+    console.print(
+        f"wrote {result.out}; move the arm to each pose and "
+        + ("add x,y,z columns as you measure" if kind.strip().lower() == "points" else "touch the point it names")
+    )
     for w in warnings:
         print_warning(w)
     raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)

@@ -20,7 +20,16 @@ import numpy as np
 from ..core.arrays import FloatArray
 from ..core.identifiability import Identifiability
 from ..core.kinematic_errors import ErrorModel
-from ..core.kinematic_problem import PLAN_CRITERIA, Measurements, Problem, analyse, free_indices, plan_poses
+from ..core.kinematic_problem import (
+    KINDS,
+    PLAN_CRITERIA,
+    Measurements,
+    Problem,
+    analyse,
+    free_indices,
+    plan_poses,
+)
+from ..core.pose_plan import plan_contact_poses, reach_point
 from ..errors import UsageError
 from ..fileio import atomic_write_text, check_output_path
 from ..formats.kinematic_data import read_joint_table, session_csv
@@ -73,6 +82,7 @@ def plan(
     candidates_file: str | os.PathLike[str] | None = None,
     margin_rad: float = 0.05,
     seed: int = 0,
+    touch_points_m: Sequence[Sequence[float]] = (),
 ) -> PlanResult:
     """Choose ``poses`` configurations inside the joint limits that best identify the chain, greedily.
 
@@ -88,7 +98,7 @@ def plan(
         base_link: First link of the chain (default: the URDF root).
         tip_link: Link the marker is on (default: the only leaf).
         tool_xyz_m: Nominal marker position in the tip link, m.
-        kind: ``points`` (the only kind whose poses are free to choose).
+        kind: ``points`` (free poses), ``touch`` or ``gauge`` (poses that put the tool on ``touch_points_m``).
         frame: ``base`` or ``tracker`` (the base pose is then estimated too).
         criterion: ``I`` or ``D``.
         prior: Plan for a fit with this prior (True: the default tolerance); ``I`` only.
@@ -98,6 +108,9 @@ def plan(
             without collision); each is checked against the limits.
         margin_rad: Distance kept from the joint limits by the random candidates.
         seed: Seed of the random candidates.
+        touch_points_m: ``touch``: the fixed points (one or more), ``gauge``: sockets A and B; nominal positions
+            in the chain's base frame, m. Candidates are the configurations of the nominal arm that reach them
+            (damped least squares from ``candidates`` random starts per point).
 
     Raises:
         CalibError: Bad options, too few poses for the identifiable parameters, a candidate outside the limits
@@ -106,11 +119,19 @@ def plan(
     crit = criterion.upper()
     if crit not in PLAN_CRITERIA:
         raise UsageError(f"--criterion {criterion!r}; valid: {', '.join(c.lower() for c in PLAN_CRITERIA)}")
+    if kind not in KINDS:
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    if kind == "points" and touch_points_m:
+        raise UsageError("--touch-points applies to --kind touch or gauge")
     if kind != "points":
-        raise UsageError(
-            f"plan chooses free poses for --kind points; {kind} poses are set by where the touched points are "
-            "(touch each point from as many different configurations as the arm allows)"
-        )
+        if crit != "I" or prior or frame != "base" or candidates_file is not None:
+            raise UsageError(
+                f"--kind {kind} plans are I-optimal in the base frame from random starts: --criterion d, "
+                "--prior, --frame tracker and --candidates-file apply to --kind points"
+            )
+        need = "two points (sockets A and B)" if kind == "gauge" else "one or more points"
+        if (kind == "gauge" and len(touch_points_m) != 2) or not touch_points_m:
+            raise UsageError(f"--kind {kind} needs --touch-points with {need}, x,y,z in metres each")
     if frame not in FRAMES:
         raise UsageError(f"--frame {frame!r}; valid: {', '.join(FRAMES)}")
     if not (math.isfinite(noise_m) and noise_m > 0):
@@ -123,6 +144,11 @@ def plan(
     out_path = check_output_path(out, "--out")
     chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
     model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
+    if kind != "points":
+        return _plan_contacts(
+            model, out_path, kind, [np.asarray(p, dtype=np.float64) for p in touch_points_m], poses,
+            max(candidates, 1), margin_rad, seed,
+        )  # fmt: skip
     if candidates_file is not None:
         cand = chain.check_q(
             read_joint_table(candidates_file, chain.joint_names), what=f"{candidates_file}: pose"
@@ -166,6 +192,75 @@ def plan(
         q, chain.joint_names, ident, written, crit, int(cand.shape[0]),
         _prediction_sigma(everything, problem, ident, noise_m, sig),
     )  # fmt: skip
+
+
+def _plan_contacts(
+    model: ErrorModel,
+    out_path: Path,
+    kind: str,
+    points: list[FloatArray],
+    poses: int,
+    starts: int,
+    margin_rad: float,
+    seed: int,
+) -> PlanResult:
+    """A touch or gauge plan: reachable configurations per point, then the I-optimal greedy choice."""
+    chain = model.chain
+    rng = np.random.default_rng(seed)
+    lo, up = chain.limits()
+    lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
+    up = np.where(np.isfinite(up), up, math.pi) - margin_rad
+    qs, groups = [], []
+    for g, point in enumerate(points):
+        if point.shape != (3,) or not np.all(np.isfinite(point)):
+            raise UsageError(
+                f"--touch-points: point {g + 1} is {point.tolist()}; expected three finite numbers"
+            )
+        found = reach_point(
+            model, point, rng.uniform(lo, up, (starts, chain.n_q)), (lo, up), tolerance_m=1e-7
+        )
+        found = np.unique(np.round(found, 3), axis=0)  # distinct to about 0.06°
+        if found.shape[0] < 3:
+            raise UsageError(
+                f"--touch-points: point {g + 1} {point.tolist()} m is reached by {found.shape[0]} configurations "
+                "inside the joint limits (nominal URDF); put it where the arm reaches it in several ways"
+            )
+        qs.append(reach_point(model, point, found, (lo, up), tolerance_m=1e-9))
+        groups += [g] * qs[-1].shape[0]
+    cand = np.concatenate(qs)
+    group = np.asarray(groups, dtype=np.int64)
+    distance = float(np.linalg.norm(points[1] - points[0])) if kind == "gauge" else None
+    if kind == "gauge" and not (distance is not None and distance > 0.0):
+        raise UsageError("--touch-points: sockets A and B are the same point")
+    free = free_indices(model, ["base"])
+    everything = Problem(
+        model, Measurements(kind, cand, group=group, distance_m=distance), free, np.zeros(model.n_params)
+    )
+    rank = analyse(everything).rank
+    if 3 * poses <= rank:
+        raise UsageError(
+            f"too few poses: {poses} poses give {3 * poses} equations, not more than the {rank} unknowns the "
+            f"candidates can identify; plan at least {rank // 3 + 2} poses (20 or more for a useful result)"
+        )
+    if cand.shape[0] < poses:
+        raise UsageError(f"--poses {poses}: only {cand.shape[0]} reaching configurations to choose from")
+    q_predict = rng.uniform(lo, up, (2000, chain.n_q))
+    idx = plan_contact_poses(model, cand, group, poses, q_predict, kind=kind, distance_m=distance)
+    missing = sorted(set(range(len(points))) - set(group[idx].tolist()))
+    if missing:
+        raise UsageError(
+            f"the plan touches no point {', '.join(str(g + 1) for g in missing)}: plan more poses or fewer points"
+        )
+    q, g_sel = cand[idx], group[idx]
+    ident = analyse(
+        Problem(
+            model, Measurements(kind, q, group=g_sel, distance_m=distance), free, np.zeros(model.n_params)
+        )
+    )
+    column = "socket" if kind == "gauge" else "group"
+    labels = [("A" if v == 0 else "B") if kind == "gauge" else f"P{v + 1}" for v in g_sel.tolist()]
+    written = atomic_write_text(out_path, session_csv(q, chain.joint_names, {column: labels}))
+    return PlanResult(q, chain.joint_names, ident, written, "I", int(cand.shape[0]))
 
 
 def _prediction_sigma(

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 from ...core.arrays import FloatArray
 from ...core.kinematic_errors import ErrorModel
 from ...core.kinematic_problem import Measurements
+from ...core.pose_plan import reach_point
 from ...errors import UsageError
 
 __all__ = ["ErrorSigmas", "SimulatedKinematicArm", "hidden_errors"]
@@ -125,18 +126,7 @@ class SimulatedKinematicArm:
         Returns:
             ``(K, n_q)`` configurations inside the limits that reach the target within 1 nm.
         """
-        lo, up = self._limits
-        cols = [self.model.index(f"{j.name}.offset") for j in self.model.chain.movable]
-        q: FloatArray = np.array(q0, dtype=np.float64)
-        for _ in range(iters):
-            p, J = self.model.point_jacobian(q, self.x_true)
-            err = target - p
-            Jq = J[:, :, cols]
-            A = Jq @ Jq.transpose(0, 2, 1) + 1e-6 * np.eye(3)
-            dq = np.einsum("mij,mi->mj", Jq, np.linalg.solve(A, err[:, :, None])[:, :, 0])
-            q = np.clip(q + dq, lo, up)
-        ok = np.linalg.norm(target - self.model.points(q, self.x_true), axis=1) < 1e-9
-        return np.asarray(q[ok], dtype=np.float64)
+        return reach_point(self.model, target, q0, self._limits, x=self.x_true, iterations=iters)
 
     def touch(
         self,
