@@ -275,3 +275,29 @@ def test_planned_poses_are_shown_one_by_one(tmp_path: Path, capsys, monkeypatch)
     err = capsys.readouterr().err
     assert f"{tmp_path / 'plan.csv'}: pose 1" in err and "elbow_flex" in err and err.count("error:") == 1
     assert not (tmp_path / "u.csv").exists()
+
+
+def test_a_contact_plan_names_the_point_and_answers_for_it(tmp_path: Path, capsys, monkeypatch) -> None:
+    """A touch plan's ``group`` column: the prompt says which point to touch, and Enter takes it."""
+    import io
+
+    from robocal.cli.main import main
+
+    (tmp_path / "rec.csv").write_text(
+        "t," + ",".join(CHAIN) + "\n" + "".join(f"{i * 0.1}," + ",".join(map(str, r)) + "\n" for i, r in enumerate(TARGETS))
+    )
+    (tmp_path / "plan.csv").write_text(
+        "pose," + ",".join(CHAIN) + ",group\n"
+        + "".join(f"{i + 1}," + ",".join(str(float(v)) for v in r) + f",{g}\n" for i, (r, g) in enumerate(zip(TARGETS, ("P2", "P1", "P2"), strict=True)))
+    )
+    args = [
+        "kinematics", "record", "--source", f"replay:{tmp_path / 'rec.csv'}", "--urdf", str(shipped_urdf("so101")),
+        "--tip-link", "gripper_link", "--kind", "touch", "--out", str(tmp_path / "t.csv"), "--plan", str(tmp_path / "plan.csv"),
+    ]  # fmt: skip
+    monkeypatch.setattr("sys.stdin", io.StringIO("\n\n\nP3\n\n\n"))  # pose 2: the user touched P3 instead
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert "wrist_roll -57.3°, touching P2, then press Enter" in err
+    assert "pose 2: label of the touched point [P1]" in err
+    data, labels = read_measurements(tmp_path / "t.csv", "touch", CHAIN)
+    assert [labels[g] for g in data.group] == ["P2", "P3", "P2"]

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
@@ -453,11 +454,13 @@ def record(
         joint_map=joint_map,
     )
     try:
-        targets = None
+        targets: FloatArray | None = None
+        labels: tuple[str, ...] = ()
         if plan is not None:
-            from ..formats.kinematic_data import read_joint_table
+            from ..formats.kinematic_data import read_pose_plan
 
-            targets = chain.check_q(read_joint_table(plan, chain.joint_names), what=f"{plan}: pose")
+            targets, labels = read_pose_plan(plan, chain.joint_names)
+            targets = chain.check_q(targets, what=f"{plan}: pose")
         err_console.print(
             f"recording {kind} poses of {', '.join(chain.joint_names)} (chain {chain.base_link} → {chain.tip_link})"
         )
@@ -471,6 +474,7 @@ def record(
             poses=poses,
             image_pattern=image_pattern,
             targets=targets,
+            target_labels=labels,
         )
     finally:
         reader.close()

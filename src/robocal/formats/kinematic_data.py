@@ -37,6 +37,7 @@ __all__ = [
     "read_image_session",
     "read_joint_table",
     "read_measurements",
+    "read_pose_plan",
     "session_csv",
 ]
 
@@ -236,6 +237,22 @@ def parse_joint_table(text: str, joint_names: Sequence[str], *, source: str = "<
 def read_joint_table(path: str | os.PathLike[str], joint_names: Sequence[str]) -> np.ndarray:
     """Read a table of joint positions from a file; see :func:`parse_joint_table`."""
     return parse_joint_table(read_text(path, "pose table"), joint_names, source=str(path))
+
+
+def read_pose_plan(path: str | os.PathLike[str], joint_names: Sequence[str]) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Read a pose plan (``kinematics plan``): the joints and, when it has one, the ``group``/``socket`` column.
+
+    Returns:
+        ``(N, n_q)`` joint positions and the ``N`` point labels (``()`` for a plan of free poses).
+    """
+    text = read_text(path, "pose plan")
+    q = parse_joint_table(text, joint_names, source=str(path))
+    _, rows = _csv_rows(text, str(path))
+    for column in ("group", "socket"):
+        if column in rows[0]:
+            k = rows[0].index(column)
+            return q, tuple(row[k].strip() for row in rows[1:])
+    return q, ()
 
 
 def measurements_to_csv(data: Measurements, joint_names: Sequence[str], labels: Sequence[str] = ()) -> str:

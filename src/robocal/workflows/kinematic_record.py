@@ -193,6 +193,7 @@ def record(
     poses: int | None = None,
     image_pattern: str = "pose_{pose:03d}.png",
     targets: FloatArray | None = None,
+    target_labels: Sequence[str] = (),
 ) -> RecordResult:
     """Run a recording session and write the measurement CSV.
 
@@ -212,6 +213,8 @@ def record(
         image_pattern: Default image path per pose (``{pose}`` is the pose number), relative to the CSV.
         targets: ``(N, n_q)`` planned poses (``kinematics plan``): pose ``n``'s prompt shows target ``n``, and
             its reading is compared with it; ``poses`` defaults to ``N``.
+        target_labels: The point each planned pose touches (``touch``: its label, ``gauge``: ``A``/``B``):
+            named in the prompt and taken when the answer is empty.
 
     Returns:
         The :class:`RecordResult`.
@@ -247,6 +250,8 @@ def record(
             n = len(qs) + 1
             try:
                 goal = "" if targets is None or n > len(targets) else f" to {_target_text(chain, targets[n - 1])}"
+                planned = target_labels[n - 1] if n <= len(target_labels) else ""
+                goal += f", touching {planned}" if planned and kind in ("touch", "gauge") else ""
                 answer = ask(f"pose {n}: move the arm{goal}, then press Enter (q + Enter when done)")
             except EOFError:
                 break
@@ -281,6 +286,7 @@ def record(
                         continue
                     points.append(p)
                 elif kind == "touch":
+                    last_label = planned or last_label
                     label = ask(f"pose {n}: label of the touched point [{last_label}]").strip() or last_label
                     last_label = label
                     if label not in labels:
@@ -288,7 +294,8 @@ def record(
                     groups.append(labels.index(label))
                 elif kind == "gauge":
                     while True:
-                        socket = ask(f"pose {n}: ball in socket A or B").strip().upper()
+                        prompt = f"pose {n}: ball in socket A or B" + (f" [{planned}]" if planned else "")
+                        socket = ask(prompt).strip().upper() or planned.upper()
                         if socket in ("A", "B"):
                             break
                         say(f"socket {socket!r}: answer A or B")
