@@ -30,6 +30,22 @@ def test_missing_optional_dependency_names_the_extra(monkeypatch: pytest.MonkeyP
         require("scservo_sdk", "the Feetech backend")
 
 
+def test_missing_opencv_and_scipy_keep_their_own_messages(monkeypatch: pytest.MonkeyPatch) -> None:
+    from robocal.backends.vision import _cv2
+    from robocal.workflows.kinematic_fit import _least_squares
+
+    monkeypatch.setitem(sys.modules, "cv2", None)
+    with pytest.raises(BackendNotAvailableError) as err:
+        _cv2()
+    assert str(err.value) == (
+        "camera targets need OpenCV: pip install 'robocal[vision]' (opencv-python-headless)"
+    )
+    monkeypatch.setitem(sys.modules, "scipy.optimize", None)
+    with pytest.raises(BackendNotAvailableError) as err:
+        _least_squares()
+    assert str(err.value) == "kinematic identification needs scipy: pip install 'robocal[kinematics]'"
+
+
 class _RecordingBus:
     """Stands in for a registered backend class: records how robocal constructed it."""
 

@@ -44,12 +44,14 @@ EXTRAS: dict[str, str] = {
 """Top-level module of an optional dependency → the robocal extra that installs it."""
 
 
-def require(module: str, purpose: str) -> Any:
+def require(module: str, purpose: str, *, message: str | None = None) -> Any:
     """Import an optional dependency or raise :class:`BackendNotAvailableError` naming the extra.
 
     Args:
         module: Module to import, e.g. ``"can"``.
         purpose: What it is needed for, used in the message (e.g. ``"the Robstride CAN backend"``).
+        message: The whole error message instead of the one built from ``purpose`` (for a package whose
+            pip name differs from its module's).
 
     Returns:
         The imported module.
@@ -59,7 +61,7 @@ def require(module: str, purpose: str) -> Any:
     except ImportError:
         extra = EXTRAS.get(module.split(".")[0], "all")
         raise BackendNotAvailableError(
-            f"{purpose} needs the Python package {module!r}: pip install 'robocal[{extra}]'"
+            message or f"{purpose} needs the Python package {module!r}: pip install 'robocal[{extra}]'"
         ) from None
 
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, TypeVar
+from typing import Any
 
+from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from . import require
 
@@ -17,10 +18,9 @@ __all__ = ["SdkBusBase"]
 
 COMM_SUCCESS = 0
 
-_Bus = TypeVar("_Bus", bound="SdkBusBase")
 
 
-class SdkBusBase:
+class SdkBusBase(ClosesOnExit):
     """Everything :class:`FeetechBus` and :class:`DynamixelBus` share; subclasses set the tables and codecs.
 
     Subclass hooks: ``_encode`` / ``_decode`` (sign encodings), ``_select_protocol`` (called before every
@@ -295,9 +295,3 @@ class SdkBusBase:
         """Close the port."""
         if self._port_handler.is_open:
             self._port_handler.closePort()
-
-    def __enter__(self: _Bus) -> _Bus:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

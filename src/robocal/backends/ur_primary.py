@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from ..core.dh import DHParameters
+from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 
 __all__ = [
@@ -274,7 +275,7 @@ def parse_kinematics_info(sub: bytes) -> tuple[KinematicsInfo, bool]:
 
 
 @dataclass
-class PrimaryClient:
+class PrimaryClient(ClosesOnExit):
     """Blocking client for the UR primary interface; registered as backend ``"ur_primary"``.
 
     Example:
@@ -296,12 +297,6 @@ class PrimaryClient:
     _deadline: float = field(default=0.0, repr=False)
     _awaiting: str = field(default="KinematicsInfo", repr=False)  # what a timeout message says was missing
     _detail: str = field(default="", repr=False)  # and which sample / what the messages that came lacked
-
-    def __enter__(self) -> PrimaryClient:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     @property
     def _where(self) -> str:

@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.arrays import FloatArray, IntArray
 from ..errors import BackendNotAvailableError, FileFormatError, UsageError
+from . import require
 
 __all__ = [
     "CameraIntrinsics",
@@ -52,12 +53,11 @@ APRILTAG_FAMILIES = ("16h5", "25h9", "36h10", "36h11")
 
 
 def _cv2() -> Any:
-    try:
-        import cv2
-    except ImportError:  # pragma: no cover - depends on the environment
-        raise BackendNotAvailableError(
-            "camera targets need OpenCV: pip install 'robocal[vision]' (opencv-python-headless)"
-        ) from None
+    cv2 = require(
+        "cv2",
+        "camera targets",
+        message="camera targets need OpenCV: pip install 'robocal[vision]' (opencv-python-headless)",
+    )
     if not hasattr(cv2, "aruco") or not hasattr(cv2.aruco, "CharucoDetector"):  # pragma: no cover
         raise BackendNotAvailableError(
             f"OpenCV {cv2.__version__} has no cv2.aruco.CharucoDetector; need >= 4.7"

@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ShapeMismatchError, UsageError
-from .arrays import FloatArray, IntArray
+from .arrays import BoolArray, FloatArray, IntArray
+from .named import Named
 
 __all__ = [
     "DEFAULT_RANK_TOLERANCE",
@@ -32,10 +33,12 @@ __all__ = [
     "Observability",
     "UnidentifiableParameter",
     "analyse_columns",
+    "common_reason",
     "observability",
     "pivoted_qr_order",
     "select_poses",
     "select_poses_i_optimal",
+    "still_joints",
 ]
 
 
@@ -234,6 +237,73 @@ def analyse_columns(
     )
 
 
+def still_joints(joints: Sequence[Named], q_rad: FloatArray) -> dict[str, float]:
+    """Joints that kept one position over all poses: name → that position (rad or m).
+
+    Args:
+        joints: The movable joints, one per column of ``q_rad``.
+        q_rad: Joint positions per pose, shape ``(N, len(joints))``.
+    """
+    return {
+        j.name: float(q_rad[0, k])
+        for k, j in enumerate(joints)
+        if q_rad.shape[0] > 0 and float(np.ptp(q_rad[:, k])) < 1e-9
+    }
+
+
+def common_reason(
+    group: str, kind: str, same: tuple[tuple[str, float], ...], is_zero: bool, measured: str
+) -> str | None:
+    """The reasons any measurement gives for an unidentifiable parameter ``group.kind``, or None.
+
+    A parameter that changes nothing (``is_zero``), and a rotation about a joint's own axis that only
+    duplicates that joint's zero offset. ``measured`` names what was measured ("measured points", "images").
+    """
+    if is_zero:
+        return f"does not change the {measured} at all"
+    if len(same) == 1:
+        other = same[0][0]
+        o_group, _, o_kind = other.partition(".")
+        if o_group == group and o_kind == "offset" and kind.startswith("r"):
+            return f"a rotation about {group}'s own axis is the same as its zero offset ({other})"
+    return None
+
+
+def _candidates(J_candidates: ArrayLike, n_select: int, regularisation: float) -> tuple[FloatArray, FloatArray]:
+    """Checked candidate blocks ``(M, r, k)`` and the information ``εI`` a greedy selection starts from.
+
+    Raises:
+        ShapeMismatchError: The blocks are not 3-D.
+        UsageError: ``n_select`` is not in ``1..M``.
+    """
+    Jc = np.asarray(J_candidates, dtype=np.float64)
+    if Jc.ndim != 3:
+        raise ShapeMismatchError(f"candidate Jacobians must be (M, rows, k), got {Jc.shape}")
+    M, _, k = Jc.shape
+    if not 0 < n_select <= M:
+        raise UsageError(f"cannot select {n_select} poses from {M} candidates")
+    eps = regularisation * float(np.mean(np.sum(Jc * Jc, axis=(0, 1)))) + 1e-300
+    return Jc, eps * np.eye(k)
+
+
+def _take(A: FloatArray, Jc: FloatArray, chosen: Sequence[int]) -> BoolArray:
+    """Add the ``chosen`` candidates' information to ``A`` (in place); the mask of candidates still free."""
+    for i in chosen:
+        A += Jc[i].T @ Jc[i]
+    available = np.ones(Jc.shape[0], dtype=bool)
+    available[list(chosen)] = False
+    return available
+
+
+def _choose(A: FloatArray, Jc: FloatArray, gain: FloatArray, available: BoolArray, chosen: list[int]) -> None:
+    """One greedy step: the free candidate of largest ``gain`` joins ``chosen``, its information ``A`` (in place)."""
+    gain[~available] = -np.inf
+    best = int(np.argmax(gain))
+    chosen.append(best)
+    available[best] = False
+    A += Jc[best].T @ Jc[best]
+
+
 def select_poses(
     J_candidates: ArrayLike,
     n_select: int,
@@ -256,28 +326,14 @@ def select_poses(
     Returns:
         ``(n_select,)`` candidate indices in the order chosen.
     """
-    Jc = np.asarray(J_candidates, dtype=np.float64)
-    if Jc.ndim != 3:
-        raise ShapeMismatchError(f"candidate Jacobians must be (M, rows, k), got {Jc.shape}")
-    M, _, k = Jc.shape
-    if not 0 < n_select <= M:
-        raise UsageError(f"cannot select {n_select} poses from {M} candidates")
-    eps = regularisation * float(np.mean(np.sum(Jc * Jc, axis=(0, 1)))) + 1e-300
-    A = eps * np.eye(k)
+    Jc, A = _candidates(J_candidates, n_select, regularisation)
     chosen = [int(i) for i in start]
-    for i in chosen:
-        A += Jc[i].T @ Jc[i]
-    available = np.ones(M, dtype=bool)
-    available[chosen] = False
+    available = _take(A, Jc, chosen)
     while len(chosen) < n_select:
         Ainv = np.linalg.inv(A)
         S = np.einsum("mrk,kl,msl->mrs", Jc, Ainv, Jc)
         gain = np.linalg.slogdet(np.eye(S.shape[1]) + S)[1]
-        gain[~available] = -np.inf
-        best = int(np.argmax(gain))
-        chosen.append(best)
-        available[best] = False
-        A += Jc[best].T @ Jc[best]
+        _choose(A, Jc, gain, available, chosen)
     return np.asarray(chosen, dtype=np.int64)
 
 
@@ -310,18 +366,12 @@ def select_poses_i_optimal(
     Returns:
         ``(n_select,)`` candidate indices in the order chosen.
     """
-    Jc = np.asarray(J_candidates, dtype=np.float64)
-    if Jc.ndim != 3:
-        raise ShapeMismatchError(f"candidate Jacobians must be (M, rows, k), got {Jc.shape}")
-    M, r, k = Jc.shape
-    if not 0 < n_select <= M:
-        raise UsageError(f"cannot select {n_select} poses from {M} candidates")
+    Jc, A = _candidates(J_candidates, n_select, regularisation)
+    _, r, k = Jc.shape
     Jp = Jc if J_predict is None else np.asarray(J_predict, dtype=np.float64)
     if Jp.ndim != 3 or Jp.shape[2] != k:
         raise ShapeMismatchError(f"prediction Jacobians must be (M, rows, {k}), got {Jp.shape}")
     W = np.einsum("mrk,mrl->kl", Jp, Jp) / max(Jp.shape[0], 1)
-    eps = regularisation * float(np.mean(np.sum(Jc * Jc, axis=(0, 1)))) + 1e-300
-    A = eps * np.eye(k)
     chosen = [int(i) for i in start]
     if prior_precision is None:
         n_d = min(n_select, max(len(chosen), -(-k // r) + 1))
@@ -329,10 +379,7 @@ def select_poses_i_optimal(
     else:
         P = np.asarray(prior_precision, dtype=np.float64)
         A += np.diag(P) if P.ndim == 1 else P
-    for i in chosen:
-        A += Jc[i].T @ Jc[i]
-    available = np.ones(M, dtype=bool)
-    available[chosen] = False
+    available = _take(A, Jc, chosen)
     eye = np.eye(r)
     while len(chosen) < n_select:
         Ainv = np.linalg.inv(A)
@@ -340,9 +387,5 @@ def select_poses_i_optimal(
         S = JA @ Jc.transpose(0, 2, 1)
         T = (JA @ W) @ JA.transpose(0, 2, 1)
         gain = np.einsum("mii->m", np.linalg.solve(eye + S, T))
-        gain[~available] = -np.inf
-        best = int(np.argmax(gain))
-        chosen.append(best)
-        available[best] = False
-        A += Jc[best].T @ Jc[best]
+        _choose(A, Jc, gain, available, chosen)
     return np.asarray(chosen, dtype=np.int64)

@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
 from .arrays import FloatArray, IntArray
-from .identifiability import Identifiability, analyse_columns
+from .identifiability import Identifiability, analyse_columns, common_reason, still_joints
 from .kinematic_errors import ErrorModel
 from .kinematic_problem import _priority
 from .se3 import homogeneous, matrix_from_rotvec, rotvec_from_matrix
@@ -334,26 +334,19 @@ class ImageProblem:
         """Identifiability of the unknowns at ``θ`` (default: the start values)."""
         t = self.initial_theta() if theta is None else np.asarray(theta, dtype=np.float64)
         _, J = self.residuals_and_jacobian(t)
-        q = self.data.q_rad
-        still = {
-            j.name: float(q[0, k])
-            for k, j in enumerate(self.model.chain.movable)
-            if q.shape[0] > 0 and float(np.ptp(q[:, k])) < 1e-9
-        }
+        still = still_joints(self.model.chain.movable, self.data.q_rad)
         names = self.names
 
         def explain(col: int, same: tuple[tuple[str, float], ...], is_zero: bool) -> str:
             group, _, kind = names[col].partition(".")
             if group in still:
                 return f"{group} did not move in the images (always {still[group]:.4g}); move it through its range"
-            if is_zero:
-                return "does not change the images at all"
+            common = common_reason(group, kind, same, is_zero, "images")
+            if common is not None:
+                return common
             if len(same) == 1:
                 other, c = same[0]
-                o_group, _, o_kind = other.partition(".")
-                if o_group == group and o_kind == "offset" and kind.startswith("r"):
-                    return f"a rotation about {group}'s own axis is the same as its zero offset ({other})"
-                if o_group == "base":
+                if other.partition(".")[0] == "base":
                     frame = "target's place" if self.camera_on_tool else "camera pose"
                     return (
                         f"moves the image exactly like the {frame} {other} (×{c:.3g}); the {frame} is "

@@ -25,7 +25,15 @@ from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
 from .arrays import FloatArray, IntArray
-from .identifiability import Explain, Identifiability, analyse_columns, select_poses, select_poses_i_optimal
+from .identifiability import (
+    Explain,
+    Identifiability,
+    analyse_columns,
+    common_reason,
+    select_poses,
+    select_poses_i_optimal,
+    still_joints,
+)
 from .kinematic_errors import ErrorModel
 
 __all__ = [
@@ -306,13 +314,11 @@ def _reasons(problem: Problem, on_axis: set[str], still: dict[str, float], scale
             return (
                 "a measured point does not show the tool's orientation (measure a frame, e.g. a tag, for it)"
             )
-        if is_zero:
-            return "does not change the measured points at all"
+        common = common_reason(group, k, same, is_zero, "measured points")
+        if common is not None:
+            return common
         if len(same) == 1:
             other, c = same[0]
-            o_group, _, o_kind = other.partition(".")
-            if o_group == group and o_kind == "offset" and k.startswith("r"):
-                return f"a rotation about {group}'s own axis is the same as its zero offset ({other})"
             return f"moves the points exactly like {other} (×{c:.3g}); {other} is identified instead"
         others = ", ".join(n for n, _ in same[:4])
         if kind in ("touch", "gauge") and group in (model.chain.movable[0].name, "base"):
@@ -333,12 +339,7 @@ def analyse(problem: Problem, theta: ArrayLike | None = None, *, tolerance: floa
     x = problem.x_of(t)
     dist = marker_axis_distances(problem.model, problem.data.q_rad, x)
     on_axis = {name for name, d in dist.items() if d < 1e-6}
-    q = problem.data.q_rad
-    still = {
-        j.name: float(q[0, k])
-        for k, j in enumerate(problem.model.chain.movable)
-        if q.shape[0] > 0 and float(np.ptp(q[:, k])) < 1e-9
-    }
+    still = still_joints(problem.model.chain.movable, problem.data.q_rad)
     scale_lost: set[int] = set()
     if problem.data.kind == "touch":
         v = scale_direction(problem, t)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import JointMismatchError
+from .named import find_named
 from .profile_auto import AutoSection
 
 __all__ = [
@@ -165,10 +166,7 @@ class RobotProfile:
 
     def get(self, name: str) -> ProfileJoint | None:
         """The joint with URDF name ``name``, or None."""
-        for j in self.joints:
-            if j.name == name:
-                return j
-        return None
+        return find_named(self.joints, name)
 
     def direction(self, name: str) -> int | None:
         """The profile's direction of joint ``name`` (None when the profile has no such joint or value)."""

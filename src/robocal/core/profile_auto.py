@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .named import find_named
+
 __all__ = [
     "AUTO_STOPS",
     "HARD_MAX_SPEED_DEG_S",
@@ -142,7 +144,4 @@ class AutoSection:
 
     def joint(self, name: str) -> AutoJoint | None:
         """The entry of joint ``name`` or None."""
-        for j in self.joints:
-            if j.name == name:
-                return j
-        return None
+        return find_named(self.joints, name)

@@ -12,6 +12,7 @@ from ..errors import InvalidCalibrationError
 __all__ = [
     "FAIL_CODES",
     "TESTS",
+    "CodedOutcome",
     "Command",
     "SearchConfig",
     "StopResult",
@@ -33,6 +34,22 @@ FAIL_CODES = (
 """Why a search or a joint failed (``ok`` otherwise)."""
 TESTS = ("torque", "lag", "overload+reread", "no-reply+reread", "transit-stall", "blocked")
 """Which test declared the stop."""
+
+
+class CodedOutcome:
+    """Mixin of a search outcome with a ``code`` (``ok`` or one of :data:`FAIL_CODES`) and a ``reason``."""
+
+    code: str
+    reason: str
+
+    @property
+    def ok(self) -> bool:
+        """Whether the code is ``ok`` (the stop was found; the joint has a trustworthy offset)."""
+        return self.code == "ok"
+
+    def _report_code(self) -> dict[str, Any]:
+        """The first keys of a JSON report: code and reason."""
+        return {"code": self.code, "reason": self.reason}
 
 
 @dataclass(frozen=True)
@@ -154,7 +171,7 @@ class Command:
 
 
 @dataclass(frozen=True)
-class StopResult:
+class StopResult(CodedOutcome):
     """The outcome of one stop search.
 
     Attributes:
@@ -187,16 +204,10 @@ class StopResult:
     peak_torque_nm: float = 0.0
     touches: tuple[float, ...] = ()
 
-    @property
-    def ok(self) -> bool:
-        """Whether the stop was found."""
-        return self.code == "ok"
-
     def to_report(self) -> dict[str, Any]:
         """Plain values for a JSON report (degrees where a person reads them)."""
         return {
-            "code": self.code,
-            "reason": self.reason,
+            **self._report_code(),
             "q_stop_deg": report_deg(self.q_stop_rad),
             "q_pressed_deg": report_deg(self.q_pressed_rad),
             "detection_torque_nm": report_num(self.torque_nm),

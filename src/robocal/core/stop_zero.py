@@ -10,13 +10,13 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidCalibrationError
-from .stop_types import SearchConfig, StopResult, report_deg
+from .stop_types import CodedOutcome, SearchConfig, StopResult, report_deg
 
 __all__ = ["JointStops", "gravity_corrected", "joint_zero", "summarise", "with_gravity"]
 
 
 @dataclass(frozen=True)
-class JointStops:
+class JointStops(CodedOutcome):
     """Both (or one) stops of a joint combined into a zero.
 
     Attributes:
@@ -39,16 +39,10 @@ class JointStops:
     span_rad: float = math.nan
     expected_span_rad: float = math.nan
 
-    @property
-    def ok(self) -> bool:
-        """Whether the joint has a trustworthy offset."""
-        return self.code == "ok"
-
     def to_report(self) -> dict[str, Any]:
         """Plain values for a JSON report."""
         return {
-            "code": self.code,
-            "reason": self.reason,
+            **self._report_code(),
             "offset_rad": None if not math.isfinite(self.offset_rad) else self.offset_rad,
             "q_stop_minus_deg": None if self.lower is None else report_deg(self.lower.q_stop_rad),
             "q_stop_plus_deg": None if self.upper is None else report_deg(self.upper.q_stop_rad),

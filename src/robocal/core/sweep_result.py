@@ -26,6 +26,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from .named import get_named
+
 __all__ = [
     "CODES",
     "DEFAULT_SPAN_TOLERANCE_RAD",
@@ -181,10 +183,7 @@ class SweepResult:
         return tuple(j.name for j in self.joints)
 
     def __getitem__(self, name: str) -> JointSweep:
-        for j in self.joints:
-            if j.name == name:
-                return j
-        raise KeyError(name)
+        return get_named(self.joints, name)
 
     @property
     def ok(self) -> bool:

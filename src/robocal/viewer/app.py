@@ -35,7 +35,6 @@ from .scene import (
     joint_table_html,
     open_server,
     plain_lights,
-    stop_server,
     stop_thread,
 )
 
@@ -148,15 +147,7 @@ class ViewerApp(ServedPage):
         """Stop the page loop and the server (idempotent)."""
         stop_thread(self._stop, self._thread)
         self._thread = None
-        if self.server is not None:
-            server, self.server = self.server, None
-            stop_server(server)
-
-    def __enter__(self) -> ViewerApp:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
+        super().stop()
 
     def wait(self, timeout_s: float | None = None) -> bool:
         """Block until :meth:`stop` (True) or ``timeout_s`` (False)."""

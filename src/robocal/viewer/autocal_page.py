@@ -36,7 +36,16 @@ from ..core.profile_auto import NOT_SEARCHED
 from ..core.stop_search import StopSample
 from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
-from .sweep_page import FAIL_RGB, LIVE_RGB, SweepOverlay, arc_points, line_rgb, status_rgb
+from .sweep_page import (
+    FAIL_RGB,
+    LIVE_RGB,
+    SweepOverlay,
+    arc_points,
+    json_num,
+    line_rgb,
+    status_json,
+    status_rgb,
+)
 
 __all__ = ["AutoJointState", "AutoSweepWebView", "open_auto_sweep_page"]
 
@@ -71,20 +80,14 @@ class AutoJointState:
 
     def to_json(self) -> dict[str, Any]:
         """Plain data for the page state (NaN becomes None)."""
-
-        def num(x: float) -> float | None:
-            return float(x) if math.isfinite(x) else None
-
         return {
-            "name": self.name,
-            "status": self.status,
-            "color": list(status_rgb(self.status)) if self.status != "waiting" else None,
+            **status_json(self.name, self.status),
             "reason": self.reason,
-            "seen_min": num(self.seen_min),
-            "seen_max": num(self.seen_max),
-            "current": num(self.current),
-            "stop_minus": num(self.stop_minus),
-            "stop_plus": num(self.stop_plus),
+            "seen_min": json_num(self.seen_min),
+            "seen_max": json_num(self.seen_max),
+            "current": json_num(self.current),
+            "stop_minus": json_num(self.stop_minus),
+            "stop_plus": json_num(self.stop_plus),
             "samples": self.samples,
             "passed": self.passed,
         }

@@ -13,7 +13,7 @@ import math
 import socket
 import threading
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -217,6 +217,9 @@ def stop_server(server: Any) -> None:
         server.stop()
 
 
+_Page = TypeVar("_Page", bound="ServedPage")
+
+
 class ServedPage:
     """A page a viser server serves (``robocal view``, ``robocal ur view``): its port and address.
 
@@ -239,6 +242,18 @@ class ServedPage:
     def url(self) -> str:
         """The page's address."""
         return page_url(self.host, self.port)
+
+    def stop(self) -> None:
+        """Stop the server (idempotent)."""
+        if self.server is not None:
+            server, self.server = self.server, None
+            stop_server(server)
+
+    def __enter__(self: _Page) -> _Page:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
 
 
 def stop_thread(stop: threading.Event, thread: threading.Thread | None, timeout_s: float = 5.0) -> None:

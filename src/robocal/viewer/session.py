@@ -17,6 +17,7 @@ import numpy as np
 from ..backends.sources import JointSpec, parse_source
 from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
+from ..core.lifecycle import ClosesOnExit
 from ..errors import FileFormatError, JointMismatchError, UsageError
 from .app import ViewerApp
 from .feeds import Feed, PollFeed, ReplayFeed, SourceFeed, reorder
@@ -77,7 +78,7 @@ class ViewOptions:
 
 
 @dataclass
-class ViewSession:
+class ViewSession(ClosesOnExit):
     """A running view: the page and the feed (stop both with :meth:`close`).
 
     Attributes:
@@ -96,12 +97,6 @@ class ViewSession:
             self.feed.stop()
         finally:
             self.app.stop()
-
-    def __enter__(self) -> ViewSession:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def _joints(model: RobotModel, urdf_path: Path, profile_name: str | None, cf: Any) -> list[JointSpec]:

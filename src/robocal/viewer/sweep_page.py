@@ -49,7 +49,9 @@ __all__ = [
     "SweepOverlay",
     "SweepWebView",
     "arc_points",
+    "json_num",
     "open_sweep_page",
+    "status_json",
     "status_rgb",
 ]
 
@@ -85,6 +87,20 @@ def status_rgb(status: str) -> tuple[int, int, int]:
     if status in LIVE_RGB:
         return LIVE_RGB[status]
     return FAIL_RGB if status in FAIL_CODES else OTHER_RGB
+
+
+def status_json(name: str, status: str) -> dict[str, Any]:
+    """The first keys of a joint's page state: name, status and its colour (None while ``waiting``)."""
+    return {
+        "name": name,
+        "status": status,
+        "color": list(status_rgb(status)) if status != "waiting" else None,
+    }
+
+
+def json_num(x: float) -> float | None:
+    """A number for the page state: NaN and inf become None (JSON has neither)."""
+    return float(x) if math.isfinite(x) else None
 
 
 def arc_points(
@@ -146,19 +162,13 @@ class JointArc:
 
     def to_json(self) -> dict[str, Any]:
         """Plain data for the page state (NaN becomes None)."""
-
-        def num(x: float) -> float | None:
-            return float(x) if math.isfinite(x) else None
-
         return {
-            "name": self.name,
-            "status": self.status,
-            "color": list(status_rgb(self.status)) if self.status != "waiting" else None,
-            "lower": num(self.lower),
-            "upper": num(self.upper),
-            "sampled_min": num(self.sampled_min),
-            "sampled_max": num(self.sampled_max),
-            "current": num(self.current),
+            **status_json(self.name, self.status),
+            "lower": json_num(self.lower),
+            "upper": json_num(self.upper),
+            "sampled_min": json_num(self.sampled_min),
+            "sampled_max": json_num(self.sampled_max),
+            "current": json_num(self.current),
         }
 
 

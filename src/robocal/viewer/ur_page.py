@@ -47,7 +47,7 @@ from ..core.ur import (
 from ..errors import UsageError
 from ..workflows import ur as ur_wf
 from ..workflows import ur_verify
-from .scene import ServedPage, _viser, open_server, plain_lights, stop_server
+from .scene import ServedPage, _viser, open_server, plain_lights
 
 __all__ = [
     "CALIBRATED_RGB",
@@ -259,18 +259,6 @@ class UrViewPage(ServedPage):
             self.stop()
             raise
         return self
-
-    def stop(self) -> None:
-        """Stop the server (idempotent)."""
-        if self.server is not None:
-            server, self.server = self.server, None
-            stop_server(server)
-
-    def __enter__(self) -> UrViewPage:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     # ------------------------------------------------------------------------------------------ state
     def set_q(self, q_rad: Sequence[float]) -> UrComparison:

@@ -12,6 +12,7 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
+from ..core.named import get_named
 from ..core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
 from ..core.stop_search import (
     Command,
@@ -172,10 +173,7 @@ class AutoCalResult:
     interrupted: bool = False
 
     def __getitem__(self, name: str) -> JointOutcome:
-        for j in self.joints:
-            if j.name == name:
-                return j
-        raise KeyError(name)
+        return get_named(self.joints, name)
 
     @property
     def failed(self) -> tuple[JointOutcome, ...]:

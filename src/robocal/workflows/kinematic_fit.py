@@ -16,12 +16,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..backends import require
 from ..core.arrays import FloatArray
 from ..core.identifiability import Identifiability
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_images import ImageProblem
 from ..core.kinematic_problem import Measurements, Problem, analyse
-from ..errors import BackendNotAvailableError, UsageError
+from ..errors import UsageError
 
 __all__ = ["CONSTRAINT_WEIGHT", "FitResult", "PriorSigmas", "fit", "split_validation", "validation_errors"]
 
@@ -32,13 +33,12 @@ CONSTRAINT_WEIGHT = 100.0
 
 
 def _least_squares() -> Any:
-    try:
-        from scipy.optimize import least_squares
-    except ImportError:  # pragma: no cover - depends on the environment
-        raise BackendNotAvailableError(
-            "kinematic identification needs scipy: pip install 'robocal[kinematics]'"
-        ) from None
-    return least_squares
+    optimize = require(
+        "scipy.optimize",
+        "kinematic identification",
+        message="kinematic identification needs scipy: pip install 'robocal[kinematics]'",
+    )
+    return optimize.least_squares
 
 
 @dataclass(frozen=True)

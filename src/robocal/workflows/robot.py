@@ -29,6 +29,7 @@ from ..backends.robstride.protocol import model_limits
 from ..backends.sources import RobstrideSource, open_source, parse_source
 from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
+from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibError, JointMismatchError, ShapeMismatchError, UsageError
 from .joint_specs import joint_calibration, read_joints
 
@@ -53,7 +54,7 @@ class JointState:
     effort_nm: FloatArray
 
 
-class CalibratedRobot:
+class CalibratedRobot(ClosesOnExit):
     """Joint-frame read/write over Robstride buses.
 
     Args:
@@ -263,12 +264,6 @@ class CalibratedRobot:
                     self.disable()
         finally:
             self.source.close()
-
-    def __enter__(self) -> CalibratedRobot:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def open_robot(

@@ -14,6 +14,7 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .. import require
 from .protocol import (
@@ -56,7 +57,7 @@ class MotorSpec:
     model: str = "rs-00"
 
 
-class RobstrideBus:
+class RobstrideBus(ClosesOnExit):
     """Robstride motors on one CAN channel.
 
     Args:
@@ -115,12 +116,6 @@ class RobstrideBus:
         if self._bus is not None and self._owns_bus:
             self._bus.shutdown()
         self._bus = None
-
-    def __enter__(self) -> RobstrideBus:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def _spec(self, motor: str | int) -> MotorSpec:
         if isinstance(motor, int):

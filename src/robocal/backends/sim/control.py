@@ -38,7 +38,9 @@ import threading
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
+from ._sockets import accept_loop
 from .operator import HandOperator
 
 __all__ = ["ControlServer", "SimControl"]
@@ -137,12 +139,10 @@ class ControlServer:
 
     # ----------------------------------------------------------------------------------------- serving
     def _accept(self) -> None:
-        while not self._stop.is_set():
-            try:
-                conn, _ = self._sock.accept()
-            except OSError:
-                return
-            threading.Thread(target=self._serve, args=(conn,), name="sim-control-conn", daemon=True).start()
+        accept_loop(self._sock, self._stop, self._accepted)
+
+    def _accepted(self, conn: socket.socket) -> None:
+        threading.Thread(target=self._serve, args=(conn,), name="sim-control-conn", daemon=True).start()
 
     def _serve(self, conn: socket.socket) -> None:
         with conn, conn.makefile("rwb") as f:
@@ -217,7 +217,7 @@ class ControlServer:
         return {"idle": self.operator.wait(_number(req, "timeout_s", 60.0) or 0.0)}
 
 
-class SimControl:
+class SimControl(ClosesOnExit):
     """Client of a ``robocal sim`` control socket.
 
     Args:
@@ -311,9 +311,3 @@ class SimControl:
         with contextlib.suppress(OSError):
             self._file.close()
         self._sock.close()
-
-    def __enter__(self) -> SimControl:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.lerobot import MotorCalibration, RobotSpec
+from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from .operator import JointView
 from .servo import SimServo, SimServoBus
@@ -108,7 +109,7 @@ def seeded_truth(robot: str, seed: int | None) -> dict[str, JointTruth]:
     return out
 
 
-class SimArm:
+class SimArm(StartsOnEnter):
     """A simulated LeRobot arm on a pseudo-terminal.
 
     Args:
@@ -162,12 +163,6 @@ class SimArm:
     def stop(self) -> None:
         """Stop the simulated bus and close the pty."""
         self.bus.stop()
-
-    def __enter__(self) -> SimArm:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     def servo(self, name: str) -> SimServo:
         """The simulated servo of a motor."""

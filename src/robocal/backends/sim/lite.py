@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from .operator import JointView
 from .robstride import SimMotor, SimMotorBus
@@ -146,7 +147,7 @@ class SimOperator:
             motor.v_rad_s = (motor.q_rad - before) / dt_s if dt_s > 0 else 0.0
 
 
-class SimLite:
+class SimLite(StartsOnEnter):
     """The simulated Lite bimanual robot: 14 :class:`SimMotor` on two :class:`SimMotorBus` channels.
 
     Args:
@@ -248,12 +249,6 @@ class SimLite:
         """Stop both channels."""
         for b in self.buses.values():
             b.stop()
-
-    def __enter__(self) -> SimLite:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     def step(self) -> None:
         """Advance simulated time by one tick (the operator's hands move)."""

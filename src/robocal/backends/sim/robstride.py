@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.lifecycle import StartsOnEnter
 from ...errors import DeviceError
 from .. import require
 from ..robstride.protocol import (
@@ -300,7 +301,7 @@ def _only_own_group(bus: Any) -> None:
             sock.setsockopt(socket.IPPROTO_IPV6, _IPV6_MULTICAST_ALL, 0)
 
 
-class SimMotorBus:
+class SimMotorBus(StartsOnEnter):
     """A thread answering, on one ``virtual`` CAN channel, for every motor in ``motors``.
 
     Args:
@@ -381,12 +382,6 @@ class SimMotorBus:
         if self._bus is not None:
             self._bus.shutdown()
             self._bus = None
-
-    def __enter__(self) -> SimMotorBus:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     def _run(self) -> None:
         can = require("can", "the simulated Robstride bus")

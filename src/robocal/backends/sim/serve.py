@@ -15,6 +15,7 @@ import tempfile
 from collections.abc import Mapping
 from typing import Any
 
+from ...core.lifecycle import ClosesOnExit
 from ...errors import UsageError
 from .control import ControlServer, Handler
 from .operator import HandDevice, HandOperator
@@ -48,7 +49,7 @@ def remove_link(link: pathlib.Path, target: str) -> None:
             link.unlink()
 
 
-class Session:
+class Session(ClosesOnExit):
     """The link and control socket of one running simulator.
 
     Args:
@@ -113,9 +114,3 @@ class Session:
         if self.link is not None:
             remove_link(self.link, self.wire)
         self._cleanup_partial()
-
-    def __enter__(self) -> Session:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

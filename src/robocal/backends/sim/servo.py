@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...core.lerobot import encode_sign_magnitude, encode_twos_complement
+from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from ..dynamixel import X_TABLE
 from .servo_model import BAUD_RATES, BROADCAST_ID, SimServo, Vendor
@@ -54,7 +55,7 @@ _SETTLE_MARK = b"\x00\xa5robocal-sim-settle\xa5\x00"
 _TCGETS2 = 0x802C542A  # _IOR('T', 0x2A, struct termios2) on x86 and the generic ioctl ABI (arm, arm64, riscv)
 
 
-class SimServoBus:
+class SimServoBus(StartsOnEnter):
     """Servos of one vendor behind one pseudo-terminal, answered by a background thread.
 
     Args:
@@ -130,12 +131,6 @@ class SimServoBus:
         for fd in (self._master, self._slave):
             with contextlib.suppress(OSError):
                 os.close(fd)
-
-    def __enter__(self) -> SimServoBus:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
     @property
     def lock(self) -> threading.RLock:

@@ -7,7 +7,7 @@ and build status packets.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 __all__ = [
     "Instruction",
@@ -44,22 +44,35 @@ def dxl_crc16(data: Iterable[int]) -> int:
     return crc
 
 
+def _frame(
+    buf: bytes | bytearray, header: bytes, head_len: int, total_len: Callable[[bytes | bytearray], int]
+) -> tuple[int, bytes | None]:
+    """Find the packet at the start of ``buf``: (bytes consumed, the whole packet or None).
+
+    Bytes before ``header`` are consumed (resync) with None; consumed 0 means more bytes are needed: fewer
+    than ``head_len`` (the bytes up to the length field) or than ``total_len(buf)``.
+    """
+    start = buf.find(header)
+    if start < 0:
+        return max(0, len(buf) - (len(header) - 1)), None
+    if start > 0:
+        return start, None
+    if len(buf) < head_len:
+        return 0, None
+    total = total_len(buf)
+    if len(buf) < total:
+        return 0, None
+    return total, bytes(buf[:total])
+
+
 def parse_feetech(buf: bytes | bytearray) -> tuple[int, Instruction | None]:
     """One Feetech packet at the start of ``buf``: (bytes consumed, the instruction or None).
 
     Consumed 0 means more bytes are needed; a bad checksum consumes one byte (resync) and yields None.
     """
-    start = buf.find(b"\xff\xff")
-    if start < 0:
-        return max(0, len(buf) - 1), None
-    if start > 0:
-        return start, None
-    if len(buf) < 4:
-        return 0, None
-    total = buf[3] + 4
-    if len(buf) < total:
-        return 0, None
-    pkt = bytes(buf[:total])
+    total, pkt = _frame(buf, b"\xff\xff", 4, lambda b: b[3] + 4)
+    if pkt is None:
+        return total, None
     if (~sum(pkt[2:-1])) & 0xFF != pkt[-1]:
         return 1, None
     return total, (pkt[2], pkt[4], pkt[5:-1])
@@ -76,17 +89,9 @@ def feetech_status(motor_id: int, error: int, params: bytes, *, corrupt: bool = 
 
 def parse_dynamixel(buf: bytes | bytearray) -> tuple[int, Instruction | None]:
     """One Dynamixel 2.0 packet at the start of ``buf`` (unstuffed): (bytes consumed, the instruction or None)."""
-    start = buf.find(b"\xff\xff\xfd\x00")
-    if start < 0:
-        return max(0, len(buf) - 3), None
-    if start > 0:
-        return start, None
-    if len(buf) < 7:
-        return 0, None
-    total = 7 + (buf[5] | (buf[6] << 8))
-    if len(buf) < total:
-        return 0, None
-    pkt = bytes(buf[:total])
+    total, pkt = _frame(buf, b"\xff\xff\xfd\x00", 7, lambda b: 7 + (b[5] | (b[6] << 8)))
+    if pkt is None:
+        return total, None
     if dxl_crc16(pkt[:-2]) != (pkt[-2] | (pkt[-1] << 8)):
         return 1, None
     body = pkt[7:-2]  # instruction + params, stuffed

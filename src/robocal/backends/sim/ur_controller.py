@@ -18,6 +18,7 @@ import threading
 import time
 
 from ...core.dh import DHParameters, fk_dh
+from ...core.lifecycle import StartsOnEnter
 from ...core.se3 import rotvec_from_matrix
 from ..ur_primary import (
     encode_cartesian_info,
@@ -26,6 +27,7 @@ from ..ur_primary import (
     encode_message,
     encode_subpackage,
 )
+from ._sockets import accept_loop
 
 __all__ = [
     "FAULT_MODES",
@@ -129,7 +131,7 @@ def build_robot_state(
     return encode_message(16, b"".join(subs))
 
 
-class SimUrController:
+class SimUrController(StartsOnEnter):
     """Loopback primary-interface server (context manager).
 
     Example:
@@ -182,12 +184,6 @@ class SimUrController:
         host, port = self._listener.getsockname()[:2]
         return str(host), int(port)
 
-    def __enter__(self) -> SimUrController:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
     def start(self) -> SimUrController:
         """Start accepting connections in a background thread."""
         t = threading.Thread(target=self._accept_loop, name="sim-ur-accept", daemon=True)
@@ -210,19 +206,15 @@ class SimUrController:
             self._listener.close()
 
     def _accept_loop(self) -> None:
-        while not self._stop.is_set():
-            try:
-                conn, _ = self._listener.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            with self._lock:
-                self._clients.append(conn)
-                self.connections += 1
-            t = threading.Thread(target=self._serve, args=(conn,), name="sim-ur-client", daemon=True)
-            self._threads.append(t)
-            t.start()
+        accept_loop(self._listener, self._stop, self._accepted)
+
+    def _accepted(self, conn: socket.socket) -> None:
+        with self._lock:
+            self._clients.append(conn)
+            self.connections += 1
+        t = threading.Thread(target=self._serve, args=(conn,), name="sim-ur-client", daemon=True)
+        self._threads.append(t)
+        t.start()
 
     def _send(self, conn: socket.socket, data: bytes) -> bool:
         try:
