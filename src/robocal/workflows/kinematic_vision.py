@@ -10,7 +10,6 @@ errors, plus calibration images of a ChArUco board, for the tests and ``demo --i
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -37,12 +36,13 @@ from ..core.jointmap import RobotCalibration
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_images import INTRINSICS, ImageObservations, ImageProblem, hand_eye
 from ..errors import UsageError
-from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
+from ..fileio import check_output_path
 from ..formats.camera_info import read_camera_info, write_camera_info
 from ..formats.kinematic_data import read_image_session
 from ..formats.urdf import UrdfDocument
-from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
-from .kinematic_export import check_export_paths, prepare_exports, write_exports
+from ..formats.urdf_chain import chain_from_urdf
+from . import kinematic_report as kr
+from .kinematic_export import check_export_paths
 from .kinematic_fit import FitResult, PriorSigmas, fit
 
 __all__ = [
@@ -208,10 +208,6 @@ def _intrinsics_report(problem: ImageProblem, result: FitResult, K: FloatArray) 
     }
 
 
-def _px_stats(e: FloatArray) -> dict[str, float] | None:
-    return None if e.size == 0 else {"mean": float(np.mean(e)), "max": float(np.max(e))}
-
-
 def identify_images(
     urdf: str | os.PathLike[str],
     data: str | os.PathLike[str],
@@ -305,12 +301,8 @@ def identify_images(
     val_px = val_problem.pose_errors(result.theta) if val.n_poses else np.zeros(0)
     start_px = val_problem.pose_errors(np.zeros(problem.n_theta)) if val.n_poses else np.zeros(0)
     corrected, T_cam_base, T_tip_target = model.corrected(result.x)
-    ident = result.identifiability
-    if ident.observability.condition > 100:
-        warnings.append(
-            f"condition number {ident.observability.condition:.0f} is above 100: show the target from more "
-            "different arm poses"
-        )
+    warnings += kr.condition_warnings(result, "show the target from more different arm poses")
+    units = [model.parameters[i].unit if i < model.n_params else "px" for i in range(len(problem.names))]
     rep: dict[str, Any] = {
         "tool": "robocal kinematics identify --kind tag",
         "urdf": str(urdf),
@@ -320,64 +312,24 @@ def identify_images(
         "setup": "camera on the tool, target fixed in the world"
         if camera_on_tool
         else "camera fixed in the world, target on the tool",
-        "chain": {
-            "base_link": chain.base_link,
-            "tip_link": chain.tip_link,
-            "joints": list(chain.joint_names),
-        },
+        "chain": kr.chain_summary(chain),
         "images": {
             "total": len(images),
             "with_target": obs.n_poses,
             "fit": train.n_poses,
             "validation": val.n_poses,
         },
-        "rank": ident.rank,
-        "unknowns": problem.n_theta,
-        "observability": {
-            "O1": ident.observability.O1,
-            "condition": ident.observability.condition,
-            "O3": ident.observability.O3,
-            "O5": ident.observability.O5,
-        },
-        "fit": {
-            "method": result.method,
-            "loss": result.loss,
-            "evaluations": result.iterations,
-            "converged": result.success,
-            "prior": None
-            if prior is None
-            else {
-                "length_mm": prior.length_m * 1e3,
-                "angle_deg": math.degrees(prior.angle_rad),
-                "offset_deg": math.degrees(prior.offset_rad),
-            },
-        },
+        **kr.fit_summary(result, problem.n_theta, kr.prior_summary(prior, noise=False)),
         "reprojection_px": {
             "fit": {
-                "start": _px_stats(result.nominal_train_errors_m),
-                "identified": _px_stats(result.train_errors_m),
+                "start": kr.error_stats(result.nominal_train_errors_m),
+                "identified": kr.error_stats(result.train_errors_m),
             },
-            "validation": {"start": _px_stats(start_px), "identified": _px_stats(val_px)},
+            "validation": {"start": kr.error_stats(start_px), "identified": kr.error_stats(val_px)},
         },
-        "parameters": [
-            {
-                "name": name,
-                "unit": model.parameters[i].unit if i < model.n_params else "px",
-                "estimate": float(result.theta[i]),
-                "sigma": float(result.sigma[i]) if math.isfinite(result.sigma[i]) else None,
-                "identified": i in ident.base,
-            }
-            for i, name in enumerate(problem.names)
-        ],
+        "parameters": kr.parameter_rows(result, problem.names, units),
         "intrinsics": _intrinsics_report(problem, result, cam.K),
-        "unidentifiable": [
-            {"name": u.name, "reason": u.reason, "same_as": [[n, c] for n, c in u.same_as]}
-            for u in ident.unidentifiable
-        ],
-        "joint_offsets": model.offsets(result.x),
-        "corrected_origins": {
-            j.name: {"xyz": list(j.origin_xyz_m), "rpy": list(j.origin_rpy_rad)} for j in corrected.movable
-        },
+        **kr.model_summary(result, model, corrected),
         **(
             {"T_target_base": T_cam_base.tolist(), "T_tip_camera": T_tip_target.tolist()}
             if camera_on_tool
@@ -385,18 +337,10 @@ def identify_images(
         ),
         "warnings": warnings,
     }
-    exports = prepare_exports(model, result.x, paths, joint_map=joint_map, ur_hash=ur_hash)
-    rep.update(exports.report)
-    warnings += exports.warnings
-    urdf_bytes = None
-    if paths.out is not None:
-        from .kinematics import _origin_changed
-
-        urdf_bytes = corrected_urdf_bytes(doc, exports.urdf_chain, _origin_changed(chain, exports.urdf_chain))
-    report_text = json.dumps(rep, indent=2, allow_nan=False) + "\n"
-    written_urdf = atomic_write_bytes(paths.out, urdf_bytes) if paths.out and urdf_bytes is not None else None
-    write_exports(exports, paths, joint_map_ids)
-    written_report = atomic_write_text(paths.report, report_text) if paths.report else None
+    written_urdf, written_report = kr.write_identify_files(
+        doc, chain, model, result, paths, rep, warnings,
+        joint_map=joint_map, ur_hash=ur_hash, joint_map_ids=joint_map_ids,
+    )  # fmt: skip
     _ = rows
     return ImageIdentifyResult(
         result, val, val_px, start_px, corrected, T_cam_base, T_tip_target, model, written_urdf, written_report,

@@ -10,7 +10,6 @@ SO-101 or Koch with hidden errors; ``plan`` (:mod:`robocal.workflows.kinematic_p
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -32,11 +31,11 @@ from ..core.kinematic_problem import (
     free_indices,
 )
 from ..errors import UsageError
-from ..fileio import atomic_write_bytes, atomic_write_text
 from ..formats.kinematic_data import read_measurements
 from ..formats.urdf import UrdfDocument
-from ..formats.urdf_chain import chain_from_urdf, corrected_urdf_bytes
-from .kinematic_export import check_export_paths, prepare_exports, write_exports
+from ..formats.urdf_chain import chain_from_urdf
+from . import kinematic_report as kr
+from .kinematic_export import check_export_paths
 from .kinematic_fit import FitResult, PriorSigmas, fit, split_validation, validation_errors
 
 __all__ = [
@@ -99,20 +98,7 @@ class IdentifyResult:
 
 
 def _stats_mm(errors: FloatArray) -> dict[str, float] | None:
-    if errors.size == 0:
-        return None
-    return {"mean": float(errors.mean() * 1e3), "max": float(errors.max() * 1e3)}
-
-
-def _finite(value: Any) -> Any:
-    """The report with NaN and ±inf replaced by None (JSON has no such numbers)."""
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+    return kr.error_stats(errors, 1e3)
 
 
 def _kabsch(p_from: FloatArray, p_to: FloatArray) -> FloatArray:
@@ -136,17 +122,6 @@ def tool_frame(tool_xyz_m: Sequence[float]) -> FloatArray:
     T = np.eye(4)
     T[:3, 3] = t
     return T
-
-
-def _origin_changed(old: SerialChain, new: SerialChain) -> dict[str, bool]:
-    before = {j.name: (*j.origin_xyz_m, *j.origin_rpy_rad) for j in old.movable}
-    return {
-        j.name: any(
-            abs(a - b) > 1e-12
-            for a, b in zip(before[j.name], (*j.origin_xyz_m, *j.origin_rpy_rad), strict=True)
-        )
-        for j in new.movable
-    }
 
 
 def as_prior(prior: bool | PriorSigmas) -> PriorSigmas | None:
@@ -257,62 +232,23 @@ def identify(
         )
     corrected, T_world_base, T_tip_tool = model.corrected(result.x)
     ident = result.identifiability
-    if ident.observability.condition > 100:
-        warnings.append(
-            f"condition number {ident.observability.condition:.0f} is above 100: spread the poses over the joint "
-            "ranges (robocal kinematics plan chooses a good set) or record more of them"
-        )
+    warnings += kr.condition_warnings(
+        result,
+        "spread the poses over the joint ranges (robocal kinematics plan chooses a good set) or record more of them",
+    )
     for u in ident.unidentifiable:
         if u.reason.startswith("the marker is on"):
             warnings.append(f"{u.name}: {u.reason}")
-    names = problem.names
-    params = []
-    for i, name in enumerate(names):
-        unit = "m" if i >= len(free) else model.parameters[free[i]].unit
-        identified = i in ident.base
-        params.append(
-            {
-                "name": name,
-                "unit": unit,
-                "estimate": float(result.theta[i]),
-                "sigma": float(result.sigma[i]) if math.isfinite(result.sigma[i]) else None,
-                "identified": identified,
-            }
-        )
+    units = [model.parameters[free[i]].unit if i < len(free) else "m" for i in range(len(problem.names))]
     rep: dict[str, Any] = {
         "tool": "robocal kinematics identify",
         "urdf": str(urdf),
         "data": str(data),
         "kind": kind,
         "frame": frame,
-        "chain": {
-            "base_link": chain.base_link,
-            "tip_link": chain.tip_link,
-            "joints": list(chain.joint_names),
-        },
+        "chain": kr.chain_summary(chain),
         "poses": {"fit": train.n_poses, "validation": val.n_poses},
-        "rank": ident.rank,
-        "unknowns": len(names),
-        "observability": {
-            "O1": ident.observability.O1,
-            "condition": ident.observability.condition,
-            "O3": ident.observability.O3,
-            "O5": ident.observability.O5,
-        },
-        "fit": {
-            "method": result.method,
-            "loss": result.loss,
-            "evaluations": result.iterations,
-            "converged": result.success,
-            "prior": None
-            if prior_s is None
-            else {
-                "length_mm": prior_s.length_m * 1e3,
-                "angle_deg": math.degrees(prior_s.angle_rad),
-                "offset_deg": math.degrees(prior_s.offset_rad),
-                "noise_mm": None if prior_s.noise_m is None else prior_s.noise_m * 1e3,
-            },
-        },
+        **kr.fit_summary(result, len(problem.names), kr.prior_summary(prior_s, noise=True)),
         "errors_mm": {
             "fit": {
                 "nominal": _stats_mm(result.nominal_train_errors_m),
@@ -323,15 +259,8 @@ def identify(
                 "corrected": _stats_mm(val_err),
             },
         },
-        "parameters": params,
-        "unidentifiable": [
-            {"name": u.name, "reason": u.reason, "same_as": [[n, c] for n, c in u.same_as]}
-            for u in ident.unidentifiable
-        ],
-        "joint_offsets": model.offsets(result.x),
-        "corrected_origins": {
-            j.name: {"xyz": list(j.origin_xyz_m), "rpy": list(j.origin_rpy_rad)} for j in corrected.movable
-        },
+        "parameters": kr.parameter_rows(result, problem.names, units),
+        **kr.model_summary(result, model, corrected),
         "tool_xyz_m": [float(v) for v in T_tip_tool[:3, 3]],
         "T_world_base": T_world_base.tolist(),
         "contact_groups": {
@@ -350,18 +279,10 @@ def identify(
         },
         "warnings": warnings,
     }
-    exports = prepare_exports(model, result.x, paths, joint_map=joint_map, ur_hash=ur_hash)
-    rep.update(exports.report)
-    warnings += exports.warnings
-    urdf_bytes = (
-        corrected_urdf_bytes(doc, exports.urdf_chain, _origin_changed(chain, exports.urdf_chain))
-        if paths.out
-        else None
-    )
-    report_text = json.dumps(_finite(rep), indent=2, allow_nan=False) + "\n"
-    written_urdf = atomic_write_bytes(paths.out, urdf_bytes) if paths.out and urdf_bytes is not None else None
-    write_exports(exports, paths, joint_map_ids)
-    written_report = atomic_write_text(paths.report, report_text) if paths.report else None
+    written_urdf, written_report = kr.write_identify_files(
+        doc, chain, model, result, paths, rep, warnings,
+        joint_map=joint_map, ur_hash=ur_hash, joint_map_ids=joint_map_ids,
+    )  # fmt: skip
     return IdentifyResult(
         fit=result,
         validation=val,
