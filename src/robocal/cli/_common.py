@@ -5,8 +5,8 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
 
 from rich.console import Console
 from rich.table import Table
@@ -98,6 +98,22 @@ def parse_assignments(value: str | None, what: str) -> dict[str, str]:
         if not sep or not key.strip() or not val.strip():
             raise UsageError(f"{what} {value!r}: expected name=value pairs separated by commas")
         out[key.strip()] = val.strip()
+    return out
+
+
+_T = TypeVar("_T")
+
+
+def parse_typed_assignments(
+    value: str | None, what: str, convert: Callable[[str], _T], expected: str
+) -> dict[str, _T]:
+    """:func:`parse_assignments` with each value converted; ``what name=value: expected`` when it does not convert."""
+    out: dict[str, _T] = {}
+    for key, text in parse_assignments(value, what).items():
+        try:
+            out[key] = convert(text)
+        except ValueError:
+            raise UsageError(f"{what} {key}={text}: {expected}") from None
     return out
 
 

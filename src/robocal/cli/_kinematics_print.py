@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
 
 from rich.table import Table
 
@@ -18,27 +21,53 @@ def _fmt(value: float, unit: str) -> str:
     return f"{value * 1e3:+.3f} mm" if unit == "m" else f"{math.degrees(value):+.4f}°"
 
 
-def _stats(s: dict[str, float] | None) -> str:
-    return "—" if s is None else f"mean {s['mean']:.3f} mm, max {s['max']:.3f} mm"
+def _stats(s: dict[str, float] | None, unit: str = "mm") -> str:
+    return "—" if s is None else f"mean {s['mean']:.3f} {unit}, max {s['max']:.3f} {unit}"
 
 
-def print_identification(result: wf.IdentifyResult) -> int:
-    """Print the identified parameters, validation and warnings; return the exit code (0 ok, 1 warnings)."""
-    rep = result.report
+def _print_parameters(rep: Mapping[str, Any]) -> None:
+    """The identified parameters with their σ, one row each (the unidentifiable ones are listed apart)."""
     table = Table("parameter", "estimate", "± σ", box=None, pad_edge=False)
     for p in rep["parameters"]:
         if p["identified"]:
             table.add_row(p["name"], _fmt(p["estimate"], p["unit"]), _fmt(p["sigma"], p["unit"]).lstrip("+"))
     console.print(table)
+
+
+def _print_unidentifiable(rep: Mapping[str, Any]) -> None:
+    if rep["unidentifiable"]:
+        console.print(f"not identifiable ({len(rep['unidentifiable'])}, kept nominal):")
+        for u in rep["unidentifiable"]:
+            console.print(f"  {u['name']}: {u['reason']}")
+
+
+def _print_files(
+    urdf_out: Path | None, report_out: Path | None, rep: Mapping[str, Any], warnings: Sequence[str], about: str
+) -> int:
+    """The files written (``about`` follows the report's name), then the warnings; the exit code."""
+    if urdf_out is not None:
+        console.print(f"wrote {urdf_out} (joint origins, zero offsets folded in)")
+    if "joint_map" in rep:
+        console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
+    if "ur_yaml" in rep:
+        console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
+    if report_out is not None:
+        console.print(f"wrote {report_out}{about}")
+    for w in warnings:
+        print_warning(w)
+    return EXIT_WARNINGS if warnings else EXIT_OK
+
+
+def print_identification(result: wf.IdentifyResult) -> int:
+    """Print the identified parameters, validation and warnings; return the exit code (0 ok, 1 warnings)."""
+    rep = result.report
+    _print_parameters(rep)
     obs = rep["observability"]
     console.print(
         f"rank {rep['rank']} of {rep['unknowns']} unknowns; condition number {obs['condition']:.1f}, "
         f"O1 {obs['O1']:.3g}, O3 {obs['O3']:.3g}"
     )
-    if rep["unidentifiable"]:
-        console.print(f"not identifiable ({len(rep['unidentifiable'])}, kept nominal):")
-        for u in rep["unidentifiable"]:
-            console.print(f"  {u['name']}: {u['reason']}")
+    _print_unidentifiable(rep)
     err = rep["errors_mm"]
     console.print(
         f"fit poses ({rep['poses']['fit']}): nominal {_stats(err['fit']['nominal'])} → corrected "
@@ -63,17 +92,7 @@ def print_identification(result: wf.IdentifyResult) -> int:
                 else ""
             )
         )
-    if result.urdf_out is not None:
-        console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
-    if "joint_map" in rep:
-        console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
-    if "ur_yaml" in rep:
-        console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
-    if result.report_out is not None:
-        console.print(f"wrote {result.report_out}")
-    for w in result.warnings:
-        print_warning(w)
-    return EXIT_WARNINGS if result.warnings else EXIT_OK
+    return _print_files(result.urdf_out, result.report_out, rep, result.warnings, "")
 
 
 def print_images(result: object) -> int:
@@ -82,11 +101,7 @@ def print_images(result: object) -> int:
 
     assert isinstance(result, ImageIdentifyResult)
     rep = result.report
-    table = Table("parameter", "estimate", "± σ", box=None, pad_edge=False)
-    for p in rep["parameters"]:
-        if p["identified"]:
-            table.add_row(p["name"], _fmt(p["estimate"], p["unit"]), _fmt(p["sigma"], p["unit"]).lstrip("+"))
-    console.print(table)
+    _print_parameters(rep)
     on_tool = "T_target_base" in rep
     frames = (
         ("target place", "camera", "target place T_target_base and camera mounting T_tip_camera")
@@ -100,29 +115,13 @@ def print_images(result: object) -> int:
         f"unknowns (base.* = {frames[0]}, tool.* = {frames[1]} on {rep['chain']['tip_link']}); condition number "
         f"{obs['condition']:.1f}"
     )
-    if rep["unidentifiable"]:
-        console.print(f"not identifiable ({len(rep['unidentifiable'])}, kept nominal):")
-        for u in rep["unidentifiable"]:
-            console.print(f"  {u['name']}: {u['reason']}")
-
-    def px(s: dict[str, float] | None) -> str:
-        return "—" if s is None else f"mean {s['mean']:.3f} px, max {s['max']:.3f} px"
-
+    _print_unidentifiable(rep)
     err = rep["reprojection_px"]
-    console.print(f"reprojection, fit images: start {px(err['fit']['start'])} → identified {px(err['fit']['identified'])}")
+    fit_start, fit_end = _stats(err["fit"]["start"], "px"), _stats(err["fit"]["identified"], "px")
+    console.print(f"reprojection, fit images: start {fit_start} → identified {fit_end}")
     if im["validation"]:
+        val_start, val_end = _stats(err["validation"]["start"], "px"), _stats(err["validation"]["identified"], "px")
         console.print(
-            f"reprojection, validation images ({im['validation']}): start {px(err['validation']['start'])} → "
-            f"identified {px(err['validation']['identified'])}"
+            f"reprojection, validation images ({im['validation']}): start {val_start} → identified {val_end}"
         )
-    if result.urdf_out is not None:
-        console.print(f"wrote {result.urdf_out} (joint origins, zero offsets folded in)")
-    if "joint_map" in rep:
-        console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
-    if "ur_yaml" in rep:
-        console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
-    if result.report_out is not None:
-        console.print(f"wrote {result.report_out} ({frames[2]} in it)")
-    for w in result.warnings:
-        print_warning(w)
-    return EXIT_WARNINGS if result.warnings else EXIT_OK
+    return _print_files(result.urdf_out, result.report_out, rep, result.warnings, f" ({frames[2]} in it)")

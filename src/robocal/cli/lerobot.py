@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from ..core.lerobot import RobotSpec, parse_compat
+from ..core.lerobot.calibration import MotorCalibration
 from ..errors import UsageError
 from . import _common
 from ._lerobot_render import (
@@ -28,6 +29,9 @@ ROBOT_HELP = (
     "so100_follower | so100_leader | so101_follower | so101_leader | koch_follower | koch_leader "
     "(the LeRobot robot profiles; or a profile file)"
 )
+Robot = Annotated[str, typer.Option("--robot", help=ROBOT_HELP)]
+ArmPort = Annotated[str, typer.Option("--port", help="Serial port of the arm, or 'sim'.")]
+CalId = Annotated[str | None, typer.Option("--id", help="Robot id: the calibration is <id>.json.")]
 CalDir = Annotated[
     pathlib.Path | None, typer.Option("--calibration-dir", help="Calibration root (default: LeRobot's).")
 ]
@@ -86,6 +90,16 @@ def _cal_file(
     return path
 
 
+def _read_cal_file(
+    spec: RobotSpec, robot_id: str | None, calibration_dir: pathlib.Path | None, file: pathlib.Path | None
+) -> tuple[pathlib.Path, dict[str, MotorCalibration]]:
+    """The calibration file (:func:`_cal_file`) and what it holds, per motor."""
+    from ..lerobot import read_calibration
+
+    path = _cal_file(spec, robot_id, calibration_dir, file)
+    return path, read_calibration(path)
+
+
 def _web_view(robot: str, spec: Any, inner: Any, port: int) -> Any:
     """``--view``: the page drawing the recorded ranges on the arm (robocal.viewer.sweep_page); URL printed."""
     from ..viewer.lerobot_sweep_page import open_lerobot_sweep_page
@@ -97,7 +111,7 @@ def _web_view(robot: str, spec: Any, inner: Any, port: int) -> Any:
 
 @app.command()
 def calibrate(
-    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
+    robot: Robot,
     port: str = typer.Option(..., "--port", help="Serial port, or 'sim' for the simulated arm."),
     robot_id: str = typer.Option(..., "--id", help="Robot id: the file is <id>.json."),
     calibration_dir: CalDir = None,
@@ -217,8 +231,8 @@ def calibrate(
 
 @app.command()
 def configure(
-    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
-    port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim'."),
+    robot: Robot,
+    port: ArmPort,
     robot_id: str | None = typer.Option(None, "--id", help="Robot id (Koch leader: gripper trigger)."),
     calibration_dir: CalDir = None,
     file: CalFile = None,
@@ -227,7 +241,6 @@ def configure(
     ),
 ) -> None:
     """Apply LeRobot's motor presets: return delay, acceleration, PID, operating modes, gripper limits/trigger."""
-    from ..lerobot import read_calibration
     from ..workflows.lerobot import configure as run
     from ..workflows.lerobot import open_arm
 
@@ -240,7 +253,7 @@ def configure(
                 "gripper trigger not set: give --id or --file (its goal is a calibrated position)"
             )
         else:
-            cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
+            _path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
     with open_arm(spec, port) as (bus, arm):
         if arm is not None and cals is not None:
             from ..workflows.lerobot import restore
@@ -265,20 +278,18 @@ def configure(
 
 @app.command()
 def check(
-    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
+    robot: Robot,
     port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim' for a simulated arm."),
     robot_id: str | None = typer.Option(None, "--id", help="Robot id."),
     calibration_dir: CalDir = None,
     file: CalFile = None,
 ) -> None:
     """Compare the motors' EEPROM with the calibration file, naming each motor and field that differs."""
-    from ..lerobot import read_calibration
     from ..workflows.lerobot import check as run
     from ..workflows.lerobot import open_arm
 
     spec = _spec(robot)
-    path = _cal_file(spec, robot_id, calibration_dir, file)
-    cals = read_calibration(path)
+    path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
     beyond = range_warnings(spec, cals)
     with open_arm(spec, port) as (bus, _arm):
         diffs = run(bus, spec, cals)
@@ -340,9 +351,9 @@ def migrate(
 
 @app.command()
 def show(
-    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
-    port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim'."),
-    robot_id: str | None = typer.Option(None, "--id", help="Robot id: the calibration is <id>.json."),
+    robot: Robot,
+    port: ArmPort,
+    robot_id: CalId = None,
     calibration_dir: CalDir = None,
     file: CalFile = None,
     samples: int = typer.Option(1, "--samples", min=1, max=100000, help="Readings to print."),
@@ -354,13 +365,12 @@ def show(
     physical: Physical = False,
 ) -> None:
     """Print live normalised positions (LeRobot's units) of every motor."""
-    from ..lerobot import read_calibration
     from ..workflows.lerobot import open_arm, read_positions, require_motors, restore
 
     compat_mode = parse_compat(compat)
     spec = _spec(robot)
     modes = _modes(spec, use_degrees, modes_opt)  # bad --modes is refused before any file or bus I/O
-    cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
+    _path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
     require_motors(spec, cals)
     range_warnings(spec, cals)
     with open_arm(spec, port) as (bus, arm):
@@ -385,8 +395,8 @@ def export_urdf(
     out: Annotated[
         pathlib.Path, typer.Option("--out", help="Canonical joint map YAML (robocal format) to write.")
     ],
-    robot: str = typer.Option(..., "--robot", help=ROBOT_HELP),
-    robot_id: str | None = typer.Option(None, "--id", help="Robot id: the calibration is <id>.json."),
+    robot: Robot,
+    robot_id: CalId = None,
     calibration_dir: CalDir = None,
     file: CalFile = None,
     sign: str | None = typer.Option(None, "--sign", help="URDF sign per joint: name=-1,..."),
@@ -400,25 +410,14 @@ def export_urdf(
 ) -> None:
     """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints."""
     from ..formats import write_calibration
-    from ..lerobot import read_calibration
     from ..workflows.lerobot import export_joint_map
 
     compat_mode = parse_compat(compat)
     spec = _spec(robot)
-    signs: dict[str, int] = {}
-    for k, v in _common.parse_assignments(sign, "--sign").items():
-        try:
-            signs[k] = int(v)
-        except ValueError:
-            raise UsageError(f"--sign {k}={v}: expected -1 or 1") from None
-    offsets: dict[str, float] = {}
-    for k, v in _common.parse_assignments(offset_deg, "--offset-deg").items():
-        try:
-            offsets[k] = float(v)
-        except ValueError:
-            raise UsageError(f"--offset-deg {k}={v}: expected a number of degrees") from None
+    signs = _common.parse_typed_assignments(sign, "--sign", int, "expected -1 or 1")
+    offsets = _common.parse_typed_assignments(offset_deg, "--offset-deg", float, "expected a number of degrees")
     modes = _modes(spec, use_degrees, modes_opt)
-    cals = read_calibration(_cal_file(spec, robot_id, calibration_dir, file))
+    _path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
     beyond = range_warnings(spec, cals)
     rc, skipped = export_joint_map(
         spec,

@@ -53,6 +53,7 @@ __all__ = [
     "DynamixelJointDriver",
     "FeetechJointDriver",
     "dynamixel_current_mode",
+    "mid_turn_offset",
     "servo_driver",
 ]
 
@@ -75,6 +76,16 @@ _FEETECH_READ = ("Present_Position", "Present_Velocity", "Present_Load", "Status
 _DXL_READ = ("Present_Current", "Present_Velocity", "Present_Position")  # addresses 126..135
 
 
+def mid_turn_offset(actual_ticks: int, res: int) -> int:
+    """The Feetech ``Homing_Offset`` that makes a joint at ``actual_ticks`` (0..res−1) read mid-turn.
+
+    ``Present = (Actual − Homing_Offset) mod res``; the offset is kept inside the sign-magnitude register's
+    ±(res/2 − 1), so the seam is (almost) half a turn away.
+    """
+    limit = res // 2 - 1
+    return max(-limit, min(limit, actual_ticks - (res - 1) // 2))
+
+
 def dynamixel_current_mode(model: str) -> bool:
     """Whether a Dynamixel model senses current (current-based position mode 5 with ``Goal_Current``)."""
     rating = RATINGS.get(model)
@@ -82,7 +93,12 @@ def dynamixel_current_mode(model: str) -> bool:
 
 
 class _ServoJointDriver:
-    """What the Feetech and Dynamixel drivers share: the tick frame, the period, enable, the command loop."""
+    """What the Feetech and Dynamixel drivers share: the tick frame, the period, enable, the command loop.
+
+    The constructor's arguments are described on each driver; ``homing_offset`` is the motor's ``Homing_Offset``
+    register as the caller set it (Feetech unwraps Present with it and re-homing changes it; the Dynamixel search
+    runs with it at 0).
+    """
 
     def __init__(
         self,
@@ -94,6 +110,7 @@ class _ServoJointDriver:
         cap_nm: float,
         clock: Clock,
         period_s: float = 0.01,
+        homing_offset: int = 0,
     ) -> None:
         if not (
             math.isfinite(rated_nm) and rated_nm > 0 and math.isfinite(cap_nm) and 0 < cap_nm <= rated_nm
@@ -109,12 +126,14 @@ class _ServoJointDriver:
         self.cap_nm = float(cap_nm)
         self.clock = clock
         self.period_s = period_s
+        self.homing_offset = int(homing_offset)
         self.res = int(bus.resolution(motor_id))
         self.enabled = False
         self._ticks = math.nan  # unwrapped position (ticks) of the last good reading
         self._present = 0  # its Present_Position
         self._q = math.nan
         self._limit_nm = math.nan
+        self._init_vendor()
 
     # -- frame ----------------------------------------------------------------------------------------
     def rad(self, ticks: float) -> float:
@@ -126,6 +145,9 @@ class _ServoJointDriver:
         return s_rad * self.res / TWO_PI
 
     # -- vendor hooks ---------------------------------------------------------------------------------
+    def _init_vendor(self) -> None:
+        """The vendor's own checks and state, at the end of ``__init__``."""
+
     def _read_raw(self) -> tuple[int, float, float, int]:
         """(Present_Position, velocity rad/s, torque N·m, error bits); raises CalibTimeoutError on silence."""
         raise NotImplementedError
@@ -225,22 +247,7 @@ class FeetechJointDriver(_ServoJointDriver):
         homing_offset: The motor's ``Homing_Offset`` now (the caller set it; re-homing changes it).
     """
 
-    def __init__(
-        self,
-        bus: Any,
-        name: str,
-        motor_id: int,
-        *,
-        rated_nm: float,
-        cap_nm: float,
-        clock: Clock,
-        period_s: float = 0.01,
-        homing_offset: int = 0,
-    ) -> None:
-        super().__init__(
-            bus, name, motor_id, rated_nm=rated_nm, cap_nm=cap_nm, clock=clock, period_s=period_s
-        )
-        self.homing_offset = int(homing_offset)
+    def _init_vendor(self) -> None:
         self.rehomes = 0
         """How many times the joint was re-homed away from the seam."""
 
@@ -273,9 +280,7 @@ class FeetechJointDriver(_ServoJointDriver):
         was_on = self.enabled
         self._sync("Torque_Enable", 0)
         self.enabled = False
-        actual_mod = round(self._ticks) % self.res
-        limit = self.res // 2 - 1
-        offset = max(-limit, min(limit, actual_mod - (self.res - 1) // 2))
+        offset = mid_turn_offset(round(self._ticks) % self.res, self.res)
         self.bus.write("Homing_Offset", self.motor_id, offset)
         self.homing_offset = offset
         self.rehomes += 1
@@ -317,22 +322,9 @@ class DynamixelJointDriver(_ServoJointDriver):
         period_s: Control period.
     """
 
-    def __init__(
-        self,
-        bus: Any,
-        name: str,
-        motor_id: int,
-        *,
-        rated_nm: float,
-        cap_nm: float,
-        clock: Clock,
-        period_s: float = 0.01,
-    ) -> None:
-        super().__init__(
-            bus, name, motor_id, rated_nm=rated_nm, cap_nm=cap_nm, clock=clock, period_s=period_s
-        )
+    def _init_vendor(self) -> None:
         if self.model not in RATINGS:
-            raise UsageError(f"joint {name}: no rating for Dynamixel model {self.model!r}")
+            raise UsageError(f"joint {self.name}: no rating for Dynamixel model {self.model!r}")
         self.rating = RATINGS[self.model]
         self.current_mode = dynamixel_current_mode(self.model)
         self.reboots = 0
@@ -398,8 +390,12 @@ def servo_driver(
     Raises:
         UsageError: Unknown vendor, a cap above the rated torque, or a Dynamixel model without a rating.
     """
-    if vendor == "feetech":
-        return FeetechJointDriver(
+    drivers: dict[str, type[FeetechJointDriver | DynamixelJointDriver]] = {
+        "feetech": FeetechJointDriver,
+        "dynamixel": DynamixelJointDriver,
+    }
+    if vendor in drivers:
+        return drivers[vendor](
             bus,
             name,
             motor_id,
@@ -408,9 +404,5 @@ def servo_driver(
             clock=clock,
             period_s=period_s,
             homing_offset=homing_offset,
-        )
-    if vendor == "dynamixel":
-        return DynamixelJointDriver(
-            bus, name, motor_id, rated_nm=rated_nm, cap_nm=cap_nm, clock=clock, period_s=period_s
         )
     raise UsageError(f"no stop-search driver for vendor {vendor!r}; expected feetech or dynamixel")

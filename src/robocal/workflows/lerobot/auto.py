@@ -29,9 +29,8 @@ from ...backends.servo_bus import ServoBus
 from ...core.lerobot import MotorCalibration, RobotSpec, centre_homing, wrap_feetech_offset
 from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
-from ...errors import CalibError, UsageError
+from ...errors import UsageError
 from ...fileio import check_output_path
-from ...formats.lerobot import write_current
 from ..autocal import (
     AutoCalFailedError,
     AutoCalResult,
@@ -41,8 +40,8 @@ from ..autocal import (
     run_autocal,
     select_joints,
 )
-from ..autocal_servo import DynamixelJointDriver, servo_driver
-from .calibrate import CalibrationNotSavedError
+from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver
+from .calibrate import save_calibration
 from .eeprom import (
     EEPROM_FIELDS,
     RollbackReport,
@@ -191,9 +190,7 @@ def prepare_search(
             bus.write("Max_Position_Limit", i, res - 1)
             # the joint reads mid-turn where it is now, so the seam is half a turn away
             present = bus.read("Present_Position", i)
-            actual = (present + bus.read("Homing_Offset", i)) % res
-            limit = res // 2 - 1
-            offset = max(-limit, min(limit, actual - (res - 1) // 2))
+            offset = mid_turn_offset((present + bus.read("Homing_Offset", i)) % res, res)
             bus.write("Homing_Offset", i, offset)
             bus.write("Goal_Velocity", i, 0)
             bus.write("Acceleration", i, 0)
@@ -389,12 +386,7 @@ def auto_calibrate(
             for m in spec.motors:  # _write_plan unlocked every Feetech EEPROM
                 if "Lock" in before[m.name]:
                     bus.write("Lock", m.motor_id, before[m.name]["Lock"])
-            written = None
-            if path is not None:
-                try:
-                    written = write_current(path, cals)
-                except CalibError as exc:
-                    raise CalibrationNotSavedError(str(exc), cals) from None
+            written = save_calibration(path, cals)
     except BaseException as exc:
         _reraise_after_rollback(exc, restore_registers(bus, spec, before, on_status))
         raise

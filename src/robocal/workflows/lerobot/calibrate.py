@@ -52,6 +52,7 @@ __all__ = [
     "RangeView",
     "calibrate",
     "calibrate_legacy",
+    "save_calibration",
 ]
 
 
@@ -102,6 +103,22 @@ class CalibrationNotSavedError(UsageError):
     def __init__(self, message: str, calibration: Mapping[str, MotorCalibration]) -> None:
         super().__init__(message)
         self.calibration = dict(calibration)
+
+
+def save_calibration(
+    path: str | os.PathLike[str] | None, calibration: Mapping[str, MotorCalibration]
+) -> Path | None:
+    """Write ``calibration`` as LeRobot's JSON at ``path`` (atomically); None when there is no path.
+
+    Raises:
+        CalibrationNotSavedError: The write failed; the calibration is attached to the error.
+    """
+    if path is None:
+        return None
+    try:
+        return write_current(path, calibration)
+    except CalibError as exc:
+        raise CalibrationNotSavedError(str(exc), calibration) from None
 
 def calibrate(
     bus: ServoBus,
@@ -236,12 +253,7 @@ def calibrate(
                 cals[m.name] = MotorCalibration(m.motor_id, dm, offsets[m.name], 0, res[m.name] - 1)
         ordered = {n: cals[n] for n in names}
         _write_plan(bus, spec, _restore_plan(bus, spec, ordered))
-        written = None
-        if path is not None:
-            try:
-                written = write_current(path, ordered)
-            except CalibError as exc:
-                raise CalibrationNotSavedError(str(exc), ordered) from None
+        written = save_calibration(path, ordered)
     except BaseException as exc:
         _reraise_after_rollback(exc, _rollback(bus, spec, before, on_status))
         raise

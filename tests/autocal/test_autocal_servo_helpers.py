@@ -1,0 +1,51 @@
+"""The small rules of the servo auto-calibration shared by the driver and the LeRobot workflow."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from robocal.core.lerobot import MotorCalibration
+from robocal.workflows.autocal_servo import mid_turn_offset
+from robocal.workflows.lerobot.calibrate import CalibrationNotSavedError, save_calibration
+
+
+@pytest.mark.parametrize(
+    ("actual", "offset"),
+    [(2047, 0), (0, -2047), (4095, 2047), (3000, 953), (100, -1947), (1000, -1047)],
+)
+def test_mid_turn_offset_puts_the_joint_mid_turn_within_the_register(actual: int, offset: int) -> None:
+    assert mid_turn_offset(actual, 4096) == offset
+    assert (actual - offset) % 4096 == 2047 or abs(offset) == 2047  # Present = (Actual − offset) mod res
+
+
+def test_mid_turn_offset_for_another_resolution() -> None:
+    assert mid_turn_offset(0, 1024) == -511
+    assert mid_turn_offset(600, 1024) == 89
+
+
+def test_save_calibration_writes_lerobot_json_or_nothing_without_a_path(tmp_path: Path) -> None:
+    cals = {"shoulder_pan": MotorCalibration(1, 0, 12, 800, 3000)}
+    assert save_calibration(None, cals) is None
+    written = save_calibration(tmp_path / "a.json", cals)
+    assert written == tmp_path / "a.json"
+    assert json.loads(written.read_text())["shoulder_pan"] == {
+        "id": 1,
+        "drive_mode": 0,
+        "homing_offset": 12,
+        "range_min": 800,
+        "range_max": 3000,
+    }
+
+
+def test_save_calibration_failure_keeps_the_calibration(tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    cals = {"gripper": MotorCalibration(6, 0, 0, 2000, 3000)}
+    with pytest.raises(CalibrationNotSavedError) as info:
+        save_calibration(blocker / "a.json", cals)
+    assert info.value.calibration == cals
+    assert str(info.value).startswith(f"cannot write {blocker}/a.json")
+    assert blocker.read_text() == "x"
