@@ -81,6 +81,12 @@ class ScenarioSpec:
     span_tol_deg: float = 1.0
     gravity_fraction: float = 0.0  # gravity torque amplitude as a fraction of the cap
 
+    def plant_scenario(self, cap_nm: float) -> Scenario:
+        """The plant scenario of a joint searched with ``cap_nm``: with its gravity torque when there is one."""
+        if not self.gravity_fraction:
+            return self.scenario
+        return Scenario(**{**self.scenario.__dict__, "gravity_nm": self.gravity_fraction * cap_nm})
+
 
 SCENARIOS: tuple[ScenarioSpec, ...] = (
     ScenarioSpec("stiff_1000", Scenario(), stiffness=1000.0),
@@ -195,9 +201,7 @@ def run_one(robot: Sequence[BenchJoint], spec: ScenarioSpec, seed: int) -> RunRe
         stiffness_upper=spec.stiffness,
         noise_rad=math.radians(0.02),
     )
-    scen = spec.scenario
-    if spec.gravity_fraction:
-        scen = Scenario(**{**scen.__dict__, "gravity_nm": spec.gravity_fraction * cap})
+    scen = spec.plant_scenario(cap)
     span = j.upper - j.lower
     q0 = j.lower + z + float(rng.uniform(0.2, 0.5)) * span
     plant = make_plant(scen, nominal, search_torque_nm=cap, seed=seed, q0_rad=q0)
@@ -257,30 +261,35 @@ class ScenarioStats:
 
     def problems(self) -> list[str]:
         """What misses the acceptance (empty: passes)."""
-        s, e = self.summary(), self.spec
-        out = []
-        n = s["n"]
-        if e.expect == "accurate":
-            if s["codes"].get("ok", 0) != n:
-                out.append(f"not every run found both stops: {s['codes']}")
-            if not s["zero_max_deg"] <= e.zero_tol_deg:
-                out.append(f"zero error {s['zero_max_deg']:.3f}° > {e.zero_tol_deg}°")
-            if not s["span_max_deg"] <= e.span_tol_deg:
-                out.append(f"span error {s['span_max_deg']:.3f}° > {e.span_tol_deg}°")
-            if math.isfinite(s["sigma_deg"]) and s["sigma_deg"] > THRESHOLDS["sigma_deg"]:
-                out.append(f"σ {s['sigma_deg']:.3f}° > {THRESHOLDS['sigma_deg']}°")
-        elif e.expect == "abort":
-            if s["codes"].get("missing_stop", 0) + s["codes"].get("timeout", 0) != n:
-                out.append(f"not every run aborted: {s['codes']}")
-            if not s["abort_max_over_bound_s"] <= THRESHOLDS["abort_margin_s"]:
-                out.append(f"abort {s['abort_max_over_bound_s']:.2f} s after the travel bound")
-        elif s["codes"].get("span_mismatch", 0) != n:
-            out.append(f"not every run reported a span mismatch: {s['codes']}")
-        if not s["peak_over_cap"] <= THRESHOLDS["peak_over_cap"]:
-            out.append(f"peak torque {s['peak_over_cap']:.3f}× the cap")
-        if not s["limp_after_fail"]:
-            out.append("a failed joint was not left limp")
-        return out
+        return acceptance_problems(self.summary(), self.spec)
+
+
+def acceptance_problems(s: dict[str, Any], e: ScenarioSpec) -> list[str]:
+    """What a scenario's summary (``n``, ``codes``, worst errors, aborts, peak torque, limp) misses of the
+    acceptance ``e`` expects (empty: passes); the Robstride and the servo benchmarks judge alike."""
+    out: list[str] = []
+    n = s["n"]
+    if e.expect == "accurate":
+        if s["codes"].get("ok", 0) != n:
+            out.append(f"not every run found both stops: {s['codes']}")
+        if not s["zero_max_deg"] <= e.zero_tol_deg:
+            out.append(f"zero error {s['zero_max_deg']:.3f}° > {e.zero_tol_deg}°")
+        if not s["span_max_deg"] <= e.span_tol_deg:
+            out.append(f"span error {s['span_max_deg']:.3f}° > {e.span_tol_deg}°")
+        if math.isfinite(s["sigma_deg"]) and s["sigma_deg"] > THRESHOLDS["sigma_deg"]:
+            out.append(f"σ {s['sigma_deg']:.3f}° > {THRESHOLDS['sigma_deg']}°")
+    elif e.expect == "abort":
+        if s["codes"].get("missing_stop", 0) + s["codes"].get("timeout", 0) != n:
+            out.append(f"not every run aborted: {s['codes']}")
+        if not s["abort_max_over_bound_s"] <= THRESHOLDS["abort_margin_s"]:
+            out.append(f"abort {s['abort_max_over_bound_s']:.2f} s after the travel bound")
+    elif s["codes"].get("span_mismatch", 0) != n:
+        out.append(f"not every run reported a span mismatch: {s['codes']}")
+    if not s["peak_over_cap"] <= THRESHOLDS["peak_over_cap"]:
+        out.append(f"peak torque {s['peak_over_cap']:.3f}× the cap")
+    if not s["limp_after_fail"]:
+        out.append("a failed joint was not left limp")
+    return out
 
 
 def run_scenario(robot_name: str, spec: ScenarioSpec, seeds: Sequence[int]) -> ScenarioStats:
@@ -299,32 +308,41 @@ def robot_total_time(robot_name: str, seed: int = 0) -> float:
     return sum(run_one(robot, spec, seed * len(robot) + i).time_s for i in range(len(robot)))
 
 
+def print_table_header() -> None:
+    """The head of the acceptance table (one row per scenario: :func:`print_table_row`)."""
+    print(
+        f"{'scenario':18s} {'codes':34s} {'|zero|max':>9s} {'|span|max':>9s} {'σ zero':>7s} "
+        f"{'abort-bound':>11s} {'peak/cap':>8s}  verdict",
+        flush=True,
+    )
+
+
+def print_table_row(st: ScenarioStats) -> int:
+    """Print one scenario's row of the acceptance table; 1 when it fails, else 0."""
+    s, probs = st.summary(), st.problems()
+    codes = ",".join(f"{k}:{v}" for k, v in sorted(s["codes"].items()))
+
+    def f(x: float, nd: int = 3) -> str:
+        return "-" if not math.isfinite(x) else f"{x:.{nd}f}"
+
+    print(
+        f"{st.spec.name:18s} {codes:34s} {f(s['zero_max_deg']):>9s} {f(s['span_max_deg']):>9s} "
+        f"{f(s['sigma_deg']):>7s} {f(s['abort_max_over_bound_s'], 2):>11s} {f(s['peak_over_cap']):>8s}  "
+        f"{'PASS' if not probs else 'FAIL: ' + '; '.join(probs)}",
+        flush=True,
+    )
+    return int(bool(probs))
+
+
 def main() -> None:
     n = int(os.environ.get("AUTOCAL_SEEDS", "100"))
     seeds = range(n)
     failures = 0
     for robot in ("lite", "so101"):
         print(f"-- {robot}: {n} seeded runs per scenario (seed → joint, cycling) --")
-        print(
-            f"{'scenario':18s} {'codes':34s} {'|zero|max':>9s} {'|span|max':>9s} {'σ zero':>7s} "
-            f"{'abort-bound':>11s} {'peak/cap':>8s}  verdict"
-        )
+        print_table_header()
         for spec in SCENARIOS:
-            st = run_scenario(robot, spec, seeds)
-            s = st.summary()
-            probs = st.problems()
-            failures += bool(probs)
-            codes = ",".join(f"{k}:{v}" for k, v in sorted(s["codes"].items()))
-
-            def f(x: float, nd: int = 3) -> str:
-                return "-" if not math.isfinite(x) else f"{x:.{nd}f}"
-
-            print(
-                f"{spec.name:18s} {codes:34s} {f(s['zero_max_deg']):>9s} {f(s['span_max_deg']):>9s} "
-                f"{f(s['sigma_deg']):>7s} {f(s['abort_max_over_bound_s'], 2):>11s} {f(s['peak_over_cap']):>8s}  "
-                f"{'PASS' if not probs else 'FAIL: ' + '; '.join(probs)}",
-                flush=True,
-            )
+            failures += print_table_row(run_scenario(robot, spec, seeds))
         total = robot_total_time(robot)
         limit = THRESHOLDS[f"{robot}_total_s"]
         print(

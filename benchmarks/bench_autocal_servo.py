@@ -20,46 +20,36 @@ from __future__ import annotations
 
 import math
 import os
-import statistics
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_autocal import SCENARIOS, THRESHOLDS, ScenarioSpec
+from bench_autocal import (
+    SCENARIOS,
+    THRESHOLDS,
+    RunResult,
+    ScenarioSpec,
+    ScenarioStats,
+    print_table_header,
+    print_table_row,
+)
 
 from robocal.backends.servo_ratings import RATINGS
 from robocal.backends.sim.arm_physics import ARM_NOMINAL, attach_physics
 from robocal.backends.sim.lerobot_arms import JointTruth, SimArm, seeded_truth
-from robocal.backends.sim.physics import Scenario, SimClock
+from robocal.backends.sim.physics import SimClock
 from robocal.workflows.autocal import AutoCalFailedError, AutoCalResult
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.arms import open_bus
 from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
 
-__all__ = ["SERVO_SCENARIOS", "ServoRun", "arm_total_time", "run_one", "run_scenario"]
+__all__ = ["SERVO_SCENARIOS", "arm_total_time", "run_one", "run_scenario"]
 
 SERVO_SCENARIOS: tuple[ScenarioSpec, ...] = SCENARIOS
 """The scenarios and per-scenario tolerances of the Lite/MIT benchmark (benchmarks/bench_autocal.py)."""
-
-
-@dataclass
-class ServoRun:
-    """One seeded single-joint run."""
-
-    joint: str
-    code: str
-    zero_err_deg: float = math.nan
-    span_err_deg: float = math.nan
-    time_s: float = math.nan
-    abort_time_s: float = math.nan
-    abort_bound_s: float = math.nan
-    peak_over_cap: float = math.nan
-    limp_at_end: bool = False
-    tests: tuple[str, ...] = ()
 
 
 def cad_truth(robot: str, seed: int) -> dict[str, JointTruth]:
@@ -83,7 +73,7 @@ def _wrap(d_ticks: float, res: int) -> float:
     return (d_ticks + res / 2) % res - res / 2
 
 
-def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None) -> ServoRun:
+def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None) -> RunResult:
     """Auto-calibrate one joint (``joint``, default the ``seed``-th of the profile's order) in scenario ``spec``."""
     arm_spec = robot_spec(robot)
     section = auto_section(robot)
@@ -94,9 +84,7 @@ def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None)
     model = arm_spec.motors[arm_spec.motor_names.index(name)].model
     stall = RATINGS[model].stall_torque_nm
     cap = aj.torque_fraction * stall  # Torque_Limit / Goal_Current of the fraction of the full torque
-    scen = spec.scenario
-    if spec.gravity_fraction:
-        scen = Scenario(**{**scen.__dict__, "gravity_nm": spec.gravity_fraction * cap})
+    scen = spec.plant_scenario(cap)
     nominal = replace(ARM_NOMINAL, stiffness_lower=spec.stiffness, stiffness_upper=spec.stiffness)
     clock = SimClock()
     with SimArm(arm_spec, truth=cad_truth(robot, seed)) as arm:
@@ -118,7 +106,7 @@ def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None)
         truth = arm.truth[name]
         res = servo.resolution
     out = auto[name]
-    run = ServoRun(name, out.stops.code, time_s=out.time_s, limp_at_end=limp)
+    run = RunResult(name, out.stops.code, time_s=out.time_s, limp_at_end=limp)
     run.peak_over_cap = plant.peak_tau_motor_nm / cap
     lo, hi = out.stops.lower, out.stops.upper
     run.tests = tuple(r.test for r in (lo, hi) if r is not None and r.ok)
@@ -146,70 +134,11 @@ def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None)
     return run
 
 
-@dataclass
-class ServoStats:
-    """One scenario over its runs."""
-
-    robot: str
-    spec: ScenarioSpec
-    runs: list[ServoRun] = field(default_factory=list)
-
-    def summary(self) -> dict[str, Any]:
-        def vals(attr: str) -> list[float]:
-            return [getattr(r, attr) for r in self.runs if math.isfinite(getattr(r, attr))]
-
-        codes: dict[str, int] = {}
-        per_joint: dict[str, list[float]] = {}
-        for r in self.runs:
-            codes[r.code] = codes.get(r.code, 0) + 1
-            if math.isfinite(r.zero_err_deg):
-                per_joint.setdefault(r.joint, []).append(r.zero_err_deg)
-        aborts = [(r.abort_time_s, r.abort_bound_s) for r in self.runs if math.isfinite(r.abort_time_s)]
-        return {
-            "n": len(self.runs),
-            "codes": codes,
-            "zero_max_deg": max((abs(v) for v in vals("zero_err_deg")), default=math.nan),
-            "span_max_deg": max((abs(v) for v in vals("span_err_deg")), default=math.nan),
-            "sigma_deg": max(
-                (statistics.pstdev(v) for v in per_joint.values() if len(v) > 1), default=math.nan
-            ),
-            "abort_max_over_bound_s": max((t - b for t, b in aborts), default=math.nan),
-            "peak_over_cap": max(vals("peak_over_cap"), default=math.nan),
-            "limp_after_fail": all(r.limp_at_end for r in self.runs if r.code != "ok"),
-        }
-
-    def problems(self) -> list[str]:
-        """What misses issue 11's acceptance (empty: passes)."""
-        s, e, out = self.summary(), self.spec, []
-        n = s["n"]
-        if e.expect == "accurate":
-            if s["codes"].get("ok", 0) != n:
-                out.append(f"not every run found both stops: {s['codes']}")
-            if not s["zero_max_deg"] <= e.zero_tol_deg:
-                out.append(f"zero error {s['zero_max_deg']:.3f}° > {e.zero_tol_deg}°")
-            if not s["span_max_deg"] <= e.span_tol_deg:
-                out.append(f"span error {s['span_max_deg']:.3f}° > {e.span_tol_deg}°")
-            if math.isfinite(s["sigma_deg"]) and s["sigma_deg"] > THRESHOLDS["sigma_deg"]:
-                out.append(f"σ {s['sigma_deg']:.3f}° > {THRESHOLDS['sigma_deg']}°")
-        elif e.expect == "abort":
-            if s["codes"].get("missing_stop", 0) + s["codes"].get("timeout", 0) != n:
-                out.append(f"not every run aborted: {s['codes']}")
-            if not s["abort_max_over_bound_s"] <= THRESHOLDS["abort_margin_s"]:
-                out.append(f"abort {s['abort_max_over_bound_s']:.2f} s after the travel bound")
-        elif s["codes"].get("span_mismatch", 0) != n:
-            out.append(f"not every run reported a span mismatch: {s['codes']}")
-        if not s["peak_over_cap"] <= THRESHOLDS["peak_over_cap"]:
-            out.append(f"peak torque {s['peak_over_cap']:.3f}× the cap")
-        if not s["limp_after_fail"]:
-            out.append("a failed joint was not left limp")
-        return out
-
-
 def run_scenario(
     robot: str, spec: ScenarioSpec, seeds: Sequence[int], *, per_joint: bool = False
-) -> ServoStats:
+) -> ScenarioStats:
     """``spec`` for every seed: one joint per seed (cycling), or every joint per seed with ``per_joint``."""
-    st = ServoStats(robot, spec)
+    st = ScenarioStats(robot, spec)
     joints = [j.name for j in auto_section(robot).searched_joints]
     for seed in seeds:
         if per_joint:
@@ -245,30 +174,13 @@ def main() -> None:
     robot = os.environ.get("AUTOCAL_ROBOT", "so101_follower")
     limit = THRESHOLDS["so101_total_s"]
     print(f"-- {robot} on the servo firmware simulation (real SDK, pty): {n} seeds per scenario per joint --")
-    print(
-        f"{'scenario':18s} {'codes':34s} {'|zero|max':>9s} {'|span|max':>9s} {'σ zero':>7s} "
-        f"{'abort-bound':>11s} {'peak/cap':>8s}  verdict",
-        flush=True,
-    )
+    print_table_header()
     failures = 0
-
-    def f(x: float, nd: int = 3) -> str:
-        return "-" if not math.isfinite(x) else f"{x:.{nd}f}"
-
     wanted = [w for w in os.environ.get("AUTOCAL_SCENARIOS", "").split(",") if w]
     for spec in SERVO_SCENARIOS:
         if wanted and spec.name not in wanted:
             continue
-        st = run_scenario(robot, spec, range(n), per_joint=True)
-        s, probs = st.summary(), st.problems()
-        failures += bool(probs)
-        codes = ",".join(f"{k}:{v}" for k, v in sorted(s["codes"].items()))
-        print(
-            f"{spec.name:18s} {codes:34s} {f(s['zero_max_deg']):>9s} {f(s['span_max_deg']):>9s} "
-            f"{f(s['sigma_deg']):>7s} {f(s['abort_max_over_bound_s'], 2):>11s} {f(s['peak_over_cap']):>8s}  "
-            f"{'PASS' if not probs else 'FAIL: ' + '; '.join(probs)}",
-            flush=True,
-        )
+        failures += print_table_row(run_scenario(robot, spec, range(n), per_joint=True))
     total = arm_total_time(robot)
     print(
         f"whole {robot}: {total:.1f} s simulated (limit {limit:.0f} s) {'PASS' if total < limit else 'FAIL'}"

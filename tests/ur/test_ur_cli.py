@@ -271,6 +271,12 @@ def _urdf_pair_setup(tmp_path: Path, existing: bool) -> tuple[Path, Path, Path, 
     return urdf_in, urdf_out, out, before
 
 
+def _correct_pair_args(out: Path, urdf_in: Path, urdf_out: Path, *extra: str) -> list[str]:
+    """``ur correct --model ur10e [extra] --out OUT --urdf-in IN --urdf-out OUT_URDF``."""
+    return ["ur", "correct", "--model", "ur10e", *extra, "--out", str(out), "--urdf-in", str(urdf_in),
+            "--urdf-out", str(urdf_out)]  # fmt: skip
+
+
 @pytest.mark.parametrize(
     ("given", "expected"), [("URDF", "urdf"), ("Upstream", "upstream"), (" upstream ", "upstream")]
 )
@@ -319,18 +325,7 @@ def test_yaml_write_failure_restores_the_urdf(
         raise UsageError(f"cannot write {path}: No space left on device")
 
     monkeypatch.setattr(wf, "atomic_write_text", failing_yaml)
-    args = [
-        "ur",
-        "correct",
-        "--model",
-        "ur10e",
-        "--out",
-        str(out),
-        "--urdf-in",
-        str(urdf_in),
-        "--urdf-out",
-        str(urdf_out),
-    ]
+    args = _correct_pair_args(out, urdf_in, urdf_out)
     assert main(args) == 2
     assert "No space left on device" in _one_error_line(capsys.readouterr().err)
     assert calls == [out]  # the YAML was attempted after the URDF had been written
@@ -348,18 +343,7 @@ def test_urdf_write_failure_writes_no_yaml(
         raise UsageError(f"cannot write {path}: Read-only file system")
 
     monkeypatch.setattr(wf, "atomic_write_bytes", failing_bytes)
-    args = [
-        "ur",
-        "correct",
-        "--model",
-        "ur10e",
-        "--out",
-        str(out),
-        "--urdf-in",
-        str(urdf_in),
-        "--urdf-out",
-        str(urdf_out),
-    ]
+    args = _correct_pair_args(out, urdf_in, urdf_out)
     assert main(args) == 2
     assert f"cannot write {urdf_out}: Read-only file system" in _one_error_line(capsys.readouterr().err)
     assert {p: (p.read_bytes() if p.exists() else None) for p in before} == before
@@ -367,20 +351,7 @@ def test_urdf_write_failure_writes_no_yaml(
 
 def test_urdf_pair_success_writes_both(tmp_path: Path) -> None:
     urdf_in, urdf_out, out, _ = _urdf_pair_setup(tmp_path, existing=True)
-    args = [
-        "ur",
-        "correct",
-        "--model",
-        "ur10e",
-        "--rpy",
-        "UPSTREAM",
-        "--out",
-        str(out),
-        "--urdf-in",
-        str(urdf_in),
-        "--urdf-out",
-        str(urdf_out),
-    ]
+    args = _correct_pair_args(out, urdf_in, urdf_out, "--rpy", "UPSTREAM")
     assert main(args) == 0
     assert out.read_text() == kinematics_to_text(correct_kinematics(nominal_dh("ur10e"), "upstream"))
     assert (tmp_path / "cal.yaml.bak").read_text() == "old yaml\n"

@@ -1,7 +1,11 @@
-"""Shared pieces of the viewer tests: small URDFs written into tmp_path."""
+"""Shared pieces of the viewer tests: small URDFs written into tmp_path, a served page stopped by Ctrl-C."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -31,3 +35,39 @@ def two_joint_urdf(tmp_path: Path) -> Path:
     p = tmp_path / "two.urdf"
     p.write_text(TWO_JOINT)
     return p
+
+
+def default_sigint() -> None:
+    """The child gets Ctrl-C even when the suite runs as a background job (which ignores SIGINT)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def serve_then_ctrl_c(args: list[str], ready: str) -> tuple[list[str], int, str, str]:
+    """Run ``python -m robocal ARGS``, read its stdout up to the line starting with ``ready``, then Ctrl-C it.
+
+    Returns:
+        The lines read up to and with the ``ready`` line, the exit code, the rest of stdout and all of stderr.
+    """
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocal", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        preexec_fn=default_sigint,
+    )
+    try:
+        assert proc.stdout is not None
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith(ready):
+                break
+        assert lines and lines[-1].startswith(ready), "".join(lines[-5:])
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return lines, proc.returncode, out, err

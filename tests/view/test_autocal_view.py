@@ -7,11 +7,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import signal
 import socket
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -26,7 +22,7 @@ from robocal.viewer.autocal_page import open_auto_sweep_page
 from robocal.viewer.sweep_page import FAIL_RGB, LIVE_RGB, STATUS_RGB, status_rgb
 from robocal.workflows.autocal_sweep import run_sweep_auto
 
-from .conftest import LITE_URDF, REPO
+from .conftest import LITE_URDF, serve_then_ctrl_c
 
 JOINTS = ["left_wrist_roll", "left_wrist_pitch", "right_elbow_pitch"]
 SOURCE = "sim:lite?seed=0&missing=left_wrist_roll"
@@ -225,35 +221,12 @@ def test_cli_sweep_auto_view_failed_joint_shown_exit_3(
     assert not out.exists()
 
 
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def test_demo_auto_view_serves_the_result_until_ctrl_c() -> None:
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "robocal", "demo", "--auto", "--view", "--port", "0"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        preexec_fn=_default_sigint,
+    lines, code, _out, err = serve_then_ctrl_c(
+        ["demo", "--auto", "--view", "--port", "0"], "serving the result at http://127.0.0.1:"
     )
-    try:
-        assert proc.stdout is not None
-        lines = []
-        for line in proc.stdout:
-            lines.append(line)
-            if line.startswith("serving the result at http://127.0.0.1:"):
-                break
-        assert lines and lines[-1].startswith("serving the result at"), "".join(lines[-5:])
-        assert any("largest error" in ln for ln in lines)
-        proc.send_signal(signal.SIGINT)
-        _out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, err
+    assert any("largest error" in ln for ln in lines)
+    assert code == 0, err
     assert err.startswith("auto-calibration view: http://127.0.0.1:")
     assert "Traceback" not in err
 

@@ -3,11 +3,7 @@
 from __future__ import annotations
 
 import math
-import os
-import signal
 import socket
-import subprocess
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -25,7 +21,7 @@ from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
 from robocal.viewer.session import ViewOptions, open_view
 
-from .conftest import LITE_URDF, REPO
+from .conftest import LITE_URDF, REPO, serve_then_ctrl_c
 
 LITE_CAL = REPO / "examples" / "lite" / "calibration.yaml"
 
@@ -165,42 +161,13 @@ def test_cli_replay_for_a_duration(tmp_path: Path, capsys: pytest.CaptureFixture
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]
 
 
-def default_sigint() -> None:
-    """The child gets Ctrl-C even when the suite runs as a background job (which ignores SIGINT)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def test_ctrl_c_exits_cleanly() -> None:
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "robocal",
-            "view",
-            "--urdf",
-            str(LITE_URDF),
-            "--source",
-            "sim:lite",
-            "--port",
-            "0",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        preexec_fn=default_sigint,
+    lines, code, out, err = serve_then_ctrl_c(
+        ["view", "--urdf", str(LITE_URDF), "--source", "sim:lite", "--port", "0"],
+        "robocal view: serving http://127.0.0.1:",
     )
-    try:
-        assert proc.stdout is not None
-        line = proc.stdout.readline()
-        assert line.startswith("robocal view: serving http://127.0.0.1:")
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert (proc.returncode, err, out) == (0, "", "")
+    assert len(lines) == 1  # the first line says where the page is
+    assert (code, err, out) == (0, "", "")
 
 
 def test_lerobot_sim_arm_through_its_calibration(tmp_path: Path) -> None:
@@ -247,30 +214,9 @@ def test_lerobot_sim_arm_through_its_calibration(tmp_path: Path) -> None:
 
 
 def test_demo_view_serves_the_calibrated_lite() -> None:
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "robocal", "demo", "--view", "--port", "0"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        preexec_fn=default_sigint,
-    )
-    try:
-        assert proc.stdout is not None
-        lines = []
-        for line in proc.stdout:
-            lines.append(line)
-            if line.startswith("robocal view: serving http://127.0.0.1:"):
-                break
-        assert lines and lines[-1].startswith("robocal view: serving"), "".join(lines[-5:])
-        assert any("largest error" in ln for ln in lines)
-        proc.send_signal(signal.SIGINT)
-        _out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, err
+    lines, code, _out, err = serve_then_ctrl_c(["demo", "--view", "--port", "0"], "robocal view: serving http://127.0.0.1:")
+    assert any("largest error" in ln for ln in lines)
+    assert code == 0, err
     assert err == ""
 
 

@@ -14,10 +14,10 @@ with a ``missing`` upper stop, a mid-travel ``obstacle``, a cable ``snag``, ``so
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,10 +25,35 @@ from ..core.profile import RobotProfile
 from ..errors import UsageError
 from .autocal import JointDriver, RobstrideJointDriver
 
-__all__ = ["SIM_FAULTS", "SimAutoLite", "open_sim_lite", "sim_opener", "write_sim_lite_urdf"]
+if TYPE_CHECKING:
+    from ..backends.sim.physics import Scenario
+
+__all__ = ["SIM_FAULTS", "SimAutoLite", "fault_scenario", "open_sim_lite", "sim_opener", "write_sim_lite_urdf"]
 
 SIM_FAULTS = ("missing", "obstacle", "snag", "soft", "overload", "silent", "stiction")
 """Per-joint scenario options of ``sim:lite`` for ``--auto``."""
+
+
+
+def fault_scenario(joint: str, faults: Mapping[str, Collection[str]]) -> Scenario:
+    """The simulated joint's :class:`~robocal.backends.sim.scenarios.Scenario` from the per-fault joint lists.
+
+    Args:
+        joint: The joint's name.
+        faults: For each of :data:`SIM_FAULTS`, the joints that have that fault.
+    """
+    from ..backends.sim.physics import Scenario
+
+    return Scenario(
+        soft_stop=joint in faults["soft"],
+        missing_stop="upper" if joint in faults["missing"] else "none",
+        obstacle=joint in faults["obstacle"],
+        cable_snag=joint in faults["snag"],
+        overload_latch=joint in faults["overload"],
+        silent_at_stop=joint in faults["silent"],
+        stiction_ratio=0.8 if joint in faults["stiction"] else 0.0,
+    )
+
 
 MAX_LAG_RAD = math.radians(3.0)
 _INERTIA = {"rs-02": 0.05, "rs-00": 0.03, "rs-05": 0.005}
@@ -87,7 +112,7 @@ def open_sim_lite(
     from ..backends import load_backend
     from ..backends.robstride import MotorSpec
     from ..backends.sim.lite import LITE_JOINTS
-    from ..backends.sim.physics import PlantParams, Scenario, SimClock, make_plant
+    from ..backends.sim.physics import PlantParams, SimClock, make_plant
     from ..backends.sim.robstride import SimMotor, SimMotorBus
 
     table = {j.name: j for j in LITE_JOINTS}
@@ -130,15 +155,7 @@ def open_sim_lite(
             counts_per_rev=16384,
             noise_rad=math.radians(0.01),
         )
-        scen = Scenario(
-            soft_stop=j.name in faults["soft"],
-            missing_stop="upper" if j.name in faults["missing"] else "none",
-            obstacle=j.name in faults["obstacle"],
-            cable_snag=j.name in faults["snag"],
-            overload_latch=j.name in faults["overload"],
-            silent_at_stop=j.name in faults["silent"],
-            stiction_ratio=0.8 if j.name in faults["stiction"] else 0.0,
-        )
+        scen = fault_scenario(j.name, faults)
         plant = make_plant(scen, nominal, search_torque_nm=cap, seed=seed * 1000 + j.can_id, q0_rad=q0)
         motors[j.name] = SimMotor(
             can_id=j.can_id,

@@ -21,7 +21,7 @@ from ...core.lerobot import RobotSpec
 from ...core.profile_auto import AutoSection
 from ...errors import UsageError
 from ..autocal import Clock, MonotonicClock
-from ..autocal_sim import SIM_FAULTS
+from ..autocal_sim import SIM_FAULTS, fault_scenario
 from .arms import open_bus
 
 __all__ = ["AutoArm", "open_auto_arm", "parse_sim_port"]
@@ -85,22 +85,10 @@ def open_auto_arm(
     from ...backends.sim.arm_physics import attach_physics
     from ...backends.sim.lerobot_arms import SimArm, seeded_truth
     from ...backends.sim.physics import SimClock
-    from ...backends.sim.scenarios import Scenario
 
     seed = int(opts["seed"]) if "seed" in opts else None
     faults = {k: {n for n in opts.get(k, "").split(",") if n} for k in SIM_FAULTS}
-    scenarios = {
-        m.name: Scenario(
-            soft_stop=m.name in faults["soft"],
-            missing_stop="upper" if m.name in faults["missing"] else "none",
-            obstacle=m.name in faults["obstacle"],
-            cable_snag=m.name in faults["snag"],
-            overload_latch=m.name in faults["overload"],
-            silent_at_stop=m.name in faults["silent"],
-            stiction_ratio=0.8 if m.name in faults["stiction"] else 0.0,
-        )
-        for m in spec.motors
-    }
+    scenarios = {m.name: fault_scenario(m.name, faults) for m in spec.motors}
     push: dict[str, float] = {}
     for m in spec.motors:
         joint = section.joint(m.name)

@@ -1,4 +1,5 @@
-"""The small rules of the servo auto-calibration shared by the driver and the LeRobot workflow."""
+"""Small rules the auto-calibration modules share: the Feetech mid-turn offset, saving a LeRobot calibration,
+the simulated faults of ``sim:lite`` and ``--port sim?…``."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import pytest
 
 from robocal.core.lerobot import MotorCalibration
 from robocal.workflows.autocal_servo import mid_turn_offset
+from robocal.workflows.autocal_sim import SIM_FAULTS, fault_scenario
 from robocal.workflows.lerobot.calibrate import CalibrationNotSavedError, save_calibration
 
 
@@ -49,3 +51,15 @@ def test_save_calibration_failure_keeps_the_calibration(tmp_path: Path) -> None:
     assert info.value.calibration == cals
     assert str(info.value).startswith(f"cannot write {blocker}/a.json")
     assert blocker.read_text() == "x"
+
+
+def test_fault_scenario_maps_each_sim_fault_to_its_scenario_field() -> None:
+    faults = {k: set() for k in SIM_FAULTS} | {"missing": {"a"}, "stiction": {"a", "b"}, "silent": {"b"}}
+    a, b, c = (fault_scenario(n, faults) for n in "abc")
+    assert (a.missing_stop, a.stiction_ratio, a.silent_at_stop) == ("upper", 0.8, False)
+    assert (b.missing_stop, b.stiction_ratio, b.silent_at_stop) == ("none", 0.8, True)
+    assert not (c.soft_stop or c.obstacle or c.cable_snag or c.overload_latch or c.silent_at_stop)
+    assert (c.missing_stop, c.stiction_ratio) == ("none", 0.0)
+    for fault, field in [("soft", "soft_stop"), ("obstacle", "obstacle"), ("snag", "cable_snag"),
+                         ("overload", "overload_latch")]:  # fmt: skip
+        assert getattr(fault_scenario("j", {k: set() for k in SIM_FAULTS} | {fault: {"j"}}), field) is True
