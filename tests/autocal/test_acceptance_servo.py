@@ -7,31 +7,14 @@ pseudo-terminal with the unmodified scservo_sdk.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-from types import ModuleType
-
 import pytest
 
-BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+from .bench_loader import load_benchmark
 
 pytestmark = pytest.mark.timeout(900)
 
 
-def _bench() -> ModuleType:
-    name = "bench_autocal_servo"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-bench = _bench()
+bench = load_benchmark("bench_autocal_servo")
 
 
 @pytest.mark.parametrize("spec", bench.SERVO_SCENARIOS, ids=lambda s: s.name)

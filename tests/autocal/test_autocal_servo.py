@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from robocal.core.lerobot import MotorCalibration
+from robocal.errors import UsageError
 from robocal.workflows.autocal import AutoCalFailedError
 from robocal.workflows.autocal_servo import DynamixelJointDriver, FeetechJointDriver
 from robocal.workflows.lerobot import robot_spec
@@ -177,18 +178,19 @@ def test_ctrl_c_limps_every_motor_and_restores_every_register(tmp_path: Path, at
 def test_driver_types_per_vendor() -> None:
     spec = robot_spec("koch_follower")
     section = auto_section("koch_follower")
-    from robocal.workflows.autocal_servo import servo_driver
+    from robocal.workflows.autocal_servo import servo_driver_class
 
     with open_auto_arm(spec, "sim", section) as arm:
-        d = servo_driver(arm.bus, "dynamixel", "elbow_flex", 3, rated_nm=0.52, cap_nm=0.13, clock=arm.clock)
+        d = servo_driver_class("dynamixel")(arm.bus, "elbow_flex", 3, rated_nm=0.52, cap_nm=0.13, clock=arm.clock)
         assert isinstance(d, DynamixelJointDriver) and d.operating_mode == 5
-        d2 = servo_driver(
-            arm.bus, "dynamixel", "shoulder_lift", 2, rated_nm=1.4, cap_nm=0.42, clock=arm.clock
-        )
+        d2 = servo_driver_class("dynamixel")(arm.bus, "shoulder_lift", 2, rated_nm=1.4, cap_nm=0.42, clock=arm.clock)
         assert isinstance(d2, DynamixelJointDriver) and d2.operating_mode == 4
         s = d.read()
         assert s.ok and s.q_rad == pytest.approx(2100 * 2 * math.pi / 4096)
     assert FeetechJointDriver.__mro__[1] is DynamixelJointDriver.__mro__[1]
+    assert servo_driver_class("feetech") is FeetechJointDriver
+    with pytest.raises(UsageError, match="no stop-search driver for vendor 'robstride'; expected feetech or dynamixel"):
+        servo_driver_class("robstride")
 
 
 def test_obstacle_near_the_transit_end_is_a_span_mismatch_not_an_abort() -> None:

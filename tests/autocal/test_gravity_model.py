@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tests.robots import SO101_JOINTS
 
 from robocal.core.chain import ChainJoint
 from robocal.core.gravity import GravityModel, LinkInertial, gravity_torques, joint_gravity
@@ -143,14 +144,7 @@ def _pe_gradient_pytransform3d(urdf: Path, names: tuple[str, ...], q: np.ndarray
 def test_so101_urdf_against_an_independent_fk() -> None:
     urdf = DATA / "so101_new_calib.urdf"
     m = gravity_model_from_urdf(urdf)
-    assert set(m.joint_names) == {
-        "shoulder_pan",
-        "shoulder_lift",
-        "elbow_flex",
-        "wrist_flex",
-        "wrist_roll",
-        "gripper",
-    }
+    assert set(m.joint_names) == set(SO101_JOINTS)
     assert m.total_mass_kg == pytest.approx(0.147 + 0.100006 + 0.103 + 0.104 + 0.079 + 0.087 + 1e-9 + 0.012)
     rng = np.random.default_rng(4)
     poses = rng.uniform(-1.5, 1.5, size=(3, 6))

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.robots import UR_LINKS
 
 from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
 from robocal.cli.main import main
@@ -143,14 +144,7 @@ def test_ur_yaml_of_an_identified_ur5e(tmp_path: Path, capsys) -> None:
     assert code in (0, 1), capsys.readouterr()
     written = read_kinematics(tmp_path / "ur5e_id.yaml")
     assert written.hash == "calib_12788084448423163542"
-    assert [lk.name for lk in written.links] == [
-        "shoulder",
-        "upper_arm",
-        "forearm",
-        "wrist_1",
-        "wrist_2",
-        "wrist_3",
-    ]
+    assert [lk.name for lk in written.links] == list(UR_LINKS)
     # the YAML, put back into the URDF the way ur_description does, reproduces the true arm (noise-free data)
     (tmp_path / "ur5e_id.urdf").write_text(ur_urdf_text(written))
     identified = chain_from_urdf(read_urdf(tmp_path / "ur5e_id.urdf"), tip_link="tool0")

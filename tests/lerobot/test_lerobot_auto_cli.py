@@ -11,27 +11,15 @@ import pytest
 from robocal.cli.main import main
 from robocal.lerobot import MotorCalibration, read_calibration
 
+from .conftest import calibrate_args
+
 pytestmark = pytest.mark.timeout(600)
 
 
 def run(
     tmp_path: Path, *extra: str, robot: str = "so101_follower", port: str = "sim", rid: str = "arm1"
 ) -> int:
-    return main(
-        [
-            "lerobot",
-            "calibrate",
-            "--robot",
-            robot,
-            "--port",
-            port,
-            "--id",
-            rid,
-            "--calibration-dir",
-            str(tmp_path),
-            *extra,
-        ]
-    )
+    return main(calibrate_args(tmp_path, *extra, robot=robot, port=port, robot_id=rid))
 
 
 def test_auto_writes_the_manual_procedures_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.robots import SO101_JOINTS
 
 from robocal.backends.sim import lerobot_arms
 from robocal.backends.sim.lerobot_arms import SimArm
@@ -16,32 +17,13 @@ from robocal.formats import read_calibration as read_joint_map
 from robocal.lerobot import MotorCalibration, normalize, read_calibration
 from robocal.workflows.lerobot import open_bus, restore, robot_spec
 
-pytestmark = pytest.mark.timeout(60)
+from .conftest import LEGACY, calibrate_args
 
-LEGACY = (
-    '{"homing_offset": [2048, 3072, 3072, -1024, -1024, 2048], "drive_mode": [1, 1, 1, 0, 0, 0], '
-    '"start_pos": [2015, 3058, 3061, 1071, 1071, 2499], "end_pos": [-1008, -1963, -1966, 2141, 2143, 3144], '
-    '"calib_mode": ["DEGREE", "DEGREE", "DEGREE", "DEGREE", "DEGREE", "LINEAR"], '
-    '"motor_names": ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]}'
-)
+pytestmark = pytest.mark.timeout(60)
 
 
 def _calibrate(tmp_path: Path, robot: str = "so101_follower", *extra: str) -> int:
-    return main(
-        [
-            "lerobot",
-            "calibrate",
-            "--robot",
-            robot,
-            "--port",
-            "sim",
-            "--id",
-            "arm1",
-            "--calibration-dir",
-            str(tmp_path),
-            *extra,
-        ]
-    )
+    return main(calibrate_args(tmp_path, *extra, robot=robot))
 
 
 def test_calibrate_sim_writes_lerobot_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -292,15 +274,7 @@ def test_show_prints_normalised_values(tmp_path: Path, capsys: pytest.CaptureFix
         == 0
     )
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].split() == [
-        "reading",
-        "shoulder_pan",
-        "shoulder_lift",
-        "elbow_flex",
-        "wrist_flex",
-        "wrist_roll",
-        "gripper",
-    ]
+    assert lines[0].split() == ["reading", *SO101_JOINTS]
     # the simulated arm rests at its mid pose: shoulder_pan reads 2047 = the middle of 847..3247 -> 0°
     assert lines[1].split()[:2] == ["0", "0.000"] and len(lines) == 3
 

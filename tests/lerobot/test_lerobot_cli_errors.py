@@ -8,14 +8,9 @@ import pytest
 
 from robocal.cli.main import main
 
-pytestmark = pytest.mark.timeout(60)
+from .conftest import LEGACY
 
-LEGACY = (
-    '{"homing_offset": [2048, 3072, 3072, -1024, -1024, 2048], "drive_mode": [1, 1, 1, 0, 0, 0], '
-    '"start_pos": [2015, 3058, 3061, 1071, 1071, 2499], "end_pos": [-1008, -1963, -1966, 2141, 2143, 3144], '
-    '"calib_mode": ["DEGREE", "DEGREE", "DEGREE", "DEGREE", "DEGREE", "LINEAR"], '
-    '"motor_names": ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]}'
-)
+pytestmark = pytest.mark.timeout(60)
 
 
 # --------------------------------------------------------------------------------------------------- CLI

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from tests.robots import SO101_JOINTS
 
 from robocal.errors import FileFormatError, InvalidCalibrationError, JointOutOfRangeError, UsageError
 from robocal.lerobot import MotorCalibration, calibration_path, legacy, read_calibration, write_calibration
@@ -188,14 +189,7 @@ def test_so100_issue_930_file_and_shoulder_lift_reconstruction(tmp_path: Path) -
             "start_pos": [2085, 56, 1285, 3237, 3080, 1983],
             "end_pos": [3169, 1020, 2425, 4150, -1946, 2793],
             "calib_mode": ["DEGREE"] * 5 + ["LINEAR"],
-            "motor_names": [
-                "shoulder_pan",
-                "shoulder_lift",
-                "elbow_flex",
-                "wrist_flex",
-                "wrist_roll",
-                "gripper",
-            ],
+            "motor_names": list(SO101_JOINTS),
         }
     )
     p = tmp_path / "main_follower.json"

@@ -27,7 +27,7 @@ from robocal.errors import UsageError
 from robocal.lerobot import MotorCalibration
 from robocal.workflows.lerobot import calibrate, open_bus, robot_spec
 
-from .conftest import PREVIOUS
+from .conftest import PREVIOUS, calibrate_args
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -148,18 +148,7 @@ def test_rollback_names_exactly_the_motors_and_registers_not_restored(tmp_path: 
 
 # ------------------------------------------------------------------------------------------- CLI
 def _args(tmp: Path, robot: str = "so101_follower") -> list[str]:
-    return [
-        "lerobot",
-        "calibrate",
-        "--robot",
-        robot,
-        "--port",
-        "sim",
-        "--id",
-        "a",
-        "--calibration-dir",
-        str(tmp),
-    ]
+    return calibrate_args(tmp, robot=robot, robot_id="a")
 
 
 def _interrupting_operator(monkeypatch: pytest.MonkeyPatch, step: int) -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 from hypothesis import given
+from tests.robots import UR_LINKS
 
 from robocal.cli.main import main
 from robocal.core.dh import DHParameters
@@ -37,14 +38,7 @@ def test_yaml_layout_key_order_hash_last_no_negative_zero(dh_sets: dict[int, DHP
     text = kinematics_to_text(correct_kinematics(dh_sets[2]))
     lines = text.splitlines()
     assert lines[1] == "kinematics:"
-    assert [ln.strip()[:-1] for ln in lines if ln.startswith("  ") and not ln.startswith("    ")][:6] == [
-        "shoulder",
-        "upper_arm",
-        "forearm",
-        "wrist_1",
-        "wrist_2",
-        "wrist_3",
-    ]
+    assert [ln.strip()[:-1] for ln in lines if ln.startswith("  ") and not ln.startswith("    ")][:6] == list(UR_LINKS)
     assert lines[2:9] == [
         "  shoulder:",
         "    x: 0.0",

@@ -6,6 +6,7 @@ import re
 from pathlib import Path
 
 import pytest
+from tests.robots import UR_LINKS
 
 from robocal.cli.main import main
 from robocal.errors import FileFormatError
@@ -150,14 +151,7 @@ def test_upstream_default_kinematics_verify_against_the_nominal_dh(
     path = FIXTURES / f"{model}_default_kinematics.yaml"
     kin = read_kinematics(path)
     assert re.fullmatch(r"calib_\d+", kin.hash)
-    assert [link.name for link in kin.links] == [
-        "shoulder",
-        "upper_arm",
-        "forearm",
-        "wrist_1",
-        "wrist_2",
-        "wrist_3",
-    ]
+    assert [link.name for link in kin.links] == list(UR_LINKS)
     assert main(["ur", "verify", str(path), "--model", model]) == 0
     assert "match" in capsys.readouterr().out
 

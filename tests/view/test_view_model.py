@@ -15,6 +15,7 @@ import trimesh
 import yourdfpy
 from hypothesis import given
 from hypothesis import strategies as st
+from tests.robots import SO101_JOINTS
 
 from robocal.errors import FileFormatError, UsageError
 from robocal.viewer import load_robot_model, parse_package_paths, resolve_mesh
@@ -79,14 +80,7 @@ def test_missing_meshes_fall_back_with_one_warning() -> None:
     assert model.warnings[0].startswith("17 mesh(es) of so101_new_calib.urdf could not be loaded")
     assert "--package-path" in model.warnings[0]
     assert {s.kind for s in model.shapes} == {"fallback"}
-    assert model.actuated == (
-        "shoulder_pan",
-        "shoulder_lift",
-        "elbow_flex",
-        "wrist_flex",
-        "wrist_roll",
-        "gripper",
-    )
+    assert model.actuated == SO101_JOINTS
 
 
 def _mesh_urdf(tmp_path: Path, filename: str) -> Path:

@@ -50,11 +50,12 @@ __all__ = [
     "FEETECH_SUSPECT_BITS",
     "PWM_FULL",
     "SEAM_MARGIN_TICKS",
+    "SERVO_DRIVERS",
     "DynamixelJointDriver",
     "FeetechJointDriver",
     "dynamixel_current_mode",
     "mid_turn_offset",
-    "servo_driver",
+    "servo_driver_class",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -373,36 +374,22 @@ class DynamixelJointDriver(_ServoJointDriver):
             self._enable()
 
 
-def servo_driver(
-    bus: Any,
-    vendor: str,
-    name: str,
-    motor_id: int,
-    *,
-    rated_nm: float,
-    cap_nm: float,
-    clock: Clock,
-    period_s: float = 0.01,
-    homing_offset: int = 0,
-) -> FeetechJointDriver | DynamixelJointDriver:
-    """The driver of one servo of ``vendor`` (``feetech`` or ``dynamixel``).
+SERVO_DRIVERS: dict[str, type[FeetechJointDriver | DynamixelJointDriver]] = {
+    "feetech": FeetechJointDriver,
+    "dynamixel": DynamixelJointDriver,
+}
+"""The stop-search driver class of each servo vendor (constructed as :class:`FeetechJointDriver` documents)."""
+
+
+def servo_driver_class(vendor: str) -> type[FeetechJointDriver | DynamixelJointDriver]:
+    """The driver class of ``vendor``'s servos (``feetech`` or ``dynamixel``).
+
+    E.g. ``servo_driver_class("feetech")(bus, "wrist_roll", 5, rated_nm=2.9, cap_nm=0.6, clock=clock)``.
 
     Raises:
-        UsageError: Unknown vendor, a cap above the rated torque, or a Dynamixel model without a rating.
+        UsageError: Unknown vendor (constructing the driver raises it for a cap above the rated torque or a
+            Dynamixel model without a rating).
     """
-    drivers: dict[str, type[FeetechJointDriver | DynamixelJointDriver]] = {
-        "feetech": FeetechJointDriver,
-        "dynamixel": DynamixelJointDriver,
-    }
-    if vendor in drivers:
-        return drivers[vendor](
-            bus,
-            name,
-            motor_id,
-            rated_nm=rated_nm,
-            cap_nm=cap_nm,
-            clock=clock,
-            period_s=period_s,
-            homing_offset=homing_offset,
-        )
-    raise UsageError(f"no stop-search driver for vendor {vendor!r}; expected feetech or dynamixel")
+    if vendor not in SERVO_DRIVERS:
+        raise UsageError(f"no stop-search driver for vendor {vendor!r}; expected feetech or dynamixel")
+    return SERVO_DRIVERS[vendor]

@@ -40,7 +40,7 @@ from ..autocal import (
     run_autocal,
     select_joints,
 )
-from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver
+from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver_class
 from .calibrate import save_calibration
 from .eeprom import (
     EEPROM_FIELDS,
@@ -194,9 +194,8 @@ def prepare_search(
             bus.write("Homing_Offset", i, offset)
             bus.write("Goal_Velocity", i, 0)
             bus.write("Acceleration", i, 0)
-        drv = servo_driver(
+        drv = servo_driver_class(spec.vendor)(
             bus,
-            spec.vendor,
             name,
             i,
             rated_nm=joint.rated_nm,
