@@ -1,8 +1,10 @@
-"""Shared set-up: the shipped SO-101 URDF as a chain with a marker 20 mm off the wrist-roll axis."""
+"""Shared set-up: the shipped SO-101 URDF as a chain with a marker 20 mm off the wrist-roll axis; the
+Jacobian check by central differences."""
 
 from __future__ import annotations
 
 from importlib import resources
+from typing import Any
 
 import numpy as np
 import pytest
@@ -28,3 +30,27 @@ def so101_model(marker: tuple[float, float, float] = MARKER_OFF_AXIS_M) -> Error
 @pytest.fixture(scope="module")
 def so101() -> ErrorModel:
     return so101_model()
+
+
+def check_jacobian(problem: Any, theta: np.ndarray, step: float | np.ndarray, rtol: float) -> np.ndarray:
+    """Assert ``problem.residuals_and_jacobian(theta)`` against ``residuals`` and central differences.
+
+    Args:
+        problem: Has ``residuals(theta)`` and ``residuals_and_jacobian(theta)``.
+        theta: Where to check.
+        step: The difference step, one for all or one per unknown.
+        rtol: Tolerance as a share of the largest Jacobian entry.
+
+    Returns:
+        The analytic Jacobian.
+    """
+    r, J = problem.residuals_and_jacobian(theta)
+    np.testing.assert_allclose(r, problem.residuals(theta), atol=1e-12)
+    steps = np.broadcast_to(np.asarray(step, dtype=float), theta.shape)
+    Jn = np.zeros_like(J)
+    for i in range(theta.size):
+        d = np.zeros(theta.size)
+        d[i] = steps[i]
+        Jn[:, i] = (problem.residuals(theta + d) - problem.residuals(theta - d)) / (2 * d[i])
+    np.testing.assert_allclose(J, Jn, atol=rtol * np.abs(J).max())
+    return J

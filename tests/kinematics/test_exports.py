@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from tests.robots import UR_LINKS
+from tests.ur.test_ur_urdf import ur_urdf_text
 
 from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
 from robocal.cli.main import main
@@ -16,7 +17,6 @@ from robocal.core.chain import fk_chain
 from robocal.core.jointmap import RobotCalibration
 from robocal.core.kinematic_errors import ErrorModel
 from robocal.core.kinematic_problem import Measurements
-from robocal.core.ur import JOINT_NAMES, UrKinematics
 from robocal.formats import read_calibration, write_calibration
 from robocal.formats.kinematic_data import measurements_to_csv
 from robocal.formats.ur_kinematics import read_kinematics
@@ -91,36 +91,6 @@ def test_joint_map_out_without_a_map_is_refused_and_nothing_written(
     assert code == 2
     assert "error: --joint-map-out needs the joint map the readings went through" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
-
-
-def ur_urdf_text(kin: UrKinematics) -> str:
-    """An expanded URDF laid out like ur_description's ur_macro.xacro (base_link → tool0)."""
-    links = ["base_link_inertia", "shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link",
-             "wrist_2_link", "wrist_3_link"]  # fmt: skip
-    parts = ['<?xml version="1.0"?>', '<robot name="ur">', '  <link name="base_link"/>']
-    parts += [f'  <link name="{n}"/>' for n in [*links, "flange", "tool0"]]
-    parts.append(
-        '  <joint name="base_link-base_link_inertia" type="fixed"><parent link="base_link"/>'
-        '<child link="base_link_inertia"/><origin xyz="0 0 0" rpy="0 0 3.141592653589793"/></joint>'
-    )
-    for k, (joint, link) in enumerate(zip(JOINT_NAMES, kin.links, strict=True)):
-        xyz = " ".join(repr(v) for v in link.xyz_m)
-        rpy = " ".join(repr(v) for v in link.rpy_rad)
-        parts.append(
-            f'  <joint name="{joint}" type="revolute"><parent link="{links[k]}"/><child link="{links[k + 1]}"/>'
-            f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="0 0 1"/>'
-            '<limit lower="-6.28" upper="6.28" effort="1" velocity="1"/></joint>'
-        )
-    parts.append(
-        '  <joint name="wrist_3-flange" type="fixed"><parent link="wrist_3_link"/><child link="flange"/>'
-        '<origin xyz="0 0 0" rpy="0 -1.5707963267948966 -1.5707963267948966"/></joint>'
-    )
-    parts.append(
-        '  <joint name="flange-tool0" type="fixed"><parent link="flange"/><child link="tool0"/>'
-        '<origin xyz="0 0 0" rpy="1.5707963267948966 0 1.5707963267948966"/></joint>'
-    )
-    parts.append("</robot>")
-    return "\n".join(parts) + "\n"
 
 
 def test_ur_yaml_of_an_identified_ur5e(tmp_path: Path, capsys) -> None:

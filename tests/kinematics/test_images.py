@@ -15,7 +15,7 @@ from robocal.core.kinematic_images import ImageObservations, ImageProblem, hand_
 from robocal.core.se3 import homogeneous, matrix_from_rotvec
 from robocal.errors import FileFormatError, UsageError
 
-from .conftest import so101_model
+from .conftest import check_jacobian, so101_model
 
 cv2 = pytest.importorskip("cv2")
 pytestmark = pytest.mark.timeout(900)  # 60 rendered images, detected several times, on a loaded machine
@@ -207,14 +207,7 @@ def test_image_problem_jacobian_matches_central_differences() -> None:
     )
     problem = ImageProblem(model, obs, tuple(range(model.n_params)), np.zeros(model.n_params))
     theta = rng.normal(0, 0.01, model.n_params)
-    r, J = problem.residuals_and_jacobian(theta)
-    np.testing.assert_allclose(r, problem.residuals(theta), atol=1e-12)
-    Jn = np.zeros_like(J)
-    for i in range(model.n_params):
-        d = np.zeros(model.n_params)
-        d[i] = 1e-7
-        Jn[:, i] = (problem.residuals(theta + d) - problem.residuals(theta - d)) / 2e-7
-    np.testing.assert_allclose(J, Jn, atol=1e-4 * np.abs(J).max())
+    check_jacobian(problem, theta, 1e-7, 1e-4)
 
 
 def test_tag_with_joint_map_out_reaches_the_truth_through_the_map(session: Path, tmp_path: Path, capsys) -> None:

@@ -10,7 +10,7 @@ from robocal.core.kinematic_errors import ErrorModel
 from robocal.core.kinematic_images import ImageObservations, ImageProblem, hand_eye
 from robocal.core.se3 import homogeneous, matrix_from_rotvec
 
-from .conftest import so101_model
+from .conftest import check_jacobian, so101_model
 
 T_TARGET_BASE = homogeneous(matrix_from_rotvec([0.0, math.pi / 2, 0.0]), [0.15, 0.0, 0.4])
 T_TIP_CAM = homogeneous(matrix_from_rotvec([math.pi - 0.5, 0.0, 0.0]), [0.0, 0.0, -0.03])
@@ -51,14 +51,7 @@ def test_jacobian_matches_central_differences() -> None:
         model, obs, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=True
     )
     theta = rng.normal(0, 0.01, model.n_params)
-    r, J = problem.residuals_and_jacobian(theta)
-    np.testing.assert_allclose(r, problem.residuals(theta), atol=1e-12)
-    Jn = np.zeros_like(J)
-    for i in range(model.n_params):
-        d = np.zeros(model.n_params)
-        d[i] = 1e-7
-        Jn[:, i] = (problem.residuals(theta + d) - problem.residuals(theta - d)) / 2e-7
-    np.testing.assert_allclose(J, Jn, atol=1e-5 * np.abs(J).max())
+    J = check_jacobian(problem, theta, 1e-7, 1e-5)
     assert np.abs(J[:, model.index("tool.rx")]).max() > 100.0  # the camera's tilt on the tool moves the image
 
 
