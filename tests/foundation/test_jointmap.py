@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from counting import CountingName
 from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -228,31 +229,17 @@ def test_state_map_out_and_shape_errors() -> None:
 
 
 # --------------------------------------------------------------------------- linear in the joint count
-class _CountingName(str):
-    """A joint name that counts equality comparisons (a quadratic name search makes ~N²/2 of them)."""
-
-    comparisons = 0
-    __hash__ = str.__hash__
-
-    def __eq__(self, other: object) -> bool:
-        _CountingName.comparisons += 1
-        return str.__eq__(self, other)
-
-    def __ne__(self, other: object) -> bool:
-        return not self.__eq__(other)
-
-
 def test_joint_lookups_are_linear_in_the_joint_count() -> None:
     n = 3000
-    names = [_CountingName(f"joint_{i}") for i in range(n)]
-    _CountingName.comparisons = 0
+    names = [CountingName(f"joint_{i}") for i in range(n)]
+    CountingName.comparisons = 0
     cal = RobotCalibration(names, 1.0, np.arange(n, dtype=float))
-    order = [_CountingName(f"joint_{i}") for i in reversed(range(n))]  # equal names, other objects
+    order = [CountingName(f"joint_{i}") for i in reversed(range(n))]  # equal names, other objects
     sel = cal.select(order)
     assert all(name in cal for name in order)
     assert [cal.index(name) for name in order[:3]] == [n - 1, n - 2, n - 3]
     assert sel.homing_offset[0] == n - 1
-    assert _CountingName.comparisons < 10 * n  # a quadratic search makes ~4.5 million here
+    assert CountingName.comparisons < 10 * n  # a quadratic search makes ~4.5 million here
     with pytest.raises(JointMismatchError, match="duplicate joint names: a, b"):
         RobotCalibration(["b", "a", "b", "c", "a"], 1.0, 0.0)
 

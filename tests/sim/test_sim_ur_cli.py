@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 
 import pytest
+from tests.net import busy_port
 
 from .conftest import robocal
 
@@ -41,10 +41,7 @@ def test_default_controller_is_a_calibrated_ur10e(sim_process, tmp_path: Path) -
 
 
 def test_port_in_use_is_a_device_error(tmp_path: Path) -> None:
-    with socket.socket() as busy:
-        busy.bind(("127.0.0.1", 0))
-        busy.listen(1)
-        port = busy.getsockname()[1]
+    with busy_port() as port:
         r = robocal("sim", "ur", "--port", str(port), cwd=tmp_path, timeout=30)
     assert r.returncode == 3
     assert r.stderr.startswith(f"error: cannot listen on 127.0.0.1:{port} (")

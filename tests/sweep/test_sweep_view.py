@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import socket
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +13,8 @@ from robocal.cli.main import main
 
 pytest.importorskip("viser")
 pytest.importorskip("yourdfpy")
+
+from tests.net import busy_port
 
 from robocal.viewer.sweep_page import (
     OTHER_RGB,
@@ -81,10 +82,7 @@ def test_cli_view_bad_input_writes_nothing(
     tmp_path: Path, urdf: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "cal.yaml"
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        s.listen(1)
-        port = s.getsockname()[1]
+    with busy_port() as port:
         args = ["sweep", "--urdf", str(urdf), "--source", "sim:lite?seed=8", "--out", str(out)]
         assert main([*args, "--view", "--view-port", str(port)]) == 2
     err = capsys.readouterr().err

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 from typing import Any
 
 import pytest
+from tests.net import free_port
 
 import robocal.workflows.ur as wf
 from robocal.cli.main import main
@@ -173,12 +173,6 @@ def test_extract_bad_timeout_or_port_exit_2(
     assert not out.exists()
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def _one_error_line(err: str) -> str:
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), lines
@@ -190,7 +184,7 @@ def test_verify_host_validates_port_and_counts(tmp_path: Path, capsys: pytest.Ca
     write_kinematics(f, default_kinematics("ur5e", "urdf"))
     assert main(["ur", "verify", str(f), "--host", "127.0.0.1", "--port", "70000", "--timeout", "0.5"]) == 2
     assert "--port 70000: expected 1..65535" in _one_error_line(capsys.readouterr().err)
-    port = str(_free_port())
+    port = str(free_port())
     assert (
         main(["ur", "verify", str(f), "--host", "127.0.0.1", "--port", port, "--controller-samples", "0"])
         == 2
@@ -203,7 +197,7 @@ def test_failed_extract_leaves_existing_file_alone_one_error_line(
 ) -> None:
     out = tmp_path / "k.yaml"
     out.write_text("keep me\n")
-    port = str(_free_port())
+    port = str(free_port())
     assert (
         main(["ur", "extract", "--host", "127.0.0.1", "--port", port, "--out", str(out), "--timeout", "0.5"])
         == 3

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tests.net import free_port
 
 from robocal.backends import load_backend
 from robocal.backends.sim.ur_controller import ROBOT_STATE_LAYOUT, SimUrController, build_robot_state
@@ -133,14 +134,8 @@ def test_faults_give_clear_errors_within_timeout(mode: str, error: type[Exceptio
     assert getattr(exc.value, "exit_code", None) == 3
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_connection_refused_is_device_error() -> None:
-    port = _free_port()
+    port = free_port()
     with pytest.raises(DeviceError, match="cannot connect"):
         PrimaryClient("127.0.0.1", port, timeout_s=SHORT).read_kinematics()
 

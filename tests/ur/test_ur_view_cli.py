@@ -6,7 +6,6 @@ import json
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -15,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.net import busy_port, free_port
 
 from robocal.backends.sim.ur_controller import SimUrController
 from robocal.cli.main import main
@@ -150,19 +150,14 @@ def test_cli_bad_input_is_one_error_line(
 
 
 def test_cli_port_in_use_is_an_error(capsys: pytest.CaptureFixture[str]) -> None:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        s.listen(1)
-        port = s.getsockname()[1]
+    with busy_port() as port:
         assert main(["ur", "view", "--dh", str(DH_FILE), "--view-port", str(port)]) == 2
     err = capsys.readouterr().err
     assert f"127.0.0.1:{port}" in err and err.count("error:") == 1
 
 
 def test_unreachable_controller_is_one_error_line(capsys: pytest.CaptureFixture[str]) -> None:
-    with socket.socket() as s:  # a port nobody listens on
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()  # a port nobody listens on
     t0 = time.monotonic()
     code = main(
         ["ur", "view", "--host", "127.0.0.1", "--port", str(port), "--timeout", "2", "--view-port", "0"]

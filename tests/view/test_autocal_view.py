@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import socket
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -16,6 +15,8 @@ import numpy as np
 import pytest
 
 pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
+
+from tests.net import busy_port
 
 from robocal.cli.main import main
 from robocal.viewer.autocal_page import open_auto_sweep_page
@@ -162,10 +163,7 @@ def test_cli_sweep_auto_view_port_in_use_moves_nothing(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "cal.yaml"
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        s.listen(1)
-        port = s.getsockname()[1]
+    with busy_port() as port:
         code, _, err = run_cli(
             [
                 "sweep",
@@ -300,10 +298,7 @@ def test_cli_lerobot_calibrate_auto_view(tmp_path: Path, capsys: pytest.CaptureF
     assert code == 0, err
     assert err.startswith("auto-calibration view: http://127.0.0.1:")
     assert "calibration saved to" in stdout
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        s.listen(1)
-        port = s.getsockname()[1]
+    with busy_port() as port:
         code, _, err = run_cli(
             [*args, "--calibration-dir", str(tmp_path / "busy"), "--yes", "--view", "--view-port", str(port)],
             capsys,

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import re
-import socket
 import time
 import urllib.request
 from collections.abc import Callable
@@ -16,6 +15,8 @@ import pytest
 pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
 pytest.importorskip("yourdfpy")
 pytest.importorskip("trimesh")
+
+from tests.net import busy_port
 
 from robocal.core.jointmap import RobotCalibration
 from robocal.errors import DeviceError, UsageError
@@ -159,12 +160,8 @@ def test_page_is_served_from_the_installed_package(served: ViewerApp) -> None:
 
 def test_port_in_use_is_a_usage_error(two_joint_urdf: Path) -> None:
     model = load_robot_model(two_joint_urdf)
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        s.listen()
-        port = s.getsockname()[1]
-        with pytest.raises(UsageError, match=f"port {port} on 127.0.0.1 is in use"):
-            ViewerApp(model, port=port).start()
+    with busy_port() as port, pytest.raises(UsageError, match=f"port {port} on 127.0.0.1 is in use"):
+        ViewerApp(model, port=port).start()
 
 
 def test_source_dying_is_shown_on_the_page_and_the_server_keeps_serving(served: ViewerApp) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import socket
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -14,6 +13,8 @@ import pytest
 pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
 pytest.importorskip("yourdfpy")
 pytest.importorskip("trimesh")
+
+from tests.net import busy_port
 
 from robocal.cli.main import main
 from robocal.errors import JointMismatchError
@@ -133,10 +134,7 @@ def test_cli_usage_errors(extra: list[str], needle: str, capsys: pytest.CaptureF
 
 
 def test_cli_port_in_use(capsys: pytest.CaptureFixture[str]) -> None:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        s.listen()
-        port = s.getsockname()[1]
+    with busy_port() as port:
         code, _, err = run_cli(
             ["view", "--urdf", str(LITE_URDF), "--source", "sim:lite", "--port", str(port)], capsys
         )
