@@ -167,24 +167,7 @@ def test_check_names_motor_and_field(tmp_path: Path, capsys: pytest.CaptureFixtu
         )
         assert f"EEPROM matches {path}" in capsys.readouterr().out
     # --use-file writes the file onto a fresh simulated arm (Drive_Mode included) and exits 0
-    assert (
-        main(
-            [
-                "lerobot",
-                "calibrate",
-                "--robot",
-                "koch_leader",
-                "--port",
-                "sim",
-                "--id",
-                "arm1",
-                "--calibration-dir",
-                str(tmp_path),
-                "--use-file",
-            ]
-        )
-        == 0
-    )
+    assert _calibrate(tmp_path, "koch_leader", "--use-file") == 0
 
 
 def test_migrate_keeps_legacy_zero(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

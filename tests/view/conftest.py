@@ -1,4 +1,5 @@
-"""Shared pieces of the viewer tests: small URDFs written into tmp_path, a served page stopped by Ctrl-C."""
+"""Shared pieces of the viewer tests: small URDFs written into tmp_path, waiting for a page's state, a served page
+stopped by Ctrl-C."""
 
 from __future__ import annotations
 
@@ -6,6 +7,8 @@ import os
 import signal
 import subprocess
 import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -35,6 +38,15 @@ def two_joint_urdf(tmp_path: Path) -> Path:
     p = tmp_path / "two.urdf"
     p.write_text(TWO_JOINT)
     return p
+
+
+def wait_for(cond: Callable[[], bool], timeout_s: float = 60.0) -> None:
+    """Poll ``cond`` every 20 ms until it holds; AssertionError after ``timeout_s`` (a generous bound)."""
+    end = time.monotonic() + timeout_s
+    while not cond():
+        if time.monotonic() > end:
+            raise AssertionError("condition not reached in time")
+        time.sleep(0.02)
 
 
 def default_sigint() -> None:

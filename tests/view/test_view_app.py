@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import math
 import re
-import time
 import urllib.request
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +23,8 @@ from robocal.viewer.app import GHOST_RGB, OUTSIDE_RGB
 from robocal.viewer.feeds import PollFeed, ReplayFeed
 from robocal.viewer.model import DEFAULT_RGBA
 
+from .conftest import wait_for
+
 
 class FakeClock:
     def __init__(self) -> None:
@@ -32,14 +32,6 @@ class FakeClock:
 
     def __call__(self) -> float:
         return self.t
-
-
-def wait_for(cond: Callable[[], bool], timeout_s: float = 60.0) -> None:
-    end = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > end:
-            raise AssertionError("condition not reached in time")
-        time.sleep(0.02)
 
 
 def rgb01(mesh: object) -> np.ndarray:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -22,17 +20,9 @@ from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
 from robocal.viewer.session import ViewOptions, open_view
 
-from .conftest import LITE_URDF, REPO, serve_then_ctrl_c
+from .conftest import LITE_URDF, REPO, serve_then_ctrl_c, wait_for
 
 LITE_CAL = REPO / "examples" / "lite" / "calibration.yaml"
-
-
-def wait_for(cond: Callable[[], bool], timeout_s: float = 60.0) -> None:
-    end = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > end:
-            raise AssertionError("condition not reached in time")
-        time.sleep(0.02)
 
 
 def test_sim_lite_through_a_calibration_with_the_uncalibrated_ghost() -> None:
