@@ -20,6 +20,18 @@ import pytest
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 
 
+FILL_DISK = """
+try:
+    with open(mnt / "fill", "wb") as fh:
+        while True:
+            fh.write(b"0" * 4096)
+            fh.flush()
+except OSError:
+    pass
+"""
+"""A ``setup`` snippet for :func:`run_on_tmpfs`: write ``mnt/fill`` until the tmpfs is full (ENOSPC)."""
+
+
 def _can_unshare() -> bool:
     if shutil.which("unshare") is None:
         return False

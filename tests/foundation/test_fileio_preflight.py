@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 
 import pytest
-from fs_sandbox import needs_unshare, needs_user_ns, run_on_tmpfs, run_without_privileges
+from fs_sandbox import FILL_DISK, needs_unshare, needs_user_ns, run_on_tmpfs, run_without_privileges
 
 from robocal.errors import FileWriteError, UsageError
 from robocal.fileio import atomic_write_text, check_output_path, preflight_output
@@ -137,15 +137,7 @@ def test_read_only_file_system_is_refused_before_any_work(tmp_path: Path) -> Non
 def test_full_disk_is_refused_before_any_work(tmp_path: Path) -> None:
     out = run_on_tmpfs(
         tmp_path,
-        """
-        try:
-            with open(mnt / "fill", "wb") as fh:
-                while True:
-                    fh.write(b"0" * 4096)
-                    fh.flush()
-        except OSError:
-            pass
-        """,
+        FILL_DISK,
         """
         from robocal.errors import FileWriteError
         from robocal.fileio import check_output_path

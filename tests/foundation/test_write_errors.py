@@ -9,7 +9,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from fs_sandbox import SRC, needs_unshare, run_on_tmpfs
+from fs_sandbox import FILL_DISK, SRC, needs_unshare, run_on_tmpfs
 
 from robocal.dataset import SO_ARM_JOINTS, generate_dataset
 from robocal.dataset.lerobot import LeRobotConvention, preset_modes
@@ -50,23 +50,18 @@ def _cli(*args: str) -> str:
     """
 
 
+def _recalibrate_args(dataset: Path, dst: Path) -> list[str]:
+    """``dataset recalibrate`` of the generated SO-101 dataset from calibration a to b into ``dst``."""
+    return ["dataset", "recalibrate", str(dataset / "src"), str(dst), "--old", str(dataset / "a.json"),
+            "--new", str(dataset / "b.json"), "--robot", "so101_follower"]  # fmt: skip
+
+
 @needs_unshare
 def test_dataset_recalibrate_into_read_only_folder(tmp_path: Path, dataset: Path) -> None:
     out = run_on_tmpfs(
         tmp_path,
         "",
-        _cli(
-            "dataset",
-            "recalibrate",
-            str(dataset / "src"),
-            str(tmp_path / "mnt" / "out"),
-            "--old",
-            str(dataset / "a.json"),
-            "--new",
-            str(dataset / "b.json"),
-            "--robot",
-            "so101_follower",
-        ),
+        _cli(*_recalibrate_args(dataset, tmp_path / "mnt" / "out")),
         read_only=True,
     )
     assert out["rc"] == 2
@@ -82,19 +77,7 @@ def test_dataset_recalibrate_into_read_only_folder(tmp_path: Path, dataset: Path
 def test_convert_onto_read_only_or_full_disk(tmp_path: Path, read_only: bool) -> None:
     src = tmp_path / "src.json"
     src.write_text('{"j1": {"id": 1, "direction": 1, "homing_offset": 0.5}}\n')
-    fill = (
-        ""
-        if read_only
-        else """
-    try:
-        with open(mnt / "fill", "wb") as fh:
-            while True:
-                fh.write(b"0" * 4096)
-                fh.flush()
-    except OSError:
-        pass
-    """
-    )
+    fill = "" if read_only else FILL_DISK
     out = run_on_tmpfs(
         tmp_path,
         '(mnt / \'cal.json\').write_text(\'{"j1": {"id": 1, "direction": 1, "homing_offset": 0.1}}\')\n'
@@ -113,21 +96,7 @@ def test_dataset_long_destination_name_uses_a_short_temporary_name(tmp_path: Pat
     dst = tmp_path / ("d" * 250)
     env = {**os.environ, "PYTHONPATH": SRC}
     r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "robocal",
-            "dataset",
-            "recalibrate",
-            str(dataset / "src"),
-            str(dst),
-            "--old",
-            str(dataset / "a.json"),
-            "--new",
-            str(dataset / "b.json"),
-            "--robot",
-            "so101_follower",
-        ],
+        [sys.executable, "-m", "robocal", *_recalibrate_args(dataset, dst)],
         capture_output=True,
         text=True,
         env=env,
