@@ -59,6 +59,19 @@ def run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
     return code, out, err
 
 
+def _recalibrate_to_joint_map(
+    files: dict[str, Path], jm: RobotCalibration, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Write ``jm`` as ``tmp_path/jm.yaml`` and recalibrate the source dataset from calibration a into it
+    (``tmp_path/rad``, joint-frame radians); asserts a clean exit."""
+    write_joint_map(tmp_path / "jm.yaml", jm, "robocal")
+    code, _, err = run(
+        capsys, "dataset", "recalibrate", files["src"], tmp_path / "rad", "--old", files["a"], "--new",
+        tmp_path / "jm.yaml",
+    )  # fmt: skip
+    assert (code, err) == (0, "")
+
+
 def test_recalibrate_and_back(
     files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -150,19 +163,7 @@ def test_joint_map_and_legacy_inputs(
     # canonical joint map (radians) → LeRobot current, through the actual encoder position
     tick = 2 * np.pi / 4096
     jm = RobotCalibration(SO_ARM_JOINTS, [1, -1, 1, 1, 1, 1], [2000, 2100, 1950, 2050, 2048, 1900], tick)
-    write_joint_map(tmp_path / "jm.yaml", jm, "robocal")
-    code, _, err = run(
-        capsys,
-        "dataset",
-        "recalibrate",
-        files["src"],
-        tmp_path / "rad",
-        "--old",
-        files["a"],
-        "--new",
-        tmp_path / "jm.yaml",
-    )
-    assert (code, err) == (0, "")
+    _recalibrate_to_joint_map(files, jm, tmp_path, capsys)
     rad = all_values(tmp_path / "rad", "observation.state")
     deg = all_values(files["src"], "observation.state")
     # shoulder_pan: degrees mid 1925 → present → actual = present + 100 → q = (actual − 2000)·tick
@@ -305,21 +306,8 @@ def test_overwrite_and_joint_map_inspect(
     assert not (dst / "stale.txt").exists()
     assert tree(dst) == tree(files["src"])
     # a dataset in joint-frame radians inspected with its joint map: no jumps, no range known
-    tick = 2 * np.pi / 4096
-    jm = RobotCalibration(SO_ARM_JOINTS, [1] * 6, [2048] * 6, tick)
-    write_joint_map(tmp_path / "jm.yaml", jm, "robocal")
-    code, _, err = run(
-        capsys,
-        "dataset",
-        "recalibrate",
-        files["src"],
-        tmp_path / "rad",
-        "--old",
-        files["a"],
-        "--new",
-        tmp_path / "jm.yaml",
-    )
-    assert (code, err) == (0, "")
+    jm = RobotCalibration(SO_ARM_JOINTS, [1] * 6, [2048] * 6, 2 * np.pi / 4096)
+    _recalibrate_to_joint_map(files, jm, tmp_path, capsys)
     code, out, err = run(
         capsys, "dataset", "inspect", tmp_path / "rad", "--calibration", tmp_path / "jm.yaml"
     )
