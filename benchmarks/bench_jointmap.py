@@ -6,25 +6,12 @@ Baselines measured in the same run: a per-joint Python loop of the same formula 
 
 from __future__ import annotations
 
-import math
-import time
-from collections.abc import Callable
-
 import numpy as np
+from _timing import best_time
 
 from robocal.core import RobotCalibration
 
 N_JOINTS = 14
-
-
-def _best(fn: Callable[[], object], repeat: int, number: int) -> float:
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        for _ in range(number):
-            fn()
-        best = min(best, (time.perf_counter() - t0) / number)
-    return best
 
 
 def main() -> None:
@@ -65,11 +52,11 @@ def main() -> None:
             v[i] = d * v_list[i]
             e[i] = d * e_list[i]
 
-    t_loop = _best(tick_loop, 5, 20000)
-    t_np = _best(tick_fused, 5, 20000)
-    t_out = _best(tick_fused_out, 5, 20000)
-    t_stack = _best(tick_fused_stack, 5, 20000)
-    t_sep = _best(tick_separate, 5, 20000)
+    t_loop = best_time(tick_loop, 5, 20000)
+    t_np = best_time(tick_fused, 5, 20000)
+    t_out = best_time(tick_fused_out, 5, 20000)
+    t_stack = best_time(tick_fused_stack, 5, 20000)
+    t_sep = best_time(tick_separate, 5, 20000)
     print(f"per tick, {N_JOINTS} joints, position+velocity+effort:")
     print(f"  baseline per-joint loop      {t_loop * 1e6:8.2f} us/tick")
     for label, t in (
@@ -96,9 +83,9 @@ def main() -> None:
     def copy() -> None:
         np.copyto(out, raw)
 
-    t_batch = _best(batch, 5, 3)
-    t_api = _best(batch_api, 3, 2)
-    t_copy = _best(copy, 5, 3)
+    t_batch = best_time(batch, 5, 3)
+    t_api = best_time(batch_api, 3, 2)
+    t_copy = best_time(copy, 5, 3)
     print(f"batch ({t_rows}, {N_JOINTS}) = {samples:.1e} joint-samples:")
     print(
         f"  robocal to_joint(out=...)   {samples / t_batch / 1e6:8.1f} M samples/s   "

@@ -6,11 +6,10 @@ analytic one, and the chain FK called pose by pose instead of batched.
 
 from __future__ import annotations
 
-import math
-import time
 from importlib import resources
 
 import numpy as np
+from _timing import best_time
 
 from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
 from robocal.core.chain import fk_chain
@@ -19,15 +18,6 @@ from robocal.core.kinematic_problem import Problem, analyse, free_indices
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
 from robocal.workflows.kinematic_fit import fit
-
-
-def _best(fn, repeat: int = 3) -> float:  # type: ignore[no-untyped-def]
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def _numeric_fit(problem: Problem) -> None:
@@ -56,9 +46,9 @@ def main() -> None:
     problem = Problem(model, data, free_indices(model, ["base"]), np.zeros(model.n_params))
     fit(problem)  # warm-up (BLAS threads, imports)
 
-    t_fit = _best(lambda: fit(problem))
+    t_fit = best_time(lambda: fit(problem))
     result = fit(problem)
-    t_num = _best(lambda: _numeric_fit(problem), repeat=1)
+    t_num = best_time(lambda: _numeric_fit(problem), repeat=1)
     err = np.linalg.norm(model.points(data.q_rad, result.x) - truth, axis=1)
     print(
         f"identify 200 poses (rank {result.identifiability.rank}, analysis + LM, analytic Jacobian): "
@@ -70,13 +60,13 @@ def main() -> None:
     )
 
     q = arm.sample_q(100_000, rng)
-    t_batch = _best(lambda: fk_chain(chain, q), repeat=2)
-    t_loop = _best(lambda: [fk_chain(chain, q[i]) for i in range(2000)], repeat=1) / 2000 * len(q)
+    t_batch = best_time(lambda: fk_chain(chain, q), repeat=2)
+    t_loop = best_time(lambda: [fk_chain(chain, q[i]) for i in range(2000)], repeat=1) / 2000 * len(q)
     print(
         f"fk_chain, 100000 poses batched: {t_batch * 1e3:.0f} ms; pose by pose (timed on 2000): "
         f"{t_loop * 1e3:.0f} ms (×{t_loop / t_batch:.0f})"
     )
-    t_jac = _best(lambda: model.point_jacobian(data.q_rad, result.x))
+    t_jac = best_time(lambda: model.point_jacobian(data.q_rad, result.x))
     print(f"identification Jacobian, 200 poses × {model.n_params} parameters: {t_jac * 1e3:.2f} ms")
     _accuracy_per_seed(model)
 

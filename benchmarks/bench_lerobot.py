@@ -11,26 +11,17 @@ from __future__ import annotations
 
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from _timing import best_time
 
-from robocal.backends.sim.lerobot_arms import SimArm, SimOperator
+from robocal.backends.sim.lerobot_arms import SimArm, SimArmOperator
 from robocal.lerobot import MotorCalibration, normalize, unnormalize
 from robocal.workflows.lerobot import calibrate, open_bus
 
 CALS = [MotorCalibration(i + 1, i % 2, 0, 900 + 20 * i, 3000 + 30 * i) for i in range(6)]
 MODES = ["degrees"] * 5 + ["range_0_100"]
-
-
-def _timeit(fn: Callable[[], object], repeat: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def _lerobot_loop_normalize(raw: np.ndarray) -> list[list[float]]:
@@ -74,19 +65,19 @@ def bench_normalize() -> None:
     rng = np.random.default_rng(0)
     t = 100_000
     raw = rng.integers(0, 4096, size=(t, 6))
-    ours = _timeit(lambda: normalize(raw, CALS, MODES))
-    base = _timeit(lambda: _lerobot_loop_normalize(raw), repeat=1)
+    ours = best_time(lambda: normalize(raw, CALS, MODES))
+    base = best_time(lambda: _lerobot_loop_normalize(raw), repeat=1)
     assert np.array_equal(normalize(raw, CALS, MODES), np.array(_lerobot_loop_normalize(raw)))
     _row("normalize (100k x 6) vs LeRobot per-motor loop", ours, base, "rows/s", t)
     vals = normalize(raw, CALS, MODES)
-    ours = _timeit(lambda: unnormalize(vals, CALS, MODES))
-    base = _timeit(lambda: _lerobot_loop_unnormalize(vals), repeat=1)
+    ours = best_time(lambda: unnormalize(vals, CALS, MODES))
+    base = best_time(lambda: _lerobot_loop_unnormalize(vals), repeat=1)
     assert unnormalize(vals, CALS, MODES).tolist() == _lerobot_loop_unnormalize(vals)
     _row("unnormalize (100k x 6) vs LeRobot per-motor loop", ours, base, "rows/s", t)
-    ours = _timeit(
+    ours = best_time(
         lambda: unnormalize(normalize(raw, CALS, MODES, compat="exact"), CALS, MODES, compat="exact")
     )
-    base = _timeit(lambda: unnormalize(normalize(raw, CALS, MODES), CALS, MODES))
+    base = best_time(lambda: unnormalize(normalize(raw, CALS, MODES), CALS, MODES))
     _row("exact round trip vs lerobot-compat round trip", ours, base, "rows/s", t)
 
 
@@ -97,10 +88,10 @@ def bench_bus() -> None:
             bus = open_bus(arm.spec, arm.port)
             ids = [m.motor_id for m in arm.spec.motors]
             try:
-                ours = _timeit(
+                ours = best_time(
                     lambda b=bus, i=ids: [b.sync_read("Present_Position", i) for _ in range(n)], repeat=2
                 )
-                base = _timeit(
+                base = best_time(
                     lambda b=bus, i=ids: [[b.read("Present_Position", k) for k in i] for _ in range(n)],
                     repeat=2,
                 )
@@ -117,7 +108,7 @@ def bench_calibration() -> None:
                 bus = open_bus(arm.spec, arm.port)
                 try:
                     t0 = time.perf_counter()
-                    calibrate(bus, arm.spec, SimOperator(arm), path=Path(tmp) / f"{k}.json")
+                    calibrate(bus, arm.spec, SimArmOperator(arm), path=Path(tmp) / f"{k}.json")
                     times.append(time.perf_counter() - t0)
                 finally:
                     bus.close()

@@ -6,9 +6,9 @@ Also times the correction + YAML text of one calibration, and the URDF-origin FK
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
+from _timing import best_time
 
 from robocal.core.dh import DHParameters, fk_dh, fk_dh_loop
 from robocal.core.ur import TEST_SET_3_DELTAS, correct_kinematics, fk_origins, nominal_dh
@@ -18,23 +18,14 @@ N_BATCH = 1_000_000
 N_LOOP = 20_000  # the pure-Python baseline is timed on a subset and reported per vector
 
 
-def _best(fn, repeat: int = 3) -> float:  # type: ignore[no-untyped-def]
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def main() -> None:
     dh: DHParameters = nominal_dh("ur10e") + TEST_SET_3_DELTAS
     q = np.random.default_rng(0).uniform(-2 * math.pi, 2 * math.pi, (N_BATCH, 6))
 
-    t_batch = _best(lambda: fk_dh(dh, q), repeat=2)
+    t_batch = best_time(lambda: fk_dh(dh, q), repeat=2)
     q_list = q[:N_LOOP].tolist()
-    t_loop = _best(lambda: [fk_dh_loop(dh, qi) for qi in q_list], repeat=1)
-    t_np_each = _best(lambda: [fk_dh(dh, q[i]) for i in range(2000)], repeat=1)
+    t_loop = best_time(lambda: [fk_dh_loop(dh, qi) for qi in q_list], repeat=1)
+    t_np_each = best_time(lambda: [fk_dh(dh, q[i]) for i in range(2000)], repeat=1)
     per_batch = t_batch / N_BATCH
     per_loop = t_loop / N_LOOP
     per_np_each = t_np_each / 2000
@@ -47,12 +38,12 @@ def main() -> None:
     # the same chain through the corrected URDF origins (what verify evaluates)
     kin = correct_kinematics(dh)
     q_v = q[:100_000]
-    t_origins = _best(lambda: fk_origins(kin.xyz_array(), kin.rpy_array(), q_v), repeat=2)
-    t_dh_v = _best(lambda: fk_dh(dh, q_v), repeat=2)
+    t_origins = best_time(lambda: fk_origins(kin.xyz_array(), kin.rpy_array(), q_v), repeat=2)
+    t_dh_v = best_time(lambda: fk_dh(dh, q_v), repeat=2)
     print(f"fk_origins (URDF path), 100000 vectors: {t_origins:.3f} s vs fk_dh {t_dh_v:.3f} s "
           f"(ratio {t_origins / t_dh_v:.2f})")
 
-    t_corr = _best(lambda: kinematics_to_text(correct_kinematics(dh)), repeat=20)
+    t_corr = best_time(lambda: kinematics_to_text(correct_kinematics(dh)), repeat=20)
     print(f"correction + YAML text of one calibration: {t_corr * 1e3:.2f} ms")
 
 
