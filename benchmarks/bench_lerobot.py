@@ -18,7 +18,7 @@ from _timing import best_time
 
 from robocal.backends.sim.lerobot_arms import SimArm, SimArmOperator
 from robocal.lerobot import MotorCalibration, normalize, unnormalize
-from robocal.workflows.lerobot import calibrate, open_bus
+from robocal.workflows.lerobot import calibrate, open_bus, robot_spec
 
 CALS = [MotorCalibration(i + 1, i % 2, 0, 900 + 20 * i, 3000 + 30 * i) for i in range(6)]
 MODES = ["degrees"] * 5 + ["range_0_100"]
@@ -84,7 +84,7 @@ def bench_normalize() -> None:
 def bench_bus() -> None:
     n = 200
     for robot in ("so101_follower", "koch_follower"):
-        with SimArm(robot) as arm:
+        with SimArm(robot_spec(robot)) as arm:
             bus = open_bus(arm.spec, arm.port)
             ids = [m.motor_id for m in arm.spec.motors]
             try:
@@ -104,7 +104,7 @@ def bench_calibration() -> None:
     times = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(3):
-            with SimArm("so101_follower") as arm:
+            with SimArm(robot_spec("so101_follower")) as arm:
                 bus = open_bus(arm.spec, arm.port)
                 try:
                     t0 = time.perf_counter()
@@ -113,7 +113,7 @@ def bench_calibration() -> None:
                 finally:
                     bus.close()
         # baseline: the same number of bus transactions as plain single reads
-        with SimArm("so101_follower") as arm:
+        with SimArm(robot_spec("so101_follower")) as arm:
             bus = open_bus(arm.spec, arm.port)
             try:
                 t0 = time.perf_counter()
