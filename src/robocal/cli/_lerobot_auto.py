@@ -31,17 +31,23 @@ def check_auto_options(
     use_file: bool,
     home_after_sweep: bool,
     web_view: bool,
+    urdf: pathlib.Path | None = None,
 ) -> None:
     """Refuse option combinations that mean nothing (before any file or port is touched).
 
     Raises:
-        UsageError: ``--joints``/``--partial``/``--yes`` without ``--auto``; ``--auto`` with ``--use-file``,
+        UsageError: ``--joints``/``--partial``/``--yes``/``--urdf`` without ``--auto``; ``--auto`` with ``--use-file``,
             ``--home-after-sweep`` (the auto homing is always centred on the found stops) or ``--view``.
     """
     if not auto:
         given = [
             flag
-            for flag, on in (("--joints", joints is not None), ("--partial", partial), ("--yes", yes))
+            for flag, on in (
+                ("--joints", joints is not None),
+                ("--partial", partial),
+                ("--yes", yes),
+                ("--urdf", urdf is not None),
+            )
             if on
         ]
         if given:
@@ -77,6 +83,7 @@ def calibrate_auto(
     sweep_full_turn: bool,
     view: Any = None,
     view_port: int | None = None,
+    urdf: pathlib.Path | None = None,
 ) -> None:
     """Run the automatic calibration, print the tables, exit 0 / 1 (``--partial`` with a failed joint).
 
@@ -84,7 +91,7 @@ def calibrate_auto(
     with one ``error:`` line (the CLI's error handler).
     """
     from ..workflows.lerobot.auto import auto_calibrate, auto_section
-    from ..workflows.lerobot.auto_sim import open_auto_arm, parse_sim_port
+    from ..workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm, parse_sim_port
     from ._lerobot_render import interrupted
 
     section = auto_section(robot)
@@ -92,6 +99,7 @@ def calibrate_auto(
     if joints is not None and not names:
         raise UsageError("--joints: give at least one joint name")
     parse_sim_port(port, spec)  # bad sim options are refused before the port opens
+    gravity_model = auto_gravity_model(spec, port, section, urdf)  # a bad --urdf too
     confirm = make_confirm_start(yes, what=spec.name)
 
     def page(inner: Any, page_port: int) -> Any:  # --view: the stop search drawn on the arm in the browser
@@ -114,6 +122,7 @@ def calibrate_auto(
                 view=live,
                 on_status=status,
                 sweep_full_turn=sweep_full_turn,
+                gravity_model=gravity_model,
             )
         except KeyboardInterrupt as exc:
             raise interrupted(

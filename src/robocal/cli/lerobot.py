@@ -137,6 +137,12 @@ def calibrate(
         False, "--partial", help="--auto: write the joints that passed although others failed (exit 1)."
     ),
     yes: bool = typer.Option(False, "--yes", help="--auto: skip the clear-workspace question (scripts)."),
+    urdf: pathlib.Path | None = typer.Option(
+        None,
+        "--urdf",
+        help="--auto: the arm's URDF with <inertial> masses; its gravity model corrects the stops "
+        "(default with --port sim: the simulated arm's shipped URDF).",
+    ),
 ) -> None:
     """Calibrate a LeRobot arm (mid pose, then sweep every joint, or --auto) and write LeRobot's JSON."""
     from ._lerobot_auto import calibrate_auto, check_auto_options
@@ -149,6 +155,7 @@ def calibrate(
         use_file=use_file,
         home_after_sweep=home_after_sweep,
         web_view=web_view,
+        urdf=urdf,
     )
     from ..formats.lerobot import dumps_current
     from ..lerobot import read_calibration
@@ -183,6 +190,7 @@ def calibrate(
             yes=yes,
             sweep_full_turn=sweep_full_turn,
             view_port=view_port if web_view else None,
+            urdf=urdf,
         )
     update, close = sweep_renderer()
     web = _web_view(robot, spec, update, view_port) if web_view else None

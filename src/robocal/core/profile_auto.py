@@ -74,6 +74,9 @@ class AutoJoint:
         park_deg: Angle the joint moves to and holds once calibrated (None: the middle of its stops).
         pose: Angles other joints hold while this one is searched; only joints calibrated before it.
         reason: Why a joint with ``stops: none`` is not searched (shown with its ``not_searched`` outcome).
+        alongside: An earlier joint this one is searched at the same time as (None: on its own, in order).
+            The profile vouches that the two are independent (no collision, no gravity load on each other);
+            the file reader checks that neither's pose depends on the other.
     """
 
     name: str
@@ -87,6 +90,7 @@ class AutoJoint:
     park_deg: float | None = None
     pose: tuple[tuple[str, float], ...] = ()
     reason: str = ""
+    alongside: str | None = None
 
     @property
     def searched(self) -> bool:
@@ -141,6 +145,18 @@ class AutoSection:
     def searched_joints(self) -> tuple[AutoJoint, ...]:
         """The joints that move (``stops`` other than ``none``), in search order."""
         return tuple(j for j in self.joints if j.searched)
+
+    def groups(self) -> tuple[tuple[AutoJoint, ...], ...]:
+        """The joints in run order: each joint with the ones ``alongside`` it (searched at the same time)."""
+        out: list[list[AutoJoint]] = []
+        lead: dict[str, list[AutoJoint]] = {}
+        for j in self.joints:
+            if j.alongside is not None and j.alongside in lead:
+                lead[j.alongside].append(j)
+                continue
+            out.append([j])
+            lead[j.name] = out[-1]
+        return tuple(tuple(g) for g in out)
 
     def joint(self, name: str) -> AutoJoint | None:
         """The entry of joint ``name`` or None."""

@@ -42,7 +42,41 @@ _JOINT_KEYS = (
     "park_deg",
     "pose",
     "reason",
+    "alongside",
 )
+
+
+def _alongside(row: Mapping[str, Any], out: list[AutoJoint], jw: str) -> AutoJoint | None:
+    """The earlier joint ``row`` is searched at the same time as (``alongside``), or None."""
+    other = row.get("alongside")
+    if other is None:
+        return None
+    lead = next((j for j in out if j.name == other), None)
+    if not isinstance(other, str) or lead is None:
+        raise FileFormatError(
+            f"{jw}: alongside {other!r} must name a joint earlier in the order (searched at the same time)"
+        )
+    if not lead.searched:
+        raise FileFormatError(f"{jw}: alongside names {other!r}, which is not searched (stops: none)")
+    if lead.alongside is not None:
+        raise FileFormatError(
+            f"{jw}: alongside names {other!r}, which is itself alongside {lead.alongside!r}: name that one"
+        )
+    return lead
+
+
+def _check_holds(lead: AutoJoint, out: list[AutoJoint], pose: list[tuple[str, float]], jw: str) -> None:
+    """The joints searched together must agree on the angles they hold."""
+    held: dict[str, float] = {}
+    for j in out:
+        if j.name == lead.name or j.alongside == lead.name:
+            held.update(j.pose)
+    for other, angle in pose:
+        if other in held and held[other] != angle:
+            raise FileFormatError(
+                f"{jw}: pose holds {other!r} at {angle:g}°, but {lead.name!r}, searched at the same time, "
+                f"holds it at {held[other]:g}°"
+            )
 
 
 def _unknown(entry: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
@@ -78,7 +112,7 @@ def _not_searched(
     tolerance: float | None,
 ) -> AutoJoint:
     """A ``stops: none`` entry: nothing moves, so only a reason (and no pose, torque or angles) goes with it."""
-    moving = [k for k in ("torque_fraction", "speed_deg_s", "park_deg", "pose") if row.get(k) is not None]
+    moving = [k for k in ("torque_fraction", "speed_deg_s", "park_deg", "pose", "alongside") if row.get(k) is not None]
     if moving:
         raise FileFormatError(
             f"{where}: a joint that is not searched (stops: none) takes no {', '.join(moving)} (it never moves)"
@@ -182,7 +216,9 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
         pose_raw = row.get("pose") or {}
         if not isinstance(pose_raw, Mapping):
             raise FileFormatError(f"{jw}: pose must map joint names to angles in degrees")
-        done = {j.name for j in out if j.searched}
+        alongside = _alongside(row, out, jw)
+        before = out if alongside is None else out[: [j.name for j in out].index(alongside.name)]
+        done = {j.name for j in before if j.searched}
         pose: list[tuple[str, float]] = []
         for other in pose_raw:
             if any(j.name == other and not j.searched for j in out):
@@ -195,6 +231,8 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
             value = _num(pose_raw, other, f"{jw}: pose", None)
             assert value is not None
             pose.append((str(other), value))
+        if alongside is not None:
+            _check_holds(alongside, out, pose, jw)
         out.append(
             AutoJoint(
                 name=name,
@@ -207,6 +245,7 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
                 upper_deg=upper,
                 park_deg=park,
                 pose=tuple(pose),
+                alongside=None if alongside is None else alongside.name,
             )
         )
     if not any(j.searched for j in out):

@@ -20,6 +20,7 @@ from ..core.gravity import GravityModel, JointGravity, joint_gravity
 from ..core.profile_auto import AutoJoint, AutoSection
 from ..core.stop_zero import JointStops
 from ..errors import DeviceError, UsageError
+from .autocal_group import run_lockstep
 from .autocal_joint import (
     NOT_SEARCHED,
     TRANSIT_FACTOR,
@@ -32,6 +33,8 @@ from .autocal_joint import (
     JointOutcome,
     MonotonicClock,
     calibrate_joint,
+    calibrate_joint_steps,
+    drive,
     limp_all,
     limp_on_error,
     move_to,
@@ -94,7 +97,9 @@ def run_autocal(
     """Auto-calibrate the joints of ``section`` (or the ``joints`` subset) in order.
 
     Before each joint, the joints already calibrated that its ``pose`` names move to those angles (their zero
-    is known by then). A joint without stops (``stops: none``, a full-turn joint) never moves and needs no
+    is known by then). Joints the profile puts ``alongside`` an earlier one are searched at the same time as it
+    (:func:`robocal.workflows.autocal_group.run_lockstep`), their poses taken first; the outcomes stay in the
+    profile's order. A joint without stops (``stops: none``, a full-turn joint) never moves and needs no
     driver: its outcome is ``not_searched`` with the profile's reason (not a failure). A joint that fails is left limp and the run goes on with the next one. Any exception —
     Ctrl-C, a lost bus — makes every driver limp before it propagates (as :class:`AutoCalAbortedError` for a
     device error, unchanged for ``KeyboardInterrupt``).
@@ -130,41 +135,58 @@ def run_autocal(
     t_start = clock.now() if clock is not None else drivers[moving[0].name].read().t_s
     with limp_on_error(drivers):
         try:
-            for joint in order:
-                if not joint.searched:
-                    outcomes.append(_not_searched(joint))
-                    continue
-                for other, angle_deg in joint.pose:
-                    if other in run.offsets and other in drivers:
-                        move_to(
-                            drivers[other],
-                            math.radians(angle_deg) + run.offsets[other],
-                            section.joint(other).speed_rad_s * TRANSIT_FACTOR,  # type: ignore[union-attr]
-                            section.joint(other).torque_cap_nm,  # type: ignore[union-attr]
-                            _lag(max_lag_rad, other),
-                        )
-                lo, hi = joint.expected_rad(*limits.get(joint.name, (None, None)))
-                outcome = calibrate_joint(
-                    drivers[joint.name],
-                    joint,
-                    section,
-                    lo,
-                    hi,
-                    max_lag_rad=_lag(max_lag_rad, joint.name),
-                    gravity=None if gravity is None else gravity.get(joint.name),
-                    gravity_joint=None
-                    if gravity is not None and joint.name in gravity
-                    else joint_gravity_for(gravity_model, joint),
-                    view=view,
-                )
-                outcomes.append(outcome)
-                if outcome.ok:
-                    run.offsets[joint.name] = outcome.stops.offset_rad
+            for group in _groups(section, order):
+                searched = [j for j in group if j.searched]
+                for joint in searched:
+                    for other, angle_deg in joint.pose:
+                        if other in run.offsets and other in drivers:
+                            move_to(
+                                drivers[other],
+                                math.radians(angle_deg) + run.offsets[other],
+                                section.joint(other).speed_rad_s * TRANSIT_FACTOR,  # type: ignore[union-attr]
+                                section.joint(other).torque_cap_nm,  # type: ignore[union-attr]
+                                _lag(max_lag_rad, other),
+                            )
+                steps = {}
+                for joint in searched:
+                    lo, hi = joint.expected_rad(*limits.get(joint.name, (None, None)))
+                    steps[joint.name] = calibrate_joint_steps(
+                        drivers[joint.name],
+                        joint,
+                        section,
+                        lo,
+                        hi,
+                        max_lag_rad=_lag(max_lag_rad, joint.name),
+                        gravity=None if gravity is None else gravity.get(joint.name),
+                        gravity_joint=None
+                        if gravity is not None and joint.name in gravity
+                        else joint_gravity_for(gravity_model, joint),
+                        view=view,
+                    )
+                if len(steps) == 1:
+                    (name, st), = steps.items()
+                    done = {name: drive(drivers[name], st)}
+                else:
+                    done = run_lockstep(drivers, steps, clock)
+                for joint in group:
+                    outcome = done[joint.name] if joint.searched else _not_searched(joint)
+                    outcomes.append(outcome)
+                    if outcome.ok:
+                        run.offsets[joint.name] = outcome.stops.offset_rad
         except (DeviceError, AutoCalAbortedError) as exc:
             limp_all(drivers)
             raise AutoCalAbortedError(f"auto-calibration aborted, every motor limp: {exc}") from None
     t_end = clock.now() if clock is not None else drivers[moving[-1].name].read().t_s
+    rank = {j.name: i for i, j in enumerate(order)}
+    outcomes.sort(key=lambda o: rank[o.name])
     return AutoCalResult(tuple(outcomes), t_end - t_start)
+
+
+def _groups(section: AutoSection, order: Sequence[AutoJoint]) -> list[list[AutoJoint]]:
+    """``order`` (the selected joints) in run order, each joint with the selected ones alongside it."""
+    wanted = {j.name for j in order}
+    out = [[j for j in g if j.name in wanted] for g in section.groups()]
+    return [g for g in out if g]
 
 
 def _not_searched(joint: AutoJoint) -> JointOutcome:

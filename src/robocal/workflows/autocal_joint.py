@@ -1,18 +1,16 @@
-"""One joint of the automatic hard-stop calibration: drivers, clocks, moves, the per-joint search and results.
+"""One joint of the automatic hard-stop calibration: its moves and stop searches as steps, its outcome.
 
-See :mod:`robocal.workflows.autocal` (the robot-level run) and docs/auto_calibration.md.
+The drivers, clocks and results are in :mod:`robocal.workflows.autocal_types` (re-exported here). See
+:mod:`robocal.workflows.autocal` (the robot-level run) and docs/auto_calibration.md.
 """
 
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager, suppress
-from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from collections.abc import Callable, Generator
+from dataclasses import replace
+from typing import TypeVar
 
-from ..core.named import get_named
 from ..core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
 from ..core.stop_search import (
     Command,
@@ -23,7 +21,19 @@ from ..core.stop_search import (
     StopSearch,
     joint_zero,
 )
-from ..errors import CalibError, CalibTimeoutError
+from ..errors import CalibTimeoutError
+from .autocal_types import (
+    AutoCalAbortedError,
+    AutoCalFailedError,
+    AutoCalResult,
+    AutoView,
+    Clock,
+    JointDriver,
+    JointOutcome,
+    MonotonicClock,
+    limp_all,
+    limp_on_error,
+)
 
 __all__ = [
     "NOT_SEARCHED",
@@ -36,190 +46,24 @@ __all__ = [
     "Clock",
     "JointDriver",
     "JointOutcome",
+    "JointSteps",
     "MonotonicClock",
     "calibrate_joint",
+    "calibrate_joint_steps",
+    "drive",
     "limp_all",
     "limp_on_error",
+    "move_steps",
     "move_to",
     "run_search",
+    "search_steps",
 ]
 
-
-class AutoCalAbortedError(CalibError):
-    """The auto-calibration was interrupted or hit a fault: every motor was made limp, nothing was written."""
-
-    exit_code = 3
-
-
-class AutoCalFailedError(CalibError):
-    """One or more joints failed (missing stop, snag, span mismatch, ...); nothing was written.
-
-    Attributes:
-        result: The run's result (the passing joints' zeros are in it).
-    """
-
-    exit_code = 3
-
-    def __init__(self, message: str, result: AutoCalResult) -> None:
-        super().__init__(message)
-        self.result = result
-
-
-class Clock(Protocol):
-    """Where a driver takes its time from (wall clock on hardware, a simulated clock in a simulator)."""
-
-    def now(self) -> float:
-        """Seconds (monotonic)."""
-        ...
-
-    def sleep(self, dt_s: float) -> Any:
-        """Let ``dt_s`` seconds pass."""
-        ...
-
-
-class MonotonicClock:
-    """The wall clock (``time.monotonic``/``time.sleep``), for real hardware."""
-
-    def now(self) -> float:
-        """Seconds since an arbitrary origin."""
-        return time.monotonic()
-
-    def sleep(self, dt_s: float) -> None:
-        """Sleep ``dt_s`` seconds (no-op for ≤ 0)."""
-        if dt_s > 0:
-            time.sleep(dt_s)
-
-
-class JointDriver(Protocol):
-    """One joint as the stop search sees it (joint frame ``s = direction·raw``, rad; N·m)."""
-
-    name: str
-
-    def read(self) -> StopSample:
-        """Read the joint without changing what the motor does."""
-        ...
-
-    def execute(self, cmd: Command) -> StopSample:
-        """Carry out ``cmd`` for one control period; return the reading at its end."""
-        ...
-
-    def limp(self) -> None:
-        """Torque off now (must not raise)."""
-        ...
-
-
-class AutoView(Protocol):
-    """A live view of the run."""
-
-    def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
-        """A joint's search begins."""
-        ...
-
-    def sample(self, name: str, phase: str, side: str, sample: StopSample) -> None:
-        """One reading of the joint being searched."""
-        ...
-
-    def joint_done(self, outcome: JointOutcome) -> None:
-        """A joint finished (passed or failed)."""
-        ...
-
-
-@dataclass(frozen=True)
-class JointOutcome:
-    """One joint's auto-calibration.
-
-    Attributes:
-        stops: The combined stops, zero and verdict (:class:`JointStops`).
-        cap_nm: Torque cap used.
-        speed_rad_s: Approach speed used.
-        time_s: Time the joint took (search, back-off, parking).
-    """
-
-    stops: JointStops
-    cap_nm: float
-    speed_rad_s: float
-    time_s: float
-
-    @property
-    def name(self) -> str:
-        """Joint name."""
-        return self.stops.name
-
-    @property
-    def ok(self) -> bool:
-        """Whether the joint passed."""
-        return self.stops.ok
-
-    def to_report(self) -> dict[str, Any]:
-        """The joint's report entry."""
-        d = self.stops.to_report()
-        d.update(cap_nm=round(self.cap_nm, 4), speed_deg_s=round(math.degrees(self.speed_rad_s), 3))
-        d["time_s"] = round(self.time_s, 3)
-        return d
-
-
-@dataclass(frozen=True)
-class AutoCalResult:
-    """A whole run: the outcome of every searched joint in search order.
-
-    Attributes:
-        joints: Outcomes in order.
-        total_time_s: Time of the whole run (driver clock).
-        interrupted: The run was interrupted (the joints after the interruption are missing).
-    """
-
-    joints: tuple[JointOutcome, ...]
-    total_time_s: float
-    interrupted: bool = False
-
-    def __getitem__(self, name: str) -> JointOutcome:
-        return get_named(self.joints, name)
-
-    @property
-    def failed(self) -> tuple[JointOutcome, ...]:
-        """Joints that failed (a joint without stops, ``not_searched``, did not fail)."""
-        return tuple(j for j in self.joints if not j.ok and j.stops.code != NOT_SEARCHED)
-
-    @property
-    def not_searched(self) -> tuple[JointOutcome, ...]:
-        """Joints the profile gives no stop (``stops: none``): never moved, nothing measured."""
-        return tuple(j for j in self.joints if j.stops.code == NOT_SEARCHED)
-
-    @property
-    def offsets_rad(self) -> dict[str, float]:
-        """Joint-frame position offsets (``q_joint = s − offset``) of the passing joints."""
-        return {j.name: j.stops.offset_rad for j in self.joints if j.ok}
-
-    def failure_summary(self) -> str:
-        """One line naming each failed joint with its code and reason."""
-        return "; ".join(f"{j.name}: {j.stops.code} ({j.stops.reason})" for j in self.failed)
-
-    def to_report(self) -> dict[str, Any]:
-        """The ``auto`` part of a sweep report."""
-        return {
-            "total_time_s": round(self.total_time_s, 3),
-            "interrupted": self.interrupted,
-            "joints": {j.name: j.to_report() for j in self.joints},
-        }
-
-
-# ------------------------------------------------------------------------------------------------ limp
-def limp_all(drivers: Mapping[str, JointDriver] | Sequence[JointDriver]) -> None:
-    """Torque off every driver (errors ignored: each motor gets its chance)."""
-    items = drivers.values() if isinstance(drivers, Mapping) else drivers
-    for d in items:
-        with suppress(Exception):  # a limp must reach every motor
-            d.limp()
-
-
-@contextmanager
-def limp_on_error(drivers: Mapping[str, JointDriver]) -> Iterator[None]:
-    """Any exception inside (Ctrl-C too): every driver goes limp, then the exception propagates."""
-    try:
-        yield
-    except BaseException:
-        limp_all(drivers)
-        raise
+_T = TypeVar("_T")
+JointSteps = Generator[Command, StopSample, _T]
+"""One joint's moves as a generator: it yields the next :class:`Command` and receives the reading at the end of
+the control period that carried it out (:meth:`JointDriver.execute`); its return value is the result. Run it on
+one driver with :func:`drive`, or several in lockstep (:mod:`robocal.workflows.autocal_group`)."""
 
 
 # ------------------------------------------------------------------------------------------------ one joint
@@ -249,24 +93,41 @@ def _config(
     )
 
 
-def run_search(
+def drive(driver: JointDriver, steps: JointSteps[_T]) -> _T:
+    """Carry out ``steps`` on ``driver``, one :meth:`JointDriver.execute` per command; the steps' result."""
+    try:
+        cmd = next(steps)
+        while True:
+            cmd = steps.send(driver.execute(cmd))
+    except StopIteration as stop:
+        return stop.value  # type: ignore[no-any-return]
+
+
+def search_steps(
     driver: JointDriver, search: StopSearch, view: AutoView | None = None, side: str = ""
-) -> StopResult:
-    """Run one stop search on ``driver`` to its end; a failed search leaves the joint limp."""
+) -> JointSteps[StopResult]:
+    """One stop search on ``driver`` to its end, as steps; a failed search leaves the joint limp."""
     cmd = search.start(driver.read())
     while not search.done:
-        s = driver.execute(cmd)
+        s = yield cmd
         if view is not None:
             view.sample(driver.name, search.phase, side, s)
         cmd = search.step(s)
     if cmd.action == "limp":
         driver.limp()
     else:
-        driver.execute(cmd)
+        yield cmd
     return search.result
 
 
-def move_to(
+def run_search(
+    driver: JointDriver, search: StopSearch, view: AutoView | None = None, side: str = ""
+) -> StopResult:
+    """Run one stop search on ``driver`` to its end; a failed search leaves the joint limp."""
+    return drive(driver, search_steps(driver, search, view, side))
+
+
+def move_steps(
     driver: JointDriver,
     target_rad: float,
     speed_rad_s: float,
@@ -275,7 +136,7 @@ def move_to(
     tol_rad: float = math.radians(1.0),
     timeout_s: float | None = None,
     stall_s: float | None = None,
-) -> tuple[StopSample, bool]:
+) -> JointSteps[tuple[StopSample, bool]]:
     """Ramp the joint to ``target_rad`` (torque limited: the target never leads by more than ``max_lag_rad``).
 
     Args:
@@ -317,7 +178,7 @@ def move_to(
         at_end = ref == target_rad
         # no velocity feed-forward while the target is held back: kd·(v_ref − v) would add to the capped kp·lag
         v_ff = 0.0 if at_end or clamped else math.copysign(speed_rad_s, target_rad - ref)
-        s = driver.execute(Command("drive", ref, v_ff, cap_nm))
+        s = yield Command("drive", ref, v_ff, cap_nm)
         if s.ok and at_end and abs(s.q_rad - target_rad) <= tol_rad:
             return s, False
         if stall_s is not None and s.ok:
@@ -340,13 +201,29 @@ def move_to(
             )
 
 
+def move_to(
+    driver: JointDriver,
+    target_rad: float,
+    speed_rad_s: float,
+    cap_nm: float,
+    max_lag_rad: float,
+    tol_rad: float = math.radians(1.0),
+    timeout_s: float | None = None,
+    stall_s: float | None = None,
+) -> tuple[StopSample, bool]:
+    """:func:`move_steps` carried out on ``driver`` (see there)."""
+    return drive(
+        driver, move_steps(driver, target_rad, speed_rad_s, cap_nm, max_lag_rad, tol_rad, timeout_s, stall_s)
+    )
+
+
 TRANSIT_FACTOR = 5.0
 """Moves that are not searches (to near the second stop, to the park angle) go this much faster than the search."""
 TRANSIT_MAX_RAD_S = math.radians(120.0)
 """... but never faster than this."""
 
 
-def calibrate_joint(
+def calibrate_joint_steps(
     driver: JointDriver,
     joint: AutoJoint,
     section: AutoSection,
@@ -357,7 +234,7 @@ def calibrate_joint(
     gravity: Callable[[float], float] | None = None,
     gravity_joint: Callable[[float], float] | None = None,
     view: AutoView | None = None,
-) -> JointOutcome:
+) -> JointSteps[JointOutcome]:
     """Find the stop(s) of one joint, compute its zero, park it.
 
     Two-sided: the lower stop first (travel bound: the expected span + tolerance, since the joint may start
@@ -385,7 +262,9 @@ def calibrate_joint(
     upper: StopResult | None = None
     first_dir = -1 if joint.stops in ("both", "lower") else 1
     cfg = _config(joint, section, max_travel_rad=span + tol, max_lag_rad=max_lag_rad, gravity=gravity)
-    first = run_search(driver, StopSearch(first_dir, cfg), view, "lower" if first_dir < 0 else "upper")
+    first = yield from search_steps(
+        driver, StopSearch(first_dir, cfg), view, "lower" if first_dir < 0 else "upper"
+    )
     if first_dir < 0:
         lower = first
     else:
@@ -398,7 +277,7 @@ def calibrate_joint(
         # fast to 2·tol short of where the upper stop is expected; a stall on the way is an early stop
         near = first.q_stop_rad + span - 2 * tol
         if start.ok and near - start.q_rad > math.radians(10.0):
-            s, stalled = move_to(driver, near, transit, cap, max_lag_rad, stall_s=section.dwell_s)
+            s, stalled = yield from move_steps(driver, near, transit, cap, max_lag_rad, stall_s=section.dwell_s)
             if stalled:
                 upper = StopResult(
                     1,
@@ -415,7 +294,7 @@ def calibrate_joint(
                 travel = first.q_stop_rad + span + tol - s.q_rad
         if upper is None:
             cfg2 = _config(joint, section, max_travel_rad=travel, max_lag_rad=max_lag_rad, gravity=gravity)
-            upper = run_search(driver, StopSearch(1, cfg2), view, "upper")
+            upper = yield from search_steps(driver, StopSearch(1, cfg2), view, "upper")
             if upper.code == "blocked" and math.isfinite(upper.q_pressed_rad):
                 # blocked right after the transit: an early stop (obstacle, cable), judged by the span check
                 upper = replace(upper, code="ok", reason="", q_stop_rad=upper.q_pressed_rad, test="blocked")
@@ -431,7 +310,7 @@ def calibrate_joint(
     if stops.ok:
         park = _park_target(joint, stops, expected_lower_rad, expected_upper_rad)
         try:
-            move_to(driver, park, transit, cap, max_lag_rad)
+            yield from move_steps(driver, park, transit, cap, max_lag_rad)
         except AutoCalAbortedError as exc:
             driver.limp()
             stops = JointStops(
@@ -450,6 +329,33 @@ def calibrate_joint(
     if view is not None:
         view.joint_done(outcome)
     return outcome
+
+
+def calibrate_joint(
+    driver: JointDriver,
+    joint: AutoJoint,
+    section: AutoSection,
+    expected_lower_rad: float | None,
+    expected_upper_rad: float | None,
+    *,
+    max_lag_rad: float,
+    gravity: Callable[[float], float] | None = None,
+    gravity_joint: Callable[[float], float] | None = None,
+    view: AutoView | None = None,
+) -> JointOutcome:
+    """:func:`calibrate_joint_steps` carried out on ``driver`` (see there)."""
+    steps = calibrate_joint_steps(
+        driver,
+        joint,
+        section,
+        expected_lower_rad,
+        expected_upper_rad,
+        max_lag_rad=max_lag_rad,
+        gravity=gravity,
+        gravity_joint=gravity_joint,
+        view=view,
+    )
+    return drive(driver, steps)
 
 
 def _park_target(joint: AutoJoint, stops: JointStops, lo: float | None, hi: float | None) -> float:

@@ -209,9 +209,19 @@ class _ServoJointDriver:
     def execute(self, cmd: Command) -> StopSample:
         """Carry out ``cmd`` for one control period; the reading at its end."""
         t0 = self.clock.now()
+        s = self.send(cmd)
+        self.clock.sleep(max(0.0, self.period_s - (self.clock.now() - t0)))
+        return s
+
+    def send(self, cmd: Command) -> StopSample:
+        """:meth:`execute` without waiting for the rest of the period: write ``cmd``, read the joint.
+
+        For joints searched at the same time (:func:`robocal.workflows.autocal_group.run_lockstep`), which
+        let one period pass for all of them.
+        """
         if cmd.action == "limp":
             self.limp()
-            return StopSample(t0, self._q, ok=math.isfinite(self._q))
+            return StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q))
         try:
             if cmd.action == "reread":
                 self._clear()
@@ -223,9 +233,7 @@ class _ServoJointDriver:
                     self._sync("Goal_Position", self._goal(self.ticks(cmd.q_target_rad)))
         except CalibTimeoutError:
             pass  # the reading below says so
-        s = self.read()
-        self.clock.sleep(max(0.0, self.period_s - (self.clock.now() - t0)))
-        return s
+        return self.read()
 
     def limp(self) -> None:
         """Torque off now (a SYNC_WRITE: no status packet to wait for); never raises."""

@@ -39,7 +39,7 @@ def auto_arm_demo(
     from .demo import DemoResult, DemoSection, TruthTable, temporary_note
     from .lerobot import robot_spec
     from .lerobot.auto import auto_calibrate, auto_section
-    from .lerobot.auto_sim import open_auto_arm
+    from .lerobot.auto_sim import open_auto_arm, sim_gravity_model
 
     name = AUTO_ARM_ROBOTS[robot]
     spec = robot_spec(name)
@@ -52,7 +52,9 @@ def auto_arm_demo(
     )
     path = calibration_path(spec.kind, spec.device_name, "demo", root=folder)
     with open_auto_arm(spec, AUTO_ARM_PORT, section) as arm:
-        result = auto_calibrate(arm.bus, spec, section, clock=arm.clock, path=path, view=view)
+        result = auto_calibrate(
+            arm.bus, spec, section, clock=arm.clock, path=path, view=view, gravity_model=sim_gravity_model(spec)
+        )
         stops = arm.sim.recovered_stops(result.calibration)
         truth = dict(arm.sim.truth)
         res = {m.name: arm.sim.servo(m.name).resolution for m in spec.motors}

@@ -45,6 +45,7 @@ def attach_physics(
     search_torque_nm: Mapping[str, float] | float | None = None,
     nominal: PlantParams = ARM_NOMINAL,
     seed: int = 0,
+    gravity: Mapping[str, tuple[float, float]] | None = None,
 ) -> dict[str, JointPlant]:
     """Give every servo of ``arm`` a plant and its firmware, on ``clock`` (before or after :meth:`SimArm.start`).
 
@@ -56,6 +57,9 @@ def attach_physics(
             stiction, snag and faults); default 25 % of the servo's stall torque.
         nominal: Physics without the stops (their angles come from the truth).
         seed: Seed of the scenario draws and the encoder noise (offset per motor id).
+        gravity: Joint → ``(amplitude N·m, hanging angle rad)``: the joint's gravity torque
+            ``τ_g = −amplitude·sin(q − hanging)`` with ``q`` measured from the middle of its stops (e.g. a URDF's
+            :class:`~robocal.core.gravity.JointGravity` in the robot profile's search pose); default none.
 
     Returns:
         Joint name → plant (its ``q_rad`` is 0 at the truth's mid pose).
@@ -84,6 +88,10 @@ def attach_physics(
                 torque = search_torque_nm
             if torque is None:
                 torque = 0.25 * RATINGS[servo.model].stall_torque_nm
+            if gravity is not None and m.name in gravity:
+                amplitude, hanging = gravity[m.name]
+                middle = 0.5 * (t.stop_low_ticks + t.stop_high_ticks - 2 * t.mid_ticks) / per_rad
+                params = replace(params, gravity_nm=amplitude, gravity_zero_rad=middle + hanging)
             scenario = (scenarios or {}).get(m.name, Scenario())
             q0 = (servo.actual_ticks - t.mid_ticks) / per_rad
             plant = make_plant(

@@ -82,13 +82,24 @@ DEFAULT_TRUTH["so100_leader"] = DEFAULT_TRUTH["so101_leader"]
 """Default physical truth of each simulated arm."""
 
 
-def seeded_truth(robot: str, seed: int | None) -> dict[str, JointTruth]:
+def seeded_truth(
+    robot: str,
+    seed: int | None,
+    *,
+    expected_deg: Mapping[str, tuple[float, float]] | None = None,
+    stop_spread_deg: float = 4.5,
+) -> dict[str, JointTruth]:
     """The physical truth of a simulated arm: :data:`DEFAULT_TRUTH`, or a seeded variation of it.
 
     Args:
         robot: ``so101_follower``, ``so101_leader``, ``koch_follower`` or ``koch_leader``.
         seed: None for the default truth; otherwise every joint is shifted by up to ±150 ticks and each
             stop moved by up to ±60 ticks, reproducibly for that seed.
+        expected_deg: Joint → the (lower, upper) stop angles a robot profile expects (degrees, joint frame).
+            With a seed, these joints' stops are drawn from the profile instead: the expected span centred
+            where the default stops' middle lands, each stop moved by up to ``stop_spread_deg`` (the same
+            seeded draws), so a seeded arm stays inside what the profile says a real arm has.
+        stop_spread_deg: The largest deviation of one stop from the profile's angle (≥ 0).
 
     Returns:
         Joint name → truth (actual ticks).
@@ -98,11 +109,26 @@ def seeded_truth(robot: str, seed: int | None) -> dict[str, JointTruth]:
     base = DEFAULT_TRUTH[robot]
     if seed is None:
         return dict(base)
+    if not stop_spread_deg >= 0:
+        raise UsageError(f"stop spread must be ≥ 0°, got {stop_spread_deg!r}")
+    expected = dict(expected_deg or {})
     rng = np.random.default_rng(seed)
+    per_deg = 4096 / 360.0
     out = {}
     for name, t in base.items():
         shift = int(rng.integers(-150, 151))
         lo_d, hi_d = (int(v) for v in rng.integers(-60, 61, size=2))
+        if name in expected:
+            lo_deg, hi_deg = expected[name]
+            centre = 0.5 * (t.stop_low_ticks + t.stop_high_ticks) + shift
+            half = 0.5 * (hi_deg - lo_deg) * per_deg
+            spread = stop_spread_deg * per_deg / 60.0
+            out[name] = JointTruth(
+                t.mid_ticks + shift,
+                round(centre - half + lo_d * spread, 1),
+                round(centre + half + hi_d * spread, 1),
+            )
+            continue
         out[name] = JointTruth(
             t.mid_ticks + shift, t.stop_low_ticks + shift + lo_d, t.stop_high_ticks + shift + hi_d
         )

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...backends.servo_bus import ServoBus
+from ...core.gravity import GravityModel
 from ...core.lerobot import MotorCalibration, RobotSpec, centre_homing, wrap_feetech_offset
 from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
@@ -290,6 +291,7 @@ def auto_calibrate(
     sweep_full_turn: bool = False,
     period_s: float = 0.01,
     max_lag_deg: float | None = None,
+    gravity_model: GravityModel | None = None,
 ) -> AutoCalibrationResult:
     """Find every selected joint's stops, then write LeRobot's calibration to the EEPROM and the JSON file.
 
@@ -309,6 +311,10 @@ def auto_calibrate(
             ``--sweep-full-turn``) instead of ``0..resolution − 1``.
         period_s: Control period.
         max_lag_deg: The most the goal leads the joint (default :data:`MAX_LAG_DEG` of the vendor).
+        gravity_model: The arm's gravity model (its URDF's masses,
+            :func:`robocal.workflows.lerobot.auto_sim.auto_gravity_model`): each joint's stops are corrected
+            for the gravity torque in its profile search pose before the midpoint (docs/auto_calibration.md).
+            The URDF joint must turn the way Present_Position grows (LeRobot's ``so101_new_calib`` does).
 
     Returns:
         The calibration of every motor, the searches, the file written.
@@ -344,7 +350,14 @@ def auto_calibrate(
     try:
         drivers = prepare_search(bus, spec, section, searched, clock, period_s)
         auto = run_autocal(  # the stops: none joints too: reported not_searched, never driven
-            drivers, section, {}, joints=[j.name for j in order], max_lag_rad=lag, view=view, clock=clock
+            drivers,
+            section,
+            {},
+            joints=[j.name for j in order],
+            max_lag_rad=lag,
+            view=view,
+            clock=clock,
+            gravity_model=gravity_model,
         )
         _limp_all_at_once(bus, spec)
         if auto.failed and not partial:
