@@ -26,8 +26,7 @@ def test_koch_profile_marks_the_full_turn_joints() -> None:
 
 
 def test_koch_auto_calibration_with_full_turn_joints_not_searched(tmp_path: Path) -> None:
-    # the joints without a pose of their own (the whole arm does not finish yet: holding elbow_flex at its pose
-    # angle during wrist_flex's search latches the simulated XL330's overload, docs/auto_calibration.md)
+    # a subset: the joints without a pose of their own, and the full-turn ones (never moved)
     joints = ["shoulder_lift", "gripper", "shoulder_pan", "wrist_roll"]
     spec = robot_spec("koch_follower")
     section = auto_section("koch_follower")
@@ -68,3 +67,39 @@ def test_koch_auto_calibration_with_full_turn_joints_not_searched(tmp_path: Path
     assert set(torque.values()) == {0}  # every motor limp at the end
     written = json.loads(out.read_text())
     assert list(written) == list(spec.motor_names)
+
+
+def test_whole_koch_auto_calibration_finishes(tmp_path: Path) -> None:
+    # LeRobot's KochFollower.configure() gains on elbow_flex (P 1500, I 0, D 600): with the XL330's default gain
+    # the elbow, capped at 25 % of 0.52 N·m, stopped 1.8° short of its pose angle (shoulder_lift 0) when it had
+    # to hold it for wrist_flex's search, and the run aborted
+    spec = robot_spec("koch_follower")
+    section = auto_section("koch_follower")
+    with open_auto_arm(spec, "sim", section) as arm:
+        gains_before = arm.sim.servo("elbow_flex").get_reg("Position_P_Gain")
+        eeprom_before = arm.sim.eeprom()
+        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, path=tmp_path / "koch.json")
+        recovered = arm.sim.recovered_stops(res.calibration)
+        truth = dict(arm.sim.truth)
+        elbow = arm.sim.servo("elbow_flex")
+        gains_after = (elbow.get_reg("Position_P_Gain"), elbow.get_reg("Position_D_Gain"))
+        eeprom_after = arm.sim.eeprom()
+        torque = {m.name: arm.sim.servo(m.name).get_reg("Torque_Enable") for m in spec.motors}
+    codes = {o.name: o.stops.code for o in res.auto.joints}
+    assert codes == {
+        "shoulder_lift": "ok",
+        "elbow_flex": "ok",
+        "wrist_flex": "ok",
+        "gripper": "ok",
+        "shoulder_pan": "not_searched",
+        "wrist_roll": "not_searched",
+    }
+    assert res.exit_code == 0 and set(res.kept) == set(FULL_TURN)
+    for n in ("shoulder_lift", "elbow_flex", "wrist_flex", "gripper"):
+        lo, hi = recovered[n]
+        assert abs(lo - truth[n].stop_low_ticks) <= 3 and abs(hi - truth[n].stop_high_ticks) <= 3, n
+    assert gains_after == (gains_before, 0)  # the search's gains written back (RAM as it was)
+    for n in FULL_TURN:
+        assert eeprom_after[n] == eeprom_before[n]
+    assert set(torque.values()) == {0}
+    assert res.auto.total_time_s < 60.0  # measured 50.5 s simulated

@@ -338,6 +338,8 @@ class DynamixelJointDriver(_ServoJointDriver):
         self.current_mode = dynamixel_current_mode(self.model)
         self.reboots = 0
         """How many REBOOTs cleared a hardware error."""
+        self.ram: dict[str, int] = {}
+        """RAM registers the caller set (e.g. position gains) that a REBOOT resets: written again after one."""
 
     @property
     def operating_mode(self) -> int:
@@ -376,6 +378,8 @@ class DynamixelJointDriver(_ServoJointDriver):
             self.reboots += 1
             self._sync("Profile_Velocity", 0)
             self._sync("Profile_Acceleration", 0)
+            for reg, value in self.ram.items():  # e.g. the arm's position gains
+                self._sync(reg, value)
             self._limit_nm = math.nan  # written again by _enable
         s = self.read()
         if s.ok:

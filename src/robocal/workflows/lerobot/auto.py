@@ -53,6 +53,7 @@ from .eeprom import (
 )
 
 __all__ = [
+    "HOLD_GAINS",
     "MAX_LAG_DEG",
     "AutoCalibrationResult",
     "ConfirmStart",
@@ -73,6 +74,14 @@ _RAM = {
     "feetech": ("Torque_Limit", "Goal_Velocity", "Acceleration"),
     "dynamixel": ("Goal_Current", "Goal_PWM", "Profile_Velocity", "Profile_Acceleration"),
 }
+
+HOLD_GAINS: dict[str, dict[str, dict[str, int]]] = {
+    "koch_follower": {"elbow_flex": {"Position_P_Gain": 1500, "Position_I_Gain": 0, "Position_D_Gain": 600}},
+}
+"""Per arm and motor, the position gains LeRobot's follower writes on every connect (``KochFollower.configure``:
+"better PID values to close the gap between recorded states and actions"). The search sets them too: with the
+XL330's default gain the elbow, capped at 25 % of its 0.52 N·m, stops short of a pose angle it must hold
+against its friction. Snapshotted and written back like every register the search changes."""
 
 ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
 """The clear-workspace question: joints that will move (in order), their torque caps; False: nothing moves."""
@@ -120,6 +129,8 @@ def auto_section(robot: str | os.PathLike[str]) -> AutoSection:
 def search_registers(bus: ServoBus, spec: RobotSpec, motor_id: int) -> tuple[str, ...]:
     """The registers the search changes on a motor, in the order a restore writes them (EEPROM, RAM, Lock)."""
     names = ["Operating_Mode", *EEPROM_FIELDS, *_RAM[spec.vendor]]
+    motor = next((m.name for m in spec.motors if m.motor_id == motor_id), None)
+    names += list(HOLD_GAINS.get(spec.name, {}).get(motor or "", {}))
     if spec.vendor == "feetech":
         names.append("Lock")
     return tuple(n for n in names if bus.has_register(motor_id, n))
@@ -206,6 +217,9 @@ def prepare_search(
             homing_offset=offset,
         )
         if isinstance(drv, DynamixelJointDriver):
+            drv.ram = dict(HOLD_GAINS.get(spec.name, {}).get(name, {}))
+            for reg, value in drv.ram.items():
+                bus.write(reg, i, value)
             bus.write("Operating_Mode", i, drv.operating_mode)
             bus.write("Drive_Mode", i, 1 if name in spec.inverted else 0)
             bus.write("Homing_Offset", i, 0)
