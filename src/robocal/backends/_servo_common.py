@@ -81,6 +81,26 @@ class SdkBusBase(ClosesOnExit):
         if not ok:
             raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
         self._install_timeout(packet_timeout_ms)
+        self._install_drain()
+
+    def _install_drain(self) -> None:
+        """Drop late replies before each packet the SDK sends (on this port object only).
+
+        The SDKs' ``clearPort`` (called before every transmission) only flushes the output: a status packet that
+        arrived after its read timed out would be taken as the reply to the next read, whatever its length (a
+        block read's first byte as a one-byte register). Emptying the input first makes a late reply harmless.
+        """
+        handler = self._port_handler
+        original = handler.clearPort
+
+        def clear_port() -> None:
+            ser = getattr(handler, "ser", None)
+            if ser is not None:
+                with contextlib.suppress(Exception):  # a port that cannot be drained is left to the SDK as it was
+                    ser.reset_input_buffer()
+            original()
+
+        handler.clearPort = clear_port
 
     def _protocol(self, motors: Mapping[int, str]) -> float:
         """The SDK's PacketHandler protocol version for these motors."""
