@@ -121,8 +121,8 @@ def test_demo_auto_is_a_job_for_the_lite_and_refuses_other_robots_in_its_own_wor
 def test_render_prints_the_auto_table_before_the_truth_table(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    from robocal.workflows.autocal_joint import AutoCalResult
     from robocal.workflows.autocal_sweep import AutoSweepOutcome
+    from robocal.workflows.autocal_types import AutoCalResult
 
     outcome = AutoSweepOutcome(AutoCalResult((), 12.5), None, None, "robocal", None, 0)  # type: ignore[arg-type]
     table = TruthTable("true vs recovered homing_offset (rad)", ("joint", "true"), (("j1", "+0.1000"),))

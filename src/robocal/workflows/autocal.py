@@ -17,13 +17,13 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from ..core.gravity import GravityModel, JointGravity, joint_gravity
-from ..core.profile_auto import AutoJoint, AutoSection
+from ..core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
 from ..core.stop_zero import JointStops
 from ..errors import DeviceError, UsageError
 from .autocal_group import run_lockstep
-from .autocal_joint import (
-    NOT_SEARCHED,
-    TRANSIT_FACTOR,
+from .autocal_joint import TRANSIT_FACTOR, calibrate_joint, calibrate_joint_steps, drive, move_to
+from .autocal_robstride import RobstrideJointDriver
+from .autocal_types import (
     AutoCalAbortedError,
     AutoCalFailedError,
     AutoCalResult,
@@ -32,14 +32,9 @@ from .autocal_joint import (
     JointDriver,
     JointOutcome,
     MonotonicClock,
-    calibrate_joint,
-    calibrate_joint_steps,
-    drive,
     limp_all,
     limp_on_error,
-    move_to,
 )
-from .autocal_robstride import RobstrideJointDriver
 
 __all__ = [
     "AutoCalAbortedError",

@@ -1,6 +1,6 @@
 """One joint of the automatic hard-stop calibration: its moves and stop searches as steps, its outcome.
 
-The drivers, clocks and results are in :mod:`robocal.workflows.autocal_types` (re-exported here). See
+The drivers, clocks and results are in :mod:`robocal.workflows.autocal_types`. See
 :mod:`robocal.workflows.autocal` (the robot-level run) and docs/auto_calibration.md.
 """
 
@@ -11,7 +11,7 @@ from collections.abc import Callable, Generator
 from dataclasses import replace
 from typing import TypeVar
 
-from ..core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
+from ..core.profile_auto import AutoJoint, AutoSection
 from ..core.stop_search import (
     Command,
     JointStops,
@@ -24,35 +24,18 @@ from ..core.stop_search import (
 from ..errors import CalibTimeoutError
 from .autocal_types import (
     AutoCalAbortedError,
-    AutoCalFailedError,
-    AutoCalResult,
     AutoView,
-    Clock,
     JointDriver,
     JointOutcome,
-    MonotonicClock,
-    limp_all,
-    limp_on_error,
 )
 
 __all__ = [
-    "NOT_SEARCHED",
     "TRANSIT_FACTOR",
     "TRANSIT_MAX_RAD_S",
-    "AutoCalAbortedError",
-    "AutoCalFailedError",
-    "AutoCalResult",
-    "AutoView",
-    "Clock",
-    "JointDriver",
-    "JointOutcome",
     "JointSteps",
-    "MonotonicClock",
     "calibrate_joint",
     "calibrate_joint_steps",
     "drive",
-    "limp_all",
-    "limp_on_error",
     "move_steps",
     "move_to",
     "run_search",

@@ -8,7 +8,7 @@ from typing import Any
 
 from ..core.stop_search import Command, StopSample
 from ..errors import CalibTimeoutError, DeviceError
-from .autocal_joint import Clock
+from .autocal_types import Clock
 
 LIMIT_TORQUE = 0x700B
 """Robstride ``limit_torque`` parameter (f32, N·m; RAM until a type-22 save, which robocal never sends)."""

@@ -41,7 +41,7 @@ from typing import Any
 from ..backends.servo_ratings import RATINGS
 from ..core.stop_search import Command, StopSample
 from ..errors import CalibTimeoutError, DeviceError, UsageError
-from .autocal_joint import Clock
+from .autocal_types import Clock
 
 __all__ = [
     "DXL_FATAL_BITS",
