@@ -6,7 +6,10 @@ import json
 import multiprocessing
 import os
 import shutil
+import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -236,6 +239,30 @@ def test_dead_worker_is_one_error_not_a_traceback(
     src = tmp_path / "src"
     generate_dataset(src, n_episodes=4, frames_per_episode=5, episodes_per_file=1, convention=A)
     monkeypatch.setattr(_driver, "_work", _dying_work)
+    with pytest.raises(_driver.DatasetWorkerError, match="worker process died") as info:
+        recalibrate_dataset(src, tmp_path / "dst", A, B, workers=2)
+    assert info.value.exit_code == 3
+    assert multiprocessing.active_children() == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
+
+
+class _SlowSubmitPool(ProcessPoolExecutor):
+    """The real pool, submitting slowly: the first worker dies before the rest of the files are submitted."""
+
+    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
+        fut = super().submit(fn, *args, **kwargs)
+        time.sleep(0.5)
+        return fut
+
+
+def test_worker_dying_while_files_are_submitted_is_one_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A pool broken before the last submit raises from submit itself (seen under load in CI): the same error."""
+    src = tmp_path / "src"
+    generate_dataset(src, n_episodes=4, frames_per_episode=5, episodes_per_file=1, convention=A)
+    monkeypatch.setattr(_driver, "_work", _dying_work)
+    monkeypatch.setattr(_driver, "ProcessPoolExecutor", _SlowSubmitPool)
     with pytest.raises(_driver.DatasetWorkerError, match="worker process died") as info:
         recalibrate_dataset(src, tmp_path / "dst", A, B, workers=2)
     assert info.value.exit_code == 3

@@ -201,18 +201,21 @@ def _build(
                 on_file_done(res.path, res.frames)
     else:
         with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            futures: list[Future[FileResult]] = [pool.submit(_work, job) for job in jobs]
+            futures: list[Future[FileResult]] = []
             try:
+                # a worker that dies early breaks the pool while files are still being submitted: submit
+                # raises then, not only result()
+                futures.extend(pool.submit(_work, job) for job in jobs)
                 for fut in as_completed(futures):
-                    try:
-                        res = fut.result()  # a worker's exception is raised here
-                    except BrokenProcessPool:
-                        raise DatasetWorkerError(
-                            f"a worker process died while converting {root} (out of memory or killed); "
-                            "nothing was written — retry with fewer --workers"
-                        ) from None
+                    res = fut.result()  # a worker's exception is raised here
                     if on_file_done is not None:
                         on_file_done(res.path, res.frames)
+            except BrokenProcessPool:
+                pool.shutdown(wait=True, cancel_futures=True)
+                raise DatasetWorkerError(
+                    f"a worker process died while converting {root} (out of memory or killed); "
+                    "nothing was written — retry with fewer --workers"
+                ) from None
             except BaseException:
                 # an error or Ctrl-C: drop the queued files, wait only for the ones being written
                 pool.shutdown(wait=True, cancel_futures=True)
