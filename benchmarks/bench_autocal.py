@@ -1,6 +1,7 @@
 """Auto-calibration acceptance (issue 11): seeded runs per joint and scenario on the physics plant.
 
-``python benchmarks/run.py autocal`` (100 seeds per scenario and robot; ``AUTOCAL_SEEDS=N`` to change) prints,
+``python benchmarks/run.py autocal`` (100 seeds per scenario and robot; ``AUTOCAL_SEEDS=N`` to change;
+``AUTOCAL_SEEDS_PER_JOINT=N`` for N runs of every joint; ``AUTOCAL_ROBOTS=lite`` for one robot) prints,
 per robot and scenario: zero error and span error (mean |e|, max |e|, σ over seeds), outcomes, abort times against
 the bound, false stops, peak torque against the cap, and the total simulated time of a whole robot. The test suite
 (tests/autocal/test_acceptance.py) runs a few seeds through the same :func:`run_scenario` and :data:`THRESHOLDS`.
@@ -334,12 +335,27 @@ def print_table_row(st: ScenarioStats) -> int:
     return int(bool(probs))
 
 
-def main() -> None:
+def robot_seeds(robot_name: str) -> tuple[range, str]:
+    """The seeds to run per scenario for ``robot_name`` and how they were chosen (for the table's title).
+
+    ``AUTOCAL_SEEDS_PER_JOINT=N`` gives every joint N runs (N × joints seeds, seed → joint cycling);
+    otherwise ``AUTOCAL_SEEDS`` (default 100) seeds per scenario, shared out over the joints.
+    """
+    per_joint = os.environ.get("AUTOCAL_SEEDS_PER_JOINT")
+    if per_joint:
+        n_joints = len(_lite() if robot_name == "lite" else SO101)
+        n = int(per_joint)
+        return range(n * n_joints), f"{n} seeded runs per joint and scenario ({n_joints} joints)"
     n = int(os.environ.get("AUTOCAL_SEEDS", "100"))
-    seeds = range(n)
+    return range(n), f"{n} seeded runs per scenario (seed → joint, cycling)"
+
+
+def main() -> None:
+    robots = [r for r in os.environ.get("AUTOCAL_ROBOTS", "lite,so101").split(",") if r]
     failures = 0
-    for robot in ("lite", "so101"):
-        print(f"-- {robot}: {n} seeded runs per scenario (seed → joint, cycling) --")
+    for robot in robots:
+        seeds, how = robot_seeds(robot)
+        print(f"-- {robot}: {how} --")
         print_table_header()
         for spec in SCENARIOS:
             failures += print_table_row(run_scenario(robot, spec, seeds))

@@ -52,3 +52,13 @@ def test_table_row_prints_the_verdict_and_counts_a_failure(capsys: pytest.Captur
     stats.runs.append(bench.RunResult("j", "timeout", limp_at_end=False))
     assert bench.print_table_row(stats) == 1
     assert "FAIL: not every run found both stops" in capsys.readouterr().out
+
+
+def test_seeds_per_joint_give_every_joint_that_many_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("AUTOCAL_SEEDS_PER_JOINT", "100")
+    seeds, how = bench.robot_seeds("lite")
+    assert seeds == range(1400) and how == "100 seeded runs per joint and scenario (14 joints)"
+    assert bench.robot_seeds("so101")[0] == range(100 * len(bench.SO101))
+    monkeypatch.delenv("AUTOCAL_SEEDS_PER_JOINT")
+    monkeypatch.setenv("AUTOCAL_SEEDS", "7")
+    assert bench.robot_seeds("lite") == (range(7), "7 seeded runs per scenario (seed → joint, cycling)")
