@@ -202,7 +202,7 @@ def sweep_auto(
     from ..workflows.autocal_sweep import run_sweep_auto
     from ._sweep_view import print_warnings, result_table
 
-    names = [n.strip() for n in joints.split(",") if n.strip()] if joints else None
+    names = _common.parse_csv_list(joints, "--joints")  # "" or "a,,b": one error line, nothing moves
     confirm = make_confirm_start(yes)
     with auto_web_view(view_port, urdf, AutoLiveView(), "sweep --auto") as live:
         try:

@@ -55,21 +55,40 @@ __all__ = [
 
 
 # ------------------------------------------------------------------------------------------------ a robot
-def select_joints(section: AutoSection, joints: Sequence[str] | None) -> tuple[AutoJoint, ...]:
+def select_joints(
+    section: AutoSection, joints: Sequence[str] | None, *, movable_only: bool = False
+) -> tuple[AutoJoint, ...]:
     """The profile's joints in search order, restricted to ``joints`` (``--joints``) when given.
 
+    Args:
+        section: The profile's auto-calibration section.
+        joints: The joints asked for (None: every joint of the section).
+        movable_only: Refuse a named joint the profile gives no hard stop (``stops: none``): a user who names
+            it asks for something that cannot be done (the CLI's ``--joints``).
+
     Raises:
-        UsageError: ``joints`` names a joint the profile's auto_calibration section lacks.
+        UsageError: ``joints`` is empty, names a joint the profile's auto_calibration section lacks, or (with
+            ``movable_only``) a joint without stops.
     """
-    if not joints:
+    if joints is None:
         return section.joints
+    if not joints:
+        raise UsageError("--joints: give at least one joint name")
     unknown = [n for n in joints if section.joint(n) is None]
     if unknown:
         raise UsageError(
             f"--joints: no auto-calibration entry for {', '.join(unknown)}; joints: {', '.join(section.joint_names)}"
         )
     wanted = set(joints)
-    return tuple(j for j in section.joints if j.name in wanted)
+    chosen = tuple(j for j in section.joints if j.name in wanted)
+    stopless = [j for j in chosen if not j.searched]
+    if movable_only and stopless:
+        why = "; ".join(f"{j.name}: {j.reason or 'no hard stop in the profile'}" for j in stopless)
+        raise UsageError(
+            f"--joints: {', '.join(j.name for j in stopless)} cannot be auto-calibrated, the profile gives "
+            f"{'it' if len(stopless) == 1 else 'them'} no hard stop ({why})"
+        )
+    return chosen
 
 
 @dataclass

@@ -16,7 +16,7 @@ import contextlib
 import json
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -27,7 +27,7 @@ from ..core.profile import RobotProfile
 from ..core.sweep import analyse_sweep
 from ..core.sweep_result import SweepResult
 from ..errors import UsageError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_write_bytes, atomic_write_text, backup_paths
 from ..formats.profiles import resolve_profile
 from .autocal import (
     AutoCalAbortedError,
@@ -126,6 +126,32 @@ def auto_sweep_result(
         threshold_rad=0.0,
         span_tolerance_rad=span_tolerance_rad,
     )
+
+
+@contextlib.contextmanager
+def _all_or_nothing(paths: Sequence[Path]) -> Iterator[None]:
+    """The report and the calibration are written together or not at all.
+
+    Each file (through a symbolic link: its target) and its backups are read first; when anything interrupts
+    the writes (Ctrl-C between the report and the calibration, a full disk on the second file), every one of
+    them is put back as it was (a file that did not exist is removed) before the exception goes on.
+    """
+    saved: dict[Path, bytes | None] = {}
+    for p in paths:
+        target = Path(os.path.realpath(p))
+        for f in (target, *backup_paths(target)):
+            saved[f] = f.read_bytes() if f.is_file() else None
+    try:
+        yield
+    except BaseException:
+        for f, data in saved.items():
+            with contextlib.suppress(OSError):
+                if data is None:
+                    if f.is_file():
+                        f.unlink()
+                elif not f.is_file() or f.read_bytes() != data:
+                    atomic_write_bytes(f, data, backup=False)
+        raise
 
 
 def _open_robstride(
@@ -240,7 +266,7 @@ def run_sweep_auto(
         fmt = output_format(out_path, profile)
     existing = _existing_output(out_path, fmt, urdf, profile)
     specs = joints_from_urdf(urdf, profile, existing)
-    order = select_joints(profile.auto, joints)
+    order = select_joints(profile.auto, joints, movable_only=True)
     known = {j.name for j in specs}
     lacking = [j.name for j in order if j.name not in known]
     if lacking:
@@ -300,12 +326,13 @@ def run_sweep_auto(
                 "write the joints that passed)",
                 auto,
             )
-        if report_path is not None:
-            doc = result.to_report()
-            doc["auto"] = auto.to_report()
-            atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
-        if rows:
-            _write(result, urdf, rows, out_path, fmt, None, existing, profile)
+        with _all_or_nothing([p for p in (report_path, out_path if rows else None) if p is not None]):
+            if report_path is not None:
+                doc = result.to_report()
+                doc["auto"] = auto.to_report()
+                atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
+            if rows:
+                _write(result, urdf, rows, out_path, fmt, None, existing, profile)
     finally:
         limp_all(drivers)
         with contextlib.suppress(Exception):

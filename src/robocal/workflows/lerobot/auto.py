@@ -342,7 +342,7 @@ def auto_calibrate(
         KeyboardInterrupt: Ctrl-C, after every motor went limp and the EEPROM was restored.
         CalibrationNotSavedError: The file write failed at the end (EEPROM restored, result attached).
     """
-    order = select_joints(section, joints)
+    order = select_joints(section, joints, movable_only=True)
     kept_by_profile = [j.name for j in order if not j.searched]  # stops: none (a full-turn joint): never moves
     if len(kept_by_profile) == len(order):
         raise UsageError(f"no joint to search: {', '.join(kept_by_profile)} have no hard stops in the profile")
