@@ -20,7 +20,7 @@ from rich.table import Table
 
 from ..core.stop_search import StopSample
 from ..errors import UsageError
-from ..workflows.autocal import AutoCalResult, JointOutcome
+from ..workflows.autocal_types import AutoCalResult, JointOutcome
 from . import _common
 
 __all__ = [
@@ -116,7 +116,7 @@ def auto_web_view(
         yield inner
         return
     from ..viewer.autocal_page import open_auto_sweep_page
-    from ..workflows.autocal import AutoCalAbortedError, AutoCalFailedError
+    from ..workflows.autocal_types import AutoCalAbortedError, AutoCalFailedError
 
     if page is not None:
         web = page(inner, port)

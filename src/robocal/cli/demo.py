@@ -35,7 +35,7 @@ def render(result: DemoResult) -> int:
     """Print a demo's result (tables, the job's own output, lines, warnings); return the exit code."""
     con = _common.console
     if result.job == "auto":
-        from ..workflows.autocal import AutoCalResult
+        from ..workflows.autocal_types import AutoCalResult
         from ._autocal import auto_table
 
         auto = getattr(result.detail, "auto", None)  # AutoSweepOutcome (lite) or AutoCalibrationResult (arms)

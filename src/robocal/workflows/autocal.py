@@ -23,35 +23,21 @@ from ..errors import DeviceError, UsageError
 from .autocal_group import run_lockstep
 from .autocal_joint import TRANSIT_FACTOR, calibrate_joint, calibrate_joint_steps, drive, move_to
 from .autocal_robstride import RobstrideJointDriver
+from .autocal_types import *  # noqa: F403  (robocal.workflows.autocal keeps the public names of autocal_types)
 from .autocal_types import (
     AutoCalAbortedError,
-    AutoCalFailedError,
     AutoCalResult,
     AutoView,
     Clock,
     JointDriver,
     JointOutcome,
-    MonotonicClock,
     limp_all,
     limp_on_error,
 )
+from .autocal_types import __all__ as _types_all
 
-__all__ = [
-    "AutoCalAbortedError",
-    "AutoCalFailedError",
-    "AutoCalResult",
-    "AutoView",
-    "Clock",
-    "JointDriver",
-    "JointOutcome",
-    "MonotonicClock",
-    "RobstrideJointDriver",
-    "calibrate_joint",
-    "joint_gravity_for",
-    "limp_all",
-    "run_autocal",
-    "select_joints",
-]
+__all__ = ["RobstrideJointDriver", "calibrate_joint", "joint_gravity_for", "run_autocal", "select_joints"]
+__all__ += _types_all
 
 
 # ------------------------------------------------------------------------------------------------ a robot

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Generator
 from dataclasses import replace
-from typing import TypeVar
+from typing import Concatenate, ParamSpec, TypeVar
 
 from ..core.profile_auto import AutoJoint, AutoSection
 from ..core.stop_search import (
@@ -35,6 +35,7 @@ __all__ = [
     "JointSteps",
     "calibrate_joint",
     "calibrate_joint_steps",
+    "carried_out",
     "drive",
     "move_steps",
     "move_to",
@@ -43,6 +44,7 @@ __all__ = [
 ]
 
 _T = TypeVar("_T")
+_P = ParamSpec("_P")
 JointSteps = Generator[Command, StopSample, _T]
 """One joint's moves as a generator: it yields the next :class:`Command` and receives the reading at the end of
 the control period that carried it out (:meth:`JointDriver.execute`); its return value is the result. Run it on
@@ -86,6 +88,23 @@ def drive(driver: JointDriver, steps: JointSteps[_T]) -> _T:
         return stop.value  # type: ignore[no-any-return]
 
 
+def carried_out(
+    steps: Callable[Concatenate[JointDriver, _P], JointSteps[_T]], name: str, doc: str = ""
+) -> Callable[Concatenate[JointDriver, _P], _T]:
+    """The function ``name`` that builds ``steps(driver, ...)`` and carries them out on ``driver`` (:func:`drive`).
+
+    One signature serves a joint's steps (a generator, for lockstep runs) and its direct form; ``doc`` is its
+    docstring (default: "``steps`` carried out on ``driver``").
+    """
+
+    def run(driver: JointDriver, /, *args: _P.args, **kwargs: _P.kwargs) -> _T:
+        return drive(driver, steps(driver, *args, **kwargs))
+
+    run.__name__ = run.__qualname__ = name
+    run.__doc__ = doc or f":func:`{steps.__name__}` carried out on ``driver`` (see there)."
+    return run
+
+
 def search_steps(
     driver: JointDriver, search: StopSearch, view: AutoView | None = None, side: str = ""
 ) -> JointSteps[StopResult]:
@@ -103,11 +122,9 @@ def search_steps(
     return search.result
 
 
-def run_search(
-    driver: JointDriver, search: StopSearch, view: AutoView | None = None, side: str = ""
-) -> StopResult:
-    """Run one stop search on ``driver`` to its end; a failed search leaves the joint limp."""
-    return drive(driver, search_steps(driver, search, view, side))
+run_search = carried_out(
+    search_steps, "run_search", "Run one stop search on ``driver`` to its end; a failed search leaves the joint limp."
+)
 
 
 def move_steps(
@@ -184,21 +201,7 @@ def move_steps(
             )
 
 
-def move_to(
-    driver: JointDriver,
-    target_rad: float,
-    speed_rad_s: float,
-    cap_nm: float,
-    max_lag_rad: float,
-    tol_rad: float = math.radians(1.0),
-    timeout_s: float | None = None,
-    stall_s: float | None = None,
-) -> tuple[StopSample, bool]:
-    """:func:`move_steps` carried out on ``driver`` (see there)."""
-    return drive(
-        driver, move_steps(driver, target_rad, speed_rad_s, cap_nm, max_lag_rad, tol_rad, timeout_s, stall_s)
-    )
-
+move_to = carried_out(move_steps, "move_to")
 
 TRANSIT_FACTOR = 5.0
 """Moves that are not searches (to near the second stop, to the park angle) go this much faster than the search."""
@@ -314,31 +317,7 @@ def calibrate_joint_steps(
     return outcome
 
 
-def calibrate_joint(
-    driver: JointDriver,
-    joint: AutoJoint,
-    section: AutoSection,
-    expected_lower_rad: float | None,
-    expected_upper_rad: float | None,
-    *,
-    max_lag_rad: float,
-    gravity: Callable[[float], float] | None = None,
-    gravity_joint: Callable[[float], float] | None = None,
-    view: AutoView | None = None,
-) -> JointOutcome:
-    """:func:`calibrate_joint_steps` carried out on ``driver`` (see there)."""
-    steps = calibrate_joint_steps(
-        driver,
-        joint,
-        section,
-        expected_lower_rad,
-        expected_upper_rad,
-        max_lag_rad=max_lag_rad,
-        gravity=gravity,
-        gravity_joint=gravity_joint,
-        view=view,
-    )
-    return drive(driver, steps)
+calibrate_joint = carried_out(calibrate_joint_steps, "calibrate_joint")
 
 
 def _park_target(joint: AutoJoint, stops: JointStops, lo: float | None, hi: float | None) -> float:

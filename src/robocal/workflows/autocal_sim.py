@@ -23,7 +23,8 @@ import numpy as np
 
 from ..core.profile import RobotProfile
 from ..errors import UsageError
-from .autocal import JointDriver, RobstrideJointDriver
+from .autocal_robstride import RobstrideJointDriver
+from .autocal_types import JointDriver
 
 if TYPE_CHECKING:
     from ..backends.sim.physics import Scenario

@@ -29,7 +29,9 @@ from ..core.sweep_result import SweepResult
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, backup_paths
 from ..formats.profiles import resolve_profile
-from .autocal import (
+from .autocal import run_autocal, select_joints
+from .autocal_robstride import RobstrideJointDriver
+from .autocal_types import (
     AutoCalAbortedError,
     AutoCalFailedError,
     AutoCalResult,
@@ -37,10 +39,7 @@ from .autocal import (
     Clock,
     JointDriver,
     MonotonicClock,
-    RobstrideJointDriver,
     limp_all,
-    run_autocal,
-    select_joints,
 )
 
 __all__ = ["AutoSweepOutcome", "auto_sweep_result", "run_sweep_auto"]

@@ -12,7 +12,7 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-from .autocal import AutoView
+from .autocal_types import AutoView
 from .demo import DemoResult, DemoSection, Say, TruthTable, temporary_note
 
 __all__ = ["AUTO_DEMO_SOURCE", "AUTO_TOLERANCE_RAD", "auto_demo"]

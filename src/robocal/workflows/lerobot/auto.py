@@ -32,16 +32,9 @@ from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
 from ...errors import UsageError
 from ...fileio import check_output_path
-from ..autocal import (
-    AutoCalFailedError,
-    AutoCalResult,
-    AutoView,
-    Clock,
-    JointDriver,
-    run_autocal,
-    select_joints,
-)
+from ..autocal import run_autocal, select_joints
 from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver_class
+from ..autocal_types import AutoCalFailedError, AutoCalResult, AutoView, Clock, JointDriver
 from .calibrate import save_calibration
 from .eeprom import (
     EEPROM_FIELDS,

@@ -27,8 +27,9 @@ from ...core.gravity import GravityModel
 from ...core.lerobot import RobotSpec
 from ...core.profile_auto import AutoSection
 from ...errors import UsageError
-from ..autocal import Clock, MonotonicClock, joint_gravity_for
+from ..autocal import joint_gravity_for
 from ..autocal_sim import SIM_FAULTS, fault_scenario
+from ..autocal_types import Clock, MonotonicClock
 from .arms import open_bus
 
 ARM_OPTIONS = (*SIM_FAULTS, "gravity")
