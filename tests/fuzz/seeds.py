@@ -167,6 +167,12 @@ def bag_seed(plugin: str) -> dict[str, bytes]:
         return {p.relative_to(bag).as_posix(): p.read_bytes() for p in sorted(bag.rglob("*")) if p.is_file()}
 
 
+DATASET_RECALIBRATE = (
+    "dataset", "recalibrate", "ds", "out", "--old", "cal.json", "--new", "new.json", "--robot", "so101_follower"
+)
+"""The recalibrate command over :func:`dataset_seed` written as ``ds`` (with ``cal.json`` and ``new.json``)."""
+
+
 @functools.cache
 def dataset_seed() -> dict[str, bytes]:
     """Relative path → bytes of every file of a small synthetic LeRobot v3 dataset."""

@@ -138,18 +138,7 @@ def _commands() -> dict[str, Command]:
             trees={"ds": seeds.dataset_seed()},
         ),
         "dataset-recalibrate": Command(
-            [
-                "dataset",
-                "recalibrate",
-                "ds",
-                "out",
-                "--old",
-                "cal.json",
-                "--new",
-                "new.json",
-                "--robot",
-                "so101_follower",
-            ],
+            list(seeds.DATASET_RECALIBRATE),
             {
                 "new.json": (current, _json),
                 "ds/meta/info.json": (seeds.dataset_seed()["meta/info.json"], _json),

@@ -1,14 +1,16 @@
 """Shared set-up: the shipped SO-101 URDF as a chain with a marker 20 mm off the wrist-roll axis; the
-Jacobian check by central differences."""
+Jacobian check by central differences; ``kinematics simulate`` (a 60-pose session, any other options)."""
 
 from __future__ import annotations
 
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from robocal.cli.main import main
 from robocal.core.kinematic_errors import ErrorModel
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
@@ -18,6 +20,21 @@ KOCH_URDF = resources.files("robocal") / "data" / "koch.urdf"
 # gripper_frame_joint's origin in gripper_link is (-0.0079, -0.000218, -0.0981): 7.9 mm off the roll axis (z)
 MARKER_OFF_AXIS_M = (-0.0079 + 0.020, 0.0, -0.0981)
 MARKER_ON_AXIS_M = (0.0, 0.0, -0.0981)
+JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+"""The SO-101's arm joints (the chain to gripper_link: no gripper)."""
+
+
+def simulate(out: Path, *options: str) -> int:
+    """``robocal kinematics simulate ... --out OUT``: its exit code."""
+    return main(["kinematics", "simulate", *options, "--out", str(out)])
+
+
+@pytest.fixture(scope="module")
+def points_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A simulated SO-101 points session: 60 poses, seed 3 (one per test module)."""
+    folder = tmp_path_factory.mktemp("sim")
+    assert simulate(folder, "--poses", "60", "--seed", "3") == 0
+    return folder
 
 
 def so101_model(marker: tuple[float, float, float] = MARKER_OFF_AXIS_M) -> ErrorModel:
@@ -30,6 +47,34 @@ def so101_model(marker: tuple[float, float, float] = MARKER_OFF_AXIS_M) -> Error
 @pytest.fixture(scope="module")
 def so101() -> ErrorModel:
     return so101_model()
+
+
+def truth_errors(
+    true_model: ErrorModel,
+    hidden: dict[str, float],
+    found_urdf: Path,
+    T_world_base: np.ndarray,
+    T_tip_tool: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Point errors on 400 new poses of the arm with ``hidden`` errors: the identified URDF's, the nominal's (m).
+
+    Args:
+        true_model: The nominal chain with the true base and tool transforms.
+        hidden: The simulator's hidden parameter values by name (truth.json).
+        found_urdf: The identified URDF (its chain to the same tip link as ``true_model``).
+        T_world_base: The identified base transform (the report's).
+        T_tip_tool: The identified tool transform (the report's).
+    """
+    from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm
+    from robocal.core.chain import fk_chain
+
+    arm = SimulatedKinematicArm(true_model, np.array([hidden[n] for n in true_model.names]))
+    q = arm.sample_q(400, np.random.default_rng(7))
+    found = chain_from_urdf(read_urdf(found_urdf), tip_link=true_model.chain.tip_link)
+    T = T_world_base @ fk_chain(found, arm.read(q)) @ T_tip_tool
+    err = np.linalg.norm(T[:, :3, 3] - arm.true_points(q), axis=1)
+    nominal = np.linalg.norm(true_model.points(arm.read(q)) - arm.true_points(q), axis=1)
+    return err, nominal
 
 
 def check_jacobian(problem: Any, theta: np.ndarray, step: float | np.ndarray, rtol: float) -> np.ndarray:

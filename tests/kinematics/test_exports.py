@@ -7,7 +7,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pytest
 from tests.robots import UR_LINKS
 from tests.ur.test_ur_urdf import ur_urdf_text
 
@@ -23,16 +22,10 @@ from robocal.formats.ur_kinematics import read_kinematics
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
 
-JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+from .conftest import JOINTS
+
 TOOL = [0.0121, 0.0, -0.0981]
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "ur"
-
-
-@pytest.fixture(scope="module")
-def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("sim")
-    assert main(["kinematics", "simulate", "--out", str(folder), "--poses", "60", "--seed", "3"]) == 0
-    return folder
 
 
 def _lerobot_map() -> RobotCalibration:
@@ -43,13 +36,13 @@ def _lerobot_map() -> RobotCalibration:
 
 
 def test_joint_map_out_carries_the_offsets_and_the_urdf_leaves_them_out(
-    session: Path, tmp_path: Path, capsys
+    points_session: Path, tmp_path: Path, capsys
 ) -> None:
     jm = _lerobot_map()
     ids = {n: i + 1 for i, n in enumerate(jm.joint_names)}
     write_calibration(tmp_path / "map.yaml", jm, "robocal", ids=ids)
     code = main(
-        ["kinematics", "identify", "--urdf", str(session / "so101.urdf"), "--data", str(session / "points.csv"),
+        ["kinematics", "identify", "--urdf", str(points_session / "so101.urdf"), "--data", str(points_session / "points.csv"),
          "--tip-link", "gripper_link", "--tool-xyz", ",".join(map(str, TOOL)), "--out", str(tmp_path / "id.urdf"),
          "--report", str(tmp_path / "r.json"), "--joint-map", str(tmp_path / "map.yaml"),
          "--joint-map-out", str(tmp_path / "map_id.yaml")]
@@ -68,7 +61,7 @@ def test_joint_map_out_carries_the_offsets_and_the_urdf_leaves_them_out(
     np.testing.assert_array_equal(q_new[:, 5], q_old[:, 5])  # the gripper is not in the chain: unchanged
     assert np.abs(offsets).max() > math.radians(0.5)
     # URDF (offsets left out) fed with the new map's angles == the identified model fed with the old readings
-    nominal = chain_from_urdf(read_urdf(session / "so101.urdf"), tip_link="gripper_link")
+    nominal = chain_from_urdf(read_urdf(points_session / "so101.urdf"), tip_link="gripper_link")
     T = np.eye(4)
     T[:3, 3] = TOOL
     model = ErrorModel(nominal, T_tip_tool=T)
@@ -82,10 +75,10 @@ def test_joint_map_out_carries_the_offsets_and_the_urdf_leaves_them_out(
 
 
 def test_joint_map_out_without_a_map_is_refused_and_nothing_written(
-    session: Path, tmp_path: Path, capsys
+    points_session: Path, tmp_path: Path, capsys
 ) -> None:
     code = main(
-        ["kinematics", "identify", "--urdf", str(session / "so101.urdf"), "--data", str(session / "points.csv"),
+        ["kinematics", "identify", "--urdf", str(points_session / "so101.urdf"), "--data", str(points_session / "points.csv"),
          "--tip-link", "gripper_link", "--out", str(tmp_path / "id.urdf"), "--joint-map-out", str(tmp_path / "m.yaml")]
     )  # fmt: skip
     assert code == 2
@@ -126,9 +119,9 @@ def test_ur_yaml_of_an_identified_ur5e(tmp_path: Path, capsys) -> None:
     assert err.max() < 1e-6 < 1e-3 < nominal.mean()
 
 
-def test_ur_yaml_needs_a_ur_chain(session: Path, tmp_path: Path, capsys) -> None:
+def test_ur_yaml_needs_a_ur_chain(points_session: Path, tmp_path: Path, capsys) -> None:
     code = main(
-        ["kinematics", "identify", "--urdf", str(session / "so101.urdf"), "--data", str(session / "points.csv"),
+        ["kinematics", "identify", "--urdf", str(points_session / "so101.urdf"), "--data", str(points_session / "points.csv"),
          "--tip-link", "gripper_link", "--ur-yaml", str(tmp_path / "k.yaml")]
     )  # fmt: skip
     assert code == 2

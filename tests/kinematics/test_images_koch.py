@@ -10,34 +10,21 @@ import pytest
 
 from robocal.cli.main import main
 
+from .conftest import simulate, truth_errors
+
 pytest.importorskip("cv2")
 
 
 @pytest.mark.timeout(900)
 def test_koch_tag_images_identify_the_arm(tmp_path: Path, capsys) -> None:
-    from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm
     from robocal.backends.vision import CameraIntrinsics
-    from robocal.core.chain import fk_chain
     from robocal.core.kinematic_errors import ErrorModel
     from robocal.formats.camera_info import write_camera_info
     from robocal.formats.urdf import read_urdf
     from robocal.formats.urdf_chain import chain_from_urdf
     from robocal.workflows.kinematic_vision import SIM_CAMERA_K
 
-    code = main(
-        [
-            "kinematics",
-            "simulate",
-            "--robot",
-            "koch",
-            "--kind",
-            "tag",
-            "--poses",
-            "24",
-            "--out",
-            str(tmp_path),
-        ]
-    )
+    code = simulate(tmp_path, "--robot", "koch", "--kind", "tag", "--poses", "24")
     assert code == 0
     assert "--tip-link gripper_static_1" in capsys.readouterr().out
     write_camera_info(tmp_path / "camera.yaml", CameraIntrinsics(1280, 960, SIM_CAMERA_K, np.zeros(5)))
@@ -55,12 +42,11 @@ def test_koch_tag_images_identify_the_arm(tmp_path: Path, capsys) -> None:
     true_model = ErrorModel(
         chain, T_world_base=np.array(truth["T_cam_base"]), T_tip_tool=np.array(truth["T_tip_target_nominal"])
     )
-    arm = SimulatedKinematicArm(
-        true_model, np.array([truth["hidden_parameters"][n] for n in true_model.names])
+    err, nominal = truth_errors(
+        true_model,
+        truth["hidden_parameters"],
+        tmp_path / "id.urdf",
+        np.array(rep["T_cam_base"]),
+        np.array(rep["T_tip_target"]),
     )
-    q = arm.sample_q(400, np.random.default_rng(7))
-    found = chain_from_urdf(read_urdf(tmp_path / "id.urdf"), tip_link="gripper_static_1")
-    T = np.array(rep["T_cam_base"]) @ fk_chain(found, arm.read(q)) @ np.array(rep["T_tip_target"])
-    err = np.linalg.norm(T[:, :3, 3] - arm.true_points(q), axis=1)
-    nominal = np.linalg.norm(true_model.points(arm.read(q)) - arm.true_points(q), axis=1)
     assert err.mean() <= 1e-3 and nominal.mean() > 4e-3

@@ -10,7 +10,7 @@ from robocal.core.kinematic_errors import ErrorModel
 from robocal.core.kinematic_images import ImageObservations, ImageProblem, hand_eye
 from robocal.core.se3 import homogeneous, matrix_from_rotvec
 
-from .conftest import check_jacobian, so101_model
+from .conftest import check_jacobian, simulate, so101_model, truth_errors
 
 T_TARGET_BASE = homogeneous(matrix_from_rotvec([0.0, math.pi / 2, 0.0]), [0.15, 0.0, 0.4])
 T_TIP_CAM = homogeneous(matrix_from_rotvec([math.pi - 0.5, 0.0, 0.0]), [0.0, 0.0, -0.03])
@@ -102,8 +102,6 @@ def _identify(session: Path, tmp: Path, *extra: str) -> int:
 def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
     session: Path, tmp_path: Path, capsys
 ) -> None:
-    from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm
-    from robocal.core.chain import fk_chain
     from robocal.formats.urdf import read_urdf
     from robocal.formats.urdf_chain import chain_from_urdf
 
@@ -127,14 +125,13 @@ def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
         T_world_base=np.array(truth["T_target_base"]),
         T_tip_tool=np.array(truth["T_tip_camera_nominal"]),
     )
-    arm = SimulatedKinematicArm(
-        true_model, np.array([truth["hidden_parameters"][n] for n in true_model.names])
+    err, nominal = truth_errors(
+        true_model,
+        truth["hidden_parameters"],
+        tmp_path / "id.urdf",
+        np.array(rep["T_target_base"]),
+        np.array(rep["T_tip_camera"]),
     )
-    q = arm.sample_q(400, np.random.default_rng(7))
-    found = chain_from_urdf(read_urdf(tmp_path / "id.urdf"), tip_link="gripper_link")
-    T = np.array(rep["T_target_base"]) @ fk_chain(found, arm.read(q)) @ np.array(rep["T_tip_camera"])
-    err = np.linalg.norm(T[:, :3, 3] - arm.true_points(q), axis=1)
-    nominal = np.linalg.norm(true_model.points(arm.read(q)) - arm.true_points(q), axis=1)
     assert err.mean() <= 1e-3 and nominal.mean() > 4e-3
     # the camera's mounting on the tool is found within a few millimetres of the true one
     mount = np.array(rep["T_tip_camera"])[:3, 3]
@@ -162,26 +159,14 @@ def test_refine_intrinsics_from_the_cli_reports_the_camera_matrix(
 
 
 def test_camera_on_tool_needs_tag_images(tmp_path: Path, capsys) -> None:
-    code = main(["kinematics", "simulate", "--out", str(tmp_path), "--camera-on-tool"])
+    code = simulate(tmp_path, "--camera-on-tool")
     assert code == 2
     assert capsys.readouterr().err.strip() == "error: --camera-on-tool applies to --kind tag (camera images)"
     assert list(tmp_path.iterdir()) == []
 
 
 def test_camera_on_tool_is_simulated_for_the_so101_only(tmp_path: Path, capsys) -> None:
-    code = main(
-        [
-            "kinematics",
-            "simulate",
-            "--robot",
-            "koch",
-            "--kind",
-            "tag",
-            "--camera-on-tool",
-            "--out",
-            str(tmp_path),
-        ]
-    )
+    code = simulate(tmp_path, "--robot", "koch", "--kind", "tag", "--camera-on-tool")
     assert code == 2
     err = capsys.readouterr().err.strip()
     assert err == "error: tag images with the camera on the tool are simulated for so101 only, not 'koch'"

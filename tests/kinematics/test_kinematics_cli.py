@@ -18,24 +18,18 @@ from robocal.formats.kinematic_data import measurements_to_csv, parse_measuremen
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
 
-JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+from .conftest import JOINTS, simulate
+
 TOOL = "0.0121,0,-0.0981"
 
 
-@pytest.fixture(scope="module")
-def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("sim")
-    assert main(["kinematics", "simulate", "--out", str(folder), "--poses", "60", "--seed", "3"]) == 0
-    return folder
-
-
-def _identify(session: Path, data: Path, out: Path, *extra: str) -> int:
+def _identify(points_session: Path, data: Path, out: Path, *extra: str) -> int:
     return main(
         [
             "kinematics",
             "identify",
             "--urdf",
-            str(session / "so101.urdf"),
+            str(points_session / "so101.urdf"),
             "--data",
             str(data),
             "--tip-link",
@@ -51,8 +45,8 @@ def _identify(session: Path, data: Path, out: Path, *extra: str) -> int:
     )
 
 
-def test_identify_writes_a_urdf_that_reproduces_the_fit(session: Path, tmp_path: Path, capsys) -> None:
-    code = _identify(session, session / "points.csv", tmp_path, "--dh")
+def test_identify_writes_a_urdf_that_reproduces_the_fit(points_session: Path, tmp_path: Path, capsys) -> None:
+    code = _identify(points_session, points_session / "points.csv", tmp_path, "--dh")
     out = capsys.readouterr().out
     assert code in (0, 1)
     rep = json.loads((tmp_path / "report.json").read_text())
@@ -67,7 +61,7 @@ def test_identify_writes_a_urdf_that_reproduces_the_fit(session: Path, tmp_path:
     tool = np.array(rep["tool_xyz_m"] + [1.0])
     q = np.random.default_rng(0).uniform(-1, 1, (10, 5))
     p_urdf = (fk_chain(chain, q) @ tool)[:, :3]
-    nominal = chain_from_urdf(read_urdf(session / "so101.urdf"), tip_link="gripper_link")
+    nominal = chain_from_urdf(read_urdf(points_session / "so101.urdf"), tip_link="gripper_link")
     assert np.abs(p_urdf - (fk_chain(nominal, q) @ tool)[:, :3]).max() > 1e-3  # it did change
     from robocal.core.kinematic_errors import ErrorModel
 
@@ -80,7 +74,7 @@ def test_identify_writes_a_urdf_that_reproduces_the_fit(session: Path, tmp_path:
             x[model.index(p["name"])] = p["estimate"]
     np.testing.assert_allclose(p_urdf, model.points(q, x), atol=1e-12)
     # only the five chain joints' <origin> lines differ from the original file
-    a = (session / "so101.urdf").read_text().splitlines()
+    a = (points_session / "so101.urdf").read_text().splitlines()
     b = (tmp_path / "id.urdf").read_text().splitlines()
     changed = [i for i, (x1, x2) in enumerate(zip(a, b, strict=True)) if x1 != x2]
     assert len(changed) == 5 and all("<origin xyz=" in b[i] for i in changed)
@@ -104,37 +98,37 @@ def _rewrite(src: Path, dst: Path, row: int, col: str, value: str) -> Path:
         ("elbow_flex", "2.5", "pose 3: joint elbow_flex = 2.5 is outside its limits [-1.69, 1.69]"),
     ],
 )
-def test_bad_pose_is_one_error_line_and_no_file(session, tmp_path, capsys, col, value, message) -> None:
-    bad = _rewrite(session / "points.csv", tmp_path / "bad.csv", 3, col, value)
-    assert _identify(session, bad, tmp_path) == 2
+def test_bad_pose_is_one_error_line_and_no_file(points_session, tmp_path, capsys, col, value, message) -> None:
+    bad = _rewrite(points_session / "points.csv", tmp_path / "bad.csv", 3, col, value)
+    assert _identify(points_session, bad, tmp_path) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ") and message in err
     assert not (tmp_path / "id.urdf").exists() and not (tmp_path / "report.json").exists()
 
 
-def test_too_few_poses_and_unreadable_file(session: Path, tmp_path: Path, capsys) -> None:
+def test_too_few_poses_and_unreadable_file(points_session: Path, tmp_path: Path, capsys) -> None:
     few = tmp_path / "few.csv"
-    few.write_text("\n".join((session / "points.csv").read_text().splitlines()[:10]) + "\n")
-    assert _identify(session, few, tmp_path) == 2
+    few.write_text("\n".join((points_session / "points.csv").read_text().splitlines()[:10]) + "\n")
+    assert _identify(points_session, few, tmp_path) == 2
     assert "too few poses" in capsys.readouterr().err
-    assert _identify(session, tmp_path / "missing.csv", tmp_path) == 2
+    assert _identify(points_session, tmp_path / "missing.csv", tmp_path) == 2
     err = capsys.readouterr().err
     assert "measurement file" in err and "missing.csv: no such file" in err
     (tmp_path / "bin.csv").write_bytes(b"\xff\xfe\x00garbage")
-    assert _identify(session, tmp_path / "bin.csv", tmp_path) == 2
+    assert _identify(points_session, tmp_path / "bin.csv", tmp_path) == 2
     assert "not UTF-8 text" in capsys.readouterr().err
     assert not (tmp_path / "id.urdf").exists()
 
 
-def test_existing_output_is_kept_on_failure(session: Path, tmp_path: Path) -> None:
+def test_existing_output_is_kept_on_failure(points_session: Path, tmp_path: Path) -> None:
     (tmp_path / "id.urdf").write_text("old")
-    bad = _rewrite(session / "points.csv", tmp_path / "bad.csv", 2, "y", "inf")
-    assert _identify(session, bad, tmp_path) == 2
+    bad = _rewrite(points_session / "points.csv", tmp_path / "bad.csv", 2, "y", "inf")
+    assert _identify(points_session, bad, tmp_path) == 2
     assert (tmp_path / "id.urdf").read_text() == "old"
 
 
 def test_marker_on_axis_is_reported_as_a_warning(tmp_path: Path, capsys) -> None:
-    assert main(["kinematics", "simulate", "--out", str(tmp_path), "--on-axis", "--poses", "40"]) == 0
+    assert simulate(tmp_path, "--on-axis", "--poses", "40") == 0
     capsys.readouterr()
     code = main(
         [
@@ -156,8 +150,8 @@ def test_marker_on_axis_is_reported_as_a_warning(tmp_path: Path, capsys) -> None
     assert "warning: wrist_roll.offset: the marker is on the wrist_roll axis" in captured.err
 
 
-def test_tracker_frame_is_registered(session: Path, tmp_path: Path, capsys) -> None:
-    lines = (session / "points.csv").read_text().splitlines()
+def test_tracker_frame_is_registered(points_session: Path, tmp_path: Path, capsys) -> None:
+    lines = (points_session / "points.csv").read_text().splitlines()
     header = lines[0].split(",")
     ix = [header.index(c) for c in "xyz"]
     c, s = np.cos(0.7), np.sin(0.7)
@@ -170,7 +164,7 @@ def test_tracker_frame_is_registered(session: Path, tmp_path: Path, capsys) -> N
             cells[i] = repr(float(v))
         out.append(",".join(cells))
     (tmp_path / "tracker.csv").write_text("\n".join(out) + "\n")
-    assert _identify(session, tmp_path / "tracker.csv", tmp_path, "--frame", "tracker") in (0, 1)
+    assert _identify(points_session, tmp_path / "tracker.csv", tmp_path, "--frame", "tracker") in (0, 1)
     rep = json.loads((tmp_path / "report.json").read_text())
     assert rep["errors_mm"]["validation"]["corrected"]["mean"] < 1.2
     np.testing.assert_allclose(np.array(rep["T_world_base"])[:3, 3], [1.2, -0.4, 0.3], atol=5e-3)
@@ -178,7 +172,7 @@ def test_tracker_frame_is_registered(session: Path, tmp_path: Path, capsys) -> N
 
 @pytest.mark.parametrize("kind", ["touch", "gauge"])
 def test_touch_and_gauge_sessions_from_the_cli(tmp_path: Path, capsys, kind: str) -> None:
-    assert main(["kinematics", "simulate", "--out", str(tmp_path), "--kind", kind, "--poses", "14"]) == 0
+    assert simulate(tmp_path, "--kind", kind, "--poses", "14") == 0
     capsys.readouterr()
     args = [
         "kinematics",
@@ -209,16 +203,16 @@ def test_touch_and_gauge_sessions_from_the_cli(tmp_path: Path, capsys, kind: str
         assert any("overall size" in u["reason"] for u in rep["unidentifiable"])
 
 
-def test_gauge_needs_distance(session: Path, capsys) -> None:
+def test_gauge_needs_distance(points_session: Path, capsys) -> None:
     assert (
         main(
             [
                 "kinematics",
                 "identify",
                 "--urdf",
-                str(session / "so101.urdf"),
+                str(points_session / "so101.urdf"),
                 "--data",
-                str(session / "points.csv"),
+                str(points_session / "points.csv"),
                 "--kind",
                 "gauge",
                 "--tip-link",
@@ -317,8 +311,8 @@ def test_plan_writes_poses_inside_the_limits(tmp_path: Path, capsys) -> None:
     assert main([*args[:-2], "--out", str(tmp_path / "nofolder" / "p.csv")]) == 2
 
 
-def test_prior_options_reach_the_fit_and_the_report(session: Path, tmp_path: Path, capsys) -> None:
-    assert _identify(session, session / "points.csv", tmp_path, "--prior-mm", "2", "--prior-offset-deg", "3") in (0, 1)
+def test_prior_options_reach_the_fit_and_the_report(points_session: Path, tmp_path: Path, capsys) -> None:
+    assert _identify(points_session, points_session / "points.csv", tmp_path, "--prior-mm", "2", "--prior-offset-deg", "3") in (0, 1)
     rep = json.loads((tmp_path / "report.json").read_text())
     prior = dict(rep["fit"]["prior"])
     assert prior.pop("noise_mm") is None
@@ -330,15 +324,15 @@ def test_prior_options_reach_the_fit_and_the_report(session: Path, tmp_path: Pat
     assert rep["errors_mm"]["validation"]["corrected"]["mean"] < 1.2
     plain = tmp_path / "plain"
     plain.mkdir()
-    assert _identify(session, session / "points.csv", plain) in (0, 1)
+    assert _identify(points_session, points_session / "points.csv", plain) in (0, 1)
     rep0 = json.loads((plain / "report.json").read_text())
     assert rep0["fit"]["prior"] is None
     assert all(p["sigma"] is None for p in rep0["parameters"] if not p["identified"])
 
 
 @pytest.mark.parametrize("flag", ["--prior-mm", "--prior-deg", "--prior-offset-deg"])
-def test_bad_prior_sigma_is_one_error_line(session: Path, tmp_path: Path, capsys, flag: str) -> None:
-    assert _identify(session, session / "points.csv", tmp_path, flag, "0") == 2
+def test_bad_prior_sigma_is_one_error_line(points_session: Path, tmp_path: Path, capsys, flag: str) -> None:
+    assert _identify(points_session, points_session / "points.csv", tmp_path, flag, "0") == 2
     err = capsys.readouterr().err
     assert err.strip() == f"error: {flag} must be a positive number, got 0.0"
     assert not (tmp_path / "id.urdf").exists() and not (tmp_path / "report.json").exists()

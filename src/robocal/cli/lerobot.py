@@ -73,6 +73,21 @@ def _spec(robot: str) -> RobotSpec:
     return robot_spec(robot)
 
 
+def _scaled(
+    robot: str,
+    use_degrees: bool | None,
+    modes_opt: str | None,
+    robot_id: str | None,
+    calibration_dir: pathlib.Path | None,
+    file: pathlib.Path | None,
+) -> tuple[RobotSpec, tuple[str, ...], dict[str, MotorCalibration]]:
+    """The arm, its norm modes (a bad ``--modes`` is refused before any file or bus I/O) and its calibration."""
+    spec = _spec(robot)
+    modes = _modes(spec, use_degrees, modes_opt)
+    _path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
+    return spec, modes, cals
+
+
 def _cal_file(
     spec: RobotSpec,
     robot_id: str | None,
@@ -376,9 +391,7 @@ def show(
     from ..workflows.lerobot import open_arm, read_positions, require_motors, restore
 
     compat_mode = parse_compat(compat)
-    spec = _spec(robot)
-    modes = _modes(spec, use_degrees, modes_opt)  # bad --modes is refused before any file or bus I/O
-    _path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
+    spec, modes, cals = _scaled(robot, use_degrees, modes_opt, robot_id, calibration_dir, file)
     require_motors(spec, cals)
     range_warnings(spec, cals)
     with open_arm(spec, port) as (bus, arm):
@@ -421,11 +434,9 @@ def export_urdf(
     from ..workflows.lerobot import export_joint_map
 
     compat_mode = parse_compat(compat)
-    spec = _spec(robot)
     signs = _common.parse_typed_assignments(sign, "--sign", int, "expected -1 or 1")
     offsets = _common.parse_typed_assignments(offset_deg, "--offset-deg", float, "expected a number of degrees")
-    modes = _modes(spec, use_degrees, modes_opt)
-    _path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
+    spec, modes, cals = _scaled(robot, use_degrees, modes_opt, robot_id, calibration_dir, file)
     beyond = range_warnings(spec, cals)
     rc, skipped = export_joint_map(
         spec,

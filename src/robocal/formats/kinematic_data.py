@@ -19,7 +19,7 @@ import csv
 import io
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +93,52 @@ def _joint_columns(
     return cols, missing
 
 
+_JOINTS_HINT = "joints are named as in the URDF (radians, or <joint>_deg for degrees)"
+
+
+def _table_columns(
+    rows: Sequence[Sequence[str]],
+    source: str,
+    joint_names: Sequence[str],
+    *,
+    need: Sequence[str] = (),
+    skip: Iterable[str] = (),
+    missing_what: str = "columns",
+    hint: str = _JOINTS_HINT,
+) -> list[tuple[int, float]]:
+    """Check a table's header (``rows[0]``) and that it has poses; each joint's column and scale to radians.
+
+    Args:
+        rows: The header and the pose rows (:func:`_csv_rows`).
+        source: File name for messages.
+        joint_names: The chain's joints (``<joint>`` in radians or ``<joint>_deg``), all required.
+        need: Further required columns (named in the unknown-column message).
+        skip: Further columns that may stand and are skipped (beside :data:`IGNORED_COLUMNS`).
+        missing_what: What the missing-column message calls the columns.
+        hint: The missing-column message's last part.
+
+    Raises:
+        FileFormatError: A missing or unknown column, or no pose rows.
+    """
+    header = rows[0]
+    cols, missing = _joint_columns(header, joint_names)
+    missing += [c for c in need if c not in header]
+    if missing:
+        raise FileFormatError(
+            f"{source}: missing {missing_what} {', '.join(missing)} (header: {', '.join(header)}); {hint}"
+        )
+    known = {header[i] for i, _ in cols} | set(need) | set(IGNORED_COLUMNS) | set(skip)
+    unknown = [h for h in header if h not in known]
+    if unknown:
+        also = f" and {', '.join(need)}" if need else ""
+        raise FileFormatError(
+            f"{source}: unknown columns {', '.join(unknown)}; expected the chain's joints ({', '.join(joint_names)}){also}"
+        )
+    if len(rows) < 2:
+        raise FileFormatError(f"{source}: has a header but no poses")
+    return cols
+
+
 def _joint_values(
     row: Sequence[str], header: Sequence[str], cols: Sequence[tuple[int, float]], where: str
 ) -> list[float]:
@@ -129,7 +175,6 @@ def parse_measurements(
         raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
     line_numbers, rows = _csv_rows(text, source)
     header = rows[0]
-    joint_cols, missing = _joint_columns(header, joint_names)
     extra_cols: dict[str, list[str]] = {
         "points": ["x", "y", "z"],
         "touch": ["group"],
@@ -140,21 +185,7 @@ def parse_measurements(
     if kind == "points" and all(f"{c}_mm" in header for c in need):
         need = [f"{c}_mm" for c in need]
         scale_xyz = 1e-3
-    missing += [c for c in need if c not in header]
-    if missing:
-        raise FileFormatError(
-            f"{source}: missing columns {', '.join(missing)} (header: {', '.join(header)}); joints are named "
-            "as in the URDF (radians, or <joint>_deg for degrees)"
-        )
-    known = {header[i] for i, _ in joint_cols} | set(need) | set(IGNORED_COLUMNS)
-    unknown = [h for h in header if h not in known]
-    if unknown:
-        raise FileFormatError(
-            f"{source}: unknown columns {', '.join(unknown)}; expected the chain's joints "
-            f"({', '.join(joint_names)}) and {', '.join(need)}"
-        )
-    if len(rows) < 2:
-        raise FileFormatError(f"{source}: has a header but no poses")
+    joint_cols = _table_columns(rows, source, joint_names, need=need)
     q = np.zeros((len(rows) - 1, len(joint_names)))
     p = np.zeros((len(rows) - 1, 3))
     labels: list[str] = []
@@ -214,20 +245,7 @@ def parse_joint_table(text: str, joint_names: Sequence[str], *, source: str = "<
     """
     line_numbers, rows = _csv_rows(text, source)
     header = rows[0]
-    joint_cols, missing = _joint_columns(header, joint_names)
-    if missing:
-        raise FileFormatError(
-            f"{source}: missing joint columns {', '.join(missing)} (header: {', '.join(header)}); joints are "
-            "named as in the URDF (radians, or <joint>_deg for degrees)"
-        )
-    known = {header[i] for i, _ in joint_cols} | set(IGNORED_COLUMNS) | set(MEASURED_COLUMNS)
-    unknown = [h for h in header if h not in known]
-    if unknown:
-        raise FileFormatError(
-            f"{source}: unknown columns {', '.join(unknown)}; expected the chain's joints ({', '.join(joint_names)})"
-        )
-    if len(rows) < 2:
-        raise FileFormatError(f"{source}: has a header but no poses")
+    joint_cols = _table_columns(rows, source, joint_names, skip=MEASURED_COLUMNS, missing_what="joint columns")
     q = np.zeros((len(rows) - 1, len(joint_names)))
     for r, row in enumerate(rows[1:]):
         q[r] = _joint_values(row, header, joint_cols, f"{source} line {line_numbers[r + 1]}")
@@ -307,23 +325,9 @@ def read_image_session(
     source = str(path)
     line_numbers, rows = _csv_rows(read_text(path, "measurement file"), source)
     header = rows[0]
-    cols, missing = _joint_columns(header, joint_names)
-    if "image" not in header:
-        missing.append("image")
-    if missing:
-        raise FileFormatError(
-            f"{source}: missing columns {', '.join(missing)} (header: {', '.join(header)}); an image session has "
-            "the URDF's joints and an image column"
-        )
-    known = {header[i] for i, _ in cols} | {"image"} | set(IGNORED_COLUMNS)
-    unknown = [h for h in header if h not in known]
-    if unknown:
-        raise FileFormatError(
-            f"{source}: unknown columns {', '.join(unknown)}; expected the chain's joints ({', '.join(joint_names)}) "
-            "and image"
-        )
-    if len(rows) < 2:
-        raise FileFormatError(f"{source}: has a header but no poses")
+    cols = _table_columns(
+        rows, source, joint_names, need=["image"], hint="an image session has the URDF's joints and an image column"
+    )
     base = Path(path).parent
     q = np.zeros((len(rows) - 1, len(joint_names)))
     images: list[str] = []

@@ -9,7 +9,7 @@ attribute values in place, so comments, element order, ``<ros2_control>``, ``<ga
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -232,20 +232,34 @@ def _opt_float(el: Any, attr: str, where: str) -> float | None:
     return None if text is None else parse_finite(text, where, f"<limit {attr}>")
 
 
+def named_elements(root: Any, tag: str, source: str, no_name: str) -> Iterator[tuple[str, Any]]:
+    """``(name, element)`` of each ``<tag>`` child of ``root`` in document order.
+
+    Args:
+        root: The parsed ``<robot>`` element.
+        tag: ``joint`` or ``link``.
+        source: File name for messages.
+        no_name: The message for an element without a name; ``{where}`` is ``URDF <source>: <tag> on line N``.
+
+    Raises:
+        FileFormatError: An element without a name, or two with the same name.
+    """
+    seen: set[str] = set()
+    for el in root.findall(tag):
+        name = el.get("name")
+        if not name:
+            raise FileFormatError(no_name.format(where=f"URDF {source}: <{tag}> on line {el.sourceline}"))
+        if name in seen:
+            raise FileFormatError(f"URDF {source}: duplicate {tag} {name!r}")
+        seen.add(name)
+        yield name, el
+
+
 def _model_from_tree(tree: Any, source: str) -> UrdfModel:
     root = tree.getroot()
     joints: list[UrdfJoint] = []
-    seen: set[str] = set()
-    for el in root.findall("joint"):
-        name = el.get("name")
-        where = (
-            f"URDF {source}: joint {name!r}" if name else f"URDF {source}: <joint> on line {el.sourceline}"
-        )
-        if not name:
-            raise FileFormatError(f"{where}: missing name attribute")
-        if name in seen:
-            raise FileFormatError(f"URDF {source}: duplicate joint {name!r}")
-        seen.add(name)
+    for name, el in named_elements(root, "joint", source, "{where}: missing name attribute"):
+        where = f"URDF {source}: joint {name!r}"
         jtype = el.get("type")
         if jtype not in ("revolute", "continuous", "prismatic", "fixed", "floating", "planar"):
             raise FileFormatError(f"{where}: type {jtype!r} is not a URDF joint type")

@@ -15,7 +15,7 @@ from ..core.chain import ChainJoint
 from ..core.gravity import STANDARD_GRAVITY_M_S2, GravityModel, LinkInertial
 from ..errors import FileFormatError, JointMismatchError
 from ._numbers import parse_finite
-from .urdf import UrdfDocument, UrdfJoint
+from .urdf import UrdfDocument, UrdfJoint, named_elements
 from .urdf_chain import root_link
 
 __all__ = ["gravity_model_from_urdf", "gravity_model_if_any", "link_inertials"]
@@ -39,14 +39,7 @@ def link_inertials(doc: UrdfDocument) -> tuple[LinkInertial, ...]:
             centre of mass, or two links with the same name.
     """
     out: list[LinkInertial] = []
-    seen: set[str] = set()
-    for el in doc.root().findall("link"):
-        name = el.get("name")
-        if not name:
-            raise FileFormatError(f"URDF {doc.source}: <link> on line {el.sourceline} has no name")
-        if name in seen:
-            raise FileFormatError(f"URDF {doc.source}: duplicate link {name!r}")
-        seen.add(name)
+    for name, el in named_elements(doc.root(), "link", doc.source, "{where} has no name"):
         inertial = el.find("inertial")
         if inertial is None:
             continue

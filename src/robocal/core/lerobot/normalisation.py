@@ -113,6 +113,26 @@ def _params(
     return lo, hi, dm, mc
 
 
+def _inputs(
+    x_in: npt.ArrayLike,
+    what: str,
+    range_min: npt.ArrayLike,
+    range_max: npt.ArrayLike,
+    drive_mode: npt.ArrayLike,
+    modes: npt.ArrayLike,
+    apply_drive_mode: bool,
+    resolution: int,
+) -> tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.bool_], IntArray, int]:
+    """``(x, range_min, range_max, inverted, mode codes, resolution)`` checked in this order.
+
+    ``inverted`` is ``drive_mode`` where ``apply_drive_mode`` holds.
+    """
+    lo, hi, dm, mc = _params(range_min, range_max, drive_mode, modes)
+    resolution = _check_resolution(resolution)
+    x = _check_values(x_in, lo.shape[0], what)
+    return x, lo, hi, dm & bool(apply_drive_mode), mc, resolution
+
+
 def _degrees_setup(
     dm: npt.NDArray[np.bool_], compat: str, convention: str, resolution: int
 ) -> tuple[int, npt.NDArray[np.bool_]]:
@@ -155,10 +175,9 @@ def normalize_array(
     Returns:
         Shape ``(..., n)`` float64: −100..100, 0..100 or degrees.
     """
-    lo, hi, dm_in, mc = _params(range_min, range_max, drive_mode, mode_codes)
-    resolution = _check_resolution(resolution)
-    x = _check_values(raw_ticks, lo.shape[0], "raw")
-    dm = dm_in & bool(apply_drive_mode)
+    x, lo, hi, dm, mc, resolution = _inputs(
+        raw_ticks, "raw", range_min, range_max, drive_mode, mode_codes, apply_drive_mode, resolution
+    )
     bounded = np.minimum(hi, np.maximum(lo, x))
     frac = (bounded - lo) / (hi - lo)
     m100 = frac * 200 - 100
@@ -193,10 +212,9 @@ def unnormalize_array(
     Returns:
         Shape ``(..., n)`` int64 ticks (DEGREES is not clamped and may be negative).
     """
-    lo, hi, dm_in, mc = _params(range_min, range_max, drive_mode, mode_codes)
-    resolution = _check_resolution(resolution)
-    v = _check_values(values, lo.shape[0], "values")
-    dm = dm_in & bool(apply_drive_mode)
+    v, lo, hi, dm, mc, resolution = _inputs(
+        values, "values", range_min, range_max, drive_mode, mode_codes, apply_drive_mode, resolution
+    )
     vm = np.where(dm, -v, v)
     m100 = (np.minimum(100.0, np.maximum(-100.0, vm)) + 100) / 200 * (hi - lo) + lo
     vp = np.where(dm, 100 - v, v)
