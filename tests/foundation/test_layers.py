@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "robocal"
-LAYERS = ["core", "backends", "formats", "workflows", "cli"]  # imports point down (left) only
 HEAVY = [
     "typer",
     "rich",

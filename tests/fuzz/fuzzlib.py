@@ -328,31 +328,44 @@ def tree_mutation(data: st.DataObject, tree: Any, max_depth: int = 40) -> Any:
     return tree
 
 
-def _num_json(x: Any) -> str:
+def _num(x: Any, nan: str, inf: str) -> str:
+    """A number's token: booleans and ints as themselves, NaN and ±inf spelled ``nan`` and ``inf``/``-inf``."""
     if isinstance(x, bool):
         return "true" if x else "false"
     if isinstance(x, int):
         return str(x)
     if x != x:
-        return "NaN"
+        return nan
     if x in (float("inf"), float("-inf")):
-        return "Infinity" if x > 0 else "-Infinity"
+        return inf if x > 0 else "-" + inf
     return repr(x)
 
 
-def emit_json(obj: Any, ascii_only: bool = True) -> str:
-    """JSON text of a (mutated) tree; repeated keys, NaN/Infinity and raw tokens are written verbatim."""
+def _num_json(x: Any) -> str:
+    return _num(x, "NaN", "Infinity")
+
+
+def _leaf(obj: Any, emit: Callable[[Any], str], num: Callable[[Any], str], key: str) -> str | None:
+    """The text of a nesting (``{key`` or ``[`` ``depth`` times around its value), raw token, null or number."""
     if isinstance(obj, Deep):
-        inner = emit_json(obj.value, ascii_only)
+        inner = emit(obj.value)
         if obj.objects:
-            return '{"k": ' * obj.depth + inner + "}" * obj.depth
+            return key * obj.depth + inner + "}" * obj.depth
         return "[" * obj.depth + inner + "]" * obj.depth
     if isinstance(obj, Raw):
         return obj.text
     if obj is None:
         return "null"
     if isinstance(obj, (bool, int, float)):
-        return _num_json(obj)
+        return num(obj)
+    return None
+
+
+def emit_json(obj: Any, ascii_only: bool = True) -> str:
+    """JSON text of a (mutated) tree; repeated keys, NaN/Infinity and raw tokens are written verbatim."""
+    leaf = _leaf(obj, lambda v: emit_json(v, ascii_only), _num_json, '{"k": ')
+    if leaf is not None:
+        return leaf
     if isinstance(obj, str):
         return json.dumps(obj, ensure_ascii=ascii_only)
     if isinstance(obj, Pairs):
@@ -367,15 +380,7 @@ def emit_json(obj: Any, ascii_only: bool = True) -> str:
 
 
 def _num_yaml(x: Any) -> str:
-    if isinstance(x, bool):
-        return "true" if x else "false"
-    if isinstance(x, int):
-        return str(x)
-    if x != x:
-        return ".nan"
-    if x in (float("inf"), float("-inf")):
-        return ".inf" if x > 0 else "-.inf"
-    return repr(x)
+    return _num(x, ".nan", ".inf")
 
 
 def emit_yaml(obj: Any, indent: int = 0) -> str:
@@ -396,17 +401,9 @@ def emit_yaml(obj: Any, indent: int = 0) -> str:
 
 
 def _flow_yaml(obj: Any) -> str:
-    if isinstance(obj, Deep):
-        inner = _flow_yaml(obj.value)
-        if obj.objects:
-            return "{k: " * obj.depth + inner + "}" * obj.depth
-        return "[" * obj.depth + inner + "]" * obj.depth
-    if isinstance(obj, Raw):
-        return obj.text
-    if obj is None:
-        return "null"
-    if isinstance(obj, (bool, int, float)):
-        return _num_yaml(obj)
+    leaf = _leaf(obj, _flow_yaml, _num_yaml, "{k: ")
+    if leaf is not None:
+        return leaf
     if isinstance(obj, str):
         return json.dumps(obj)  # a JSON string is a YAML double-quoted scalar (\ud800 escapes included)
     if isinstance(obj, Pairs):
@@ -454,6 +451,14 @@ def scratch() -> Iterator[Path]:
     """A fresh temporary folder (hypothesis runs many examples per test, so no pytest ``tmp_path``)."""
     with tempfile.TemporaryDirectory(prefix="robocal-fuzz-") as d:
         yield Path(d)
+
+
+def reader_raises_only_calib_error(blob: bytes, name: str, read: Callable[[Path], object], what: str) -> None:
+    """Write ``blob`` as ``name`` in a fresh folder and :func:`only_calib_error` ``read`` of it."""
+    with scratch() as root:
+        p = root / name
+        p.write_bytes(blob)
+        only_calib_error(lambda: read(p), root, what)
 
 
 # Crashes of issue 9 that another branch fixes. While one is pending the fuzz tests tolerate exactly that

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tests.bags import write_joint_states
 
 from robocal.backends.sim.lite import LITE_JOINTS, lite_urdf_text
 from robocal.core.jointmap import RobotCalibration
@@ -135,27 +136,9 @@ def csv_seed(rows: int = 30) -> str:
 
 
 def write_bag(path: Path, plugin: str, rows: int = 10, topic: str = "/lite/joint_states") -> None:
-    """A rosbag2 (``sqlite3`` or ``mcap``) of JointState messages of the Lite arm, written with rosbags."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    joint_state = ts.types["sensor_msgs/msg/JointState"]
-    header = ts.types["std_msgs/msg/Header"]
-    time = ts.types["builtin_interfaces/msg/Time"]
-    storage = StoragePlugin.MCAP if plugin == "mcap" else StoragePlugin.SQLITE3
-    with Writer(path, version=8, storage_plugin=storage) as w:
-        conn = w.add_connection(topic, joint_state.__msgtype__, typestore=ts)
-        for i in range(rows):
-            ns = 1_000_000_000 + i * 10_000_000
-            msg = joint_state(
-                header=header(stamp=time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
-                name=list(LITE_NAMES),
-                position=np.array([0.5 * np.sin(0.3 * i + k) for k in range(len(LITE_NAMES))]),
-                velocity=np.zeros(0),
-                effort=np.zeros(0),
-            )
-            w.write(conn, ns, ts.serialize_cdr(msg, joint_state.__msgtype__))
+    """A rosbag2 (``sqlite3`` or ``mcap``) of ``rows`` JointState messages of the Lite arm, 10 ms apart."""
+    positions = [[0.5 * np.sin(0.3 * i + k) for k in range(len(LITE_NAMES))] for i in range(rows)]
+    write_joint_states(path, LITE_NAMES, [i * 0.01 for i in range(rows)], positions, plugin=plugin, topic=topic)
 
 
 @functools.cache

@@ -25,6 +25,7 @@ from fuzzlib import (
     fuzz_settings,
     json_mutation,
     only_calib_error,
+    reader_raises_only_calib_error,
     scratch,
     snapshot,
     text_mutation,
@@ -106,10 +107,9 @@ def test_calibration_readers_raise_only_calib_error(fmt: str, data: st.DataObjec
     suffix = {"ros2-transmission": ".urdf"}.get(
         fmt, ".yaml" if "yaml" in fmt or fmt == "robocal" else ".json"
     )
-    with scratch() as root:
-        p = root / f"calibration{suffix}"
-        p.write_bytes(blob)
-        only_calib_error(lambda: _read_all_ways(p, fmt), root, f"{fmt} reader")
+    reader_raises_only_calib_error(
+        blob, f"calibration{suffix}", lambda p: _read_all_ways(p, fmt), f"{fmt} reader"
+    )
 
 
 @pytest.mark.parametrize("fmt", ["berkeley-offsets", "ros2-transmission"])
@@ -148,20 +148,14 @@ def _use_urdf(p: Path) -> None:
 @given(data=st.data())
 def test_urdf_reader_raises_only_calib_error(data: st.DataObject) -> None:
     blob = xml_mutation(data, LITE_URDF.encode())
-    with scratch() as root:
-        p = root / "robot.urdf"
-        p.write_bytes(blob)
-        only_calib_error(lambda: _use_urdf(p), root, "URDF reader")
+    reader_raises_only_calib_error(blob, "robot.urdf", _use_urdf, "URDF reader")
 
 
 @fuzz_settings(100)
 @given(data=st.data())
 def test_lerobot_current_reader_raises_only_calib_error(data: st.DataObject) -> None:
     blob = json_mutation(data, seeds.current_seed())
-    with scratch() as root:
-        p = root / "so101_follower.json"
-        p.write_bytes(blob)
-        only_calib_error(lambda: read_current(p), root, "LeRobot current reader")
+    reader_raises_only_calib_error(blob, "so101_follower.json", read_current, "LeRobot current reader")
 
 
 @fuzz_settings(100)
@@ -170,10 +164,9 @@ def test_lerobot_legacy_reader_raises_only_calib_error(data: st.DataObject) -> N
     from robocal.lerobot.legacy import to_robot_calibration
 
     blob = json_mutation(data, seeds.legacy_seed())
-    with scratch() as root:
-        p = root / "main_follower.json"
-        p.write_bytes(blob)
-        only_calib_error(lambda: to_robot_calibration(read_legacy(p)), root, "LeRobot legacy reader")
+    reader_raises_only_calib_error(
+        blob, "main_follower.json", lambda p: to_robot_calibration(read_legacy(p)), "LeRobot legacy reader"
+    )
 
 
 UR_SEEDS = {
@@ -192,10 +185,7 @@ def test_ur_dh_and_deltas_readers_raise_only_calib_error(name: str, data: st.Dat
         blob = yaml_mutation(data, text, _yaml_tree(text))
     else:
         blob = text_mutation(data, text.encode())
-    with scratch() as root:
-        p = root / name
-        p.write_bytes(blob)
-        only_calib_error(lambda: reader(p, warnings=[]), root, f"UR {name} reader")
+    reader_raises_only_calib_error(blob, name, lambda p: reader(p, warnings=[]), f"UR {name} reader")
 
 
 @fuzz_settings(50)
@@ -203,10 +193,7 @@ def test_ur_dh_and_deltas_readers_raise_only_calib_error(name: str, data: st.Dat
 def test_ur_kinematics_reader_raises_only_calib_error(data: st.DataObject) -> None:
     text = kinematics_to_text(default_kinematics("ur10e"))
     blob = yaml_mutation(data, text, _yaml_tree(text))
-    with scratch() as root:
-        p = root / "ur10e_calibration.yaml"
-        p.write_bytes(blob)
-        only_calib_error(lambda: read_kinematics(p), root, "UR kinematics reader")
+    reader_raises_only_calib_error(blob, "ur10e_calibration.yaml", read_kinematics, "UR kinematics reader")
 
 
 def csv_mutation(data: st.DataObject, seed: str) -> bytes:
@@ -242,10 +229,9 @@ def test_replay_csv_reader_raises_only_calib_error(data: st.DataObject) -> None:
     from robocal.backends.replay import read_recording
 
     blob = csv_mutation(data, seeds.csv_seed())
-    with scratch() as root:
-        p = root / "sweep.csv"
-        p.write_bytes(blob)
-        only_calib_error(lambda: read_recording(p, seeds.LITE_NAMES), root, "replay CSV reader")
+    reader_raises_only_calib_error(
+        blob, "sweep.csv", lambda p: read_recording(p, seeds.LITE_NAMES), "replay CSV reader"
+    )
 
 
 @pytest.mark.parametrize("plugin", ["sqlite3", "mcap"])

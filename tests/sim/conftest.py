@@ -140,3 +140,17 @@ class Interactive:
             self.proc.wait()
         self._reader.join(timeout=5)
         return self.proc.returncode, self.text()
+
+    def calibrate_as_operator(self, control: str, mid_prompt: str, sweep_prompt: str) -> tuple[int, str]:
+        """Answer a range calibration's two prompts through the simulator's control socket ``control``: hold
+        every joint at the middle, ENTER; sweep every joint, ENTER. The exit code and the output."""
+        from robocal.backends.sim.control import SimControl
+
+        with SimControl(control) as ctl:
+            k = self.expect(mid_prompt)
+            ctl.mid()
+            self.send()
+            self.expect(sweep_prompt, after=k)
+            ctl.sweep(seconds=1.2, dwell_s=1.0)  # long dwells: a reader starved by a loaded machine still sees each stop
+            self.send()
+        return self.finish()

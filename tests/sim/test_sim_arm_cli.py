@@ -39,16 +39,7 @@ def calibrate_with_operator(cwd: Path, robot: str, port: str, control: str, robo
         ],
         cwd,
     )
-    with SimControl(control) as ctl:
-        k = run.expect("middle of its range of motion")
-        ctl.mid()
-        run.send()
-        run.expect("whole range of motion", after=k)
-        ctl.sweep(
-            seconds=1.2, dwell_s=1.0
-        )  # long dwells: a reader starved by a loaded machine still sees each stop
-        run.send()
-    code, out = run.finish()
+    code, out = run.calibrate_as_operator(control, "middle of its range of motion", "whole range of motion")
     assert code == 0, out
     return out
 

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tests.bags import write_joint_states
 
 from robocal.backends.replay import BLOCK_ROWS, open_recording, read_recording
 from robocal.backends.sim.lite import LITE_JOINTS
@@ -183,7 +184,7 @@ def test_rosbag_is_streamed_in_header_stamp_order(urdf: Path, tmp_path: Path) ->
     x = 0.5 - 0.5 * np.cos(2 * math.pi * k / (n - 1))[:, None]
     s = lo + (up - lo) * x
     bag = tmp_path / "bag"
-    _write_bag_with_stamps(bag, t, stamps, s)  # receive times in order, header stamps swapped in pairs
+    write_joint_states(bag, NAMES, stamps, s, receive_s=t)  # receive times in order, header stamps swapped in pairs
     rec = open_recording(bag, NAMES)
     assert (rec.unit, rec.total) == ("messages", n)
     blocks = list(rec)
@@ -195,28 +196,6 @@ def test_rosbag_is_streamed_in_header_stamp_order(urdf: Path, tmp_path: Path) ->
     np.testing.assert_array_equal(got_s, s[order])
     out = run_sweep(urdf, f"replay:{bag}", tmp_path / "c.yaml")
     assert out.samples == n and all(abs(j.homing_offset) < 1e-5 for j in out.result.joints)
-
-
-def _write_bag_with_stamps(path: Path, receive_s: np.ndarray, stamp_s: np.ndarray, s: np.ndarray) -> None:
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    joint_state = ts.types["sensor_msgs/msg/JointState"]
-    header = ts.types["std_msgs/msg/Header"]
-    time_t = ts.types["builtin_interfaces/msg/Time"]
-    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as w:
-        conn = w.add_connection("/lite/joint_states", joint_state.__msgtype__, typestore=ts)
-        for tr, st, si in zip(receive_s, stamp_s, s, strict=True):
-            ns = round(st * 1e9) + 1_000_000_000
-            msg = joint_state(
-                header=header(stamp=time_t(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
-                name=list(NAMES),
-                position=np.asarray(si, dtype=np.float64),
-                velocity=np.zeros(0),
-                effort=np.zeros(0),
-            )
-            w.write(conn, round(tr * 1e9) + 1_000_000_000, ts.serialize_cdr(msg, joint_state.__msgtype__))
 
 
 def test_terminal_live_view_draws_a_progress_bar_over_the_table(urdf: Path, tmp_path: Path) -> None:

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from tests.bags import write_joint_states
 
 from robocal.backends.sim.lite import SimLite
 from robocal.core.sweep import wrap_in_travel
@@ -96,29 +97,6 @@ def _write_csv(path: Path, names: list[str], t: np.ndarray, s: np.ndarray) -> No
     path.write_text("\n".join(rows) + "\n")
 
 
-def _write_bag(path: Path, names: list[str], t: np.ndarray, s: np.ndarray, plugin: str, topic: str) -> None:
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    JointState = ts.types["sensor_msgs/msg/JointState"]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
-    storage = StoragePlugin.MCAP if plugin == "mcap" else StoragePlugin.SQLITE3
-    with Writer(path, version=8, storage_plugin=storage) as w:
-        conn = w.add_connection(topic, JointState.__msgtype__, typestore=ts)
-        for ti, si in zip(t, s, strict=True):
-            ns = round(ti * 1e9) + 1_000_000_000
-            msg = JointState(
-                header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
-                name=list(names),
-                position=np.asarray(si, dtype=np.float64),
-                velocity=np.zeros(0),
-                effort=np.zeros(0),
-            )
-            w.write(conn, ns, ts.serialize_cdr(msg, JointState.__msgtype__))
-
-
 def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(11, noise_rad=5e-4, zero_sta=0, single_turn=True)
     opener, made = h.recording_opener(sim)
@@ -132,8 +110,8 @@ def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) ->
 
     _write_csv(tmp_path / "sweep.csv", h.names, t, ident)
     _write_csv(tmp_path / "motor.csv", h.names, t, raw)
-    _write_bag(tmp_path / "bag_sqlite", h.names, t, ident, "sqlite3", "/lite/joint_states")
-    _write_bag(tmp_path / "bag_mcap", h.names, t, ident, "mcap", "/robot/js")
+    write_joint_states(tmp_path / "bag_sqlite", h.names, t, ident, plugin="sqlite3")
+    write_joint_states(tmp_path / "bag_mcap", h.names, t, ident, topic="/robot/js")
     cases: list[tuple[str, dict[str, Any]]] = [
         (f"replay:{tmp_path / 'sweep.csv'}", {}),
         (f"replay:{tmp_path / 'motor.csv'}", {"frame": "motor"}),
@@ -276,7 +254,7 @@ def test_nan_positions_are_skipped_alike_in_csv_and_rosbag(urdf: Path, tmp_path:
     ident[5, 0] = np.nan
     _write_csv(tmp_path / "nan.csv", h.names, t, ident)
     assert ",nan," in (tmp_path / "nan.csv").read_text()
-    _write_bag(tmp_path / "nan_bag", h.names, t, ident, "mcap", "/lite/joint_states")
+    write_joint_states(tmp_path / "nan_bag", h.names, t, ident)
     want = {"left_shoulder_pitch": 1, "left_elbow_pitch": len(rows)}
     for i, src in enumerate((tmp_path / "nan.csv", tmp_path / "nan_bag")):
         res = run_sweep(urdf, f"replay:{src}", tmp_path / f"n{i}.yaml")
@@ -294,7 +272,7 @@ def test_infinite_positions_are_refused_alike_in_csv_and_rosbag(urdf: Path, tmp_
     s = np.zeros((2, len(h.names)))
     s[1, 3] = np.inf
     _write_csv(tmp_path / "inf.csv", h.names, t, s)
-    _write_bag(tmp_path / "inf_bag", h.names, t, s, "sqlite3", "/lite/joint_states")
+    write_joint_states(tmp_path / "inf_bag", h.names, t, s, plugin="sqlite3")
     with pytest.raises(FileFormatError, match=r"line 3: left_elbow_pitch is not finite"):
         run_sweep(urdf, f"replay:{tmp_path / 'inf.csv'}", tmp_path / "a.yaml")
     with pytest.raises(FileFormatError, match=r"joint left_elbow_pitch is inf at t = 1\.01.* not finite"):

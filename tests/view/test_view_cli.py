@@ -12,6 +12,7 @@ pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
 pytest.importorskip("yourdfpy")
 pytest.importorskip("trimesh")
 
+from tests.bags import write_joint_states
 from tests.net import busy_port
 
 from robocal.cli.main import main
@@ -279,31 +280,9 @@ def test_cli_source_that_does_not_answer(capsys: pytest.CaptureFixture[str]) -> 
     assert err.rstrip().endswith("(the page keeps the last pose; Ctrl-C to stop)")
 
 
-def write_bag(path: Path, names: list[str], t: list[float], rows: list[list[float]]) -> None:
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    JointState = ts.types["sensor_msgs/msg/JointState"]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
-    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as w:
-        conn = w.add_connection("/lite/joint_states", JointState.__msgtype__, typestore=ts)
-        for ti, row in zip(t, rows, strict=True):
-            ns = round(ti * 1e9) + 1_000_000_000
-            msg = JointState(
-                header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
-                name=list(names),
-                position=np.asarray(row, dtype=np.float64),
-                velocity=np.zeros(0),
-                effort=np.zeros(0),
-            )
-            w.write(conn, ns, ts.serialize_cdr(msg, JointState.__msgtype__))
-
-
 def test_replay_rosbag2_mcap_with_the_slider(tmp_path: Path) -> None:
     bag = tmp_path / "session"
-    write_bag(bag, ["right_elbow_pitch"], [0.0, 0.25, 0.5], [[-0.1], [-2.5], [-0.3]])
+    write_joint_states(bag, ["right_elbow_pitch"], [0.0, 0.25, 0.5], [[-0.1], [-2.5], [-0.3]])
     with open_view(ViewOptions(urdf=LITE_URDF, source=f"replay:{bag}", port=0)) as session:
         feed = session.feed
         feed.pause()  # type: ignore[attr-defined]

@@ -33,16 +33,9 @@ def lerobot_calibrate(python: Path, cwd: Path, robot: str, port: str, control: s
         cwd,
         harness_env(),
     )
-    with SimControl(control) as ctl:
-        k = run.expect("to the middle of its range of motion and press ENTER")
-        ctl.mid()
-        run.send()
-        run.expect("Recording positions. Press ENTER to stop", after=k)
-        ctl.sweep(
-            seconds=1.2, dwell_s=1.0
-        )  # long dwells: a reader starved by a loaded machine still sees each stop
-        run.send()
-    code, out = run.finish()
+    code, out = run.calibrate_as_operator(
+        control, "to the middle of its range of motion and press ENTER", "Recording positions. Press ENTER to stop"
+    )
     assert code == 0, out[-3000:]
     return Path(result_of(out)["path"])
 
