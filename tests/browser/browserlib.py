@@ -193,17 +193,24 @@ def centroid(mask: np.ndarray) -> tuple[float, float] | None:
     return float(xs.mean()), float(ys.mean())
 
 
-def page_state(page: Any) -> dict[str, Any] | None:
+def page_state(page: Any, element: str = "robocal-status", attribute: str = "data-status") -> dict[str, Any] | None:
     """The JSON a robocal view publishes in its page, or ``None`` before it arrived.
 
     robocal's views put it in ``#robocal-status[data-status]`` (sent over viser's websocket with the scene
-    updates, so a state that arrived means the scene updates before it arrived too).
+    updates, so a state that arrived means the scene updates before it arrived too); the sweep and auto pages
+    also publish theirs (``#robocal-sweep[data-sweep]``, ``#robocal-autocal[data-autocal]``).
     """
     raw = page.evaluate(
-        "() => { const e = document.getElementById('robocal-status');"
-        " return e ? e.getAttribute('data-status') : null; }"
+        "([id, attr]) => { const e = document.getElementById(id); return e ? e.getAttribute(attr) : null; }",
+        [element, attribute],
     )
     return None if raw is None else dict(json.loads(raw))
+
+
+def shot(name: str, tmp_path: Path) -> Path:
+    """Where a screenshot goes: ``$ROBOCAL_SCREENSHOT_DIR`` (to refresh docs/img) or the test's folder."""
+    folder = os.environ.get("ROBOCAL_SCREENSHOT_DIR")
+    return Path(folder) / name if folder else tmp_path / name
 
 
 def wait_state(

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import threading
 import time
 from pathlib import Path
@@ -26,17 +25,9 @@ SOURCE = "sim:lite?seed=0&missing=left_wrist_roll"
 JOINTS = ["left_wrist_roll", "left_elbow_pitch", "right_elbow_pitch"]
 
 
-def _shot(name: str, tmp_path: Path) -> Path:
-    folder = os.environ.get("ROBOCAL_SCREENSHOT_DIR")
-    return Path(folder) / name if folder else tmp_path / name
-
 
 def _auto_state(page: Any) -> dict[str, Any] | None:
-    raw = page.evaluate(
-        "() => { const e = document.getElementById('robocal-autocal');"
-        " return e ? e.getAttribute('data-autocal') : null; }"
-    )
-    return None if raw is None else dict(json.loads(raw))
+    return browserlib.page_state(page, "robocal-autocal", "data-autocal")
 
 
 class Pace:
@@ -147,7 +138,7 @@ def test_stop_search_drawn_live_then_with_the_report_codes(page: Any, tmp_path: 
         # Pixels: the green arcs of the passed elbows and the crimson arc of the failed wrist are on the canvas.
         def arcs_drawn() -> np.ndarray | None:
             img = browserlib.scene_region(
-                page, browserlib.screenshot(page, _shot("view_autocal.png", tmp_path))
+                page, browserlib.screenshot(page, browserlib.shot("view_autocal.png", tmp_path))
             )
             green = browserlib.shade_mask(img, STATUS_RGB["ok"]).sum()
             crimson = browserlib.shade_mask(img, FAIL_RGB).sum()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -21,16 +20,9 @@ LITE_URDF = Path(__file__).resolve().parents[2] / "examples" / "lite" / "lite_bi
 SOURCE = "sim:lite?seed=8&skip=left_elbow_pitch&short=right_elbow_pitch:1.0"
 
 
-def _shot(name: str, tmp_path: Path) -> Path:
-    folder = os.environ.get("ROBOCAL_SCREENSHOT_DIR")
-    return Path(folder) / name if folder else tmp_path / name
-
 
 def _sweep_state(page: Any) -> dict[str, Any] | None:
-    raw = page.evaluate(
-        "() => { const e = document.getElementById('robocal-sweep'); return e ? e.getAttribute('data-sweep') : null; }"
-    )
-    return None if raw is None else dict(json.loads(raw))
+    return browserlib.page_state(page, "robocal-sweep", "data-sweep")
 
 
 def test_sweep_arcs_have_the_report_codes(page: Any, tmp_path: Path) -> None:
@@ -67,7 +59,7 @@ def test_sweep_arcs_have_the_report_codes(page: Any, tmp_path: Path) -> None:
         # Pixels: green arcs (ok) and the orange arc (span_mismatch) are on the canvas.
         def arcs_drawn() -> np.ndarray | None:
             img = browserlib.scene_region(
-                page, browserlib.screenshot(page, _shot("view_sweep.png", tmp_path))
+                page, browserlib.screenshot(page, browserlib.shot("view_sweep.png", tmp_path))
             )
             green = browserlib.shade_mask(img, STATUS_RGB["ok"]).sum()
             orange = browserlib.shade_mask(img, STATUS_RGB["span_mismatch"]).sum()

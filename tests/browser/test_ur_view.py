@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -63,7 +62,7 @@ def test_page_error_numbers_equal_ur_verify(
     )
 
     # The scaled arrow and both arms are drawn.
-    img = browserlib.scene_region(page, browserlib.screenshot(page, _shot("view_ur.png", tmp_path)))
+    img = browserlib.scene_region(page, browserlib.screenshot(page, browserlib.shot("view_ur.png", tmp_path)))
     assert browserlib.shade_mask(img, ARROW_RGB).sum() > 30
     orange = browserlib.shade_mask(img, CALIBRATED_RGB)
     assert orange.sum() > 200
@@ -96,7 +95,3 @@ def _type_slider(page: Any, label: str, value: str) -> None:
     box.press("Enter")
 
 
-def _shot(name: str, tmp_path: Path) -> Path:
-    """Where a screenshot goes: ``$ROBOCAL_SCREENSHOT_DIR`` (to refresh docs/img) or the test's folder."""
-    folder = os.environ.get("ROBOCAL_SCREENSHOT_DIR")
-    return Path(folder) / name if folder else tmp_path / name

@@ -6,7 +6,6 @@ shows the ghost diverging, (c) a joint beyond its limit is drawn red.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -44,10 +43,6 @@ ARM = f"""<?xml version="1.0"?>
 GHOST_SEEN = (188, 214, 255)
 """The translucent ghost (GHOST_RGB at 35 % over the white background), as it reaches the screen."""
 
-
-def _shot(name: str, tmp_path: Path) -> Path:
-    folder = os.environ.get("ROBOCAL_SCREENSHOT_DIR")
-    return Path(folder) / name if folder else tmp_path / name
 
 
 @pytest.fixture
@@ -119,7 +114,7 @@ def test_model_moves_ghost_diverges_and_beyond_limit_is_red(
     cg, cr = browserlib.centroid(ghost), browserlib.centroid(robot)
     assert ghost.sum() > 300 and cg is not None and cr is not None
     assert cg[0] < c0[0] - 25 < cr[0]  # ghost left of the rest position, robot right of it
-    browserlib.screenshot(page, _shot("view_ghost.png", tmp_path))
+    browserlib.screenshot(page, browserlib.shot("view_ghost.png", tmp_path))
 
     # (c) The elbow goes beyond its upper limit (0.5 rad): its link is drawn red, the panel says so.
     state = _show(arm_app, page, (0.8, 1.2), 0.2)
@@ -127,7 +122,7 @@ def test_model_moves_ghost_diverges_and_beyond_limit_is_red(
     assert elbow["outside"] is True and elbow["color"] == "red" and state["joints"][0]["outside"] is False
     img2 = browserlib.wait_until(
         lambda: (
-            (im := _scene(page, _shot("view_limit.png", tmp_path))) is not None
+            (im := _scene(page, browserlib.shot("view_limit.png", tmp_path))) is not None
             and browserlib.reddish_mask(im).sum() > 300
             and im
         ),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -98,13 +99,17 @@ def test_current_round_trip_property(rows: list[tuple[int, int, int, int]]) -> N
     ],
 )
 def test_current_malformed_matrix(tmp_path: Path, mutate, message: str) -> None:  # type: ignore[no-untyped-def]
-    data = json.loads(SO101_TEXT)
+    _refused_after(mutate, SO101_TEXT, tmp_path / "bad.json", read_calibration, message)
+
+
+def _refused_after(mutate: Any, text: str, path: Path, read: Any, message: str) -> None:
+    """``read`` refuses the JSON ``text`` changed by ``mutate`` and written to ``path``, naming ``path``."""
+    data = json.loads(text)
     mutate(data)
-    bad = tmp_path / "bad.json"
-    bad.write_text(json.dumps(data))
+    path.write_text(json.dumps(data))
     with pytest.raises(FileFormatError) as exc:
-        read_calibration(bad)
-    assert str(bad) in str(exc.value) and message in str(exc.value)
+        read(path)
+    assert str(path) in str(exc.value) and message in str(exc.value)
 
 
 @pytest.mark.parametrize(
@@ -218,13 +223,7 @@ def test_so100_issue_930_file_and_shoulder_lift_reconstruction(tmp_path: Path) -
     ],
 )
 def test_legacy_malformed_matrix(tmp_path: Path, mutate, message: str) -> None:  # type: ignore[no-untyped-def]
-    data = json.loads(ALOHA_LEFT_FOLLOWER)
-    mutate(data)
-    p = tmp_path / "legacy.json"
-    p.write_text(json.dumps(data))
-    with pytest.raises(FileFormatError) as exc:
-        legacy.read_legacy(p)
-    assert str(p) in str(exc.value) and message in str(exc.value)
+    _refused_after(mutate, ALOHA_LEFT_FOLLOWER, tmp_path / "legacy.json", legacy.read_legacy, message)
 
 
 def test_legacy_reader_rejects_current_file(tmp_path: Path) -> None:
