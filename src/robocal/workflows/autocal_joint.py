@@ -45,6 +45,11 @@ __all__ = [
 
 _T = TypeVar("_T")
 _P = ParamSpec("_P")
+
+FRICTION_SETTLE_S = 0.5
+"""A move that ends at rest short of its target, inside the drive's lag and below the cap (held by friction,
+not by a stop), counts as arrived after this long."""
+
 JointSteps = Generator[Command, StopSample, _T]
 """One joint's moves as a generator: it yields the next :class:`Command` and receives the reading at the end of
 the control period that carried it out (:meth:`JointDriver.execute`); its return value is the result. Run it on
@@ -151,6 +156,10 @@ def move_steps(
             and the joint more than ``tol_rad`` short of the target while pushing at ≥ 90 % of ``cap_nm``; and
             slower than 10 % of the speed) for this long ends the move early: returns ``(reading, True)``.
 
+    A joint that comes to rest short of the target but within 90 % of ``max_lag_rad``, pushing with less than
+    90 % of the cap (so a stop is not what holds it: breakaway friction is, e.g. a small move from rest on a
+    sticky joint), counts as arrived after :data:`FRICTION_SETTLE_S`.
+
     Returns:
         The last reading and whether the move ended on a stall.
 
@@ -166,6 +175,7 @@ def move_steps(
     limit = timeout_s if timeout_s is not None else distance / speed_rad_s + 3.0
     last = s.t_s
     stalled_since: float | None = None
+    resting_since: float | None = None
     while True:
         dt = max(s.t_s - last, 0.0)
         last = s.t_s
@@ -181,6 +191,12 @@ def move_steps(
         s = yield Command("drive", ref, v_ff, cap_nm)
         if s.ok and at_end and abs(s.q_rad - target_rad) <= tol_rad:
             return s, False
+        if s.ok and at_end and _held_by_friction(s, target_rad, 0.9 * max_lag_rad, 0.1 * speed_rad_s, 0.9 * cap_nm):
+            resting_since = s.t_s if resting_since is None else resting_since
+            if s.t_s - resting_since >= FRICTION_SETTLE_S:
+                return s, False
+        else:
+            resting_since = None
         if stall_s is not None and s.ok:
             v = s.v_rad_s if math.isfinite(s.v_rad_s) else 0.0
             # held back by the lead, or (the ramp over) stuck short of the target while pushing at the cap
@@ -199,6 +215,15 @@ def move_steps(
                 f"joint {driver.name}: could not reach {math.degrees(target_rad):.1f}° within {limit:.1f} s "
                 f"(at {q}): blocked?"
             )
+
+
+def _held_by_friction(
+    s: StopSample, target_rad: float, within_rad: float, slow_rad_s: float, below_nm: float
+) -> bool:
+    """At rest within ``within_rad`` of the target and pushing with less than ``below_nm`` (not against a stop)."""
+    v = s.v_rad_s if math.isfinite(s.v_rad_s) else 0.0
+    pushing = math.isfinite(s.torque_nm) and abs(s.torque_nm) >= below_nm
+    return math.isfinite(s.q_rad) and abs(target_rad - s.q_rad) <= within_rad and abs(v) < slow_rad_s and not pushing
 
 
 move_to = carried_out(move_steps, "move_to")
