@@ -94,6 +94,7 @@ def recalibrate(
     ] = False,
 ) -> None:
     """Re-calibrate the joint features of a dataset: value → actual encoder position → new value."""
+    from ..workflows.dataset import data_file_count
     from ..workflows.dataset import recalibrate as run
 
     feats = _common.parse_csv_list(features, "--features")
@@ -116,9 +117,7 @@ def recalibrate(
             done["frames"] += frames
             progress.update(task, completed=done["files"], frames=done["frames"])
 
-        from ..dataset import read_layout
-
-        progress.update(task, total=len(read_layout(src).data_files))
+        progress.update(task, total=data_file_count(src))
         report = run(
             src,
             dst,

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from ..dataset import DatasetReport, InspectReport, ValueConvention
     from ..dataset._driver import ProgressCallback
 
-__all__ = ["DatasetOptions", "inspect", "recalibrate", "resolve_modes"]
+__all__ = ["DatasetOptions", "data_file_count", "inspect", "recalibrate", "resolve_modes"]
 
 _VALID_MODES = ("degrees", "range_m100_100", "range_0_100")
 
@@ -162,6 +162,18 @@ def recalibrate(
         overwrite=overwrite,
         on_file_done=on_file_done,
     )
+
+
+def data_file_count(root: str | Path) -> int:
+    """How many data files the dataset at ``root`` holds (the total of a progress bar).
+
+    Raises:
+        UsageError: ``root`` is not a folder.
+        FileFormatError: Its layout is not a LeRobot v3 dataset's (see :func:`robocal.dataset.read_layout`).
+    """
+    from ..dataset import read_layout
+
+    return len(read_layout(root).data_files)
 
 
 def inspect(
