@@ -10,35 +10,19 @@ import typer
 
 from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
+from ..core.kinematic_problem import KINDS
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
 from ._common import EXIT_INTERRUPTED, EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
+from ._kinematics_options import BaseLinkOption, KindOption, TipLinkOption, UrdfOption, parse_xyz
+from ._kinematics_plan import plan
 from ._kinematics_print import print_identification, print_images
 
 app = typer.Typer(
     help="Kinematic identification: measure an arm, identify its URDF errors, export a corrected URDF.",
     no_args_is_help=True,
 )
-
-
-_UrdfOption = Annotated[Path, typer.Option("--urdf", help="Expanded URDF of the arm.")]
-_BaseLinkOption = Annotated[str | None, typer.Option("--base-link", help="First link (default: URDF root).")]
-_TipLinkOption = Annotated[
-    str | None, typer.Option("--tip-link", help="Link the tool is on (default: the leaf).")
-]
-_KindOption = Annotated[str, typer.Option("--kind", help="points, touch or gauge.")]
-
-
-def _parse_xyz(text: str, flag: str = "--tool-xyz") -> tuple[float, float, float]:
-    parts = [p for p in text.replace(",", " ").split() if p]
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        raise UsageError(f"{flag} {text!r}: expected three numbers in metres, e.g. 0.012,0,-0.098") from None
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise UsageError(f"{flag} {text!r}: expected three finite numbers in metres")
-    return values[0], values[1], values[2]
 
 
 def _identify_joint_map(
@@ -86,13 +70,13 @@ def _prior(on: bool, mm: float | None, deg: float | None, offset_deg: float | No
 
 @app.command("identify")
 def identify(
-    urdf: _UrdfOption,
+    urdf: UrdfOption,
     data: Annotated[
         Path, typer.Option("--data", help="Measurement CSV (joints…, x, y, z | group | socket).")
     ],
-    kind: _KindOption = "points",
-    base_link: _BaseLinkOption = None,
-    tip_link: _TipLinkOption = None,
+    kind: KindOption = "points",
+    base_link: BaseLinkOption = None,
+    tip_link: TipLinkOption = None,
     tool_xyz: Annotated[
         str,
         typer.Option("--tool-xyz", help="Nominal marker/ball/tip position in the tip link, metres: x,y,z."),
@@ -171,6 +155,8 @@ def identify(
     ] = False,
 ) -> None:
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
+    if kind.strip().lower() not in (*KINDS, "tag"):
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
     jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     for flag, on in (("--camera-on-tool", camera_on_tool), ("--refine-intrinsics", refine_intrinsics)):
         if on and kind.strip().lower() != "tag":
@@ -194,7 +180,7 @@ def identify(
         kind=kind.strip().lower(),
         base_link=base_link,
         tip_link=tip_link,
-        tool_xyz_m=_parse_xyz(tool_xyz),
+        tool_xyz_m=parse_xyz(tool_xyz),
         frame=frame.strip().lower(),
         validate_fraction=validate_fraction,
         huber_m=None if huber is None else huber * 1e-3,
@@ -226,7 +212,7 @@ def _command(sim: sim_wf.SimulationResult, kind: str, gauge_mm: float) -> str:
 def simulate(
     out: Annotated[Path, typer.Option("--out", help="Folder for <robot>.urdf, <kind>.csv and truth.json.")],
     robot: Annotated[str, typer.Option("--robot", help="so101 or koch.")] = "so101",
-    kind: _KindOption = "points",
+    kind: KindOption = "points",
     poses: Annotated[int, typer.Option("--poses", help="Poses (touch: per point; gauge: per socket).")] = 50,
     noise_mm: Annotated[float, typer.Option("--noise-mm", help="Marker noise per axis, mm (points).")] = 0.5,
     seed: Annotated[int, typer.Option("--seed", help="Seed of errors, poses and noise.")] = 0,
@@ -234,7 +220,7 @@ def simulate(
         bool, typer.Option("--on-axis", help="Put the marker on the wrist-roll axis.")
     ] = False,
     random_poses: Annotated[
-        bool, typer.Option("--random-poses", help="Random poses instead of a greedy I-optimal selection.")
+        bool, typer.Option("--random-poses", help="Random poses (tag: random ones the camera sees) instead of the plan.")
     ] = False,
     gauge_mm: Annotated[float, typer.Option("--gauge-mm", help="Gauge socket distance, mm.")] = 50.0,
     camera_on_tool: Annotated[
@@ -250,7 +236,9 @@ def simulate(
     if kind == "tag":
         from ..workflows import kinematic_vision as vis_wf
 
-        img = vis_wf.simulate_images(robot.strip().lower(), out, poses=poses, seed=seed, camera_on_tool=camera_on_tool)
+        img = vis_wf.simulate_images(
+            robot.strip().lower(), out, poses=poses, seed=seed, camera_on_tool=camera_on_tool, plan=not random_poses
+        )
         console.print(
             f"wrote {img.urdf}, {img.data} ({poses} images of {img.target}), {len(img.calibration_images)} "
             f"calibration images of {img.board} in {out / 'calibration'}, {img.truth}"
@@ -281,85 +269,7 @@ def simulate(
     raise typer.Exit(EXIT_OK)
 
 
-@app.command("plan")
-def plan(
-    urdf: _UrdfOption,
-    out: Annotated[Path, typer.Option("--out", help="CSV of joint targets to write.")],
-    poses: Annotated[int, typer.Option("--poses", help="How many poses.")] = 50,
-    base_link: _BaseLinkOption = None,
-    tip_link: _TipLinkOption = None,
-    tool_xyz: Annotated[
-        str, typer.Option("--tool-xyz", help="Nominal marker position in the tip link, metres: x,y,z.")
-    ] = "0,0,0",
-    kind: Annotated[
-        str, typer.Option("--kind", help="points (free poses), touch or gauge (poses on --touch-points).")
-    ] = "points",
-    touch_points: Annotated[
-        str | None,
-        typer.Option("--touch-points", help="touch: fixed points, gauge: sockets A;B; x,y,z in metres, ';' between."),
-    ] = None,
-    frame: Annotated[
-        str, typer.Option("--frame", help="base: points in the base frame; tracker: in an unknown frame.")
-    ] = "base",
-    criterion: Annotated[
-        str, typer.Option("--criterion", help="i: smallest average prediction variance; d: largest O1.")
-    ] = "i",
-    prior: Annotated[
-        bool, typer.Option("--prior", help="Plan for a fit with the URDF tolerance prior (criterion i).")
-    ] = False,
-    noise_mm: Annotated[float, typer.Option("--noise-mm", help="Tracker noise per axis, mm.")] = 0.5,
-    candidates: Annotated[
-        int, typer.Option("--candidates", help="Random candidate poses inside the joint limits.")
-    ] = 2000,
-    candidates_file: Annotated[
-        Path | None,
-        typer.Option("--candidates-file", help="Choose among these poses (a joint CSV) instead of random ones."),
-    ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="Seed of the random candidates.")] = 0,
-) -> None:
-    """Choose poses inside the joint limits that identify the arm best (greedy I- or D-optimal)."""
-    from ..workflows import kinematic_plan as plan_wf
-
-    result = plan_wf.plan(
-        urdf,
-        out,
-        poses=poses,
-        base_link=base_link,
-        tip_link=tip_link,
-        tool_xyz_m=_parse_xyz(tool_xyz),
-        kind=kind.strip().lower(),
-        frame=frame.strip().lower(),
-        criterion=criterion.strip(),
-        prior=prior,
-        noise_m=noise_mm * 1e-3,
-        candidates=candidates,
-        candidates_file=candidates_file,
-        seed=seed,
-        touch_points_m=[_parse_xyz(p, "--touch-points") for p in (touch_points or "").split(";") if p.strip()],
-    )
-    ident = result.identifiability
-    obs = ident.observability
-    console.print(
-        f"{len(result.q_rad)} poses ({result.criterion}-optimal of {result.candidates} candidates) for "
-        f"{', '.join(result.joint_names)}: rank {ident.rank}, condition number {obs.condition:.1f}, "
-        f"O1 {obs.O1:.3g}, O3 {obs.O3:.3g}"
-        + (
-            f"; predicted tool-point σ {result.prediction_sigma_m * 1e3:.3f} mm (RMS over the candidates, "
-            f"{noise_mm:g} mm tracker noise)"
-            if math.isfinite(result.prediction_sigma_m)
-            else ""
-        )
-    )
-    warnings = [
-        f"{u.name}: {u.reason}" for u in ident.unidentifiable if u.reason.startswith("the marker is on")
-    ]
-    console.print(
-        f"wrote {result.out}; move the arm to each pose and "
-        + ("add x,y,z columns as you measure" if kind.strip().lower() == "points" else "touch the point it names")
-    )
-    for w in warnings:
-        print_warning(w)
-    raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
+app.command("plan")(plan)
 
 
 @app.command("camera-calibrate")
@@ -403,8 +313,8 @@ def record(
     urdf: Annotated[
         Path | None, typer.Option("--urdf", help="Expanded URDF (default for --robot so101_*/koch_*: shipped).")
     ] = None,
-    base_link: _BaseLinkOption = None,
-    tip_link: _TipLinkOption = None,
+    base_link: BaseLinkOption = None,
+    tip_link: TipLinkOption = None,
     kind: Annotated[str, typer.Option("--kind", help="points, touch, gauge or tag.")] = "points",
     lerobot_port: Annotated[
         str | None, typer.Option("--lerobot-port", help="Serial port of a LeRobot arm (torque is switched off).")

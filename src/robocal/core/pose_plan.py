@@ -1,26 +1,39 @@
-"""Poses for contact sessions (touch, gauge): reaching a fixed point, and choosing among such poses (pure numpy).
+"""Poses for contact (touch, gauge) and camera (tag) sessions: reaching a point, seeing a target (pure numpy).
 
 A touch or gauge session cannot use free configurations: each pose must put the tool tip on one of a few fixed
 points. :func:`reach_point` finds configurations inside the joint limits that do, by damped least squares from
 many starts at once; :func:`plan_contact_poses` picks the ones that best identify the model, greedily and
 I-optimal (the smallest average prediction variance of the tool point over free configurations), the contact
-points being unknowns of the fit like the model's parameters.
+points being unknowns of the fit like the model's parameters. :func:`target_visible` says which poses show a
+camera the whole target; :func:`plan_image_poses` picks among them greedily and I-optimal for the reprojection
+model of :class:`~robocal.core.kinematic_images.ImageProblem` (camera pose, target mounting and, on request, the
+intrinsics being unknowns with the kinematics).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ShapeMismatchError, UsageError
-from .arrays import FloatArray, IntArray
-from .identifiability import select_poses_i_optimal
+from .arrays import BoolArray, FloatArray, IntArray
+from .identifiability import Identifiability, select_poses_i_optimal
 from .kinematic_errors import ErrorModel
+from .kinematic_images import ImageObservations, ImageProblem, project
 from .kinematic_problem import Measurements, Problem, analyse, free_indices
 
-__all__ = ["plan_contact_poses", "reach_point"]
+__all__ = [
+    "ImagePlan",
+    "image_plan_problem",
+    "plan_contact_poses",
+    "plan_image_poses",
+    "reach_point",
+    "target_visible",
+]
 
 
 def reach_point(
@@ -113,3 +126,195 @@ def plan_contact_poses(
         if i < n_free and model.parameters[problem.free[i]].group not in ("base",):
             Jp[:, :, c] = Jp_all[:, :, problem.free[i]] / norms[c]
     return select_poses_i_optimal(Jc, n_poses, J_predict=Jp)
+
+
+def target_visible(
+    T_cam_target: ArrayLike,
+    corners_m: ArrayLike,
+    front_normal: ArrayLike,
+    K: ArrayLike,
+    size: tuple[int, int],
+    *,
+    min_depth_m: float = 0.15,
+    margin_px: float = 20.0,
+    max_angle_deg: float = 60.0,
+) -> BoolArray:
+    """Which target poses a pinhole camera sees whole: facing it, in front of it, every corner inside the image.
+
+    Args:
+        T_cam_target: ``(N, 4, 4)`` target poses in the camera frame (OpenCV: z forward, y down).
+        corners_m: ``(K, 3)`` the target's corners in its own frame, m.
+        front_normal: ``(3,)`` outward normal of the printed face in the target frame.
+        K: ``(3, 3)`` camera matrix.
+        size: Image ``(width, height)``, pixels.
+        min_depth_m: Every corner at least this far in front of the camera.
+        margin_px: Every corner at least this far inside the image border.
+        max_angle_deg: The largest angle between the face's normal and the direction to the camera.
+
+    Returns:
+        ``(N,)`` True where the camera sees the whole target.
+    """
+    T = np.asarray(T_cam_target, dtype=np.float64)
+    obj = np.asarray(corners_m, dtype=np.float64)
+    Km = np.asarray(K, dtype=np.float64)
+    n = np.einsum("nij,j->ni", T[:, :3, :3], np.asarray(front_normal, dtype=np.float64))
+    dist = np.linalg.norm(T[:, :3, 3], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        to_cam = -T[:, :3, 3] / dist[:, None]
+    facing = np.sum(n * to_cam, axis=1) > math.cos(math.radians(max_angle_deg))
+    pc = np.einsum("nij,kj->nki", T[:, :3, :3], obj) + T[:, None, :3, 3]
+    z = pc[..., 2]
+    uv = np.einsum("ij,nkj->nki", Km, pc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u, v = uv[..., 0] / uv[..., 2], uv[..., 1] / uv[..., 2]
+    w, h = size
+    inside = (z > min_depth_m) & (u > margin_px) & (u < w - margin_px) & (v > margin_px) & (v < h - margin_px)
+    return np.asarray(facing & inside.all(axis=1), dtype=np.bool_)
+
+
+def image_plan_problem(
+    model: ErrorModel,
+    q_rad: ArrayLike,
+    corners_m: ArrayLike,
+    K: ArrayLike,
+    *,
+    camera_on_tool: bool = False,
+    refine_intrinsics: bool = False,
+) -> ImageProblem:
+    """The reprojection problem of a planned image session: every corner seen where the nominal model puts it.
+
+    Args:
+        model: Nominal error model in the measurement frame: camera fixed, ``T_world_base`` is the camera → base
+            pose and ``T_tip_tool`` the target's mounting; camera on the tool, ``T_world_base`` is the target →
+            base pose and ``T_tip_tool`` the camera's mounting.
+        q_rad: ``(N, n_q)`` configurations (each must show the whole target).
+        corners_m: ``(K, 3)`` the target's corners in its frame, m.
+        K: ``(3, 3)`` camera matrix.
+        camera_on_tool: The set-up.
+        refine_intrinsics: ``fx, fy, cx, cy`` are unknowns too.
+
+    Returns:
+        The problem over every model parameter (and the intrinsics), at its nominal values.
+    """
+    q = model.chain.check_q(q_rad, what="candidate pose")
+    c = np.asarray(corners_m, dtype=np.float64)
+    if c.ndim != 2 or c.shape[1] != 3 or c.shape[0] < 3:
+        raise ShapeMismatchError(f"target corners must be (K >= 3, 3), got {c.shape}")
+    Km = np.asarray(K, dtype=np.float64)
+    n, k = q.shape[0], c.shape[0]
+    T = model.tool_poses(q)  # camera fixed: T_cam_target; camera on the tool: T_target_cam
+    if camera_on_tool:
+        p = np.einsum("nji,nkj->nki", T[:, :3, :3], c[None, :, :] - T[:, None, :3, 3])
+    else:
+        p = np.einsum("nij,kj->nki", T[:, :3, :3], c) + T[:, None, :3, 3]
+    uv, _ = project(p.reshape(-1, 3))
+    data = ImageObservations(
+        q, np.repeat(np.arange(n), k), np.tile(c, (n, 1)), uv, float(Km[0, 0] + Km[1, 1]) / 2, K=Km
+    )
+    return ImageProblem(
+        model, data, tuple(range(model.n_params)), np.zeros(model.n_params),
+        camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class ImagePlan:
+    """Poses chosen for an image session.
+
+    Attributes:
+        index: ``(n_poses,)`` indices into the candidates, in the order chosen.
+        identifiability: What the chosen images identify (rank, base set, reasons, observability).
+        candidates: What images at every candidate would identify.
+        prediction_sigma_m: Predicted one-σ error after identification of the measured point (the target's
+            centre in the camera frame; camera on the tool: the camera's centre in the target frame), RMS over
+            the candidates, at the pixel noise given, linearised at nominal; m (NaN if singular).
+    """
+
+    index: IntArray
+    identifiability: Identifiability
+    candidates: Identifiability
+    prediction_sigma_m: float
+
+
+def _image_blocks(
+    problem: ImageProblem, ident: Identifiability, noise_px: float
+) -> tuple[FloatArray, FloatArray, list[int]]:
+    """Per-pose whitened Jacobian blocks of the base set ``(N, 2K, k)`` and the measured point's ``(N, 3, k)``."""
+    _, J = problem.residuals_and_jacobian(problem.initial_theta())
+    cols = list(ident.base)
+    n = problem.data.n_poses
+    Jc = (J[:, cols] / noise_px).reshape(n, -1, len(cols))
+    n_free = len(problem.free)
+    _, Jm = problem.model.point_jacobian(problem.data.q_rad)
+    Jp = np.zeros((n, 3, len(cols)))
+    for j, col in enumerate(cols):
+        if col < n_free:  # the intrinsics do not move the measured point
+            Jp[:, :, j] = Jm[:, :, problem.free[col]]
+    return Jc, Jp, cols
+
+
+def plan_image_poses(
+    model: ErrorModel,
+    q_candidates: ArrayLike,
+    corners_m: ArrayLike,
+    K: ArrayLike,
+    n_poses: int,
+    *,
+    camera_on_tool: bool = False,
+    refine_intrinsics: bool = False,
+    noise_px: float = 0.3,
+) -> ImagePlan:
+    """Pick ``n_poses`` image poses greedily, I-optimal for the measured point over the candidates.
+
+    The unknowns are the identifiable base set of the reprojection problem over all candidates (kinematics,
+    camera pose or target place, the mounting and, with ``refine_intrinsics``, ``fx, fy, cx, cy``); each step
+    adds the image that lowers most the prediction variance of the target's centre in the camera frame (camera
+    on the tool: the camera's centre in the target frame), averaged over the candidates
+    (:func:`~robocal.core.identifiability.select_poses_i_optimal`; the first images are D-optimal until the
+    information has full rank).
+
+    Args:
+        model: Nominal error model of the set-up (see :func:`image_plan_problem`).
+        q_candidates: ``(M, n_q)`` configurations where the camera sees the whole target.
+        corners_m: ``(K, 3)`` the target's corners in its frame, m.
+        K: ``(3, 3)`` camera matrix.
+        n_poses: How many images.
+        camera_on_tool: The set-up.
+        refine_intrinsics: Plan for a fit that refines ``fx, fy, cx, cy``.
+        noise_px: Corner noise per axis, pixels (scales the predicted σ).
+
+    Raises:
+        UsageError: Fewer candidates than images, too few images for the identifiable unknowns, a noise that is
+            not a positive number.
+    """
+    if not (math.isfinite(noise_px) and noise_px > 0.0):
+        raise UsageError(f"--noise-px must be a positive number, got {noise_px}")
+    problem = image_plan_problem(
+        model, q_candidates, corners_m, K, camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics
+    )
+    n_cand = problem.data.n_poses
+    if n_cand < n_poses:
+        raise UsageError(f"--poses {n_poses}: the camera sees the whole target in only {n_cand} candidate poses")
+    ident = problem.analyse()
+    rows = 2 * int(np.asarray(corners_m).shape[0])
+    if rows * n_poses <= ident.rank:
+        raise UsageError(
+            f"too few poses: {n_poses} images give {rows * n_poses} equations, not more than the {ident.rank} "
+            f"unknowns the candidates can identify; plan at least {ident.rank // rows + 2} images (20 or more "
+            "for a useful result)"
+        )
+    Jc, Jp, _ = _image_blocks(problem, ident, noise_px)
+    idx = select_poses_i_optimal(Jc, n_poses, J_predict=Jp)
+    chosen = image_plan_problem(
+        model, problem.data.q_rad[idx], corners_m, K, camera_on_tool=camera_on_tool,
+        refine_intrinsics=refine_intrinsics,
+    ).analyse()  # fmt: skip
+    A = np.einsum("nrk,nrl->kl", Jc[idx], Jc[idx])
+    try:
+        cov = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        sigma = math.nan
+    else:
+        per_row = np.einsum("nrk,kl,nrl->n", Jp, cov, Jp)
+        sigma = float(np.sqrt(max(float(np.mean(per_row)), 0.0))) if np.all(np.isfinite(per_row)) else math.nan
+    return ImagePlan(np.asarray(idx, dtype=np.int64), chosen, ident, sigma)

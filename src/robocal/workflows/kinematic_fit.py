@@ -142,6 +142,25 @@ def _structural_rank(problem: Problem) -> int:
     return analyse(Problem(problem.model, data, problem.free, problem.x_fixed)).rank
 
 
+def _structural_image_rank(problem: ImageProblem) -> int:
+    """Rank of an image problem's unknowns with its target seen from 60 spread configurations."""
+    from ..core.pose_plan import image_plan_problem
+
+    lo, up = problem.model.chain.limits()
+    lo = np.where(np.isfinite(lo), lo, -math.pi)
+    up = np.where(np.isfinite(up), up, math.pi)
+    q = np.random.default_rng(0).uniform(lo, up, (60, lo.size))
+    data = problem.data
+    corners = np.unique(data.corner_m, axis=0)
+    K = data.K if data.K is not None else np.diag([data.focal_px, data.focal_px, 1.0])
+    seen = image_plan_problem(problem.model, q, corners, K, camera_on_tool=problem.camera_on_tool).data
+    spread = ImageProblem(
+        problem.model, seen, problem.free, problem.x_fixed, camera_on_tool=problem.camera_on_tool,
+        refine_intrinsics=problem.refine_intrinsics,
+    )  # fmt: skip
+    return spread.analyse().rank
+
+
 def _pose_errors(problem: Problem | ImageProblem, theta: FloatArray) -> FloatArray:
     if isinstance(problem, ImageProblem):
         return problem.pose_errors(theta)
@@ -189,6 +208,14 @@ def fit(
         allowed = set(restrict)
         base = [i for i in base if i in allowed]
     n_res = problem.residuals(theta0).size
+    if isinstance(problem, ImageProblem) and restrict is None:
+        full = _structural_image_rank(problem)
+        if 6 * problem.data.n_poses <= full:
+            raise UsageError(
+                f"too few images: {problem.data.n_poses} fitted images show {6 * problem.data.n_poses} numbers "
+                f"(the target's pose in each), not more than the {full} unknowns the images could identify; "
+                f"take at least {full // 6 + 2} images to fit (20 or more for a useful result)"
+            )
     if n_res <= len(base) and isinstance(problem, ImageProblem):
         raise UsageError(
             f"too few target corners: {problem.data.n_poses} images give {n_res} equations for {len(base)} "

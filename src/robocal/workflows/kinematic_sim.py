@@ -105,7 +105,7 @@ def simulate(
 
     Args:
         robot: ``so101`` or ``koch``.
-        out_dir: Existing folder.
+        out_dir: Folder (created if its parent exists).
         kind: ``points``, ``touch`` or ``gauge``.
         poses: Number of poses (touch: per contact point, 3 points; gauge: per socket).
         noise_m: Marker noise per axis (points only), m.
@@ -121,6 +121,8 @@ def simulate(
     if not (math.isfinite(noise_m) and noise_m >= 0):
         raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
     folder = Path(out_dir)
+    if not folder.exists() and folder.parent.is_dir():
+        folder.mkdir()  # a new folder in an existing one, as `--out sim/` in the docs
     if not folder.is_dir():
         raise UsageError(f"--out {folder}: not a folder")
     spec = SIM_ROBOTS.get(robot)

@@ -28,7 +28,7 @@ from ..backends.vision import (
 )
 from ..core.arrays import FloatArray
 from ..core.kinematic_errors import ErrorModel
-from ..core.kinematic_problem import plan_poses
+from ..core.pose_plan import plan_image_poses, target_visible
 from ..core.se3 import homogeneous, matrix_from_rpy_urdf
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text
@@ -99,18 +99,8 @@ class SimImagesResult:
 def _visible(
     T_cam_target: FloatArray, target: Target, K: FloatArray, size: tuple[int, int]
 ) -> NDArray[np.bool_]:
-    """Which target poses a camera sees whole, facing it within 60°, 20 px inside the image."""
-    obj = target.object_points()
-    n = np.einsum("nij,j->ni", T_cam_target[:, :3, :3], target.front_normal())
-    to_cam = -T_cam_target[:, :3, 3] / np.linalg.norm(T_cam_target[:, :3, 3], axis=1)[:, None]
-    facing = np.sum(n * to_cam, axis=1) > math.cos(math.radians(60))
-    pc = np.einsum("nij,kj->nki", T_cam_target[:, :3, :3], obj) + T_cam_target[:, None, :3, 3]
-    z = pc[..., 2]
-    uv = np.einsum("ij,nkj->nki", K, pc)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u, v = uv[..., 0] / uv[..., 2], uv[..., 1] / uv[..., 2]
-    inside = (z > 0.15) & (u > 20) & (u < size[0] - 20) & (v > 20) & (v < size[1] - 20)
-    return np.asarray(facing & inside.all(axis=1), dtype=np.bool_)
+    """Which target poses a camera sees whole, facing it within 60°, 20 px inside the image, 0.15 m away."""
+    return target_visible(T_cam_target, target.object_points(), target.front_normal(), K, size)
 
 
 def simulate_images(
@@ -124,13 +114,15 @@ def simulate_images(
     calibration_images: int = 20,
     noise_grey: float = 2.0,
     camera_on_tool: bool = False,
+    plan: bool = True,
 ) -> SimImagesResult:
     """Render a tag session of a simulated arm with hidden errors, seen by a fixed simulated camera.
 
     Writes ``<robot>.urdf``, ``images/pose_NNN.png`` and ``tag.csv`` (joints + image), ``calibration/
     board_NN.png`` (a ChArUco board in front of the camera) and ``truth.json`` into ``out_dir``. Joint readings
-    are quantised to 4096 ticks; images have Gaussian pixel noise; poses are chosen (greedy O1) among random
-    ones where the camera sees the whole target. ``camera_on_tool``: the camera is on the tip link and the tag
+    are quantised to 4096 ticks; images have Gaussian pixel noise; poses are chosen among random ones where the
+    camera sees the whole target: greedy I-optimal for the reprojection model (``kinematics plan --kind tag``,
+    :func:`robocal.core.pose_plan.plan_image_poses`), or at random with ``plan=False``. ``camera_on_tool``: the camera is on the tip link and the tag
     stands fixed in front of the arm (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
     """
     from .kinematic_sim import SIM_ROBOTS, shipped_urdf
@@ -144,6 +136,8 @@ def simulate_images(
     if poses < 3:
         raise UsageError(f"--poses must be at least 3 for images, got {poses}")
     folder = Path(out_dir)
+    if not folder.exists() and folder.parent.is_dir():
+        folder.mkdir()  # a new folder in an existing one, as `--out sim/` in the docs
     if not folder.is_dir():
         raise UsageError(f"--out {folder}: not a folder")
     tgt = parse_target(target)
@@ -175,7 +169,11 @@ def simulate_images(
     seen = cand[_visible(cam_target(model.tool_poses(cand, arm.x_true)), tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE)]
     if seen.shape[0] < poses:
         raise UsageError(f"the simulated camera sees the target in only {seen.shape[0]} candidate poses")
-    q = seen[plan_poses(ErrorModel(chain, T_tip_tool=mount), seen, poses)]
+    if plan:
+        nominal = ErrorModel(chain, T_world_base=T_world_base, T_tip_tool=mount)
+        q = seen[plan_image_poses(nominal, seen, tgt.object_points(), SIM_CAMERA_K, poses, camera_on_tool=camera_on_tool).index]
+    else:
+        q = seen[rng.permutation(seen.shape[0])[:poses]]
     T_true = model.tool_poses(q, arm.x_true)
     (folder / "images").mkdir(exist_ok=True)
     names = []

@@ -204,6 +204,14 @@ def identify(
     chain.check_q(measurements.q_rad, what=f"{data}: pose")
     model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
     warnings: list[str] = []
+    if kind == "touch":
+        assert measurements.group is not None
+        once = [label for g, label in enumerate(labels) if int(np.sum(measurements.group == g)) == 1]
+        warnings += [
+            f"point {label} is touched once: one contact says nothing (the point's position is an unknown too); "
+            "touch each point from 3 or more configurations"
+            for label in once
+        ]
     if frame == "tracker":
         assert measurements.p_world_m is not None
         T0 = _kabsch(model.points(measurements.q_rad), measurements.p_world_m)

@@ -1,0 +1,44 @@
+"""Options and value parsers the ``robocal kinematics`` commands share."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import UsageError
+
+__all__ = ["BaseLinkOption", "KindOption", "TipLinkOption", "UrdfOption", "parse_numbers", "parse_xyz"]
+
+UrdfOption = Annotated[Path, typer.Option("--urdf", help="Expanded URDF of the arm.")]
+BaseLinkOption = Annotated[str | None, typer.Option("--base-link", help="First link (default: URDF root).")]
+TipLinkOption = Annotated[
+    str | None, typer.Option("--tip-link", help="Link the tool is on (default: the leaf).")
+]
+KindOption = Annotated[str, typer.Option("--kind", help="points, touch, gauge or tag (camera images).")]
+
+
+def parse_numbers(text: str, flag: str, example: str) -> list[float]:
+    """Finite numbers separated by commas or spaces (``flag`` and ``example`` name them in the error)."""
+    parts = [p for p in text.replace(",", " ").split() if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise UsageError(f"{flag} {text!r}: expected numbers, e.g. {example}") from None
+    if not values or not all(math.isfinite(v) for v in values):
+        raise UsageError(f"{flag} {text!r}: expected finite numbers, e.g. {example}")
+    return values
+
+
+def parse_xyz(text: str, flag: str = "--tool-xyz") -> tuple[float, float, float]:
+    """Three finite numbers in metres."""
+    parts = [p for p in text.replace(",", " ").split() if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise UsageError(f"{flag} {text!r}: expected three numbers in metres, e.g. 0.012,0,-0.098") from None
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise UsageError(f"{flag} {text!r}: expected three finite numbers in metres")
+    return values[0], values[1], values[2]

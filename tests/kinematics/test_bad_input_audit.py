@@ -1,0 +1,70 @@
+"""Gaps found auditing issue 13 against the CLI: too few images, a new --out folder, the kinds identify takes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocal.cli.main import main
+from robocal.core.kinematic_images import ImageProblem
+from robocal.errors import UsageError
+from robocal.workflows.kinematic_fit import fit
+from robocal.workflows.kinematic_vision_sim import SIM_CAMERA_K
+
+from .test_intrinsics import _session
+
+
+@pytest.mark.parametrize(("images", "ok"), [(3, False), (4, False), (6, True)])
+def test_an_image_fit_needs_more_target_poses_than_unknowns(images: int, ok: bool) -> None:
+    """Each image shows the target's pose (6 numbers) whatever its corner count: 3 or 4 images cannot settle the
+    26 identifiable unknowns of the SO-101 with a fixed camera, even though their 24 or 32 corner equations
+    outnumber what those few images could identify (their own rank)."""
+    obs, model, _ = _session(SIM_CAMERA_K, n=images)
+    problem = ImageProblem(model, obs, tuple(range(model.n_params)), np.zeros(model.n_params))
+    if ok:
+        assert fit(problem).success
+        return
+    with pytest.raises(UsageError) as err:
+        fit(problem)
+    assert str(err.value) == (
+        f"too few images: {images} fitted images show {6 * images} numbers (the target's pose in each), not more "
+        "than the 26 unknowns the images could identify; take at least 6 images to fit (20 or more for a useful "
+        "result)"
+    )
+
+
+def test_simulate_creates_a_new_out_folder_but_not_its_parents(tmp_path: Path, capsys) -> None:
+    code = main(["kinematics", "simulate", "--out", str(tmp_path / "sim"), "--poses", "20"])
+    assert code == 0, capsys.readouterr()
+    assert sorted(p.name for p in (tmp_path / "sim").iterdir()) == ["points.csv", "so101.urdf", "truth.json"]
+    code = main(["kinematics", "simulate", "--out", str(tmp_path / "a" / "b"), "--poses", "20"])
+    assert code == 2
+    assert f"error: --out {tmp_path / 'a' / 'b'}: not a folder" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists()
+
+
+def test_identify_names_every_kind_it_takes(tmp_path: Path, capsys) -> None:
+    urdf = tmp_path / "x.urdf"
+    urdf.write_text("<robot name='x'/>")
+    code = main(
+        ["kinematics", "identify", "--urdf", str(urdf), "--data", str(tmp_path / "d.csv"), "--kind", "foo"]
+    )
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "error: --kind 'foo'; valid: points, touch, gauge, tag" in err and "Traceback" not in err
+
+
+def test_a_point_touched_once_is_a_warning(tmp_path: Path, capsys) -> None:
+    assert main(["kinematics", "simulate", "--out", str(tmp_path), "--kind", "touch", "--poses", "14"]) == 0
+    rows = (tmp_path / "touch.csv").read_text().splitlines()
+    lonely = rows[-1].rsplit(",", 1)[0] + ",P9"  # the last contact relabelled: a point touched once
+    (tmp_path / "once.csv").write_text("\n".join([*rows[:-1], lonely]) + "\n")
+    capsys.readouterr()
+    code = main(
+        ["kinematics", "identify", "--urdf", str(tmp_path / "so101.urdf"), "--data", str(tmp_path / "once.csv"),
+         "--kind", "touch", "--tip-link", "gripper_link", "--tool-xyz", "0.0121,0,-0.0981"]
+    )  # fmt: skip
+    assert code == 1
+    assert "warning: point P9 is touched once: one contact says nothing" in capsys.readouterr().err
