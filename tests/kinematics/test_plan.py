@@ -110,7 +110,7 @@ def test_plan_criteria_and_frames(tmp_path: Path, capsys: pytest.CaptureFixture[
             "too few poses: 7 poses give 21 equations, not more than the 23 parameters the candidates can identify; plan at least 9 poses",
         ),
         (("--poses", "0"), "--poses must be at least 1, got 0"),
-        (("--kind", "tag"), "--kind 'tag'; valid: points, touch, gauge"),
+        (("--kind", "foo"), "--kind 'foo'; valid: points, touch, gauge, tag"),
         (("--criterion", "a"), "--criterion 'a'; valid: i, d"),
         (("--criterion", "d", "--prior"), "a prior applies to the I-optimal plan"),
         (("--frame", "camera"), "--frame 'camera'; valid: base, tracker"),

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from ..core.kinematic_problem import KINDS
 from ..errors import UsageError
 from ._common import EXIT_OK, EXIT_WARNINGS, console, print_warning
 from ._kinematics_options import BaseLinkOption, TipLinkOption, UrdfOption, parse_numbers, parse_xyz
@@ -107,6 +108,8 @@ def plan(
 ) -> None:
     """Choose poses inside the joint limits that identify the arm best (greedy I- or D-optimal)."""
     kind = kind.strip().lower()
+    if kind not in (*KINDS, "tag"):
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
     if kind == "tag":
         raise typer.Exit(
             _plan_tag(

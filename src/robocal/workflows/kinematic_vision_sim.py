@@ -28,6 +28,7 @@ from ..backends.vision import (
 )
 from ..core.arrays import FloatArray
 from ..core.kinematic_errors import ErrorModel
+from ..core.kinematic_problem import plan_poses
 from ..core.pose_plan import plan_image_poses, target_visible
 from ..core.se3 import homogeneous, matrix_from_rpy_urdf
 from ..errors import UsageError
@@ -122,7 +123,8 @@ def simulate_images(
     board_NN.png`` (a ChArUco board in front of the camera) and ``truth.json`` into ``out_dir``. Joint readings
     are quantised to 4096 ticks; images have Gaussian pixel noise; poses are chosen among random ones where the
     camera sees the whole target: greedy I-optimal for the reprojection model (``kinematics plan --kind tag``,
-    :func:`robocal.core.pose_plan.plan_image_poses`), or at random with ``plan=False``. ``camera_on_tool``: the camera is on the tip link and the tag
+    :func:`robocal.core.pose_plan.plan_image_poses`; with the camera on the tool greedy O1 of the tool point, as
+    the tag plan measured no better there), or at random with ``plan=False``. ``camera_on_tool``: the camera is on the tip link and the tag
     stands fixed in front of the arm (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
     """
     from .kinematic_sim import SIM_ROBOTS, shipped_urdf
@@ -169,9 +171,11 @@ def simulate_images(
     seen = cand[_visible(cam_target(model.tool_poses(cand, arm.x_true)), tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE)]
     if seen.shape[0] < poses:
         raise UsageError(f"the simulated camera sees the target in only {seen.shape[0]} candidate poses")
-    if plan:
+    if plan and not camera_on_tool:
         nominal = ErrorModel(chain, T_world_base=T_world_base, T_tip_tool=mount)
-        q = seen[plan_image_poses(nominal, seen, tgt.object_points(), SIM_CAMERA_K, poses, camera_on_tool=camera_on_tool).index]
+        q = seen[plan_image_poses(nominal, seen, tgt.object_points(), SIM_CAMERA_K, poses).index]
+    elif plan:  # a wrist camera: the tag plan gains nothing measurable here (docs/kinematics.md); greedy O1
+        q = seen[plan_poses(ErrorModel(chain, T_tip_tool=mount), seen, poses)]
     else:
         q = seen[rng.permutation(seen.shape[0])[:poses]]
     T_true = model.tool_poses(q, arm.x_true)
