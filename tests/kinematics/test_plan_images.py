@@ -89,8 +89,13 @@ def test_refining_the_intrinsics_adds_four_unknowns_to_the_plan() -> None:
 def test_too_few_images_or_candidates_are_refused() -> None:
     model = _fixed_model()
     cand = _visible_candidates(model, False, 3000, seed=2)[:100]
-    with pytest.raises(UsageError, match="too few poses: 3 images give 24 equations, not more than the 26"):
-        plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 3)
+    with pytest.raises(
+        UsageError,
+        match=r"too few poses: 4 images show 24 numbers \(the target's pose in each\), "
+        "not more than the 26 unknowns the candidates can identify; plan at least 6 images",
+    ):
+        plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 4)
+    assert plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 5).index.shape == (5,)
     with pytest.raises(UsageError, match="sees the whole target in only 100 candidate poses"):
         plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 101)
     with pytest.raises(UsageError, match="--noise-px"):

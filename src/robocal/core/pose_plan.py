@@ -296,12 +296,11 @@ def plan_image_poses(
     if n_cand < n_poses:
         raise UsageError(f"--poses {n_poses}: the camera sees the whole target in only {n_cand} candidate poses")
     ident = problem.analyse()
-    rows = 2 * int(np.asarray(corners_m).shape[0])
-    if rows * n_poses <= ident.rank:
+    if 6 * n_poses <= ident.rank:  # an image shows the target's pose: 6 numbers, whatever its corner count
         raise UsageError(
-            f"too few poses: {n_poses} images give {rows * n_poses} equations, not more than the {ident.rank} "
-            f"unknowns the candidates can identify; plan at least {ident.rank // rows + 2} images (20 or more "
-            "for a useful result)"
+            f"too few poses: {n_poses} images show {6 * n_poses} numbers (the target's pose in each), not more "
+            f"than the {ident.rank} unknowns the candidates can identify; plan at least {ident.rank // 6 + 2} "
+            "images (20 or more for a useful result)"
         )
     Jc, Jp, _ = _image_blocks(problem, ident, noise_px)
     idx = select_poses_i_optimal(Jc, n_poses, J_predict=Jp)
