@@ -68,3 +68,32 @@ def test_a_point_touched_once_is_a_warning(tmp_path: Path, capsys) -> None:
     )  # fmt: skip
     assert code == 1
     assert "warning: point P9 is touched once: one contact says nothing" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("name", "cut", "message"),
+    [
+        ("empty.png", lambda png, jpg: b"", "empty file"),
+        ("cut.png", lambda png, jpg: png[: len(png) // 2], "truncated PNG (no IEND chunk at its end)"),
+        ("cut.jpg", lambda png, jpg: jpg[: len(jpg) // 2], "truncated JPEG (no end-of-image marker)"),
+        ("text.png", lambda png, jpg: b"hello\n", "not an image OpenCV can read"),
+    ],
+)
+def test_unreadable_or_cut_images_are_refused(tmp_path: Path, name: str, cut, message: str) -> None:
+    cv2 = pytest.importorskip("cv2")
+    from robocal.backends.vision import read_image
+    from robocal.errors import FileFormatError
+
+    picture = np.zeros((96, 128), np.uint8)
+    picture[20:60, 30:90] = 255
+    png = cv2.imencode(".png", picture)[1].tobytes()
+    jpg = cv2.imencode(".jpg", picture)[1].tobytes()
+    for whole, suffix in ((png, ".png"), (jpg, ".jpg")):  # the whole files read
+        (tmp_path / f"whole{suffix}").write_bytes(whole)
+        assert read_image(tmp_path / f"whole{suffix}").shape == (96, 128)
+    (tmp_path / name).write_bytes(cut(png, jpg))
+    with pytest.raises(FileFormatError) as err:
+        read_image(tmp_path / name)
+    assert str(err.value) == f"image {tmp_path / name}: {message}"
+    with pytest.raises(FileFormatError, match="no such file"):
+        read_image(tmp_path / "missing.png")

@@ -216,12 +216,26 @@ class Detection:
 
 
 def read_image(path: str | os.PathLike[str]) -> NDArray[np.uint8]:
-    """A greyscale image from a file; :class:`FileFormatError` if it cannot be read."""
+    """A greyscale image from a file; :class:`FileFormatError` if it cannot be read.
+
+    An empty file, and a PNG or JPEG cut short (no ``IEND`` chunk, no end-of-image marker: a copy or upload that
+    stopped) are refused before decoding: OpenCV would decode a cut JPEG's first rows and grey the rest.
+    """
     cv2 = _cv2()
     p = Path(path)
     if not p.is_file():
         raise FileFormatError(f"image {p}: no such file")
-    img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise FileFormatError(f"image {p}: cannot be read ({exc.strerror or exc})") from None
+    if not data:
+        raise FileFormatError(f"image {p}: empty file")
+    if data.startswith(b"\x89PNG\r\n\x1a\n") and b"IEND" not in data[-32:]:
+        raise FileFormatError(f"image {p}: truncated PNG (no IEND chunk at its end)")
+    if data.startswith(b"\xff\xd8") and not data.rstrip(b"\x00\r\n\t ").endswith(b"\xff\xd9"):
+        raise FileFormatError(f"image {p}: truncated JPEG (no end-of-image marker)")
+    img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
     if img is None:
         raise FileFormatError(f"image {p}: not an image OpenCV can read")
     return np.asarray(img, dtype=np.uint8)
