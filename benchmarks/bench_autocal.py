@@ -309,17 +309,18 @@ def robot_total_time(robot_name: str, seed: int = 0) -> float:
     return sum(run_one(robot, spec, seed * len(robot) + i).time_s for i in range(len(robot)))
 
 
-def print_table_header() -> None:
-    """The head of the acceptance table (one row per scenario: :func:`print_table_row`)."""
+def print_table_header(*, wall: bool = False) -> None:
+    """The head of the acceptance table (one row per scenario: :func:`print_table_row`; ``wall``: a wall-time
+    column)."""
     print(
         f"{'scenario':18s} {'codes':34s} {'|zero|max':>9s} {'|span|max':>9s} {'σ zero':>7s} "
-        f"{'abort-bound':>11s} {'peak/cap':>8s}  verdict",
+        f"{'abort-bound':>11s} {'peak/cap':>8s}{'  wall s' if wall else ''}  verdict",
         flush=True,
     )
 
 
-def print_table_row(st: ScenarioStats) -> int:
-    """Print one scenario's row of the acceptance table; 1 when it fails, else 0."""
+def print_table_row(st: ScenarioStats, wall_s: float | None = None) -> int:
+    """Print one scenario's row of the acceptance table (with its wall time when given); 1 when it fails."""
     s, probs = st.summary(), st.problems()
     codes = ",".join(f"{k}:{v}" for k, v in sorted(s["codes"].items()))
 
@@ -328,7 +329,8 @@ def print_table_row(st: ScenarioStats) -> int:
 
     print(
         f"{st.spec.name:18s} {codes:34s} {f(s['zero_max_deg']):>9s} {f(s['span_max_deg']):>9s} "
-        f"{f(s['sigma_deg']):>7s} {f(s['abort_max_over_bound_s'], 2):>11s} {f(s['peak_over_cap']):>8s}  "
+        f"{f(s['sigma_deg']):>7s} {f(s['abort_max_over_bound_s'], 2):>11s} {f(s['peak_over_cap']):>8s}"
+        f"{'' if wall_s is None else f'{wall_s:8.0f}'}  "
         f"{'PASS' if not probs else 'FAIL: ' + '; '.join(probs)}",
         flush=True,
     )

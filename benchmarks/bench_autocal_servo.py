@@ -1,14 +1,20 @@
 """Auto-calibration acceptance of the LeRobot arms on the servo firmware simulation, behind the real vendor SDK.
 
-``python benchmarks/run.py autocal-servo`` runs, per scenario and per joint of the SO-101 follower, seeded
+``python benchmarks/run.py autocal_servo`` runs, per scenario and per joint of the SO-101 follower, seeded
 single-joint runs of ``robocal lerobot calibrate --auto``'s workflow (:func:`robocal.workflows.lerobot.auto.
-auto_calibrate`): the unmodified Feetech SDK (scservo_sdk, through robocal's FeetechBus) talks over a
-pseudo-terminal to simulated STS3215 servos whose firmware (:mod:`robocal.backends.sim.servo_firmware`: position
-servo with ``Torque_Limit``, ``Present_Load``, the overload ``Status`` bit and its protection time) moves a joint
-plant (:mod:`robocal.backends.sim.physics`) on a simulated clock. ``AUTOCAL_SEEDS=N`` seeds per scenario and
-joint (default 100: 7 200 runs, hours of wall time on this machine), ``AUTOCAL_SCENARIOS=a,b`` a subset of the
-scenarios; ``AUTOCAL_ROBOT=koch_follower`` runs the
-Koch (Dynamixel firmware) instead. The test suite (tests/autocal/test_acceptance_servo.py) runs 2 seeds of every
+auto_calibrate`): the unmodified Feetech SDK (scservo_sdk, through robocal's FeetechBus) talks to simulated
+STS3215 servos whose firmware (:mod:`robocal.backends.sim.servo_firmware`: position servo with ``Torque_Limit``,
+``Present_Load``, the overload ``Status`` bit and its protection time) moves a joint plant
+(:mod:`robocal.backends.sim.physics`) on a simulated clock. The SDK's serial port is an in-process port
+(``SimArm(transport="inproc")``: the SDK's bytes go straight to the simulator's packet parser, the same packets
+as over the pseudo-terminal, without the pty and its busy polling); ``AUTOCAL_TRANSPORT=pty`` runs over a
+pseudo-terminal instead.
+
+Seeds: ``AUTOCAL_SEEDS_PER_JOINT=N`` runs every searched joint N times per scenario (seeds 0…N−1, each joint
+alone); ``AUTOCAL_SEEDS=N`` N runs per scenario, seed → joint cycling (as ``bench_autocal``); neither: 100 per
+joint, the issue's acceptance (7 200 runs per arm). ``AUTOCAL_SCENARIOS=a,b`` a subset of the scenarios;
+``AUTOCAL_ROBOTS=so101_follower,koch_follower`` (or ``AUTOCAL_ROBOT``) the arms (default the SO-101; the Koch
+runs on the Dynamixel firmware). The test suite (tests/autocal/test_acceptance_servo.py) runs 2 seeds of every
 scenario (seed → joint, cycling) through the same :func:`run_one` and thresholds.
 
 Truth: the plant's own stops (after the scenario moved them) in the servo's actual ticks; the found contact
@@ -21,6 +27,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import time
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -73,8 +80,23 @@ def _wrap(d_ticks: float, res: int) -> float:
     return (d_ticks + res / 2) % res - res / 2
 
 
-def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None) -> RunResult:
-    """Auto-calibrate one joint (``joint``, default the ``seed``-th of the profile's order) in scenario ``spec``."""
+def run_one(
+    robot: str,
+    spec: ScenarioSpec,
+    seed: int,
+    joint: str | None = None,
+    *,
+    transport: str = "inproc",
+    packet_log: list[tuple[str, bytes]] | None = None,
+    packet_timeout_ms: float = 100.0,
+) -> RunResult:
+    """Auto-calibrate one joint (``joint``, default the ``seed``-th of the profile's order) in scenario ``spec``.
+
+    ``transport``: the simulated arm's port, ``"inproc"`` (default, fast) or ``"pty"`` (a pseudo-terminal);
+    the same packets either way. ``packet_log``: a list to record every instruction and status packet in.
+    ``packet_timeout_ms``: the SDK's reply timeout (wall time on the pty: a loaded machine that answers later
+    makes the SDK retry, one more packet and so a different run; the in-process port does not depend on it).
+    """
     arm_spec = robot_spec(robot)
     section = auto_section(robot)
     order = [j.name for j in section.searched_joints]
@@ -87,11 +109,12 @@ def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None)
     scen = spec.plant_scenario(cap)
     nominal = replace(ARM_NOMINAL, stiffness_lower=spec.stiffness, stiffness_upper=spec.stiffness)
     clock = SimClock()
-    with SimArm(arm_spec, truth=cad_truth(robot, seed)) as arm:
+    with SimArm(arm_spec, truth=cad_truth(robot, seed), transport=transport) as arm:
+        arm.bus.packet_log = packet_log
         plants = attach_physics(
             arm, clock, scenarios={name: scen}, search_torque_nm=cap, nominal=nominal, seed=seed
         )
-        bus = open_bus(arm_spec, arm.port)
+        bus = open_bus(arm_spec, arm.port, packet_timeout_ms=packet_timeout_ms)
         try:
             auto: AutoCalResult
             try:
@@ -135,25 +158,30 @@ def run_one(robot: str, spec: ScenarioSpec, seed: int, joint: str | None = None)
 
 
 def run_scenario(
-    robot: str, spec: ScenarioSpec, seeds: Sequence[int], *, per_joint: bool = False
+    robot: str,
+    spec: ScenarioSpec,
+    seeds: Sequence[int],
+    *,
+    per_joint: bool = False,
+    transport: str = "inproc",
 ) -> ScenarioStats:
     """``spec`` for every seed: one joint per seed (cycling), or every joint per seed with ``per_joint``."""
     st = ScenarioStats(robot, spec)
     joints = [j.name for j in auto_section(robot).searched_joints]
     for seed in seeds:
         if per_joint:
-            st.runs += [run_one(robot, spec, seed, j) for j in joints]
+            st.runs += [run_one(robot, spec, seed, j, transport=transport) for j in joints]
         else:
-            st.runs.append(run_one(robot, spec, seed))
+            st.runs.append(run_one(robot, spec, seed, transport=transport))
     return st
 
 
-def arm_total_time(robot: str, seed: int = 0) -> float:
+def arm_total_time(robot: str, seed: int = 0, *, transport: str = "inproc") -> float:
     """Simulated time of a whole clean arm auto-calibrated in one run (every joint, transit and parking)."""
     arm_spec = robot_spec(robot)
     section = auto_section(robot)
     clock = SimClock()
-    with SimArm(arm_spec, truth=cad_truth(robot, seed)) as arm:
+    with SimArm(arm_spec, truth=cad_truth(robot, seed), transport=transport) as arm:
         push = {
             j.name: j.torque_fraction * RATINGS[m.model].stall_torque_nm
             for m in arm_spec.motors
@@ -169,21 +197,59 @@ def arm_total_time(robot: str, seed: int = 0) -> float:
     return auto.total_time_s
 
 
+def transport_wall_times(robot: str, repeats: int = 3) -> dict[str, float]:
+    """Best wall time (s) of one clean single-joint search (seed 0, the profile's first joint) per transport."""
+    spec = SERVO_SCENARIOS[0]
+    best = {"pty": math.inf, "inproc": math.inf}
+    for _ in range(repeats):
+        for transport in best:
+            t0 = time.perf_counter()
+            run_one(robot, spec, 0, transport=transport)
+            best[transport] = min(best[transport], time.perf_counter() - t0)
+    return best
+
+
+def servo_seeds() -> tuple[range, bool, str]:
+    """The seeds per scenario, whether each runs every joint, and how they were chosen (for the title).
+
+    ``AUTOCAL_SEEDS_PER_JOINT=N``: N seeds, each run on every searched joint; ``AUTOCAL_SEEDS=N``: N seeds,
+    seed → joint cycling; neither: 100 per joint (the issue's acceptance).
+    """
+    per_joint = os.environ.get("AUTOCAL_SEEDS_PER_JOINT")
+    cycling = os.environ.get("AUTOCAL_SEEDS")
+    if cycling and not per_joint:
+        n = int(cycling)
+        return range(n), False, f"{n} seeded runs per scenario (seed → joint, cycling)"
+    n = int(per_joint or "100")
+    return range(n), True, f"{n} seeded runs per joint and scenario"
+
+
 def main() -> None:
-    n = int(os.environ.get("AUTOCAL_SEEDS", "100"))
-    robot = os.environ.get("AUTOCAL_ROBOT", "so101_follower")
-    limit = THRESHOLDS["so101_total_s"]
-    print(f"-- {robot} on the servo firmware simulation (real SDK, pty): {n} seeds per scenario per joint --")
-    print_table_header()
-    failures = 0
+    robots = [r for r in os.environ.get("AUTOCAL_ROBOTS", os.environ.get("AUTOCAL_ROBOT", "")).split(",") if r]
+    transport = os.environ.get("AUTOCAL_TRANSPORT", "inproc")
     wanted = [w for w in os.environ.get("AUTOCAL_SCENARIOS", "").split(",") if w]
-    for spec in SERVO_SCENARIOS:
-        if wanted and spec.name not in wanted:
-            continue
-        failures += print_table_row(run_scenario(robot, spec, range(n), per_joint=True))
-    total = arm_total_time(robot)
-    print(
-        f"whole {robot}: {total:.1f} s simulated (limit {limit:.0f} s) {'PASS' if total < limit else 'FAIL'}"
-    )
-    failures += total >= limit
+    seeds, per_joint, how = servo_seeds()
+    limit = THRESHOLDS["so101_total_s"]
+    failures = 0
+    for robot in robots or ["so101_follower"]:
+        walls = transport_wall_times(robot)
+        print(
+            f"{robot}: one clean single-joint search {walls['pty']:.2f} s wall over a pty, "
+            f"{walls['inproc']:.2f} s in process ({walls['pty'] / walls['inproc']:.1f}× faster; best of 3)"
+        )
+        joints = len(auto_section(robot).searched_joints)
+        print(f"-- {robot} on the servo firmware simulation (real SDK, {transport} port): {how} ({joints} joints) --")
+        print_table_header(wall=True)
+        for spec in SERVO_SCENARIOS:
+            if wanted and spec.name not in wanted:
+                continue
+            t0 = time.perf_counter()
+            stats = run_scenario(robot, spec, seeds, per_joint=per_joint, transport=transport)
+            failures += print_table_row(stats, time.perf_counter() - t0)
+        total = arm_total_time(robot, transport=transport)
+        print(
+            f"whole {robot}: {total:.1f} s simulated (limit {limit:.0f} s) {'PASS' if total < limit else 'FAIL'}\n",
+            flush=True,
+        )
+        failures += total >= limit
     print(f"autocal-servo acceptance: {'PASS' if not failures else f'{failures} FAIL'}")

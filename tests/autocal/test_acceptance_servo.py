@@ -1,8 +1,9 @@
-"""Issue 11 acceptance of the SO-101 on the Feetech firmware simulation behind the real SDK (seeded subset).
+"""Issue 11 acceptance of the SO-101 (Feetech firmware) and the Koch (Dynamixel firmware) behind the real SDKs.
 
-The same harness and thresholds as ``python benchmarks/run.py autocal-servo``: every scenario, 2 seeds (seed →
-joint, cycling through the profile's order), each a ``lerobot calibrate --auto`` run of one joint over the
-pseudo-terminal with the unmodified scservo_sdk.
+The same harness and thresholds as ``python benchmarks/run.py autocal_servo``: every scenario, 2 seeds (seed →
+joint, cycling through the profile's order), each a ``lerobot calibrate --auto`` run of one joint with the
+unmodified scservo_sdk / dynamixel_sdk over the simulator's in-process port. One search also runs over the
+pseudo-terminal: the same packets byte for byte and the same result to the tick.
 """
 
 from __future__ import annotations
@@ -15,13 +16,37 @@ pytestmark = pytest.mark.timeout(900)
 
 
 bench = load_benchmark("bench_autocal_servo")
+SCENARIOS = {s.name: s for s in bench.SERVO_SCENARIOS}
 
 
 @pytest.mark.parametrize("spec", bench.SERVO_SCENARIOS, ids=lambda s: s.name)
-def test_so101_scenario_meets_acceptance_on_the_feetech_firmware(spec: object) -> None:
-    stats = bench.run_scenario("so101_follower", spec, range(2))
+@pytest.mark.parametrize("robot", ["so101_follower", "koch_follower"])
+def test_scenario_meets_acceptance_on_the_servo_firmware(robot: str, spec: object) -> None:
+    stats = bench.run_scenario(robot, spec, range(2))
     assert stats.problems() == []
     summary = stats.summary()
     assert summary["n"] == 2
     assert summary["peak_over_cap"] <= 1.10
     assert len({r.joint for r in stats.runs}) == 2  # two different joints
+
+
+@pytest.mark.parametrize(
+    ("robot", "scenario", "seed"),
+    [("so101_follower", "stiff_100", 4), ("koch_follower", "overload_latch", 1)],
+)
+def test_the_pty_and_the_in_process_port_carry_the_same_search(robot: str, scenario: str, seed: int) -> None:
+    runs, logs = {}, {}
+    for transport in ("pty", "inproc"):
+        logs[transport] = []
+        runs[transport] = bench.run_one(
+            robot,
+            SCENARIOS[scenario],
+            seed,
+            transport=transport,
+            packet_log=logs[transport],
+            packet_timeout_ms=5000.0,  # a loaded machine must not make the pty's SDK retry (one more packet)
+        )
+    assert runs["pty"].code == "ok"
+    assert runs["inproc"] == runs["pty"]  # zero and span errors, times, tests fired, peak torque: identical
+    assert len(logs["pty"]) > 1000
+    assert logs["inproc"] == logs["pty"]  # every instruction and status packet, byte for byte

@@ -12,7 +12,7 @@ from typing import Any
 
 from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
-from . import require
+from . import inproc_serial, require
 
 __all__ = ["SdkBusBase"]
 
@@ -74,6 +74,8 @@ class SdkBusBase(ClosesOnExit):
         self._sdk = sdk
         self._port_handler = sdk.PortHandler(port)
         self._ph = sdk.PacketHandler(protocol)
+        if port.startswith(inproc_serial.PREFIX):
+            self._install_in_process(port)
         try:
             ok = self._port_handler.openPort() and self._port_handler.setBaudRate(baudrate)
         except Exception as exc:  # pyserial raises SerialException (an OSError) or ValueError
@@ -82,6 +84,37 @@ class SdkBusBase(ClosesOnExit):
             raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
         self._install_timeout(packet_timeout_ms)
         self._install_drain()
+
+    def _install_in_process(self, port: str) -> None:
+        """Open an in-process port (:mod:`.inproc_serial`) where the SDK would open ``serial.Serial(port)``.
+
+        Only the SDK's ``setupPort`` (which builds the pyserial object) and its clock (``getCurrentTime``, which
+        times the reply timeouts) are replaced, on this port object only: every packet is still built, sent,
+        read and checked by the SDK.
+
+        Raises:
+            DeviceError: No simulator answers that name (it was stopped, or never started).
+        """
+        opener = inproc_serial.lookup(port)
+        if opener is None:
+            raise DeviceError(f"{port}: no in-process port of that name (its simulator is not running)")
+        handler = self._port_handler
+
+        def setup_port(cflag_baud: int) -> bool:
+            if handler.is_open:
+                handler.closePort()
+            handler.ser = opener(int(handler.baudrate))
+            handler.is_open = True
+            handler.ser.reset_input_buffer()
+            handler.tx_time_per_byte = (1000.0 / handler.baudrate) * 10.0
+            return True
+
+        def current_time_ms() -> float:
+            ser = handler.ser
+            return float(ser.now_ms()) if ser is not None else 0.0
+
+        handler.setupPort = setup_port
+        handler.getCurrentTime = current_time_ms
 
     def _install_drain(self) -> None:
         """Drop late replies before each packet the SDK sends (on this port object only).

@@ -15,8 +15,9 @@ code drives a real arm and the simulated firmware on a pseudo-terminal.
 * **Dynamixel X** (``Operating_Mode`` 5, current-based position, where the model senses current): the goal steps
   the same way (``Profile_Velocity`` 0); the cap is ``Goal_Current`` (``cap/rated·stall current``); readings are
   ``Present_Position``, ``Present_Velocity`` (0.229 rev/min), ``Present_Current`` and ``Hardware_Error_Status``
-  (bit 5 overload: suspect, the firmware has switched the torque off; any other bit: fatal). A clear is a
-  REBOOT (the only way out of a hardware error), the RAM limits written again, goal = present, torque on. Models
+  (bit 5 overload: suspect, the firmware has switched the torque off; any other bit: fatal). A clear is torque
+  off (a motor pressed into a stop may lose its replies until it stops pushing), then, if a hardware error
+  stands, a REBOOT (the only way out of it) and the RAM limits written again; goal = present, torque on. Models
   without current sensing (XL430) run in extended position mode 4 with ``Goal_PWM`` as the cap.
 
 Joint frame: ``s = ticks·2π/resolution`` of an unwrapped tick count (continuous across the encoder seam), radians,
@@ -372,6 +373,7 @@ class DynamixelJointDriver(_ServoJointDriver):
         return round(target_ticks)
 
     def _clear(self) -> None:
+        self._sync("Torque_Enable", 0)  # stop pushing first: a motor pressed into a stop may not answer until then
         self.enabled = False
         if self._read1("Hardware_Error_Status"):
             self.bus.reboot(self.motor_id)  # torque is off after it; RAM registers back to their defaults

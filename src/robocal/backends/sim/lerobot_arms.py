@@ -136,7 +136,7 @@ def seeded_truth(
 
 
 class SimArm(StartsOnEnter):
-    """A simulated LeRobot arm on a pseudo-terminal.
+    """A simulated LeRobot arm on a pseudo-terminal (or an in-process port).
 
     Args:
         robot: The arm (its robot profile's :class:`RobotSpec`, e.g.
@@ -149,6 +149,8 @@ class SimArm(StartsOnEnter):
             previous calibration.
         factory: Servos as shipped: every one at id 1 and the vendor's default baud rate, no calibration
             (for LeRobot's ``setup_motors``; plug them in one at a time with :meth:`SimServoBus.attach`).
+        transport: ``"pty"`` (a pseudo-terminal, as a real arm) or ``"inproc"`` (the same packets through an
+            in-process port, :attr:`port` ``inproc://…``: no pty, no thread; for fast simulation).
     """
 
     def __init__(
@@ -160,6 +162,7 @@ class SimArm(StartsOnEnter):
         seed: int = 0,
         eeprom: Mapping[str, Mapping[str, int]] | None = None,
         factory: bool = False,
+        transport: str = "pty",
     ) -> None:
         if not isinstance(robot, RobotSpec):
             raise UsageError(f"SimArm takes the arm's RobotSpec (robot_spec({robot!r})), not {type(robot).__name__}")
@@ -178,7 +181,7 @@ class SimArm(StartsOnEnter):
             for reg, value in (eeprom or {}).get(m.name, {}).items():
                 servo.set_reg(reg, value)
             servos.append(servo)
-        self.bus = SimServoBus(servos, noise_ticks=noise_ticks, seed=seed)
+        self.bus = SimServoBus(servos, noise_ticks=noise_ticks, seed=seed, transport=transport)
         self.port = self.bus.port
 
     def start(self) -> SimArm:

@@ -246,6 +246,10 @@ def _sign(x: float) -> float:
     return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
 
 
+_Rest = tuple["Drive", "OverloadLatch | None", float, float, bool, float, float]
+"""A resting check that held: (drive, overload rule, q, link, latched, motor torque, wall torque)."""
+
+
 class JointPlant:
     """One joint integrated on a simulated clock (see the module docstring).
 
@@ -284,6 +288,7 @@ class JointPlant:
         self._over_s = 0.0
         self._stuck = True
         self._steps = 0
+        self._rest: _Rest | None = None  # the last resting check that held (see _resting)
         j = params.inertia_kgm2
         z = params.stop_damping_ratio
         walls: list[tuple[float, float, float, float]] = []  # (position, side, k, c)
@@ -435,7 +440,7 @@ class JointPlant:
         """Integrate under ``drive`` up to simulated time ``t_s`` (nothing happens if it is in the past)."""
         target = math.floor(t_s / self.params.dt_s + 1e-9)
         while self._steps < target:
-            if self._stuck and self._resting(drive):
+            if self._stuck and (self._rested(drive) or self._resting(drive)):
                 self._steps = target  # at rest under a constant drive: exactly what the steps would do
                 return
             self.step(drive)
@@ -443,6 +448,28 @@ class JointPlant:
     def advance(self, duration_s: float, drive: Drive) -> None:
         """Integrate under ``drive`` for ``duration_s`` of simulated time."""
         self.run_until(self.t_s + duration_s, drive)
+
+    def _rested(self, drive: Drive) -> bool:
+        """:meth:`_resting` held last time for this very drive and state: its outcome again, without the sums.
+
+        The check is a pure function of (drive, overload rule, q, link, latch); a joint held still under one
+        drive (the firmware keeps its :class:`Drive` object while its registers do not change) costs nothing.
+        """
+        rest = self._rest
+        if rest is None:
+            return False
+        drive0, overload0, q0, link0, latched0, tau_m, wall = rest
+        if not (
+            drive0 is drive
+            and overload0 is self.overload
+            and q0 == self.q_rad
+            and link0 == self.link_rad
+            and latched0 == self.latched
+        ):
+            return False
+        self.tau_motor_nm, self.tau_wall_nm = tau_m, wall
+        self._over_s = 0.0
+        return True
 
     def _resting(self, drive: Drive) -> bool:
         """A stuck joint whose holding torque stays within the breakaway (and no overload timer running)."""
@@ -460,6 +487,7 @@ class JointPlant:
         self.tau_motor_nm, self.tau_wall_nm = tau_m, wall
         self.peak_tau_motor_nm = max(self.peak_tau_motor_nm, abs(tau_m))
         self._over_s = 0.0
+        self._rest = (drive, self.overload, q, self.link_rad, self.latched, tau_m, wall)
         return True
 
 

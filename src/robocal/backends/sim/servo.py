@@ -1,4 +1,4 @@
-"""Simulated Feetech and Dynamixel servos answering real packets on a pseudo-terminal.
+"""Simulated Feetech and Dynamixel servos answering real packets on a pseudo-terminal (or in process).
 
 A :class:`SimServoBus` opens a pty (``os.openpty()``, raw mode) and runs one thread that parses instruction
 packets written by the unmodified vendor SDK (Feetech protocol 0/1 with checksum; Dynamixel protocol 2.0 with
@@ -21,6 +21,11 @@ only while it is plugged in (:attr:`SimServo.attached`) and only at its own baud
 A pty carries no baud rate, so the simulator reads the speed the client set on the terminal (``TCGETS2``) and
 ignores packets sent at another speed. A write to ``ID`` or ``Baud_Rate`` is acknowledged with the old id at
 the old speed, then takes effect. Broadcast PING (id 0xFE) is answered by every servo on the bus, in id order.
+
+``transport="inproc"`` puts the same servos behind an in-process port (:mod:`robocal.backends.inproc_serial`,
+``inproc://sim-servo-N``) instead: the SDK's ``write`` hands each packet's bytes to the same parser and servo
+code in the caller's thread and its ``read`` returns the status packets (:mod:`.servo_inproc`); no pty, no thread.
+The packets are the same byte for byte, and so is a seeded run (:attr:`SimServoBus.packet_log`).
 """
 
 from __future__ import annotations
@@ -41,18 +46,22 @@ import numpy as np
 from ...core.lerobot import encode_sign_magnitude, encode_twos_complement
 from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
+from .. import inproc_serial
 from ..dynamixel import X_TABLE
 from .servo_model import BAUD_RATES, BROADCAST_ID, SimServo, Vendor
 from .servo_packets import dxl_crc16, dynamixel_status, feetech_status, parse_dynamixel, parse_feetech
 
 if TYPE_CHECKING:
     from .physics import SimClock
+    from .servo_inproc import InProcessSerial
 
 __all__ = ["BAUD_RATES", "BROADCAST_ID", "SimServo", "SimServoBus", "dxl_crc16"]  # dxl_crc16: servo_packets
 
 _SETTLE_MARK = b"\x00\xa5robocal-sim-settle\xa5\x00"
 """Written into the terminal by :meth:`SimServoBus.settle`; never part of a packet."""
 _TCGETS2 = 0x802C542A  # _IOR('T', 0x2A, struct termios2) on x86 and the generic ioctl ABI (arm, arm64, riscv)
+TRANSPORTS = ("pty", "inproc")
+"""How a :class:`SimServoBus` is reached: a pseudo-terminal (a thread answers) or an in-process port."""
 
 
 class SimServoBus(StartsOnEnter):
@@ -66,8 +75,10 @@ class SimServoBus(StartsOnEnter):
         clock: Simulated time for servos with physics (:attr:`SimServo.firmware`): each packet advances it by
             ``latency_s`` and integrates every such servo up to it.
         latency_s: Simulated bus latency per packet.
+        transport: ``"pty"`` (a pseudo-terminal answered by a thread) or ``"inproc"`` (an in-process port
+            answered in the caller's thread: the same packets, no polling; for fast simulation).
 
-    Use as a context manager; :attr:`port` is the path to hand to the SDK.
+    Use as a context manager; :attr:`port` is the name to hand to the SDK (a pty path or ``inproc://…``).
     """
 
     def __init__(
@@ -79,7 +90,11 @@ class SimServoBus(StartsOnEnter):
         enforce_lock: bool = False,
         clock: SimClock | None = None,
         latency_s: float = 0.001,
+        transport: str = "pty",
     ) -> None:
+        if transport not in TRANSPORTS:
+            raise UsageError(f"simulated servo bus transport {transport!r}: expected one of {', '.join(TRANSPORTS)}")
+        self.transport = transport
         self.clock = clock
         self.latency_s = latency_s
         vendors = {s.vendor for s in servos}
@@ -92,12 +107,20 @@ class SimServoBus(StartsOnEnter):
         self._rng = np.random.default_rng(seed)
         self._lock = threading.RLock()
         self._stop = threading.Event()
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._master)
-        tty.setraw(self._slave)
-        self.port = os.ttyname(self._slave)
+        self._client: InProcessSerial | None = None
+        self._inbox = bytearray()
+        if transport == "pty":
+            self._master, self._slave = os.openpty()
+            tty.setraw(self._master)
+            tty.setraw(self._slave)
+            self.port = os.ttyname(self._slave)
+        else:
+            self._master = self._slave = -1
+            self.port = inproc_serial.new_name("sim-servo")
         self._thread = threading.Thread(target=self._run, name=f"sim-servo-{self.port}", daemon=True)
         self._settles: list[threading.Event] = []
+        self.packet_log: list[tuple[str, bytes]] | None = None
+        """Set to a list to record every packet: ``("rx", instruction bytes)`` / ``("tx", status bytes)``."""
         if clock is not None:
             clock.add_settler(self.settle)
 
@@ -117,15 +140,23 @@ class SimServoBus(StartsOnEnter):
 
     # ------------------------------------------------------------------------------------ life cycle
     def start(self) -> SimServoBus:
-        """Start answering packets."""
+        """Start answering packets (the pty's thread, or the in-process port's name)."""
+        if self.transport == "inproc":
+            inproc_serial.register(self.port, self._connect)
+            return self
         self._thread.start()
         return self
 
     def stop(self) -> None:
-        """Stop the thread (bounded wait) and close the pty."""
+        """Stop the thread (bounded wait) and close the pty (or unregister the in-process port)."""
         self._stop.set()
         if self.clock is not None:
             self.clock.remove_settler(self.settle)
+        if self.transport == "inproc":
+            inproc_serial.unregister(self.port)
+            if self._client is not None:
+                self._client.close()
+            return
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
         for fd in (self._master, self._slave):
@@ -160,6 +191,23 @@ class SimServoBus(StartsOnEnter):
                     self._settles.pop(0).set()
             self._parse_all(buf)
 
+    def _connect(self, baudrate: int) -> InProcessSerial:
+        """Open the in-process port at ``baudrate`` (the SDK's setupPort); a previous connection is closed."""
+        from .servo_inproc import InProcessSerial
+
+        with self._lock:
+            if self._client is not None:
+                self._client.close()
+            self._inbox.clear()
+            self._client = InProcessSerial(self, baudrate)
+            return self._client
+
+    def receive(self, data: bytes) -> None:
+        """In-process transport: bytes the client wrote; every whole packet in them is answered at once."""
+        with self._lock:
+            self._inbox.extend(data)
+            self._parse_all(self._inbox)
+
     def _parse_all(self, buf: bytearray) -> None:
         while True:
             consumed = self._parse(buf)
@@ -184,6 +232,12 @@ class SimServoBus(StartsOnEnter):
         done.wait(timeout_s)
 
     def _send(self, data: bytes) -> None:
+        if self.packet_log is not None:
+            self.packet_log.append(("tx", data))
+        if self.transport == "inproc":
+            if self._client is not None:
+                self._client.deliver(data)
+            return
         with contextlib.suppress(OSError):
             os.write(self._master, data)
 
@@ -192,6 +246,8 @@ class SimServoBus(StartsOnEnter):
         parse = parse_feetech if self.vendor == "feetech" else parse_dynamixel
         consumed, inst = parse(buf)
         if inst is not None:
+            if self.packet_log is not None:
+                self.packet_log.append(("rx", bytes(buf[:consumed])))
             self.instructions += 1
             self._handle(*inst)
         return consumed
@@ -280,7 +336,13 @@ class SimServoBus(StartsOnEnter):
         return 0
 
     def client_baudrate(self) -> int | None:
-        """Bit/s the client last set on the terminal (``TCGETS2``), or None where it cannot be read."""
+        """Bit/s the client last set on the terminal (``TCGETS2``), or None where it cannot be read.
+
+        In process: the baud rate the client opened the port at (None while it is not open).
+        """
+        if self.transport == "inproc":
+            client = self._client
+            return client.baudrate if client is not None and client.is_open else None
         buf = bytearray(44)
         try:
             fcntl.ioctl(self._slave, _TCGETS2, buf)

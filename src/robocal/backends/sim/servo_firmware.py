@@ -73,6 +73,10 @@ class ServoFirmware:
         self.dxl = servo.vendor == "dynamixel"
         self.scenario_overload = plant.overload
         """A scenario's overload latch (from :func:`~.scenarios.make_plant`) replaces the firmware's own rule."""
+        self._law_key: tuple[bytes, float] | None = None
+        self._law: tuple[bool, bool, float, float, OverloadLatch | None] = (False, False, 0.0, 0.0, None)
+        self._drive_key: tuple[bytes, float, float] | None = None
+        self._drive = Drive()
         s = servo
         if self.dxl:
             s.set_reg("Current_Limit", self.rating.current_limit)
@@ -191,25 +195,47 @@ class ServoFirmware:
         return float(abs(self._reg(name)))
 
     # ------------------------------------------------------------------------------------------- hooks
+    def _registers_law(self) -> tuple[bool, bool, float, float, OverloadLatch | None]:
+        """(torque on, position law, goal in actual ticks, ramp speed, overload rule) from the registers.
+
+        A pure function of the registers and the shaft's turn (for the goal), so it is kept until they change:
+        the firmware of a servo that only holds its pose costs almost nothing per packet.
+        """
+        key = (bytes(self.servo.regs), self.servo.actual_ticks)
+        if key != self._law_key:
+            mode = self._reg("Operating_Mode")
+            position_law = mode in (3, 4, 5) if self.dxl else mode == 0
+            on = self.torque_on
+            goal = speed = 0.0
+            if on and position_law:
+                goal = self.servo.goal_to_actual(self.servo.get_reg("Goal_Position"))
+                speed = self._ramp_speed_ticks_s()
+            self._law_key, self._law = key, (on, position_law, goal, speed, self._overload())
+        return self._law
+
+    def _current_drive(self) -> Drive:
+        """:meth:`drive`, kept while the registers, the setpoint and its ramp stay the same."""
+        key = (bytes(self.servo.regs), self.setpoint_ticks, self.ramp_ticks_s)
+        if key != self._drive_key:
+            self._drive_key, self._drive = key, self.drive()
+        return self._drive
+
     def sync(self) -> None:
         """Integrate the plant to the clock, moving the setpoint along its ramp."""
         plant, now = self.plant, self.clock.now()
-        plant.overload = self._overload()
-        mode = self._reg("Operating_Mode")
-        position_law = mode in (3, 4, 5) if self.dxl else mode == 0
+        plant.overload = self._registers_law()[4]
         while plant.t_s < now - 1e-12:
             t_next = min(now, plant.t_s + _CHUNK_S)
             self.ramp_ticks_s = 0.0
-            if self.torque_on and position_law:
-                goal = self.servo.goal_to_actual(self.servo.get_reg("Goal_Position"))
-                speed = self._ramp_speed_ticks_s()
+            on, position_law, goal, speed, _ = self._registers_law()
+            if on and position_law:
                 err = goal - self.setpoint_ticks
                 if speed <= 0 or abs(err) <= speed * (t_next - plant.t_s):
                     self.setpoint_ticks = goal
                 else:
                     self.setpoint_ticks += math.copysign(speed * (t_next - plant.t_s), err)
                     self.ramp_ticks_s = math.copysign(speed, err)
-            plant.run_until(t_next, self.drive())
+            plant.run_until(t_next, self._current_drive())
             if plant.t_s < t_next - 1e-12:  # the plant's step is coarser than what is left
                 break
             if self.dxl and plant.latched and self.torque_on:

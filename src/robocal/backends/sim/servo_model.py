@@ -165,7 +165,7 @@ class SimServo:
     @property
     def baudrate(self) -> int:
         """Bit/s the servo listens at now (its ``Baud_Rate`` register; unknown values read as 1 Mbit/s)."""
-        return BAUD_RATES[self.vendor].get(self.get_reg("Baud_Rate"), 1_000_000)
+        return BAUD_RATES[self.vendor].get(self.regs[self.table["Baud_Rate"][0]], 1_000_000)  # one byte
 
     def factory_reset(self) -> None:
         """ID 1, the vendor's shipping baud rate, no homing offset, full-turn limits (a new servo)."""

@@ -46,11 +46,13 @@ def robot_spec(robot: str | os.PathLike[str]) -> RobotSpec:
         raise UsageError(f"unknown robot {text!r}; valid: {', '.join(names)} (or a robot profile file)")
     return RobotSpec.from_profile(load_profile(text))
 
-def open_bus(spec: RobotSpec, port: str, *, retries: int = 3) -> ServoBus:
-    """Open the vendor-SDK bus of an arm on ``port``."""
+def open_bus(
+    spec: RobotSpec, port: str, *, retries: int = 3, packet_timeout_ms: float | None = 100.0
+) -> ServoBus:
+    """Open the vendor-SDK bus of an arm on ``port`` (a serial port, a simulator's pty or ``inproc://`` port)."""
     motors = {m.motor_id: m.model for m in spec.motors}
     bus_class = load_backend("feetech") if spec.vendor == "feetech" else load_backend("dynamixel")
-    return bus_class(port, motors, retries=retries)
+    return bus_class(port, motors, retries=retries, packet_timeout_ms=packet_timeout_ms)
 
 def norm_modes(
     spec: RobotSpec, *, use_degrees: bool | None = None, overrides: Mapping[str, str] | None = None
