@@ -246,8 +246,7 @@ def _sign(x: float) -> float:
     return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
 
 
-_Rest = tuple["Drive", "OverloadLatch | None", float, float, bool, float, float]
-"""A resting check that held: (drive, overload rule, q, link, latched, motor torque, wall torque)."""
+_Rest = tuple["Drive", "OverloadLatch | None", "PlantParams", float, float, bool, float, float]  # …, q, link, latch, τs
 
 
 class JointPlant:
@@ -445,22 +444,26 @@ class JointPlant:
                 return
             self.step(drive)
 
+    def hold_until(self, t_s: float, drive: Drive) -> bool:
+        """If the joint rests under ``drive`` as last found, move its time to ``t_s`` (as :meth:`run_until`): True."""
+        if not (self._stuck and self._rested(drive)):
+            return False
+        self._steps = max(self._steps, math.floor(t_s / self.params.dt_s + 1e-9))
+        return True
+
     def advance(self, duration_s: float, drive: Drive) -> None:
         """Integrate under ``drive`` for ``duration_s`` of simulated time."""
         self.run_until(self.t_s + duration_s, drive)
 
     def _rested(self, drive: Drive) -> bool:
-        """:meth:`_resting` held last time for this very drive and state: its outcome again, without the sums.
-
-        The check is a pure function of (drive, overload rule, q, link, latch); a joint held still under one
-        drive (the firmware keeps its :class:`Drive` object while its registers do not change) costs nothing.
-        """
+        """:meth:`_resting` held last time for this very drive and state (it is a pure function of them): again."""
         rest = self._rest
         if rest is None:
             return False
-        drive0, overload0, q0, link0, latched0, tau_m, wall = rest
+        drive0, overload0, params0, q0, link0, latched0, tau_m, wall = rest
         if not (
             drive0 is drive
+            and params0 is self.params
             and overload0 is self.overload
             and q0 == self.q_rad
             and link0 == self.link_rad
@@ -487,7 +490,7 @@ class JointPlant:
         self.tau_motor_nm, self.tau_wall_nm = tau_m, wall
         self.peak_tau_motor_nm = max(self.peak_tau_motor_nm, abs(tau_m))
         self._over_s = 0.0
-        self._rest = (drive, self.overload, q, self.link_rad, self.latched, tau_m, wall)
+        self._rest = (drive, self.overload, self.params, q, self.link_rad, self.latched, tau_m, wall)
         return True
 
 

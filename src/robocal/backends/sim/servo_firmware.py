@@ -77,6 +77,7 @@ class ServoFirmware:
         self._law: tuple[bool, bool, float, float, OverloadLatch | None] = (False, False, 0.0, 0.0, None)
         self._drive_key: tuple[bytes, float, float] | None = None
         self._drive = Drive()
+        self._held: tuple[bytes, float, float] | None = None  # (registers, shaft, setpoint) of a joint at rest
         s = servo
         if self.dxl:
             s.set_reg("Current_Limit", self.rating.current_limit)
@@ -221,9 +222,17 @@ class ServoFirmware:
         return self._drive
 
     def sync(self) -> None:
-        """Integrate the plant to the clock, moving the setpoint along its ramp."""
+        """Integrate the plant to the clock, moving the setpoint along its ramp.
+
+        A joint that rested at the end of the last sync, with the same registers and setpoint (nothing written to
+        it, no ramp, no encoder noise), only has its time moved on: what the loop below would do for it.
+        """
         plant, now = self.plant, self.clock.now()
         plant.overload = self._registers_law()[4]
+        held = (bytes(self.servo.regs), self.servo.actual_ticks, self.setpoint_ticks)
+        if held == self._held and plant.hold_until(now, self._current_drive()):
+            return
+        self._held = None
         while plant.t_s < now - 1e-12:
             t_next = min(now, plant.t_s + _CHUNK_S)
             self.ramp_ticks_s = 0.0
@@ -242,6 +251,21 @@ class ServoFirmware:
                 self.servo.set_reg("Torque_Enable", 0)  # the overload shuts the torque off
                 self.servo.set_reg("Hardware_Error_Status", self._reg("Hardware_Error_Status") | 0x20)
         self.servo.actual_ticks = self.ticks(plant.read().q_rad)
+        self._note_held(now)
+
+    def _note_held(self, now: float) -> None:
+        """Remember a joint that rests at its setpoint with nothing left to do (for the next :meth:`sync`)."""
+        plant = self.plant
+        on, position_law, goal, _, _ = self._registers_law()
+        if (
+            plant.params.noise_rad == 0.0
+            and self.ramp_ticks_s == 0.0
+            and plant.t_s >= now - 1e-12
+            and not (on and position_law and self.setpoint_ticks != goal)
+            and not (self.dxl and plant.latched and on)
+            and plant.hold_until(plant.t_s, self._current_drive())
+        ):
+            self._held = (bytes(self.servo.regs), self.servo.actual_ticks, self.setpoint_ticks)
 
     def after_write(self, addr: int, size: int, torque_was_on: bool) -> None:
         """A register write was applied: torque-on holds the present position; torque-off clears Feetech's latch."""
