@@ -32,6 +32,8 @@ from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_autocal import (
@@ -62,18 +64,29 @@ SERVO_SCENARIOS: tuple[ScenarioSpec, ...] = SCENARIOS
 def cad_truth(robot: str, seed: int) -> dict[str, JointTruth]:
     """The simulated arm's truth with each searched joint's stops at the profile's expected (CAD) angles.
 
-    The seed places each joint's mid pose (the unknown zero, :func:`seeded_truth`); the stops sit at the
-    profile's ``lower_deg``/``upper_deg`` from it, as the Lite benchmark puts them at the URDF limits (the
-    ``asymmetric`` scenario moves each by up to ±5°).
+    The seed places each joint's mid pose (the unknown zero, :func:`seeded_truth`: whole ticks), moved by a
+    seeded fraction of a tick, so the stops fall differently on the encoder's grid from seed to seed (with whole
+    ticks only, a scenario without random draws would run the same search up to a translation for every seed);
+    the stops sit at the profile's ``lower_deg``/``upper_deg`` from it, as the Lite benchmark puts them at the
+    URDF limits (the ``asymmetric`` scenario moves each by up to ±5°).
     """
     truth = seeded_truth(robot, seed)
+    rng = np.random.default_rng(20_000 + seed)
     for j in auto_section(robot).searched_joints:
         t = truth[j.name]
         lo, hi = j.expected_rad(None, None)
         assert lo is not None and hi is not None
         per_rad = 4096 / (2 * math.pi)
-        truth[j.name] = JointTruth(t.mid_ticks, t.mid_ticks + lo * per_rad, t.mid_ticks + hi * per_rad)
+        mid = t.mid_ticks + float(rng.uniform(0.0, 1.0))
+        truth[j.name] = JointTruth(mid, mid + lo * per_rad, mid + hi * per_rad)
     return truth
+
+
+def start_ticks(truth: JointTruth, seed: int) -> float:
+    """Where a searched joint starts (actual ticks): seeded, within ±15 % of its span around the middle."""
+    frac = float(np.random.default_rng(40_000 + seed).uniform(-0.15, 0.15))
+    middle = 0.5 * (truth.stop_low_ticks + truth.stop_high_ticks)
+    return middle + frac * (truth.stop_high_ticks - truth.stop_low_ticks)
 
 
 def _wrap(d_ticks: float, res: int) -> float:
@@ -111,6 +124,7 @@ def run_one(
     clock = SimClock()
     with SimArm(arm_spec, truth=cad_truth(robot, seed), transport=transport) as arm:
         arm.bus.packet_log = packet_log
+        arm.move({name: start_ticks(arm.truth[name], seed)})
         plants = attach_physics(
             arm, clock, scenarios={name: scen}, search_torque_nm=cap, nominal=nominal, seed=seed
         )
