@@ -223,3 +223,27 @@ def test_lerobot_json_unchanged_when_the_auto_run_is_refused(tmp_path: Path) -> 
         == 2
     )
     assert _files(folder) == before
+
+
+def test_the_question_names_every_joint_that_moves_and_its_cap(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sys
+
+    import typer
+
+    from robocal.cli._autocal import make_confirm_start
+
+    asked: list[str] = []
+    monkeypatch.setattr(sys.stdin, "isatty", lambda: True)
+    monkeypatch.setattr(typer, "confirm", lambda text, default=False: bool(asked.append(text)))
+    confirm = make_confirm_start(False, what="so101_follower")
+    assert make_confirm_start(True) is None  # --yes: no question
+    caps = {"shoulder_lift": 0.859, "gripper": 0.477}
+    assert confirm(tuple(caps), caps) is False  # the default answer is no
+    out = capsys.readouterr().out
+    assert asked == ["Start?"]
+    assert "these 2 joints of the so101_follower will move on their own" in out
+    assert "pushing with at most 0.86 N·m" in out
+    assert "  shoulder_lift  (cap 0.86 N·m)" in out and "  gripper  (cap 0.48 N·m)" in out
+    assert "Ctrl-C at any time makes every motor limp at once." in out

@@ -70,7 +70,7 @@ def test_so101_finds_its_stops_through_the_feetech_registers(tmp_path: Path) -> 
         recovered = arm.sim.recovered_stops(res.calibration)
         eeprom = arm.sim.eeprom()
     assert [n for n, _ in view.started] == ["elbow_flex", "wrist_flex"]  # the profile's order
-    assert view.started[0][1] == pytest.approx(0.3 * 2.9)
+    assert view.started[0][1] == pytest.approx(0.4 * 1.91)  # elbow_flex: 40 % of the 7.4 V STS3215
     assert res.exit_code == 0 and res.path == out
     for name in ("elbow_flex", "wrist_flex"):
         lo, hi = recovered[name]

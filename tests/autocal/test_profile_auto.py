@@ -129,7 +129,7 @@ def test_lerobot_followers_have_auto_sections() -> None:
         "gripper",
         "shoulder_pan",
     )
-    assert so.joint("shoulder_lift").torque_cap_nm == pytest.approx(0.87)  # type: ignore[union-attr]
+    assert so.joint("shoulder_lift").torque_cap_nm == pytest.approx(0.45 * 1.91)  # type: ignore[union-attr]
     assert so.joint("wrist_flex").pose == (("shoulder_lift", 0.0), ("elbow_flex", 0.0))  # type: ignore[union-attr]
     koch = load_profile("koch_follower").auto
     assert koch is not None

@@ -30,7 +30,7 @@ def test_auto_writes_the_manual_procedures_file(tmp_path: Path, capsys: pytest.C
     folder = tmp_path / "robots" / "so_follower"
     manual, auto = folder / "manual.json", folder / "auto.json"
     assert f"calibration saved to {auto} and written to the motors" in out.out
-    assert "shoulder_pan: searching its stops at 20°/s, cap 0.72 N·m" in out.err
+    assert "shoulder_pan: searching its stops at 20°/s, cap 0.48 N·m" in out.err
     assert (
         "kept the calibration their EEPROM holds: shoulder_lift, elbow_flex, wrist_flex, wrist_roll"
         in out.out

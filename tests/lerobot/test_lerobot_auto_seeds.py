@@ -85,4 +85,6 @@ def test_whole_so101_passes_on_seeded_simulated_arms(
             continue
         t = truth[name]
         span = t.stop_high_ticks - t.stop_low_ticks
-        assert abs((c.range_max - c.range_min) - span) <= 3, name  # the simulated stops, found
+        # the simulated stops, found: within the press into them (a joint without a stiffness estimate takes the
+        # pressed position; shoulder_lift at its 0.86 N·m cap sinks 1.9 ticks into each 300 N·m/rad stop)
+        assert abs((c.range_max - c.range_min) - span) <= 4, name

@@ -52,7 +52,8 @@ def make_confirm_start(yes: bool, what: str = "robot") -> Any:
         cap = max(caps.values()) if caps else 0.0
         con.print(
             f"CLEAR THE WORKSPACE: these {len(names)} joints of the {what} will move on their own into their hard "
-            f"stops, one after the other, pushing with at most {cap:.2f} N·m:",
+            f"stops, in this order (a joint the profile puts alongside another moves with it), pushing with at "
+            f"most {cap:.2f} N·m:",
             markup=False,
         )
         for n in names:

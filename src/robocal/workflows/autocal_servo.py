@@ -398,7 +398,7 @@ SERVO_DRIVERS: dict[str, type[FeetechJointDriver | DynamixelJointDriver]] = {
 def servo_driver_class(vendor: str) -> type[FeetechJointDriver | DynamixelJointDriver]:
     """The driver class of ``vendor``'s servos (``feetech`` or ``dynamixel``).
 
-    E.g. ``servo_driver_class("feetech")(bus, "wrist_roll", 5, rated_nm=2.9, cap_nm=0.6, clock=clock)``.
+    E.g. ``servo_driver_class("feetech")(bus, "wrist_roll", 5, rated_nm=1.91, cap_nm=0.48, clock=clock)``.
 
     Raises:
         UsageError: Unknown vendor (constructing the driver raises it for a cap above the rated torque or a

@@ -8,10 +8,10 @@ joints' stops drawn around the profile's expected angles, each within ``span_tol
 seeded arm is one the profile accepts unless a scenario says otherwise) and, as
 comma-separated joint names, ``missing`` (no upper stop), ``obstacle``, ``snag``, ``soft``, ``overload``,
 ``silent``, ``stiction`` (the scenarios of ``sim:lite``, docs/auto_calibration.md) and ``gravity`` (those joints
-carry the shipped URDF's weight in their profile search pose; without it the simulated joints are weightless:
-the simulated STS3215 is the 7.4 V one, and 30 % of its 1.91 N·m cannot lift the SO-101's upper arm), and
+carry the shipped URDF's weight in their profile search pose; without it the simulated joints are weightless), and
 ``transport`` (``pty``, the default: a pseudo-terminal as a real arm has; ``inproc``: the same packets through an
-in-process port, the SDK's bytes handed straight to the simulator, several times faster in wall time).
+in-process port, the SDK's bytes handed straight to the simulator, several times faster in wall time). The
+simulated STS3215 is the follower's 7.4 V servo (1.91 N·m), the rating its profile uses.
 """
 
 from __future__ import annotations
