@@ -57,8 +57,10 @@ class RobstrideJointDriver:
         *,
         period_s: float = 0.01,
         kd: float | None = None,
+        lost_reply_s: float | None = None,
     ) -> None:
         self.bus = bus
+        self.lost_reply_s = lost_reply_s
         self.name = name
         self.direction = int(direction)
         self.cap_nm = float(cap_nm)
@@ -93,11 +95,27 @@ class RobstrideJointDriver:
         try:
             fb = self.bus.mit_command(self.name, d * p, d * v, kp, kd, d * t)
         except CalibTimeoutError:
-            s = StopSample(self.clock.now(), math.nan, ok=False)
-        else:
-            s = self._sample(fb)
+            return self._lost(t_send)
+        s = self._sample(fb)
         self.clock.sleep(self.period_s - (self.clock.now() - t_send))
         return s
+
+    def _lost(self, t_send: float) -> StopSample:
+        """A reply that did not come: the exchange lasted the bus's reply timeout.
+
+        On hardware that time has passed already; a simulated clock is moved on by it (``lost_reply_s``: the
+        hardware's timeout), so time bounds count lost replies as they do on hardware.
+        """
+        timeout_s = (
+            self.lost_reply_s if self.lost_reply_s is not None else float(getattr(self.bus, "timeout_s", 0.0))
+        )
+        self.clock.sleep(max(self.period_s, timeout_s) - (self.clock.now() - t_send))
+        return StopSample(self.clock.now(), math.nan, ok=False)
+
+    def _enable_timed(self) -> StopSample:
+        t_send = self.clock.now()
+        s = self._enable()
+        return s if s.ok else self._lost(t_send)
 
     def _enable(self) -> StopSample:
         try:
@@ -121,7 +139,7 @@ class RobstrideJointDriver:
     def read(self) -> StopSample:
         """Read the joint, repeating the last command (enable first, with damping only, if needed)."""
         if not self.enabled:
-            s = self._enable()
+            s = self._enable_timed()
             if not s.ok:
                 return s
         return self._mit(self._last)
@@ -132,14 +150,14 @@ class RobstrideJointDriver:
             self.limp()
             return StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q))
         if not self.enabled:
-            s = self._enable()
+            s = self._enable_timed()
             if not s.ok:
                 return s
         if cmd.action == "reread":
             with suppress(CalibTimeoutError):
                 self.bus.stop(self.name, clear_faults=True)
             self.enabled = False
-            s = self._enable()
+            s = self._enable_timed()
             if not s.ok:
                 return s
             return self._mit(self._last)

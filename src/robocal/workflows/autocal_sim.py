@@ -29,11 +29,17 @@ from .autocal_types import JointDriver
 if TYPE_CHECKING:
     from ..backends.sim.physics import Scenario
 
-__all__ = ["SIM_FAULTS", "SimAutoLite", "fault_scenario", "open_sim_lite", "sim_opener", "write_sim_lite_urdf"]
+__all__ = [
+    "SIM_FAULTS",
+    "SimAutoLite",
+    "fault_scenario",
+    "open_sim_lite",
+    "sim_opener",
+    "write_sim_lite_urdf",
+]
 
 SIM_FAULTS = ("missing", "obstacle", "snag", "soft", "overload", "silent", "stiction")
 """Per-joint scenario options of ``sim:lite`` for ``--auto``."""
-
 
 
 def fault_scenario(joint: str, faults: Mapping[str, Collection[str]]) -> Scenario:
@@ -112,6 +118,7 @@ def open_sim_lite(
     """
     from ..backends import load_backend
     from ..backends.robstride import MotorSpec
+    from ..backends.robstride.bus import DEFAULT_TIMEOUT_S as HARDWARE_TIMEOUT_S
     from ..backends.sim.lite import LITE_JOINTS
     from ..backends.sim.physics import PlantParams, SimClock, make_plant
     from ..backends.sim.robstride import SimMotor, SimMotorBus
@@ -196,7 +203,13 @@ def open_sim_lite(
                 aj = auto.joint(j.name)
                 cap = aj.torque_cap_nm if aj is not None else 1.0
                 drivers[j.name] = RobstrideJointDriver(
-                    bus, j.name, by_spec[j.name].direction, cap, MAX_LAG_RAD, clock
+                    bus,
+                    j.name,
+                    by_spec[j.name].direction,
+                    cap,
+                    MAX_LAG_RAD,
+                    clock,
+                    lost_reply_s=HARDWARE_TIMEOUT_S,
                 )
     except BaseException:
         SimAutoLite(drivers, clock, motors, buses).close()
