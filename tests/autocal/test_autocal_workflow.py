@@ -133,3 +133,22 @@ def test_joint_without_stops_is_reported_not_searched_and_never_moves() -> None:
     # a run of only such joints moves nothing and takes no time
     alone = run_autocal({}, section, LIMITS, joints=["pan"])
     assert [o.stops.code for o in alone.joints] == ["not_searched"] and alone.total_time_s == 0.0
+
+
+def test_first_search_blocked_at_the_start_is_judged_by_the_span() -> None:
+    # a starts 1° from its lower stop: the search is blocked before its detector can arm. The contact counts;
+    # the span check then passes (the real stop) and the zero is within a degree.
+    plants = default_plants(
+        a=Plant(q_lo=-0.9, q_hi=1.1, kp=1.5 / math.radians(3), q=-0.9 + math.radians(1), seed=1)
+    )
+    res = run_autocal(drivers(**plants), SECTION, LIMITS, joints=["a"])
+    a = res["a"]
+    assert a.ok and a.stops.lower is not None and a.stops.lower.test == "blocked"
+    assert a.stops.offset_rad == pytest.approx(0.1, abs=math.radians(1.0))
+    # the same start beside an obstacle 40° short of the upper stop: a span mismatch, not "blocked"
+    blocked = Plant(
+        q_lo=-0.9, q_hi=1.1, obstacle=0.4, kp=1.5 / math.radians(3), q=0.4 - math.radians(1), seed=1
+    )
+    section = AutoSection(joints=(joint("a", stops="both"),))
+    res = run_autocal(drivers(a=blocked), section, {"a": (-1.0, 1.0)})
+    assert res["a"].stops.code == "span_mismatch"
