@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.arrays import FloatArray
+from ..core.chain import SerialChain
 from ..core.identifiability import Identifiability
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
@@ -156,12 +157,7 @@ def plan(
     else:
         if candidates < 1:
             raise UsageError(f"--candidates must be at least 1, got {candidates}")
-        lo, up = chain.limits()
-        lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
-        up = np.where(np.isfinite(up), up, math.pi) - margin_rad
-        if np.any(lo > up):
-            bad = chain.joint_names[int(np.argmax(lo > up))]
-            raise UsageError(f"joint {bad}: its range is narrower than twice the {margin_rad} rad margin")
+        lo, up = sampling_bounds(chain, margin_rad)
         cand = np.random.default_rng(seed).uniform(lo, up, (candidates, chain.n_q))
     if cand.shape[0] < poses:
         raise UsageError(f"--poses {poses}: only {cand.shape[0]} candidate poses to choose from")
@@ -192,6 +188,23 @@ def plan(
         q, chain.joint_names, ident, written, crit, int(cand.shape[0]),
         _prediction_sigma(everything, problem, ident, noise_m, sig),
     )  # fmt: skip
+
+
+def sampling_bounds(chain: SerialChain, margin_rad: float) -> tuple[FloatArray, FloatArray]:
+    """``(n_q,)`` lower and upper joint bounds (rad) to draw candidate poses in.
+
+    The URDF limits (±π where a joint has none), shrunk by ``margin_rad`` on each side.
+
+    Raises:
+        UsageError: A joint's range is narrower than twice the margin.
+    """
+    lo, up = chain.limits()
+    lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
+    up = np.where(np.isfinite(up), up, math.pi) - margin_rad
+    if np.any(lo > up):
+        bad = chain.joint_names[int(np.argmax(lo > up))]
+        raise UsageError(f"joint {bad}: its range is narrower than twice the {margin_rad} rad margin")
+    return np.asarray(lo, dtype=np.float64), np.asarray(up, dtype=np.float64)
 
 
 def _plan_contacts(

@@ -32,6 +32,7 @@ from ..formats.camera_info import read_camera_info
 from ..formats.kinematic_data import read_joint_table, session_csv
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
+from .kinematic_plan import sampling_bounds
 
 __all__ = ["ImagePlanResult", "frame_from_pose", "plan_images"]
 
@@ -163,12 +164,7 @@ def plan_images(
         drawn = int(q_all.shape[0])
         cand = seen(q_all)
     else:
-        lo, up = chain.limits()
-        lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
-        up = np.where(np.isfinite(up), up, math.pi) - margin_rad
-        if np.any(lo > up):
-            bad = chain.joint_names[int(np.argmax(lo > up))]
-            raise UsageError(f"joint {bad}: its range is narrower than twice the {margin_rad} rad margin")
+        lo, up = sampling_bounds(chain, margin_rad)
         rng = np.random.default_rng(seed)
         found: list[FloatArray] = []
         drawn = n_found = 0
