@@ -14,7 +14,8 @@ Seeds: ``AUTOCAL_SEEDS_PER_JOINT=N`` runs every searched joint N times per scena
 alone); ``AUTOCAL_SEEDS=N`` N runs per scenario, seed → joint cycling (as ``bench_autocal``); neither: 100 per
 joint, the issue's acceptance (7 200 runs per arm). ``AUTOCAL_SCENARIOS=a,b`` a subset of the scenarios;
 ``AUTOCAL_ROBOTS=so101_follower,koch_follower`` (or ``AUTOCAL_ROBOT``) the arms (default the SO-101; the Koch
-runs on the Dynamixel firmware). The test suite (tests/autocal/test_acceptance_servo.py) runs 2 seeds of every
+runs on the Dynamixel firmware); ``AUTOCAL_WORKERS=N`` worker processes (default: one per core; each run is
+seeded and independent, so the table is the same with any number). The test suite (tests/autocal/test_acceptance_servo.py) runs 2 seeds of every
 scenario (seed → joint, cycling) through the same :func:`run_one` and thresholds.
 
 Truth: the plant's own stops (after the scenario moved them) in the servo's actual ticks; the found contact
@@ -29,6 +30,7 @@ import os
 import sys
 import time
 from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -171,6 +173,12 @@ def run_one(
     return run
 
 
+def _run_one_args(args: tuple[str, str, int, str | None, str]) -> RunResult:
+    robot, scenario, seed, joint, transport = args
+    spec = next(s for s in SERVO_SCENARIOS if s.name == scenario)
+    return run_one(robot, spec, seed, joint, transport=transport)
+
+
 def run_scenario(
     robot: str,
     spec: ScenarioSpec,
@@ -178,15 +186,20 @@ def run_scenario(
     *,
     per_joint: bool = False,
     transport: str = "inproc",
+    pool: ProcessPoolExecutor | None = None,
 ) -> ScenarioStats:
-    """``spec`` for every seed: one joint per seed (cycling), or every joint per seed with ``per_joint``."""
+    """``spec`` for every seed: one joint per seed (cycling), or every joint per seed with ``per_joint``.
+
+    ``pool``: run the seeds in these worker processes (each run is independent and seeded, so the results are
+    the same as in one process, in the same order).
+    """
     st = ScenarioStats(robot, spec)
-    joints = [j.name for j in auto_section(robot).searched_joints]
-    for seed in seeds:
-        if per_joint:
-            st.runs += [run_one(robot, spec, seed, j, transport=transport) for j in joints]
-        else:
-            st.runs.append(run_one(robot, spec, seed, transport=transport))
+    joints: list[str | None] = [j.name for j in auto_section(robot).searched_joints] if per_joint else [None]
+    tasks = [(robot, spec.name, seed, j, transport) for seed in seeds for j in joints]
+    if pool is None:
+        st.runs += [_run_one_args(t) for t in tasks]
+    else:
+        st.runs += list(pool.map(_run_one_args, tasks, chunksize=4))
     return st
 
 
@@ -239,31 +252,52 @@ def servo_seeds() -> tuple[range, bool, str]:
 
 
 def main() -> None:
-    robots = [r for r in os.environ.get("AUTOCAL_ROBOTS", os.environ.get("AUTOCAL_ROBOT", "")).split(",") if r]
+    robots = [
+        r for r in os.environ.get("AUTOCAL_ROBOTS", os.environ.get("AUTOCAL_ROBOT", "")).split(",") if r
+    ]
     transport = os.environ.get("AUTOCAL_TRANSPORT", "inproc")
     wanted = [w for w in os.environ.get("AUTOCAL_SCENARIOS", "").split(",") if w]
     seeds, per_joint, how = servo_seeds()
+    workers = int(os.environ.get("AUTOCAL_WORKERS", str(os.cpu_count() or 1)))
+    failures = 0
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for robot in robots or ["so101_follower"]:
+            failures += _bench_robot(robot, transport, wanted, seeds, per_joint, how, pool)
+    print(f"autocal-servo acceptance: {'PASS' if not failures else f'{failures} FAIL'}")
+
+
+def _bench_robot(
+    robot: str,
+    transport: str,
+    wanted: list[str],
+    seeds: range,
+    per_joint: bool,
+    how: str,
+    pool: ProcessPoolExecutor,
+) -> int:
+    """One arm's table (every wanted scenario) and its whole-arm time; the number of failed rows."""
     limit = THRESHOLDS["so101_total_s"]
     failures = 0
-    for robot in robots or ["so101_follower"]:
-        walls = transport_wall_times(robot)
-        print(
-            f"{robot}: one clean single-joint search {walls['pty']:.2f} s wall over a pty, "
-            f"{walls['inproc']:.2f} s in process ({walls['pty'] / walls['inproc']:.1f}× faster; best of 3)"
-        )
-        joints = len(auto_section(robot).searched_joints)
-        print(f"-- {robot} on the servo firmware simulation (real SDK, {transport} port): {how} ({joints} joints) --")
-        print_table_header(wall=True)
-        for spec in SERVO_SCENARIOS:
-            if wanted and spec.name not in wanted:
-                continue
-            t0 = time.perf_counter()
-            stats = run_scenario(robot, spec, seeds, per_joint=per_joint, transport=transport)
-            failures += print_table_row(stats, time.perf_counter() - t0)
-        total = arm_total_time(robot, transport=transport)
-        print(
-            f"whole {robot}: {total:.1f} s simulated (limit {limit:.0f} s) {'PASS' if total < limit else 'FAIL'}\n",
-            flush=True,
-        )
-        failures += total >= limit
-    print(f"autocal-servo acceptance: {'PASS' if not failures else f'{failures} FAIL'}")
+    walls = transport_wall_times(robot)
+    print(
+        f"{robot}: one clean single-joint search {walls['pty']:.2f} s wall over a pty, "
+        f"{walls['inproc']:.2f} s in process ({walls['pty'] / walls['inproc']:.1f}× faster; best of 3)"
+    )
+    joints = len(auto_section(robot).searched_joints)
+    print(
+        f"-- {robot} on the servo firmware simulation (real SDK, {transport} port): {how} ({joints} joints) --"
+    )
+    print_table_header(wall=True)
+    for spec in SERVO_SCENARIOS:
+        if wanted and spec.name not in wanted:
+            continue
+        t0 = time.perf_counter()
+        stats = run_scenario(robot, spec, seeds, per_joint=per_joint, transport=transport, pool=pool)
+        failures += print_table_row(stats, time.perf_counter() - t0)
+    total = arm_total_time(robot, transport=transport)
+    print(
+        f"whole {robot}: {total:.1f} s simulated (limit {limit:.0f} s) {'PASS' if total < limit else 'FAIL'}\n",
+        flush=True,
+    )
+    failures += total >= limit
+    return failures
