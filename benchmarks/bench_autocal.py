@@ -59,15 +59,47 @@ def _lite() -> tuple[BenchJoint, ...]:
     return tuple(out)
 
 
-SO101 = (
-    BenchJoint("shoulder_pan", -1.91986, 1.91986, 2.9, 0.25, 0.004),
-    BenchJoint("shoulder_lift", -1.74533, 1.74533, 2.9, 0.25, 0.004),
-    BenchJoint("elbow_flex", -1.69, 1.69, 2.9, 0.25, 0.003),
-    BenchJoint("wrist_flex", -1.65806, 1.65806, 2.9, 0.25, 0.002),
-    BenchJoint("wrist_roll", -2.74385, 2.84121, 2.9, 0.25, 0.001),
-    BenchJoint("gripper", -0.174533, 1.74533, 2.9, 0.25, 0.001),
-)
-"""SO-101 joints (so101_new_calib URDF limits; STS3215 ≈ 2.9 N·m stall at 12 V, taken as the rating)."""
+_SO101_URDF_LIMITS_RAD = {
+    "shoulder_pan": (-1.91986, 1.91986),
+    "shoulder_lift": (-1.74533, 1.74533),
+    "elbow_flex": (-1.69, 1.69),
+    "wrist_flex": (-1.65806, 1.65806),
+    "wrist_roll": (-2.74385, 2.84121),
+    "gripper": (-0.174533, 1.74533),
+}
+_SO101_INERTIA_KGM2 = {
+    "shoulder_pan": 0.004,
+    "shoulder_lift": 0.004,
+    "elbow_flex": 0.003,
+    "wrist_flex": 0.002,
+}
+
+
+def _so101() -> tuple[BenchJoint, ...]:
+    """SO-101 joints: so101_new_calib URDF limits; rating and search fraction from the profile robocal ships.
+
+    The rating is the STS3215 7.4 V stall torque (``robocal.backends.servo_ratings``, 1.91 N·m) and each joint's
+    fraction the ``so101_follower`` profile's (45 % shoulder_lift, 40 % elbow_flex, 25 % the others), as
+    ``lerobot calibrate --auto`` searches them.
+    """
+    from robocal.backends.servo_ratings import RATINGS
+    from robocal.workflows.lerobot import robot_spec
+    from robocal.workflows.lerobot.auto import auto_section
+
+    arm = robot_spec("so101_follower")
+    section = auto_section("so101_follower")
+    out = []
+    for name, (lower, upper) in _SO101_URDF_LIMITS_RAD.items():
+        aj = section.joint(name)
+        assert aj is not None
+        rated = RATINGS[arm.motors[arm.motor_names.index(name)].model].stall_torque_nm
+        out.append(
+            BenchJoint(name, lower, upper, rated, aj.torque_fraction, _SO101_INERTIA_KGM2.get(name, 0.001))
+        )
+    return tuple(out)
+
+
+SO101 = _so101()
 
 
 @dataclass(frozen=True)
