@@ -113,6 +113,9 @@ class ScenarioSpec:
     zero_tol_deg: float = 0.5
     span_tol_deg: float = 1.0
     gravity_fraction: float = 0.0  # gravity torque amplitude as a fraction of the cap
+    # every run that found its stops confirmed one of them by this test: the fault really happened and was
+    # recovered from (an overload latch that never tripped would pass the scenario without testing anything)
+    confirmed_by: str = ""
 
     def plant_scenario(self, cap_nm: float) -> Scenario:
         """The plant scenario of a joint searched with ``cap_nm``: with its gravity torque when there is one."""
@@ -134,8 +137,12 @@ SCENARIOS: tuple[ScenarioSpec, ...] = (
     ScenarioSpec(
         "backlash_1deg", Scenario(backlash_rad=math.radians(1.0)), stiffness=300.0, span_tol_deg=1.5
     ),
-    ScenarioSpec("overload_latch", Scenario(overload_latch=True), stiffness=300.0),
-    ScenarioSpec("silent_at_stop", Scenario(silent_at_stop=True), stiffness=300.0),
+    ScenarioSpec(
+        "overload_latch", Scenario(overload_latch=True), stiffness=300.0, confirmed_by="overload+reread"
+    ),
+    ScenarioSpec(
+        "silent_at_stop", Scenario(silent_at_stop=True), stiffness=300.0, confirmed_by="no-reply+reread"
+    ),
     ScenarioSpec("missing_stop", Scenario(missing_stop="upper"), expect="abort"),
     ScenarioSpec("obstacle", Scenario(obstacle=True), expect="span_mismatch"),
     ScenarioSpec("cable_snag", Scenario(cable_snag=True), expect="span_mismatch"),
@@ -279,9 +286,11 @@ class ScenarioStats:
                 per_joint.setdefault(r.joint, []).append(r.zero_err_deg)
         sigma = max((statistics.pstdev(v) for v in per_joint.values() if len(v) > 1), default=math.nan)
         aborts = [(r.abort_time_s, r.abort_bound_s) for r in self.runs if math.isfinite(r.abort_time_s)]
+        want = self.spec.confirmed_by
         return {
             "n": len(self.runs),
             "codes": codes,
+            "confirmed": sum(want in r.tests for r in self.runs) if want else math.nan,
             "zero_max_deg": max((abs(v) for v in z), default=math.nan),
             "zero_mean_deg": statistics.fmean(z) if z else math.nan,
             "span_max_deg": max((abs(v) for v in s), default=math.nan),
@@ -311,6 +320,8 @@ def acceptance_problems(s: dict[str, Any], e: ScenarioSpec) -> list[str]:
             out.append(f"span error {s['span_max_deg']:.3f}° > {e.span_tol_deg}°")
         if math.isfinite(s["sigma_deg"]) and s["sigma_deg"] > THRESHOLDS["sigma_deg"]:
             out.append(f"σ {s['sigma_deg']:.3f}° > {THRESHOLDS['sigma_deg']}°")
+        if e.confirmed_by and s["confirmed"] != s["codes"].get("ok", 0):
+            out.append(f"only {s['confirmed']} runs confirmed a stop by {e.confirmed_by}")
     elif e.expect == "abort":
         if s["codes"].get("missing_stop", 0) + s["codes"].get("timeout", 0) != n:
             out.append(f"not every run aborted: {s['codes']}")
@@ -346,7 +357,7 @@ def print_table_header(*, wall: bool = False) -> None:
     column)."""
     print(
         f"{'scenario':18s} {'codes':34s} {'|zero|max':>9s} {'|span|max':>9s} {'σ zero':>7s} "
-        f"{'abort-bound':>11s} {'peak/cap':>8s}{'  wall s' if wall else ''}  verdict",
+        f"{'abort-bound':>11s} {'peak/cap':>8s} {'re-read':>7s}{'  wall s' if wall else ''}  verdict",
         flush=True,
     )
 
@@ -361,7 +372,8 @@ def print_table_row(st: ScenarioStats, wall_s: float | None = None) -> int:
 
     print(
         f"{st.spec.name:18s} {codes:34s} {f(s['zero_max_deg']):>9s} {f(s['span_max_deg']):>9s} "
-        f"{f(s['sigma_deg']):>7s} {f(s['abort_max_over_bound_s'], 2):>11s} {f(s['peak_over_cap']):>8s}"
+        f"{f(s['sigma_deg']):>7s} {f(s['abort_max_over_bound_s'], 2):>11s} {f(s['peak_over_cap']):>8s} "
+        f"{f(s['confirmed'], 0):>7s}"
         f"{'' if wall_s is None else f'{wall_s:8.0f}'}  "
         f"{'PASS' if not probs else 'FAIL: ' + '; '.join(probs)}",
         flush=True,

@@ -50,6 +50,9 @@ FRICTION_SETTLE_S = 0.5
 """A move that ends at rest short of its target, inside the drive's lag and below the cap (held by friction,
 not by a stop), counts as arrived after this long."""
 
+MOVE_OVERLOAD_CLEARS = 3
+"""Overload latches :func:`move_steps` clears (``reread``) and moves on from before it gives up."""
+
 JointSteps = Generator[Command, StopSample, _T]
 """One joint's moves as a generator: it yields the next :class:`Command` and receives the reading at the end of
 the control period that carried it out (:meth:`JointDriver.execute`); its return value is the result. Run it on
@@ -160,11 +163,16 @@ def move_steps(
     90 % of the cap (so a stop is not what holds it: breakaway friction is, e.g. a small move from rest on a
     sticky joint), counts as arrived after :data:`FRICTION_SETTLE_S`.
 
+    A reading with the motor's overload flag (its protection latched and cut the torque, e.g. while accelerating
+    at the cap) is suspect, never a stall: the latch is cleared (``reread``) and the move goes on from where the
+    joint is, at most :data:`MOVE_OVERLOAD_CLEARS` times.
+
     Returns:
         The last reading and whether the move ended on a stall.
 
     Raises:
-        AutoCalAbortedError: The joint does not get there in time (blocked, without ``stall_s``).
+        AutoCalAbortedError: The joint does not get there in time (blocked, without ``stall_s``), or its
+            overload protection latched more than :data:`MOVE_OVERLOAD_CLEARS` times.
     """
     s = driver.read()
     if not s.ok:
@@ -176,6 +184,7 @@ def move_steps(
     last = s.t_s
     stalled_since: float | None = None
     resting_since: float | None = None
+    clears = 0
     while True:
         dt = max(s.t_s - last, 0.0)
         last = s.t_s
@@ -189,6 +198,18 @@ def move_steps(
         # no velocity feed-forward while the target is held back: kd·(v_ref − v) would add to the capped kp·lag
         v_ff = 0.0 if at_end or clamped else math.copysign(speed_rad_s, target_rad - ref)
         s = yield Command("drive", ref, v_ff, cap_nm)
+        if s.ok and s.overload:
+            clears += 1
+            if clears > MOVE_OVERLOAD_CLEARS:
+                raise AutoCalAbortedError(
+                    f"joint {driver.name}: its overload protection latched {clears} times while moving to "
+                    f"{math.degrees(target_rad):.1f}°"
+                )
+            s = yield Command("reread", ref, 0.0, cap_nm)
+            if s.ok and math.isfinite(s.q_rad):
+                ref = s.q_rad
+            stalled_since = resting_since = None
+            continue
         if s.ok and at_end and abs(s.q_rad - target_rad) <= tol_rad:
             return s, False
         if s.ok and at_end and _held_by_friction(s, target_rad, 0.9 * max_lag_rad, 0.1 * speed_rad_s, 0.9 * cap_nm):

@@ -38,7 +38,7 @@ class Scenario:
             half of it.
         gravity_nm: Gravity torque amplitude, largest at the midpoint of the stops (a loaded joint).
         backlash_rad: Gear play.
-        overload_latch: Firmware overload protection: 0.5 s at ≥ 90 % of the search torque cuts the torque
+        overload_latch: Firmware overload protection: 0.1 s at ≥ 90 % of the search torque cuts the torque
             and sets the overload flag.
         silent_at_stop: The motor's replies are lost while it presses into a wall with more than half the
             search torque.
@@ -108,7 +108,7 @@ class Scenario:
 
     def overload(self, search_torque_nm: float) -> OverloadLatch | None:
         """The overload protection this scenario gives the firmware (None: off)."""
-        return OverloadLatch(0.9 * search_torque_nm, 0.5) if self.overload_latch else None
+        return OverloadLatch(0.9 * search_torque_nm, 0.1) if self.overload_latch else None
 
 
 def make_plant(
