@@ -99,9 +99,9 @@ def test_overload_fault_bit_cuts_torque_and_clears_with_stop() -> None:
     with rig(plant, direction=1) as (bus, _motor, clock):
         bus.enable("j")
         bus.write_param("j", Param.LIMIT_TORQUE, 1.0)
-        fb = hold(bus, clock, 1.5 + OFFSET, 0.4, kp=5.0)  # 1 N·m at the stop, under 0.5 s
+        fb = hold(bus, clock, 1.5 + OFFSET, 0.05, kp=5.0)  # 1 N·m (the limit), under the 0.1 s protection time
         assert fb.faults == 0 and fb.torque_nm == pytest.approx(1.0, abs=0.05)
-        fb = hold(bus, clock, 1.5 + OFFSET, 0.2, kp=5.0)
+        fb = hold(bus, clock, 1.5 + OFFSET, 0.1, kp=5.0)
         assert fb.faults == 0x10 and fb.torque_nm == 0.0
         bus.stop("j")  # without "clear faults" the latch stays
         bus.enable("j")
