@@ -274,9 +274,9 @@ def test_scenario_overload_latch_replaces_the_feetech_rule() -> None:
         bus.write("Torque_Limit", 1, round(0.5 / STS.stall_torque_nm * 1000))  # 26 %: under the 80 % default
         bus.write("Torque_Enable", 1, 1)
         bus.write("Goal_Position", 1, round(ZERO + 1.3 / TICK))
-        wait(bus, clock, 0.4)
+        wait(bus, clock, 0.05)
         assert bus.sync_read("Status", [1])[1] == 0
-        wait(bus, clock, 0.2)  # 0.5 s at >= 90 % of the search torque
+        wait(bus, clock, 0.4)  # past the 0.1 s at >= 90 % of the search torque
         assert bus.sync_read("Status", [1])[1] == 0x20
         assert bus.sync_read("Present_Load", [1])[1] == 0  # the scenario's latch cuts the torque
         bus.write("Torque_Enable", 1, 0)
