@@ -1,7 +1,8 @@
 """Auto-calibration acceptance (issue 11): seeded runs per joint and scenario on the physics plant.
 
 ``python benchmarks/run.py autocal`` (100 seeds per scenario and robot; ``AUTOCAL_SEEDS=N`` to change;
-``AUTOCAL_SEEDS_PER_JOINT=N`` for N runs of every joint; ``AUTOCAL_ROBOTS=lite`` for one robot) prints,
+``AUTOCAL_SEEDS_PER_JOINT=N`` for N runs of every joint; ``AUTOCAL_ROBOTS=lite`` for one robot;
+``AUTOCAL_SCENARIOS=a,b`` for a subset of the scenarios) prints,
 per robot and scenario: zero error and span error (mean |e|, max |e|, σ over seeds), outcomes, abort times against
 the bound, false stops, peak torque against the cap, and the total simulated time of a whole robot. The test suite
 (tests/autocal/test_acceptance.py) runs a few seeds through the same :func:`run_scenario` and :data:`THRESHOLDS`.
@@ -398,13 +399,15 @@ def robot_seeds(robot_name: str) -> tuple[range, str]:
 
 def main() -> None:
     robots = [r for r in os.environ.get("AUTOCAL_ROBOTS", "lite,so101").split(",") if r]
+    wanted = [w for w in os.environ.get("AUTOCAL_SCENARIOS", "").split(",") if w]
     failures = 0
     for robot in robots:
         seeds, how = robot_seeds(robot)
         print(f"-- {robot}: {how} --")
         print_table_header()
         for spec in SCENARIOS:
-            failures += print_table_row(run_scenario(robot, spec, seeds))
+            if not wanted or spec.name in wanted:
+                failures += print_table_row(run_scenario(robot, spec, seeds))
         total = robot_total_time(robot)
         limit = THRESHOLDS[f"{robot}_total_s"]
         print(
