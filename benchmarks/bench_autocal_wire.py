@@ -43,7 +43,10 @@ WIRE_SCENARIOS: tuple[tuple[ScenarioSpec, str], ...] = (
     (ScenarioSpec("stiff_600", Scenario()), ""),
     (ScenarioSpec("soft_15", Scenario(soft_stop=True), zero_tol_deg=1.5, span_tol_deg=1.5), "soft"),
     (ScenarioSpec("stiction_0.8", Scenario(stiction_ratio=0.8)), "stiction"),
-    (ScenarioSpec("overload_latch", Scenario(overload_latch=True)), "overload"),
+    (
+        ScenarioSpec("overload_latch", Scenario(overload_latch=True), confirmed_by="overload+reread"),
+        "overload",
+    ),
     (ScenarioSpec("silent_at_stop", Scenario(silent_at_stop=True)), "silent"),
     (ScenarioSpec("missing_stop", Scenario(missing_stop="upper"), expect="abort"), "missing"),
     (ScenarioSpec("obstacle", Scenario(obstacle=True), expect="span_mismatch"), "obstacle"),
