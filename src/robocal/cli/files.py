@@ -8,10 +8,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..formats import FORMATS, read_calibration
-from ..formats.profiles import builtin_profile_names, resolve_profile
-from ..formats.urdf import read_urdf
-from ..workflows.calibration import check_calibration, convert_file
+from ..workflows.calibration import check_file, convert_file, format_names, robot_profile_names
 from ._common import (
     EXIT_OK,
     EXIT_WARNINGS,
@@ -22,10 +19,10 @@ from ._common import (
     print_warning,
 )
 
-FORMAT_HELP = "Format: " + ", ".join(FORMATS) + "."
+FORMAT_HELP = "Format: " + ", ".join(format_names()) + "."
 ROBOT_HELP = (
     "Robot profile: a built-in name ("
-    + ", ".join(builtin_profile_names())
+    + ", ".join(robot_profile_names())
     + ") or a profile YAML file (docs/profiles.md). Default: the built-in robot the URDF's joint names match."
 )
 
@@ -83,13 +80,11 @@ def check(
         from ..workflows.power_on_check import check_source_options
 
         check_source_options(source, frame)
-    model = read_urdf(urdf)
-    profile = resolve_profile(robot, model)
-    cf = read_calibration(calibration, fmt, urdf=model, robot=profile)
-    report = check_calibration(cf, model, profile)
-    for note in cf.notes:
+    checked = check_file(calibration, urdf, fmt, robot)
+    report, profile = checked.report, checked.profile
+    for note in checked.notes:
         print_warning(note)
-    console.print(f"{calibration}: {len(report.matched)}/{report.n_expected} joints matched ({cf.fmt})")
+    console.print(f"{calibration}: {len(report.matched)}/{report.n_expected} joints matched ({checked.fmt})")
     if profile is not None:
         how = "--robot" if robot is not None else "recognised from the URDF's joint names"
         console.print(f"robot profile: {profile.name} ({how})", markup=False)
@@ -121,7 +116,7 @@ def check(
     for j in report.joints:
         for w in j.warnings:
             print_warning(f"{j.name}: {w}")
-    ok = report.ok and not cf.notes
+    ok = report.ok and not checked.notes
     if (
         source is not None
     ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.power_on_check)

@@ -9,7 +9,6 @@ from typing import Annotated
 import typer
 
 from ..core.arrays import FloatArray
-from ..core.jointmap import RobotCalibration
 from ..core.kinematic_problem import KINDS
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
@@ -23,34 +22,6 @@ app = typer.Typer(
     help="Kinematic identification: measure an arm, identify its URDF errors, export a corrected URDF.",
     no_args_is_help=True,
 )
-
-
-def _identify_joint_map(
-    joint_map: Path | None,
-    robot: str | None,
-    robot_id: str | None,
-    calibration_dir: Path | None,
-    calibration_file: Path | None,
-) -> tuple[RobotCalibration | None, dict[str, int]]:
-    """The joint map given to ``identify`` (``--joint-map`` file, or a LeRobot arm's calibration), with ids."""
-    if joint_map is not None:
-        if robot is not None or robot_id is not None or calibration_file is not None:
-            raise UsageError("give --joint-map or --robot with --id/--calibration-file, not both")
-        from ..formats import read_calibration
-
-        cf = read_calibration(joint_map)
-        return cf.calibration, dict(cf.ids)
-    if robot is None:
-        if robot_id is not None or calibration_file is not None:
-            raise UsageError("--id and --calibration-file need --robot")
-        return None, {}
-    from ..workflows.kinematic_record import lerobot_joint_map
-    from ..workflows.lerobot import robot_spec
-
-    spec = robot_spec(robot)
-    return lerobot_joint_map(spec, robot_id, calibration_dir, calibration_file), {
-        m.name: m.motor_id for m in spec.motors
-    }
 
 
 def _prior(on: bool, mm: float | None, deg: float | None, offset_deg: float | None) -> bool | wf.PriorSigmas:
@@ -157,7 +128,7 @@ def identify(
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
     if kind.strip().lower() not in (*KINDS, "tag"):
         raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
-    jm, ids = _identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
+    jm, ids = wf.identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     for flag, on in (("--camera-on-tool", camera_on_tool), ("--refine-intrinsics", refine_intrinsics)):
         if on and kind.strip().lower() != "tag":
             raise UsageError(f"{flag} applies to --kind tag (camera images)")
@@ -367,10 +338,7 @@ def record(
         targets: FloatArray | None = None
         labels: tuple[str, ...] = ()
         if plan is not None:
-            from ..formats.kinematic_data import read_pose_plan
-
-            targets, labels = read_pose_plan(plan, chain.joint_names)
-            targets = chain.check_q(targets, what=f"{plan}: pose")
+            targets, labels = rec_wf.plan_targets(plan, chain)
         err_console.print(
             f"recording {kind} poses of {', '.join(chain.joint_names)} (chain {chain.base_link} → {chain.tip_link})"
         )

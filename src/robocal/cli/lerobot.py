@@ -109,10 +109,10 @@ def _read_cal_file(
     spec: RobotSpec, robot_id: str | None, calibration_dir: pathlib.Path | None, file: pathlib.Path | None
 ) -> tuple[pathlib.Path, dict[str, MotorCalibration]]:
     """The calibration file (:func:`_cal_file`) and what it holds, per motor."""
-    from ..lerobot import read_calibration
+    from ..workflows.lerobot import read_calibration_file
 
     path = _cal_file(spec, robot_id, calibration_dir, file)
-    return path, read_calibration(path)
+    return path, read_calibration_file(path)
 
 
 def _web_view(robot: str, spec: Any, inner: Any, port: int) -> Any:
@@ -172,15 +172,21 @@ def calibrate(
         web_view=web_view,
         urdf=urdf,
     )
-    from ..formats.lerobot import dumps_current
-    from ..lerobot import read_calibration
-    from ..workflows.lerobot import CalibrationNotSavedError, open_arm, restore, sim_operator
+    from ..workflows.lerobot import (
+        CalibrationNotSavedError,
+        calibration_json,
+        check_calibration_writable,
+        open_arm,
+        read_calibration_file,
+        restore,
+        sim_operator,
+    )
     from ..workflows.lerobot import calibrate as run
 
     spec = _spec(robot)
     path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file)
     if use_file:
-        cals = read_calibration(path)
+        cals = read_calibration_file(path)
         beyond = range_warnings(spec, cals)
         with open_arm(spec, port) as (bus, _arm):
             try:
@@ -190,10 +196,8 @@ def calibrate(
         print_calibration(cals)
         _common.console.print(f"wrote {path} to the motors")
         raise typer.Exit(_common.exit_code_for(beyond))
-    from ..fileio import check_output_path
-
     # the calibration folder must be writable before the port is even opened (the workflow checks again)
-    check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
+    check_calibration_writable(path)
     if auto:
         calibrate_auto(
             robot,
@@ -236,7 +240,7 @@ def calibrate(
             ) from None
         except CalibrationNotSavedError as exc:
             close()
-            _common.console.print(dumps_current(exc.calibration), markup=False)
+            _common.console.print(calibration_json(exc.calibration), markup=False)
             raise UsageError(
                 f"{exc}; the calibration is printed above as LeRobot JSON: save it and write it to the motors "
                 "with `robocal lerobot calibrate --use-file`"
@@ -335,9 +339,7 @@ def migrate(
     ids: str | None = typer.Option(None, "--ids", help="Motor ids in file order, e.g. 1,2,3 (default 1..n)."),
 ) -> None:
     """Convert a legacy calibration to LeRobot's current JSON and print the dataset degree transform."""
-    from ..formats.lerobot import dumps_current, write_current
-    from ..lerobot.legacy import read_legacy
-    from ..workflows.lerobot import legacy_to_current
+    from ..workflows.lerobot import calibration_json, migrate_file
 
     id_list = None
     if ids is not None:
@@ -346,13 +348,11 @@ def migrate(
             id_list = [int(i) for i in items]
         except ValueError:
             raise UsageError(f"--ids {ids!r}: expected comma-separated integers") from None
-    cal = read_legacy(legacy_file)
-    cals, warnings = legacy_to_current(cal, vendor, id_list)
+    cals, warnings = migrate_file(legacy_file, vendor, id_list, out)
     if out is not None:
-        write_current(out, cals)
         _common.console.print(f"wrote {out}")
     else:
-        _common.console.print(dumps_current(cals), markup=False)
+        _common.console.print(calibration_json(cals), markup=False)
     if vendor == "feetech":  # the SO-100/SO-101 family (Feetech); Koch arms are Dynamixel
         _common.console.print(
             "old SO-100/SO-101 datasets (legacy degrees) → current DEGREES, LeRobot's documented transform: "
@@ -430,8 +430,7 @@ def export_urdf(
     physical: Physical = False,
 ) -> None:
     """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints."""
-    from ..formats import write_calibration
-    from ..workflows.lerobot import export_joint_map
+    from ..workflows.lerobot import export_joint_map, write_joint_map
 
     compat_mode = parse_compat(compat)
     signs = _common.parse_typed_assignments(sign, "--sign", int, "expected -1 or 1")
@@ -448,7 +447,7 @@ def export_urdf(
         convention="physical" if physical else "lerobot",
     )
     ids = {n: cals[n].id for n in rc.joint_names}
-    write_calibration(out, rc, "robocal", ids=ids)
+    write_joint_map(out, rc, ids)
     _common.console.print(f"wrote {out} ({len(rc.joint_names)} joints)")
     if skipped:
         _common.print_warning(f"not exported (range modes, no angle): {', '.join(skipped)}")

@@ -11,10 +11,29 @@ from pathlib import Path
 from ..core.profile import RobotProfile
 from ..errors import UsageError
 from ..formats import FORMATS, CalibrationFile, read_calibration, write_calibration
-from ..formats.profiles import resolve_profile
+from ..formats.profiles import builtin_profile_names, resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 
-__all__ = ["CheckReport", "JointCheck", "check_calibration", "convert_file"]
+__all__ = [
+    "CheckReport",
+    "FileCheck",
+    "JointCheck",
+    "check_calibration",
+    "check_file",
+    "convert_file",
+    "format_names",
+    "robot_profile_names",
+]
+
+
+def format_names() -> tuple[str, ...]:
+    """The calibration formats robocal reads and writes, in the registry's order."""
+    return tuple(FORMATS)
+
+
+def robot_profile_names() -> tuple[str, ...]:
+    """The robot profiles shipped with robocal, sorted."""
+    return builtin_profile_names()
 
 
 @dataclass(frozen=True)
@@ -194,3 +213,37 @@ def check_calibration(
         profile.name if profile else None,
         not urdf.ros2_control_joint_names and profile is not None,
     )
+
+
+@dataclass(frozen=True)
+class FileCheck:
+    """What :func:`check_file` read and found.
+
+    Attributes:
+        report: The joint-by-joint comparison with the URDF (and profile).
+        fmt: The calibration file's format (detected or given).
+        notes: What reading the file noticed (each a warning).
+        profile: The robot profile in effect (``robot`` or the one the URDF's joint names match), if any.
+    """
+
+    report: CheckReport
+    fmt: str
+    notes: tuple[str, ...]
+    profile: RobotProfile | None
+
+
+def check_file(
+    calibration_path: str | os.PathLike[str],
+    urdf_path: str | os.PathLike[str],
+    fmt: str | None = None,
+    robot: str | os.PathLike[str] | RobotProfile | None = None,
+) -> FileCheck:
+    """Read a calibration file and a URDF and check one against the other (:func:`check_calibration`).
+
+    The URDF is read first, then the profile resolved (``robot``, else the built-in one the URDF matches), then
+    the calibration file (format ``fmt``, detected when ``None``).
+    """
+    model = read_urdf(urdf_path)
+    profile = resolve_profile(robot, model)
+    cf = read_calibration(calibration_path, fmt, urdf=model, robot=profile)
+    return FileCheck(check_calibration(cf, model, profile), cf.fmt, cf.notes, profile)

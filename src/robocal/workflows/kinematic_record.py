@@ -37,6 +37,7 @@ __all__ = [
     "calibration_for_chain",
     "lerobot_joint_map",
     "open_reader",
+    "plan_targets",
     "record",
 ]
 
@@ -375,21 +376,27 @@ def lerobot_joint_map(
         calibration_dir: LeRobot calibration root (default: LeRobot's).
         calibration_file: The JSON itself (instead of ``robot_id``).
     """
-    from ..formats.lerobot import calibration_path
-    from ..formats.lerobot import read_current as read_calibration
-    from .lerobot import export_joint_map
+    from .lerobot import calibration_file as find_calibration_file
+    from .lerobot import export_joint_map, read_calibration_file
 
-    if calibration_file is not None:
-        path = Path(calibration_file)
-    elif robot_id is not None:
-        path = calibration_path(spec.kind, spec.device_name, robot_id, root=calibration_dir)
-        if not path.exists() and spec.old_device_name != spec.device_name:
-            old = calibration_path(spec.kind, spec.old_device_name, robot_id, root=calibration_dir)
-            path = old if old.exists() else path
-    else:
+    if calibration_file is None and robot_id is None:
         raise UsageError("give --id (and optionally --calibration-dir), --file or --joint-map")
-    joint_map, _ = export_joint_map(spec, read_calibration(path))
+    path, _note = find_calibration_file(
+        spec,
+        robot_id,
+        Path(calibration_dir) if calibration_dir is not None else None,
+        Path(calibration_file) if calibration_file is not None else None,
+    )
+    joint_map, _ = export_joint_map(spec, read_calibration_file(path))
     return joint_map
+
+
+def plan_targets(plan: str | os.PathLike[str], chain: SerialChain) -> tuple[FloatArray, tuple[str, ...]]:
+    """The poses of a ``kinematics plan`` CSV for ``chain`` (checked against its limits), and their labels."""
+    from ..formats.kinematic_data import read_pose_plan
+
+    targets, labels = read_pose_plan(plan, chain.joint_names)
+    return chain.check_q(targets, what=f"{plan}: pose"), labels
 
 
 def open_reader(

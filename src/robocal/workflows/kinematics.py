@@ -45,6 +45,7 @@ __all__ = [
     "PriorSigmas",
     "as_prior",
     "identify",
+    "identify_joint_map",
     "tool_frame",
 ]
 
@@ -122,6 +123,38 @@ def tool_frame(tool_xyz_m: Sequence[float]) -> FloatArray:
     T = np.eye(4)
     T[:3, 3] = t
     return T
+
+
+def identify_joint_map(
+    joint_map: Path | None,
+    robot: str | None,
+    robot_id: str | None,
+    calibration_dir: Path | None,
+    calibration_file: Path | None,
+) -> tuple[RobotCalibration | None, dict[str, int]]:
+    """The joint map given to ``identify`` (``--joint-map`` file, or a LeRobot arm's calibration), with ids.
+
+    Raises:
+        UsageError: Both a joint map and a LeRobot arm, or ``robot_id`` / ``calibration_file`` without ``robot``.
+    """
+    if joint_map is not None:
+        if robot is not None or robot_id is not None or calibration_file is not None:
+            raise UsageError("give --joint-map or --robot with --id/--calibration-file, not both")
+        from ..formats import read_calibration
+
+        cf = read_calibration(joint_map)
+        return cf.calibration, dict(cf.ids)
+    if robot is None:
+        if robot_id is not None or calibration_file is not None:
+            raise UsageError("--id and --calibration-file need --robot")
+        return None, {}
+    from .kinematic_record import lerobot_joint_map
+    from .lerobot import robot_spec
+
+    spec = robot_spec(robot)
+    return lerobot_joint_map(spec, robot_id, calibration_dir, calibration_file), {
+        m.name: m.motor_id for m in spec.motors
+    }
 
 
 def as_prior(prior: bool | PriorSigmas) -> PriorSigmas | None:

@@ -25,9 +25,9 @@ from .calibrate import (
 )
 from .configure import clear_phase_bit4, configure
 from .eeprom import EEPROM_FIELDS, Difference, RollbackReport, check, read_eeprom, restore
-from .files import calibration_file
-from .joint_map import export_joint_map
-from .migrate import legacy_to_current
+from .files import calibration_file, calibration_json, check_calibration_writable, read_calibration_file
+from .joint_map import export_joint_map, write_joint_map
+from .migrate import legacy_to_current, migrate_file
 from .show import read_positions, require_motors
 
 __all__ = [
@@ -41,14 +41,18 @@ __all__ = [
     "calibrate",
     "calibrate_legacy",
     "calibration_file",
+    "calibration_json",
     "check",
+    "check_calibration_writable",
     "clear_phase_bit4",
     "configure",
     "export_joint_map",
     "legacy_to_current",
+    "migrate_file",
     "norm_modes",
     "open_arm",
     "open_bus",
+    "read_calibration_file",
     "read_eeprom",
     "read_positions",
     "require_motors",
@@ -56,4 +60,5 @@ __all__ = [
     "robot_names",
     "robot_spec",
     "sim_operator",
+    "write_joint_map",
 ]

@@ -1,14 +1,19 @@
-"""Where a LeRobot arm's calibration file is: ``--file``, else LeRobot's folder (and its pre-v0.4.3 name)."""
+"""A LeRobot arm's calibration file: where it is, reading it, checking it can be written, its JSON text.
+
+Where: ``--file``, else LeRobot's folder (and, when reading, its pre-v0.4.3 name).
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
-from ...core.lerobot import RobotSpec
+from ...core.lerobot import MotorCalibration, RobotSpec
 from ...errors import UsageError
-from ...formats.lerobot import calibration_path
+from ...fileio import check_output_path
+from ...formats.lerobot import calibration_path, dumps_current, read_current
 
-__all__ = ["calibration_file"]
+__all__ = ["calibration_file", "calibration_json", "check_calibration_writable", "read_calibration_file"]
 
 
 def calibration_file(
@@ -37,3 +42,26 @@ def calibration_file(
         if old.exists():
             return old, f"using {old} (LeRobot < 0.4.3 folder); LeRobot now reads {path}"
     return path, None
+
+
+def read_calibration_file(path: Path) -> dict[str, MotorCalibration]:
+    """The calibration LeRobot's JSON file ``path`` holds, per motor (bus order).
+
+    Raises:
+        CalibError: The file is missing, unreadable or malformed (the message names it).
+    """
+    return read_current(path)
+
+
+def check_calibration_writable(path: Path) -> None:
+    """Refuse, before any bus I/O, a calibration file that could not be written (its folder is created).
+
+    Raises:
+        CalibError: ``path`` cannot be written (the message starts ``cannot write``).
+    """
+    check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
+
+
+def calibration_json(cals: Mapping[str, MotorCalibration]) -> str:
+    """The calibration as LeRobot writes it (``draccus.dump(..., indent=4)``, no final newline)."""
+    return dumps_current(cals)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 from ...core.jointmap import RobotCalibration
 from ...core.lerobot import (
@@ -11,11 +12,18 @@ from ...core.lerobot import (
     RobotSpec,
 )
 from ...errors import InvalidCalibrationError, UsageError
+from ...formats import write_calibration
 from .arms import norm_modes
 
 __all__ = [
     "export_joint_map",
+    "write_joint_map",
 ]
+
+
+def write_joint_map(out: Path, joint_map: RobotCalibration, ids: Mapping[str, int]) -> None:
+    """Write the joint map as robocal's canonical YAML, atomically with a ``.bak``, with each joint's motor id."""
+    write_calibration(out, joint_map, "robocal", ids=ids)
 
 
 def export_joint_map(

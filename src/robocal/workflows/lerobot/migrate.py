@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 from ...core.lerobot import (
     LegacyCalibration,
@@ -11,10 +12,28 @@ from ...core.lerobot import (
     wrap_feetech_offset,
 )
 from ...errors import InvalidCalibrationError, UsageError
+from ...formats.lerobot import read_legacy, write_current
 
 __all__ = [
     "legacy_to_current",
+    "migrate_file",
 ]
+
+
+def migrate_file(
+    legacy_file: Path, vendor: str, ids: Sequence[int] | None = None, out: Path | None = None
+) -> tuple[dict[str, MotorCalibration], list[str]]:
+    """Read a legacy calibration file, convert it (:func:`legacy_to_current`) and write it to ``out`` if given.
+
+    ``out`` is written atomically with a ``.bak``, after everything was read and checked.
+
+    Returns:
+        The current calibration and the conversion's warnings.
+    """
+    cals, warnings = legacy_to_current(read_legacy(legacy_file), vendor, ids)
+    if out is not None:
+        write_current(out, cals)
+    return cals, warnings
 
 
 def legacy_to_current(
