@@ -30,6 +30,7 @@ from robocal.backends.sim.physics import Drive, JointPlant, PlantParams, Scenari
 from robocal.core.profile_auto import AutoJoint, AutoSection
 from robocal.core.stop_search import Command, StopSample
 from robocal.workflows.autocal import calibrate_joint
+from robocal.workflows.autocal_types import JointOutcome
 
 PERIOD_S = 0.01
 MAX_LAG_RAD = math.radians(3.0)
@@ -218,6 +219,34 @@ class RunResult:
     limp_at_end: bool = False
     tests: tuple[str, ...] = ()
 
+    @classmethod
+    def from_outcome(
+        cls,
+        out: JointOutcome,
+        *,
+        limp_at_end: bool,
+        peak_tau_nm: float,
+        cap_nm: float,
+        speed_rad_s: float,
+        abort_span_rad: float,
+        tolerance_deg: float = 15.0,
+    ) -> RunResult:
+        """What every bench records of a joint's outcome (the zero and span errors are the caller's).
+
+        The verdict, the time, whether the joint was limp at the end, its peak motor torque over the cap, the
+        tests that found its stops and, when a search failed, how long that search took against its bound: the
+        expected span plus ``tolerance_deg`` at ``speed_rad_s``.
+        """
+        found = (out.stops.lower, out.stops.upper)
+        res = cls(out.name, out.stops.code, time_s=out.time_s, limp_at_end=limp_at_end)
+        res.peak_over_cap = peak_tau_nm / cap_nm
+        res.tests = tuple(r.test for r in found if r is not None and r.ok)
+        failed = [r for r in found if r is not None and not r.ok]
+        if failed:
+            res.abort_time_s = failed[0].duration_s
+            res.abort_bound_s = (abort_span_rad + math.radians(tolerance_deg)) / speed_rad_s
+        return res
+
 
 def _section(j: BenchJoint) -> tuple[AutoJoint, AutoSection]:
     aj = AutoJoint(j.name, "both", j.rated_nm, j.fraction, 20.0, 15.0)
@@ -250,17 +279,14 @@ def run_one(robot: Sequence[BenchJoint], spec: ScenarioSpec, seed: int) -> RunRe
     gravity: Callable[[float], float] | None = plant.gravity_nm if plant.params.gravity_nm else None
     out = calibrate_joint(driver, aj, section, j.lower, j.upper, max_lag_rad=MAX_LAG_RAD, gravity=gravity)
     p = plant.params
-    res = RunResult(j.name, out.stops.code, time_s=out.time_s, limp_at_end=driver.limped)
-    res.peak_over_cap = plant.peak_tau_motor_nm / cap
-    res.tests = tuple(r.test for r in (out.stops.lower, out.stops.upper) if r is not None and r.ok)
+    res = RunResult.from_outcome(
+        out, limp_at_end=driver.limped, peak_tau_nm=plant.peak_tau_motor_nm, cap_nm=cap, speed_rad_s=aj.speed_rad_s,
+        abort_span_rad=span,
+    )  # fmt: skip
     if out.ok and p.stop_lower_rad is not None and p.stop_upper_rad is not None:
         ideal = 0.5 * (p.stop_lower_rad + p.stop_upper_rad) - 0.5 * (j.lower + j.upper)
         res.zero_err_deg = math.degrees(out.stops.offset_rad - ideal)
         res.span_err_deg = math.degrees(out.stops.span_rad - (p.stop_upper_rad - p.stop_lower_rad))
-    failed = [r for r in (out.stops.lower, out.stops.upper) if r is not None and not r.ok]
-    if failed:
-        res.abort_time_s = failed[0].duration_s
-        res.abort_bound_s = (span + math.radians(15.0)) / aj.speed_rad_s
     return res
 
 

@@ -145,10 +145,12 @@ def run_one(
         truth = arm.truth[name]
         res = servo.resolution
     out = auto[name]
-    run = RunResult(name, out.stops.code, time_s=out.time_s, limp_at_end=limp)
-    run.peak_over_cap = plant.peak_tau_motor_nm / cap
+    exp_lo, exp_hi = aj.expected_rad(None, None)
+    run = RunResult.from_outcome(
+        out, limp_at_end=limp, peak_tau_nm=plant.peak_tau_motor_nm, cap_nm=cap, speed_rad_s=aj.speed_rad_s,
+        abort_span_rad=(exp_hi or 0.0) - (exp_lo or 0.0), tolerance_deg=aj.tolerance_deg,
+    )  # fmt: skip
     lo, hi = out.stops.lower, out.stops.upper
-    run.tests = tuple(r.test for r in (lo, hi) if r is not None and r.ok)
     p = plant.params
     if (
         out.ok
@@ -164,12 +166,6 @@ def run_one(
         e_hi = _wrap(hi.q_stop_rad * per_rad - true_hi, res)
         run.zero_err_deg = 0.5 * (e_lo + e_hi) * 360.0 / res
         run.span_err_deg = (e_hi - e_lo) * 360.0 / res
-    failed = [r for r in (lo, hi) if r is not None and not r.ok]
-    if failed:
-        exp_lo, exp_hi = aj.expected_rad(None, None)
-        span = (exp_hi or 0.0) - (exp_lo or 0.0)
-        run.abort_time_s = failed[0].duration_s
-        run.abort_bound_s = (span + math.radians(aj.tolerance_deg)) / aj.speed_rad_s
     return run
 
 

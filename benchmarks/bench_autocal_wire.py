@@ -83,18 +83,15 @@ def run_arm(fault: str, seed: int) -> list[RunResult]:
     results = []
     for o in auto.joints:
         motor = sim.motors[o.name]
-        res = RunResult(o.name, o.stops.code, time_s=o.time_s, limp_at_end=motor.mode == 0)
-        res.peak_over_cap = motor.plant.peak_tau_motor_nm / o.cap_nm
-        res.tests = tuple(r.test for r in (o.stops.lower, o.stops.upper) if r is not None and r.ok)
+        res = RunResult.from_outcome(
+            o, limp_at_end=motor.mode == 0, peak_tau_nm=motor.plant.peak_tau_motor_nm, cap_nm=o.cap_nm,
+            speed_rad_s=o.speed_rad_s, abort_span_rad=span_rad[o.name],
+        )  # fmt: skip
         p = motor.plant.params
         if o.ok and o.name in recovered:
             res.zero_err_deg = math.degrees(recovered[o.name] - truth[o.name])
             if p.stop_lower_rad is not None and p.stop_upper_rad is not None:
                 res.span_err_deg = math.degrees(o.stops.span_rad - (p.stop_upper_rad - p.stop_lower_rad))
-        failed = [r for r in (o.stops.lower, o.stops.upper) if r is not None and not r.ok]
-        if failed:
-            res.abort_time_s = failed[0].duration_s
-            res.abort_bound_s = (span_rad[o.name] + math.radians(15.0)) / o.speed_rad_s
         results.append(res)
     return results
 

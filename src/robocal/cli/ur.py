@@ -11,7 +11,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from ..core.ur import RPY_CONVENTIONS, UR_MODELS, deviation_from_nominal
+from ..core.ur import RPY_CONVENTIONS, UR_MODELS
 from ..errors import UsageError
 from ..viewer.ur_page import parse_q
 from ..workflows import ur as wf
@@ -47,7 +47,7 @@ def _print_result(result: wf.CorrectionResult, replaced: bool) -> int:
         table.add_row(link.name, *(f"{v:.9g}" for v in (*link.xyz_m, *link.rpy_rad)))
     console.print(table)
     console.print(f"hash: {result.kinematics.hash}  (rpy convention: {result.kinematics.rpy_convention})")
-    dev = deviation_from_nominal(result.kinematics)
+    dev = result.deviation
     console.print(
         f"deviation from nominal {dev.model}: {dev.length_m * 1e3:.3f} mm ({dev.length_field}), "
         f"{dev.angle_rad * 1e3:.3f} mrad"

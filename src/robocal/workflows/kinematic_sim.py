@@ -25,7 +25,7 @@ from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from .kinematics import tool_frame
 
-__all__ = ["SIM_ROBOTS", "SimRobot", "SimulationResult", "shipped_urdf", "simulate"]
+__all__ = ["SIM_ROBOTS", "SimRobot", "SimulationResult", "shipped_urdf", "sim_out_folder", "simulate"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,20 @@ def shipped_urdf(robot: str) -> Path:
     if robot not in SIM_ROBOTS:
         raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
     return Path(str(resources.files("robocal") / "data" / SIM_ROBOTS[robot].urdf))
+
+
+def sim_out_folder(out_dir: str | os.PathLike[str]) -> Path:
+    """A simulation's ``--out`` folder; a new folder in an existing one is made (as ``--out sim/`` in the docs).
+
+    Raises:
+        UsageError: ``out_dir`` is not a folder and cannot be made as one.
+    """
+    folder = Path(out_dir)
+    if not folder.exists() and folder.parent.is_dir():
+        folder.mkdir()
+    if not folder.is_dir():
+        raise UsageError(f"--out {folder}: not a folder")
+    return folder
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,11 +134,7 @@ def simulate(
         raise UsageError(f"--poses must be at least 1, got {poses}")
     if not (math.isfinite(noise_m) and noise_m >= 0):
         raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
-    folder = Path(out_dir)
-    if not folder.exists() and folder.parent.is_dir():
-        folder.mkdir()  # a new folder in an existing one, as `--out sim/` in the docs
-    if not folder.is_dir():
-        raise UsageError(f"--out {folder}: not a folder")
+    folder = sim_out_folder(out_dir)
     spec = SIM_ROBOTS.get(robot)
     src = shipped_urdf(robot)
     assert spec is not None

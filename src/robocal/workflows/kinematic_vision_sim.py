@@ -127,7 +127,7 @@ def simulate_images(
     the tag plan measured no better there), or at random with ``plan=False``. ``camera_on_tool``: the camera is on the tip link and the tag
     stands fixed in front of the arm (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
     """
-    from .kinematic_sim import SIM_ROBOTS, shipped_urdf
+    from .kinematic_sim import SIM_ROBOTS, shipped_urdf, sim_out_folder
 
     if robot not in SIM_ROBOTS:
         raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
@@ -137,11 +137,7 @@ def simulate_images(
         raise UsageError(f"tag images {setup}are simulated for {', '.join(where)} only, not {robot!r}")
     if poses < 3:
         raise UsageError(f"--poses must be at least 3 for images, got {poses}")
-    folder = Path(out_dir)
-    if not folder.exists() and folder.parent.is_dir():
-        folder.mkdir()  # a new folder in an existing one, as `--out sim/` in the docs
-    if not folder.is_dir():
-        raise UsageError(f"--out {folder}: not a folder")
+    folder = sim_out_folder(out_dir)
     tgt = parse_target(target)
     brd = parse_target(board, "--board")
     spec = SIM_ROBOTS[robot]

@@ -17,11 +17,13 @@ from ..backends import load_backend, require
 from ..core.arrays import FloatArray
 from ..core.dh import DHParameters
 from ..core.ur import (
+    NominalDeviation,
     UrKinematics,
     check_rpy_convention,
     correct_chain,
     correct_kinematics,
     default_kinematics,
+    deviation_from_nominal,
     nominal_dh,
     six_transforms,
     split_chain,
@@ -69,6 +71,11 @@ class CorrectionResult:
     out_path: Path
     urdf_out: Path | None = None
     warnings: tuple[str, ...] = ()
+
+    @property
+    def deviation(self) -> NominalDeviation:
+        """How far the written kinematics lie from the nominal ones of their model (the robot's own deltas)."""
+        return deviation_from_nominal(self.kinematics)
 
 
 def check_out_path(path: str | os.PathLike[str], what: str = "--out") -> Path:
