@@ -291,7 +291,10 @@ class FeetechJointDriver(_ServoJointDriver):
         self._sync("Torque_Enable", 0)
         self.enabled = False
         offset = mid_turn_offset(round(self._ticks) % self.res, self.res)
-        self.bus.write("Homing_Offset", self.motor_id, offset)
+        try:
+            self.bus.write("Homing_Offset", self.motor_id, offset)
+        except CalibTimeoutError:
+            offset = self._offset_on_servo()
         self.homing_offset = offset
         self.rehomes += 1
         s = self.read()
@@ -301,6 +304,24 @@ class FeetechJointDriver(_ServoJointDriver):
             self._sync("Goal_Position", self._present)
             self._sync("Torque_Enable", 1)
             self.enabled = True
+
+    def _offset_on_servo(self) -> int:
+        """The ``Homing_Offset`` the servo holds after a write whose status packet was lost.
+
+        The write may have been applied all the same (a motor silent while still pressed into a stop): every
+        later reading depends on which offset the servo holds, so it is read back, never assumed.
+
+        Raises:
+            DeviceError: The servo does not answer the read-back either: its frame is unknown, the search
+                cannot go on (a lost reply would otherwise turn into a jump of the joint's position).
+        """
+        try:
+            return int(self.bus.read("Homing_Offset", self.motor_id))
+        except CalibTimeoutError as exc:
+            raise DeviceError(
+                f"joint {self.name}: motor {self.motor_id} did not confirm its new Homing_Offset while re-homing "
+                f"away from the encoder seam, and its frame is unknown ({exc})"
+            ) from exc
 
     def _goal(self, target_ticks: float) -> int:
         if not SEAM_MARGIN_TICKS <= self._present <= self.res - 1 - SEAM_MARGIN_TICKS:
