@@ -233,19 +233,6 @@ def test_relative_paths_and_dot_destination(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.yaml", "b.yaml", "out", "src"]
 
 
-def test_dead_worker_is_one_error_not_a_traceback(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
-) -> None:
-    src = tmp_path / "src"
-    generate_dataset(src, n_episodes=4, frames_per_episode=5, episodes_per_file=1, convention=A)
-    monkeypatch.setattr(_driver, "_work", _dying_work)
-    with pytest.raises(_driver.DatasetWorkerError, match="worker process died") as info:
-        recalibrate_dataset(src, tmp_path / "dst", A, B, workers=2)
-    assert info.value.exit_code == 3
-    assert multiprocessing.active_children() == []
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
-
-
 class _SlowSubmitPool(ProcessPoolExecutor):
     """The real pool, submitting slowly: the first worker dies before the rest of the files are submitted."""
 
@@ -255,14 +242,19 @@ class _SlowSubmitPool(ProcessPoolExecutor):
         return fut
 
 
-def test_worker_dying_while_files_are_submitted_is_one_error(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize("pool", [None, _SlowSubmitPool], ids=["after-submitting", "while-submitting"])
+def test_dead_worker_is_one_error_not_a_traceback(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, pool: type[ProcessPoolExecutor] | None
 ) -> None:
-    """A pool broken before the last submit raises from submit itself (seen under load in CI): the same error."""
+    """A worker that dies is one ``DatasetWorkerError`` (exit 3), no worker left, nothing written.
+
+    Also when the pool breaks before the last file is submitted (``submit`` itself raises; seen under load in CI).
+    """
     src = tmp_path / "src"
     generate_dataset(src, n_episodes=4, frames_per_episode=5, episodes_per_file=1, convention=A)
     monkeypatch.setattr(_driver, "_work", _dying_work)
-    monkeypatch.setattr(_driver, "ProcessPoolExecutor", _SlowSubmitPool)
+    if pool is not None:
+        monkeypatch.setattr(_driver, "ProcessPoolExecutor", pool)
     with pytest.raises(_driver.DatasetWorkerError, match="worker process died") as info:
         recalibrate_dataset(src, tmp_path / "dst", A, B, workers=2)
     assert info.value.exit_code == 3

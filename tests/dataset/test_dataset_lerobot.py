@@ -114,29 +114,20 @@ def test_dataset_round_trip_lerobot_within_one_tick(tmp_path: Path, use_degrees:
     a = conv(HOMING_A, RANGE_A, use_degrees=use_degrees)
     b = conv(HOMING_B, RANGE_B, use_degrees=use_degrees)
     src = tmp_path / "a"
-    generate_dataset(
-        src,
-        n_episodes=3,
-        frames_per_episode=[60, 45, 70],
-        episodes_per_file=2,
-        convention=a,
-        actual_lo=[1100, 1100, 1100, 1100, 200, 1100],
-        actual_hi=[2800, 2800, 2800, 2700, 3900, 2400],
-    )
+    motion = {  # the same seed gives the same actual ticks: one motion, recorded with a given calibration
+        "n_episodes": 3,
+        "frames_per_episode": [60, 45, 70],
+        "episodes_per_file": 2,
+        "actual_lo": [1100, 1100, 1100, 1100, 200, 1100],
+        "actual_hi": [2800, 2800, 2800, 2700, 3900, 2400],
+    }
+    generate_dataset(src, convention=a, **motion)
     rep = recalibrate_dataset(src, tmp_path / "b", a, b)
     assert rep.out_of_range["observation.state"] == dict.fromkeys(SO_ARM_JOINTS, 0)
     recalibrate_dataset(tmp_path / "b", tmp_path / "aa", b, a, workers=2)
     assert tree(tmp_path / "aa") == tree(src)
     # the same motion recorded by LeRobot with calibration B (same seed → same actual ticks)
-    generate_dataset(
-        tmp_path / "rec_b",
-        n_episodes=3,
-        frames_per_episode=[60, 45, 70],
-        episodes_per_file=2,
-        convention=b,
-        actual_lo=[1100, 1100, 1100, 1100, 200, 1100],
-        actual_hi=[2800, 2800, 2800, 2700, 3900, 2400],
-    )
+    generate_dataset(tmp_path / "rec_b", convention=b, **motion)
     for key in ("observation.state", "action"):
         orig, back = all_values(src, key), all_values(tmp_path / "aa", key)
         assert np.abs(_ticks(back, a) - _ticks(orig, a)).max() <= 1  # LeRobot's truncating read-back

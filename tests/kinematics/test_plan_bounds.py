@@ -23,3 +23,20 @@ def test_bounds_are_the_limits_shrunk_by_the_margin_and_a_too_wide_margin_names_
     margin = 0.5 * float(np.min(np.asarray(lim_up) - np.asarray(lim_lo))) + 0.01
     with pytest.raises(UsageError, match=rf"joint {narrowest}: its range is narrower than twice the"):
         sampling_bounds(chain, margin)
+
+
+def test_touch_plans_draw_their_starts_inside_the_same_bounds(tmp_path) -> None:
+    """A touch plan's random starts come from the same bounds: a margin wider than a joint's range is refused."""
+    from robocal.workflows.kinematic_plan import plan
+
+    chain = chain_from_urdf(read_urdf(str(SO101_URDF)), tip_link="gripper_link")
+    lim_lo, lim_up = (np.asarray(v) for v in chain.limits())
+    narrowest = chain.joint_names[int(np.argmin(lim_up - lim_lo))]
+    margin = 0.5 * float(np.min(lim_up - lim_lo)) + 0.01
+    out = tmp_path / "plan.csv"
+    with pytest.raises(UsageError, match=rf"joint {narrowest}: its range is narrower than twice the"):
+        plan(
+            SO101_URDF, out, kind="touch", tip_link="gripper_link", touch_points_m=[(0.2, 0.0, 0.1)],
+            margin_rad=margin, poses=10,
+        )  # fmt: skip
+    assert not out.exists()

@@ -46,32 +46,27 @@ def test_urdf_fk_runs_to_tool0_through_fixed_frames(tmp_path: Path, dh_sets: dic
     assert main(["ur", "verify", "--dh", str(dh_file), "--urdf", str(bad), "--samples", "50"]) == 1
 
 
-def test_urdf_fk_refuses_a_broken_chain(tmp_path: Path) -> None:
-    text = ur_urdf_text(default_kinematics("ur5e", "urdf"))
-    p = tmp_path / "ur.urdf"
-    p.write_text(
-        _urdf_with(
-            text,
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (
             '<joint name="wrist_1_joint" type="revolute"><parent link="forearm_link"/>',
             '<joint name="wrist_1_joint" type="revolute"><parent link="upper_arm_link"/>',
-        )
-    )
-    with pytest.raises(
-        JointMismatchError, match=r"wrist_1_joint's parent is upper_arm_link; expected forearm_link"
-    ):
-        urdf_fk(p, np.zeros((1, 6)))
-
-
-def test_urdf_fk_refuses_moving_joint_after_wrist_3(tmp_path: Path) -> None:
-    text = ur_urdf_text(default_kinematics("ur5e", "urdf"))
-    p = tmp_path / "ur.urdf"
-    p.write_text(
-        _urdf_with(
-            text,
+            r"wrist_1_joint's parent is upper_arm_link; expected forearm_link",
+        ),
+        (
             '<joint name="flange-tool0" type="fixed">',
             '<joint name="flange-tool0" '
             'type="revolute"><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>',
-        )
-    )
-    with pytest.raises(JointMismatchError, match=r"flange-tool0 .* is revolute; expected fixed"):
+            r"flange-tool0 .* is revolute; expected fixed",
+        ),
+    ],
+    ids=["broken-chain", "moving-joint-after-wrist_3"],
+)
+def test_urdf_fk_refuses_a_chain_that_is_not_ur_descriptions(
+    tmp_path: Path, old: str, new: str, message: str
+) -> None:
+    p = tmp_path / "ur.urdf"
+    p.write_text(_urdf_with(ur_urdf_text(default_kinematics("ur5e", "urdf")), old, new))
+    with pytest.raises(JointMismatchError, match=message):
         urdf_fk(p, np.zeros((1, 6)))

@@ -20,11 +20,15 @@ TipLinkOption = Annotated[
 KindOption = Annotated[str, typer.Option("--kind", help="points, touch, gauge or tag (camera images).")]
 
 
+def _numbers(text: str) -> list[float]:
+    """The numbers in ``text``, separated by commas or spaces (``ValueError`` on anything else)."""
+    return [float(p) for p in text.replace(",", " ").split()]
+
+
 def parse_numbers(text: str, flag: str, example: str) -> list[float]:
     """Finite numbers separated by commas or spaces (``flag`` and ``example`` name them in the error)."""
-    parts = [p for p in text.replace(",", " ").split() if p]
     try:
-        values = [float(p) for p in parts]
+        values = _numbers(text)
     except ValueError:
         raise UsageError(f"{flag} {text!r}: expected numbers, e.g. {example}") from None
     if not values or not all(math.isfinite(v) for v in values):
@@ -34,9 +38,8 @@ def parse_numbers(text: str, flag: str, example: str) -> list[float]:
 
 def parse_xyz(text: str, flag: str = "--tool-xyz") -> tuple[float, float, float]:
     """Three finite numbers in metres."""
-    parts = [p for p in text.replace(",", " ").split() if p]
     try:
-        values = [float(p) for p in parts]
+        values = _numbers(text)
     except ValueError:
         raise UsageError(f"{flag} {text!r}: expected three numbers in metres, e.g. 0.012,0,-0.098") from None
     if len(values) != 3 or not all(math.isfinite(v) for v in values):

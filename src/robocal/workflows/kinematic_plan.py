@@ -220,9 +220,7 @@ def _plan_contacts(
     """A touch or gauge plan: reachable configurations per point, then the I-optimal greedy choice."""
     chain = model.chain
     rng = np.random.default_rng(seed)
-    lo, up = chain.limits()
-    lo = np.where(np.isfinite(lo), lo, -math.pi) + margin_rad
-    up = np.where(np.isfinite(up), up, math.pi) - margin_rad
+    lo, up = sampling_bounds(chain, margin_rad)
     qs, groups = [], []
     for g, point in enumerate(points):
         if point.shape != (3,) or not np.all(np.isfinite(point)):
