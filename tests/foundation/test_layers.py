@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -253,3 +254,16 @@ def test_no_class_name_defined_twice() -> None:
 def test_issue16_nothing_pending() -> None:
     """Every module is under the size limit, every class name unique, no CLI module imports a backend."""
     assert (OVERSIZE_PENDING, DUPLICATE_CLASS_PENDING, CLI_BACKEND_PENDING) == ({}, {}, {})
+
+
+REVIEW_WORDS = re.compile(r"audit|review|hardening|gaps|fixes|round\d|pass\d|_v\d")
+
+
+def test_test_files_are_named_for_what_they_test() -> None:
+    """A test file is named after the module or behaviour it tests, never after the review pass that wrote it."""
+    tests = SRC.parents[1] / "tests"
+    named = sorted(
+        p.relative_to(tests).as_posix() for p in tests.rglob("test_*.py") if REVIEW_WORDS.search(p.stem)
+    )
+    assert named == []
+    assert REVIEW_WORDS.search("test_sweep_review2") and REVIEW_WORDS.search("test_bad_input_audit")

@@ -1,4 +1,8 @@
-"""Gaps found auditing issue 13 against the CLI: too few images, a new --out folder, the kinds identify takes."""
+"""Bad input to the kinematics commands.
+
+Too few images for the unknowns, a new ``--out`` folder, the kinds identify takes, a point touched once,
+unreadable or cut images.
+"""
 
 from __future__ import annotations
 
