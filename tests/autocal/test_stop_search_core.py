@@ -123,7 +123,7 @@ def test_overload_latch_recovered_by_reread() -> None:
     s, _ = search(plant, +1)
     r = s.result
     assert r.code == "ok", r.reason
-    assert r.test in ("overload+reread", "torque", "lag")
+    assert r.test == "overload+reread"  # the latch (0.1 s) trips before the stall test's dwell (0.2 s)
     assert abs(r.q_stop_rad - 1.0) < math.radians(1.0)
 
 

@@ -177,7 +177,10 @@ class StopSearch:
         if self._phase == _CONFIRM:
             return self._confirm(sample)
         if sample.overload and self._phase in (_APPROACH, _PRESS_HI, _PRESS_LO):
-            self._last_good = sample
+            # the evidence stays the reading before the flag: once the latch has cut the torque, the joint
+            # springs back off the stop, and that motion says nothing about whether it was at rest there
+            if self._last_good is None:
+                self._last_good = sample
             return self._suspect("overload")
         self._last_good = sample
         if self._travel > cfg.max_travel_rad:
