@@ -87,7 +87,7 @@ def test_edits_in_place_keep_everything_else(tmp_path: Path) -> None:
     doc.write(path)
     text = path.read_text()
     assert "<!-- header comment -->" in text and "<!-- no origin -->" in text
-    assert '<origin xyz="0.0 0.0 0.1" rpy="0.0 0.0 1.5707963267948966"/>' in text
+    assert '<origin xyz="0 0 0.1" rpy="0 0 1.5707963267948966"/>' in text  # unchanged numbers keep their text
     m = read_urdf(path)
     assert m.joint("elbow").origin_xyz == (0.5, 0.0, 0.0)
     assert dict(m.joint_params["shoulder"]) == {

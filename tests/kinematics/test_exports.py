@@ -48,7 +48,10 @@ def test_joint_map_out_carries_the_offsets_and_the_urdf_leaves_them_out(
          "--joint-map-out", str(tmp_path / "map_id.yaml")]
     )  # fmt: skip
     assert code in (0, 1)
-    assert "(joint map with the zero offsets; the URDF leaves them out)" in capsys.readouterr().out
+    out_text = capsys.readouterr().out
+    assert "(joint map with the zero offsets; the URDF leaves them out)" in out_text
+    assert f"wrote {tmp_path / 'id.urdf'} (joint origins, the zero offsets in the joint map)" in out_text
+    assert "folded in" not in out_text
     rep = json.loads((tmp_path / "r.json").read_text())
     out = read_calibration(tmp_path / "map_id.yaml")
     assert dict(out.ids) == ids
@@ -127,3 +130,23 @@ def test_ur_yaml_needs_a_ur_chain(points_session: Path, tmp_path: Path, capsys) 
     assert code == 2
     assert "error: --ur-yaml needs a UR chain (shoulder_pan_joint" in capsys.readouterr().err
     assert not (tmp_path / "k.yaml").exists()
+
+
+def test_corrected_urdf_keeps_the_text_of_every_number_that_stays(tmp_path: Path) -> None:
+    """Only the numbers the fit changed are rewritten: ``0`` stays ``0`` (not ``0.0``), whole origins stay."""
+    from robocal.formats.urdf import UrdfDocument
+
+    src = (
+        '<?xml version="1.0"?>\n<robot name="t">\n  <link name="a"/><link name="b"/><link name="c"/>\n'
+        '  <joint name="j1" type="revolute"><parent link="a"/><child link="b"/>'
+        '<origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/></joint>\n'
+        '  <joint name="j2" type="revolute"><parent link="b"/><child link="c"/>'
+        '<origin xyz="0.05 0 0" rpy="0 1.5708 0"/><axis xyz="0 1 0"/></joint>\n</robot>\n'
+    )
+    doc = UrdfDocument.from_bytes(src.encode())
+    doc.set_origin("j1", (0.0, 0.0, 0.1), (0.0, 0.0, 0.0))  # nothing changed
+    doc.set_origin("j2", (0.05, 0.0012, 0.0), (0.0, 1.5708, -0.003))  # y and yaw changed
+    out = doc.to_bytes().decode()
+    assert '<origin xyz="0 0 0.1" rpy="0 0 0"/>' in out
+    assert '<origin xyz="0.05 0.0012 0" rpy="0 1.5708 -0.003"/>' in out
+    assert out.replace('0.05 0.0012 0" rpy="0 1.5708 -0.003', '0.05 0 0" rpy="0 1.5708 0') == src

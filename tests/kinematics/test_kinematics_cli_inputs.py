@@ -45,7 +45,7 @@ def test_simulate_creates_a_new_out_folder_but_not_its_parents(tmp_path: Path, c
     assert sorted(p.name for p in (tmp_path / "sim").iterdir()) == ["points.csv", "so101.urdf", "truth.json"]
     code = main(["kinematics", "simulate", "--out", str(tmp_path / "a" / "b"), "--poses", "20"])
     assert code == 2
-    assert f"error: --out {tmp_path / 'a' / 'b'}: not a folder" in capsys.readouterr().err
+    assert f"error: --out {tmp_path / 'a' / 'b'}: folder {tmp_path / 'a'} does not exist" in capsys.readouterr().err
     assert not (tmp_path / "a").exists()
 
 

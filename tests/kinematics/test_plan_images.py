@@ -186,8 +186,8 @@ def test_cli_plans_a_camera_on_the_tool(tmp_path: Path, capsys) -> None:
             "not for --kind tag",
         ),
         (
-            ("--camera-pose=-0.08,0,0.55", "--look-at", "0.11,0,0.19", "--prior"),
-            "--prior: not for --kind tag",
+            ("--camera-pose=-0.08,0,0.55", "--look-at", "0.11,0,0.19", "--criterion", "d", "--prior"),
+            "--criterion d: not for --kind tag",
         ),
         (
             ("--camera-pose", "0,0,0,0,0,0", "--look-at", "1,0,0", "--camera-on-tool"),
@@ -215,3 +215,58 @@ def test_tag_options_without_kind_tag_are_refused(tmp_path: Path, capsys) -> Non
     assert code == 2
     assert "error: --camera-on-tool, --noise-px apply to --kind tag" in capsys.readouterr().err
     assert not (tmp_path / "p.csv").exists()
+
+
+def _posterior_sigma(
+    model: ErrorModel, q_images: np.ndarray, q_all: np.ndarray, sig: np.ndarray, noise_px: float
+) -> float:
+    """The target centre's σ over ``q_all`` after a MAP fit with prior σ ``sig`` (inf: none) from the images."""
+    everything = image_plan_problem(model, q_all, TAG, SIM_CAMERA_K)
+    cols = sorted(set(everything.analyse().base) | set(np.flatnonzero(np.isfinite(sig)).tolist()))
+    problem = image_plan_problem(model, q_images, TAG, SIM_CAMERA_K)
+    _, J = problem.residuals_and_jacobian(problem.initial_theta())
+    info = J[:, cols].T @ J[:, cols] / noise_px**2 + np.diag(np.where(np.isfinite(sig[cols]), sig[cols] ** -2.0, 0.0))
+    _, G = model.point_jacobian(q_all)
+    G = G[:, :, cols]
+    return float(np.sqrt(np.mean(np.einsum("nrk,kl,nrl->n", G, np.linalg.inv(info), G))))
+
+
+def test_bayesian_tag_plan_counts_the_kinematic_prior_only() -> None:
+    from robocal.workflows.kinematic_fit import PriorSigmas
+
+    model = _fixed_model()
+    cand = _visible_candidates(model, False, 3000, seed=4)[:300]
+    sig = PriorSigmas().model_sigmas(model, tool_free=True)
+    assert np.isinf(sig[model.index("base.x")]) and np.isinf(sig[model.index("tool.rz")])  # camera, mounting
+    assert sig[model.index("shoulder_pan.offset")] == pytest.approx(math.radians(2.0))
+    # with noisy images (2 px) the prior weighs enough to change the plan
+    plain = plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 12, noise_px=2.0)
+    bayes = plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 12, noise_px=2.0, prior_sigma=sig)
+    assert sorted(bayes.index.tolist()) != sorted(plain.index.tolist())
+    assert bayes.index[:5].tolist() == plain.index[:5].tolist()  # the same D-optimal start
+    # the printed σ is the posterior with the prior, and the Bayesian plan is the better one for a prior fit
+    with_prior = _posterior_sigma(model, cand[bayes.index], cand, sig, 2.0)
+    assert bayes.prediction_sigma_m == pytest.approx(with_prior, rel=1e-6)
+    assert with_prior < _posterior_sigma(model, cand[plain.index], cand, sig, 2.0)
+    assert with_prior < plain.prediction_sigma_m  # the prior adds information
+    assert bayes.identifiability.rank == 26  # the rank is the data's, as identify reports it
+    bad = sig.copy()
+    bad[3] = 0.0
+    with pytest.raises(UsageError, match="prior σ must be 47 positive values"):
+        plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 12, prior_sigma=bad)
+
+
+def test_cli_plans_tag_images_with_a_prior(tmp_path: Path, capsys) -> None:
+    pytest.importorskip("cv2")
+    args = ("--camera-pose=-0.08,0,0.55", "--look-at", "0.11,0,0.19", "--target-pose", "0.0121,0,-0.0981,0,0,0",
+            "--poses", "12", "--candidates", "300")  # fmt: skip
+    assert main(_plan_args(tmp_path, *args)) == 0
+    plain_out = capsys.readouterr().out
+    plain, _ = read_pose_plan(tmp_path / "plan.csv", _fixed_model().chain.joint_names)
+    assert main(_plan_args(tmp_path, *args, "--prior")) == 0
+    out = capsys.readouterr().out
+    assert "12 images (Bayesian I-optimal of 300 poses where the camera sees the target" in out
+    assert "0.3 px corner noise, with the tolerance prior)" in out and "with the tolerance prior" not in plain_out
+    bayes, _ = read_pose_plan(tmp_path / "plan.csv", _fixed_model().chain.joint_names)
+    assert bayes.shape == (12, 5) and not np.allclose(np.sort(bayes, axis=0), np.sort(plain, axis=0))
+    assert (tmp_path / "plan.csv.bak").exists()  # the first plan, kept

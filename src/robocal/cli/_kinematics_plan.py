@@ -50,7 +50,10 @@ def plan(
         str, typer.Option("--criterion", help="i: smallest average prediction variance; d: largest O1.")
     ] = "i",
     prior: Annotated[
-        bool, typer.Option("--prior", help="Plan for a fit with the URDF tolerance prior (criterion i).")
+        bool,
+        typer.Option(
+            "--prior", help="Plan for a fit with the URDF tolerance prior (identify --prior; criterion i; tag too)."
+        ),
     ] = False,
     noise_mm: Annotated[float, typer.Option("--noise-mm", help="Tracker noise per axis, mm.")] = 0.5,
     candidates: Annotated[
@@ -201,7 +204,6 @@ def _plan_tag(
         "--touch-points": touch_points is not None,
         "--frame": frame.strip().lower() != "base",
         "--criterion d": criterion.strip().lower() != "i",
-        "--prior": prior,
     }
     wrong = [f for f, on in not_tag.items() if on]
     if wrong:
@@ -226,19 +228,21 @@ def _plan_tag(
         urdf, out, camera=camera, target=target, T_camera=T_camera, T_target=T_target,
         camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics, poses=poses, base_link=base_link,
         tip_link=tip_link, noise_px=noise_px, candidates=candidates, candidates_file=candidates_file, seed=seed,
+        prior=prior,
     )  # fmt: skip
     ident = result.identifiability
     obs = ident.observability
     what = "camera's centre in the target frame" if camera_on_tool else "target's centre in the camera frame"
     console.print(
-        f"{len(result.q_rad)} images (I-optimal of {result.candidates} poses where the camera sees the target, "
+        f"{len(result.q_rad)} images ({'Bayesian ' if prior else ''}I-optimal of {result.candidates} poses where the camera sees the target, "
         f"from {result.drawn} tried) for {', '.join(result.joint_names)}: rank {ident.rank} of "
         f"{len(ident.names)} unknowns, condition number {obs.condition:.1f}, O1 {obs.O1:.3g}, O3 {obs.O3:.3g}"
     )
     if math.isfinite(result.prediction_sigma_m):
         console.print(
             f"predicted σ of the {what} after identification {result.prediction_sigma_m * 1e3:.3f} mm "
-            f"(RMS over the candidates, {noise_px:g} px corner noise)"
+            f"(RMS over the candidates, {noise_px:g} px corner noise"
+            + (", with the tolerance prior)" if prior else ")")
         )
     console.print(
         f"wrote {result.out}; move the arm to each pose and take the picture "

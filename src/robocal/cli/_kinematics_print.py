@@ -46,7 +46,8 @@ def _print_files(
 ) -> int:
     """The files written (``about`` follows the report's name), then the warnings; the exit code."""
     if urdf_out is not None:
-        console.print(f"wrote {urdf_out} (joint origins, zero offsets folded in)")
+        offsets = "the zero offsets in the joint map" if "joint_map" in rep else "zero offsets folded in"
+        console.print(f"wrote {urdf_out} (joint origins, {offsets})")
     if "joint_map" in rep:
         console.print(f"wrote {rep['joint_map']['file']} (joint map with the zero offsets; the URDF leaves them out)")
     if "ur_yaml" in rep:

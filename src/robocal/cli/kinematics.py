@@ -202,6 +202,10 @@ def simulate(
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder")
     kind = kind.strip().lower()
+    if kind not in (*KINDS, "tag"):
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
+    if not (math.isfinite(gauge_mm) and gauge_mm > 0):
+        raise UsageError(f"--gauge-mm must be a positive number, got {gauge_mm}")
     if camera_on_tool and kind != "tag":
         raise UsageError("--camera-on-tool applies to --kind tag (camera images)")
     if kind == "tag":
@@ -322,6 +326,9 @@ def record(
     if (lerobot_port is None) == (source is None):
         raise UsageError("give either --lerobot-port (with --robot) or --source")
     kind = kind.strip().lower()
+    from ..workflows.kinematic_record_arm import check_session
+
+    check_session(kind, out)  # before the port opens: a LeRobot arm goes limp then
     reader, chain = rec_wf.open_reader(
         urdf=urdf,
         base_link=base_link,

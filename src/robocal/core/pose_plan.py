@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import ShapeMismatchError, UsageError
 from .arrays import BoolArray, FloatArray, IntArray
-from .identifiability import Identifiability, select_poses_i_optimal
+from .identifiability import Identifiability, select_poses, select_poses_i_optimal
 from .kinematic_errors import ErrorModel
 from .kinematic_images import ImageObservations, ImageProblem, project
 from .kinematic_problem import Measurements, Problem, analyse, free_indices
@@ -237,11 +237,10 @@ class ImagePlan:
 
 
 def _image_blocks(
-    problem: ImageProblem, ident: Identifiability, noise_px: float
-) -> tuple[FloatArray, FloatArray, list[int]]:
-    """Per-pose whitened Jacobian blocks of the base set ``(N, 2K, k)`` and the measured point's ``(N, 3, k)``."""
+    problem: ImageProblem, cols: list[int], noise_px: float
+) -> tuple[FloatArray, FloatArray]:
+    """Per-pose whitened Jacobian blocks of the columns ``(N, 2K, k)`` and the measured point's ``(N, 3, k)``."""
     _, J = problem.residuals_and_jacobian(problem.initial_theta())
-    cols = list(ident.base)
     n = problem.data.n_poses
     Jc = (J[:, cols] / noise_px).reshape(n, -1, len(cols))
     n_free = len(problem.free)
@@ -250,7 +249,24 @@ def _image_blocks(
     for j, col in enumerate(cols):
         if col < n_free:  # the intrinsics do not move the measured point
             Jp[:, :, j] = Jm[:, :, problem.free[col]]
-    return Jc, Jp, cols
+    return Jc, Jp
+
+
+def _prior_columns(
+    problem: ImageProblem, ident: Identifiability, prior_sigma: ArrayLike | None
+) -> tuple[list[int], FloatArray | None]:
+    """The unknowns a plan counts (the base set, plus every one with a prior) and their prior precision."""
+    cols = list(ident.base)
+    if prior_sigma is None:
+        return cols, None
+    n_params = problem.model.n_params
+    sig = np.asarray(prior_sigma, dtype=np.float64)
+    if sig.shape != (n_params,) or np.any(np.isnan(sig)) or np.any(sig <= 0.0):
+        raise UsageError(f"prior σ must be {n_params} positive values (inf for none)")
+    sig_free = np.full(problem.n_theta, np.inf)  # the intrinsics have no prior
+    sig_free[: len(problem.free)] = sig[list(problem.free)]
+    cols = sorted(set(cols) | {c for c in range(problem.n_theta) if math.isfinite(sig_free[c])})
+    return cols, np.where(np.isfinite(sig_free[cols]), 1.0 / sig_free[cols] ** 2, 0.0)
 
 
 def plan_image_poses(
@@ -263,6 +279,7 @@ def plan_image_poses(
     camera_on_tool: bool = False,
     refine_intrinsics: bool = False,
     noise_px: float = 0.3,
+    prior_sigma: ArrayLike | None = None,
 ) -> ImagePlan:
     """Pick ``n_poses`` image poses greedily, I-optimal for the measured point over the candidates.
 
@@ -271,7 +288,11 @@ def plan_image_poses(
     adds the image that lowers most the prediction variance of the target's centre in the camera frame (camera
     on the tool: the camera's centre in the target frame), averaged over the candidates
     (:func:`~robocal.core.identifiability.select_poses_i_optimal`; the first images are D-optimal until the
-    information has full rank).
+    information has full rank). With ``prior_sigma`` the plan is Bayesian, for the fit ``identify --kind tag
+    --prior`` makes: every parameter with a prior σ is an unknown too, the prior's information
+    ``diag(1/σ²)`` is counted as known beforehand (weighed against ``noise_px``), and after the same D-optimal
+    first images (the camera pose and the mounting have no prior: the images alone must fix them) each image
+    goes where the prior and the images so far leave the most uncertainty.
 
     Args:
         model: Nominal error model of the set-up (see :func:`image_plan_problem`).
@@ -281,11 +302,13 @@ def plan_image_poses(
         n_poses: How many images.
         camera_on_tool: The set-up.
         refine_intrinsics: Plan for a fit that refines ``fx, fy, cx, cy``.
-        noise_px: Corner noise per axis, pixels (scales the predicted σ).
+        noise_px: Corner noise per axis, pixels (scales the predicted σ; weighs the images against the prior).
+        prior_sigma: ``(P,)`` prior σ of each model parameter (``inf``: none, e.g. the camera pose and the
+            mounting; m or rad); the intrinsics have none.
 
     Raises:
         UsageError: Fewer candidates than images, too few images for the identifiable unknowns, a noise that is
-            not a positive number.
+            not a positive number, a prior σ that is not positive.
     """
     if not (math.isfinite(noise_px) and noise_px > 0.0):
         raise UsageError(f"--noise-px must be a positive number, got {noise_px}")
@@ -302,13 +325,22 @@ def plan_image_poses(
             f"than the {ident.rank} unknowns the candidates can identify; plan at least {ident.rank // 6 + 2} "
             "images (20 or more for a useful result)"
         )
-    Jc, Jp, _ = _image_blocks(problem, ident, noise_px)
-    idx = select_poses_i_optimal(Jc, n_poses, J_predict=Jp)
+    cols, precision = _prior_columns(problem, ident, prior_sigma)
+    Jc, Jp = _image_blocks(problem, cols, noise_px)
+    start: list[int] = []
+    if precision is not None:  # the images alone must fix the camera pose and the mounting (no prior on them):
+        # the first ones are D-optimal for the base set, as without a prior (greedy I from the prior alone
+        # chose worse plans, measured by its own criterion)
+        base_cols = [cols.index(c) for c in ident.base]
+        start = select_poses(Jc[:, :, base_cols], min(n_poses, -(-len(base_cols) // Jc.shape[1]) + 1)).tolist()
+    idx = select_poses_i_optimal(Jc, n_poses, J_predict=Jp, prior_precision=precision, start=start)
     chosen = image_plan_problem(
         model, problem.data.q_rad[idx], corners_m, K, camera_on_tool=camera_on_tool,
         refine_intrinsics=refine_intrinsics,
     ).analyse()  # fmt: skip
     A = np.einsum("nrk,nrl->kl", Jc[idx], Jc[idx])
+    if precision is not None:
+        A += np.diag(precision)
     try:
         cov = np.linalg.inv(A)
     except np.linalg.LinAlgError:

@@ -356,6 +356,22 @@ def _prolog_epilog(original: bytes, tree: Any) -> tuple[bytes | None, bytes | No
     return original[:start], original[close + 1 :] if close >= 0 else b"\n"
 
 
+def _triple(old: str | None, values: Sequence[float]) -> str:
+    """``values`` as an ``xyz``/``rpy`` attribute, keeping each of ``old``'s numbers that has the same value."""
+    tokens = (old or "").split()
+    if len(tokens) != len(values):
+        return " ".join(format_float(v) for v in values)
+    out = [t if _number(t) == v else format_float(v) for t, v in zip(tokens, values, strict=True)]
+    return old if old is not None and out == tokens else " ".join(out)
+
+
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
 class UrdfDocument:
     """A URDF kept as an lxml tree for lossless in-place edits.
 
@@ -412,6 +428,8 @@ class UrdfDocument:
     def set_origin(self, joint: str, xyz: Sequence[float], rpy: Sequence[float]) -> None:
         """Set a joint's ``<origin xyz rpy>`` (creating ``<origin>`` if absent), shortest round-trip floats.
 
+        A number whose value stays keeps its text (``0`` stays ``0``): unchanged attributes stay byte for byte.
+
         Args:
             joint: Robot joint name.
             xyz: Translation, 3 floats, m.
@@ -430,8 +448,8 @@ class UrdfDocument:
             idx = list(el).index(parent) if parent is not None else 0
             origin.tail = el.text
             el.insert(idx, origin)
-        origin.set("xyz", " ".join(format_float(v) for v in values[:3]))
-        origin.set("rpy", " ".join(format_float(v) for v in values[3:]))
+        origin.set("xyz", _triple(origin.get("xyz"), values[:3]))
+        origin.set("rpy", _triple(origin.get("rpy"), values[3:]))
 
     def set_param(self, joint: str, name: str, value: str) -> None:
         """Set a ``<ros2_control>/<joint>/<param name=...>`` text; the ``<ros2_control>`` joint must exist.

@@ -67,13 +67,16 @@ def check_export_paths(
     joint_map_out: str | os.PathLike[str] | None,
     ur_yaml: str | os.PathLike[str] | None,
     joint_map: RobotCalibration | None,
+    ur_hash: str | None = None,
 ) -> ExportPaths:
     """Check the output options before anything is read or fitted.
 
     Raises:
-        UsageError: An output in a missing folder, two outputs on one file, or ``--joint-map-out`` without the
-            joint map the readings went through.
+        UsageError: An output in a missing folder, two outputs on one file, ``--joint-map-out`` without the
+            joint map the readings went through, or ``--ur-hash`` without ``--ur-yaml``.
     """
+    if ur_hash is not None and ur_yaml is None:
+        raise UsageError("--ur-hash applies to --ur-yaml (the UR kinematics YAML the hash is written into)")
     paths = ExportPaths(
         check_output_path(out, "--out") if out is not None else None,
         check_output_path(report, "--report") if report is not None else None,

@@ -24,7 +24,15 @@ from ..core.kinematic_images import ImageProblem
 from ..core.kinematic_problem import Measurements, Problem, analyse
 from ..errors import UsageError
 
-__all__ = ["CONSTRAINT_WEIGHT", "FitResult", "PriorSigmas", "fit", "split_validation", "validation_errors"]
+__all__ = [
+    "CONSTRAINT_WEIGHT",
+    "FitResult",
+    "PriorSigmas",
+    "check_seed",
+    "fit",
+    "split_validation",
+    "validation_errors",
+]
 
 
 
@@ -312,6 +320,17 @@ def fit(
         iterations=int(sol.nfev),
         success=bool(sol.success),
     )
+
+
+def check_seed(seed: int) -> int:
+    """``--seed`` as given, checked: numpy seeds are non-negative integers.
+
+    Raises:
+        UsageError: A negative seed.
+    """
+    if seed < 0:
+        raise UsageError(f"--seed must be a non-negative integer, got {seed}")
+    return seed
 
 
 def split_validation(data: Measurements, fraction: float, seed: int = 0) -> tuple[FloatArray, FloatArray]:

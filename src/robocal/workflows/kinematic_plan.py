@@ -36,7 +36,7 @@ from ..fileio import atomic_write_text, check_output_path
 from ..formats.kinematic_data import read_joint_table, session_csv
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
-from .kinematic_fit import PriorSigmas
+from .kinematic_fit import PriorSigmas, check_seed
 from .kinematics import FRAMES, as_prior, tool_frame
 
 __all__ = ["PlanResult", "plan"]
@@ -142,6 +142,7 @@ def plan(
         raise UsageError("a prior applies to the I-optimal plan (--criterion i)")
     if poses < 1:
         raise UsageError(f"--poses must be at least 1, got {poses}")
+    check_seed(seed)
     out_path = check_output_path(out, "--out")
     chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
     model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))

@@ -6,7 +6,8 @@ The set-up is given nominally: where the camera is (fixed in the base frame, or 
 inside the joint limits where the camera sees the whole target (:func:`robocal.core.pose_plan.target_visible`);
 :func:`robocal.core.pose_plan.plan_image_poses` picks the images greedily and I-optimal for the reprojection
 model ``identify --kind tag`` fits (kinematics, camera pose or target place, mounting, optionally the
-intrinsics). The plan is the same joint CSV as for points (``pose`` + one column per joint, radians), for
+intrinsics), Bayesian with ``prior`` (the URDF's tolerance on the kinematic parameters, as ``identify --kind tag
+--prior`` uses it). The plan is the same joint CSV as for points (``pose`` + one column per joint, radians), for
 ``kinematics record --kind tag --plan``.
 """
 
@@ -32,7 +33,9 @@ from ..formats.camera_info import read_camera_info
 from ..formats.kinematic_data import read_joint_table, session_csv
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
+from .kinematic_fit import PriorSigmas, check_seed
 from .kinematic_plan import sampling_bounds
+from .kinematics import as_prior
 
 __all__ = ["ImagePlanResult", "frame_from_pose", "plan_images"]
 
@@ -103,6 +106,7 @@ def plan_images(
     candidates_file: str | os.PathLike[str] | None = None,
     margin_rad: float = 0.05,
     seed: int = 0,
+    prior: bool | PriorSigmas = False,
 ) -> ImagePlanResult:
     """Choose ``poses`` configurations where the camera sees the target that identify the set-up best.
 
@@ -125,6 +129,9 @@ def plan_images(
             those where the camera does not see the target are left out).
         margin_rad: Distance kept from the joint limits by the random candidates.
         seed: Seed of the random candidates.
+        prior: Plan for ``identify --kind tag --prior`` (True: the default tolerance): Bayesian I-optimal, the
+            prior on the kinematic parameters only (not on the camera pose, the mounting or the intrinsics),
+            weighed against ``noise_px``.
 
     Raises:
         CalibError: Bad options, a bad camera file or target, no or too few poses where the camera sees the
@@ -136,6 +143,8 @@ def plan_images(
         raise UsageError(f"--candidates must be at least 1, got {candidates}")
     if not (math.isfinite(noise_px) and noise_px > 0.0):
         raise UsageError(f"--noise-px must be a positive number, got {noise_px}")
+    prior_s = as_prior(prior)
+    check_seed(seed)
     out_path = check_output_path(out, "--out")
     tgt = parse_target(target)
     cam = read_camera_info(camera)
@@ -182,7 +191,7 @@ def plan_images(
         )
     plan = plan_image_poses(
         model, cand, corners, cam.K, poses, camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
-        noise_px=noise_px,
+        noise_px=noise_px, prior_sigma=None if prior_s is None else prior_s.model_sigmas(model, tool_free=True),
     )  # fmt: skip
     q = cand[plan.index]
     written = atomic_write_text(out_path, session_csv(q, chain.joint_names, {}))

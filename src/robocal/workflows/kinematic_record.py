@@ -85,12 +85,23 @@ class LeRobotReader:
         joint_map: ``q_urdf = direction·scale·(Present_Position − homing_offset)`` per chain joint (the map of
             ``robocal lerobot export-urdf``), in chain order.
         samples: Readings averaged per pose (the servo's read noise averages out).
+        close: Closes the bus (and stops a simulated arm); default ``bus.close``.
+        hand: A simulated arm's hand: moves it to a pose before the prompt (``record`` with a plan).
     """
 
     def __init__(
-        self, bus: Any, motor_ids: Sequence[int], joint_map: RobotCalibration, *, samples: int = 5
+        self,
+        bus: Any,
+        motor_ids: Sequence[int],
+        joint_map: RobotCalibration,
+        *,
+        samples: int = 5,
+        close: Callable[[], None] | None = None,
+        hand: Callable[[FloatArray], None] | None = None,
     ) -> None:
         self.bus = bus
+        self.hand = hand
+        self._close = bus.close if close is None else close
         self.motor_ids = [int(i) for i in motor_ids]
         self.joint_map = joint_map
         self.joint_names = joint_map.joint_names
@@ -105,8 +116,8 @@ class LeRobotReader:
         return np.asarray(self.joint_map.to_joint(np.mean(rows, axis=0)), dtype=np.float64)
 
     def close(self) -> None:
-        """Close the bus."""
-        self.bus.close()
+        """Close the bus (and stop a simulated arm)."""
+        self._close()
 
 
 class SourceReader:
@@ -253,6 +264,9 @@ def record(
                 goal = "" if targets is None or n > len(targets) else f" to {_target_text(chain, targets[n - 1])}"
                 planned = target_labels[n - 1] if n <= len(target_labels) else ""
                 goal += f", touching {planned}" if planned and kind in ("touch", "gauge") else ""
+                hand = getattr(reader, "hand", None)  # a simulated arm: moved as a person would move it
+                if hand is not None and targets is not None and n <= len(targets):
+                    hand(targets[n - 1])
                 answer = ask(f"pose {n}: move the arm{goal}, then press Enter (q + Enter when done)")
             except EOFError:
                 break
@@ -434,7 +448,8 @@ def open_reader(
             read_calibration(joint_map).calibration, chain, f"--joint-map {joint_map}"
         )
     if lerobot_port is not None:
-        from .lerobot import open_bus, robot_spec
+        from .kinematic_record_arm import lerobot_calibration_path, open_record_bus
+        from .lerobot import robot_spec
 
         if robot is None:
             raise UsageError("--lerobot-port needs --robot (so101_follower, koch_leader, ...)")
@@ -443,19 +458,22 @@ def open_reader(
         missing = [n for n in chain.joint_names if n not in ids]
         if missing:
             raise JointMismatchError(
-                f"{robot} has no motor(s) {', '.join(missing)}; its motors are {', '.join(ids)}"
+                f"{robot} has no motor(s) {', '.join(missing)}; its motors are {', '.join(ids)}: a LeRobot arm is "
+                "read by motor name, so the URDF's chain joints must carry those names (give --urdf with them)"
             )
         jm = file_map or calibration_for_chain(
             lerobot_joint_map(spec, robot_id, calibration_dir, calibration_file), chain, f"{robot} calibration"
         )
-        bus = open_bus(spec, lerobot_port)
+        motor_ids = [ids[n] for n in chain.joint_names]
+        cal_path = lerobot_calibration_path(spec, robot_id, calibration_dir, calibration_file)
+        bus, close, hand = open_record_bus(spec, lerobot_port, cal_path, motor_ids, jm)
         try:
             for m in spec.motors:  # limp: the user moves the arm by hand
                 bus.write("Torque_Enable", m.motor_id, 0)
         except BaseException:
-            bus.close()
+            close()
             raise
-        return LeRobotReader(bus, [ids[n] for n in chain.joint_names], jm), chain
+        return LeRobotReader(bus, motor_ids, jm, close=close, hand=hand), chain
     from ..backends.sources import JointSpec, open_source
 
     assert source is not None

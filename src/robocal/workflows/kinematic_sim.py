@@ -23,6 +23,7 @@ from ..fileio import atomic_write_bytes, atomic_write_text
 from ..formats.kinematic_data import measurements_to_csv
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
+from .kinematic_fit import check_seed
 from .kinematics import tool_frame
 
 __all__ = ["SIM_ROBOTS", "SimRobot", "SimulationResult", "shipped_urdf", "sim_out_folder", "simulate"]
@@ -65,17 +66,17 @@ def shipped_urdf(robot: str) -> Path:
 
 
 def sim_out_folder(out_dir: str | os.PathLike[str]) -> Path:
-    """A simulation's ``--out`` folder; a new folder in an existing one is made (as ``--out sim/`` in the docs).
+    """``--out`` of a simulation, checked: a folder, or a new one in an existing folder (made when writing).
 
     Raises:
-        UsageError: ``out_dir`` is not a folder and cannot be made as one.
+        UsageError: ``--out`` is a file, or its parent folder does not exist.
     """
     folder = Path(out_dir)
-    if not folder.exists() and folder.parent.is_dir():
-        folder.mkdir()
-    if not folder.is_dir():
-        raise UsageError(f"--out {folder}: not a folder")
-    return folder
+    if folder.is_dir() or (not folder.exists() and folder.parent.is_dir()):
+        return folder
+    if folder.exists():
+        raise UsageError(f"--out {folder}: is a file; give a folder")
+    raise UsageError(f"--out {folder}: folder {folder.parent} does not exist")
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,6 +135,7 @@ def simulate(
         raise UsageError(f"--poses must be at least 1, got {poses}")
     if not (math.isfinite(noise_m) and noise_m >= 0):
         raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
+    check_seed(seed)
     folder = sim_out_folder(out_dir)
     spec = SIM_ROBOTS.get(robot)
     src = shipped_urdf(robot)
@@ -170,6 +172,7 @@ def simulate(
         "ticks_per_turn": arm.ticks_per_turn,
         "hidden_parameters": {n: float(v) for n, v in zip(model.names, arm.x_true, strict=True)},
     }
+    folder.mkdir(exist_ok=True)  # only now: nothing is made when the simulation fails
     urdf_path = atomic_write_bytes(folder / f"{robot}.urdf", urdf_bytes)
     data_path = atomic_write_text(
         folder / f"{kind}.csv", measurements_to_csv(data, chain.joint_names, labels)

@@ -43,7 +43,7 @@ from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from . import kinematic_report as kr
 from .kinematic_export import check_export_paths
-from .kinematic_fit import FitResult, PriorSigmas, fit
+from .kinematic_fit import FitResult, PriorSigmas, check_seed, fit
 
 __all__ = [
     "SIM_CAMERA_K",
@@ -264,7 +264,8 @@ def identify_images(
         raise UsageError(f"--validate-fraction must be in [0, 1), got {validate_fraction}")
     if huber_px is not None and not (math.isfinite(huber_px) and huber_px > 0):
         raise UsageError(f"--huber must be a positive number of pixels, got {huber_px}")
-    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map)
+    check_seed(seed)
+    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
     tgt = parse_target(target)
     cam = read_camera_info(camera)
     doc = UrdfDocument.load(urdf)

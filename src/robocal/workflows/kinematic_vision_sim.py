@@ -127,6 +127,7 @@ def simulate_images(
     the tag plan measured no better there), or at random with ``plan=False``. ``camera_on_tool``: the camera is on the tip link and the tag
     stands fixed in front of the arm (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
     """
+    from .kinematic_fit import check_seed
     from .kinematic_sim import SIM_ROBOTS, shipped_urdf, sim_out_folder
 
     if robot not in SIM_ROBOTS:
@@ -137,6 +138,7 @@ def simulate_images(
         raise UsageError(f"tag images {setup}are simulated for {', '.join(where)} only, not {robot!r}")
     if poses < 3:
         raise UsageError(f"--poses must be at least 3 for images, got {poses}")
+    check_seed(seed)
     folder = sim_out_folder(out_dir)
     tgt = parse_target(target)
     brd = parse_target(board, "--board")
@@ -175,6 +177,7 @@ def simulate_images(
     else:
         q = seen[rng.permutation(seen.shape[0])[:poses]]
     T_true = model.tool_poses(q, arm.x_true)
+    folder.mkdir(exist_ok=True)  # only now: nothing is made when the set-up fails
     (folder / "images").mkdir(exist_ok=True)
     names = []
     for i, T in enumerate(T_true):

@@ -36,7 +36,7 @@ from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from . import kinematic_report as kr
 from .kinematic_export import check_export_paths
-from .kinematic_fit import FitResult, PriorSigmas, fit, split_validation, validation_errors
+from .kinematic_fit import FitResult, PriorSigmas, check_seed, fit, split_validation, validation_errors
 
 __all__ = [
     "FRAMES",
@@ -228,9 +228,12 @@ def identify(
         )
     if kind == "gauge" and gauge_distance_m is None:
         raise UsageError("--kind gauge needs the socket distance (--gauge-mm)")
+    if kind != "gauge" and gauge_distance_m is not None:
+        raise UsageError("--gauge-mm applies to --kind gauge (the distance between its sockets)")
     if huber_m is not None and not (math.isfinite(huber_m) and huber_m > 0):
         raise UsageError(f"--huber must be a positive distance, got {huber_m}")
-    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map)
+    check_seed(seed)
+    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
     doc = UrdfDocument.load(urdf)
     chain = chain_from_urdf(doc.model(), base_link, tip_link)
     measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=gauge_distance_m)
