@@ -255,6 +255,13 @@ TRANSIT_MAX_RAD_S = math.radians(120.0)
 """... but never faster than this."""
 
 
+def _blocked_as_contact(result: StopResult) -> StopResult:
+    """A search ``blocked`` at a known pressed position as a contact there (test ``blocked``), for the span check."""
+    if result.code != "blocked" or not math.isfinite(result.q_pressed_rad):
+        return result
+    return replace(result, code="ok", reason="", q_stop_rad=result.q_pressed_rad, test="blocked")
+
+
 def calibrate_joint_steps(
     driver: JointDriver,
     joint: AutoJoint,
@@ -297,10 +304,10 @@ def calibrate_joint_steps(
     first = yield from search_steps(
         driver, StopSearch(first_dir, cfg), view, "lower" if first_dir < 0 else "upper"
     )
-    if first.code == "blocked" and joint.stops == "both" and math.isfinite(first.q_pressed_rad):
+    if joint.stops == "both":
         # blocked right after the start (the joint began beside an obstacle or a stop): a contact the span
         # check judges once the other side is found (a one-sided joint has no such check and stays failed)
-        first = replace(first, code="ok", reason="", q_stop_rad=first.q_pressed_rad, test="blocked")
+        first = _blocked_as_contact(first)
     if first_dir < 0:
         lower = first
     else:
@@ -331,9 +338,8 @@ def calibrate_joint_steps(
         if upper is None:
             cfg2 = _config(joint, section, max_travel_rad=travel, max_lag_rad=max_lag_rad, gravity=gravity)
             upper = yield from search_steps(driver, StopSearch(1, cfg2), view, "upper")
-            if upper.code == "blocked" and math.isfinite(upper.q_pressed_rad):
-                # blocked right after the transit: an early stop (obstacle, cable), judged by the span check
-                upper = replace(upper, code="ok", reason="", q_stop_rad=upper.q_pressed_rad, test="blocked")
+            # blocked right after the transit: an early stop (obstacle, cable), judged by the span check
+            upper = _blocked_as_contact(upper)
     stops = joint_zero(
         joint.name,
         lower,
