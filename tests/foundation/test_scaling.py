@@ -10,8 +10,9 @@ import pytest
 from counting import CountingName
 
 from robocal.core import RobotCalibration
+from robocal.core.chain import ChainJoint
 from robocal.formats import CalibrationFile, read_calibration, write_calibration
-from robocal.formats.urdf import UrdfJoint, UrdfModel, read_urdf
+from robocal.formats.urdf import UrdfModel, read_urdf
 from robocal.workflows.calibration import check_calibration
 
 
@@ -21,7 +22,7 @@ def _names(n: int) -> list[str]:
 
 def test_check_compares_each_name_a_bounded_number_of_times() -> None:
     n = 2000
-    joints = tuple(UrdfJoint(name, "revolute", f"l{i}", f"l{i + 1}") for i, name in enumerate(_names(n)))
+    joints = tuple(ChainJoint(name, "revolute", f"l{i}", f"l{i + 1}") for i, name in enumerate(_names(n)))
     params = {name: {"direction": "-1", "can_id": str(i + 1)} for i, name in enumerate(_names(n))}
     model = UrdfModel("big", joints, params)
     cal = RobotCalibration(_names(n)[::-1], -1.0, np.full(n, 0.5))

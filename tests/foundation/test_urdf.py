@@ -43,15 +43,16 @@ def test_reads_joints_limits_and_params() -> None:
     # ros2_control <joint> entries are not robot joints
     assert m.joint_names == ("shoulder", "elbow")
     shoulder = m.joint("shoulder")
-    assert shoulder.limit is not None
-    assert (shoulder.limit.lower, shoulder.limit.upper, shoulder.limit.velocity, shoulder.limit.effort) == (
+    assert (shoulder.lower, shoulder.upper, shoulder.velocity, shoulder.effort) == (
         -1.57,
         1.57,
         2.0,
         10.0,
     )
-    assert shoulder.origin_xyz == (0.0, 0.0, 0.1) and shoulder.axis == (0.0, 0.0, 1.0)
-    assert m.joint("elbow").limit is None and m.joint("elbow").origin_xyz == (0.0, 0.0, 0.0)
+    assert shoulder.origin_xyz_m == (0.0, 0.0, 0.1) and shoulder.axis == (0.0, 0.0, 1.0)
+    elbow = m.joint("elbow")  # no <limit>, no <origin>, no <axis>: URDF's defaults
+    assert (elbow.lower, elbow.upper, elbow.velocity, elbow.effort) == (None, None, None, None)
+    assert elbow.origin_xyz_m == (0.0, 0.0, 0.0) and elbow.axis == (1.0, 0.0, 0.0)
     # joint-level params only (the interface-level <param name="min"> is separate)
     assert dict(m.joint_params["shoulder"]) == {"can_id": "1", "direction": "-1", "homing_offset": "0.1234"}
     assert dict(m.hardware_params["Sys"]) == {"can_interface": "can0"}
@@ -89,7 +90,7 @@ def test_edits_in_place_keep_everything_else(tmp_path: Path) -> None:
     assert "<!-- header comment -->" in text and "<!-- no origin -->" in text
     assert '<origin xyz="0 0 0.1" rpy="0 0 1.5707963267948966"/>' in text  # unchanged numbers keep their text
     m = read_urdf(path)
-    assert m.joint("elbow").origin_xyz == (0.5, 0.0, 0.0)
+    assert m.joint("elbow").origin_xyz_m == (0.5, 0.0, 0.0)
     assert dict(m.joint_params["shoulder"]) == {
         "can_id": "1",
         "direction": "-1",
@@ -106,8 +107,8 @@ def test_origin_write_read_identical(values: list[float]) -> None:
     doc = UrdfDocument.from_bytes(SMALL)
     doc.set_origin("shoulder", values[:3], values[3:])
     j = parse_urdf(doc.to_bytes()).joint("shoulder")
-    assert list(j.origin_xyz) == [v + 0.0 for v in values[:3]]
-    assert list(j.origin_rpy) == [v + 0.0 for v in values[3:]]
+    assert list(j.origin_xyz_m) == [v + 0.0 for v in values[:3]]
+    assert list(j.origin_rpy_rad) == [v + 0.0 for v in values[3:]]
     assert " -0.0 " not in doc.to_bytes().decode().replace('"', " ")
 
 

@@ -109,7 +109,7 @@ def test_chain_must_connect() -> None:
     with pytest.raises(Exception, match="expected 'l1'"):
         SerialChain((a, b), "base", "l2")
     with pytest.raises(InvalidCalibrationError, match="zero vector"):
-        ChainJoint("j", "revolute", "a", "b", axis=(0.0, 0.0, 0.0))
+        SerialChain((ChainJoint("j", "revolute", "a", "b", axis=(0.0, 0.0, 0.0)),), "a", "b")
 
 
 @pytest.mark.parametrize(

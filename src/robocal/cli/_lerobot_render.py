@@ -37,9 +37,9 @@ def interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") -
 
 def range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[str]:
     """Print (and return) one warning per motor whose range lies beyond one turn (LeRobot accepts those)."""
-    from ..core.lerobot import ranges_beyond_one_turn
+    from ..workflows.lerobot import range_warnings as beyond_one_turn
 
-    found = ranges_beyond_one_turn(cals, vendor=spec.vendor)
+    found = beyond_one_turn(spec, cals)
     for w in found:
         _common.print_warning(w)
     return found

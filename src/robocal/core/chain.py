@@ -21,28 +21,46 @@ from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatc
 from .arrays import FloatArray
 from .se3 import rot_x, rot_y, rot_z, transform_from_xyz_rpy_urdf
 
-__all__ = ["JOINT_TYPES", "ChainJoint", "SerialChain", "axis_motion", "fk_chain", "rotation_about_axis"]
+__all__ = [
+    "JOINT_TYPES",
+    "URDF_JOINT_TYPES",
+    "ChainJoint",
+    "SerialChain",
+    "axis_motion",
+    "fk_chain",
+    "rotation_about_axis",
+]
 
 Vec3 = tuple[float, float, float]
 
+URDF_JOINT_TYPES: tuple[str, ...] = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+"""Joint kinds a URDF may name (what :class:`ChainJoint` takes)."""
 JOINT_TYPES: tuple[str, ...] = ("revolute", "prismatic", "fixed")
 """Joint kinds of a chain (URDF ``continuous`` joints are ``revolute`` without limits)."""
 
 
 @dataclass(frozen=True)
 class ChainJoint:
-    """One joint of a serial chain.
+    """One URDF joint: what the URDF parser reads (:mod:`robocal.formats.urdf`) and what a chain evaluates.
+
+    A :class:`SerialChain` takes ``revolute``, ``prismatic`` and ``fixed`` joints only (its builders turn a
+    URDF's ``continuous`` joint into an unlimited ``revolute`` one). A movable joint's axis is made a unit
+    vector here; a zero axis is accepted here (a URDF may say so) and refused by :class:`SerialChain`.
 
     Attributes:
         name: Joint name (as in the URDF).
-        type: ``revolute``, ``prismatic`` or ``fixed``.
+        type: ``revolute``, ``continuous``, ``prismatic``, ``fixed``, ``floating`` or ``planar``.
         parent: Parent link name.
         child: Child link name.
         origin_xyz_m: ``<origin xyz>``, metres, in the parent link's frame.
         origin_rpy_rad: ``<origin rpy>``, radians, URDF convention ``Rz(yaw)·Ry(pitch)·Rx(roll)``.
-        axis: Unit joint axis in the joint frame (ignored for fixed joints).
-        lower: Lower position limit (rad or m), None when unlimited.
-        upper: Upper position limit (rad or m), None when unlimited.
+        axis: ``<axis xyz>``, unit vector in the joint frame (URDF's default ``(1, 0, 0)``; ignored for fixed
+            joints).
+        lower: ``<limit lower>`` (rad or m), None when absent (unlimited).
+        upper: ``<limit upper>`` (rad or m), None when absent (unlimited).
+        velocity: ``<limit velocity>`` (rad/s or m/s), None when absent.
+        effort: ``<limit effort>`` (N·m or N), None when absent.
+        mimic: Name of the mimicked joint (``<mimic joint>``), or None.
     """
 
     name: str
@@ -51,28 +69,29 @@ class ChainJoint:
     child: str
     origin_xyz_m: Vec3 = (0.0, 0.0, 0.0)
     origin_rpy_rad: Vec3 = (0.0, 0.0, 0.0)
-    axis: Vec3 = (0.0, 0.0, 1.0)
+    axis: Vec3 = (1.0, 0.0, 0.0)
     lower: float | None = None
     upper: float | None = None
+    velocity: float | None = None
+    effort: float | None = None
+    mimic: str | None = None
 
     def __post_init__(self) -> None:
-        if self.type not in JOINT_TYPES:
+        if self.type not in URDF_JOINT_TYPES:
             raise UsageError(
-                f"joint {self.name!r}: type {self.type!r}; a chain takes {', '.join(JOINT_TYPES)}"
+                f"joint {self.name!r}: type {self.type!r}; a URDF joint is {', '.join(URDF_JOINT_TYPES)}"
             )
         values = (*self.origin_xyz_m, *self.origin_rpy_rad, *self.axis)
         if len(values) != 9 or not all(math.isfinite(v) for v in values):
             raise InvalidCalibrationError(f"joint {self.name!r}: origin and axis need 3 finite numbers each")
         if self.type != "fixed":
             n = math.sqrt(sum(a * a for a in self.axis))
-            if n < 1e-12:
-                raise InvalidCalibrationError(f"joint {self.name!r}: axis is the zero vector")
-            if abs(n - 1.0) > 1e-12:
+            if n >= 1e-12 and abs(n - 1.0) > 1e-12:
                 object.__setattr__(self, "axis", tuple(a / n for a in self.axis))
 
     @property
     def is_movable(self) -> bool:
-        """True for revolute and prismatic joints."""
+        """True for joints with a degree of freedom (not fixed)."""
         return self.type != "fixed"
 
     def T_parent_joint(self) -> FloatArray:
@@ -97,6 +116,10 @@ class SerialChain:
     def __post_init__(self) -> None:
         link = self.base_link
         for j in self.joints:
+            if j.type not in JOINT_TYPES:
+                raise UsageError(f"joint {j.name!r}: type {j.type!r}; a chain takes {', '.join(JOINT_TYPES)}")
+            if j.is_movable and math.sqrt(sum(a * a for a in j.axis)) < 1e-12:
+                raise InvalidCalibrationError(f"joint {j.name!r}: axis is the zero vector")
             if j.parent != link:
                 raise UsageError(f"chain: joint {j.name!r} has parent {j.parent!r}, expected {link!r}")
             link = j.child

@@ -221,7 +221,8 @@ def default_kinematics(model: str, rpy: str = "upstream") -> UrKinematics:
 @lru_cache(maxsize=8)
 def _revolute_z_chain(n: int) -> SerialChain:
     """``n`` revolute joints about their z axis in series (their origins are given per call)."""
-    joints = tuple(ChainJoint(f"joint_{k + 1}", "revolute", f"link_{k}", f"link_{k + 1}") for k in range(n))
+    z = (0.0, 0.0, 1.0)
+    joints = tuple(ChainJoint(f"joint_{k + 1}", "revolute", f"link_{k}", f"link_{k + 1}", axis=z) for k in range(n))
     return SerialChain(joints, "link_0", f"link_{n}")
 
 

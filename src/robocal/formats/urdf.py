@@ -17,14 +17,13 @@ from typing import Any
 
 from lxml import etree
 
+from ..core.chain import URDF_JOINT_TYPES, ChainJoint
 from ..errors import FileFormatError, JointMismatchError, UsageError
 from ..fileio import atomic_write_bytes, read_bytes
 from ._numbers import format_float, parse_finite
 
 __all__ = [
-    "JointLimits",
     "UrdfDocument",
-    "UrdfJoint",
     "UrdfModel",
     "parse_urdf",
     "read_urdf",
@@ -32,48 +31,7 @@ __all__ = [
 
 Vec3 = tuple[float, float, float]
 XACRO_NS = "http://www.ros.org/wiki/xacro"
-
-
-@dataclass(frozen=True)
-class JointLimits:
-    """A joint's ``<limit>``: positions in rad (or m), velocity in rad/s, effort in N·m. Missing → None."""
-
-    lower: float | None
-    upper: float | None
-    velocity: float | None = None
-    effort: float | None = None
-
-
-@dataclass(frozen=True)
-class UrdfJoint:
-    """One robot joint (a direct ``<robot>/<joint>`` child).
-
-    Attributes:
-        name: Joint name.
-        type: ``revolute``, ``continuous``, ``prismatic``, ``fixed``, ``floating`` or ``planar``.
-        parent: Parent link name.
-        child: Child link name.
-        origin_xyz: ``<origin xyz>`` in m, parent frame.
-        origin_rpy: ``<origin rpy>`` in rad, URDF convention ``R = Rz(yaw)·Ry(pitch)·Rx(roll)``.
-        axis: ``<axis xyz>``, unit vector in the joint frame (default ``(1, 0, 0)``).
-        limit: The ``<limit>`` element, or None.
-        mimic: Name of the mimicked joint, or None.
-    """
-
-    name: str
-    type: str
-    parent: str
-    child: str
-    origin_xyz: Vec3 = (0.0, 0.0, 0.0)
-    origin_rpy: Vec3 = (0.0, 0.0, 0.0)
-    axis: Vec3 = (1.0, 0.0, 0.0)
-    limit: JointLimits | None = None
-    mimic: str | None = None
-
-    @property
-    def is_movable(self) -> bool:
-        """True for joints with a degree of freedom (not fixed)."""
-        return self.type != "fixed"
+_LIMIT_ATTRS = ("lower", "upper", "velocity", "effort")
 
 
 @dataclass(frozen=True)
@@ -90,11 +48,11 @@ class UrdfModel:
     """
 
     name: str
-    joints: tuple[UrdfJoint, ...]
+    joints: tuple[ChainJoint, ...]
     joint_params: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     hardware_params: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     source: str = "<string>"
-    _by_name: Mapping[str, UrdfJoint] = field(init=False, repr=False, compare=False)
+    _by_name: Mapping[str, ChainJoint] = field(init=False, repr=False, compare=False)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -118,7 +76,7 @@ class UrdfModel:
         """True when the URDF has a robot joint called ``name`` (O(1))."""
         return name in self._by_name
 
-    def joint(self, name: str) -> UrdfJoint:
+    def joint(self, name: str) -> ChainJoint:
         """The joint called ``name`` (O(1)); :class:`JointMismatchError` listing the valid names if absent."""
         j = self._by_name.get(name)
         if j is not None:
@@ -163,8 +121,7 @@ class UrdfModel:
     def limits(self, joint: str) -> tuple[float, float]:
         """``(lower, upper)`` of a joint, from ``<limit>`` or the ``lower_limit``/``upper_limit`` params."""
         j = self.joint(joint)
-        lo = j.limit.lower if j.limit else None
-        up = j.limit.upper if j.limit else None
+        lo, up = j.lower, j.upper
         where = f"URDF {self.source}: joint {joint!r}"
         if lo is None and self.param(joint, "lower_limit") is not None:
             lo = parse_finite(self.param(joint, "lower_limit"), where, "<param name='lower_limit'>")
@@ -257,11 +214,11 @@ def named_elements(root: Any, tag: str, source: str, no_name: str) -> Iterator[t
 
 def _model_from_tree(tree: Any, source: str) -> UrdfModel:
     root = tree.getroot()
-    joints: list[UrdfJoint] = []
+    joints: list[ChainJoint] = []
     for name, el in named_elements(root, "joint", source, "{where}: missing name attribute"):
         where = f"URDF {source}: joint {name!r}"
         jtype = el.get("type")
-        if jtype not in ("revolute", "continuous", "prismatic", "fixed", "floating", "planar"):
+        if jtype not in URDF_JOINT_TYPES:
             raise FileFormatError(f"{where}: type {jtype!r} is not a URDF joint type")
         parent, child = el.find("parent"), el.find("child")
         if parent is None or child is None or not parent.get("link") or not child.get("link"):
@@ -271,28 +228,24 @@ def _model_from_tree(tree: Any, source: str) -> UrdfModel:
         rpy = _vec3(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0), where, "origin rpy")
         axis_el = el.find("axis")
         axis = _vec3(axis_el.get("xyz") if axis_el is not None else None, (1.0, 0.0, 0.0), where, "axis xyz")
-        lim_el = el.find("limit")
-        limit = None
-        if lim_el is not None:
-            limit = JointLimits(
-                _opt_float(lim_el, "lower", where),
-                _opt_float(lim_el, "upper", where),
-                _opt_float(lim_el, "velocity", where),
-                _opt_float(lim_el, "effort", where),
-            )
-            if limit.lower is not None and limit.upper is not None and limit.lower > limit.upper:
-                raise FileFormatError(f"{where}: limit lower {limit.lower} is above upper {limit.upper}")
+        lim = el.find("limit")
+        lower, upper, velocity, effort = (None if lim is None else _opt_float(lim, a, where) for a in _LIMIT_ATTRS)
+        if lower is not None and upper is not None and lower > upper:
+            raise FileFormatError(f"{where}: limit lower {lower} is above upper {upper}")
         mimic_el = el.find("mimic")
         joints.append(
-            UrdfJoint(
+            ChainJoint(
                 name=name,
                 type=jtype,
                 parent=parent.get("link"),
                 child=child.get("link"),
-                origin_xyz=xyz,
-                origin_rpy=rpy,
+                origin_xyz_m=xyz,
+                origin_rpy_rad=rpy,
                 axis=axis,
-                limit=limit,
+                lower=lower,
+                upper=upper,
+                velocity=velocity,
+                effort=effort,
                 mimic=mimic_el.get("joint") if mimic_el is not None else None,
             )
         )

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 
 from ..core.chain import ChainJoint, SerialChain
 from ..errors import JointMismatchError, UsageError
-from .urdf import UrdfDocument, UrdfJoint, UrdfModel
+from .urdf import UrdfDocument, UrdfModel
 
 __all__ = ["chain_from_urdf", "corrected_urdf_bytes", "root_link", "tip_links"]
 
@@ -36,7 +36,7 @@ def tip_links(model: UrdfModel) -> tuple[str, ...]:
     return tuple(j.child for j in model.joints if j.child not in parents)
 
 
-def _chain_joint(j: UrdfJoint, source: str) -> ChainJoint:
+def _chain_joint(j: ChainJoint, source: str) -> ChainJoint:
     if j.type in ("floating", "planar"):
         raise JointMismatchError(
             f"URDF {source}: joint {j.name!r} is {j.type}; a serial chain cannot have it"
@@ -47,8 +47,8 @@ def _chain_joint(j: UrdfJoint, source: str) -> ChainJoint:
         )
     kind = "revolute" if j.type == "continuous" else j.type
     lower = upper = None
-    if j.type != "continuous" and j.limit is not None:
-        lower, upper = j.limit.lower, j.limit.upper
+    if j.type != "continuous":
+        lower, upper = j.lower, j.upper
     axis = j.axis
     if kind == "fixed" and not any(axis):
         axis = (0.0, 0.0, 1.0)  # URDFs often write axis="0 0 0" on fixed joints; it is never used
@@ -59,8 +59,8 @@ def _chain_joint(j: UrdfJoint, source: str) -> ChainJoint:
         type=kind,
         parent=j.parent,
         child=j.child,
-        origin_xyz_m=j.origin_xyz,
-        origin_rpy_rad=j.origin_rpy,
+        origin_xyz_m=j.origin_xyz_m,
+        origin_rpy_rad=j.origin_rpy_rad,
         axis=axis,
         lower=lower,
         upper=upper,
@@ -100,7 +100,7 @@ def chain_from_urdf(
             raise JointMismatchError(
                 f"URDF {model.source}: no {what} {link!r}; links: {', '.join(sorted(links))}"
             )
-    path: list[UrdfJoint] = []
+    path: list[ChainJoint] = []
     link = tip_link
     while link != base:
         if link not in by_child:

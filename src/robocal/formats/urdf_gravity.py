@@ -15,7 +15,7 @@ from ..core.chain import ChainJoint
 from ..core.gravity import STANDARD_GRAVITY_M_S2, GravityModel, LinkInertial
 from ..errors import FileFormatError, JointMismatchError
 from ._numbers import parse_finite
-from .urdf import UrdfDocument, UrdfJoint, named_elements
+from .urdf import UrdfDocument, named_elements
 from .urdf_chain import root_link
 
 __all__ = ["gravity_model_from_urdf", "gravity_model_if_any", "link_inertials"]
@@ -56,7 +56,7 @@ def link_inertials(doc: UrdfDocument) -> tuple[LinkInertial, ...]:
     return tuple(out)
 
 
-def _tree_joint(j: UrdfJoint, source: str) -> ChainJoint:
+def _tree_joint(j: ChainJoint, source: str) -> ChainJoint:
     if j.type in ("floating", "planar"):
         raise JointMismatchError(
             f"URDF {source}: joint {j.name!r} is {j.type}; a gravity model cannot have it"
@@ -67,9 +67,9 @@ def _tree_joint(j: UrdfJoint, source: str) -> ChainJoint:
     axis = j.axis if any(j.axis) else (0.0, 0.0, 1.0)
     if kind != "fixed" and not any(j.axis):
         raise JointMismatchError(f"URDF {source}: joint {j.name!r} has a zero axis")
-    lower = j.limit.lower if j.limit is not None and kind != "fixed" and j.type != "continuous" else None
-    upper = j.limit.upper if j.limit is not None and kind != "fixed" and j.type != "continuous" else None
-    return ChainJoint(j.name, kind, j.parent, j.child, j.origin_xyz, j.origin_rpy, axis, lower, upper)
+    limited = kind != "fixed" and j.type != "continuous"
+    lower, upper = (j.lower, j.upper) if limited else (None, None)
+    return ChainJoint(j.name, kind, j.parent, j.child, j.origin_xyz_m, j.origin_rpy_rad, axis, lower, upper)
 
 
 def gravity_model_from_urdf(

@@ -66,7 +66,7 @@ def add_simple_shapes(
     links = {el.get("name"): el for el in root.findall("link")}
     children: dict[str, list[tuple[float, float, float]]] = {}
     for j in model.joints:
-        children.setdefault(j.parent, []).append(j.origin_xyz)
+        children.setdefault(j.parent, []).append(j.origin_xyz_m)
     for name, el in links.items():
         if replace_meshes:
             for vis in el.findall("visual"):

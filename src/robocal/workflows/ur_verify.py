@@ -17,14 +17,14 @@ import numpy as np
 
 from ..backends import load_backend
 from ..core.arrays import FloatArray
-from ..core.chain import fk_chain
+from ..core.chain import ChainJoint, fk_chain
 from ..core.dh import DHParameters, fk_dh
 from ..core.se3 import homogeneous, rotation_angle_between
 from ..core.ur import JOINT_NAMES, fk_origins
 from ..core.urhash import calib_hash
 from ..errors import JointMismatchError, UsageError
 from ..formats.ur_kinematics import read_kinematics, require_ur_joints
-from ..formats.urdf import UrdfJoint, UrdfModel, read_urdf
+from ..formats.urdf import UrdfModel, read_urdf
 from ..formats.urdf_chain import chain_from_urdf
 
 __all__ = [
@@ -76,7 +76,7 @@ FLANGE_LINK = "tool0"
 _REVOLUTE = ("revolute", "continuous")
 
 
-def _ur_chain(model: UrdfModel, source: str | os.PathLike[str]) -> tuple[list[UrdfJoint], list[UrdfJoint]]:
+def _ur_chain(model: UrdfModel, source: str | os.PathLike[str]) -> tuple[list[ChainJoint], list[ChainJoint]]:
     """The six UR joints in series and the fixed joints from ``wrist_3_joint``'s child down to ``tool0``.
 
     Raises:
@@ -94,7 +94,7 @@ def _ur_chain(model: UrdfModel, source: str | os.PathLike[str]) -> tuple[list[Ur
         if j.type not in _REVOLUTE:
             raise JointMismatchError(f"URDF {source}: {j.name} is {j.type}; expected revolute")
     by_child = {j.child: j for j in model.joints}
-    tail: list[UrdfJoint] = []
+    tail: list[ChainJoint] = []
     link = FLANGE_LINK
     while link != arm[-1].child and link in by_child and len(tail) <= len(by_child):  # walk up from tool0
         tail.append(by_child[link])

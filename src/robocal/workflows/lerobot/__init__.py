@@ -25,7 +25,13 @@ from .calibrate import (
 )
 from .configure import clear_phase_bit4, configure
 from .eeprom import EEPROM_FIELDS, Difference, RollbackReport, check, read_eeprom, restore
-from .files import calibration_file, calibration_json, check_calibration_writable, read_calibration_file
+from .files import (
+    calibration_file,
+    calibration_json,
+    check_calibration_writable,
+    range_warnings,
+    read_calibration_file,
+)
 from .joint_map import export_joint_map, write_joint_map
 from .migrate import legacy_to_current, migrate_file
 from .show import read_positions, require_motors
@@ -52,6 +58,7 @@ __all__ = [
     "norm_modes",
     "open_arm",
     "open_bus",
+    "range_warnings",
     "read_calibration_file",
     "read_eeprom",
     "read_positions",

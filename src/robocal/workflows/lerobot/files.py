@@ -1,4 +1,4 @@
-"""A LeRobot arm's calibration file: where it is, reading it, checking it can be written, its JSON text.
+"""A LeRobot arm's calibration file: where it is, reading it, its ranges, checking it can be written, its JSON text.
 
 Where: ``--file``, else LeRobot's folder (and, when reading, its pre-v0.4.3 name).
 """
@@ -8,12 +8,18 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from ...core.lerobot import MotorCalibration, RobotSpec
+from ...core.lerobot import MotorCalibration, RobotSpec, ranges_beyond_one_turn
 from ...errors import UsageError
 from ...fileio import check_output_path
 from ...formats.lerobot import calibration_path, dumps_current, read_current
 
-__all__ = ["calibration_file", "calibration_json", "check_calibration_writable", "read_calibration_file"]
+__all__ = [
+    "calibration_file",
+    "calibration_json",
+    "check_calibration_writable",
+    "range_warnings",
+    "read_calibration_file",
+]
 
 
 def calibration_file(
@@ -51,6 +57,14 @@ def read_calibration_file(path: Path) -> dict[str, MotorCalibration]:
         CalibError: The file is missing, unreadable or malformed (the message names it).
     """
     return read_current(path)
+
+
+def range_warnings(spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> list[str]:
+    """One warning per motor of the arm whose range lies beyond one turn (LeRobot loads such files as they are).
+
+    See :func:`robocal.core.lerobot.ranges_beyond_one_turn`; the messages name the arm's vendor.
+    """
+    return ranges_beyond_one_turn(cals, vendor=spec.vendor)
 
 
 def check_calibration_writable(path: Path) -> None:
