@@ -227,8 +227,9 @@ def test_gauge_needs_distance(points_session: Path, capsys) -> None:
 def test_demo_identify(capsys) -> None:
     assert main(["demo", "--robot", "koch", "--identify"]) in (0, 1)
     out = capsys.readouterr().out
-    assert "against the hidden truth on 500 new poses" in out
-    mean = float(out.split("identified mean ")[1].split(" mm")[0])
+    assert "against the hidden truth: the 17 held-out poses mean " in out
+    assert "fit poses (50): nominal" in out and "validation poses (17): nominal" in out
+    mean = float(out.split("→ identified mean ")[1].split(" mm")[0])  # on 500 new poses
     assert mean < 0.6
     assert main(["demo", "--robot", "lite", "--identify"]) == 2
 

@@ -14,6 +14,9 @@ from ._common import EXIT_OK, EXIT_WARNINGS, console, print_warning
 
 __all__ = ["print_identification", "print_images"]
 
+NORM_MEAN_PER_SIGMA = 2.0 * math.sqrt(2.0 / math.pi)
+"""Mean length of a 3-D isotropic Gaussian error per its σ per axis (≈ 1.596)."""
+
 
 def _fmt(value: float, unit: str) -> str:
     if unit == "px":
@@ -81,6 +84,12 @@ def print_identification(result: wf.IdentifyResult) -> int:
             + (f"nominal {_stats(nominal)} → " if nominal else "")
             + f"corrected {_stats(err['validation']['corrected'])}"
         )
+        noise = err.get("noise_per_axis")
+        if noise:
+            console.print(
+                f"  (against the measured points: the marker noise, {noise:.2f} mm per axis as the fit estimates it, "
+                f"alone gives a mean of about {NORM_MEAN_PER_SIGMA * noise:.2f} mm)"
+            )
     if rep["dh_like"] is not None:
         dh = rep["dh_like"]
         held = ", ".join(dh["held_joints"]) or "none"

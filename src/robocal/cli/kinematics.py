@@ -59,8 +59,13 @@ def identify(
         ),
     ] = "base",
     validate_fraction: Annotated[
-        float, typer.Option("--validate-fraction", help="Share of poses held out for validation.")
-    ] = 0.25,
+        float | None,
+        typer.Option("--validate-fraction", help="Share of poses held out for validation (default 0.25)."),
+    ] = None,
+    validate_data: Annotated[
+        Path | None,
+        typer.Option("--validate-data", help="Separate CSV of held-out poses (same columns); all of --data is fitted."),
+    ] = None,
     huber: Annotated[
         float | None, typer.Option("--huber", help="Huber loss scale in mm (robust to outliers).")
     ] = None,
@@ -135,11 +140,14 @@ def identify(
     if kind.strip().lower() == "tag":
         if camera is None or target is None:
             raise UsageError("--kind tag needs --camera (intrinsics from camera-calibrate) and --target")
+        if validate_data is not None:
+            raise UsageError("--validate-data applies to points, touch and gauge sessions; images use --validate-fraction")
         from ..workflows import kinematic_vision as vis_wf
 
         img = vis_wf.identify_images(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
-            validate_fraction=validate_fraction, huber_px=huber, seed=seed, out=out, report=report,
+            validate_fraction=wf.DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction,
+            huber_px=huber, seed=seed, out=out, report=report,
             joint_map=jm, joint_map_out=joint_map_out, joint_map_ids=ids, ur_yaml=ur_yaml, ur_hash=ur_hash,
             camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
             prior=wf.as_prior(_prior(prior, prior_mm, prior_deg, prior_offset_deg)),
@@ -154,6 +162,7 @@ def identify(
         tool_xyz_m=parse_xyz(tool_xyz),
         frame=frame.strip().lower(),
         validate_fraction=validate_fraction,
+        validate_data=validate_data,
         huber_m=None if huber is None else huber * 1e-3,
         prior=_prior(prior, prior_mm, prior_deg, prior_offset_deg),
         gauge_distance_m=None if gauge_mm is None else gauge_mm * 1e-3,
@@ -173,6 +182,8 @@ def identify(
 def _command(sim: sim_wf.SimulationResult, kind: str, gauge_mm: float) -> str:
     tool = ",".join(f"{v:g}" for v in sim.tool_xyz_m)
     extra = f" --gauge-mm {gauge_mm:g}" if kind == "gauge" else ""
+    if sim.validation is not None:
+        extra += f" --validate-data {sim.validation}"
     return (
         f"robocal kinematics identify --urdf {sim.urdf} --data {sim.data} --kind {kind} "
         f"--tip-link {sim.tip_link} --tool-xyz {tool}{extra}"
@@ -197,6 +208,10 @@ def simulate(
     camera_on_tool: Annotated[
         bool, typer.Option("--camera-on-tool", help="--kind tag: camera on the tool, tag fixed in front of the arm.")
     ] = False,
+    validation_poses: Annotated[
+        int,
+        typer.Option("--validation-poses", help="Also write <kind>_validation.csv: random held-out poses (not tag)."),
+    ] = 0,
 ) -> None:
     """Simulate a measurement session on an arm with hidden errors (1 mm, 0.5°, 2° σ; 4096-tick joints)."""
     if out.exists() and not out.is_dir():
@@ -208,6 +223,8 @@ def simulate(
         raise UsageError(f"--gauge-mm must be a positive number, got {gauge_mm}")
     if camera_on_tool and kind != "tag":
         raise UsageError("--camera-on-tool applies to --kind tag (camera images)")
+    if validation_poses and kind == "tag":
+        raise UsageError("--validation-poses applies to points, touch and gauge; tag images are held out by a share")
     if kind == "tag":
         from ..workflows import kinematic_vision as vis_wf
 
@@ -238,8 +255,10 @@ def simulate(
         on_axis=on_axis,
         plan=not random_poses,
         gauge_distance_m=gauge_mm * 1e-3,
+        validation_poses=validation_poses,
     )
-    console.print(f"wrote {sim.urdf}, {sim.data} ({sim.measurements.n_poses} poses), {sim.truth}")
+    held = "" if sim.validation is None else f", {sim.validation} ({validation_poses} held-out poses)"
+    console.print(f"wrote {sim.urdf}, {sim.data} ({sim.measurements.n_poses} poses){held}, {sim.truth}")
     console.print(f"next: {_command(sim, kind, gauge_mm)}")
     raise typer.Exit(EXIT_OK)
 

@@ -1,8 +1,9 @@
 """``robocal demo --robot so101|koch --identify``: simulated kinematic identification, end to end.
 
-The ``identify`` job of :data:`robocal.workflows.demo.JOBS`: simulate 50 observable poses (of 67 planned) of an
-arm with hidden errors (1 mm origins, 0.5° tilts, 2° zeros), identify it, and check the identified model
-against the hidden truth on 500 new poses; for the SO-101 also the image part (rendered AprilTag images, camera
+The ``identify`` job of :data:`robocal.workflows.demo.JOBS`: simulate 50 poses chosen for observability and 17
+random held-out poses (a separate validation session) of an arm with hidden errors (1 mm origins, 0.5° tilts,
+2° zeros), identify it from the 50, and check the identified model against the hidden truth on the held-out poses
+and on 500 new ones; for the SO-101 also the image part (rendered AprilTag images, camera
 calibration, joint hand-eye). The results go to the CLI in an :class:`IdentifyDemo` for its printers.
 """
 
@@ -56,7 +57,8 @@ class IdentifyDemo:
 
     Attributes:
         identification: The marker-point identification.
-        truth_line: Nominal and identified errors against the hidden truth on 500 new poses.
+        truth_line: The identified errors against the hidden truth on the held-out poses, and nominal and
+            identified ones on 500 new poses.
         images: The image part, or None (the robot has none).
     """
 
@@ -89,13 +91,14 @@ def identify_demo(robot: str, folder: Path) -> IdentifyDemo:
     from . import kinematic_sim as sim_wf
     from . import kinematics as wf
 
-    sim = sim_wf.simulate(robot, folder, poses=67, noise_m=0.5e-3, seed=0)
+    sim = sim_wf.simulate(robot, folder, poses=50, noise_m=0.5e-3, seed=0, validation_poses=17)
+    assert sim.validation is not None and sim.validation_truth_m is not None
     result = wf.identify(
         sim.urdf,
         sim.data,
         tip_link=sim.tip_link,
         tool_xyz_m=sim.tool_xyz_m,
-        validate_fraction=0.25,
+        validate_data=sim.validation,
         dh=True,
         out=folder / f"{robot}_identified.urdf",
         report=folder / "report.json",
@@ -106,8 +109,10 @@ def identify_demo(robot: str, folder: Path) -> IdentifyDemo:
     truth = sim.arm.true_points(q)
     err = np.linalg.norm(model.points(sim.arm.read(q), result.fit.x) - truth, axis=1)
     nominal = np.linalg.norm(model.points(sim.arm.read(q)) - truth, axis=1)
+    held = np.linalg.norm(model.points(result.validation.q_rad, result.fit.x) - sim.validation_truth_m, axis=1)
     line = (
-        f"against the hidden truth on 500 new poses: nominal mean {nominal.mean() * 1e3:.2f} mm → identified "
+        f"against the hidden truth: the {held.size} held-out poses mean {held.mean() * 1e3:.3f} mm, max "
+        f"{held.max() * 1e3:.3f} mm; 500 new poses: nominal mean {nominal.mean() * 1e3:.2f} mm → identified "
         f"mean {err.mean() * 1e3:.3f} mm, max {err.max() * 1e3:.3f} mm"
     )
     images = _images_demo(robot, folder / "tag") if robot == "so101" else None

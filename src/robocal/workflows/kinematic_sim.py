@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
+from ..core.arrays import FloatArray
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import KINDS, Measurements, plan_poses
 from ..errors import UsageError
@@ -91,6 +92,9 @@ class SimulationResult:
         tool_xyz_m: Nominal marker position in ``tip_link``.
         arm: The simulated arm (hidden errors included).
         measurements: The session.
+        validation: The separate held-out session ``<kind>_validation.csv``, or None.
+        validation_measurements: Its measurements, or None.
+        validation_truth_m: The true tool points of its poses ``(N, 3)``, m (points only), or None.
     """
 
     urdf: Path
@@ -100,6 +104,9 @@ class SimulationResult:
     tool_xyz_m: tuple[float, float, float]
     arm: SimulatedKinematicArm
     measurements: Measurements
+    validation: Path | None = None
+    validation_measurements: Measurements | None = None
+    validation_truth_m: FloatArray | None = None
 
 
 def simulate(
@@ -113,6 +120,7 @@ def simulate(
     on_axis: bool = False,
     plan: bool = True,
     gauge_distance_m: float = 0.05,
+    validation_poses: int = 0,
 ) -> SimulationResult:
     """Simulate a session on a shipped robot with hidden errors.
 
@@ -128,11 +136,16 @@ def simulate(
         on_axis: Put the marker on the last joint's axis (to see the identifiability report catch it).
         plan: Choose the poses by greedy I-optimal selection from 2000 random candidates (points only).
         gauge_distance_m: Socket distance of the simulated gauge.
+        validation_poses: Also write ``<kind>_validation.csv``: this many random poses (touch: per point; gauge:
+            per socket) held out from the fit (``identify --validate-data``); drawn after the session, so the
+            session is the same with or without them.
     """
     if kind not in KINDS:
         raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
     if poses < 1:
         raise UsageError(f"--poses must be at least 1, got {poses}")
+    if validation_poses < 0:
+        raise UsageError(f"--validation-poses must be 0 or more, got {validation_poses}")
     if not (math.isfinite(noise_m) and noise_m >= 0):
         raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
     check_seed(seed)
@@ -148,6 +161,8 @@ def simulate(
     rng = np.random.default_rng(seed)
     arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
     labels: tuple[str, ...] = ()
+    c = np.asarray(spec.gauge_centre_m)
+    targets = np.stack([c, c + np.array([0.0, 0.06, 0.0]), c + np.array([-0.05, 0.0, 0.04])])
     if kind == "points":
         if plan:
             cand = arm.sample_q(2000, rng)
@@ -157,12 +172,21 @@ def simulate(
         truth = arm.true_points(q)
         data = Measurements("points", arm.read(q), truth + rng.normal(0.0, noise_m, truth.shape))
     elif kind == "touch":
-        c = np.asarray(spec.gauge_centre_m)
-        targets = np.stack([c, c + np.array([0.0, 0.06, 0.0]), c + np.array([-0.05, 0.0, 0.04])])
         data = arm.touch(targets, poses, rng)
         labels = ("P1", "P2", "P3")
     else:
         data = arm.gauge(spec.gauge_centre_m, gauge_distance_m, poses, rng)
+    val_data: Measurements | None = None
+    val_truth: FloatArray | None = None
+    if validation_poses:
+        if kind == "points":
+            val_data, val_truth = arm.measure_points(validation_poses, noise_m, rng)
+        else:
+            val_data = (
+                arm.touch(targets, validation_poses, rng)
+                if kind == "touch"
+                else arm.gauge(spec.gauge_centre_m, gauge_distance_m, validation_poses, rng)
+            )
     truth_doc = {
         "robot": robot,
         "seed": seed,
@@ -177,5 +201,14 @@ def simulate(
     data_path = atomic_write_text(
         folder / f"{kind}.csv", measurements_to_csv(data, chain.joint_names, labels)
     )
+    val_path = (
+        None
+        if val_data is None
+        else atomic_write_text(
+            folder / f"{kind}_validation.csv", measurements_to_csv(val_data, chain.joint_names, labels)
+        )
+    )
     truth_path = atomic_write_text(folder / "truth.json", json.dumps(truth_doc, indent=2) + "\n")
-    return SimulationResult(urdf_path, data_path, truth_path, spec.tip_link, marker, arm, data)
+    return SimulationResult(
+        urdf_path, data_path, truth_path, spec.tip_link, marker, arm, data, val_path, val_data, val_truth
+    )

@@ -39,6 +39,7 @@ from .kinematic_export import check_export_paths
 from .kinematic_fit import FitResult, PriorSigmas, check_seed, fit, split_validation, validation_errors
 
 __all__ = [
+    "DEFAULT_VALIDATE_FRACTION",
     "FRAMES",
     "DhComparison",
     "IdentifyResult",
@@ -49,6 +50,9 @@ __all__ = [
     "tool_frame",
 ]
 
+
+DEFAULT_VALIDATE_FRACTION = 0.25
+"""Share of a session's poses held out for validation when no separate validation session is given."""
 
 FRAMES: tuple[str, ...] = ("base", "tracker")
 """``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""
@@ -100,6 +104,12 @@ class IdentifyResult:
 
 def _stats_mm(errors: FloatArray) -> dict[str, float] | None:
     return kr.error_stats(errors, 1e3)
+
+
+def _noise_mm(result: FitResult) -> float | None:
+    """Marker noise per axis (mm) estimated from the fit's residuals: ``sqrt(Σ r² / (3 N − rank))``; None if no dof."""
+    dof = 3 * result.train_errors_m.size - result.identifiability.rank
+    return None if dof <= 0 else float(np.sqrt(np.sum(result.train_errors_m**2) / dof) * 1e3)
 
 
 def _kabsch(p_from: FloatArray, p_to: FloatArray) -> FloatArray:
@@ -157,6 +167,34 @@ def identify_joint_map(
     }
 
 
+def _validation_session(
+    path: str | os.PathLike[str],
+    kind: str,
+    chain: SerialChain,
+    labels: Sequence[str],
+    gauge_distance_m: float | None,
+) -> Measurements:
+    """A separate session of held-out poses, its touch groups numbered as in the fitted session.
+
+    Raises:
+        CalibError: The file is unreadable or malformed, a pose is outside the limits, or it touches a point the
+            fitted session never touched.
+    """
+    val, val_labels = read_measurements(path, kind, chain.joint_names, distance_m=gauge_distance_m)
+    chain.check_q(val.q_rad, what=f"{path}: pose")
+    if kind != "touch":
+        return val
+    unknown = [label for label in val_labels if label not in labels]
+    if unknown:
+        raise UsageError(
+            f"{path}: touches point(s) {', '.join(unknown)} that the fitted session never touched "
+            f"(it touched {', '.join(labels)})"
+        )
+    assert val.group is not None
+    renumber = np.array([list(labels).index(label) for label in val_labels], dtype=np.int64)
+    return Measurements("touch", val.q_rad, group=renumber[val.group])
+
+
 def as_prior(prior: bool | PriorSigmas) -> PriorSigmas | None:
     """``--prior`` as given: a :class:`PriorSigmas`, True for the default tolerance, False for none."""
     return prior if isinstance(prior, PriorSigmas) else (PriorSigmas() if prior else None)
@@ -171,7 +209,8 @@ def identify(
     tip_link: str | None = None,
     tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0),
     frame: str = "base",
-    validate_fraction: float = 0.25,
+    validate_fraction: float | None = None,
+    validate_data: str | os.PathLike[str] | None = None,
     huber_m: float | None = None,
     prior: bool | PriorSigmas = False,
     gauge_distance_m: float | None = None,
@@ -195,7 +234,9 @@ def identify(
         tip_link: Link the tool is attached to (default: the only leaf).
         tool_xyz_m: Nominal tool point (marker, ball, tip) in the tip link's frame, m.
         frame: ``base`` or ``tracker`` (points only): the frame the points are measured in.
-        validate_fraction: Share of poses held out for validation.
+        validate_fraction: Share of poses held out for validation (None: 0.25, or 0 with ``validate_data``).
+        validate_data: A separate session of held-out poses (the same columns as ``data``; touch groups matched by
+            label); every pose of ``data`` is then fitted.
         huber_m: Huber loss scale (m); None for plain least squares.
         prior: A Gaussian prior around nominal (True: the default tolerance, :class:`PriorSigmas`); every
             parameter with a prior is then estimated (maximum a posteriori).
@@ -232,6 +273,8 @@ def identify(
         raise UsageError("--gauge-mm applies to --kind gauge (the distance between its sockets)")
     if huber_m is not None and not (math.isfinite(huber_m) and huber_m > 0):
         raise UsageError(f"--huber must be a positive distance, got {huber_m}")
+    if validate_data is not None and validate_fraction is not None:
+        raise UsageError("give --validate-fraction or --validate-data, not both")
     check_seed(seed)
     paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
     doc = UrdfDocument.load(urdf)
@@ -252,8 +295,14 @@ def identify(
         assert measurements.p_world_m is not None
         T0 = _kabsch(model.points(measurements.q_rad), measurements.p_world_m)
         model = ErrorModel(chain, T_world_base=T0, T_tip_tool=model.T_tip_tool)
-    train_rows, val_rows = split_validation(measurements, validate_fraction, seed)
-    train, val = measurements.subset(train_rows), measurements.subset(val_rows)
+    if validate_data is None:
+        train_rows, val_rows = split_validation(
+            measurements, DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction, seed
+        )
+        train, val = measurements.subset(train_rows), measurements.subset(val_rows)
+    else:
+        train = measurements
+        val = _validation_session(validate_data, kind, chain, labels, gauge_distance_m)
     free = free_indices(model, [] if frame == "tracker" else ["base"])
     problem = Problem(model, train, free, np.zeros(model.n_params))
     prior_s = as_prior(prior)
@@ -292,6 +341,7 @@ def identify(
         "frame": frame,
         "chain": kr.chain_summary(chain),
         "poses": {"fit": train.n_poses, "validation": val.n_poses},
+        "validation_data": None if validate_data is None else str(validate_data),
         **kr.fit_summary(result, len(problem.names), kr.prior_summary(prior_s, noise=True)),
         "errors_mm": {
             "fit": {
@@ -302,6 +352,7 @@ def identify(
                 "nominal": _stats_mm(val_nom) if kind == "points" else None,
                 "corrected": _stats_mm(val_err),
             },
+            "noise_per_axis": _noise_mm(result) if kind == "points" else None,
         },
         "parameters": kr.parameter_rows(result, problem.names, units),
         **kr.model_summary(result, model, corrected),
