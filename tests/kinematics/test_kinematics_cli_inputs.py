@@ -101,3 +101,20 @@ def test_unreadable_or_cut_images_are_refused(tmp_path: Path, name: str, cut, me
     assert str(err.value) == f"image {tmp_path / name}: {message}"
     with pytest.raises(FileFormatError, match="no such file"):
         read_image(tmp_path / "missing.png")
+
+
+@pytest.mark.parametrize(("sep", "name"), [(";", "semicolons"), ("\t", "tabs")])
+def test_a_session_separated_by_semicolons_or_tabs_is_named(tmp_path: Path, capsys, sep: str, name: str) -> None:
+    """A spreadsheet saved in a comma-decimal locale writes semicolons: the error says so, not "missing columns"."""
+    assert main(["kinematics", "simulate", "--poses", "30", "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    text = (tmp_path / "points.csv").read_text()
+    bad = tmp_path / "excel.csv"
+    bad.write_text(text.replace(",", sep))
+    args = ["kinematics", "identify", "--urdf", str(tmp_path / "so101.urdf"), "--data", str(bad)]
+    assert main([*args, "--tip-link", "gripper_link", "--report", str(tmp_path / "r.json")]) == 2
+    assert capsys.readouterr().err == (
+        f"error: {bad}: the header separates its columns with {name}; robocal reads comma-separated CSV (save the "
+        "file with commas, and '.' as the decimal point)\n"
+    )
+    assert not (tmp_path / "r.json").exists()

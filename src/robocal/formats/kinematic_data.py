@@ -60,7 +60,7 @@ def _csv_rows(text: str, source: str) -> tuple[list[int], list[list[str]]]:
     The header's names are stripped of blanks.
 
     Raises:
-        FileFormatError: No rows at all, or a column named twice.
+        FileFormatError: No rows at all, columns separated by semicolons or tabs, or a column named twice.
     """
     lines = [
         (n, line)
@@ -71,6 +71,12 @@ def _csv_rows(text: str, source: str) -> tuple[list[int], list[list[str]]]:
         raise FileFormatError(f"{source}: no header row and no poses")
     rows = list(csv.reader(io.StringIO("\n".join(line for _, line in lines))))
     header = [h.strip() for h in rows[0]]
+    for sep, name in ((";", "semicolons"), ("\t", "tabs")):
+        if len(header) == 1 and sep in header[0]:
+            raise FileFormatError(
+                f"{source}: the header separates its columns with {name}; robocal reads comma-separated CSV "
+                "(save the file with commas, and '.' as the decimal point)"
+            )
     if len(set(header)) != len(header):
         dup = sorted({h for h in header if header.count(h) > 1})
         raise FileFormatError(f"{source}: duplicate columns {', '.join(dup)}")
