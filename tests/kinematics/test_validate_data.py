@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from robocal.cli.main import main
+from robocal.core.kinematic_problem import Measurements
 from robocal.errors import UsageError
 from robocal.formats.kinematic_data import parse_measurements
 from robocal.workflows import kinematic_sim as sim_wf
@@ -186,3 +187,50 @@ def test_images_and_tag_simulations_refuse_a_validation_session(
     assert simulate(tmp_path / "n", "--validation-poses", "-1") == 2
     assert capsys.readouterr().err == "error: --validation-poses must be 0 or more, got -1\n"
     assert not (tmp_path / "t").exists() and not (tmp_path / "n").exists()
+
+
+@pytest.fixture(scope="module")
+def gauge_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("gauge")
+    assert simulate(folder, "--kind", "gauge", "--poses", "10", "--validation-poses", "3") == 0
+    return folder
+
+
+@pytest.mark.parametrize(
+    ("extra", "fit", "held"),
+    [
+        (("--validate-fraction", "0"), 20, 0),  # nothing held out (was: "need poses in both sockets")
+        (("--validate-fraction", "0.05"), 19, 1),  # one pose held out, so one socket only (was refused too)
+        (("--validate-data", "a_only"), 20, 3),  # a held-out session in socket A alone
+        (("--validate-data", "gauge_validation.csv"), 20, 6),
+    ],
+)
+def test_gauge_validation_may_use_one_socket(
+    gauge_session: Path, tmp_path: Path, extra, fit: int, held: int
+) -> None:
+    if extra[1] == "a_only":
+        lines = (gauge_session / "gauge_validation.csv").read_text().splitlines()
+        (tmp_path / "a.csv").write_text("\n".join(ln for ln in lines if not ln.endswith(",B")) + "\n")
+        extra = ("--validate-data", str(tmp_path / "a.csv"))
+    elif extra[0] == "--validate-data":
+        extra = ("--validate-data", str(gauge_session / extra[1]))
+    args = ["--kind", "gauge", "--gauge-mm", "50", *extra]
+    assert _identify(gauge_session, tmp_path, *args, data="gauge.csv") in (0, 1)
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["poses"] == {"fit": fit, "validation": held}
+    if held:
+        assert rep["errors_mm"]["validation"]["corrected"]["max"] < 0.5  # joint quantisation only
+
+
+def test_a_gauge_fit_still_needs_both_sockets(gauge_session: Path, tmp_path: Path, capsys) -> None:
+    lines = (gauge_session / "gauge.csv").read_text().splitlines()
+    (tmp_path / "a.csv").write_text("\n".join(ln for ln in lines if not ln.endswith(",B")) + "\n")
+    assert (
+        _identify(
+            gauge_session, tmp_path, "--kind", "gauge", "--gauge-mm", "50", data=str(tmp_path / "a.csv")
+        )
+        == 2
+    )
+    assert "a gauge session needs poses in both socket A and socket B" in capsys.readouterr().err
+    with pytest.raises(UsageError, match=r"gauge sockets are 0 \(A\) and 1 \(B\), got \[0, 2\]"):
+        Measurements("gauge", np.zeros((2, 5)), group=np.array([0, 2]), distance_m=0.05)

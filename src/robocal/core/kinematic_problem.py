@@ -96,8 +96,8 @@ class Measurements:
                 raise ShapeMismatchError(f"contact groups {g.shape}; expected ({q.shape[0]},)")
             object.__setattr__(self, "group", g.astype(np.int64))
             if self.kind == "gauge":
-                if set(np.unique(g).tolist()) != {0, 1}:
-                    raise UsageError("gauge measurements need poses in both socket A and socket B")
+                if not set(np.unique(g).tolist()) <= {0, 1}:
+                    raise UsageError("gauge sockets are 0 (A) and 1 (B), got " + str(sorted(set(g.tolist()))))
                 d = self.distance_m
                 if d is None or not math.isfinite(d) or d <= 0.0:
                     raise InvalidCalibrationError(f"gauge socket distance must be a positive length, got {d}")
@@ -152,6 +152,11 @@ class Problem:
     data: Measurements
     free: tuple[int, ...]
     x_fixed: FloatArray
+
+    def __post_init__(self) -> None:
+        # a held-out share may touch one socket; a fit needs both for the gauge's distance
+        if self.data.kind == "gauge" and self.data.groups() != (0, 1):
+            raise UsageError("gauge measurements need poses in both socket A and socket B")
 
     @property
     def group_ids(self) -> tuple[int, ...]:

@@ -161,6 +161,7 @@ def parse_measurements(
     *,
     distance_m: float | None = None,
     source: str = "<string>",
+    held_out: bool = False,
 ) -> tuple[Measurements, tuple[str, ...]]:
     """Parse a measurement CSV.
 
@@ -170,6 +171,7 @@ def parse_measurements(
         joint_names: The chain's movable joints, the order of ``q``.
         distance_m: Socket distance for ``gauge`` (m).
         source: File name for messages.
+        held_out: A validation session: a gauge session may then use one socket only.
 
     Returns:
         The measurements and the group labels in group-id order (``()`` for points; ``("A", "B")`` for gauge).
@@ -218,18 +220,24 @@ def parse_measurements(
     if kind == "points":
         return Measurements("points", q, p), ()
     if kind == "gauge":
-        if set(group) != {0, 1}:
+        if set(group) != {0, 1} and not held_out:
             raise FileFormatError(f"{source}: a gauge session needs poses in both socket A and socket B")
         return Measurements("gauge", q, group=np.array(group), distance_m=distance_m), ("A", "B")
     return Measurements("touch", q, group=np.array(group)), tuple(labels)
 
 
 def read_measurements(
-    path: str | os.PathLike[str], kind: str, joint_names: Sequence[str], *, distance_m: float | None = None
+    path: str | os.PathLike[str],
+    kind: str,
+    joint_names: Sequence[str],
+    *,
+    distance_m: float | None = None,
+    held_out: bool = False,
 ) -> tuple[Measurements, tuple[str, ...]]:
     """Read a measurement CSV file; see :func:`parse_measurements`."""
+    what = "validation file" if held_out else "measurement file"
     return parse_measurements(
-        read_text(path, "measurement file"), kind, joint_names, distance_m=distance_m, source=str(path)
+        read_text(path, what), kind, joint_names, distance_m=distance_m, source=str(path), held_out=held_out
     )
 
 

@@ -180,7 +180,7 @@ def _validation_session(
         CalibError: The file is unreadable or malformed, a pose is outside the limits, or it touches a point the
             fitted session never touched.
     """
-    val, val_labels = read_measurements(path, kind, chain.joint_names, distance_m=gauge_distance_m)
+    val, val_labels = read_measurements(path, kind, chain.joint_names, distance_m=gauge_distance_m, held_out=True)
     chain.check_q(val.q_rad, what=f"{path}: pose")
     if kind != "touch":
         return val
