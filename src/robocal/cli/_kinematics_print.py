@@ -25,7 +25,11 @@ def _fmt(value: float, unit: str) -> str:
 
 
 def _stats(s: dict[str, float] | None, unit: str = "mm") -> str:
-    return "—" if s is None else f"mean {s['mean']:.3f} {unit}, max {s['max']:.3f} {unit}"
+    if s is None:
+        return "—"
+    if unit == "mm" and s["max"] < 0.01:  # noise-free data: micrometres say more than 0.000 mm
+        return f"mean {s['mean'] * 1e3:.3f} µm, max {s['max'] * 1e3:.3f} µm"
+    return f"mean {s['mean']:.3f} {unit}, max {s['max']:.3f} {unit}"
 
 
 def _print_parameters(rep: Mapping[str, Any]) -> None:
@@ -85,7 +89,7 @@ def print_identification(result: wf.IdentifyResult) -> int:
             + f"corrected {_stats(err['validation']['corrected'])}"
         )
         noise = err.get("noise_per_axis")
-        if noise:
+        if noise is not None and noise >= 0.005:
             console.print(
                 f"  (against the measured points: the marker noise, {noise:.2f} mm per axis as the fit estimates it, "
                 f"alone gives a mean of about {NORM_MEAN_PER_SIGMA * noise:.2f} mm)"

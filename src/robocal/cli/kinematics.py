@@ -212,8 +212,11 @@ def simulate(
         int,
         typer.Option("--validation-poses", help="Also write <kind>_validation.csv: random held-out poses (not tag)."),
     ] = 0,
+    ticks: Annotated[
+        int, typer.Option("--ticks", help="Encoder ticks per turn the joint readings are rounded to; 0: exact.")
+    ] = 4096,
 ) -> None:
-    """Simulate a measurement session on an arm with hidden errors (1 mm, 0.5°, 2° σ; 4096-tick joints)."""
+    """Simulate a measurement session on an arm with hidden errors (1 mm, 0.5°, 2° σ; --ticks joint readings)."""
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder")
     kind = kind.strip().lower()
@@ -229,8 +232,9 @@ def simulate(
         from ..workflows import kinematic_vision as vis_wf
 
         img = vis_wf.simulate_images(
-            robot.strip().lower(), out, poses=poses, seed=seed, camera_on_tool=camera_on_tool, plan=not random_poses
-        )
+            robot.strip().lower(), out, poses=poses, seed=seed, camera_on_tool=camera_on_tool, plan=not random_poses,
+            ticks_per_turn=ticks,
+        )  # fmt: skip
         console.print(
             f"wrote {img.urdf}, {img.data} ({poses} images of {img.target}), {len(img.calibration_images)} "
             f"calibration images of {img.board} in {out / 'calibration'}, {img.truth}"
@@ -256,6 +260,7 @@ def simulate(
         plan=not random_poses,
         gauge_distance_m=gauge_mm * 1e-3,
         validation_poses=validation_poses,
+        ticks_per_turn=ticks,
     )
     held = "" if sim.validation is None else f", {sim.validation} ({validation_poses} held-out poses)"
     console.print(f"wrote {sim.urdf}, {sim.data} ({sim.measurements.n_poses} poses){held}, {sim.truth}")

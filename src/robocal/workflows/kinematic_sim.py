@@ -27,7 +27,15 @@ from ..formats.urdf_chain import chain_from_urdf
 from .kinematic_fit import check_seed
 from .kinematics import tool_frame
 
-__all__ = ["SIM_ROBOTS", "SimRobot", "SimulationResult", "shipped_urdf", "sim_out_folder", "simulate"]
+__all__ = [
+    "SIM_ROBOTS",
+    "SimRobot",
+    "SimulationResult",
+    "check_ticks",
+    "shipped_urdf",
+    "sim_out_folder",
+    "simulate",
+]
 
 
 @dataclass(frozen=True)
@@ -64,6 +72,17 @@ def shipped_urdf(robot: str) -> Path:
     if robot not in SIM_ROBOTS:
         raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
     return Path(str(resources.files("robocal") / "data" / SIM_ROBOTS[robot].urdf))
+
+
+def check_ticks(ticks_per_turn: int) -> int:
+    """``--ticks`` as given, checked: 0 (exact readings) or a positive count per turn.
+
+    Raises:
+        UsageError: A negative count.
+    """
+    if ticks_per_turn < 0:
+        raise UsageError(f"--ticks must be 0 (exact readings) or a positive count per turn, got {ticks_per_turn}")
+    return ticks_per_turn
 
 
 def sim_out_folder(out_dir: str | os.PathLike[str]) -> Path:
@@ -121,6 +140,7 @@ def simulate(
     plan: bool = True,
     gauge_distance_m: float = 0.05,
     validation_poses: int = 0,
+    ticks_per_turn: int = 4096,
 ) -> SimulationResult:
     """Simulate a session on a shipped robot with hidden errors.
 
@@ -139,11 +159,14 @@ def simulate(
         validation_poses: Also write ``<kind>_validation.csv``: this many random poses (touch: per point; gauge:
             per socket) held out from the fit (``identify --validate-data``); drawn after the session, so the
             session is the same with or without them.
+        ticks_per_turn: Encoder ticks per turn the joint readings are rounded to (0: exact readings, the
+            noise-free case).
     """
     if kind not in KINDS:
         raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
     if poses < 1:
         raise UsageError(f"--poses must be at least 1, got {poses}")
+    check_ticks(ticks_per_turn)
     if validation_poses < 0:
         raise UsageError(f"--validation-poses must be 0 or more, got {validation_poses}")
     if not (math.isfinite(noise_m) and noise_m >= 0):
@@ -159,7 +182,7 @@ def simulate(
     marker = spec.marker_on_axis_m if on_axis else spec.marker_off_axis_m
     model = ErrorModel(chain, T_tip_tool=tool_frame(marker))
     rng = np.random.default_rng(seed)
-    arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
+    arm = SimulatedKinematicArm(model, hidden_errors(model, rng), ticks_per_turn=ticks_per_turn)
     labels: tuple[str, ...] = ()
     c = np.asarray(spec.gauge_centre_m)
     targets = np.stack([c, c + np.array([0.0, 0.06, 0.0]), c + np.array([-0.05, 0.0, 0.04])])

@@ -116,19 +116,20 @@ def simulate_images(
     noise_grey: float = 2.0,
     camera_on_tool: bool = False,
     plan: bool = True,
+    ticks_per_turn: int = 4096,
 ) -> SimImagesResult:
     """Render a tag session of a simulated arm with hidden errors, seen by a fixed simulated camera.
 
     Writes ``<robot>.urdf``, ``images/pose_NNN.png`` and ``tag.csv`` (joints + image), ``calibration/
     board_NN.png`` (a ChArUco board in front of the camera) and ``truth.json`` into ``out_dir``. Joint readings
-    are quantised to 4096 ticks; images have Gaussian pixel noise; poses are chosen among random ones where the
+    are quantised to ``ticks_per_turn`` ticks (0: exact); images have Gaussian pixel noise; poses are chosen among random ones where the
     camera sees the whole target: greedy I-optimal for the reprojection model (``kinematics plan --kind tag``,
     :func:`robocal.core.pose_plan.plan_image_poses`; with the camera on the tool greedy O1 of the tool point, as
     the tag plan measured no better there), or at random with ``plan=False``. ``camera_on_tool``: the camera is on the tip link and the tag
     stands fixed in front of the arm (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
     """
     from .kinematic_fit import check_seed
-    from .kinematic_sim import SIM_ROBOTS, shipped_urdf, sim_out_folder
+    from .kinematic_sim import SIM_ROBOTS, check_ticks, shipped_urdf, sim_out_folder
 
     if robot not in SIM_ROBOTS:
         raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
@@ -139,6 +140,7 @@ def simulate_images(
     if poses < 3:
         raise UsageError(f"--poses must be at least 3 for images, got {poses}")
     check_seed(seed)
+    check_ticks(ticks_per_turn)
     folder = sim_out_folder(out_dir)
     tgt = parse_target(target)
     brd = parse_target(board, "--board")
@@ -160,7 +162,7 @@ def simulate_images(
         mount[:3, 3] = SIM_MOUNT[robot]
         n_candidates = 4000
     model = ErrorModel(chain, T_world_base=T_world_base, T_tip_tool=mount)
-    arm = SimulatedKinematicArm(model, hidden_errors(model, rng))
+    arm = SimulatedKinematicArm(model, hidden_errors(model, rng), ticks_per_turn=ticks_per_turn)
 
     def cam_target(T_world_tool: FloatArray) -> FloatArray:
         return np.asarray(np.linalg.inv(T_world_tool), dtype=np.float64) if camera_on_tool else T_world_tool
