@@ -234,3 +234,61 @@ def test_a_gauge_fit_still_needs_both_sockets(gauge_session: Path, tmp_path: Pat
     assert "a gauge session needs poses in both socket A and socket B" in capsys.readouterr().err
     with pytest.raises(UsageError, match=r"gauge sockets are 0 \(A\) and 1 \(B\), got \[0, 2\]"):
         Measurements("gauge", np.zeros((2, 5)), group=np.array([0, 2]), distance_m=0.05)
+
+
+def _plan(out: Path, *extra: str) -> int:
+    from .conftest import SO101_URDF
+
+    args = ["kinematics", "plan", "--urdf", str(SO101_URDF), "--tip-link", "gripper_link", "--tool-xyz", TOOL]
+    return main([*args, "--out", str(out), *extra])
+
+
+def test_plan_writes_held_out_poses_beside_the_plan_without_changing_it(tmp_path: Path, capsys) -> None:
+    assert _plan(tmp_path / "a.csv", "--poses", "30", "--validation-poses", "12") == 0
+    out = capsys.readouterr().out
+    assert f"wrote {tmp_path / 'a_validation.csv'} (12 random held-out poses)" in out
+    assert _plan(tmp_path / "b.csv", "--poses", "30") == 0
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+    assert not (tmp_path / "b_validation.csv").exists()
+    from robocal.formats.kinematic_data import parse_joint_table
+
+    planned = parse_joint_table((tmp_path / "a.csv").read_text(), JOINTS)
+    held = parse_joint_table((tmp_path / "a_validation.csv").read_text(), JOINTS)
+    assert held.shape == (12, 5)
+    # none of them is a planned pose, all inside the limits minus the planning margin
+    assert min(np.abs(planned - h).max(axis=1).min() for h in held) > 1e-6
+    from .conftest import so101_model
+
+    lo, up = so101_model().chain.limits()
+    assert np.all(held >= lo + 0.05 - 1e-12) and np.all(held <= up - 0.05 + 1e-12)
+
+
+def test_plan_touch_held_out_poses_name_their_point(tmp_path: Path, capsys) -> None:
+    points = "0.2,0,0.05;0.2,0.06,0.05"
+    args = ["--kind", "touch", "--touch-points", points, "--poses", "12", "--candidates", "50"]
+    assert _plan(tmp_path / "t.csv", *args, "--validation-poses", "4") == 0
+    capsys.readouterr()
+    lines = (tmp_path / "t_validation.csv").read_text().splitlines()
+    assert lines[0].endswith(",group") and len(lines) == 5
+    assert {ln.rsplit(",", 1)[1] for ln in lines[1:]} <= {"P1", "P2"}
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (
+            ("--validation-poses", "1990"),
+            "--validation-poses 1990: only 1950 candidate poses are left beside the plan",
+        ),
+        (("--validation-poses", "-2"), "--validation-poses must be 0 or more, got -2"),
+        (
+            ("--kind", "tag", "--validation-poses", "3"),
+            "--validation-poses applies to points, touch and gauge",
+        ),
+    ],
+)
+def test_plan_refuses_bad_held_out_counts_and_writes_nothing(tmp_path: Path, capsys, extra, message) -> None:
+    assert _plan(tmp_path / "x.csv", *extra) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and message in err
+    assert list(tmp_path.iterdir()) == []

@@ -108,12 +108,21 @@ def plan(
     noise_px: Annotated[
         float, typer.Option("--noise-px", help="tag: corner noise per axis, pixels (predicted σ).")
     ] = 0.3,
+    validation_poses: Annotated[
+        int,
+        typer.Option(
+            "--validation-poses",
+            help="Also write <out>_validation.csv: random held-out poses to record apart (identify --validate-data).",
+        ),
+    ] = 0,
 ) -> None:
     """Choose poses inside the joint limits that identify the arm best (greedy I- or D-optimal)."""
     kind = kind.strip().lower()
     if kind not in (*KINDS, "tag"):
         raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
     if kind == "tag":
+        if validation_poses:
+            raise UsageError("--validation-poses applies to points, touch and gauge; images use --validate-fraction")
         raise typer.Exit(
             _plan_tag(
                 urdf, out, 40 if poses is None else poses, base_link, tip_link, camera, target, camera_pose,
@@ -149,6 +158,7 @@ def plan(
         candidates_file=candidates_file,
         seed=seed,
         touch_points_m=[parse_xyz(p, "--touch-points") for p in (touch_points or "").split(";") if p.strip()],
+        validation_poses=validation_poses,
     )
     ident = result.identifiability
     obs = ident.observability
@@ -170,6 +180,11 @@ def plan(
         f"wrote {result.out}; move the arm to each pose and "
         + ("add x,y,z columns as you measure" if kind == "points" else "touch the point it names")
     )
+    if result.validation_out is not None:
+        console.print(
+            f"wrote {result.validation_out} ({validation_poses} random held-out poses): record them as a session "
+            "of their own and give it to identify with --validate-data, so that every planned pose is fitted"
+        )
     for w in warnings:
         print_warning(w)
     raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)

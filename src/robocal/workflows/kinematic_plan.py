@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.arrays import FloatArray
+from ..core.arrays import FloatArray, IntArray
 from ..core.chain import SerialChain
 from ..core.identifiability import Identifiability
 from ..core.kinematic_errors import ErrorModel
@@ -55,6 +55,8 @@ class PlanResult:
         candidates: How many candidate configurations the poses were chosen from.
         prediction_sigma_m: Predicted one-σ error of the tool point averaged over the candidates after
             identification from these poses (marker noise ``noise_m``; linearised at nominal), m.
+        validation_out: The plan of held-out poses written beside ``out``, or None.
+        validation_q_rad: Its ``(V, n_q)`` joint targets, or None.
     """
 
     q_rad: FloatArray
@@ -64,6 +66,8 @@ class PlanResult:
     criterion: str = "I"
     candidates: int = 0
     prediction_sigma_m: float = math.nan
+    validation_out: Path | None = None
+    validation_q_rad: FloatArray | None = None
 
 
 def plan(
@@ -84,6 +88,7 @@ def plan(
     margin_rad: float = 0.05,
     seed: int = 0,
     touch_points_m: Sequence[Sequence[float]] = (),
+    validation_poses: int = 0,
 ) -> PlanResult:
     """Choose ``poses`` configurations inside the joint limits that best identify the chain, greedily.
 
@@ -112,6 +117,9 @@ def plan(
         touch_points_m: ``touch``: the fixed points (one or more), ``gauge``: sockets A and B; nominal positions
             in the chain's base frame, m. Candidates are the configurations of the nominal arm that reach them
             (damped least squares from ``candidates`` random starts per point).
+        validation_poses: Also write ``<out stem>_validation<suffix>``: this many candidates the plan did not
+            choose, at random (touch, gauge: configurations that reach one of the points), to record as a
+            separate session for ``identify --validate-data`` so that every planned pose is fitted.
 
     Raises:
         CalibError: Bad options, too few poses for the identifiable parameters, a candidate outside the limits
@@ -142,14 +150,17 @@ def plan(
         raise UsageError("a prior applies to the I-optimal plan (--criterion i)")
     if poses < 1:
         raise UsageError(f"--poses must be at least 1, got {poses}")
+    if validation_poses < 0:
+        raise UsageError(f"--validation-poses must be 0 or more, got {validation_poses}")
     check_seed(seed)
     out_path = check_output_path(out, "--out")
+    val_path = validation_path(out_path) if validation_poses else None
     chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
     model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
     if kind != "points":
         return _plan_contacts(
             model, out_path, kind, [np.asarray(p, dtype=np.float64) for p in touch_points_m], poses,
-            max(candidates, 1), margin_rad, seed,
+            max(candidates, 1), margin_rad, seed, (val_path, validation_poses),
         )  # fmt: skip
     if candidates_file is not None:
         cand = chain.check_q(
@@ -180,15 +191,39 @@ def plan(
         model, cand, poses, exclude_groups=exclude, criterion=crit, prior_sigma=sig, noise_m=noise_m
     )
     q = cand[idx]
+    val_idx = _held_out(cand.shape[0], idx, validation_poses, seed)
     problem = Problem(
         model, Measurements("points", q, model.points(q)), everything.free, np.zeros(model.n_params)
     )
     ident = analyse(problem)
     written = atomic_write_text(out_path, session_csv(q, chain.joint_names, {}))
+    val_written = None
+    if val_path is not None:
+        val_written = atomic_write_text(val_path, session_csv(cand[val_idx], chain.joint_names, {}))
     return PlanResult(
         q, chain.joint_names, ident, written, crit, int(cand.shape[0]),
-        _prediction_sigma(everything, problem, ident, noise_m, sig),
+        _prediction_sigma(everything, problem, ident, noise_m, sig), val_written, cand[val_idx],
     )  # fmt: skip
+
+
+def validation_path(out_path: Path) -> Path:
+    """Where a plan's held-out poses go: ``poses.csv`` → ``poses_validation.csv`` (checked writable)."""
+    return check_output_path(out_path.with_name(f"{out_path.stem}_validation{out_path.suffix}"), "--out")
+
+
+def _held_out(n_candidates: int, chosen: IntArray, n: int, seed: int) -> IntArray:
+    """``n`` random candidate indices the plan did not choose (a seeded draw of their own).
+
+    Raises:
+        UsageError: Fewer unchosen candidates than ``n``.
+    """
+    rest = np.setdiff1d(np.arange(n_candidates), np.asarray(chosen, dtype=np.int64))
+    if rest.size < n:
+        raise UsageError(
+            f"--validation-poses {n}: only {rest.size} candidate poses are left beside the plan; draw more "
+            "candidates (--candidates) or hold out fewer"
+        )
+    return np.sort(np.random.default_rng([seed, 1]).choice(rest, n, replace=False)).astype(np.int64)
 
 
 def sampling_bounds(chain: SerialChain, margin_rad: float) -> tuple[FloatArray, FloatArray]:
@@ -217,6 +252,7 @@ def _plan_contacts(
     starts: int,
     margin_rad: float,
     seed: int,
+    validation: tuple[Path | None, int],
 ) -> PlanResult:
     """A touch or gauge plan: reachable configurations per point, then the I-optimal greedy choice."""
     chain = model.chain
@@ -264,15 +300,28 @@ def _plan_contacts(
             f"the plan touches no point {', '.join(str(g + 1) for g in missing)}: plan more poses or fewer points"
         )
     q, g_sel = cand[idx], group[idx]
+    val_path, n_val = validation
+    val_idx = _held_out(cand.shape[0], idx, n_val, seed)
     ident = analyse(
         Problem(
             model, Measurements(kind, q, group=g_sel, distance_m=distance), free, np.zeros(model.n_params)
         )
     )
     column = "socket" if kind == "gauge" else "group"
-    labels = [("A" if v == 0 else "B") if kind == "gauge" else f"P{v + 1}" for v in g_sel.tolist()]
-    written = atomic_write_text(out_path, session_csv(q, chain.joint_names, {column: labels}))
-    return PlanResult(q, chain.joint_names, ident, written, "I", int(cand.shape[0]))
+
+    def labels(g: IntArray) -> list[str]:
+        return [("A" if v == 0 else "B") if kind == "gauge" else f"P{v + 1}" for v in g.tolist()]
+
+    written = atomic_write_text(out_path, session_csv(q, chain.joint_names, {column: labels(g_sel)}))
+    val_written = None
+    if val_path is not None:
+        val_written = atomic_write_text(
+            val_path, session_csv(cand[val_idx], chain.joint_names, {column: labels(group[val_idx])})
+        )
+    return PlanResult(
+        q, chain.joint_names, ident, written, "I", int(cand.shape[0]), validation_out=val_written,
+        validation_q_rad=cand[val_idx],
+    )  # fmt: skip
 
 
 def _prediction_sigma(
