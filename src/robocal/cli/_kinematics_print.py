@@ -94,6 +94,12 @@ def print_identification(result: wf.IdentifyResult) -> int:
                 f"  (against the measured points: the marker noise, {noise:.2f} mm per axis as the fit estimates it, "
                 f"alone gives a mean of about {NORM_MEAN_PER_SIGMA * noise:.2f} mm)"
             )
+    predicted = err.get("predicted_rms")
+    if predicted is not None:
+        console.print(
+            f"predicted error at new poses from the fit's covariance: RMS {predicted:.3f} mm over "
+            f"{wf.PREDICTION_POSES} random poses inside the limits (the encoders' own resolution comes on top)"
+        )
     if rep["dh_like"] is not None:
         dh = rep["dh_like"]
         held = ", ".join(dh["held_joints"]) or "none"

@@ -30,6 +30,7 @@ __all__ = [
     "PriorSigmas",
     "check_seed",
     "fit",
+    "predicted_error_m",
     "split_validation",
     "validation_errors",
 ]
@@ -124,6 +125,7 @@ class FitResult:
         loss: ``linear`` or ``huber``.
         iterations: Function evaluations.
         success: Whether scipy reports convergence.
+        estimated: Indices into ``theta`` of the unknowns ``covariance`` is over, in its order.
     """
 
     problem: Problem | ImageProblem
@@ -138,6 +140,7 @@ class FitResult:
     loss: str
     iterations: int
     success: bool
+    estimated: tuple[int, ...] = ()
 
 
 def _structural_rank(problem: Problem) -> int:
@@ -319,7 +322,35 @@ def fit(
         loss=loss,
         iterations=int(sol.nfev),
         success=bool(sol.success),
+        estimated=tuple(int(i) for i in base),
     )
+
+
+def predicted_error_m(result: FitResult, q_rad: ArrayLike) -> float:
+    """RMS (m) over ``q_rad`` of the tool point's predicted error from the fit's covariance.
+
+    ``sqrt(mean_i trace(G_i Σ G_iᵀ))`` with ``G_i`` the tool point's Jacobian at pose ``i`` over the estimated
+    unknowns and ``Σ`` their covariance: what the parameters' uncertainty leaves at new poses (a registration of
+    the base does not count; the joint readings' own resolution is not in it).
+
+    Args:
+        result: A point, touch or gauge fit.
+        q_rad: ``(M, n_q)`` poses to predict at, inside the limits.
+    """
+    problem = result.problem
+    assert isinstance(problem, Problem)
+    q = np.asarray(q_rad, dtype=np.float64)
+    model = problem.model
+    at = Problem(model, Measurements("points", q, model.points(q, result.x)), problem.free, result.x)
+    _, G = at.residuals_and_jacobian(at.initial_theta())
+    cols = [i for i in result.estimated if i < len(problem.free)]
+    keep = [k for k, i in enumerate(result.estimated) if i < len(problem.free)]
+    seen = np.array([model.parameters[problem.free[i]].group != "base" for i in cols])
+    Gs = G[:, cols] * seen
+    cov = result.covariance[np.ix_(keep, keep)]
+    if not np.all(np.isfinite(cov)):
+        return math.nan
+    return float(np.sqrt(np.einsum("rk,kl,rl->", Gs, cov, Gs) / q.shape[0]))
 
 
 def check_seed(seed: int) -> int:

@@ -36,7 +36,15 @@ from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from . import kinematic_report as kr
 from .kinematic_export import check_export_paths
-from .kinematic_fit import FitResult, PriorSigmas, check_seed, fit, split_validation, validation_errors
+from .kinematic_fit import (
+    FitResult,
+    PriorSigmas,
+    check_seed,
+    fit,
+    predicted_error_m,
+    split_validation,
+    validation_errors,
+)
 
 __all__ = [
     "DEFAULT_VALIDATE_FRACTION",
@@ -110,6 +118,20 @@ def _noise_mm(result: FitResult) -> float | None:
     """Marker noise per axis (mm) estimated from the fit's residuals: ``sqrt(Σ r² / (3 N − rank))``; None if no dof."""
     dof = 3 * result.train_errors_m.size - result.identifiability.rank
     return None if dof <= 0 else float(np.sqrt(np.sum(result.train_errors_m**2) / dof) * 1e3)
+
+
+PREDICTION_POSES = 2000
+"""Random poses inside the limits the report's predicted error is averaged over (seeded, the same every run)."""
+
+
+def _predicted_mm(result: FitResult, chain: SerialChain) -> float | None:
+    """The tool point's predicted RMS error (mm) at random poses from the fit's covariance; None if unknown."""
+    from .kinematic_plan import sampling_bounds  # kinematic_plan imports this module
+
+    lo, up = sampling_bounds(chain, 0.0)
+    q = np.random.default_rng(0).uniform(lo, up, (PREDICTION_POSES, chain.n_q))
+    value = predicted_error_m(result, q)
+    return None if not math.isfinite(value) else value * 1e3
 
 
 def _kabsch(p_from: FloatArray, p_to: FloatArray) -> FloatArray:
@@ -353,6 +375,8 @@ def identify(
                 "corrected": _stats_mm(val_err),
             },
             "noise_per_axis": _noise_mm(result) if kind == "points" else None,
+            # touch data leaves the overall size nominal: its covariance cannot say how far off that is
+            "predicted_rms": None if kind == "touch" else _predicted_mm(result, chain),
         },
         "parameters": kr.parameter_rows(result, problem.names, units),
         **kr.model_summary(result, model, corrected),
