@@ -75,11 +75,7 @@ def shipped_urdf(robot: str) -> Path:
 
 
 def check_ticks(ticks_per_turn: int) -> int:
-    """``--ticks`` as given, checked: 0 (exact readings) or a positive count per turn.
-
-    Raises:
-        UsageError: A negative count.
-    """
+    """``--ticks`` as given: 0 (exact readings) or a positive count per turn; UsageError if negative."""
     if ticks_per_turn < 0:
         raise UsageError(f"--ticks must be 0 (exact readings) or a positive count per turn, got {ticks_per_turn}")
     return ticks_per_turn
