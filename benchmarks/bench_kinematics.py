@@ -99,6 +99,40 @@ def _accuracy_per_seed(model: ErrorModel, seeds: int = 20) -> None:
                 f"(avg {np.mean(means):.3f}), max {min(maxima):.3f}-{max(maxima):.3f} (avg {np.mean(maxima):.3f}) mm; "
                 f"draws over 0.4 mm mean: {sum(m > 0.4 for m in means)}, over 0.9 mm max: {sum(m > 0.9 for m in maxima)}"
             )
+    _session_pipeline_per_seed(seeds)
+
+
+def _session_pipeline_per_seed(seeds: int) -> None:
+    """What `demo --identify` does, per draw: each draw plans its own 50 poses (`simulate`), 17 random held-out
+    poses of a separate session (`--validation-poses`, `identify --validate-data`), errors against the truth at
+    the held-out poses; and the covariance's predicted RMS against the parameters' true RMS."""
+    import tempfile
+
+    from robocal.workflows import kinematic_sim, kinematics
+
+    for robot in ("so101", "koch"):
+        means, maxima, ratio = [], [], []
+        for seed in range(seeds):
+            with tempfile.TemporaryDirectory() as folder:
+                sim = kinematic_sim.simulate(robot, folder, poses=50, seed=seed, validation_poses=17)
+                assert sim.validation is not None and sim.validation_truth_m is not None
+                res = kinematics.identify(
+                    sim.urdf, sim.data, tip_link=sim.tip_link, tool_xyz_m=sim.tool_xyz_m, validate_data=sim.validation
+                )
+            m = res.fit.problem.model
+            e = np.linalg.norm(m.points(res.validation.q_rad, res.fit.x) - sim.validation_truth_m, axis=1) * 1e3
+            means.append(e.mean())
+            maxima.append(e.max())
+            q = sim.arm.read(sim.arm.sample_q(2000, np.random.default_rng(7)))
+            true_rms = np.sqrt(np.mean(np.sum((m.points(q, res.fit.x) - m.points(q, sim.arm.x_true)) ** 2, axis=1)))
+            ratio.append(res.report["errors_mm"]["predicted_rms"] / (true_rms * 1e3))
+        print(
+            f"{robot}, 50 planned poses per draw, 17 held-out poses vs truth, seeds 0-{seeds - 1}: mean "
+            f"{min(means):.3f}-{max(means):.3f} (avg {np.mean(means):.3f}), max {min(maxima):.3f}-{max(maxima):.3f} "
+            f"(avg {np.mean(maxima):.3f}) mm; draws over 0.4 mm mean: {sum(v > 0.4 for v in means)}, over 0.9 mm "
+            f"max: {sum(v > 0.9 for v in maxima)}; predicted / true RMS {min(ratio):.2f}-{max(ratio):.2f}"
+        )
+
 
 if __name__ == "__main__":
     main()
