@@ -16,6 +16,7 @@ from robocal.errors import (
     JointMismatchError,
     JointOutOfRangeError,
     ShapeMismatchError,
+    UsageError,
 )
 from robocal.formats.urdf import parse_urdf, read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
@@ -110,6 +111,25 @@ def test_chain_must_connect() -> None:
         SerialChain((a, b), "base", "l2")
     with pytest.raises(InvalidCalibrationError, match="zero vector"):
         SerialChain((ChainJoint("j", "revolute", "a", "b", axis=(0.0, 0.0, 0.0)),), "a", "b")
+
+
+def test_one_joint_class_for_the_urdf_and_the_chain() -> None:
+    # a URDF joint as parsed: URDF's default axis (1, 0, 0), its type as written; a chain takes it only as
+    # revolute, prismatic or fixed (chain_from_urdf turns continuous into an unlimited revolute joint)
+    j = ChainJoint("j", "continuous", "a", "b", axis=(0.0, 0.0, 2.0))
+    assert j.axis == (0.0, 0.0, 1.0) and ChainJoint("k", "revolute", "a", "b").axis == (1.0, 0.0, 0.0)
+    with pytest.raises(UsageError, match="type 'continuous'; a chain takes revolute, prismatic, fixed"):
+        SerialChain((j,), "a", "b")
+    with pytest.raises(UsageError, match="type 'ball'; a URDF joint is revolute, continuous"):
+        ChainJoint("j", "ball", "a", "b")
+    urdf = parse_urdf(
+        b'<robot name="r"><link name="a"/><link name="b"/><joint name="j" type="continuous">'
+        b'<parent link="a"/><child link="b"/><limit effort="3" velocity="2"/></joint></robot>'
+    )
+    parsed = urdf.joint("j")
+    assert (parsed.axis, parsed.lower, parsed.effort, parsed.velocity) == ((1.0, 0.0, 0.0), None, 3.0, 2.0)
+    chained = chain_from_urdf(urdf).joints[0]
+    assert (chained.type, chained.axis, chained.lower, chained.upper) == ("revolute", (1.0, 0.0, 0.0), None, None)
 
 
 @pytest.mark.parametrize(

@@ -170,6 +170,15 @@ def test_reader_accepts_like_lerobot_and_the_check_names_the_motor() -> None:
     assert ranges_beyond_one_turn(read_calibration(FIX / "so101_follower_current.json")) == []
 
 
+def test_the_workflow_names_the_arms_vendor_in_the_range_warning() -> None:
+    from robocal.workflows.lerobot import range_warnings, robot_spec
+
+    cals = read_calibration(FIX / "so101_follower_current_gripper_beyond_turn.json")
+    assert range_warnings(robot_spec("so101_follower"), cals) == [GRIPPER_WARNING.removeprefix("warning: ")]
+    koch = range_warnings(robot_spec("koch_follower"), {"gripper": cals["gripper"]})
+    assert koch == [GRIPPER_WARNING.removeprefix("warning: ").replace("4096-tick feetech", "4096-tick dynamixel")]
+
+
 def test_export_urdf_flags_a_range_beyond_one_turn(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

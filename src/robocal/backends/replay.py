@@ -35,6 +35,7 @@ from . import require
 
 __all__ = [
     "BLOCK_ROWS",
+    "DEFAULT_TOPIC",
     "Recording",
     "iter_recording",
     "open_recording",
@@ -42,6 +43,9 @@ __all__ = [
     "read_recording",
     "read_rosbag_recording",
 ]
+
+DEFAULT_TOPIC = "/lite/joint_states"
+"""The JointState topic a rosbag2 recording is read from unless another is named (``--topic``)."""
 
 Block = tuple[FloatArray, FloatArray]
 MAX_ROWS = 50_000_000
@@ -368,7 +372,7 @@ def _rosbag_blocks(
 
 # ------------------------------------------------------------------------------------------------- public
 def open_recording(
-    path: Path, joint_names: Sequence[str], *, topic: str = "/lite/joint_states", block_rows: int = BLOCK_ROWS
+    path: Path, joint_names: Sequence[str], *, topic: str = DEFAULT_TOPIC, block_rows: int = BLOCK_ROWS
 ) -> Recording:
     """Open a CSV or rosbag2 recording for streaming (``.csv`` → CSV, else rosbag2).
 
@@ -388,7 +392,7 @@ def open_recording(
 
 
 def iter_recording(
-    path: Path, joint_names: Sequence[str], *, topic: str = "/lite/joint_states", block_rows: int = BLOCK_ROWS
+    path: Path, joint_names: Sequence[str], *, topic: str = DEFAULT_TOPIC, block_rows: int = BLOCK_ROWS
 ) -> Iterator[Block]:
     """Blocks ``(t (k,), positions (k, N))`` of a recording in time order; see :func:`open_recording`."""
     return iter(open_recording(path, joint_names, topic=topic, block_rows=block_rows))
@@ -429,7 +433,7 @@ def read_csv_recording(path: Path, joint_names: Sequence[str]) -> tuple[FloatArr
 
 
 def read_rosbag_recording(
-    path: Path, joint_names: Sequence[str], topic: str = "/lite/joint_states"
+    path: Path, joint_names: Sequence[str], topic: str = DEFAULT_TOPIC
 ) -> tuple[FloatArray, FloatArray]:
     """Read ``sensor_msgs/msg/JointState`` messages on ``topic`` from a rosbag2 (sqlite3 or mcap) into memory.
 
@@ -446,7 +450,7 @@ def read_rosbag_recording(
 
 
 def read_recording(
-    path: Path, joint_names: Sequence[str], *, topic: str = "/lite/joint_states"
+    path: Path, joint_names: Sequence[str], *, topic: str = DEFAULT_TOPIC
 ) -> tuple[FloatArray, FloatArray]:
     """Read a whole CSV or rosbag2 recording (chosen by the path: ``.csv`` → CSV, else rosbag2)."""
     if not path.exists():

@@ -18,6 +18,7 @@ from ._common import (
     print_plain_table,
     print_warning,
 )
+from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic
 
 FORMAT_HELP = "Format: " + ", ".join(format_names()) + "."
 ROBOT_HELP = (
@@ -71,8 +72,8 @@ def check(
     source: str | None = typer.Option(
         None, "--source", help="Also read the robot once (sim:, can:, replay:)."
     ),
-    topic: str = typer.Option("/lite/joint_states", "--topic", help="JointState topic of a rosbag2 replay."),
-    frame: str | None = typer.Option(None, "--frame", help="Replay positions: identity (default) or motor."),
+    topic: ReplayTopic = DEFAULT_TOPIC,
+    frame: ReplayFrame = None,
     robot: str | None = typer.Option(None, "--robot", help=ROBOT_HELP),
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""

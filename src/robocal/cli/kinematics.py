@@ -17,6 +17,7 @@ from ._common import EXIT_INTERRUPTED, EXIT_OK, EXIT_WARNINGS, console, err_cons
 from ._kinematics_options import BaseLinkOption, KindOption, TipLinkOption, UrdfOption, parse_xyz
 from ._kinematics_plan import plan
 from ._kinematics_print import print_identification, print_images
+from ._options import LeRobotCalibrationDir
 
 app = typer.Typer(
     help="Kinematic identification: measure an arm, identify its URDF errors, export a corrected URDF.",
@@ -100,9 +101,7 @@ def identify(
         str | None, typer.Option("--robot", help="LeRobot arm whose calibration made the readings (no --joint-map).")
     ] = None,
     robot_id: Annotated[str | None, typer.Option("--id", help="LeRobot robot id of that calibration.")] = None,
-    calibration_dir: Annotated[
-        Path | None, typer.Option("--calibration-dir", help="LeRobot calibration root.")
-    ] = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     calibration_file: Annotated[
         Path | None, typer.Option("--calibration-file", help="LeRobot calibration JSON (instead of --id).")
     ] = None,
@@ -322,9 +321,7 @@ def record(
         str | None, typer.Option("--robot", help="LeRobot arm: so101_follower, so101_leader, koch_follower, ...")
     ] = None,
     robot_id: Annotated[str | None, typer.Option("--id", help="LeRobot robot id: its calibration <id>.json.")] = None,
-    calibration_dir: Annotated[
-        Path | None, typer.Option("--calibration-dir", help="LeRobot calibration root.")
-    ] = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     file: Annotated[Path | None, typer.Option("--file", help="LeRobot calibration JSON (instead of --id).")] = None,
     source: Annotated[
         str | None, typer.Option("--source", help="Any robocal source: sim:lite, can:<if>:<ch>, replay:<file>.")

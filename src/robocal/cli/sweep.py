@@ -17,6 +17,7 @@ from ..workflows.sweep import run_sweep
 from ..workflows.sweep_output import SweepNotSavedError
 from ..workflows.sweep_session import DEFAULT_DIRECTION_STEP_S
 from . import _common
+from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic
 from ._sweep_confirm import StdinLines, make_confirm, stdin_is_terminal, terminal
 from ._sweep_view import LiveView, print_warnings, result_table
 
@@ -90,12 +91,8 @@ def sweep(
         float,
         typer.Option("--direction-time", help="Seconds the direction check waits per joint for the motion."),
     ] = DEFAULT_DIRECTION_STEP_S,
-    topic: Annotated[str, typer.Option("--topic", help="JointState topic of a rosbag2 replay.")] = (
-        "/lite/joint_states"
-    ),
-    frame: Annotated[
-        str | None, typer.Option("--frame", help="Replay positions: identity (default) or motor.")
-    ] = None,
+    topic: ReplayTopic = DEFAULT_TOPIC,
+    frame: ReplayFrame = None,
     robot: Annotated[
         str | None,
         typer.Option(

@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from . import _common
+from ._options import DEFAULT_TOPIC, ReplayTopic
 
 HELP_SOURCE = "sim:lite[?options] | can:<interface>:<channel>[,…] | replay:<file.csv|rosbag2>"
 
@@ -47,7 +48,7 @@ def view(
     frame: str | None = typer.Option(
         None, "--frame", help="Replay positions are identity (direction·raw, default) or motor (raw)."
     ),
-    topic: str = typer.Option("/lite/joint_states", "--topic", help="JointState topic of a rosbag2 replay."),
+    topic: ReplayTopic = DEFAULT_TOPIC,
     host: str = typer.Option("127.0.0.1", "--host", help="Interface to serve on (0.0.0.0: every one)."),
     port: int = typer.Option(8080, "--port", help="TCP port of the page (0: any free port)."),
     rate: float = typer.Option(30.0, "--rate", help="Page updates per second."),

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..backends.sources import JointSpec, parse_source
+from ..backends.sources import DEFAULT_TOPIC, JointSpec, parse_source
 from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
 from ..core.lifecycle import ClosesOnExit
@@ -68,7 +68,7 @@ class ViewOptions:
     compare: str | None = None
     package_paths: Sequence[str] = field(default_factory=tuple)
     frame: str | None = None
-    topic: str = "/lite/joint_states"
+    topic: str = DEFAULT_TOPIC
     profile: str | None = None
     host: str = "127.0.0.1"
     port: int = 8080

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..backends.sources import Source, open_source
+from ..backends.sources import DEFAULT_TOPIC, Source, open_source
 from ..core.profile import RobotProfile
 from ..errors import FileFormatError, JointMismatchError
 from .joint_specs import joint_calibration, read_joints
@@ -62,7 +62,7 @@ def check_source(
     calibration_path: str | Path,
     source: str,
     *,
-    topic: str = "/lite/joint_states",
+    topic: str = DEFAULT_TOPIC,
     frame: str | None = None,
     margin_rad: float = 0.05,
     open_source_fn: Callable[..., Source] | None = None,

@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..backends.sources import JointSpec, Source, SourceSpec, open_source
+from ..backends.sources import DEFAULT_TOPIC, JointSpec, Source, SourceSpec, open_source
 from ..core.jointmap import RobotCalibration
 from ..core.profile import METHODS, RobotProfile
 from ..core.sweep import DEFAULT_ONE_SIDED_THRESHOLD_RAD
@@ -47,6 +47,7 @@ from .sweep_session import (
 )
 
 __all__ = [
+    "DEFAULT_TOPIC",
     "OUTPUT_FORMATS",
     "SweepAbortedError",
     "SweepOutcome",
@@ -135,7 +136,7 @@ def run_sweep(
     fmt: str | None = None,
     direction_check: bool = False,
     direction_step_s: float = DEFAULT_DIRECTION_STEP_S,
-    topic: str = "/lite/joint_states",
+    topic: str = DEFAULT_TOPIC,
     frame: str | None = None,
     view: HardStopSweepView | None = None,
     stop: threading.Event | None = None,

@@ -19,11 +19,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ...errors import UsageError
+from ..replay import DEFAULT_TOPIC
 from .can import RobstrideSource, SimLiteSource, open_can, open_sim_lite_source
 from .recording import ReplaySource, StreamReplaySource
 from .spec import FRAMES, SIM_OPTIONS, JointSpec, Sample, Source, SourceSpec, parse_source
 
 __all__ = [
+    "DEFAULT_TOPIC",
     "FRAMES",
     "SIM_OPTIONS",
     "JointSpec",
@@ -43,7 +45,7 @@ def open_source(
     spec: SourceSpec | str,
     joints: Sequence[JointSpec],
     *,
-    topic: str = "/lite/joint_states",
+    topic: str = DEFAULT_TOPIC,
     frame: str | None = None,
     timeout_s: float = 0.1,
 ) -> Source:

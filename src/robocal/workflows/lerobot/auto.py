@@ -31,7 +31,6 @@ from ...core.lerobot import MotorCalibration, RobotSpec, centre_homing, wrap_fee
 from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
 from ...errors import UsageError
-from ...fileio import check_output_path
 from ..autocal import run_autocal, select_joints
 from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver_class
 from ..autocal_types import AutoCalFailedError, AutoCalResult, AutoView, Clock, JointDriver
@@ -44,6 +43,7 @@ from .eeprom import (
     _rollback,
     _write_plan,
 )
+from .files import check_calibration_writable
 
 __all__ = [
     "HOLD_GAINS",
@@ -345,7 +345,7 @@ def auto_calibrate(
             f"{spec.name} has no motor(s) {', '.join(missing)} named by its auto_calibration section"
         )
     if path is not None:
-        check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
+        check_calibration_writable(path)
     searched = [j.name for j in order if j.searched]  # stops: none joints never move
     caps = {j.name: j.torque_cap_nm for j in order if j.searched}
     if confirm_start is not None and not confirm_start(tuple(searched), caps):

@@ -33,7 +33,6 @@ from ...core.lerobot import (
 )
 from ...core.wrap_range import RangeTracker
 from ...errors import CalibError, InvalidCalibrationError, UsageError
-from ...fileio import check_output_path
 from ...formats.lerobot import write_current, write_legacy
 from .configure import clear_phase_bit4
 from .eeprom import (
@@ -44,6 +43,7 @@ from .eeprom import (
     _write_plan,
     read_eeprom,
 )
+from .files import check_calibration_writable
 
 __all__ = [
     "CalibrationNotSavedError",
@@ -158,7 +158,7 @@ def calibrate(
     """
     if path is not None:
         # refuse an impossible output (read-only folder, full disk, ...) before any EEPROM write or sweep
-        check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
+        check_calibration_writable(path)
     ids = [m.motor_id for m in spec.motors]
     names = [m.name for m in spec.motors]
     res = {m.name: bus.resolution(m.motor_id) for m in spec.motors}
@@ -286,7 +286,7 @@ def calibrate_legacy(
                 f"To run calibration, the torque must be disabled on all motors (enabled on {', '.join(on)})."
             )
     if path is not None:
-        check_output_path(path, "cannot write", size_hint=1024, create_dirs=True)
+        check_calibration_writable(path)
     operator.prompt("zero", "Move the arm to the zero position and press ENTER")
     zero = bus.sync_read("Present_Position", ids)
     operator.prompt("rotated", "Move the arm to the rotated position (every joint +90°) and press ENTER")

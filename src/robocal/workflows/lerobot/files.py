@@ -5,6 +5,7 @@ Where: ``--file``, else LeRobot's folder (and, when reading, its pre-v0.4.3 name
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -67,7 +68,7 @@ def range_warnings(spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> lis
     return ranges_beyond_one_turn(cals, vendor=spec.vendor)
 
 
-def check_calibration_writable(path: Path) -> None:
+def check_calibration_writable(path: str | os.PathLike[str]) -> None:
     """Refuse, before any bus I/O, a calibration file that could not be written (its folder is created).
 
     Raises:
