@@ -10,7 +10,7 @@ import typer
 
 from ..core.kinematic_problem import KINDS
 from ..errors import UsageError
-from ._common import EXIT_OK, EXIT_WARNINGS, console, print_warning
+from ._common import EXIT_OK, console, print_warnings
 from ._kinematics_options import BaseLinkOption, TipLinkOption, UrdfOption, parse_numbers, parse_xyz
 
 __all__ = ["plan"]
@@ -185,9 +185,7 @@ def plan(
             f"wrote {result.validation_out} ({validation_poses} random held-out poses): record them as a session "
             "of their own and give it to identify with --validate-data, so that every planned pose is fitted"
         )
-    for w in warnings:
-        print_warning(w)
-    raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
+    raise typer.Exit(print_warnings(warnings))
 
 
 def _plan_tag(

@@ -10,7 +10,7 @@ from typing import Any
 from rich.table import Table
 
 from ..workflows import kinematics as wf
-from ._common import EXIT_OK, EXIT_WARNINGS, console, print_warning
+from ._common import console, print_warnings
 
 __all__ = ["print_identification", "print_images"]
 
@@ -61,9 +61,7 @@ def _print_files(
         console.print(f"wrote {rep['ur_yaml']} (ur_description kinematics)")
     if report_out is not None:
         console.print(f"wrote {report_out}{about}")
-    for w in warnings:
-        print_warning(w)
-    return EXIT_WARNINGS if warnings else EXIT_OK
+    return print_warnings(warnings)
 
 
 def print_identification(result: wf.IdentifyResult) -> int:

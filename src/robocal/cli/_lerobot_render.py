@@ -40,8 +40,7 @@ def range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[s
     from ..workflows.lerobot import range_warnings as beyond_one_turn
 
     found = beyond_one_turn(spec, cals)
-    for w in found:
-        _common.print_warning(w)
+    _common.print_warnings(found)
     return found
 
 

@@ -184,4 +184,4 @@ def inspect(
         if j.non_finite:
             parts.append(f"{j.non_finite} NaN or infinite value(s)")
         _common.print_warning(f"{j.feature} {j.joint}: {'; '.join(parts)} — check the calibration")
-    raise typer.Exit(_common.EXIT_WARNINGS if report.flagged else _common.EXIT_OK)
+    raise typer.Exit(_common.exit_code_for(report.flagged))

@@ -14,6 +14,7 @@ from ._common import (
     EXIT_WARNINGS,
     PLAIN_TABLE_ROWS,
     console,
+    exit_code_for,
     parse_csv_list,
     print_plain_table,
     print_warning,
@@ -62,7 +63,7 @@ def convert(
     )
     if result.robot:
         console.print(f"robot profile: {result.robot}", markup=False)
-    raise typer.Exit(EXIT_WARNINGS if result.notes else EXIT_OK)
+    raise typer.Exit(exit_code_for(result.notes))
 
 
 def check(

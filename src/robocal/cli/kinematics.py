@@ -13,7 +13,7 @@ from ..core.kinematic_problem import KINDS
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
-from ._common import EXIT_INTERRUPTED, EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning
+from ._common import EXIT_INTERRUPTED, EXIT_OK, console, err_console, print_warning, print_warnings
 from ._kinematics_options import BaseLinkOption, KindOption, TipLinkOption, UrdfOption, parse_xyz
 from ._kinematics_plan import plan
 from ._kinematics_print import print_identification, print_images
@@ -289,9 +289,7 @@ def camera_calibrate(
         f"RMS reprojection {result.camera.rms_px:.3f} px"
     )
     console.print(f"wrote {result.out}")
-    for w in result.warnings:
-        print_warning(w)
-    raise typer.Exit(EXIT_WARNINGS if result.warnings else EXIT_OK)
+    raise typer.Exit(print_warnings(result.warnings))
 
 
 def _stdin_ask(prompt: str) -> str:
@@ -388,9 +386,7 @@ def record(
     if result.interrupted:
         print_warning(f"interrupted: the {result.measurements.n_poses} poses recorded so far were written")
         raise typer.Exit(EXIT_INTERRUPTED)
-    for s in result.skipped:
-        print_warning(s)
-    raise typer.Exit(EXIT_WARNINGS if result.skipped else EXIT_OK)
+    raise typer.Exit(print_warnings(result.skipped))
 
 
 __all__ = ["app", "print_identification"]

@@ -298,9 +298,7 @@ def configure(
     _common.console.print(t)
     if any(r == "Goal_Position" for _n, r, _v in written):
         _common.console.print(f"gripper trigger: torque on, held at {gripper_open_pos:g} % open")
-    for w in warnings:
-        _common.print_warning(w)
-    raise typer.Exit(_common.exit_code_for(warnings))
+    raise typer.Exit(_common.print_warnings(warnings))
 
 
 @app.command()
@@ -324,7 +322,7 @@ def check(
         _common.console.print(f"differs: {d}")
     if not diffs:
         _common.console.print(f"EEPROM matches {path}")
-    raise typer.Exit(_common.EXIT_WARNINGS if diffs or beyond else _common.EXIT_OK)
+    raise typer.Exit(_common.exit_code_for([*diffs, *beyond]))
 
 
 @app.command()
@@ -367,9 +365,7 @@ def migrate(
             "values exactly with `robocal dataset recalibrate --old LEGACY.json --new CURRENT.json`",
             markup=False,
         )
-    for w in warnings:
-        _common.print_warning(w)
-    raise typer.Exit(_common.exit_code_for(warnings))
+    raise typer.Exit(_common.print_warnings(warnings))
 
 
 @app.command()

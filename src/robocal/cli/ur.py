@@ -16,7 +16,7 @@ from ..errors import UsageError
 from ..viewer.ur_page import parse_q
 from ..workflows import ur as wf
 from ..workflows import ur_verify
-from ._common import EXIT_OK, EXIT_WARNINGS, console, err_console, print_warning, print_warnings
+from ._common import console, err_console, exit_code_for, print_warning, print_warnings
 
 app = typer.Typer(
     help="Universal Robots: calibrated kinematics for ur_description (extract, correct, defaults, verify, plot, view).",
@@ -250,7 +250,7 @@ def view(
                 time.sleep(0.5)
     finally:
         page.stop()
-    raise typer.Exit(EXIT_WARNINGS if warnings else EXIT_OK)
+    raise typer.Exit(exit_code_for(warnings))
 
 
 __all__ = ["RPY_CONVENTIONS", "app", "print_reports"]
