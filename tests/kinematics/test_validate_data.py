@@ -157,6 +157,7 @@ def test_touch_groups_are_matched_by_label(tmp_path: Path, capsys) -> None:
     ("extra", "message"),
     [
         (("--validate-fraction", "0.2"), "error: give --validate-fraction or --validate-data, not both"),
+        (("--seed", "3"), "error: --seed seeds the random held-out share; with --validate-data nothing is drawn"),
         ((), "missing.csv: no such file"),
     ],
 )

@@ -266,7 +266,7 @@ def identify(
         dh: Also fit a DH-like model and report its (biased) errors.
         out: Corrected URDF to write.
         report: JSON report to write.
-        seed: Seed of the validation split.
+        seed: Seed of the validation split (with ``validate_data`` only 0: nothing is drawn).
         joint_map: The raw → URDF joint map the readings went through (``lerobot export-urdf``); needed for
             ``joint_map_out``.
         joint_map_out: Write ``joint_map`` with the identified zero offsets in it (robocal joint-map YAML, the
@@ -297,6 +297,8 @@ def identify(
         raise UsageError(f"--huber must be a positive distance, got {huber_m}")
     if validate_data is not None and validate_fraction is not None:
         raise UsageError("give --validate-fraction or --validate-data, not both")
+    if validate_data is not None and seed != 0:
+        raise UsageError("--seed seeds the random held-out share; with --validate-data nothing is drawn")
     check_seed(seed)
     paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
     doc = UrdfDocument.load(urdf)
