@@ -31,6 +31,7 @@ __all__ = [
     "check_seed",
     "fit",
     "predicted_error_m",
+    "prediction_rms_m",
     "split_validation",
     "validation_errors",
 ]
@@ -329,9 +330,7 @@ def fit(
 def predicted_error_m(result: FitResult, q_rad: ArrayLike) -> float:
     """RMS (m) over ``q_rad`` of the tool point's predicted error from the fit's covariance.
 
-    ``sqrt(mean_i trace(G_i Σ G_iᵀ))`` with ``G_i`` the tool point's Jacobian at pose ``i`` over the estimated
-    unknowns and ``Σ`` their covariance: what the parameters' uncertainty leaves at new poses (a registration of
-    the base does not count; the joint readings' own resolution is not in it).
+    See :func:`prediction_rms_m`; the joint readings' own resolution is not in it.
 
     Args:
         result: A point, touch or gauge fit.
@@ -342,15 +341,24 @@ def predicted_error_m(result: FitResult, q_rad: ArrayLike) -> float:
     q = np.asarray(q_rad, dtype=np.float64)
     model = problem.model
     at = Problem(model, Measurements("points", q, model.points(q, result.x)), problem.free, result.x)
-    _, G = at.residuals_and_jacobian(at.initial_theta())
-    cols = [i for i in result.estimated if i < len(problem.free)]
-    keep = [k for k, i in enumerate(result.estimated) if i < len(problem.free)]
-    seen = np.array([model.parameters[problem.free[i]].group != "base" for i in cols])
-    Gs = G[:, cols] * seen
+    n_free = len(problem.free)
+    keep = [k for k, i in enumerate(result.estimated) if i < n_free]
     cov = result.covariance[np.ix_(keep, keep)]
     if not np.all(np.isfinite(cov)):
         return math.nan
-    return float(np.sqrt(np.einsum("rk,kl,rl->", Gs, cov, Gs) / q.shape[0]))
+    return prediction_rms_m(at, [result.estimated[k] for k in keep], cov)
+
+
+def prediction_rms_m(at: Problem, cols: Sequence[int], cov: FloatArray) -> float:
+    """``sqrt(mean_i trace(G_i Σ G_iᵀ))`` (m): the tool point's predicted RMS error over ``at``'s poses.
+
+    ``G_i`` is the tool point's Jacobian at pose ``i`` (at ``at``'s initial unknowns) over the free parameters
+    ``cols``, ``Σ`` their ``(k, k)`` covariance; a registration of the base does not move the predicted point.
+    """
+    _, G = at.residuals_and_jacobian(at.initial_theta())
+    seen = np.array([at.model.parameters[at.free[c]].group != "base" for c in cols])
+    Gs = G[:, list(cols)] * seen
+    return float(np.sqrt(np.einsum("rk,kl,rl->", Gs, cov, Gs) / at.data.n_poses))
 
 
 def check_seed(seed: int) -> int:

@@ -36,7 +36,7 @@ from ..fileio import atomic_write_text, check_output_path
 from ..formats.kinematic_data import read_joint_table, session_csv
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
-from .kinematic_fit import PriorSigmas, check_seed
+from .kinematic_fit import PriorSigmas, check_seed, prediction_rms_m
 from .kinematics import FRAMES, as_prior, tool_frame
 
 __all__ = ["PlanResult", "plan"]
@@ -329,7 +329,6 @@ def _prediction_sigma(
 ) -> float:
     """RMS over the candidates of the tool point's predicted σ (m) after a fit from ``problem``'s poses."""
     _, J = problem.residuals_and_jacobian(problem.initial_theta())
-    _, G = everything.residuals_and_jacobian(everything.initial_theta())
     cols = list(ident.base)
     info = J[:, cols].T @ J[:, cols] / noise_m**2
     if sig is not None:
@@ -338,11 +337,8 @@ def _prediction_sigma(
         info = J[:, cols].T @ J[:, cols] / noise_m**2 + np.diag(
             np.where(np.isfinite(s[cols]), s[cols] ** -2.0, 0.0)
         )
-    seen = [problem.model.parameters[problem.free[c]].group != "base" for c in cols]
-    Gs = G[:, cols] * np.asarray(seen)
     try:
         cov = np.linalg.inv(info)
     except np.linalg.LinAlgError:
         return math.nan
-    per_row = np.einsum("rk,kl,rl->r", Gs, cov, Gs)
-    return float(np.sqrt(np.sum(per_row) / everything.data.n_poses))
+    return prediction_rms_m(everything, cols, cov)
