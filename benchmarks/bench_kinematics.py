@@ -108,19 +108,15 @@ def _session_pipeline_per_seed(seeds: int) -> None:
     the held-out poses; and the covariance's predicted RMS against the parameters' true RMS."""
     import tempfile
 
-    from robocal.workflows import kinematic_sim, kinematics
+    from robocal.workflows.demo_identify import simulate_and_identify
 
     for robot in ("so101", "koch"):
         means, maxima, ratio = [], [], []
         for seed in range(seeds):
             with tempfile.TemporaryDirectory() as folder:
-                sim = kinematic_sim.simulate(robot, folder, poses=50, seed=seed, validation_poses=17)
-                assert sim.validation is not None and sim.validation_truth_m is not None
-                res = kinematics.identify(
-                    sim.urdf, sim.data, tip_link=sim.tip_link, tool_xyz_m=sim.tool_xyz_m, validate_data=sim.validation
-                )
+                sim, res, held = simulate_and_identify(robot, folder, seed=seed)
             m = res.fit.problem.model
-            e = np.linalg.norm(m.points(res.validation.q_rad, res.fit.x) - sim.validation_truth_m, axis=1) * 1e3
+            e = held * 1e3
             means.append(e.mean())
             maxima.append(e.max())
             q = sim.arm.read(sim.arm.sample_q(2000, np.random.default_rng(7)))

@@ -29,6 +29,19 @@ def simulate(out: Path, *options: str) -> int:
     return main(["kinematics", "simulate", *options, "--out", str(out)])
 
 
+def identify_cli(folder: Path, data: Path, out: Path, *extra: str) -> int:
+    """``robocal kinematics identify`` of ``folder/so101.urdf`` (marker off the wrist-roll axis) with ``data``,
+    writing ``out/id.urdf`` and ``out/report.json``: its exit code."""
+    tool = ",".join(f"{v:g}" for v in MARKER_OFF_AXIS_M)
+    return main(
+        [
+            "kinematics", "identify", "--urdf", str(folder / "so101.urdf"), "--data", str(data),
+            "--tip-link", "gripper_link", "--tool-xyz", tool, "--out", str(out / "id.urdf"),
+            "--report", str(out / "report.json"), *extra,
+        ]
+    )  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def points_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A simulated SO-101 points session: 60 poses, seed 3 (one per test module)."""

@@ -19,30 +19,9 @@ from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
 
 from .conftest import JOINTS, simulate
+from .conftest import identify_cli as _identify
 
 TOOL = "0.0121,0,-0.0981"
-
-
-def _identify(points_session: Path, data: Path, out: Path, *extra: str) -> int:
-    return main(
-        [
-            "kinematics",
-            "identify",
-            "--urdf",
-            str(points_session / "so101.urdf"),
-            "--data",
-            str(data),
-            "--tip-link",
-            "gripper_link",
-            "--tool-xyz",
-            TOOL,
-            "--out",
-            str(out / "id.urdf"),
-            "--report",
-            str(out / "report.json"),
-            *extra,
-        ]
-    )
 
 
 def test_identify_writes_a_urdf_that_reproduces_the_fit(points_session: Path, tmp_path: Path, capsys) -> None:

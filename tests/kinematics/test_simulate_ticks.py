@@ -9,10 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robocal.cli.main import main
 from robocal.formats.kinematic_data import parse_measurements
 
-from .conftest import JOINTS, simulate
+from .conftest import JOINTS, identify_cli, simulate
 
 
 def test_noise_free_session_from_the_cli_recovers_the_points_below_a_micrometre(
@@ -22,25 +21,10 @@ def test_noise_free_session_from_the_cli_recovers_the_points_below_a_micrometre(
     assert simulate(tmp_path, "--noise-mm", "0", "--ticks", "0", "--validation-poses", "17") == 0
     capsys.readouterr()
     assert json.loads((tmp_path / "truth.json").read_text())["ticks_per_turn"] == 0
-    args = [
-        "kinematics",
-        "identify",
-        "--urdf",
-        str(tmp_path / "so101.urdf"),
-        "--data",
-        str(tmp_path / "points.csv"),
-    ]
-    args += [
-        "--tip-link",
-        "gripper_link",
-        "--tool-xyz",
-        "0.0121,0,-0.0981",
-        "--report",
-        str(tmp_path / "r.json"),
-    ]
-    assert main([*args, "--validate-data", str(tmp_path / "points_validation.csv")]) in (0, 1)
+    held_out = str(tmp_path / "points_validation.csv")
+    assert identify_cli(tmp_path, tmp_path / "points.csv", tmp_path, "--validate-data", held_out) in (0, 1)
     out = capsys.readouterr().out
-    rep = json.loads((tmp_path / "r.json").read_text())
+    rep = json.loads((tmp_path / "report.json").read_text())
     assert rep["rank"] == 23
     assert rep["errors_mm"]["validation"]["corrected"]["max"] < 1e-3  # < 1 µm
     assert rep["errors_mm"]["validation"]["nominal"]["mean"] > 5.0

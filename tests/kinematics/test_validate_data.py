@@ -16,10 +16,10 @@ from robocal.cli.main import main
 from robocal.core.kinematic_problem import Measurements
 from robocal.errors import UsageError
 from robocal.formats.kinematic_data import parse_measurements
-from robocal.workflows import kinematic_sim as sim_wf
 from robocal.workflows import kinematics as wf
+from robocal.workflows.demo_identify import simulate_and_identify
 
-from .conftest import JOINTS, simulate
+from .conftest import JOINTS, identify_cli, simulate
 
 TOOL = "0.0121,0,-0.0981"
 
@@ -30,16 +30,6 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("val")
     assert simulate(folder, "--poses", "50", "--seed", "2", "--validation-poses", "17") == 0
     return folder
-
-
-def _identify(folder: Path, out: Path, *extra: str, data: str = "points.csv") -> int:
-    return main(
-        [
-            "kinematics", "identify", "--urdf", str(folder / "so101.urdf"), "--data", str(folder / data),
-            "--tip-link", "gripper_link", "--tool-xyz", TOOL, "--out", str(out / "id.urdf"),
-            "--report", str(out / "report.json"), *extra,
-        ]
-    )  # fmt: skip
 
 
 def test_simulate_writes_the_held_out_session_without_changing_the_session(tmp_path: Path, capsys) -> None:
@@ -59,7 +49,9 @@ def test_simulate_writes_the_held_out_session_without_changing_the_session(tmp_p
 def test_identify_fits_every_pose_and_validates_on_the_separate_session(
     session: Path, tmp_path: Path, capsys
 ) -> None:
-    assert _identify(session, tmp_path, "--validate-data", str(session / "points_validation.csv")) in (0, 1)
+    assert identify_cli(
+        session, session / "points.csv", tmp_path, "--validate-data", str(session / "points_validation.csv")
+    ) in (0, 1)
     out = capsys.readouterr().out
     rep = json.loads((tmp_path / "report.json").read_text())
     assert rep["poses"] == {"fit": 50, "validation": 17}
@@ -95,19 +87,9 @@ def test_the_demo_pipeline_against_the_hidden_truth() -> None:
 
     for robot, mean_mm, max_mm in (("so101", 0.351, 0.670), ("koch", 0.253, 0.502)):
         with tempfile.TemporaryDirectory() as folder:
-            sim = sim_wf.simulate(robot, folder, poses=50, noise_m=0.5e-3, seed=0, validation_poses=17)
-            assert sim.validation is not None and sim.validation_truth_m is not None
-            result = wf.identify(
-                sim.urdf,
-                sim.data,
-                tip_link=sim.tip_link,
-                tool_xyz_m=sim.tool_xyz_m,
-                validate_data=sim.validation,
-            )
+            sim, result, err = simulate_and_identify(robot, folder)
             model = result.fit.problem.model
-            err = np.linalg.norm(
-                model.points(result.validation.q_rad, result.fit.x) - sim.validation_truth_m, axis=1
-            )
+            assert result.validation.n_poses == 17 and err.shape == (17,)
             assert result.fit.train_errors_m.size == 50
             assert err.mean() * 1e3 == pytest.approx(mean_mm, abs=0.01)
             assert err.max() * 1e3 == pytest.approx(max_mm, abs=0.02)
@@ -157,7 +139,10 @@ def test_touch_groups_are_matched_by_label(tmp_path: Path, capsys) -> None:
     ("extra", "message"),
     [
         (("--validate-fraction", "0.2"), "error: give --validate-fraction or --validate-data, not both"),
-        (("--seed", "3"), "error: --seed seeds the random held-out share; with --validate-data nothing is drawn"),
+        (
+            ("--seed", "3"),
+            "error: --seed seeds the random held-out share; with --validate-data nothing is drawn",
+        ),
         ((), "missing.csv: no such file"),
     ],
 )
@@ -167,7 +152,7 @@ def test_refused_validation_options_write_nothing(
     (tmp_path / "id.urdf").write_text("old")
     missing = tmp_path / "missing.csv"
     val = str(session / "points_validation.csv") if extra else str(missing)
-    assert _identify(session, tmp_path, "--validate-data", val, *extra) == 2
+    assert identify_cli(session, session / "points.csv", tmp_path, "--validate-data", val, *extra) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ") and message in err
     assert (tmp_path / "id.urdf").read_text() == "old" and not (tmp_path / "report.json").exists()
@@ -179,7 +164,7 @@ def test_a_held_out_pose_outside_the_limits_names_the_file(session: Path, tmp_pa
     cells[1 + JOINTS.index("elbow_flex")] = "2.5"
     bad = tmp_path / "bad_val.csv"
     bad.write_text("\n".join([*lines[:3], ",".join(cells), *lines[4:]]) + "\n")
-    assert _identify(session, tmp_path, "--validate-data", str(bad)) == 2
+    assert identify_cli(session, session / "points.csv", tmp_path, "--validate-data", str(bad)) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"error: {bad}: pose 3: joint elbow_flex = 2.5 is outside its limits")
     assert not (tmp_path / "id.urdf").exists() and not (tmp_path / "report.json").exists()
@@ -189,7 +174,17 @@ def test_images_and_tag_simulations_refuse_a_validation_session(
     session: Path, tmp_path: Path, capsys
 ) -> None:
     args = ["--kind", "tag", "--camera", "c.yaml", "--target", "apriltag:tag36h11:0:60"]
-    assert _identify(session, tmp_path, "--validate-data", str(session / "points_validation.csv"), *args) == 2
+    assert (
+        identify_cli(
+            session,
+            session / "points.csv",
+            tmp_path,
+            "--validate-data",
+            str(session / "points_validation.csv"),
+            *args,
+        )
+        == 2
+    )
     assert capsys.readouterr().err == (
         "error: --validate-data applies to points, touch and gauge sessions; images use --validate-fraction\n"
     )
@@ -226,7 +221,7 @@ def test_gauge_validation_may_use_one_socket(
     elif extra[0] == "--validate-data":
         extra = ("--validate-data", str(gauge_session / extra[1]))
     args = ["--kind", "gauge", "--gauge-mm", "50", *extra]
-    assert _identify(gauge_session, tmp_path, *args, data="gauge.csv") in (0, 1)
+    assert identify_cli(gauge_session, gauge_session / "gauge.csv", tmp_path, *args) in (0, 1)
     rep = json.loads((tmp_path / "report.json").read_text())
     assert rep["poses"] == {"fit": fit, "validation": held}
     if held:
@@ -236,12 +231,8 @@ def test_gauge_validation_may_use_one_socket(
 def test_a_gauge_fit_still_needs_both_sockets(gauge_session: Path, tmp_path: Path, capsys) -> None:
     lines = (gauge_session / "gauge.csv").read_text().splitlines()
     (tmp_path / "a.csv").write_text("\n".join(ln for ln in lines if not ln.endswith(",B")) + "\n")
-    assert (
-        _identify(
-            gauge_session, tmp_path, "--kind", "gauge", "--gauge-mm", "50", data=str(tmp_path / "a.csv")
-        )
-        == 2
-    )
+    args = ["--kind", "gauge", "--gauge-mm", "50"]
+    assert identify_cli(gauge_session, tmp_path / "a.csv", tmp_path, *args) == 2
     assert "a gauge session needs poses in both socket A and socket B" in capsys.readouterr().err
     with pytest.raises(UsageError, match=r"gauge sockets are 0 \(A\) and 1 \(B\), got \[0, 2\]"):
         Measurements("gauge", np.zeros((2, 5)), group=np.array([0, 2]), distance_m=0.05)

@@ -9,17 +9,34 @@ calibration, joint hand-eye). The results go to the CLI in an :class:`IdentifyDe
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
+from ..core.arrays import FloatArray
 from ..errors import BackendNotAvailableError
 
 if TYPE_CHECKING:
+    from .kinematic_sim import SimulationResult
     from .kinematic_vision import ImageIdentifyResult
     from .kinematics import IdentifyResult
 
-__all__ = ["IDENTIFY_INTRO", "IMAGES_INTRO", "IdentifyDemo", "ImagesDemo", "identify_demo"]
+__all__ = [
+    "DEMO_HELD_OUT",
+    "DEMO_POSES",
+    "IDENTIFY_INTRO",
+    "IMAGES_INTRO",
+    "IdentifyDemo",
+    "ImagesDemo",
+    "identify_demo",
+    "simulate_and_identify",
+]
+
+DEMO_POSES = 50
+"""Poses the demo plans and fits."""
+DEMO_HELD_OUT = 17
+"""Random poses of the demo's separate held-out session."""
 
 IDENTIFY_INTRO = (
     "[bold]kinematics demo[/]: simulated {robot} with hidden errors (1 mm origins, 0.5° tilts, 2° zeros), "
@@ -76,6 +93,39 @@ class IdentifyDemo:
         )
 
 
+def simulate_and_identify(
+    robot: str, folder: str | os.PathLike[str], *, seed: int = 0, **options: Any
+) -> tuple[SimulationResult, IdentifyResult, FloatArray]:
+    """The demo's session: 50 planned poses fitted, 17 random poses of a separate session held out.
+
+    Args:
+        robot: ``so101`` or ``koch``.
+        folder: Folder for the simulated files.
+        seed: Seed of the hidden errors, the poses and the noise (0.5 mm per axis, 4096-tick joints).
+        **options: More keyword arguments of :func:`robocal.workflows.kinematics.identify` (``dh``, ``out``, …).
+
+    Returns:
+        The simulation, the identification and the identified model's errors (m) against the hidden truth at
+        the held-out poses, ``(17,)``.
+    """
+    import numpy as np
+
+    from . import kinematic_sim as sim_wf
+    from . import kinematics as wf
+
+    sim = sim_wf.simulate(
+        robot, folder, poses=DEMO_POSES, noise_m=0.5e-3, seed=seed, validation_poses=DEMO_HELD_OUT
+    )
+    assert sim.validation is not None and sim.validation_truth_m is not None
+    result = wf.identify(
+        sim.urdf, sim.data, tip_link=sim.tip_link, tool_xyz_m=sim.tool_xyz_m, validate_data=sim.validation,
+        **options,
+    )  # fmt: skip
+    predicted = result.fit.problem.model.points(result.validation.q_rad, result.fit.x)
+    held = np.asarray(np.linalg.norm(predicted - sim.validation_truth_m, axis=1), dtype=np.float64)
+    return sim, result, held
+
+
 def identify_demo(robot: str, folder: Path) -> IdentifyDemo:
     """Simulate, identify and check ``robot`` (``so101``: then the image part in ``folder/tag``).
 
@@ -88,20 +138,8 @@ def identify_demo(robot: str, folder: Path) -> IdentifyDemo:
     """
     import numpy as np
 
-    from . import kinematic_sim as sim_wf
-    from . import kinematics as wf
-
-    sim = sim_wf.simulate(robot, folder, poses=50, noise_m=0.5e-3, seed=0, validation_poses=17)
-    assert sim.validation is not None and sim.validation_truth_m is not None
-    result = wf.identify(
-        sim.urdf,
-        sim.data,
-        tip_link=sim.tip_link,
-        tool_xyz_m=sim.tool_xyz_m,
-        validate_data=sim.validation,
-        dh=True,
-        out=folder / f"{robot}_identified.urdf",
-        report=folder / "report.json",
+    sim, result, held = simulate_and_identify(
+        robot, folder, dh=True, out=folder / f"{robot}_identified.urdf", report=folder / "report.json"
     )
     rng = np.random.default_rng(1)
     q = sim.arm.sample_q(500, rng)
@@ -109,7 +147,6 @@ def identify_demo(robot: str, folder: Path) -> IdentifyDemo:
     truth = sim.arm.true_points(q)
     err = np.linalg.norm(model.points(sim.arm.read(q), result.fit.x) - truth, axis=1)
     nominal = np.linalg.norm(model.points(sim.arm.read(q)) - truth, axis=1)
-    held = np.linalg.norm(model.points(result.validation.q_rad, result.fit.x) - sim.validation_truth_m, axis=1)
     line = (
         f"against the hidden truth: the {held.size} held-out poses mean {held.mean() * 1e3:.3f} mm, max "
         f"{held.max() * 1e3:.3f} mm; 500 new poses: nominal mean {nominal.mean() * 1e3:.2f} mm → identified "
