@@ -8,31 +8,42 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from . import inproc_serial, require
 
-__all__ = ["SdkBusBase"]
+__all__ = ["SdkBusBase", "ServoModel"]
 
 COMM_SUCCESS = 0
 
+
+class ServoModel(NamedTuple):
+    """What robocal knows about one servo model (a row of a vendor's model table)."""
+
+    model_number: int
+    """What the ``Model_Number`` register reads."""
+    resolution: int
+    """Encoder ticks per turn."""
+    protocol: int
+    """Wire protocol: Feetech 0 (STS/SMS, little-endian, sign-magnitude) or 1 (SCS, big-endian); Dynamixel 2."""
+    table: Mapping[str, tuple[int, int]]
+    """Control table: register name → (address, bytes)."""
 
 
 class SdkBusBase(ClosesOnExit):
     """Everything :class:`FeetechBus` and :class:`DynamixelBus` share; subclasses set the tables and codecs.
 
-    Subclass hooks: ``_encode`` / ``_decode`` (sign encodings), ``_select_protocol`` (called before every
-    transfer), ``_big_endian`` (byte order of SYNC_WRITE data), ``_resolutions`` (model → ticks per turn).
+    Subclass hooks: ``_models`` (model name → :class:`ServoModel`), ``_encode`` / ``_decode`` (sign
+    encodings), ``_select_protocol`` (called before every transfer), ``_big_endian`` (byte order of SYNC_WRITE
+    data).
     """
 
     vendor = ""
     port: str
     motors: Mapping[int, str]
     retries: int
-    _tables: Mapping[str, Mapping[str, tuple[int, int]]]
-    _resolutions: Mapping[str, int]
     _big_endian = False
     _ph: Any
     _sdk: Any
@@ -41,8 +52,8 @@ class SdkBusBase(ClosesOnExit):
     # ------------------------------------------------------------------------------------------- set-up
     _sdk_module = ""
     """Import name of the vendor SDK (``scservo_sdk`` / ``dynamixel_sdk``)."""
-    _models: Mapping[str, object] = {}
-    """Known model names (for the error message)."""
+    _models: Mapping[str, ServoModel] = {}
+    """The vendor's models: name → :class:`ServoModel`."""
 
     def __init__(
         self,
@@ -170,7 +181,7 @@ class SdkBusBase(ClosesOnExit):
             raise UsageError(
                 f"{self.port}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
             )
-        table = self._tables[self.motors[motor_id]]
+        table = self._models[self.motors[motor_id]].table
         if register not in table:
             raise UsageError(
                 f"{self.port}: motor {motor_id} ({self.motors[motor_id]}) has no register {register!r}"
@@ -249,11 +260,11 @@ class SdkBusBase(ClosesOnExit):
             raise UsageError(
                 f"{self.port}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
             )
-        return self._resolutions[self.motors[motor_id]]
+        return self._models[self.motors[motor_id]].resolution
 
     def has_register(self, motor_id: int, register: str) -> bool:
         """Whether that motor's control table has the register."""
-        return motor_id in self.motors and register in self._tables[self.motors[motor_id]]
+        return motor_id in self.motors and register in self._models[self.motors[motor_id]].table
 
     def check_write(self, register: str, motor_id: int, value: int) -> None:
         """Raise what :meth:`write` would raise for this value, without sending anything.

@@ -7,10 +7,9 @@ firmware ``Present = Actual + Homing_Offset``; ``Drive_Mode`` bit 0 reverses the
 from __future__ import annotations
 
 from collections.abc import Mapping
-from types import MappingProxyType
 
 from ..core.lerobot import decode_twos_complement, encode_twos_complement
-from ._servo_common import SdkBusBase
+from ._servo_common import SdkBusBase, ServoModel
 
 __all__ = ["DYNAMIXEL_MODELS", "SIGNED_BYTES", "X_TABLE", "DynamixelBus"]
 
@@ -62,15 +61,15 @@ X_TABLE: dict[str, tuple[int, int]] = {
 }
 """Dynamixel X series control table: name → (address, bytes)."""
 
-DYNAMIXEL_MODELS: dict[str, tuple[int, int]] = {
-    "xl330-m077": (1190, 4096),
-    "xl330-m288": (1200, 4096),
-    "xl430-w250": (1060, 4096),
-    "xm430-w350": (1020, 4096),
-    "xm540-w270": (1120, 4096),
-    "xc430-w150": (1070, 4096),
+DYNAMIXEL_MODELS: dict[str, ServoModel] = {
+    "xl330-m077": ServoModel(1190, 4096, 2, X_TABLE),
+    "xl330-m288": ServoModel(1200, 4096, 2, X_TABLE),
+    "xl430-w250": ServoModel(1060, 4096, 2, X_TABLE),
+    "xm430-w350": ServoModel(1020, 4096, 2, X_TABLE),
+    "xm540-w270": ServoModel(1120, 4096, 2, X_TABLE),
+    "xc430-w150": ServoModel(1070, 4096, 2, X_TABLE),
 }
-"""Model → (model number, resolution)."""
+"""Model → its number, resolution, protocol (2.0) and control table (all X series)."""
 
 SIGNED_BYTES: dict[str, int] = {
     "Homing_Offset": 4,
@@ -105,8 +104,6 @@ class DynamixelBus(SdkBusBase):
     vendor = "dynamixel"
     _sdk_module = "dynamixel_sdk"
     _models = DYNAMIXEL_MODELS
-    _tables = MappingProxyType(dict.fromkeys(DYNAMIXEL_MODELS, X_TABLE))
-    _resolutions = MappingProxyType({m: spec[1] for m, spec in DYNAMIXEL_MODELS.items()})
 
     def _protocol(self, motors: Mapping[int, str]) -> float:
         return 2.0

@@ -8,11 +8,10 @@ Note: ``scservo_sdk`` keeps the byte order in a module global, so one process ta
 from __future__ import annotations
 
 from collections.abc import Mapping
-from types import MappingProxyType
 
 from ..core.lerobot import decode_sign_magnitude, encode_sign_magnitude
 from ..errors import UsageError
-from ._servo_common import SdkBusBase
+from ._servo_common import SdkBusBase, ServoModel
 
 __all__ = ["FEETECH_MODELS", "SCS_TABLE", "SIGN_BITS", "STS_TABLE", "FeetechBus"]
 
@@ -87,13 +86,13 @@ SCS_TABLE: dict[str, tuple[int, int]] = {
 }
 """SCS0009 control table (protocol 1, no Homing_Offset)."""
 
-FEETECH_MODELS: dict[str, tuple[int, int, int, dict[str, tuple[int, int]]]] = {
-    "sts3215": (777, 4096, 0, STS_TABLE),
-    "sts3250": (2825, 4096, 0, STS_TABLE),
-    "sm8512bl": (11272, 4096, 0, STS_TABLE),
-    "scs0009": (1284, 1024, 1, SCS_TABLE),
+FEETECH_MODELS: dict[str, ServoModel] = {
+    "sts3215": ServoModel(777, 4096, 0, STS_TABLE),
+    "sts3250": ServoModel(2825, 4096, 0, STS_TABLE),
+    "sm8512bl": ServoModel(11272, 4096, 0, STS_TABLE),
+    "scs0009": ServoModel(1284, 1024, 1, SCS_TABLE),
 }
-"""Model → (model number, resolution, protocol, control table)."""
+"""Model → its number, resolution, protocol (0 STS/SMS, 1 SCS) and control table."""
 
 SIGN_BITS: dict[str, int] = {
     "Homing_Offset": 11,
@@ -127,11 +126,9 @@ class FeetechBus(SdkBusBase):
     vendor = "feetech"
     _sdk_module = "scservo_sdk"
     _models = FEETECH_MODELS
-    _tables = MappingProxyType({m: spec[3] for m, spec in FEETECH_MODELS.items()})
-    _resolutions = MappingProxyType({m: spec[1] for m, spec in FEETECH_MODELS.items()})
 
     def _protocol(self, motors: Mapping[int, str]) -> float:
-        protocols = {FEETECH_MODELS[m][2] for m in motors.values() if m in FEETECH_MODELS}
+        protocols = {FEETECH_MODELS[m].protocol for m in motors.values() if m in FEETECH_MODELS}
         if len(protocols) > 1:
             raise UsageError("Feetech motors of protocol 0 (STS/SMS) and 1 (SCS) cannot share one bus object")
         self.protocol = protocols.pop() if protocols else 0

@@ -19,7 +19,7 @@ from ...core.lerobot import (
     encode_twos_complement,
 )
 from ...errors import UsageError
-from ..dynamixel import DYNAMIXEL_MODELS, X_TABLE
+from ..dynamixel import DYNAMIXEL_MODELS
 from ..feetech import FEETECH_MODELS, SIGN_BITS
 
 if TYPE_CHECKING:
@@ -96,30 +96,23 @@ class SimServo:
         if self.model not in FEETECH_MODELS and self.model not in DYNAMIXEL_MODELS:
             raise UsageError(f"simulated servo model {self.model!r} is unknown")
         self.actual_ticks = min(self.stop_high_ticks, max(self.stop_low_ticks, self.actual_ticks))
+        spec = FEETECH_MODELS[self.model] if self.vendor == "feetech" else DYNAMIXEL_MODELS[self.model]
+        self.table = spec.table
+        self.big_endian = spec.protocol == 1
+        self.resolution = spec.resolution
+        self.set_reg("Model_Number", spec.model_number)
+        self.set_reg("ID", self.motor_id)
+        self.set_reg("Max_Position_Limit", spec.resolution - 1)
         if self.vendor == "feetech":
-            number, res, protocol, table = FEETECH_MODELS[self.model]
-            self.table = table
-            self.big_endian = protocol == 1
-            self.resolution = res
-            self.set_reg("Model_Number", number)
-            self.set_reg("ID", self.motor_id)
-            self.set_reg("Max_Position_Limit", res - 1)
             self.set_reg("Lock", 1)
             self.set_reg("Baud_Rate", FACTORY_BAUD["feetech"])
-            if "Firmware_Major_Version" in table:
+            if "Firmware_Major_Version" in spec.table:
                 self.set_reg("Firmware_Major_Version", 3)
                 self.set_reg("Firmware_Minor_Version", 10)
-            if "Phase" in table:
+            if "Phase" in spec.table:
                 self.set_reg("Phase", 0)
         else:
-            number, res = DYNAMIXEL_MODELS[self.model]
-            self.table = X_TABLE
-            self.big_endian = False
-            self.resolution = res
-            self.set_reg("Model_Number", number)
-            self.set_reg("ID", self.motor_id)
             self.set_reg("Operating_Mode", 3)
-            self.set_reg("Max_Position_Limit", res - 1)
             self.set_reg("Baud_Rate", 3)  # 1 Mbit/s, as LeRobot's setup leaves it
             self.set_reg("Firmware_Version", 52)
 
