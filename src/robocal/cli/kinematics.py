@@ -17,7 +17,7 @@ from ._common import EXIT_INTERRUPTED, EXIT_OK, console, err_console, print_warn
 from ._kinematics_options import BaseLinkOption, KindOption, TipLinkOption, UrdfOption, parse_xyz
 from ._kinematics_plan import plan
 from ._kinematics_print import print_identification, print_images
-from ._options import LeRobotCalibrationDir
+from ._options import LeRobotCalibrationDir, LeRobotId
 
 app = typer.Typer(
     help="Kinematic identification: measure an arm, identify its URDF errors, export a corrected URDF.",
@@ -100,7 +100,7 @@ def identify(
     robot: Annotated[
         str | None, typer.Option("--robot", help="LeRobot arm whose calibration made the readings (no --joint-map).")
     ] = None,
-    robot_id: Annotated[str | None, typer.Option("--id", help="LeRobot robot id of that calibration.")] = None,
+    robot_id: LeRobotId = None,
     calibration_dir: LeRobotCalibrationDir = None,
     calibration_file: Annotated[
         Path | None, typer.Option("--calibration-file", help="LeRobot calibration JSON (instead of --id).")
@@ -318,7 +318,7 @@ def record(
     robot: Annotated[
         str | None, typer.Option("--robot", help="LeRobot arm: so101_follower, so101_leader, koch_follower, ...")
     ] = None,
-    robot_id: Annotated[str | None, typer.Option("--id", help="LeRobot robot id: its calibration <id>.json.")] = None,
+    robot_id: LeRobotId = None,
     calibration_dir: LeRobotCalibrationDir = None,
     file: Annotated[Path | None, typer.Option("--file", help="LeRobot calibration JSON (instead of --id).")] = None,
     source: Annotated[

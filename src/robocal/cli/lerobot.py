@@ -20,6 +20,7 @@ from ._lerobot_render import (
     status,
     sweep_renderer,
 )
+from ._options import LeRobotCalibrationDir, LeRobotId
 
 app = typer.Typer(
     help="LeRobot arms: calibrate, configure, check, migrate, show, export-urdf.", no_args_is_help=True
@@ -31,10 +32,6 @@ ROBOT_HELP = (
 )
 Robot = Annotated[str, typer.Option("--robot", help=ROBOT_HELP)]
 ArmPort = Annotated[str, typer.Option("--port", help="Serial port of the arm, or 'sim'.")]
-CalId = Annotated[str | None, typer.Option("--id", help="Robot id: the calibration is <id>.json.")]
-CalDir = Annotated[
-    pathlib.Path | None, typer.Option("--calibration-dir", help="Calibration root (default: LeRobot's).")
-]
 CalFile = Annotated[pathlib.Path | None, typer.Option("--file", help="Calibration JSON (instead of --id).")]
 UseDegrees = Annotated[
     bool | None,
@@ -129,7 +126,7 @@ def calibrate(
     robot: Robot,
     port: str = typer.Option(..., "--port", help="Serial port, or 'sim' for the simulated arm."),
     robot_id: str = typer.Option(..., "--id", help="Robot id: the file is <id>.json."),
-    calibration_dir: CalDir = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     home_after_sweep: bool = typer.Option(
         False, "--home-after-sweep", help="Sweep first, then centre homing."
     ),
@@ -261,7 +258,7 @@ def configure(
     robot: Robot,
     port: ArmPort,
     robot_id: str | None = typer.Option(None, "--id", help="Robot id (Koch leader: gripper trigger)."),
-    calibration_dir: CalDir = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     file: CalFile = None,
     gripper_open_pos: float = typer.Option(
         50.0, "--gripper-open-pos", min=0.0, max=100.0, help="Koch leader trigger goal, 0..100 (LeRobot: 50)."
@@ -306,7 +303,7 @@ def check(
     robot: Robot,
     port: str = typer.Option(..., "--port", help="Serial port of the arm, or 'sim' for a simulated arm."),
     robot_id: str | None = typer.Option(None, "--id", help="Robot id."),
-    calibration_dir: CalDir = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     file: CalFile = None,
 ) -> None:
     """Compare the motors' EEPROM with the calibration file, naming each motor and field that differs."""
@@ -372,8 +369,8 @@ def migrate(
 def show(
     robot: Robot,
     port: ArmPort,
-    robot_id: CalId = None,
-    calibration_dir: CalDir = None,
+    robot_id: LeRobotId = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     file: CalFile = None,
     samples: int = typer.Option(1, "--samples", min=1, max=100000, help="Readings to print."),
     compat: str = typer.Option(
@@ -413,8 +410,8 @@ def export_urdf(
         pathlib.Path, typer.Option("--out", help="Canonical joint map YAML (robocal format) to write.")
     ],
     robot: Robot,
-    robot_id: CalId = None,
-    calibration_dir: CalDir = None,
+    robot_id: LeRobotId = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     file: CalFile = None,
     sign: str | None = typer.Option(None, "--sign", help="URDF sign per joint: name=-1,..."),
     offset_deg: str | None = typer.Option(None, "--offset-deg", help="URDF offset per joint: name=90,..."),

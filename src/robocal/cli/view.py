@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from . import _common
-from ._options import DEFAULT_TOPIC, ReplayTopic
+from ._options import DEFAULT_TOPIC, LeRobotCalibrationDir, LeRobotId, ReplayTopic
 
 HELP_SOURCE = "sim:lite[?options] | can:<interface>:<channel>[,…] | replay:<file.csv|rosbag2>"
 
@@ -24,10 +24,8 @@ def view(
         "--robot",
         help="With --lerobot-port: so101_follower | so101_leader | koch_follower | koch_leader.",
     ),
-    robot_id: str | None = typer.Option(None, "--id", help="With --lerobot-port: robot id (<id>.json)."),
-    calibration_dir: Path | None = typer.Option(
-        None, "--calibration-dir", help="With --lerobot-port: LeRobot calibration root."
-    ),
+    robot_id: LeRobotId = None,
+    calibration_dir: LeRobotCalibrationDir = None,
     ur_host: str | None = typer.Option(
         None, "--ur-host", help="UR controller HOST[:PORT], instead of --source."
     ),
