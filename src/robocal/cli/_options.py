@@ -12,7 +12,17 @@ import typer
 
 from ..workflows.sweep import DEFAULT_TOPIC
 
-__all__ = ["DEFAULT_TOPIC", "LeRobotCalibrationDir", "LeRobotId", "ReplayFrame", "ReplayTopic"]
+__all__ = [
+    "DEFAULT_TOPIC",
+    "LeRobotCalibrationDir",
+    "LeRobotCompat",
+    "LeRobotId",
+    "LeRobotModes",
+    "LeRobotPhysical",
+    "LeRobotUseDegrees",
+    "ReplayFrame",
+    "ReplayTopic",
+]
 
 ReplayTopic = Annotated[str, typer.Option("--topic", help="JointState topic of a rosbag2 replay.")]
 """``--topic`` of ``check --source``, ``sweep`` and ``view`` (default :data:`DEFAULT_TOPIC`)."""
@@ -26,3 +36,36 @@ LeRobotCalibrationDir = Annotated[
     Path | None, typer.Option("--calibration-dir", help="LeRobot calibration root (default: LeRobot's).")
 ]
 """``--calibration-dir`` of the same commands."""
+
+# LeRobot's number conventions, of ``lerobot show``/``export-urdf`` and ``dataset recalibrate``/``renormalize``.
+LeRobotUseDegrees = Annotated[
+    bool | None,
+    typer.Option(
+        "--use-degrees/--no-use-degrees",
+        help="LeRobot's use_degrees: joints in DEGREES or RANGE_M100_100 (gripper RANGE_0_100). "
+        "Default as LeRobot: SO arms degrees, Koch not.",
+    ),
+]
+LeRobotModes = Annotated[
+    str | None,
+    typer.Option(
+        "--modes",
+        help="Norm mode per joint, overriding the rest: name=degrees|range_m100_100|range_0_100,...",
+    ),
+]
+LeRobotCompat = Annotated[
+    str,
+    typer.Option(
+        "--compat",
+        help="Rounding only: lerobot (truncating, bit-identical) or exact (nearest tick, lossless).",
+    ),
+]
+"""``--compat`` (default ``"lerobot"``)."""
+LeRobotPhysical = Annotated[
+    bool,
+    typer.Option(
+        "--physical",
+        help="Degrees as physical joint degrees (4096 ticks per turn, drive_mode honoured) instead of "
+        "LeRobot's (4095, drive_mode ignored).",
+    ),
+]

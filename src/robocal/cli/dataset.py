@@ -12,6 +12,7 @@ from rich.table import Table
 
 from ..workflows.dataset import DatasetOptions
 from . import _common
+from ._options import LeRobotCompat, LeRobotModes, LeRobotPhysical, LeRobotUseDegrees
 
 app = typer.Typer(help="Re-calibrate and inspect recorded LeRobot v3 datasets.", no_args_is_help=True)
 
@@ -42,33 +43,9 @@ Robot = Annotated[
 Family = Annotated[
     str | None, typer.Option("--motor-family", help="feetech or dynamixel (default: --robot).")
 ]
-Degrees = Annotated[
-    bool | None,
-    typer.Option(
-        "--use-degrees/--no-use-degrees", help="Arm joints recorded in degrees (default: the robot's)."
-    ),
-]
-Modes = Annotated[
-    str | None, typer.Option("--modes", help="joint=mode,... (degrees, range_m100_100, range_0_100).")
-]
 Features = Annotated[
     str | None,
     typer.Option("--features", help="Comma-separated features (default observation.state,action)."),
-]
-Compat = Annotated[
-    str,
-    typer.Option(
-        "--compat",
-        help="Rounding only: lerobot (truncating, bit-identical) or exact (nearest tick, lossless).",
-    ),
-]
-Physical = Annotated[
-    bool,
-    typer.Option(
-        "--physical",
-        help="Degrees are physical (4096 ticks per turn, drive_mode honoured) instead of LeRobot's "
-        "(4095, drive_mode ignored).",
-    ),
 ]
 
 
@@ -82,13 +59,13 @@ def recalibrate(
     workers: Annotated[int, typer.Option("--workers", help="Worker processes.")] = 1,
     robot: Robot = None,
     motor_family: Family = None,
-    use_degrees: Degrees = None,
-    modes: Modes = None,
+    use_degrees: LeRobotUseDegrees = None,
+    modes: LeRobotModes = None,
     old_modes: Annotated[
         str | None, typer.Option("--old-modes", help="Modes of the old calibration if different.")
     ] = None,
-    compat: Compat = "lerobot",
-    physical: Physical = False,
+    compat: LeRobotCompat = "lerobot",
+    physical: LeRobotPhysical = False,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace DST once the new root is complete.")
     ] = False,
@@ -145,10 +122,10 @@ def inspect(
     features: Features = None,
     robot: Robot = None,
     motor_family: Family = None,
-    use_degrees: Degrees = None,
-    modes: Modes = None,
-    compat: Compat = "lerobot",
-    physical: Physical = False,
+    use_degrees: LeRobotUseDegrees = None,
+    modes: LeRobotModes = None,
+    compat: LeRobotCompat = "lerobot",
+    physical: LeRobotPhysical = False,
 ) -> None:
     """Per-joint min/max/mean; flags full-turn jumps and values outside the calibrated range (exit 1)."""
     from ..workflows.dataset import inspect as run

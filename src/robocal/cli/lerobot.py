@@ -20,7 +20,14 @@ from ._lerobot_render import (
     status,
     sweep_renderer,
 )
-from ._options import LeRobotCalibrationDir, LeRobotId
+from ._options import (
+    LeRobotCalibrationDir,
+    LeRobotCompat,
+    LeRobotId,
+    LeRobotModes,
+    LeRobotPhysical,
+    LeRobotUseDegrees,
+)
 
 app = typer.Typer(
     help="LeRobot arms: calibrate, configure, check, migrate, show, export-urdf.", no_args_is_help=True
@@ -33,29 +40,6 @@ ROBOT_HELP = (
 Robot = Annotated[str, typer.Option("--robot", help=ROBOT_HELP)]
 ArmPort = Annotated[str, typer.Option("--port", help="Serial port of the arm, or 'sim'.")]
 CalFile = Annotated[pathlib.Path | None, typer.Option("--file", help="Calibration JSON (instead of --id).")]
-UseDegrees = Annotated[
-    bool | None,
-    typer.Option(
-        "--use-degrees/--no-use-degrees",
-        help="LeRobot's use_degrees: joints in DEGREES or RANGE_M100_100 (gripper RANGE_0_100). "
-        "Default as LeRobot: SO arms degrees, Koch not.",
-    ),
-]
-Physical = Annotated[
-    bool,
-    typer.Option(
-        "--physical",
-        help="Degrees as physical joint degrees (4096 ticks per turn, drive_mode honoured) instead of "
-        "LeRobot's (4095, drive_mode ignored).",
-    ),
-]
-Modes = Annotated[
-    str | None,
-    typer.Option(
-        "--modes",
-        help="Norm mode per joint, overriding the rest: name=degrees|range_m100_100|range_0_100,...",
-    ),
-]
 
 
 def _modes(spec: RobotSpec, use_degrees: bool | None, modes: str | None) -> tuple[str, ...]:
@@ -373,12 +357,10 @@ def show(
     calibration_dir: LeRobotCalibrationDir = None,
     file: CalFile = None,
     samples: int = typer.Option(1, "--samples", min=1, max=100000, help="Readings to print."),
-    compat: str = typer.Option(
-        "lerobot", "--compat", help="Rounding only: lerobot (truncating) | exact (nearest tick)."
-    ),
-    use_degrees: UseDegrees = None,
-    modes_opt: Modes = None,
-    physical: Physical = False,
+    compat: LeRobotCompat = "lerobot",
+    use_degrees: LeRobotUseDegrees = None,
+    modes_opt: LeRobotModes = None,
+    physical: LeRobotPhysical = False,
 ) -> None:
     """Print live normalised positions (LeRobot's units) of every motor."""
     from ..workflows.lerobot import open_arm, read_positions, require_motors, restore
@@ -415,12 +397,10 @@ def export_urdf(
     file: CalFile = None,
     sign: str | None = typer.Option(None, "--sign", help="URDF sign per joint: name=-1,..."),
     offset_deg: str | None = typer.Option(None, "--offset-deg", help="URDF offset per joint: name=90,..."),
-    compat: str = typer.Option(
-        "lerobot", "--compat", help="Rounding only (a joint map does not round): lerobot | exact."
-    ),
-    use_degrees: UseDegrees = None,
-    modes_opt: Modes = None,
-    physical: Physical = False,
+    compat: LeRobotCompat = "lerobot",
+    use_degrees: LeRobotUseDegrees = None,
+    modes_opt: LeRobotModes = None,
+    physical: LeRobotPhysical = False,
 ) -> None:
     """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints."""
     from ..workflows.lerobot import export_joint_map, write_joint_map
