@@ -10,7 +10,17 @@ import typer
 
 from ..errors import UsageError
 
-__all__ = ["BaseLinkOption", "KindOption", "TipLinkOption", "UrdfOption", "parse_numbers", "parse_xyz"]
+__all__ = [
+    "BaseLinkOption",
+    "CameraInfoOption",
+    "CameraOnToolOption",
+    "KindOption",
+    "TipLinkOption",
+    "ToolXyzOption",
+    "UrdfOption",
+    "parse_numbers",
+    "parse_xyz",
+]
 
 UrdfOption = Annotated[Path, typer.Option("--urdf", help="Expanded URDF of the arm.")]
 BaseLinkOption = Annotated[str | None, typer.Option("--base-link", help="First link (default: URDF root).")]
@@ -18,6 +28,15 @@ TipLinkOption = Annotated[
     str | None, typer.Option("--tip-link", help="Link the tool is on (default: the leaf).")
 ]
 KindOption = Annotated[str, typer.Option("--kind", help="points, touch, gauge or tag (camera images).")]
+ToolXyzOption = Annotated[
+    str, typer.Option("--tool-xyz", help="Nominal marker/ball/tip position in the tip link, metres: x,y,z.")
+]
+CameraInfoOption = Annotated[
+    Path | None, typer.Option("--camera", help="--kind tag: camera intrinsics and image size (camera_info YAML).")
+]
+CameraOnToolOption = Annotated[
+    bool, typer.Option("--camera-on-tool", help="--kind tag: the camera is on the tool, the target fixed.")
+]
 
 
 def _numbers(text: str) -> list[float]:

@@ -11,7 +11,16 @@ import typer
 from ..core.kinematic_problem import KINDS
 from ..errors import UsageError
 from ._common import EXIT_OK, console, print_warnings
-from ._kinematics_options import BaseLinkOption, TipLinkOption, UrdfOption, parse_numbers, parse_xyz
+from ._kinematics_options import (
+    BaseLinkOption,
+    CameraInfoOption,
+    CameraOnToolOption,
+    TipLinkOption,
+    ToolXyzOption,
+    UrdfOption,
+    parse_numbers,
+    parse_xyz,
+)
 
 __all__ = ["plan"]
 
@@ -27,9 +36,7 @@ def plan(
     ] = None,
     base_link: BaseLinkOption = None,
     tip_link: TipLinkOption = None,
-    tool_xyz: Annotated[
-        str, typer.Option("--tool-xyz", help="Nominal marker position in the tip link, metres: x,y,z.")
-    ] = "0,0,0",
+    tool_xyz: ToolXyzOption = "0,0,0",
     kind: Annotated[
         str,
         typer.Option(
@@ -70,10 +77,7 @@ def plan(
         ),
     ] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the random candidates.")] = 0,
-    camera: Annotated[
-        Path | None,
-        typer.Option("--camera", help="tag: camera intrinsics and image size (camera_info YAML)."),
-    ] = None,
+    camera: CameraInfoOption = None,
     target: Annotated[
         str | None,
         typer.Option(
@@ -99,9 +103,7 @@ def plan(
             help="tag: target x,y,z,roll,pitch,yaw (m, rad) on the tip link (--camera-on-tool: in the base frame).",
         ),
     ] = "0,0,0,0,0,0",
-    camera_on_tool: Annotated[
-        bool, typer.Option("--camera-on-tool", help="tag: the camera is on the tool, the target fixed.")
-    ] = False,
+    camera_on_tool: CameraOnToolOption = False,
     refine_intrinsics: Annotated[
         bool, typer.Option("--refine-intrinsics", help="tag: plan for a fit that refines fx, fy, cx, cy.")
     ] = False,

@@ -14,7 +14,16 @@ from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
 from ._common import EXIT_INTERRUPTED, EXIT_OK, console, err_console, print_warning, print_warnings
-from ._kinematics_options import BaseLinkOption, KindOption, TipLinkOption, UrdfOption, parse_xyz
+from ._kinematics_options import (
+    BaseLinkOption,
+    CameraInfoOption,
+    CameraOnToolOption,
+    KindOption,
+    TipLinkOption,
+    ToolXyzOption,
+    UrdfOption,
+    parse_xyz,
+)
 from ._kinematics_plan import plan
 from ._kinematics_print import print_identification, print_images
 from ._options import LeRobotCalibrationDir, LeRobotId
@@ -49,10 +58,7 @@ def identify(
     kind: KindOption = "points",
     base_link: BaseLinkOption = None,
     tip_link: TipLinkOption = None,
-    tool_xyz: Annotated[
-        str,
-        typer.Option("--tool-xyz", help="Nominal marker/ball/tip position in the tip link, metres: x,y,z."),
-    ] = "0,0,0",
+    tool_xyz: ToolXyzOption = "0,0,0",
     frame: Annotated[
         str,
         typer.Option(
@@ -115,16 +121,12 @@ def identify(
     ur_hash: Annotated[
         str | None, typer.Option("--ur-hash", help="calib_<number> written into --ur-yaml (your robot's).")
     ] = None,
-    camera: Annotated[
-        Path | None, typer.Option("--camera", help="--kind tag: camera intrinsics (camera_info YAML).")
-    ] = None,
+    camera: CameraInfoOption = None,
     target: Annotated[
         str | None,
         typer.Option("--target", help="--kind tag: apriltag:<family>:<id>:<size_mm> or charuco:<c>x<r>:<sq_mm>:<mk_mm>."),
     ] = None,
-    camera_on_tool: Annotated[
-        bool, typer.Option("--camera-on-tool", help="--kind tag: the camera is on the tool, the target fixed.")
-    ] = False,
+    camera_on_tool: CameraOnToolOption = False,
     refine_intrinsics: Annotated[
         bool, typer.Option("--refine-intrinsics", help="--kind tag: estimate fx, fy, cx, cy with the kinematics.")
     ] = False,
@@ -204,9 +206,7 @@ def simulate(
         bool, typer.Option("--random-poses", help="Random poses (tag: random ones the camera sees) instead of the plan.")
     ] = False,
     gauge_mm: Annotated[float, typer.Option("--gauge-mm", help="Gauge socket distance, mm.")] = 50.0,
-    camera_on_tool: Annotated[
-        bool, typer.Option("--camera-on-tool", help="--kind tag: camera on the tool, tag fixed in front of the arm.")
-    ] = False,
+    camera_on_tool: CameraOnToolOption = False,
     validation_poses: Annotated[
         int,
         typer.Option("--validation-poses", help="Also write <kind>_validation.csv: random held-out poses (not tag)."),
