@@ -143,14 +143,15 @@ def _check_samples(samples: int, flag: str, most: int) -> None:
 
 def _report(
     source: str,
-    T_file: FloatArray,
-    T_dh: FloatArray,
+    T_base_tool0_file: FloatArray,
+    T_base_tool0_ref: FloatArray,
     file_hash: str | None,
     dh: DHParameters,
     tol: tuple[float, float],
 ) -> VerifyReport:
-    pos = float(np.max(np.linalg.norm(T_file[:, :3, 3] - T_dh[:, :3, 3], axis=1)))
-    rot = float(np.max(rotation_angle_between(T_file[:, :3, :3], T_dh[:, :3, :3])))
+    """Compare a file's ``(N, 4, 4)`` base → tool0 poses with the reference's (the DH model or the controller)."""
+    pos = float(np.max(np.linalg.norm(T_base_tool0_file[:, :3, 3] - T_base_tool0_ref[:, :3, 3], axis=1)))
+    rot = float(np.max(rotation_angle_between(T_base_tool0_file[:, :3, :3], T_base_tool0_ref[:, :3, :3])))
     dh_hash = calib_hash(dh.theta_rad, dh.d_m, dh.a_m, dh.alpha_rad)
     warnings: list[str] = []
     if not (pos <= tol[0]) or not (rot <= tol[1]):
@@ -162,7 +163,7 @@ def _report(
         warnings.append(
             f"{source}: hash {file_hash} does not match the DH ({dh_hash}); the driver will complain"
         )
-    return VerifyReport(source, int(T_dh.shape[0]), pos, rot, file_hash, dh_hash, tuple(warnings))
+    return VerifyReport(source, int(T_base_tool0_ref.shape[0]), pos, rot, file_hash, dh_hash, tuple(warnings))
 
 
 def verify(
@@ -201,15 +202,15 @@ def verify(
         _check_samples(samples, "--samples", MAX_VERIFY_SAMPLES)
         rng = np.random.default_rng(seed)
         q = rng.uniform(-2.0 * math.pi, 2.0 * math.pi, size=(samples, 6))
-    T_dh = fk_dh(dh, q)
+    T_base_tool0_dh = fk_dh(dh, q)
     tol = (tolerance_m, tolerance_rad)
     reports: list[VerifyReport] = []
     if kinematics_path is not None:
         kin = read_kinematics(kinematics_path)
-        T = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
-        reports.append(_report(f"kinematics YAML {kinematics_path}", T, T_dh, kin.hash, dh, tol))
+        T_base_tool0 = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
+        reports.append(_report(f"kinematics YAML {kinematics_path}", T_base_tool0, T_base_tool0_dh, kin.hash, dh, tol))
     if urdf_path is not None:
-        reports.append(_report(f"URDF {urdf_path}", urdf_fk(urdf_path, q), T_dh, None, dh, tol))
+        reports.append(_report(f"URDF {urdf_path}", urdf_fk(urdf_path, q), T_base_tool0_dh, None, dh, tol))
     return reports
 
 
@@ -257,14 +258,13 @@ def verify_controller(
             f"UR controller {host}:{port}: the active TCP offset is not zero; set an empty TCP to verify the flange"
         )
     q = np.array([s.q_rad for s in got])
-    T_ctrl = homogeneous(
+    T_base_tool0_ctrl = homogeneous(
         matrix_from_rotvec(np.array([s.tcp_rotvec_rad for s in got])), np.array([s.tcp_xyz_m for s in got])
     )
-    T_file = fk_origins(kin.xyz_array(), kin.rpy_array(), q)
     report = _report(
         f"controller {host}:{port} vs {kinematics_path}",
-        T_file,
-        T_ctrl,
+        fk_origins(kin.xyz_array(), kin.rpy_array(), q),
+        T_base_tool0_ctrl,
         kin.hash,
         info.dh,
         (tolerance_m, tolerance_rad),
