@@ -261,7 +261,9 @@ def simulate(
         validation_poses=validation_poses,
         ticks_per_turn=ticks,
     )
-    held = "" if sim.validation is None else f", {sim.validation} ({validation_poses} held-out poses)"
+    held = ""
+    if sim.validation is not None and sim.validation_measurements is not None:
+        held = f", {sim.validation} ({sim.validation_measurements.n_poses} held-out poses)"
     console.print(f"wrote {sim.urdf}, {sim.data} ({sim.measurements.n_poses} poses){held}, {sim.truth}")
     console.print(f"next: {_command(sim, kind, gauge_mm)}")
     raise typer.Exit(EXIT_OK)
