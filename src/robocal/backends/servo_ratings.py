@@ -1,4 +1,4 @@
-"""Datasheet ratings of the Feetech and Dynamixel servo models (stall torque and current, current unit).
+"""Datasheet numbers of the Feetech and Dynamixel servos: ratings per model, register units, status bits.
 
 Shared by the simulated firmware (:mod:`robocal.backends.sim.servo_firmware`) and the stop-search drivers
 (:mod:`robocal.workflows.autocal_servo`), which convert a torque cap into ``Goal_Current`` and a
@@ -9,7 +9,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["RATINGS", "MotorRating"]
+__all__ = ["OVERLOAD_BIT", "PWM_FULL", "RATINGS", "RPM_UNIT", "MotorRating"]
+
+PWM_FULL = 885
+"""Dynamixel X ``Goal_PWM`` / ``PWM_Limit`` for 100 % duty."""
+RPM_UNIT = 0.229
+"""Dynamixel velocity unit (rev/min per ``Goal_Velocity`` / ``Present_Velocity`` unit)."""
+OVERLOAD_BIT = 0x20
+"""Bit 5 of Feetech ``Status`` and of Dynamixel ``Hardware_Error_Status``: the overload protection tripped."""
 
 
 @dataclass(frozen=True)

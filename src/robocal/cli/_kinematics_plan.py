@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ..core.kinematic_problem import KINDS
+from ..core.kinematic_problem import ALL_KINDS, check_kind
 from ..errors import UsageError
 from ._common import EXIT_OK, console, print_warnings
 from ._kinematics_options import (
@@ -119,9 +119,7 @@ def plan(
     ] = 0,
 ) -> None:
     """Choose poses inside the joint limits that identify the arm best (greedy I- or D-optimal)."""
-    kind = kind.strip().lower()
-    if kind not in (*KINDS, "tag"):
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
+    kind = check_kind(kind.strip().lower(), ALL_KINDS)
     if kind == "tag":
         if validation_poses:
             raise UsageError("--validation-poses applies to points, touch and gauge; images use --validate-fraction")

@@ -10,6 +10,7 @@ from typing import Annotated
 
 import typer
 
+from ..workflows.calibration import robot_profile_names
 from ..workflows.sweep import DEFAULT_TOPIC
 
 __all__ = [
@@ -22,8 +23,19 @@ __all__ = [
     "LeRobotUseDegrees",
     "ReplayFrame",
     "ReplayTopic",
+    "RobotProfile",
 ]
 
+RobotProfile = Annotated[
+    str | None,
+    typer.Option(
+        "--robot",
+        help="Robot profile: a built-in name ("
+        + ", ".join(robot_profile_names())
+        + ") or a profile YAML file (docs/profiles.md). Default: the built-in robot the URDF's joint names match.",
+    ),
+]
+"""``--robot`` of ``convert``, ``check`` and ``sweep``."""
 ReplayTopic = Annotated[str, typer.Option("--topic", help="JointState topic of a rosbag2 replay.")]
 """``--topic`` of ``check --source``, ``sweep`` and ``view`` (default :data:`DEFAULT_TOPIC`)."""
 ReplayFrame = Annotated[

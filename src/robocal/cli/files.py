@@ -8,7 +8,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..workflows.calibration import check_file, convert_file, format_names, robot_profile_names
+from ..workflows.calibration import check_file, convert_file, format_names
 from ._common import (
     EXIT_OK,
     EXIT_WARNINGS,
@@ -19,14 +19,9 @@ from ._common import (
     print_plain_table,
     print_warning,
 )
-from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic
+from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic, RobotProfile
 
 FORMAT_HELP = "Format: " + ", ".join(format_names()) + "."
-ROBOT_HELP = (
-    "Robot profile: a built-in name ("
-    + ", ".join(robot_profile_names())
-    + ") or a profile YAML file (docs/profiles.md). Default: the built-in robot the URDF's joint names match."
-)
 
 
 def convert(
@@ -44,7 +39,7 @@ def convert(
     joints: str | None = typer.Option(
         None, "--joints", help="Comma-separated joint order (positional formats)."
     ),
-    robot: str | None = typer.Option(None, "--robot", help=ROBOT_HELP),
+    robot: RobotProfile = None,
 ) -> None:
     """Convert a calibration file between formats, exactly."""
     result = convert_file(
@@ -75,7 +70,7 @@ def check(
     ),
     topic: ReplayTopic = DEFAULT_TOPIC,
     frame: ReplayFrame = None,
-    robot: str | None = typer.Option(None, "--robot", help=ROBOT_HELP),
+    robot: RobotProfile = None,
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
     if source is not None:  # a malformed --source / --frame fails before anything is printed

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from ..core.arrays import FloatArray
-from ..core.kinematic_problem import KINDS
+from ..core.kinematic_problem import ALL_KINDS, check_kind
 from ..errors import UsageError
 from ..workflows import kinematic_sim as sim_wf
 from ..workflows import kinematics as wf
@@ -132,8 +132,7 @@ def identify(
     ] = False,
 ) -> None:
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
-    if kind.strip().lower() not in (*KINDS, "tag"):
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
+    check_kind(kind.strip().lower(), ALL_KINDS)
     jm, ids = wf.identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     for flag, on in (("--camera-on-tool", camera_on_tool), ("--refine-intrinsics", refine_intrinsics)):
         if on and kind.strip().lower() != "tag":
@@ -218,9 +217,7 @@ def simulate(
     """Simulate a measurement session on an arm with hidden errors (1 mm, 0.5°, 2° σ; --ticks joint readings)."""
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder")
-    kind = kind.strip().lower()
-    if kind not in (*KINDS, "tag"):
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join((*KINDS, 'tag'))}")
+    kind = check_kind(kind.strip().lower(), ALL_KINDS)
     if not (math.isfinite(gauge_mm) and gauge_mm > 0):
         raise UsageError(f"--gauge-mm must be a positive number, got {gauge_mm}")
     if camera_on_tool and kind != "tag":

@@ -17,7 +17,7 @@ from ..workflows.sweep import run_sweep
 from ..workflows.sweep_output import SweepNotSavedError
 from ..workflows.sweep_session import DEFAULT_DIRECTION_STEP_S
 from . import _common
-from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic
+from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic, RobotProfile
 from ._sweep_confirm import StdinLines, make_confirm, stdin_is_terminal, terminal
 from ._sweep_view import LiveView, print_warnings, result_table
 
@@ -93,13 +93,7 @@ def sweep(
     ] = DEFAULT_DIRECTION_STEP_S,
     topic: ReplayTopic = DEFAULT_TOPIC,
     frame: ReplayFrame = None,
-    robot: Annotated[
-        str | None,
-        typer.Option(
-            "--robot",
-            help="Robot profile: built-in name or profile YAML (docs/profiles.md). Default: the URDF's robot.",
-        ),
-    ] = None,
+    robot: RobotProfile = None,
     yes: Annotated[
         bool,
         typer.Option(

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismatchError, UsageError
-from .arrays import FloatArray
+from .arrays import FloatArray, Vec3
 from .se3 import rot_x, rot_y, rot_z, transform_from_xyz_rpy_urdf
 
 __all__ = [
@@ -31,7 +31,6 @@ __all__ = [
     "rotation_about_axis",
 ]
 
-Vec3 = tuple[float, float, float]
 
 URDF_JOINT_TYPES: tuple[str, ...] = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 """Joint kinds a URDF may name (what :class:`ChainJoint` takes)."""

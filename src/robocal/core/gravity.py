@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import InvalidCalibrationError, JointMismatchError, ShapeMismatchError
-from .arrays import FloatArray
+from .arrays import FloatArray, Vec3
 from .chain import ChainJoint, SerialChain, fk_chain
 
 __all__ = [
@@ -40,7 +40,6 @@ __all__ = [
     "joint_gravity",
 ]
 
-Vec3 = tuple[float, float, float]
 
 STANDARD_GRAVITY_M_S2: Vec3 = (0.0, 0.0, -9.80665)
 """Gravity in the root frame of an upright robot (z up), m/s²."""

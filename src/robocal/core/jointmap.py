@@ -28,7 +28,7 @@ from .arrays import FloatArray
 
 __all__ = ["TWO_PI", "FloatArray", "JointMap", "RobotCalibration"]
 
-TWO_PI = 2.0 * math.pi
+TWO_PI = math.tau
 _SMALLEST_SCALE = float(np.finfo(np.float64).tiny)
 """Smallest accepted scale: the smallest normal double, whose inverse is still finite."""
 _F64 = np.dtype(np.float64)

@@ -37,11 +37,13 @@ from .identifiability import (
 from .kinematic_errors import ErrorModel
 
 __all__ = [
+    "ALL_KINDS",
     "KINDS",
     "PLAN_CRITERIA",
     "Measurements",
     "Problem",
     "analyse",
+    "check_kind",
     "dh_like_constraints",
     "free_indices",
     "marker_axis_distances",
@@ -51,6 +53,20 @@ __all__ = [
 
 
 KINDS: tuple[str, ...] = ("points", "touch", "gauge")
+"""Tool-point sessions (a :class:`Measurements`): free points, touched points, a two-socket gauge."""
+ALL_KINDS: tuple[str, ...] = (*KINDS, "tag")
+"""Every ``--kind`` of the kinematics commands: the tool-point kinds and camera images of a tag (``tag``)."""
+
+
+def check_kind(kind: str, valid: Sequence[str] = KINDS) -> str:
+    """``kind`` if it is one of ``valid``; else the ``--kind`` error that lists them.
+
+    Raises:
+        UsageError: ``kind`` is not in ``valid``.
+    """
+    if kind not in valid:
+        raise UsageError(f"--kind {kind!r}; valid: {', '.join(valid)}")
+    return kind
 
 
 @dataclass(frozen=True, eq=False)

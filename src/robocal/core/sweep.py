@@ -48,7 +48,6 @@ __all__ = [
 ]
 
 
-TWO_PI = 2.0 * math.pi
 DEFAULT_ONE_SIDED_THRESHOLD_RAD = 0.05
 """One-sided procedure: a joint that moved less than this (rad) counts as not moved. A joint is only pushed
 into one stop, often from close by (an ankle roll 0.26 rad from its stop), so the two-sided threshold is too big."""
@@ -108,8 +107,8 @@ def wrap_in_travel(
     b = h + np.maximum(d * np.asarray(lower, dtype=np.float64), d * np.asarray(upper, dtype=np.float64))
     w = np.where(np.asarray(zero_sta) == 1, math.pi, 0.0)
     # a wrap point w + 2πk lies strictly inside (a, b) iff the next one above a is below b
-    k = np.floor((a - w) / TWO_PI) + 1.0
-    out: npt.NDArray[np.bool_] = np.isfinite(h) & (w + k * TWO_PI < b)
+    k = np.floor((a - w) / math.tau) + 1.0
+    out: npt.NDArray[np.bool_] = np.isfinite(h) & (w + k * math.tau < b)
     return out
 
 

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.kinematic_problem import KINDS, Measurements
-from ..errors import FileFormatError, UsageError
+from ..core.kinematic_problem import Measurements, check_kind
+from ..errors import FileFormatError
 from ..fileio import read_text
 from ._numbers import format_float
 
@@ -179,8 +179,7 @@ def parse_measurements(
     Raises:
         FileFormatError: Missing, unknown or duplicate columns, a non-number, NaN or inf, a bad socket, no rows.
     """
-    if kind not in KINDS:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    check_kind(kind)
     line_numbers, rows = _csv_rows(text, source)
     header = rows[0]
     extra_cols: dict[str, list[str]] = {

@@ -45,8 +45,6 @@ CURRENT_FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
 LEGACY_KEYS = ("homing_offset", "drive_mode", "start_pos", "end_pos", "calib_mode", "motor_names")
 """Key order of the legacy JSON."""
 
-PathLike = str | os.PathLike[str]
-
 
 class LeRobotRangeWarning(UserWarning):
     """A calibration written or read has a motor range beyond one servo turn (LeRobot accepts it unchecked)."""
@@ -153,12 +151,14 @@ def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibra
     return out
 
 
-def read_current(path: PathLike) -> dict[str, MotorCalibration]:
+def read_current(path: str | os.PathLike[str]) -> dict[str, MotorCalibration]:
     """Read a current LeRobot calibration JSON file (see :func:`parse_current`)."""
     return parse_current(read_text(path, "LeRobot calibration"), str(path))
 
 
-def write_current(path: PathLike, cals: Mapping[str, MotorCalibration], *, make_dirs: bool = True) -> Path:
+def write_current(
+    path: str | os.PathLike[str], cals: Mapping[str, MotorCalibration], *, make_dirs: bool = True
+) -> Path:
     """Write a current LeRobot calibration JSON atomically (keeps ``NAME.bak``); validates first.
 
     A motor whose range lies beyond one turn (``0..4095``) is written as given, like LeRobot, but with a
@@ -266,12 +266,12 @@ def parse_legacy(text: str, source: str = "<string>") -> LegacyCalibration:
         raise FileFormatError(f"{source}: {exc}") from None
 
 
-def read_legacy(path: PathLike) -> LegacyCalibration:
+def read_legacy(path: str | os.PathLike[str]) -> LegacyCalibration:
     """Read a legacy LeRobot calibration JSON file (see :func:`parse_legacy`)."""
     return parse_legacy(read_text(path, "LeRobot legacy calibration"), str(path))
 
 
-def write_legacy(path: PathLike, cal: LegacyCalibration) -> Path:
+def write_legacy(path: str | os.PathLike[str], cal: LegacyCalibration) -> Path:
     """Write a legacy LeRobot calibration JSON atomically, byte-identical to LeRobot's writer."""
     text = dumps_legacy(cal)
     parse_legacy(text, str(path))  # refuses what would not read back (e.g. a lone surrogate in a name)

@@ -17,6 +17,7 @@ from typing import Any
 
 from lxml import etree
 
+from ..core.arrays import Vec3
 from ..core.chain import URDF_JOINT_TYPES, ChainJoint
 from ..errors import FileFormatError, JointMismatchError, UsageError
 from ..fileio import atomic_write_bytes, read_bytes
@@ -29,7 +30,6 @@ __all__ = [
     "read_urdf",
 ]
 
-Vec3 = tuple[float, float, float]
 XACRO_NS = "http://www.ros.org/wiki/xacro"
 _LIMIT_ATTRS = ("lower", "upper", "velocity", "effort")
 

@@ -20,10 +20,10 @@ from .sweep_page import SweepOverlay
 
 __all__ = [
     "LeRobotSweepWebView",
-    "lerobot_joint_map",
     "lerobot_shapes_urdf",
     "open_lerobot_auto_page",
     "open_lerobot_sweep_page",
+    "urdf_joint_of_motor",
 ]
 
 
@@ -136,7 +136,7 @@ def open_lerobot_sweep_page(
     from .model import load_robot_model
 
     model = load_robot_model(lerobot_shapes_urdf(robot))
-    joint_of = lerobot_joint_map(model.actuated, motor_names)
+    joint_of = urdf_joint_of_motor(model.actuated, motor_names)
     app = ViewerApp(model, host=host, port=port, title=f"lerobot calibrate: {robot}", rate_hz=20.0).start()
     try:
         app.server.gui.main_panel.dock_right()
@@ -150,7 +150,7 @@ def open_lerobot_sweep_page(
         raise
 
 
-def lerobot_joint_map(joint_names: Sequence[str], motor_names: Sequence[str]) -> dict[str, str]:
+def urdf_joint_of_motor(joint_names: Sequence[str], motor_names: Sequence[str]) -> dict[str, str]:
     """Motor → URDF joint: by name (SO-100/SO-101), else in order (Koch: ``joint1`` … in motor order)."""
     names = list(joint_names)
     motors = list(motor_names)
@@ -182,7 +182,7 @@ def open_lerobot_auto_page(
     from .model import load_robot_model
 
     urdf = lerobot_shapes_urdf(robot)
-    joint_of = lerobot_joint_map(load_robot_model(urdf).actuated, motor_names)
+    joint_of = urdf_joint_of_motor(load_robot_model(urdf).actuated, motor_names)
     return open_auto_sweep_page(
         urdf,
         inner=inner,

@@ -13,7 +13,10 @@ from .autocal_types import Clock
 LIMIT_TORQUE = 0x700B
 """Robstride ``limit_torque`` parameter (f32, N·m; RAM until a type-22 save, which robocal never sends)."""
 
-__all__ = ["ROBSTRIDE_FATAL_BITS", "ROBSTRIDE_OVERCURRENT_BIT", "RobstrideJointDriver"]
+__all__ = ["MAX_LAG_RAD", "ROBSTRIDE_FATAL_BITS", "ROBSTRIDE_OVERCURRENT_BIT", "RobstrideJointDriver"]
+
+MAX_LAG_RAD = math.radians(3.0)
+"""The position target leads a Robstride joint by at most this: ``kp = cap / 3°`` (``sweep --auto``, its sim)."""
 
 
 # ------------------------------------------------------------------------------------------------ Robstride

@@ -39,17 +39,15 @@ import math
 from contextlib import suppress
 from typing import Any
 
-from ..backends.servo_ratings import RATINGS
+from ..backends.servo_ratings import OVERLOAD_BIT, PWM_FULL, RATINGS, RPM_UNIT
 from ..core.stop_search import Command, StopSample
 from ..errors import CalibTimeoutError, DeviceError, UsageError
 from .autocal_types import Clock
 
 __all__ = [
     "DXL_FATAL_BITS",
-    "DXL_OVERLOAD_BIT",
     "FEETECH_FATAL_BITS",
     "FEETECH_SUSPECT_BITS",
-    "PWM_FULL",
     "SEAM_MARGIN_TICKS",
     "SERVO_DRIVERS",
     "DynamixelJointDriver",
@@ -59,21 +57,14 @@ __all__ = [
     "servo_driver_class",
 ]
 
-TWO_PI = 2.0 * math.pi
 SEAM_MARGIN_TICKS = 512
 """A Feetech joint this close (ticks) to the 0/res−1 seam is re-homed to mid-turn before the next goal."""
-FEETECH_SUSPECT_BITS = 0x20 | 0x08
+FEETECH_SUSPECT_BITS = OVERLOAD_BIT | 0x08
 """Feetech ``Status`` bits 5 (overload) and 3 (over-current): suspect evidence, cleared by torque off."""
 FEETECH_FATAL_BITS = 0x01 | 0x02 | 0x04
 """Feetech ``Status`` bits 0 (voltage), 1 (magnetic sensor), 2 (temperature): the run ends."""
-DXL_OVERLOAD_BIT = 0x20
-"""Dynamixel ``Hardware_Error_Status`` bit 5 (overload): suspect; the torque is off until a REBOOT."""
 DXL_FATAL_BITS = 0x01 | 0x04 | 0x08 | 0x10
 """Dynamixel ``Hardware_Error_Status`` bits 0 (voltage), 2 (overheating), 3 (encoder), 4 (electrical shock)."""
-PWM_FULL = 885
-"""Dynamixel X ``Goal_PWM`` / ``PWM_Limit`` for 100 % duty."""
-RPM_UNIT = 0.229
-"""Dynamixel velocity unit (rev/min)."""
 _FEETECH_READ = ("Present_Position", "Present_Velocity", "Present_Load", "Status")  # addresses 56..65
 _DXL_READ = ("Present_Current", "Present_Velocity", "Present_Position")  # addresses 126..135
 
@@ -140,11 +131,11 @@ class _ServoJointDriver:
     # -- frame ----------------------------------------------------------------------------------------
     def rad(self, ticks: float) -> float:
         """Unwrapped ticks → joint-frame radians."""
-        return ticks * TWO_PI / self.res
+        return ticks * math.tau / self.res
 
     def ticks(self, s_rad: float) -> float:
         """Joint-frame radians → unwrapped ticks."""
-        return s_rad * self.res / TWO_PI
+        return s_rad * self.res / math.tau
 
     # -- vendor hooks ---------------------------------------------------------------------------------
     def _init_vendor(self) -> None:
@@ -263,7 +254,7 @@ class FeetechJointDriver(_ServoJointDriver):
 
     def _read_raw(self) -> tuple[int, float, float, int]:
         r = self.bus.sync_read_block(_FEETECH_READ, [self.motor_id])[self.motor_id]
-        v = r["Present_Velocity"] * TWO_PI / self.res
+        v = r["Present_Velocity"] * math.tau / self.res
         tau = r["Present_Load"] / 1000.0 * self.rated_nm
         return r["Present_Position"], v, tau, r["Status"]
 
@@ -370,14 +361,14 @@ class DynamixelJointDriver(_ServoJointDriver):
 
     def _read_raw(self) -> tuple[int, float, float, int]:
         r = self.bus.sync_read_block(_DXL_READ, [self.motor_id])[self.motor_id]
-        v = r["Present_Velocity"] * RPM_UNIT / 60.0 * TWO_PI
+        v = r["Present_Velocity"] * RPM_UNIT / 60.0 * math.tau
         tau = r["Present_Current"] * self.rating.current_unit_a / self.rating.stall_current_a * self.rated_nm
         return r["Present_Position"], v, tau, self._read1("Hardware_Error_Status")
 
     def _flags(self, bits: int) -> bool:
         if bits & DXL_FATAL_BITS and self._read1("Hardware_Error_Status") & DXL_FATAL_BITS:
             raise DeviceError(f"joint {self.name}: motor {self.motor_id} Hardware_Error_Status {bits:#04x}")
-        return bool(bits & DXL_OVERLOAD_BIT)
+        return bool(bits & OVERLOAD_BIT)  # overload: suspect; the torque stays off until a REBOOT
 
     def _unwrap(self, present: int) -> float:
         return float(present)  # modes 4 and 5 report multi-turn positions

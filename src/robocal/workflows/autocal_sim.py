@@ -23,7 +23,7 @@ import numpy as np
 
 from ..core.profile import RobotProfile
 from ..errors import UsageError
-from .autocal_robstride import RobstrideJointDriver
+from .autocal_robstride import MAX_LAG_RAD, RobstrideJointDriver
 from .autocal_types import JointDriver
 
 if TYPE_CHECKING:
@@ -62,7 +62,6 @@ def fault_scenario(joint: str, faults: Mapping[str, Collection[str]]) -> Scenari
     )
 
 
-MAX_LAG_RAD = math.radians(3.0)
 _INERTIA = {"rs-02": 0.05, "rs-00": 0.03, "rs-05": 0.005}
 
 

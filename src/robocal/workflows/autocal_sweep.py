@@ -30,22 +30,20 @@ from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, backup_paths
 from ..formats.profiles import resolve_profile
 from .autocal import run_autocal, select_joints
-from .autocal_robstride import RobstrideJointDriver
+from .autocal_robstride import MAX_LAG_RAD, RobstrideJointDriver
 from .autocal_types import (
     AutoCalAbortedError,
     AutoCalFailedError,
     AutoCalResult,
     AutoView,
     Clock,
+    ConfirmStart,
     JointDriver,
     MonotonicClock,
     limp_all,
 )
 
 __all__ = ["AutoSweepOutcome", "auto_sweep_result", "run_sweep_auto"]
-
-MAX_LAG_RAD = math.radians(3.0)
-"""The position target leads the joint by at most this: ``kp = cap / 3°``."""
 
 
 @dataclass(frozen=True)
@@ -69,8 +67,6 @@ class AutoSweepOutcome:
     exit_code: int
 
 
-ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
-"""Asked before anything moves with the joints that will move and their torque caps (N·m); False: stop."""
 OpenDrivers = Callable[
     [Any, Sequence[Any], RobotProfile], tuple[dict[str, JointDriver], Clock, Callable[[], None]]
 ]

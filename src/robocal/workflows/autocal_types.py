@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -24,12 +24,17 @@ __all__ = [
     "AutoCalResult",
     "AutoView",
     "Clock",
+    "ConfirmStart",
     "JointDriver",
     "JointOutcome",
     "MonotonicClock",
     "limp_all",
     "limp_on_error",
 ]
+
+ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
+"""The clear-workspace question, asked before anything moves: the joints that will move (in order) and their
+torque caps (N·m); False: nothing moves."""
 
 
 class AutoCalAbortedError(CalibError):

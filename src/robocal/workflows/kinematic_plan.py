@@ -22,11 +22,11 @@ from ..core.chain import SerialChain
 from ..core.identifiability import Identifiability
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
-    KINDS,
     PLAN_CRITERIA,
     Measurements,
     Problem,
     analyse,
+    check_kind,
     free_indices,
     plan_poses,
 )
@@ -37,7 +37,7 @@ from ..formats.kinematic_data import read_joint_table, session_csv
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from .kinematic_fit import PriorSigmas, check_seed, prediction_rms_m
-from .kinematics import FRAMES, as_prior, tool_frame
+from .kinematics import as_prior, check_frame, tool_frame
 
 __all__ = ["PlanResult", "plan"]
 
@@ -128,8 +128,7 @@ def plan(
     crit = criterion.upper()
     if crit not in PLAN_CRITERIA:
         raise UsageError(f"--criterion {criterion!r}; valid: {', '.join(c.lower() for c in PLAN_CRITERIA)}")
-    if kind not in KINDS:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    check_kind(kind)
     if kind == "points" and touch_points_m:
         raise UsageError("--touch-points applies to --kind touch or gauge")
     if kind != "points":
@@ -141,8 +140,7 @@ def plan(
         need = "two points (sockets A and B)" if kind == "gauge" else "one or more points"
         if (kind == "gauge" and len(touch_points_m) != 2) or not touch_points_m:
             raise UsageError(f"--kind {kind} needs --touch-points with {need}, x,y,z in metres each")
-    if frame not in FRAMES:
-        raise UsageError(f"--frame {frame!r}; valid: {', '.join(FRAMES)}")
+    check_frame(frame)
     if not (math.isfinite(noise_m) and noise_m > 0):
         raise UsageError(f"--noise-mm must be a positive number, got {noise_m * 1e3}")
     prior_s = as_prior(prior)

@@ -22,14 +22,13 @@ import numpy as np
 from ..core.arrays import FloatArray
 from ..core.chain import SerialChain
 from ..core.jointmap import RobotCalibration
-from ..core.kinematic_problem import Measurements
+from ..core.kinematic_problem import ALL_KINDS, Measurements, check_kind
 from ..errors import JointMismatchError, UsageError
 from ..fileio import atomic_write_text, check_output_path
 from ..formats._numbers import format_float
 from ..formats.kinematic_data import session_csv
 
 __all__ = [
-    "RECORD_KINDS",
     "JointReader",
     "LeRobotReader",
     "RecordResult",
@@ -42,8 +41,6 @@ __all__ = [
 ]
 
 
-RECORD_KINDS: tuple[str, ...] = ("points", "touch", "gauge", "tag")
-"""Kinds a session can be recorded for (``tag``: one image per pose, see ``kinematics identify --kind tag``)."""
 
 FINISH_WORDS = ("q", "quit", "done", "end")
 
@@ -234,8 +231,7 @@ def record(
     Raises:
         UsageError: Bad options, or no pose recorded (nothing is written).
     """
-    if kind not in RECORD_KINDS:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(RECORD_KINDS)}")
+    check_kind(kind, ALL_KINDS)
     if poses is not None and poses < 1:
         raise UsageError(f"--poses must be at least 1, got {poses}")
     if tuple(reader.joint_names) != chain.joint_names:

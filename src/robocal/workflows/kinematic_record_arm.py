@@ -32,11 +32,10 @@ def check_session(kind: str, out: str | os.PathLike[str]) -> Path:
     Raises:
         UsageError: An unknown kind, an output in a missing folder or on a directory.
     """
+    from ..core.kinematic_problem import ALL_KINDS, check_kind
     from ..fileio import check_output_path
-    from .kinematic_record import RECORD_KINDS
 
-    if kind not in RECORD_KINDS:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(RECORD_KINDS)}")
+    check_kind(kind, ALL_KINDS)
     return check_output_path(out, "--out")
 
 

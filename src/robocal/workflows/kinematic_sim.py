@@ -18,7 +18,7 @@ import numpy as np
 from ..backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_errors
 from ..core.arrays import FloatArray
 from ..core.kinematic_errors import ErrorModel
-from ..core.kinematic_problem import KINDS, Measurements, plan_poses
+from ..core.kinematic_problem import Measurements, check_kind, plan_poses
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text
 from ..formats.kinematic_data import measurements_to_csv
@@ -158,8 +158,7 @@ def simulate(
         ticks_per_turn: Encoder ticks per turn the joint readings are rounded to (0: exact readings, the
             noise-free case).
     """
-    if kind not in KINDS:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
+    check_kind(kind)
     if poses < 1:
         raise UsageError(f"--poses must be at least 1, got {poses}")
     check_ticks(ticks_per_turn)

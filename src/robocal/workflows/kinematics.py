@@ -24,9 +24,9 @@ from ..core.chain import SerialChain
 from ..core.jointmap import RobotCalibration
 from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
-    KINDS,
     Measurements,
     Problem,
+    check_kind,
     dh_like_constraints,
     free_indices,
 )
@@ -53,6 +53,7 @@ __all__ = [
     "IdentifyResult",
     "PriorSigmas",
     "as_prior",
+    "check_frame",
     "identify",
     "identify_joint_map",
     "tool_frame",
@@ -64,6 +65,16 @@ DEFAULT_VALIDATE_FRACTION = 0.25
 
 FRAMES: tuple[str, ...] = ("base", "tracker")
 """``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""
+
+
+def check_frame(frame: str) -> str:
+    """``frame`` if it is one of :data:`FRAMES`; else the ``--frame`` error that lists them.
+
+    Raises:
+        UsageError: Another frame.
+    """
+    check_frame(frame)
+    return frame
 
 
 @dataclass(frozen=True, eq=False)
@@ -281,10 +292,8 @@ def identify(
     Raises:
         CalibError: Unreadable or malformed files, a pose outside the limits, NaN, too few poses, bad options.
     """
-    if kind not in KINDS:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(KINDS)}")
-    if frame not in FRAMES:
-        raise UsageError(f"--frame {frame!r}; valid: {', '.join(FRAMES)}")
+    check_kind(kind)
+    check_frame(frame)
     if frame == "tracker" and kind != "points":
         raise UsageError(
             "--frame tracker applies to --kind points; touch and gauge data have no outside frame"

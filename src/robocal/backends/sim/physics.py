@@ -59,7 +59,6 @@ __all__ = [
     "make_plant",
 ]
 
-TWO_PI = 2.0 * math.pi
 
 
 class SimClock:
@@ -332,7 +331,7 @@ class JointPlant:
         if p.noise_rad > 0:
             q += float(self._rng.normal(0.0, p.noise_rad))
         if p.counts_per_rev:
-            res = TWO_PI / p.counts_per_rev
+            res = math.tau / p.counts_per_rev
             q = round(q / res) * res
         return Reading(self.t_s, q, self.v_rad_s, self.tau_motor_nm, self.latched, self.answers())
 

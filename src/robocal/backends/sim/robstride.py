@@ -51,8 +51,7 @@ from .physics import Drive, JointPlant, SimClock
 
 __all__ = ["SimMotor", "SimMotorBus"]
 
-TWO_PI = 2.0 * math.pi
-FOUR_PI = 4.0 * math.pi
+FOUR_PI = 2.0 * math.tau
 
 
 @dataclass
@@ -149,7 +148,7 @@ class SimMotor:
 
     def _wrap_power_on(self, x: float) -> float:
         lo = -math.pi if self.zero_sta == 1 else 0.0
-        return (x - lo) % TWO_PI + lo
+        return (x - lo) % math.tau + lo
 
     def power_on(self) -> None:
         """Power-cycle: the reading restarts inside one turn (by ``zero_sta``); run-time state is reset."""

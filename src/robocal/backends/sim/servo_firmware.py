@@ -34,7 +34,7 @@ import math
 from typing import TYPE_CHECKING
 
 from ...core.lerobot import encode_sign_magnitude, encode_twos_complement
-from ..servo_ratings import RATINGS, MotorRating
+from ..servo_ratings import OVERLOAD_BIT, PWM_FULL, RATINGS, RPM_UNIT, MotorRating
 from .physics import Drive, JointPlant, OverloadLatch, SimClock
 
 if TYPE_CHECKING:
@@ -42,11 +42,6 @@ if TYPE_CHECKING:
 
 __all__ = ["RATINGS", "MotorRating", "ServoFirmware"]
 
-TWO_PI = 2.0 * math.pi
-RPM_UNIT = 0.229
-"""Dynamixel velocity unit, rev/min."""
-PWM_FULL = 885
-"""Dynamixel X PWM register value for 100 % duty."""
 
 _CHUNK_S = 0.005  # the setpoint ramp is updated at least every 5 ms of simulated time
 
@@ -103,11 +98,11 @@ class ServoFirmware:
     # ------------------------------------------------------------------------------------------ frames
     def rad(self, actual_ticks: float) -> float:
         """Actual ticks → plant radians."""
-        return (actual_ticks - self.zero_ticks) * TWO_PI / self.res
+        return (actual_ticks - self.zero_ticks) * math.tau / self.res
 
     def ticks(self, q_rad: float) -> float:
         """Plant radians → actual ticks."""
-        return self.zero_ticks + q_rad * self.res / TWO_PI
+        return self.zero_ticks + q_rad * self.res / math.tau
 
     def _reg(self, name: str, default: int = 0) -> int:
         return self.servo.get_reg(name) if name in self.servo.table else default
@@ -124,7 +119,7 @@ class ServoFirmware:
     # ----------------------------------------------------------------------------------------- the law
     def _position_gains(self) -> tuple[float, float]:
         """(kp N·m/rad, kd N·m·s/rad) of the position loop."""
-        per_rad = self.res / TWO_PI
+        per_rad = self.res / math.tau
         r = self.rating
         if self.dxl:
             amp = r.current_unit_a * r.kt_nm_a
@@ -163,9 +158,9 @@ class ServoFirmware:
 
     def _velocity_ref_rad_s(self) -> float:
         if self.dxl:
-            return self._reg("Goal_Velocity") * RPM_UNIT / 60 * TWO_PI
+            return self._reg("Goal_Velocity") * RPM_UNIT / 60 * math.tau
         name = "Goal_Velocity" if "Goal_Velocity" in self.servo.table else "Goal_Speed"
-        return self._reg(name) * TWO_PI / self.res
+        return self._reg(name) * math.tau / self.res
 
     def drive(self) -> Drive:
         """The torque law now, in the plant frame (limp with torque off)."""
@@ -182,10 +177,10 @@ class ServoFirmware:
                 tau_ff_nm=sign * r.stall_torque_nm * self._reg("Goal_PWM") / PWM_FULL, tau_max_nm=cap
             )
         if mode == 1:
-            kv = r.stall_torque_nm / (200 * TWO_PI / self.res)  # saturates 200 ticks/s off the goal speed
+            kv = r.stall_torque_nm / (200 * math.tau / self.res)  # saturates 200 ticks/s off the goal speed
             return Drive(kd_nms_rad=kv, v_ref_rad_s=sign * self._velocity_ref_rad_s(), tau_max_nm=cap)
         kp, kd = self._position_gains()
-        v_ref = self.ramp_ticks_s * TWO_PI / self.res
+        v_ref = self.ramp_ticks_s * math.tau / self.res
         return Drive(kp, kd, self.rad(self.setpoint_ticks), v_ref, 0.0, cap)
 
     def _ramp_speed_ticks_s(self) -> float:
@@ -249,7 +244,7 @@ class ServoFirmware:
                 break
             if self.dxl and plant.latched and self.torque_on:
                 self.servo.set_reg("Torque_Enable", 0)  # the overload shuts the torque off
-                self.servo.set_reg("Hardware_Error_Status", self._reg("Hardware_Error_Status") | 0x20)
+                self.servo.set_reg("Hardware_Error_Status", self._reg("Hardware_Error_Status") | OVERLOAD_BIT)
         self.servo.actual_ticks = self.ticks(plant.read().q_rad)
         self._note_held(now)
 
@@ -307,7 +302,7 @@ class ServoFirmware:
         """The error field of a status packet (Feetech: the ``Status`` bits; Dynamixel: alert bit 0x80)."""
         if self.dxl:
             return 0x80 if self._reg("Hardware_Error_Status") else 0
-        return 0x20 if self.plant.latched else 0
+        return OVERLOAD_BIT if self.plant.latched else 0
 
     def answers(self) -> bool:
         """False while the plant's replies are lost."""
@@ -317,10 +312,10 @@ class ServoFirmware:
         """Write the Present_* registers, Moving and the fault bits (before a read)."""
         s, p, r = self.servo, self.plant, self.rating
         tau = p.tau_motor_nm * self._sign
-        v_ticks = p.v_rad_s * self.res / TWO_PI * self._sign
+        v_ticks = p.v_rad_s * self.res / math.tau * self._sign
         moving = abs(v_ticks) > 20 or self.ramp_ticks_s != 0.0
         if self.dxl:
-            v_units = round(p.v_rad_s * 60 / TWO_PI / RPM_UNIT * self._sign)
+            v_units = round(p.v_rad_s * 60 / math.tau / RPM_UNIT * self._sign)
             cur = round(tau / r.kt_nm_a / r.current_unit_a)
             self._raw("Present_Current", encode_twos_complement(max(-32768, min(32767, cur)), 2))
             self._raw("Present_Velocity", encode_twos_complement(v_units, 4))
@@ -335,8 +330,8 @@ class ServoFirmware:
             v = max(-32767, min(32767, round(v_ticks)))
             self._raw(name, encode_sign_magnitude(v, 15) if not s.big_endian else v & 0xFFFF)
             if "Status" in s.table:
-                status = self._reg("Status") & ~0x20
-                s.set_reg("Status", status | (0x20 if p.latched else 0))
+                status = self._reg("Status") & ~OVERLOAD_BIT
+                s.set_reg("Status", status | (OVERLOAD_BIT if p.latched else 0))
         s.set_reg("Moving", int(moving))
 
     def _raw(self, name: str, raw: int) -> None:

@@ -33,7 +33,7 @@ from ...core.stop_search import JointStops
 from ...errors import UsageError
 from ..autocal import run_autocal, select_joints
 from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver_class
-from ..autocal_types import AutoCalFailedError, AutoCalResult, AutoView, Clock, JointDriver
+from ..autocal_types import AutoCalFailedError, AutoCalResult, AutoView, Clock, ConfirmStart, JointDriver
 from .calibrate import save_calibration
 from .eeprom import (
     EEPROM_FIELDS,
@@ -49,7 +49,6 @@ __all__ = [
     "HOLD_GAINS",
     "MAX_LAG_DEG",
     "AutoCalibrationResult",
-    "ConfirmStart",
     "auto_calibrate",
     "auto_section",
     "calibration_from_stops",
@@ -76,8 +75,6 @@ HOLD_GAINS: dict[str, dict[str, dict[str, int]]] = {
 XL330's default gain the elbow, capped at 25 % of its 0.52 N·m, stops short of a pose angle it must hold
 against its friction. Snapshotted and written back like every register the search changes."""
 
-ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
-"""The clear-workspace question: joints that will move (in order), their torque caps; False: nothing moves."""
 
 
 @dataclass(frozen=True)
