@@ -60,6 +60,17 @@ def test_identify_names_every_kind_it_takes(tmp_path: Path, capsys) -> None:
     assert "error: --kind 'foo'; valid: points, touch, gauge, tag" in err and "Traceback" not in err
 
 
+def test_identify_names_every_frame_it_takes(tmp_path: Path, capsys) -> None:
+    urdf = tmp_path / "x.urdf"
+    urdf.write_text("<robot name='x'/>")
+    code = main(
+        ["kinematics", "identify", "--urdf", str(urdf), "--data", str(tmp_path / "d.csv"), "--frame", "camera"]
+    )
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err == "error: --frame 'camera'; valid: base, tracker\n"
+
+
 def test_a_point_touched_once_is_a_warning(tmp_path: Path, capsys) -> None:
     assert main(["kinematics", "simulate", "--out", str(tmp_path), "--kind", "touch", "--poses", "14"]) == 0
     rows = (tmp_path / "touch.csv").read_text().splitlines()

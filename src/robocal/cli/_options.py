@@ -15,6 +15,7 @@ from ..workflows.sweep import DEFAULT_TOPIC
 
 __all__ = [
     "DEFAULT_TOPIC",
+    "LeRobotArm",
     "LeRobotCalibrationDir",
     "LeRobotCompat",
     "LeRobotId",
@@ -42,6 +43,10 @@ ReplayFrame = Annotated[
     str | None, typer.Option("--frame", help="Replay positions: identity (default) or motor.")
 ]
 """``--frame`` of ``check --source`` and ``sweep``."""
+LeRobotArm = Annotated[
+    str | None, typer.Option("--robot", help="LeRobot robot type (so101_follower, koch_follower, ...).")
+]
+"""``--robot`` of the ``dataset`` commands (optional)."""
 LeRobotId = Annotated[str | None, typer.Option("--id", help="Robot id: the calibration is <id>.json.")]
 """``--id`` of the ``lerobot`` commands, ``view --lerobot-port`` and ``kinematics identify``/``record``."""
 LeRobotCalibrationDir = Annotated[

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..workflows.dataset import DatasetOptions
 from . import _common
-from ._options import LeRobotCompat, LeRobotModes, LeRobotPhysical, LeRobotUseDegrees
+from ._options import LeRobotArm, LeRobotCompat, LeRobotModes, LeRobotPhysical, LeRobotUseDegrees
 
 app = typer.Typer(help="Re-calibrate and inspect recorded LeRobot v3 datasets.", no_args_is_help=True)
 
@@ -37,9 +37,6 @@ def _options(
     )
 
 
-Robot = Annotated[
-    str | None, typer.Option("--robot", help="LeRobot robot type (so101_follower, koch_follower, ...).")
-]
 Family = Annotated[
     str | None, typer.Option("--motor-family", help="feetech or dynamixel (default: --robot).")
 ]
@@ -57,7 +54,7 @@ def recalibrate(
     new: Annotated[Path, typer.Option("--new", help="Calibration to convert to.")],
     features: Features = None,
     workers: Annotated[int, typer.Option("--workers", help="Worker processes.")] = 1,
-    robot: Robot = None,
+    robot: LeRobotArm = None,
     motor_family: Family = None,
     use_degrees: LeRobotUseDegrees = None,
     modes: LeRobotModes = None,
@@ -120,7 +117,7 @@ def inspect(
         Path | None, typer.Option("--calibration", help="The dataset's calibration file.")
     ] = None,
     features: Features = None,
-    robot: Robot = None,
+    robot: LeRobotArm = None,
     motor_family: Family = None,
     use_degrees: LeRobotUseDegrees = None,
     modes: LeRobotModes = None,

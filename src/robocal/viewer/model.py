@@ -48,8 +48,9 @@ __all__ = [
 RGBA = tuple[float, float, float, float]
 DEFAULT_RGBA: RGBA = (0.42, 0.48, 0.58, 1.0)
 """Colour of a link without a URDF material."""
-ROD_RADIUS_M = 0.012
-BALL_RADIUS_M = 0.022
+STICK_ROD_RADIUS_M = 0.012
+STICK_BALL_RADIUS_M = 0.022
+"""The stick figure drawn for a URDF without visuals: rods along the joints, a ball at each link origin."""
 MOVABLE = ("revolute", "continuous", "prismatic")
 
 
@@ -300,7 +301,7 @@ def _fallback_shapes(link: str, children: Sequence[JointInfo], rgba: RGBA, root:
     import trimesh
 
     out = []
-    ball = trimesh.creation.icosphere(subdivisions=2, radius=BALL_RADIUS_M * (1.4 if root else 1.0))
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=STICK_BALL_RADIUS_M * (1.4 if root else 1.0))
     v, f = _mesh_arrays(ball)
     out.append(LinkShape(link, v, f, rgba, "fallback"))
     for j in children:
@@ -308,7 +309,7 @@ def _fallback_shapes(link: str, children: Sequence[JointInfo], rgba: RGBA, root:
         length = float(np.linalg.norm(d))
         if length < 1e-4:
             continue
-        rod = trimesh.creation.cylinder(radius=ROD_RADIUS_M, segment=np.array([np.zeros(3), d]), sections=12)
+        rod = trimesh.creation.cylinder(radius=STICK_ROD_RADIUS_M, segment=np.array([np.zeros(3), d]), sections=12)
         v, f = _mesh_arrays(rod)
         out.append(LinkShape(link, v, f, rgba, "fallback"))
     return out

@@ -19,6 +19,7 @@ __all__ = ["add_simple_shapes"]
 
 ROD_RADIUS_M = 0.015
 BALL_RADIUS_M = 0.025
+"""Sizes of the simple-shape visuals written into a URDF (cylinder per joint, sphere per link)."""
 
 
 def _rpy_z_to(d: np.ndarray) -> tuple[float, float, float]:

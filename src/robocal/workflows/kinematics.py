@@ -73,7 +73,8 @@ def check_frame(frame: str) -> str:
     Raises:
         UsageError: Another frame.
     """
-    check_frame(frame)
+    if frame not in FRAMES:
+        raise UsageError(f"--frame {frame!r}; valid: {', '.join(FRAMES)}")
     return frame
 
 
