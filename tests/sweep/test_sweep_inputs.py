@@ -211,7 +211,7 @@ def test_check_bad_source_fails_before_printing(urdf: Path, tmp_path: Path, caps
     capsys.readouterr()
     for extra, message in (
         (["--source", "bogus"], "--source 'bogus'"),
-        (["--source", "sim:lite", "--frame", "x"], "--frame 'x'"),
+        (["--source", "sim:lite", "--frame", "x"], "error: --frame 'x': expected one of identity, motor"),
     ):
         rc = main(["check", "--urdf", str(urdf), "--calibration", str(cal), *extra])
         captured = capsys.readouterr()

@@ -48,12 +48,12 @@ from .kinematic_fit import (
 
 __all__ = [
     "DEFAULT_VALIDATE_FRACTION",
-    "FRAMES",
+    "POINT_FRAMES",
     "DhComparison",
     "IdentifyResult",
     "PriorSigmas",
     "as_prior",
-    "check_frame",
+    "check_point_frame",
     "identify",
     "identify_joint_map",
     "tool_frame",
@@ -63,18 +63,18 @@ __all__ = [
 DEFAULT_VALIDATE_FRACTION = 0.25
 """Share of a session's poses held out for validation when no separate validation session is given."""
 
-FRAMES: tuple[str, ...] = ("base", "tracker")
+POINT_FRAMES: tuple[str, ...] = ("base", "tracker")
 """``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""
 
 
-def check_frame(frame: str) -> str:
-    """``frame`` if it is one of :data:`FRAMES`; else the ``--frame`` error that lists them.
+def check_point_frame(frame: str) -> str:
+    """``frame`` if it is one of :data:`POINT_FRAMES`; else the ``--frame`` error that lists them.
 
     Raises:
         UsageError: Another frame.
     """
-    if frame not in FRAMES:
-        raise UsageError(f"--frame {frame!r}; valid: {', '.join(FRAMES)}")
+    if frame not in POINT_FRAMES:
+        raise UsageError(f"--frame {frame!r}; valid: {', '.join(POINT_FRAMES)}")
     return frame
 
 
@@ -294,7 +294,7 @@ def identify(
         CalibError: Unreadable or malformed files, a pose outside the limits, NaN, too few poses, bad options.
     """
     check_kind(kind)
-    check_frame(frame)
+    check_point_frame(frame)
     if frame == "tracker" and kind != "points":
         raise UsageError(
             "--frame tracker applies to --kind points; touch and gauge data have no outside frame"

@@ -14,7 +14,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..backends.sources import FRAMES, JointSpec, Source, SourceSpec, parse_source
+from ..backends.sources import JointSpec, Source, SourceSpec, check_replay_frame, parse_source
 from ..core.arrays import FloatArray
 from ..core.sweep import RangeTracker, analyse_sweep, direction_from_motion
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
@@ -36,8 +36,7 @@ def check_source_options(source: str, frame: str | None = None) -> SourceSpec:
     Raises:
         UsageError: Malformed source string or unknown frame.
     """
-    if frame is not None and frame not in FRAMES:
-        raise UsageError(f"--frame {frame!r}: expected one of {', '.join(FRAMES)}")
+    check_replay_frame(frame)
     return parse_source(source)
 
 

@@ -18,15 +18,23 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from ...errors import UsageError
 from ..replay import DEFAULT_TOPIC
 from .can import RobstrideSource, SimLiteSource, open_can, open_sim_lite_source
 from .recording import ReplaySource, StreamReplaySource
-from .spec import FRAMES, SIM_OPTIONS, JointSpec, Sample, Source, SourceSpec, parse_source
+from .spec import (
+    REPLAY_FRAMES,
+    SIM_OPTIONS,
+    JointSpec,
+    Sample,
+    Source,
+    SourceSpec,
+    check_replay_frame,
+    parse_source,
+)
 
 __all__ = [
     "DEFAULT_TOPIC",
-    "FRAMES",
+    "REPLAY_FRAMES",
     "SIM_OPTIONS",
     "JointSpec",
     "ReplaySource",
@@ -36,6 +44,7 @@ __all__ = [
     "Source",
     "SourceSpec",
     "StreamReplaySource",
+    "check_replay_frame",
     "open_source",
     "parse_source",
 ]
@@ -63,8 +72,7 @@ def open_source(
     """
     if isinstance(spec, str):
         spec = parse_source(spec)
-    if frame is not None and frame not in FRAMES:
-        raise UsageError(f"--frame {frame!r}: expected one of {', '.join(FRAMES)}")
+    check_replay_frame(frame)
     if spec.kind == "sim":
         return open_sim_lite_source(spec, joints)
     if spec.kind == "can":

@@ -12,18 +12,30 @@ from ...core.arrays import FloatArray
 from ...errors import UsageError
 
 __all__ = [
-    "FRAMES",
+    "REPLAY_FRAMES",
     "SIM_OPTIONS",
     "JointSpec",
     "Sample",
     "Source",
     "SourceSpec",
+    "check_replay_frame",
     "parse_sim_options",
     "parse_source",
 ]
 
-FRAMES = ("identity", "motor")
+REPLAY_FRAMES = ("identity", "motor")
 """The frames a source reads in: ``direction·raw`` (a robot publishing with an empty calibration) or raw."""
+
+
+def check_replay_frame(frame: str | None) -> str | None:
+    """``frame`` if it is None or one of :data:`REPLAY_FRAMES`; else the ``--frame`` error that lists them.
+
+    Raises:
+        UsageError: Another frame.
+    """
+    if frame is not None and frame not in REPLAY_FRAMES:
+        raise UsageError(f"--frame {frame!r}: expected one of {', '.join(REPLAY_FRAMES)}")
+    return frame
 
 
 @dataclass(frozen=True)
