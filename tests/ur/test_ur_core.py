@@ -452,6 +452,31 @@ def test_rotvec_round_trip(axis: list[float], angle: float) -> None:
     np.testing.assert_allclose(rotvec_from_matrix(R), v, atol=1e-9)
 
 
+@given(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3), st.floats(0.0, math.pi))
+def test_quaternion_from_matrix_is_the_rotation(axis: list[float], angle: float) -> None:
+    from robocal.core.se3 import matrix_from_rotvec, quaternion_from_matrix
+
+    a = np.array(axis)
+    if np.linalg.norm(a) < 1e-3:
+        a = np.array([1.0, 0.0, 0.0])
+    a = a / np.linalg.norm(a)
+    w, x, y, z = quaternion_from_matrix(matrix_from_rotvec(a * angle))
+    assert w >= 0.0
+    assert math.sqrt(w * w + x * x + y * y + z * z) == pytest.approx(1.0, abs=1e-14)
+    # q = (cos θ/2, sin θ/2 · axis), the sign fixed by w ≥ 0 (at θ = π, w = 0 and either sign is the rotation)
+    expected = np.array([math.cos(angle / 2), *(math.sin(angle / 2) * a)])
+    got = np.array([w, x, y, z])
+    assert min(np.abs(got - expected).max(), np.abs(got + expected).max()) < 1e-12
+
+
+def test_quaternion_from_matrix_golden() -> None:
+    from robocal.core.se3 import quaternion_from_matrix, rot_z
+
+    w, x, y, z = quaternion_from_matrix(rot_z(math.pi / 2))  # 90° about z: (cos 45°, 0, 0, sin 45°)
+    assert (w, x, y, z) == pytest.approx((math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)), abs=1e-15)
+    assert quaternion_from_matrix(np.diag([1.0, -1.0, -1.0])) == (0.0, 1.0, 0.0, 0.0)  # 180° about x
+
+
 def test_negative_zero_in_raw_dh_is_hashed_like_the_driver() -> None:
     # the driver prints the controller's raw doubles with ostream <<, so -0.0 hashes as "-0"
     nom = nominal_dh("ur5e")

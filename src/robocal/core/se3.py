@@ -25,6 +25,7 @@ __all__ = [
     "homogeneous",
     "matrix_from_rotvec",
     "matrix_from_rpy_urdf",
+    "quaternion_from_matrix",
     "rot_x",
     "rot_y",
     "rot_z",
@@ -212,14 +213,14 @@ def matrix_from_rotvec(rotvec_rad: ArrayLike) -> FloatArray:
     return np.asarray(eye + a[..., None, None] * K + b[..., None, None] * (K @ K), dtype=np.float64)
 
 
-def rotvec_from_matrix(R: ArrayLike) -> FloatArray:
-    """Rotation matrix → rotation vector (angle in ``[0, π]``), via a unit quaternion for full precision.
+def quaternion_from_matrix(R: ArrayLike) -> tuple[float, float, float, float]:
+    """Rotation matrix → quaternion ``(w, x, y, z)`` with ``w ≥ 0`` (Shepperd: the largest component first).
 
     Args:
         R: One rotation matrix, shape ``(3, 3)``.
 
     Returns:
-        ``(3,)`` rotation vector, radians.
+        ``(w, x, y, z)``, a unit quaternion up to the rounding of ``R`` (not renormalised).
     """
     M = np.asarray(R, dtype=np.float64)
     tr = M[0, 0] + M[1, 1] + M[2, 2]
@@ -237,6 +238,19 @@ def rotvec_from_matrix(R: ArrayLike) -> FloatArray:
         w, x, y, z = (M[1, 0] - M[0, 1]) / s, (M[0, 2] + M[2, 0]) / s, (M[1, 2] + M[2, 1]) / s, 0.25 * s
     if w < 0:
         w, x, y, z = -w, -x, -y, -z
+    return (float(w), float(x), float(y), float(z))
+
+
+def rotvec_from_matrix(R: ArrayLike) -> FloatArray:
+    """Rotation matrix → rotation vector (angle in ``[0, π]``), via a unit quaternion for full precision.
+
+    Args:
+        R: One rotation matrix, shape ``(3, 3)``.
+
+    Returns:
+        ``(3,)`` rotation vector, radians.
+    """
+    w, x, y, z = quaternion_from_matrix(R)
     vnorm = math.sqrt(x * x + y * y + z * z)
     if vnorm == 0.0:
         return np.zeros(3)

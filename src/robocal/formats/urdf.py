@@ -27,6 +27,7 @@ __all__ = [
     "UrdfDocument",
     "UrdfModel",
     "parse_urdf",
+    "parse_vec3",
     "read_urdf",
 ]
 
@@ -174,7 +175,12 @@ def _parse_tree(data: bytes, source: str) -> Any:
     return tree
 
 
-def _vec3(text: str | None, default: Vec3, where: str, attr: str) -> Vec3:
+def parse_vec3(text: str | None, default: Vec3, where: str, attr: str) -> Vec3:
+    """A URDF ``xyz``/``rpy`` attribute: three finite numbers, or ``default`` when it is absent.
+
+    Raises:
+        FileFormatError: Not three numbers, or one that is NaN, inf or not a number (``where`` and ``attr`` name it).
+    """
     if text is None:
         return default
     parts = text.split()
@@ -224,10 +230,10 @@ def _model_from_tree(tree: Any, source: str) -> UrdfModel:
         if parent is None or child is None or not parent.get("link") or not child.get("link"):
             raise FileFormatError(f"{where}: needs <parent link=...> and <child link=...>")
         origin = el.find("origin")
-        xyz = _vec3(origin.get("xyz") if origin is not None else None, (0.0, 0.0, 0.0), where, "origin xyz")
-        rpy = _vec3(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0), where, "origin rpy")
+        xyz = parse_vec3(origin.get("xyz") if origin is not None else None, (0.0, 0.0, 0.0), where, "origin xyz")
+        rpy = parse_vec3(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0), where, "origin rpy")
         axis_el = el.find("axis")
-        axis = _vec3(axis_el.get("xyz") if axis_el is not None else None, (1.0, 0.0, 0.0), where, "axis xyz")
+        axis = parse_vec3(axis_el.get("xyz") if axis_el is not None else None, (1.0, 0.0, 0.0), where, "axis xyz")
         lim = el.find("limit")
         lower, upper, velocity, effort = (None if lim is None else _opt_float(lim, a, where) for a in _LIMIT_ATTRS)
         if lower is not None and upper is not None and lower > upper:

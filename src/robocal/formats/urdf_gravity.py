@@ -15,20 +15,10 @@ from ..core.chain import ChainJoint
 from ..core.gravity import STANDARD_GRAVITY_M_S2, GravityModel, LinkInertial
 from ..errors import FileFormatError, JointMismatchError
 from ._numbers import parse_finite
-from .urdf import UrdfDocument, named_elements
+from .urdf import UrdfDocument, named_elements, parse_vec3
 from .urdf_chain import root_link
 
 __all__ = ["gravity_model_from_urdf", "gravity_model_if_any", "link_inertials"]
-
-
-def _vec3(text: str | None, where: str) -> tuple[float, float, float]:
-    if text is None:
-        return (0.0, 0.0, 0.0)
-    parts = text.split()
-    if len(parts) != 3:
-        raise FileFormatError(f"{where}: <origin xyz={text!r}> must have 3 numbers")
-    x, y, z = (parse_finite(p, where, "<origin xyz>") for p in parts)
-    return (x, y, z)
 
 
 def link_inertials(doc: UrdfDocument) -> tuple[LinkInertial, ...]:
@@ -51,7 +41,7 @@ def link_inertials(doc: UrdfDocument) -> tuple[LinkInertial, ...]:
         if mass < 0:
             raise FileFormatError(f"{where}: mass {mass} is negative")
         origin = inertial.find("origin")
-        com = _vec3(origin.get("xyz") if origin is not None else None, where)
+        com = parse_vec3(origin.get("xyz") if origin is not None else None, (0.0, 0.0, 0.0), where, "<origin xyz>")
         out.append(LinkInertial(name, mass, com))
     return tuple(out)
 

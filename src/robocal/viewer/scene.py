@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core.arrays import FloatArray
+from ..core.se3 import quaternion_from_matrix
 from ..errors import BackendNotAvailableError, UsageError
 from .latest import Frame
 from .model import RobotModel
@@ -39,6 +40,7 @@ __all__ = [
     "plain_lights",
     "stop_server",
     "stop_thread",
+    "wxyz_from_matrix",
 ]
 
 OUTSIDE_RGB = (0.86, 0.08, 0.08)
@@ -169,22 +171,9 @@ def _lim(x: float) -> str:
     return f"{x:.2f}"
 
 
-def _wxyz(R: FloatArray) -> tuple[float, float, float, float]:
-    """Rotation matrix → unit quaternion (w, x, y, z)."""
-    m = R
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        w, x, y, z = 0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        w, x, y, z = (m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s
-    elif m[1, 1] > m[2, 2]:
-        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        w, x, y, z = (m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s
-    else:
-        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        w, x, y, z = (m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s
+def wxyz_from_matrix(R: FloatArray) -> tuple[float, float, float, float]:
+    """Rotation matrix → unit quaternion (w, x, y, z), renormalised for the page."""
+    w, x, y, z = quaternion_from_matrix(R)
     n = math.sqrt(w * w + x * x + y * y + z * z)
     return (w / n, x / n, y / n, z / n)
 
@@ -319,7 +308,7 @@ class _Robot:
             last = self.last.get(link)
             h = self.frames[link]
             if last is None or not np.array_equal(last[:3, :3], T[:3, :3]):
-                h.wxyz = _wxyz(T[:3, :3])
+                h.wxyz = wxyz_from_matrix(T[:3, :3])
             if last is None or not np.array_equal(last[:3, 3], T[:3, 3]):
                 h.position = (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]))
             self.last[link] = T

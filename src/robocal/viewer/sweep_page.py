@@ -38,6 +38,7 @@ from ..core.stop_types import FAIL_CODES
 from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
 from .model import RobotModel
+from .scene import wxyz_from_matrix
 
 __all__ = [
     "FAIL_RGB",
@@ -281,7 +282,7 @@ class SweepOverlay:
             frame = server.scene.add_frame(
                 self._joint_path(n),
                 show_axes=False,
-                wxyz=_wxyz(T[:3, :3]),
+                wxyz=wxyz_from_matrix(T[:3, :3]),
                 position=tuple(float(v) for v in T[:3, 3]),
             )
             lo, hi = self._arcs[n].lower, self._arcs[n].upper
@@ -350,10 +351,6 @@ class SweepOverlay:
             self._state.content = self._state_html()
 
 
-def _wxyz(R: FloatArray) -> tuple[float, float, float, float]:
-    from .scene import _wxyz as app_wxyz
-
-    return app_wxyz(R)
 
 
 class SweepWebView:
