@@ -17,7 +17,7 @@ from ..core.profile_auto import (
 from ..errors import FileFormatError
 from ._numbers import parse_finite
 
-__all__ = ["AUTO_KEYS", "parse_auto_section"]
+__all__ = ["AUTO_KEYS", "check_known_keys", "parse_auto_section"]
 
 AUTO_KEYS = (
     "speed_deg_s",
@@ -79,7 +79,12 @@ def _check_holds(lead: AutoJoint, out: list[AutoJoint], pose: list[tuple[str, fl
             )
 
 
-def _unknown(entry: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
+def check_known_keys(entry: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
+    """Refuse a profile mapping with a key outside ``allowed`` (a typo must not be silently ignored).
+
+    Raises:
+        FileFormatError: The unknown keys and the expected ones, at ``where``.
+    """
     extra = [str(k) for k in entry if k not in allowed]
     if extra:
         raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected {', '.join(allowed)}")
@@ -148,7 +153,7 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
     where = f"profile {source}: auto_calibration"
     if not isinstance(data, Mapping):
         raise FileFormatError(f"{where}: expected a mapping with keys {', '.join(AUTO_KEYS)}")
-    _unknown(data, AUTO_KEYS, where)
+    check_known_keys(data, AUTO_KEYS, where)
     cap = _positive(
         _num(data, "max_torque_fraction", where, 0.3), "max_torque_fraction", where, HARD_MAX_TORQUE_FRACTION
     )
@@ -175,7 +180,7 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
             raise FileFormatError(f"{jw}: missing key name")
         name = name.strip()
         jw = f"{where}: joint {name!r}"
-        _unknown(row, _JOINT_KEYS, jw)
+        check_known_keys(row, _JOINT_KEYS, jw)
         if name not in models:
             raise FileFormatError(f"{jw}: not a joint of the profile ({', '.join(models)})")
         if any(j.name == name for j in out):

@@ -28,7 +28,7 @@ from ..core.profile import (
 from ..errors import FileFormatError, UsageError
 from ..fileio import read_text
 from ._numbers import parse_direction, parse_finite, parse_int, parse_motor_id
-from ._profile_auto import parse_auto_section
+from ._profile_auto import check_known_keys, parse_auto_section
 from ._yaml import load_yaml
 from .urdf import UrdfModel
 
@@ -90,12 +90,6 @@ def _opt_str(entry: Mapping[str, Any], key: str, where: str) -> str | None:
     return value.strip()
 
 
-def _unknown(entry: Mapping[str, Any], allowed: tuple[str, ...], where: str) -> None:
-    extra = [str(k) for k in entry if k not in allowed]
-    if extra:
-        raise FileFormatError(f"{where}: unknown key {', '.join(extra)}; expected {', '.join(allowed)}")
-
-
 def _choice(entry: Mapping[str, Any], key: str, choices: tuple[str, ...], where: str) -> str | None:
     value = _opt_str(entry, key, where)
     if value is not None and value not in choices:
@@ -112,7 +106,7 @@ def _joint(entry: Any, i: int, source: str, version: int) -> ProfileJoint:
     if name is None:
         raise FileFormatError(f"{where}: missing key name (the joint's URDF name)")
     where = f"profile {source}: joint {name!r}"
-    _unknown(entry, allowed, where)
+    check_known_keys(entry, allowed, where)
     stop = _opt_str(entry, "stop", where)
     if stop is not None and stop not in STOPS:
         raise FileFormatError(f"{where}: stop {stop!r}; expected {' or '.join(STOPS)}")
@@ -147,7 +141,7 @@ def _lerobot_section(data: Any, joints: tuple[ProfileJoint, ...], source: str) -
     where = f"profile {source}: lerobot"
     if not isinstance(data, Mapping):
         raise FileFormatError(f"{where}: expected a mapping with keys {', '.join(_LEROBOT_KEYS)}")
-    _unknown(data, _LEROBOT_KEYS, where)
+    check_known_keys(data, _LEROBOT_KEYS, where)
     required = {}
     for key in ("device_name", "old_device_name"):
         value = _opt_str(data, key, where)
@@ -209,7 +203,7 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
         raise FileFormatError(
             f"profile {source}: the auto_calibration section needs version 2 (this file says version {version})"
         )
-    _unknown(
+    check_known_keys(
         data, _TOP_KEYS + tuple(k for k, v in _SECTION_VERSIONS.items() if version >= v), f"profile {source}"
     )
     name = _opt_str(data, "name", f"profile {source}")
@@ -218,7 +212,7 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
     cal = data.get("calibration") or {}
     if not isinstance(cal, Mapping):
         raise FileFormatError(f"profile {source}: calibration must be a mapping ({', '.join(_CAL_KEYS)})")
-    _unknown(cal, _CAL_KEYS, f"profile {source}: calibration")
+    check_known_keys(cal, _CAL_KEYS, f"profile {source}: calibration")
     method = _opt_str(cal, "method", f"profile {source}: calibration") or "two-sided"
     if method not in METHODS:
         raise FileFormatError(

@@ -38,6 +38,7 @@ __all__ = [
     "open_server",
     "page_url",
     "plain_lights",
+    "polyline_segments",
     "stop_server",
     "stop_thread",
     "wxyz_from_matrix",
@@ -169,6 +170,11 @@ def _lim(x: float) -> str:
     if math.isinf(x):
         return "∞" if x > 0 else "−∞"
     return f"{x:.2f}"
+
+
+def polyline_segments(points: FloatArray) -> npt.NDArray[np.float32]:
+    """``(N, 3)`` points of a polyline → its ``(N − 1, 2, 3)`` segments, float32 (viser's line segments)."""
+    return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
 
 
 def wxyz_from_matrix(R: FloatArray) -> tuple[float, float, float, float]:

@@ -38,7 +38,7 @@ from ..core.stop_types import FAIL_CODES
 from ..core.sweep_result import SweepResult
 from .app import PageUpdate, ViewerApp
 from .model import RobotModel
-from .scene import wxyz_from_matrix
+from .scene import polyline_segments, wxyz_from_matrix
 
 __all__ = [
     "FAIL_RGB",
@@ -133,10 +133,6 @@ def line_rgb(rgb: tuple[int, int, int]) -> npt.NDArray[np.uint8]:
     c = np.asarray(rgb, dtype=np.float64) / 255.0
     lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
     return np.asarray(np.round(lin * 255.0), dtype=np.uint8)
-
-
-def _segments(points: FloatArray) -> npt.NDArray[np.float32]:
-    return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -290,13 +286,13 @@ class SweepOverlay:
                 lo, hi = -math.pi, math.pi
             limit = server.scene.add_line_segments(
                 f"{self._joint_path(n)}/limits",
-                _segments(arc_points(j.axis, lo, hi, self.radius_m)),
+                polyline_segments(arc_points(j.axis, lo, hi, self.radius_m)),
                 line_rgb(LIMIT_RGB),
                 thickness=0.15 * self.radius_m,
             )
             swept = server.scene.add_line_segments(
                 f"{self._joint_path(n)}/swept",
-                _segments(arc_points(j.axis, 0.0, 0.0, 1.25 * self.radius_m)),
+                polyline_segments(arc_points(j.axis, 0.0, 0.0, 1.25 * self.radius_m)),
                 # one colour per vertex from the start: a line node created with a single colour is drawn
                 # white by the page after a per-vertex colour update (until a reload)
                 np.tile(line_rgb(STATUS_RGB["not_swept"]), (ARC_SEGMENTS, 2, 1)),
@@ -342,7 +338,7 @@ class SweepOverlay:
                 continue
             hi = a.sampled_max if a.sampled_max > a.sampled_min else a.sampled_min + 1e-3
             axis = self.model.joint(a.name).axis
-            h.points = _segments(arc_points(axis, a.sampled_min, hi, 1.25 * self.radius_m))
+            h.points = polyline_segments(arc_points(axis, a.sampled_min, hi, 1.25 * self.radius_m))
             h.colors = np.tile(line_rgb(status_rgb(a.status)), (ARC_SEGMENTS, 2, 1))
             h.visible = True
         self.updates += 1

@@ -47,7 +47,7 @@ from ..core.ur import (
 from ..errors import UsageError
 from ..workflows import ur as ur_wf
 from ..workflows import ur_verify
-from .scene import ServedPage, _viser, open_server, plain_lights
+from .scene import ServedPage, _viser, open_server, plain_lights, polyline_segments
 
 __all__ = [
     "CALIBRATED_RGB",
@@ -193,11 +193,6 @@ def _check_port_free(host: str, port: int) -> None:
             raise UsageError(f"cannot serve the page on {host}:{port}: {exc.strerror or exc}") from None
 
 
-def _segments(frames: FloatArray, offset: FloatArray) -> FloatArray:
-    p = frames + offset
-    return np.stack([p[:-1], p[1:]], axis=1).astype(np.float32)
-
-
 class UrViewPage(ServedPage):
     """The viser page of ``robocal ur view``.
 
@@ -314,10 +309,10 @@ class UrViewPage(ServedPage):
         off = self._offset()
         h = self._h
         h["nominal"] = server.scene.add_line_segments(
-            "/nominal/links", _segments(c.frames_nominal_m, np.zeros(3)), NOMINAL_RGB, thickness=0.03
+            "/nominal/links", polyline_segments(c.frames_nominal_m), NOMINAL_RGB, thickness=0.03
         )
         h["calibrated"] = server.scene.add_line_segments(
-            "/calibrated/links", _segments(c.frames_calibrated_m, off), CALIBRATED_RGB, thickness=0.03
+            "/calibrated/links", polyline_segments(c.frames_calibrated_m + off), CALIBRATED_RGB, thickness=0.03
         )
         h["nominal_tool0"] = server.scene.add_icosphere("/nominal/tool0", radius=0.035, color=NOMINAL_RGB)
         h["calibrated_tool0"] = server.scene.add_icosphere(
@@ -403,8 +398,8 @@ class UrViewPage(ServedPage):
             tip = c.frames_calibrated_m[-1] + off
             arrow = np.array([[tip, tip + c.error_m * self.arrow_scale]], dtype=np.float32)
             with self.server.atomic():
-                h["nominal"].points = _segments(c.frames_nominal_m, np.zeros(3))
-                h["calibrated"].points = _segments(c.frames_calibrated_m, off)
+                h["nominal"].points = polyline_segments(c.frames_nominal_m)
+                h["calibrated"].points = polyline_segments(c.frames_calibrated_m + off)
                 h["nominal_tool0"].position = tuple(float(v) for v in c.frames_nominal_m[-1])
                 h["calibrated_tool0"].position = tuple(float(v) for v in tip)
                 h["cal_label"].position = tuple(float(v) for v in off - np.array([0.0, 0.0, 0.05]))
