@@ -13,6 +13,8 @@ Messages name the file, joint or field and say what was expected, so the CLI can
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 __all__ = [
     "BackendNotAvailableError",
     "CalibError",
@@ -26,6 +28,7 @@ __all__ = [
     "ProtocolError",
     "ShapeMismatchError",
     "UsageError",
+    "check_choice",
 ]
 
 
@@ -37,6 +40,17 @@ class CalibError(Exception):
 
 class UsageError(CalibError, ValueError):
     """A command, flag or argument combination that cannot work; fix the invocation."""
+
+
+def check_choice(flag: str, value: str, valid: Sequence[str]) -> str:
+    """``value`` if it is one of ``valid``; else the :class:`UsageError` ``<flag> '<value>'; valid: a, b``.
+
+    Raises:
+        UsageError: ``value`` is not in ``valid``.
+    """
+    if value not in valid:
+        raise UsageError(f"{flag} {value!r}; valid: {', '.join(valid)}")
+    return value
 
 
 class InvalidCalibrationError(CalibError, ValueError):

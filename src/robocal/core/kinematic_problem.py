@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError
+from ..errors import InvalidCalibrationError, ShapeMismatchError, UsageError, check_choice
 from .arrays import FloatArray, IntArray
 from .identifiability import (
     Explain,
@@ -64,9 +64,7 @@ def check_kind(kind: str, valid: Sequence[str] = KINDS) -> str:
     Raises:
         UsageError: ``kind`` is not in ``valid``.
     """
-    if kind not in valid:
-        raise UsageError(f"--kind {kind!r}; valid: {', '.join(valid)}")
-    return kind
+    return check_choice("--kind", kind, valid)
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,13 +31,13 @@ from ..core.kinematic_problem import (
     plan_poses,
 )
 from ..core.pose_plan import plan_contact_poses, reach_point
-from ..errors import UsageError
+from ..errors import UsageError, check_choice
 from ..fileio import atomic_write_text, check_output_path
 from ..formats.kinematic_data import read_joint_table, session_csv
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from .kinematic_fit import PriorSigmas, check_seed, prediction_rms_m
-from .kinematics import as_prior, check_point_frame, tool_frame
+from .kinematics import POINT_FRAMES, as_prior, tool_frame
 
 __all__ = ["PlanResult", "plan"]
 
@@ -140,7 +140,7 @@ def plan(
         need = "two points (sockets A and B)" if kind == "gauge" else "one or more points"
         if (kind == "gauge" and len(touch_points_m) != 2) or not touch_points_m:
             raise UsageError(f"--kind {kind} needs --touch-points with {need}, x,y,z in metres each")
-    check_point_frame(frame)
+    check_choice("--frame", frame, POINT_FRAMES)
     if not (math.isfinite(noise_m) and noise_m > 0):
         raise UsageError(f"--noise-mm must be a positive number, got {noise_m * 1e3}")
     prior_s = as_prior(prior)

@@ -30,7 +30,7 @@ from ..core.kinematic_problem import (
     dh_like_constraints,
     free_indices,
 )
-from ..errors import UsageError
+from ..errors import UsageError, check_choice
 from ..formats.kinematic_data import read_measurements
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
@@ -53,7 +53,6 @@ __all__ = [
     "IdentifyResult",
     "PriorSigmas",
     "as_prior",
-    "check_point_frame",
     "identify",
     "identify_joint_map",
     "tool_frame",
@@ -65,17 +64,6 @@ DEFAULT_VALIDATE_FRACTION = 0.25
 
 POINT_FRAMES: tuple[str, ...] = ("base", "tracker")
 """``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""
-
-
-def check_point_frame(frame: str) -> str:
-    """``frame`` if it is one of :data:`POINT_FRAMES`; else the ``--frame`` error that lists them.
-
-    Raises:
-        UsageError: Another frame.
-    """
-    if frame not in POINT_FRAMES:
-        raise UsageError(f"--frame {frame!r}; valid: {', '.join(POINT_FRAMES)}")
-    return frame
 
 
 @dataclass(frozen=True, eq=False)
@@ -294,7 +282,7 @@ def identify(
         CalibError: Unreadable or malformed files, a pose outside the limits, NaN, too few poses, bad options.
     """
     check_kind(kind)
-    check_point_frame(frame)
+    check_choice("--frame", frame, POINT_FRAMES)
     if frame == "tracker" and kind != "points":
         raise UsageError(
             "--frame tracker applies to --kind points; touch and gauge data have no outside frame"
