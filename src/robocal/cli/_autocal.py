@@ -201,7 +201,7 @@ def sweep_auto(
     With ``view_port`` (``--view``), the search is drawn on the robot in the browser as well.
     """
     from ..workflows.autocal_sweep import run_sweep_auto
-    from ._sweep_view import print_warnings, result_table
+    from ._sweep_view import print_sweep_warnings, result_table
 
     names = _common.parse_csv_list(joints, "--joints")  # "" or "a,,b": one error line, nothing moves
     confirm = make_confirm_start(yes)
@@ -226,7 +226,7 @@ def sweep_auto(
             live.finish(outcome.auto, outcome.result)
     _common.console.print(auto_table(outcome.auto))
     _common.console.print(result_table(outcome.result))
-    print_warnings(outcome.result)
+    print_sweep_warnings(outcome.result)
     if outcome.auto.failed:
         _common.print_warning(f"written with --partial although {outcome.auto.failure_summary()}")
     if outcome.out is not None:

@@ -19,7 +19,7 @@ __all__ = [
     "ConsoleOperator",
     "interrupted",
     "print_calibration",
-    "range_warnings",
+    "print_range_warnings",
     "status",
     "sweep_renderer",
 ]
@@ -35,7 +35,7 @@ def interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") -
     return typer.Exit(130)
 
 
-def range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[str]:
+def print_range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[str]:
     """Print (and return) one warning per motor whose range lies beyond one turn (LeRobot accepts those)."""
     from ..workflows.lerobot import range_warnings as beyond_one_turn
 

@@ -15,7 +15,7 @@ from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RA
 from ..workflows.sweep_session import SweepSession
 from . import _common
 
-__all__ = ["LIVE_WARNINGS", "STATUS_STYLE", "LiveView", "print_warnings", "result_table"]
+__all__ = ["LIVE_WARNINGS", "STATUS_STYLE", "LiveView", "print_sweep_warnings", "result_table"]
 
 STATUS_STYLE = {"ok": "green", "not_swept": "yellow", "sweeping": "cyan", "moved": "green"}
 LIVE_WARNINGS = ("no_overlap", "offset_large")
@@ -23,7 +23,7 @@ LIVE_WARNINGS = ("no_overlap", "offset_large")
 early. The others need the finished sweep (wrap_in_travel depends on the final offset and on ``zero_sta``)."""
 
 
-def print_warnings(result: SweepResult) -> None:
+def print_sweep_warnings(result: SweepResult) -> None:
     """One ``warning: JOINT: code: sentence`` line per warning (sentence with the numbers and the next step)."""
     for j in result.joints:
         for code in j.warnings:

@@ -16,7 +16,7 @@ from ._lerobot_render import (
     ConsoleOperator,
     interrupted,
     print_calibration,
-    range_warnings,
+    print_range_warnings,
     status,
     sweep_renderer,
 )
@@ -168,7 +168,7 @@ def calibrate(
     path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file)
     if use_file:
         cals = read_calibration_file(path)
-        beyond = range_warnings(spec, cals)
+        beyond = print_range_warnings(spec, cals)
         with open_arm(spec, port) as (bus, _arm):
             try:
                 restore(bus, spec, cals, on_status=status)
@@ -296,7 +296,7 @@ def check(
 
     spec = _spec(robot)
     path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
-    beyond = range_warnings(spec, cals)
+    beyond = print_range_warnings(spec, cals)
     with open_arm(spec, port) as (bus, _arm):
         diffs = run(bus, spec, cals)
     for d in diffs:
@@ -368,7 +368,7 @@ def show(
     compat_mode = parse_compat(compat)
     spec, modes, cals = _scaled(robot, use_degrees, modes_opt, robot_id, calibration_dir, file)
     require_motors(spec, cals)
-    range_warnings(spec, cals)
+    print_range_warnings(spec, cals)
     with open_arm(spec, port) as (bus, arm):
         if arm is not None:  # the simulated arm starts uncalibrated: give it this calibration
             restore(bus, spec, cals)
@@ -409,7 +409,7 @@ def export_urdf(
     signs = _common.parse_typed_assignments(sign, "--sign", int, "expected -1 or 1")
     offsets = _common.parse_typed_assignments(offset_deg, "--offset-deg", float, "expected a number of degrees")
     spec, modes, cals = _scaled(robot, use_degrees, modes_opt, robot_id, calibration_dir, file)
-    beyond = range_warnings(spec, cals)
+    beyond = print_range_warnings(spec, cals)
     rc, skipped = export_joint_map(
         spec,
         cals,

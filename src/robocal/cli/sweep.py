@@ -19,7 +19,7 @@ from ..workflows.sweep_session import DEFAULT_DIRECTION_STEP_S
 from . import _common
 from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic, RobotProfile
 from ._sweep_confirm import StdinLines, make_confirm, stdin_is_terminal, terminal
-from ._sweep_view import LiveView, print_warnings, result_table
+from ._sweep_view import LiveView, print_sweep_warnings, result_table
 
 
 @contextlib.contextmanager
@@ -47,7 +47,7 @@ def _not_lost() -> Iterator[None]:
         yield
     except SweepNotSavedError as exc:
         _common.console.print(result_table(exc.result))
-        print_warnings(exc.result)
+        print_sweep_warnings(exc.result)
         if exc.calibration_text.strip() not in ("", "{}"):
             _common.err_console.print(
                 f"the sweep's calibration was NOT saved; here it is ({exc.fmt}, on standard output):",
@@ -182,7 +182,7 @@ def sweep(
             method=method,
         )
     _common.console.print(result_table(outcome.result))
-    print_warnings(outcome.result)
+    print_sweep_warnings(outcome.result)
     for name, count in outcome.missing_samples.items():  # informational: NaN is legal in a JointState
         _common.err_console.print(
             f"note: {name}: {count} of {outcome.samples} samples had no position (NaN) and were skipped",
