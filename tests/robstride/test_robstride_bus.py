@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import types
 from collections.abc import Iterator
 
 import can
@@ -11,7 +12,15 @@ import pytest
 
 from robocal.backends import load_backend
 from robocal.backends.robstride import MotorSpec, RobstrideBus
-from robocal.backends.robstride.protocol import CommType, Param
+from robocal.backends.robstride import bus as bus_module
+from robocal.backends.robstride.protocol import (
+    CommType,
+    Feedback,
+    Param,
+    encode_feedback,
+    model_limits,
+    split_id,
+)
 from robocal.backends.sim.robstride import SimMotor, SimMotorBus
 from robocal.errors import CalibTimeoutError, UsageError
 
@@ -138,3 +147,32 @@ def test_bad_arguments() -> None:
         pytest.raises(UsageError, match="no motor named 'b'"),
     ):
         bus.enable("b")
+
+
+def test_late_reply_of_a_descheduled_reader_is_taken(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a loaded machine the reading process can be descheduled past its deadline while the reply arrives:
+    the reply came in time and is taken (it used to be a timeout, which failed sweeps under load)."""
+    ch = channel()
+    peer = can.Bus(channel=ch, interface="virtual", receive_own_messages=False)
+    calls = itertools.count()
+
+    def monotonic() -> float:
+        # call 0: the deadline, right after the request was sent; call 1: the reader wakes up 10 s late and
+        # meanwhile the motor's reply arrived (sent here, before the clock is read)
+        if next(calls) == 1:
+            request = peer.recv(timeout=30.0)
+            assert request is not None and split_id(request.arbitration_id)[0] == CommType.MIT
+            fb = Feedback(7, 0xFD, 2, 0, 0.5, 0.0, 0.0, 25.0)
+            arb, data = encode_feedback(fb, model_limits("rs-00"))
+            peer.send(can.Message(arbitration_id=arb, data=data, is_extended_id=True))
+            return 1010.0
+        return 1000.0
+
+    monkeypatch.setattr(bus_module, "time", types.SimpleNamespace(monotonic=monotonic))
+    try:
+        with RobstrideBus(ch, [MotorSpec("j7", 7, "rs-00")], interface="virtual", timeout_s=0.1) as bus:
+            assert bus.zero_torque()["j7"].position_rad == pytest.approx(0.5, abs=1e-3)
+            with pytest.raises(CalibTimeoutError, match=r"no reply within 0.1 s from motor 'j7'"):
+                bus.zero_torque()  # no reply at all: still a timeout
+    finally:
+        peer.shutdown()

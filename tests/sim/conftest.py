@@ -128,9 +128,15 @@ class Interactive:
             time.sleep(0.02)
 
     def send(self, line: str = "") -> None:
+        """Type ``line`` and ENTER. A child that already exited fails the test with its own output (its error
+        message), not with the BrokenPipeError of writing to a closed pipe."""
         assert self.proc.stdin is not None
-        self.proc.stdin.write(line.encode() + b"\n")
-        self.proc.stdin.flush()
+        try:
+            self.proc.stdin.write(line.encode() + b"\n")
+            self.proc.stdin.flush()
+        except BrokenPipeError:
+            code, out = self.finish(timeout=60.0)
+            raise AssertionError(f"exited {code} before reading {line!r}:\n{out[-3000:]}") from None
 
     def finish(self, timeout: float = 120.0) -> tuple[int, str]:
         try:

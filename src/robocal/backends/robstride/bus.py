@@ -40,6 +40,9 @@ __all__ = ["MotorSpec", "RobstrideBus"]
 
 DEFAULT_TIMEOUT_S = 0.1
 """Default time to wait for one reply (s)."""
+_LATE_FRAMES = 1024
+"""At most this many frames already queued are taken once a deadline has passed (a busy bus cannot hold a read
+forever)."""
 
 
 @dataclass(frozen=True)
@@ -140,9 +143,19 @@ class RobstrideBus(ClosesOnExit):
             raise DeviceError(f"CAN {self.interface}:{self.channel}: send failed ({exc})") from None
 
     def _receive(self, deadline: float) -> Iterator[tuple[int, int, int, Any]]:
-        """Extended frames received before ``deadline``, as ``(comm_type, motor_id, low8, message)``."""
-        while (remaining := deadline - time.monotonic()) > 0:
-            msg = self._bus.recv(timeout=remaining)
+        """Extended frames received before ``deadline``, as ``(comm_type, motor_id, low8, message)``.
+
+        Frames already waiting when the deadline has passed are still taken (without waiting): this process may
+        have been descheduled past the deadline while the replies arrived, and those came in time.
+        """
+        late = 0
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                late += 1
+                if late > _LATE_FRAMES:
+                    return
+            msg = self._bus.recv(timeout=max(remaining, 0.0))
             if msg is None:
                 return
             if msg.is_extended_id:
