@@ -176,3 +176,19 @@ def test_late_reply_of_a_descheduled_reader_is_taken(monkeypatch: pytest.MonkeyP
                 bus.zero_torque()  # no reply at all: still a timeout
     finally:
         peer.shutdown()
+
+
+def test_reply_timeout_floor_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    from robocal.backends import REPLY_TIMEOUT_ENV, reply_timeout_floor_s
+
+    monkeypatch.setenv(REPLY_TIMEOUT_ENV, "2000")
+    with RobstrideBus(channel(), [MotorSpec("a", 1)], interface="virtual", timeout_s=0.1) as bus:
+        assert bus.timeout_s == 2.0  # raised to the floor
+    with RobstrideBus(channel(), [MotorSpec("a", 1)], interface="virtual", timeout_s=5.0) as bus:
+        assert bus.timeout_s == 5.0  # a longer timeout is kept
+    monkeypatch.setenv(REPLY_TIMEOUT_ENV, " ")
+    assert reply_timeout_floor_s() == 0.0
+    for bad in ("2s", "-1", "nan", "600001"):
+        monkeypatch.setenv(REPLY_TIMEOUT_ENV, bad)
+        with pytest.raises(UsageError, match=rf"ROBOCAL_REPLY_TIMEOUT_MS='{bad}': expected a number of ms"):
+            RobstrideBus(channel(), [MotorSpec("a", 1)], interface="virtual")

@@ -3,14 +3,23 @@
 from __future__ import annotations
 
 import os
+import queue
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+from robocal.backends import REPLY_TIMEOUT_ENV
+
+CLIENT_ENV = {REPLY_TIMEOUT_ENV: "2000", "COLUMNS": "200"}
+"""Environment of robocal's commands that talk to a ``robocal sim`` process: the simulator is a process the
+machine's load can hold up for a moment, so a reply is waited for up to 2 s (a servo's 100 ms is meant for a
+motor that answers in 1 ms); a simulator that never answers still times out."""
 
 
 class SimProcess:
@@ -28,16 +37,30 @@ class SimProcess:
         )
         self.info: dict[str, str] = {}
         assert self.proc.stdout is not None
-        deadline = time.monotonic() + 30
+        lines: queue.Queue[str] = queue.Queue()
+        stdout = self.proc.stdout
+
+        def read_lines() -> None:
+            for line in iter(stdout.readline, ""):
+                lines.put(line)
+                if line.startswith(f"{until}: "):
+                    return  # the rest stays in the pipe, unread, as before
+            lines.put("")
+
+        threading.Thread(target=read_lines, daemon=True).start()
+        deadline = time.monotonic() + 120  # a hang guard only: starting can take long on a loaded machine
         while until not in self.info:
-            line = self.proc.stdout.readline()
+            try:
+                line = lines.get(timeout=max(deadline - time.monotonic(), 0.0))
+            except queue.Empty:
+                self.proc.kill()
+                raise AssertionError(f"robocal sim: no {until!r} line within 120 s: {self.info}") from None
             if not line:
                 err = self.proc.stderr.read() if self.proc.stderr else ""
                 raise AssertionError(f"robocal sim exited early ({self.proc.wait()}): {err}")
             key, sep, value = line.rstrip("\n").partition(": ")
             if sep:
                 self.info[key] = value
-            assert time.monotonic() < deadline
 
     def stop(self) -> tuple[int, str]:
         """Ctrl-C; returns exit code and standard error."""
@@ -69,7 +92,7 @@ def robocal(
     *args: str, cwd: Path, stdin: str | None = None, timeout: float = 120
 ) -> subprocess.CompletedProcess[str]:
     """Run the robocal CLI in a child process."""
-    env = dict(os.environ, COLUMNS="200")
+    env = dict(os.environ, **CLIENT_ENV)
     return subprocess.run(
         [sys.executable, "-m", "robocal", *args],
         cwd=cwd,
@@ -93,7 +116,7 @@ class Interactive:
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
-            env=dict(env or os.environ, COLUMNS="200"),
+            env=dict(env or os.environ, **CLIENT_ENV),
         )
         self.output = b""
         self._lock = threading.Lock()
@@ -157,6 +180,7 @@ class Interactive:
             ctl.mid()
             self.send()
             self.expect(sweep_prompt, after=k)
-            ctl.sweep(seconds=1.2, dwell_s=1.0)  # long dwells: a reader starved by a loaded machine still sees each stop
+            # paced: the hand moves on only once the command read where it is (both stops seen, however loaded)
+            ctl.sweep(seconds=1.2, dwell_s=0.2, paced=True)
             self.send()
         return self.finish()

@@ -43,13 +43,13 @@ def main() -> None:
             work,
         )
         with SimControl(sim.info["control"]) as ctl:
-            deadline = time.monotonic() + 30
+            deadline = time.monotonic() + 120  # a hang guard: starting can take long on a loaded machine
             while not all(j["last_write"].startswith("MIT") for j in ctl.state().values()):
                 assert time.monotonic() < deadline, "the sweep never polled every motor"
                 assert sweep.proc.poll() is None, sweep.text()
                 time.sleep(0.1)
-            ctl.sweep(seconds=3.0, dwell_s=0.3)
-            time.sleep(0.3)
+            # paced: each joint moves on only once the sweep read where it is (both stops seen, however loaded)
+            ctl.sweep(seconds=3.0, dwell_s=0.3, paced=True)
         sweep.proc.send_signal(signal.SIGINT)  # first Ctrl-C: finish and write
         code, out = sweep.finish()
         report = json.loads((work / "report.json").read_text())

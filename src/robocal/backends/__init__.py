@@ -11,6 +11,8 @@ workflows (primary interface) all go through it.
 from __future__ import annotations
 
 import importlib
+import math
+import os
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Literal, overload
 
@@ -22,7 +24,15 @@ if TYPE_CHECKING:
 
 from ..errors import BackendNotAvailableError, UsageError
 
-__all__ = ["BACKENDS", "EXTRAS", "list_backends", "load_backend", "require"]
+__all__ = [
+    "BACKENDS",
+    "EXTRAS",
+    "REPLY_TIMEOUT_ENV",
+    "list_backends",
+    "load_backend",
+    "reply_timeout_floor_s",
+    "require",
+]
 
 BACKENDS: dict[str, tuple[str, str]] = {
     "robstride": ("robocal.backends.robstride", "RobstrideBus"),
@@ -42,6 +52,31 @@ EXTRAS: dict[str, str] = {
     "pyarrow": "dataset",
 }
 """Top-level module of an optional dependency → the robocal extra that installs it."""
+
+REPLY_TIMEOUT_ENV = "ROBOCAL_REPLY_TIMEOUT_MS"
+"""Environment variable: the least time, ms, to wait for a device's reply (see :func:`reply_timeout_floor_s`)."""
+
+
+def reply_timeout_floor_s() -> float:
+    """The least time to wait for each reply of a device, s: ``$ROBOCAL_REPLY_TIMEOUT_MS`` / 1000 (0 when unset).
+
+    Servo status packets (Feetech, Dynamixel) and Robstride CAN replies are waited for at least this long, and
+    each bus's own timeout still applies when it is longer. For a slow USB adapter, or a simulator running as
+    another process on a loaded machine (``robocal sim``), whose answers can come later than a motor's.
+
+    Raises:
+        UsageError: The variable is set to something other than a number of milliseconds in 0..600000.
+    """
+    text = os.environ.get(REPLY_TIMEOUT_ENV, "").strip()
+    if not text:
+        return 0.0
+    try:
+        ms = float(text)
+    except ValueError:
+        ms = math.nan
+    if not 0 <= ms <= 600_000:
+        raise UsageError(f"{REPLY_TIMEOUT_ENV}={text!r}: expected a number of ms from 0 to 600000")
+    return ms / 1000.0
 
 
 def require(module: str, purpose: str, *, message: str | None = None) -> Any:

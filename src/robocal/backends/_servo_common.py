@@ -12,7 +12,7 @@ from typing import Any, NamedTuple
 
 from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
-from . import inproc_serial, require
+from . import inproc_serial, reply_timeout_floor_s, require
 
 __all__ = ["SdkBusBase", "ServoModel"]
 
@@ -151,7 +151,13 @@ class SdkBusBase(ClosesOnExit):
         raise NotImplementedError
 
     def _install_timeout(self, packet_timeout_ms: float | None) -> None:
-        """Raise the SDK's per-packet timeout to at least ``packet_timeout_ms`` (on this port object only)."""
+        """Raise the SDK's per-packet timeout to at least ``packet_timeout_ms`` (on this port object only).
+
+        And to at least ``$ROBOCAL_REPLY_TIMEOUT_MS`` (:func:`robocal.backends.reply_timeout_floor_s`).
+        """
+        floor_ms = reply_timeout_floor_s() * 1000.0
+        if floor_ms > 0:
+            packet_timeout_ms = max(packet_timeout_ms or 0.0, floor_ms)
         if packet_timeout_ms is None:
             return
         handler = self._port_handler

@@ -16,7 +16,7 @@ from typing import Any
 
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
-from .. import require
+from .. import reply_timeout_floor_s, require
 from .protocol import (
     DEFAULT_HOST_ID,
     FIRMWARE_QUERY,
@@ -68,7 +68,8 @@ class RobstrideBus(ClosesOnExit):
         motors: The motors on the channel.
         interface: python-can interface (``"socketcan"``, ``"virtual"``, …).
         host_id: Host CAN id used in requests.
-        timeout_s: Time to wait for each reply, s.
+        timeout_s: Time to wait for each reply, s (at least ``$ROBOCAL_REPLY_TIMEOUT_MS``, see
+            :func:`robocal.backends.reply_timeout_floor_s`).
         bus: An already open python-can bus to use instead of opening one (not closed by :meth:`close`).
     """
 
@@ -87,7 +88,7 @@ class RobstrideBus(ClosesOnExit):
         self.channel = channel
         self.interface = interface
         self.host_id = host_id
-        self.timeout_s = float(timeout_s)
+        self.timeout_s = max(float(timeout_s), reply_timeout_floor_s())
         self.motors: dict[str, MotorSpec] = {}
         self._by_id: dict[int, MotorSpec] = {}
         self._limits: dict[int, ModelLimits] = {}

@@ -18,8 +18,9 @@ state                                                                 ``device``
 move        ``joint``, ``to`` or ``by``                               ``position``
 push        ``joints`` (default all), ``stop``: ``min``/``max``       ``positions``
 mid         ``joints`` (default all)                                  ``positions``
-sweep       ``joints`` (default all), ``seconds`` (3), ``dwell_s``     ``seconds`` (until done)
-            (0.3), ``wait`` (false)
+sweep       ``joints`` (default all), ``seconds`` (3), ``dwell_s``     ``seconds`` (until done), ``done``
+            (0.3), ``wait`` (false), ``paced`` (false: see
+            :meth:`HandOperator.sweep <.operator.HandOperator.sweep>`)
 release                                                               (stops every running motion)
 wait        ``timeout_s`` (60)                                        ``idle``
 attach      ``joints`` (servo arms: the motors plugged into the bus)  ``attached``
@@ -200,14 +201,19 @@ class ControlServer:
         return {"positions": self.operator.mid(_joints(req))}
 
     def _sweep(self, req: dict[str, Any]) -> dict[str, Any]:
+        paced = req.get("paced", False)
+        if not isinstance(paced, bool):
+            raise UsageError(f"'paced' must be true or false, not {paced!r}")
         seconds = self.operator.sweep(
             _joints(req),
             seconds=_number(req, "seconds", 3.0) or 0.0,
             dwell_s=_number(req, "dwell_s", 0.3) or 0.0,
+            paced=paced,
         )
-        if req.get("wait"):
-            self.operator.wait(seconds + 30.0)
-        return {"seconds": seconds}
+        done = True
+        if req.get("wait"):  # a paced sweep lasts as long as the client takes to read it: wait longer
+            done = self.operator.wait(seconds + (60.0 if paced else 30.0))
+        return {"seconds": seconds, "done": done}
 
     def _release(self, req: dict[str, Any]) -> dict[str, Any]:
         self.operator.release()
@@ -292,11 +298,23 @@ class SimControl(ClosesOnExit):
         seconds: float = 3.0,
         dwell_s: float = 0.3,
         wait: bool = True,
+        paced: bool = False,
     ) -> float:
-        """Sweep joints stop to stop (waits for the end unless ``wait=False``); returns its duration."""
-        return float(
-            self.request("sweep", joints=joints, seconds=seconds, dwell_s=dwell_s, wait=wait)["seconds"]
-        )
+        """Sweep joints stop to stop (waits for the end unless ``wait=False``); returns its duration.
+
+        ``paced``: each joint the client reads moves on only once the client read it (both stops are seen, however
+        loaded the machine is); see :meth:`HandOperator.sweep <robocal.backends.sim.operator.HandOperator.sweep>`.
+
+        Raises:
+            CalibTimeoutError: With ``wait``, the sweep did not end in time.
+        """
+        fields: dict[str, Any] = {"joints": joints, "seconds": seconds, "dwell_s": dwell_s, "wait": wait}
+        if paced:
+            fields["paced"] = True
+        answer = self.request("sweep", **fields)
+        if wait and not answer.get("done", True):
+            raise CalibTimeoutError(f"{self.path}: the sweep did not end in time")
+        return float(answer["seconds"])
 
     def release(self) -> None:
         """Stop every running motion."""

@@ -264,6 +264,10 @@ class ArmHands:
         """Put the shaft at ``position`` actual ticks; the hard stops hold it."""
         self.arm.servo(name).move_to(position)
 
+    def reads(self, name: str) -> int:
+        """Reads of the servo's ``Present_Position`` answered so far."""
+        return self.arm.servo(name).position_reads
+
 
 class SimArmOperator:
     """Plays the human during calibration: mid pose on request, stop-to-stop sweeps, optional Ctrl-C.

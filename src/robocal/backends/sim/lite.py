@@ -23,6 +23,7 @@ import numpy as np
 
 from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
+from ..robstride.protocol import CommType
 from .operator import JointView
 from .robstride import SimMotor, SimMotorBus
 
@@ -312,6 +313,11 @@ class LiteHands:
             last_write_age_s=None,
             extra={"can_id": m.can_id, "bus": self._bus_of[name], "enabled": m.mode == 2},
         )
+
+    def reads(self, name: str) -> int:
+        """Requests the motor answered with its feedback (position) so far: MIT, enable, stop."""
+        requests = self.robot.motors[name].requests
+        return sum(requests.get(c, 0) for c in (CommType.MIT, CommType.ENABLE, CommType.STOP))
 
     def place(self, name: str, position: float) -> None:
         """Move the joint (the stops hold it); its velocity follows from the previous placement."""

@@ -88,9 +88,76 @@ class HandDevice(Protocol):
         """Put the joint at ``position`` (clamped by the hard stops); the caller holds :attr:`lock`."""
         ...
 
+    def reads(self, name: str) -> int:
+        """How many times a client has read the joint's position so far (a paced sweep waits for them)."""
+        ...
+
 
 def _overshoot(dev: HandDevice, v: JointView) -> float:
     return max(dev.step * 2, 0.02 * (v.high - v.low))
+
+
+PACED_MAX_STEP_S = 0.05
+"""A paced sweep's hand advances at most this much along its path per placement (a starved thread never jumps)."""
+PACED_OTHER_READS = 64
+"""A paced joint stops waiting once the client read other joints this many times but not it (it is not watched)."""
+PACED_PATIENCE_S = 10.0
+"""A paced joint stops waiting once no joint at all was read for this long (the client went away)."""
+
+
+@dataclass
+class _Motion:
+    """One joint's running motion: segments ``(duration_s, from, to)`` and how far along it is.
+
+    Unpaced, ``t_s`` is the wall-clock time since ``start``. Paced, ``t_s`` advances only after the client read
+    the previous placement, by at most :data:`PACED_MAX_STEP_S`, and stops at every segment end (each stop is
+    placed and read before the hand moves on).
+    """
+
+    segments: list[tuple[float, float, float]]
+    start: float
+    paced: bool = False
+    t_s: float = 0.0
+    last_tick: float = 0.0
+    placed_reads: int | None = None
+    """The joint's read count when it was last placed (paced)."""
+    placed_total: int = 0
+    """Every joint's read count together when it was last placed (paced)."""
+    watched: bool = True
+    """Paced: the client reads this joint, so the hand waits for each reading."""
+
+    @property
+    def duration(self) -> float:
+        return sum(d for d, _, _ in self.segments)
+
+    def target(self) -> float:
+        """Position at ``t_s`` along the path."""
+        t = 0.0
+        for dur, a, b in self.segments:
+            if self.t_s < t + dur:
+                frac = 0.0 if dur <= 0 else max(0.0, (self.t_s - t) / dur)
+                return a + (b - a) * frac
+            t += dur
+        return self.segments[-1][2]
+
+    def advance_paced(self, now: float, reads: int, total: int, last_read: float) -> bool:
+        """Move ``t_s`` on if the client saw the last placement (or is not watching this joint); False: wait."""
+        if self.placed_reads is not None and reads == self.placed_reads and self.watched:
+            if total - self.placed_total >= PACED_OTHER_READS or now - last_read >= PACED_PATIENCE_S:
+                self.watched = False  # the client reads other joints but not this one, or nothing any more
+            else:
+                self.last_tick = now
+                return False
+        step = min(max(now - self.last_tick, 0.0), PACED_MAX_STEP_S)
+        self.last_tick = now
+        end = 0.0
+        for dur, _, _ in self.segments:  # stop at the next segment end: every waypoint is placed
+            end += dur
+            if self.t_s < end:
+                self.t_s = min(self.t_s + step, end)
+                return True
+        self.t_s = end
+        return True
 
 
 class HandOperator:
@@ -104,8 +171,10 @@ class HandOperator:
     def __init__(self, device: HandDevice, *, rate_hz: float = 200.0) -> None:
         self.device = device
         self.rate_hz = rate_hz
-        self._plans: dict[str, list[tuple[float, float, float, float]]] = {}
-        """joint → segments (t_start, t_end, from, to) in monotonic seconds."""
+        self._plans: dict[str, _Motion] = {}
+        """joint → its running motion."""
+        self._last_read = (0, time.monotonic())
+        """Every joint's read count together, and when it last changed."""
         self._cv = threading.Condition()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="sim-hand", daemon=True)
@@ -171,7 +240,12 @@ class HandOperator:
         return {n: self.device.view(n).position for n in names}
 
     def sweep(
-        self, joints: str | Sequence[str] | None = None, *, seconds: float = 3.0, dwell_s: float = 0.3
+        self,
+        joints: str | Sequence[str] | None = None,
+        *,
+        seconds: float = 3.0,
+        dwell_s: float = 0.3,
+        paced: bool = False,
     ) -> float:
         """Start moving joints (together) to the low stop, the high stop and back to the middle.
 
@@ -179,9 +253,13 @@ class HandOperator:
             joints: Joints to sweep (default: every joint).
             seconds: Duration of the three moves together (dwells at the stops come on top).
             dwell_s: Time spent pressing against each stop.
+            paced: Move as a person watching the client's live table does: each joint the client reads moves on
+                only after the client read where it was put, in steps of at most :data:`PACED_MAX_STEP_S` of the
+                path, and every stop is read before the hand leaves it. However slowly the client (or this
+                simulator) is scheduled, the client sees both stops and no jump; the sweep takes longer then.
 
         Returns:
-            Seconds until the sweep ends.
+            Seconds until the sweep ends (at the least, when paced).
         """
         if not 0.05 <= seconds <= 600 or not 0 <= dwell_s <= 60:
             raise UsageError("sweep: seconds must be 0.05..600 and dwell_s 0..60")
@@ -190,23 +268,19 @@ class HandOperator:
             self._free(names)
             now = time.monotonic()
             seg = seconds / 3
-            plans: dict[str, list[tuple[float, float, float, float]]] = {}
+            plans: dict[str, _Motion] = {}
             for n in names:
                 v = self.device.view(n)
                 over = _overshoot(self.device, v)
                 lo, hi = v.low - over, v.high + over
-                t = now
-                path = []
-                for start, end, dur in (
-                    (v.position, lo, seg),
-                    (lo, lo, dwell_s),
-                    (lo, hi, seg),
-                    (hi, hi, dwell_s),
-                    (hi, v.mid, seg),
-                ):
-                    path.append((t, t + dur, start, end))
-                    t += dur
-                plans[n] = path
+                path = [
+                    (seg, v.position, lo),
+                    (dwell_s, lo, lo),
+                    (seg, lo, hi),
+                    (dwell_s, hi, hi),
+                    (seg, hi, v.mid),
+                ]
+                plans[n] = _Motion(path, now, paced=paced, last_tick=now)
         with self._cv:
             self._plans.update(plans)
             self._cv.notify_all()
@@ -256,26 +330,30 @@ class HandOperator:
                 if not self._plans:
                     self._cv.wait(0.1)
                     continue
-                plans = {n: list(p) for n, p in self._plans.items()}
-            now = time.monotonic()
+                plans = dict(self._plans)
             done: list[str] = []
             with self.device.lock:
-                for n, path in plans.items():
+                now = time.monotonic()
+                reads = {n: self.device.reads(n) for n in self.device.joint_names()}
+                total = sum(reads.values())
+                if total != self._last_read[0]:
+                    self._last_read = (total, now)
+                for n, motion in plans.items():
                     if self.device.view(n).torque:  # the motor took the joint over: the hand lets go
                         done.append(n)
                         continue
-                    target = path[-1][3]
-                    for t0, t1, a, b in path:
-                        if now < t1:
-                            frac = 0.0 if t1 <= t0 else max(0.0, (now - t0) / (t1 - t0))
-                            target = a + (b - a) * frac
-                            break
-                    else:
+                    if not motion.paced:
+                        motion.t_s = now - motion.start
+                    elif not motion.advance_paced(now, reads[n], total, self._last_read[1]):
+                        continue  # waiting for the client to read where the joint is
+                    if motion.t_s >= motion.duration:
                         done.append(n)
-                    self.device.place(n, target)
+                    self.device.place(n, motion.target())
+                    # counted after placing: a read in between may have seen the old place, so wait for the next
+                    motion.placed_reads, motion.placed_total = self.device.reads(n), total
             with self._cv:
                 for n in done:
-                    if self._plans.get(n) == plans[n]:
+                    if self._plans.get(n) is plans[n]:
                         del self._plans[n]
                 self._cv.notify_all()
             time.sleep(period)

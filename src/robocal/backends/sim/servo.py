@@ -306,6 +306,9 @@ class SimServoBus(StartsOnEnter):
 
     def _read(self, servo: SimServo, addr: int, size: int) -> bytes:
         self._refresh(servo)
+        pos, pos_size = servo.table["Present_Position"]
+        if addr <= pos and pos + pos_size <= addr + size:
+            servo.position_reads += 1
         return bytes(servo.regs[addr : addr + size])
 
     def _write(self, servo: SimServo, addr: int, data: bytes) -> int:

@@ -84,6 +84,8 @@ class SimServo:
     """What the last client wrote to this servo (``"Goal_Position=2048"``), for the live view."""
     last_write_time: float = 0.0
     """``time.monotonic()`` of :attr:`last_write`."""
+    position_reads: int = 0
+    """Reads (READ, SYNC_READ) answered whose span holds ``Present_Position``."""
     firmware: ServoFirmware | None = None
     """Physics and control law (:mod:`.servo_firmware`); None: the shaft is placed from outside."""
 
