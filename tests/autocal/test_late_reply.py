@@ -35,8 +35,13 @@ def test_a_late_status_packet_is_not_taken_as_the_next_reply(robot: str, registe
         try:
             assert bus.sync_read(register, [motor.motor_id])[motor.motor_id] == 0
             # a late reply (valid checksum, the same motor) waiting in the host's input
-            arm.bus._send(status(motor.motor_id, 0, bytes([0x7B, 0x00, 0x10, 0x00])))  # type: ignore[operator]
-            time.sleep(0.05)
+            late = status(motor.motor_id, 0, bytes([0x7B, 0x00, 0x10, 0x00]))  # type: ignore[operator]
+            arm.bus._send(late)
+            ser = bus._port_handler.ser  # type: ignore[attr-defined]
+            deadline = time.monotonic() + 60  # a hang guard: the pty hands bytes on when the kernel gets to it
+            while ser.in_waiting < len(late):  # until the late reply is in the host's input, however loaded
+                assert time.monotonic() < deadline, "the late reply never reached the host"
+                time.sleep(0.01)
             assert bus.sync_read(register, [motor.motor_id])[motor.motor_id] == 0
             assert bus.read("Present_Position", motor.motor_id) == bus.read("Present_Position", motor.motor_id)
         finally:

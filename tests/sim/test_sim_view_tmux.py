@@ -15,7 +15,7 @@ import pytest
 from robocal.backends.sim.control import SimControl
 
 pytestmark = [
-    pytest.mark.timeout(90),
+    pytest.mark.timeout(240),
     pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed"),
 ]
 
@@ -42,7 +42,8 @@ def _screen(name: str) -> str:
     return _tmux("capture-pane", "-p", "-t", name)
 
 
-def _wait_for(name: str, needle: str, timeout: float = 20.0) -> str:
+def _wait_for(name: str, needle: str, timeout: float = 60.0) -> str:
+    """Poll the screen until ``needle`` shows (``timeout`` is a hang guard: start-up is slow on a loaded machine)."""
     deadline = time.monotonic() + timeout
     while True:
         screen = _screen(name)
@@ -65,14 +66,14 @@ def test_keys_select_move_and_push_joints_and_q_quits(session: str, tmp_path: Pa
     _tmux("send-keys", "-t", session, "Down")
     screen = _wait_for(session, "▶ │ shoulder_lift")
     _tmux("send-keys", "-t", session, "[")  # push shoulder_lift into its low stop (780 ticks)
-    deadline = time.monotonic() + 20.0
+    deadline = time.monotonic() + 60.0
     while " 780 " not in _row(_screen(session), "shoulder_lift").replace("│", " ") and time.monotonic() < deadline:
         time.sleep(0.1)  # the view redraws on its own clock: wait for it, however loaded the machine is
     row = _row(_screen(session), "shoulder_lift")
     assert " 780 " in row.replace("│", " "), row
     _tmux("send-keys", "-t", session, "Right", "Right")  # two steps of 20 ticks off the stop
     with SimControl(tmp_path / "arm.port.control") as ctl:
-        deadline = time.monotonic() + 20.0
+        deadline = time.monotonic() + 60.0
         while (state := ctl.state())["shoulder_lift"]["position"] != 820.0 and time.monotonic() < deadline:
             time.sleep(0.1)
     assert state["shoulder_lift"]["position"] == 820.0
