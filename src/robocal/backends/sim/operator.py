@@ -282,6 +282,8 @@ class HandOperator:
                 ]
                 plans[n] = _Motion(path, now, paced=paced, last_tick=now)
         with self._cv:
+            if paced:  # the client's patience counts from now (reads are only counted while a paced sweep runs)
+                self._last_read = (self._last_read[0], now)
             self._plans.update(plans)
             self._cv.notify_all()
         return seconds + 2 * dwell_s
@@ -334,10 +336,13 @@ class HandOperator:
             done: list[str] = []
             with self.device.lock:
                 now = time.monotonic()
-                reads = {n: self.device.reads(n) for n in self.device.joint_names()}
-                total = sum(reads.values())
-                if total != self._last_read[0]:
-                    self._last_read = (total, now)
+                reads: dict[str, int] = {}
+                total = 0
+                if any(m.paced for m in plans.values()):  # only a paced sweep waits for the client's reads
+                    reads = {n: self.device.reads(n) for n in self.device.joint_names()}
+                    total = sum(reads.values())
+                    if total != self._last_read[0]:
+                        self._last_read = (total, now)
                 for n, motion in plans.items():
                     if self.device.view(n).torque:  # the motor took the joint over: the hand lets go
                         done.append(n)
@@ -349,8 +354,8 @@ class HandOperator:
                     if motion.t_s >= motion.duration:
                         done.append(n)
                     self.device.place(n, motion.target())
-                    # counted after placing: a read in between may have seen the old place, so wait for the next
-                    motion.placed_reads, motion.placed_total = self.device.reads(n), total
+                    if motion.paced:  # counted after placing: a read in between saw the old place, wait for the next
+                        motion.placed_reads, motion.placed_total = self.device.reads(n), total
             with self._cv:
                 for n in done:
                     if self._plans.get(n) is plans[n]:
