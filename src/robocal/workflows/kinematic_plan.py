@@ -56,7 +56,6 @@ class PlanResult:
         prediction_sigma_m: Predicted one-σ error of the tool point averaged over the candidates after
             identification from these poses (marker noise ``noise_m``; linearised at nominal), m.
         validation_out: The plan of held-out poses written beside ``out``, or None.
-        validation_q_rad: Its ``(V, n_q)`` joint targets, or None.
     """
 
     q_rad: FloatArray
@@ -67,7 +66,6 @@ class PlanResult:
     candidates: int = 0
     prediction_sigma_m: float = math.nan
     validation_out: Path | None = None
-    validation_q_rad: FloatArray | None = None
 
 
 def plan(
@@ -200,7 +198,7 @@ def plan(
         val_written = atomic_write_text(val_path, session_csv(cand[val_idx], chain.joint_names, {}))
     return PlanResult(
         q, chain.joint_names, ident, written, crit, int(cand.shape[0]),
-        _prediction_sigma(everything, problem, ident, noise_m, sig), val_written, cand[val_idx],
+        _prediction_sigma(everything, problem, ident, noise_m, sig), val_written,
     )  # fmt: skip
 
 
@@ -317,8 +315,7 @@ def _plan_contacts(
             val_path, session_csv(cand[val_idx], chain.joint_names, {column: labels(group[val_idx])})
         )
     return PlanResult(
-        q, chain.joint_names, ident, written, "I", int(cand.shape[0]), validation_out=val_written,
-        validation_q_rad=cand[val_idx],
+        q, chain.joint_names, ident, written, "I", int(cand.shape[0]), validation_out=val_written
     )  # fmt: skip
 
 
@@ -328,13 +325,12 @@ def _prediction_sigma(
     """RMS over the candidates of the tool point's predicted σ (m) after a fit from ``problem``'s poses."""
     _, J = problem.residuals_and_jacobian(problem.initial_theta())
     cols = list(ident.base)
-    info = J[:, cols].T @ J[:, cols] / noise_m**2
+    prior_info = np.zeros(len(cols))
     if sig is not None:
         s = sig[list(problem.free)]
         cols = sorted(set(cols) | {c for c in range(len(problem.free)) if math.isfinite(s[c])})
-        info = J[:, cols].T @ J[:, cols] / noise_m**2 + np.diag(
-            np.where(np.isfinite(s[cols]), s[cols] ** -2.0, 0.0)
-        )
+        prior_info = np.where(np.isfinite(s[cols]), s[cols] ** -2.0, 0.0)
+    info = J[:, cols].T @ J[:, cols] / noise_m**2 + np.diag(prior_info)
     try:
         cov = np.linalg.inv(info)
     except np.linalg.LinAlgError:
