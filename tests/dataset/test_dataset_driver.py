@@ -7,7 +7,6 @@ import multiprocessing
 import os
 import shutil
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +62,6 @@ def _split_episode_across_files(root: Path) -> None:
 
 
 def _slow_work(args: tuple[str, str, str, list[object]]) -> object:
-    import time
 
     with open(os.environ["ROBOCAL_TEST_LOG"], "a") as log:
         log.write(args[2] + "\n")
@@ -233,31 +231,25 @@ def test_relative_paths_and_dot_destination(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.yaml", "b.yaml", "out", "src"]
 
 
-class _SlowSubmitPool(ProcessPoolExecutor):
-    """The real pool, submitting slowly: the first worker dies before the rest of the files are submitted."""
-
-    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
-        fut = super().submit(fn, *args, **kwargs)
-        time.sleep(0.5)
-        return fut
+def _dying_second_work(args: tuple[str, str, str, list[object]]) -> object:
+    if args[2].endswith("file-000.parquet"):
+        return _driver.recalibrate_file(*args[:2], args[3], args[2])  # type: ignore[arg-type]
+    os._exit(1)
 
 
-@pytest.mark.parametrize("pool", [None, _SlowSubmitPool], ids=["after-submitting", "while-submitting"])
+@pytest.mark.skipif(multiprocessing.get_start_method() != "fork", reason="patches the worker function")
+@pytest.mark.parametrize("work", [_dying_work, _dying_second_work], ids=["first-file", "after-a-file"])
 def test_dead_worker_is_one_error_not_a_traceback(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, pool: type[ProcessPoolExecutor] | None
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, work: Any
 ) -> None:
-    """A worker that dies is one ``DatasetWorkerError`` (exit 3), no worker left, nothing written.
-
-    Also when the pool breaks before the last file is submitted (``submit`` itself raises; seen under load in CI).
-    """
+    """A worker that dies is one ``DatasetWorkerError`` (exit 3) naming the file, no worker left, nothing written."""
     src = tmp_path / "src"
     generate_dataset(src, n_episodes=4, frames_per_episode=5, episodes_per_file=1, convention=A)
-    monkeypatch.setattr(_driver, "_work", _dying_work)
-    if pool is not None:
-        monkeypatch.setattr(_driver, "ProcessPoolExecutor", pool)
-    with pytest.raises(_driver.DatasetWorkerError, match="worker process died") as info:
+    monkeypatch.setattr(_driver, "_work", work)
+    with pytest.raises(_driver.DatasetWorkerError, match=r"worker process died while converting .*file-00") as info:
         recalibrate_dataset(src, tmp_path / "dst", A, B, workers=2)
     assert info.value.exit_code == 3
+    assert "(exit status 1)" in str(info.value)
     assert multiprocessing.active_children() == []
     assert sorted(p.name for p in tmp_path.iterdir()) == ["src"]
 

@@ -103,6 +103,8 @@ def recalibrate(
             options=opts,
             on_file_done=on_file_done,
         )
+    for note in report.notes:
+        _common.console.print(note, markup=False)
     _common.console.print(
         f"wrote {report.dst}: {report.frames} frames in {report.files} files, "
         f"{report.row_groups} row groups; features {', '.join(report.features)}"

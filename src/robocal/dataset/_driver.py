@@ -3,7 +3,7 @@
 Everything is validated before anything is written (features, joint names, destination, metadata). The new
 root is built in a temporary sibling folder ``.DST.robocal-*`` (:mod:`._root`) and renamed to ``DST`` only when
 every file is done, so a failure midway leaves no ``DST``. Data files (:mod:`._file`) are processed in a
-:class:`~concurrent.futures.ProcessPoolExecutor` (or in-process with one worker); the statistics metadata is
+:mod:`._pool` of worker processes (or in-process with one worker); the statistics metadata is
 rewritten from their results (:mod:`._metadata`).
 """
 
@@ -12,8 +12,6 @@ from __future__ import annotations
 import contextlib
 import shutil
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,7 +23,8 @@ from ._engine import FeaturePlan, feature_convention
 from ._file import FileResult, recalibrate_file
 from ._layout import DatasetLayout, read_layout
 from ._metadata import check_metadata, rewrite_episode_stats, write_dataset_stats
-from ._root import check_destination, make_temp_root, prepare_root, publish_root
+from ._pool import WorkerDiedError, run_pool
+from ._root import check_destination, make_temp_root, prepare_root, publish_root, sweep_leftovers
 from ._stats import StatAccumulator, merge_all, merge_into
 
 __all__ = [
@@ -62,7 +61,9 @@ class DatasetReport:
         row_groups: Number of row groups written.
         out_of_range: Per feature, per converted joint, count of values outside the new calibrated range
             or that cannot come from one encoder turn (Feetech).
-        warnings: Human-readable warnings (out-of-range joints, statistics not recomputed).
+        warnings: Human-readable warnings (out-of-range joints, statistics not recomputed, temporary folders
+            of other runs left beside ``dst``).
+        notes: What was tidied up (temporary folders of killed runs removed).
     """
 
     src: Path
@@ -74,6 +75,7 @@ class DatasetReport:
     row_groups: int = 0
     out_of_range: dict[str, dict[str, int]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
 
 def build_plans(
@@ -166,7 +168,8 @@ def recalibrate_dataset(
     report = DatasetReport(
         src=src_p, dst=dst_p, features=keys, joint_names={p.key: p.joint_names for p in plans}
     )
-    tmp = make_temp_root(dst_p)
+    report.notes, report.warnings = sweep_leftovers(dst_p)
+    tmp = make_temp_root(dst_p, owned=True)
     try:
         _build(layout, tmp, plans, workers, report, on_file_done)
         publish_root(tmp, dst_p)
@@ -200,27 +203,18 @@ def _build(
             if on_file_done is not None:
                 on_file_done(res.path, res.frames)
     else:
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-            futures: list[Future[FileResult]] = []
-            try:
-                # a worker that dies early breaks the pool while files are still being submitted: submit
-                # raises then, not only result()
-                futures.extend(pool.submit(_work, job) for job in jobs)
-                for fut in as_completed(futures):
-                    res = fut.result()  # a worker's exception is raised here
-                    if on_file_done is not None:
-                        on_file_done(res.path, res.frames)
-            except BrokenProcessPool:
-                pool.shutdown(wait=True, cancel_futures=True)
-                raise DatasetWorkerError(
-                    f"a worker process died while converting {root} (out of memory or killed); "
-                    "nothing was written — retry with fewer --workers"
-                ) from None
-            except BaseException:
-                # an error or Ctrl-C: drop the queued files, wait only for the ones being written
-                pool.shutdown(wait=True, cancel_futures=True)
-                raise
-            results = [f.result() for f in futures]
+
+        def done(res: FileResult) -> None:
+            if on_file_done is not None:
+                on_file_done(res.path, res.frames)
+
+        try:
+            # a worker's exception is raised here once the others are stopped; so is Ctrl-C
+            results = run_pool(_work, jobs, workers, done, describe=lambda job: str(root / job[2]))
+        except WorkerDiedError as exc:
+            raise DatasetWorkerError(
+                f"{exc}; nothing was written — if it ran out of memory, retry with fewer --workers"
+            ) from None
     finish_root(layout, tmp, plans, results, report)
 
 
@@ -275,5 +269,3 @@ def finish_root(
         report.warnings += write_dataset_stats(stats_src, tmp / "meta" / "stats.json", totals, keys)
     with contextlib.suppress(OSError):
         shutil.copystat(root, tmp)
-
-

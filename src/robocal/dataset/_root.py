@@ -9,6 +9,7 @@ followed); :func:`publish_root` renames it to ``DST``, replacing an existing ``D
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -16,7 +17,7 @@ from pathlib import Path
 from ..errors import FileFormatError, FileWriteError, UsageError
 from ._layout import DatasetLayout
 
-__all__ = ["check_destination", "make_temp_root", "prepare_root", "publish_root"]
+__all__ = ["check_destination", "make_temp_root", "prepare_root", "publish_root", "sweep_leftovers"]
 
 _VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi")
 
@@ -96,12 +97,22 @@ def prepare_root(layout: DatasetLayout, tmp: Path) -> None:
         raise FileFormatError(f"dataset {root}: cannot copy {exc.filename or ''} ({exc.strerror})") from None
 
 
-def make_temp_root(dst: Path, kind: str = "robocal") -> Path:
-    """Create an empty temporary folder beside ``dst`` (same file system, so the final rename is atomic)."""
+def _prefixes(final: Path, kind: str) -> tuple[str, str]:
+    """The two name prefixes of a temporary folder of ``kind`` beside ``final``: its own, and the one for long names."""
+    return f".{final.name}.{kind}-", f".rc-{kind}-"
+
+
+def make_temp_root(dst: Path, kind: str = "robocal", *, owned: bool = False) -> Path:
+    """Create an empty temporary folder beside ``dst`` (same file system, so the final rename is atomic).
+
+    ``owned``: the name carries this process's id (``.DST.robocal-<pid>-xxxxxxxx``), so a later run can tell a
+    folder left by a run that was killed (:func:`sweep_leftovers`) from one still being written.
+    """
     final = Path(os.path.abspath(dst))  # "." or "out/.." have no usable name or parent otherwise
-    prefix = f".{final.name}.{kind}-"
-    if len(os.fsencode(prefix)) + 8 > 255:  # a long DST name: a short temporary name still fits
-        prefix = f".rc-{kind}-"
+    own, short = _prefixes(final, kind)
+    prefix = own if len(os.fsencode(own)) + 20 <= 255 else short  # a long DST name: a short name still fits
+    if owned:
+        prefix += f"{os.getpid()}-"
     try:
         return Path(tempfile.mkdtemp(prefix=prefix, dir=final.parent))
     except OSError as exc:
@@ -125,7 +136,7 @@ def publish_root(tmp: Path, dst: Path) -> None:
         if not final.exists():
             os.replace(tmp, final)
             return
-        old_dir = make_temp_root(final, "old")
+        old_dir = make_temp_root(final, "old", owned=True)
         os.replace(final, old_dir / "root")
         try:
             os.replace(tmp, final)
@@ -138,3 +149,58 @@ def publish_root(tmp: Path, dst: Path) -> None:
         raise FileFormatError(
             f"destination {dst}: cannot move the new dataset into place ({exc.strerror})"
         ) from None
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists on this machine (ours, or another user's)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # EPERM: it exists, owned by someone else
+        return True
+    return True
+
+
+def sweep_leftovers(dst: Path) -> tuple[list[str], list[str]]:
+    """Remove the temporary folders beside ``dst`` that runs killed midway left behind; name the others.
+
+    A folder ``.DST.robocal-<pid>-*`` whose process no longer runs is removed (it only ever held a partial new
+    root). A ``.DST.old-<pid>-*`` folder of a dead run holds the previous ``DST`` if the run was killed between
+    its two renames: it is removed when ``DST`` exists (the new root was in place), else kept and named. Folders
+    without a process id (older robocal versions, the datatrove adapter) or of a process still running are named.
+
+    Returns:
+        (notes on what was removed, warnings naming what was kept).
+    """
+    final = Path(os.path.abspath(dst))
+    notes: list[str] = []
+    warnings: list[str] = []
+    try:
+        entries = sorted(os.listdir(final.parent))
+    except OSError:
+        return notes, warnings
+    for kind in ("robocal", "old"):
+        for prefix in _prefixes(final, kind):
+            pattern = re.compile(re.escape(prefix) + r"(?:(\d+)-)?[a-z0-9_]{8}\Z")
+            for name in entries:
+                m = pattern.match(name)
+                path = final.parent / name
+                if m is None or not path.is_dir() or path.is_symlink():
+                    continue
+                pid = int(m.group(1)) if m.group(1) else None
+                if pid is None or _alive(pid):
+                    who = "an unknown run" if pid is None else f"process {pid}, which is still running"
+                    warnings.append(f"{path} was left by {who}; remove it if no robocal run is writing {dst}")
+                elif kind == "old" and (path / "root").exists() and not final.exists():
+                    warnings.append(
+                        f"{path / 'root'} holds {dst} as it was before a run (process {pid}) was killed while "
+                        f"replacing it; move it back to {dst} or remove it"
+                    )
+                else:
+                    shutil.rmtree(path, ignore_errors=True)
+                    if not path.exists():
+                        notes.append(f"removed {path}, left by a run that was killed (process {pid})")
+    return notes, warnings
