@@ -134,6 +134,7 @@ def test_render_prints_the_auto_table_before_the_truth_table(
     )
 
 
+@pytest.mark.slow
 def test_demo_auto_job_recovers_the_simulated_zeros_and_hands_its_urdf_to_the_view(tmp_path: Path) -> None:
     from robocal.workflows.autocal_sweep import AutoSweepOutcome
 

@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 SRC = Path(__file__).resolve().parents[2] / "src" / "robocal"
 HEAVY = [
     "typer",
@@ -191,6 +193,7 @@ def _backend_classes_imported(path: Path, text: str | None = None) -> set[str]:
     }
 
 
+@pytest.mark.slow
 def test_bus_and_client_classes_come_from_the_backend_registry() -> None:
     """Outside ``backends/``, a bus or client class is picked by ``load_backend(name)``, never imported."""
     found = {

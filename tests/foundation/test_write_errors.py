@@ -56,6 +56,7 @@ def _recalibrate_args(dataset: Path, dst: Path) -> list[str]:
             "--new", str(dataset / "b.json"), "--robot", "so101_follower"]  # fmt: skip
 
 
+@pytest.mark.slow
 @needs_unshare
 def test_dataset_recalibrate_into_read_only_folder(tmp_path: Path, dataset: Path) -> None:
     out = run_on_tmpfs(
@@ -92,6 +93,7 @@ def test_convert_onto_read_only_or_full_disk(tmp_path: Path, read_only: bool) ->
     assert out["files"] == (["cal.json"] if read_only else ["cal.json", "fill"])
 
 
+@pytest.mark.slow
 def test_dataset_long_destination_name_uses_a_short_temporary_name(tmp_path: Path, dataset: Path) -> None:
     dst = tmp_path / ("d" * 250)
     env = {**os.environ, "PYTHONPATH": SRC}

@@ -184,6 +184,7 @@ def _compare(text: str) -> bool:
     return True
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(text=document())
 def test_fast_load_equals_ruamel_on_generated_documents(text: str) -> None:

@@ -215,7 +215,10 @@ def _check(
         assert changed == allowed, f"{where}\nfiles other than the outputs changed: {changed}"
 
 
-@pytest.mark.parametrize("name", list(COMMANDS))
+# One command in the fast tier (`-m "not slow"`); every command in the full suite.
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=() if n == "lerobot-show" else pytest.mark.slow) for n in COMMANDS]
+)
 @fuzz_settings(1)
 @given(data=st.data())
 def test_cli_on_mutated_inputs_exits_cleanly(name: str, data: st.DataObject) -> None:
@@ -245,6 +248,7 @@ def test_cli_on_mutated_inputs_exits_cleanly(name: str, data: st.DataObject) -> 
         assert snapshot(home) == home_before, "the command wrote into the (redirected) home folder"
 
 
+@pytest.mark.slow
 def test_cli_seed_inputs_succeed() -> None:
     """The unmutated inputs are valid: every command finishes (0, or 1 with warnings) and writes its output."""
     with tempfile.TemporaryDirectory(prefix="robocal-fuzz-cli-") as tmp:

@@ -99,6 +99,7 @@ def _read_all_ways(p: Path, fmt: str) -> None:
     read_calibration(p, detected, **kwargs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", [*JSON_FORMATS, *YAML_FORMATS, "ros2-transmission"])
 @fuzz_settings(60)
 @given(data=st.data())
@@ -112,6 +113,7 @@ def test_calibration_readers_raise_only_calib_error(fmt: str, data: st.DataObjec
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmt", ["berkeley-offsets", "ros2-transmission"])
 @fuzz_settings(60)
 @given(data=st.data())
@@ -144,6 +146,7 @@ def _use_urdf(p: Path) -> None:
     doc.to_bytes()
 
 
+@pytest.mark.slow
 @fuzz_settings(100)
 @given(data=st.data())
 def test_urdf_reader_raises_only_calib_error(data: st.DataObject) -> None:
@@ -151,6 +154,7 @@ def test_urdf_reader_raises_only_calib_error(data: st.DataObject) -> None:
     reader_raises_only_calib_error(blob, "robot.urdf", _use_urdf, "URDF reader")
 
 
+@pytest.mark.slow
 @fuzz_settings(100)
 @given(data=st.data())
 def test_lerobot_current_reader_raises_only_calib_error(data: st.DataObject) -> None:
@@ -158,6 +162,7 @@ def test_lerobot_current_reader_raises_only_calib_error(data: st.DataObject) -> 
     reader_raises_only_calib_error(blob, "so101_follower.json", read_current, "LeRobot current reader")
 
 
+@pytest.mark.slow
 @fuzz_settings(100)
 @given(data=st.data())
 def test_lerobot_legacy_reader_raises_only_calib_error(data: st.DataObject) -> None:
@@ -234,6 +239,7 @@ def test_replay_csv_reader_raises_only_calib_error(data: st.DataObject) -> None:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("plugin", ["sqlite3", "mcap"])
 @fuzz_settings(40)
 @given(data=st.data())
@@ -258,6 +264,7 @@ def test_rosbag_reader_raises_only_calib_error(plugin: str, data: st.DataObject)
 DATASET_META = ["meta/info.json", "meta/stats.json"]
 
 
+@pytest.mark.slow
 @fuzz_settings(40)
 @given(data=st.data())
 def test_dataset_inspect_raises_only_calib_error(data: st.DataObject) -> None:

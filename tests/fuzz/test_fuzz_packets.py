@@ -68,6 +68,7 @@ def ur_mutation(data: st.DataObject, seed: bytes) -> bytes:
     return seed[:pos] + value + seed[pos + 8 :]
 
 
+@pytest.mark.slow
 @fuzz_settings(300)
 @given(data=st.data())
 def test_ur_subpackage_parsers_raise_only_calib_error(data: st.DataObject) -> None:
@@ -155,6 +156,7 @@ ARB = st.one_of(st.integers(0, (1 << 29) - 1), st.sampled_from([-1, 1 << 29, 1 <
 PAYLOAD = st.one_of(st.binary(max_size=12), st.sampled_from([b"", bytes(8), b"\xff" * 8, *ODD_BYTES]))
 
 
+@pytest.mark.slow
 @fuzz_settings(400)
 @given(arb=ARB, payload=PAYLOAD, model=st.sampled_from(["rs-00", "rs-02", "rs-05"]))
 def test_robstride_decoders_raise_only_calib_error(arb: int, payload: bytes, model: str) -> None:
@@ -296,6 +298,7 @@ SERVO_OPS = st.lists(
 )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["sts3215", "scs0009", "xl330-m288"])
 @fuzz_settings(25)
 @given(ops=SERVO_OPS, call=st.sampled_from(["ping", "read", "sync_read", "write"]))
@@ -327,7 +330,7 @@ class ShortReplyServoBus(SimServoBus):
         return super()._status(motor_id, error, b"")
 
 
-@pytest.mark.parametrize("model", ["sts3215", "scs0009"])
+@pytest.mark.parametrize("model", ["sts3215", pytest.param("scs0009", marks=pytest.mark.slow)])
 def test_feetech_read_answered_without_data_is_a_protocol_error(model: str) -> None:
     """Found by the fuzzer (a ping status packet arriving twice, the second answering the model-number read):
     scservo_sdk indexes into the status packet's missing data; the IndexError escaped as a traceback."""

@@ -475,8 +475,13 @@ def _assert_refused(
     assert snapshot(root) == before, f"{where}\nfiles changed"
 
 
+# The fast tier (`-m "not slow"`) feeds every reader the first hostile document of its kind; the full suite all.
 @pytest.mark.parametrize(
-    ("reader", "hostile"), [pytest.param(r, h, id=f"{r.name}-{h.name}") for r, h in _cases()]
+    ("reader", "hostile"),
+    [
+        pytest.param(r, h, id=f"{r.name}-{h.name}", marks=() if h is HOSTILE[r.kind][0] else pytest.mark.slow)
+        for r, h in _cases()
+    ],
 )
 def test_reader_refuses_hostile_document_through_the_cli(
     reader: Reader,
@@ -502,7 +507,10 @@ def test_reader_refuses_hostile_document_through_the_cli(
     _assert_refused(reader, hostile, root, code, err, before)
 
 
-@pytest.mark.parametrize("kind", ["yaml", "json", "xml"])
+@pytest.mark.parametrize(
+    "kind",
+    [pytest.param("yaml", marks=pytest.mark.slow), "json", pytest.param("xml", marks=pytest.mark.slow)],
+)
 def test_one_hostile_document_per_kind_in_a_real_process(kind: str, tmp_path: Path) -> None:
     """The same through ``python -m robocal`` (the installed entry point): no traceback reaches the terminal."""
     reader = next(r for r in READERS if r.kind == kind)
@@ -523,6 +531,7 @@ def test_one_hostile_document_per_kind_in_a_real_process(kind: str, tmp_path: Pa
     _assert_refused(reader, hostile, root, proc.returncode, proc.stderr, before)
 
 
+@pytest.mark.slow
 def test_the_seed_of_every_reader_is_accepted(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -580,6 +589,7 @@ def _parse_sites() -> set[str]:
     return sites
 
 
+@pytest.mark.slow
 def test_every_parse_call_in_src_is_listed() -> None:
     """A new YAML/JSON/XML reader must be added to READERS (with a command reaching it) or NOT_FILE_READERS."""
     found = _parse_sites()
