@@ -22,7 +22,7 @@ BASE: dict[str, Any] = {
     "auto_calibration": {
         "joints": [
             {"name": "a", "stops": "both"},
-            {"name": "b", "stops": "upper", "upper_deg": 90, "rated_nm": 2.0, "pose": {"a": 10}},
+            {"name": "b", "stops": "upper", "upper_deg": 90, "rated_nm": 1.5, "pose": {"a": 10}},
         ]
     },
 }
@@ -79,7 +79,12 @@ def test_builtin_lite_profile_has_14_joints() -> None:
         ({"auto_calibration__joints__0__bogus": 1}, "unknown key bogus"),
         ({"auto_calibration__joints__0__name": "zz"}, "not a joint of the profile"),
         ({"auto_calibration__joints__1__upper_deg": None}, "needs upper_deg"),
-        ({"auto_calibration__joints__1__rated_nm": None}, "no known rating"),
+        ({"joints__1__model": "mystery"}, "motor model 'mystery' has no known rating"),
+        ({"auto_calibration__joints__1__rated_nm": 2.0}, "rated_nm 2 N·m is above the STS3215's rated torque 1.91"),
+        ({"auto_calibration__joints__0__rated_nm": 1e9}, "rated_nm 1e[+]09 N·m is above the RS02's rated torque 6"),
+        ({"auto_calibration__joints__0__rated_nm": -1}, "rated_nm must be a positive number"),
+        ({"auto_calibration__joints__1__motor": "rs-05"}, "motor 'rs-05' answers as 'rs-05' on the bus"),
+        ({"auto_calibration__joints__1__motor": "sts9999"}, "motor 'sts9999' is not a motor model robocal knows"),
         ({"auto_calibration__joints__0__pose": {"b": 1}}, "not calibrated before it"),
         ({"auto_calibration__joints__0__stops": "middle"}, "stops 'middle'"),
         (

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..core.motor_models import find_motor_model
+
 __all__ = ["OVERLOAD_BIT", "PWM_FULL", "RATINGS", "RPM_UNIT", "MotorRating"]
 
 PWM_FULL = 885
@@ -42,16 +44,23 @@ class MotorRating:
         return self.stall_torque_nm / self.stall_current_a
 
 
+def _stall(model: str) -> float:
+    """The stall torque of a bus model from robocal's motor table (:mod:`robocal.core.motor_models`)."""
+    found = find_motor_model(model)
+    assert found is not None, model
+    return found.stall_nm
+
+
 RATINGS: dict[str, MotorRating] = {
-    "sts3215": MotorRating(1.91, 2.7, 0.0065),  # 7.4 V, 19.5 kg·cm
-    "sts3250": MotorRating(4.9, 3.0, 0.0065),
-    "sm8512bl": MotorRating(11.8, 7.0, 0.0065),
-    "scs0009": MotorRating(0.23, 0.7, 0.0065),
-    "xl330-m077": MotorRating(0.228, 1.47, 0.001, 1750),
-    "xl330-m288": MotorRating(0.52, 1.47, 0.001, 1750),
-    "xl430-w250": MotorRating(1.5, 1.4, 0.00269),  # no current sensing: no current modes
-    "xc430-w150": MotorRating(1.4, 1.4, 0.00269),
-    "xm430-w350": MotorRating(4.1, 2.3, 0.00269, 1193),
-    "xm540-w270": MotorRating(10.6, 4.4, 0.00269, 2047),
+    "sts3215": MotorRating(_stall("sts3215"), 2.7, 0.0065),  # 7.4 V, 19.5 kg·cm (the 12 V C018 answers the same)
+    "sts3250": MotorRating(_stall("sts3250"), 3.0, 0.0065),
+    "sm8512bl": MotorRating(_stall("sm8512bl"), 7.0, 0.0065),
+    "scs0009": MotorRating(_stall("scs0009"), 0.7, 0.0065),
+    "xl330-m077": MotorRating(_stall("xl330-m077"), 1.47, 0.001, 1750),
+    "xl330-m288": MotorRating(_stall("xl330-m288"), 1.47, 0.001, 1750),
+    "xl430-w250": MotorRating(_stall("xl430-w250"), 1.4, 0.00269),  # no current sensing: no current modes
+    "xc430-w150": MotorRating(_stall("xc430-w150"), 1.4, 0.00269),
+    "xm430-w350": MotorRating(_stall("xm430-w350"), 2.3, 0.00269, 1193),
+    "xm540-w270": MotorRating(_stall("xm540-w270"), 4.4, 0.00269, 2047),
 }
-"""Model → rating."""
+"""Bus model → rating (stall torques from :data:`robocal.core.motor_models.MOTOR_MODELS`, where their sources are)."""

@@ -28,9 +28,19 @@ __all__ = [
     "auto_demo_view",
     "auto_table",
     "auto_web_view",
+    "cap_text",
     "make_confirm_start",
     "sweep_auto",
 ]
+
+
+def cap_text(name: str, caps: Mapping[str, float]) -> str:
+    """``cap 0.40 N·m = 25 % of the RS05's 1.6 N·m rating`` (the model part when ``caps`` knows it)."""
+    text = f"cap {caps[name]:.2f} N·m"
+    model = getattr(caps, "models", {}).get(name)
+    if model is not None and model[1] > 0:
+        text += f" = {100.0 * caps[name] / model[1]:.0f} % of the {model[0]}'s {model[1]:g} N·m rating"
+    return text
 
 
 def make_confirm_start(yes: bool, what: str = "robot") -> Any:
@@ -57,7 +67,7 @@ def make_confirm_start(yes: bool, what: str = "robot") -> Any:
             markup=False,
         )
         for n in names:
-            con.print(f"  {n}  (cap {caps[n]:.2f} N·m)", markup=False)
+            con.print(f"  {n}  ({cap_text(n, caps)})", markup=False)
         con.print("Ctrl-C at any time makes every motor limp at once.", markup=False)
         return bool(typer.confirm("Start?", default=False))
 

@@ -4,7 +4,8 @@ Values only (no I/O); :mod:`robocal.formats.profiles` reads them from the profil
 ``docs/profiles.md``) and :mod:`robocal.workflows.autocal` runs them. Angles are in the URDF joint frame,
 degrees in the file and rad in the properties; torques in N·m at the output.
 
-Safety rules that no file can lift: the search torque is a fraction of the motor's rated torque and never above
+Safety rules that no file can lift: the search torque is a fraction of the motor model's rated torque
+(:mod:`robocal.core.motor_models`; a profile may lower a rating, never raise it) and never above
 :data:`HARD_MAX_TORQUE_FRACTION` of it; the speed is at most :data:`HARD_MAX_SPEED_DEG_S`.
 """
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .motor_models import HARD_MAX_TORQUE_FRACTION, MOTOR_MODELS, find_motor_model, motor_key
 from .named import find_named
 
 __all__ = [
@@ -31,30 +33,17 @@ AUTO_STOPS = ("both", "lower", "upper", "none")
 (a full-turn joint: never moved, reported ``not_searched`` with the profile's ``reason``)."""
 NOT_SEARCHED = "not_searched"
 """The outcome code of a joint without stops (``stops: none``): not a failure, nothing measured."""
-HARD_MAX_TORQUE_FRACTION = 0.5
-"""No profile may push harder than this fraction of the rated torque."""
 HARD_MAX_SPEED_DEG_S = 30.0
 """No profile may approach a stop faster than this (at the output)."""
 
-RATED_TORQUE_NM: dict[str, float] = {
-    # Robstride manuals (rated / peak): RS00 5/14, RS01 6/17, RS02 6/17, RS03 20/60, RS04 40/120, RS05 1.6/5.5,
-    # RS06 11/36 N·m.
-    "RS00": 5.0,
-    "RS01": 6.0,
-    "RS02": 6.0,
-    "RS03": 20.0,
-    "RS04": 40.0,
-    "RS05": 1.6,
-    "RS06": 11.0,
-}
-"""Rated output torque of motor models a profile may name without ``rated_nm`` (key: model upper-cased, no '-')."""
+RATED_TORQUE_NM: dict[str, float] = {motor_key(m.name): m.rated_nm for m in MOTOR_MODELS}
+"""Rated output torque of every model in :data:`robocal.core.motor_models.MOTOR_MODELS` (key: :func:`motor_key`)."""
 
 
 def rated_torque_nm(model: str | None) -> float | None:
-    """The rated torque of a motor model (``rs-02`` → 6.0), or None when unknown."""
-    if model is None:
-        return None
-    return RATED_TORQUE_NM.get(model.strip().upper().replace("-", "").replace("_", ""))
+    """The rated torque of a motor model (``rs-02`` → 6.0, ``sts3215`` → 1.91), or None when unknown."""
+    found = find_motor_model(model)
+    return None if found is None else found.rated_nm
 
 
 @dataclass(frozen=True)
@@ -74,6 +63,7 @@ class AutoJoint:
         park_deg: Angle the joint moves to and holds once calibrated (None: the middle of its stops).
         pose: Angles other joints hold while this one is searched; only joints calibrated before it.
         reason: Why a joint with ``stops: none`` is not searched (shown with its ``not_searched`` outcome).
+        motor: The motor model (a name :func:`robocal.core.motor_models.find_motor_model` knows), or None.
         alongside: An earlier joint this one is searched at the same time as (None: on its own, in order).
             The profile vouches that the two are independent (no collision, no gravity load on each other);
             the file reader checks that neither's pose depends on the other.
@@ -91,6 +81,7 @@ class AutoJoint:
     pose: tuple[tuple[str, float], ...] = ()
     reason: str = ""
     alongside: str | None = None
+    motor: str | None = None
 
     @property
     def searched(self) -> bool:
@@ -101,6 +92,18 @@ class AutoJoint:
     def torque_cap_nm(self) -> float:
         """Search torque (N·m): ``torque_fraction · rated_nm``."""
         return self.torque_fraction * self.rated_nm
+
+    @property
+    def model_rated_nm(self) -> float:
+        """The motor model's own rating (N·m; the profile's ``rated_nm`` when the model is unknown)."""
+        found = find_motor_model(self.motor)
+        return self.rated_nm if found is None else found.rated_nm
+
+    @property
+    def cap_percent_of_model(self) -> float:
+        """The torque cap as a percentage of the motor model's rating."""
+        rated = self.model_rated_nm
+        return 100.0 * self.torque_cap_nm / rated if rated > 0 else 0.0
 
     @property
     def speed_rad_s(self) -> float:

@@ -6,13 +6,13 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from ..core.motor_models import MOTOR_MODELS, MotorModel, find_motor_model, motor_key
 from ..core.profile_auto import (
     AUTO_STOPS,
     HARD_MAX_SPEED_DEG_S,
     HARD_MAX_TORQUE_FRACTION,
     AutoJoint,
     AutoSection,
-    rated_torque_nm,
 )
 from ..errors import FileFormatError
 from ._numbers import parse_finite
@@ -37,6 +37,7 @@ _JOINT_KEYS = (
     "upper_deg",
     "tolerance_deg",
     "rated_nm",
+    "motor",
     "torque_fraction",
     "speed_deg_s",
     "park_deg",
@@ -107,6 +108,46 @@ def _positive(value: float | None, key: str, where: str, upper: float | None = N
     return value
 
 
+_LARGEST_RATED_NM = max(m.rated_nm for m in MOTOR_MODELS)
+
+
+def _motor(row: Mapping[str, Any], joint_model: str | None, where: str) -> tuple[str | None, MotorModel | None]:
+    """The motor model of a row: its ``motor`` key (a variant of the joint's bus model) or the joint's model."""
+    named = row.get("motor")
+    if named is None:
+        return joint_model, find_motor_model(joint_model)
+    if not isinstance(named, str) or find_motor_model(named) is None:
+        known = ", ".join(m.name for m in MOTOR_MODELS)
+        raise FileFormatError(f"{where}: motor {named!r} is not a motor model robocal knows ({known})")
+    found = find_motor_model(named)
+    assert found is not None
+    if joint_model is not None and motor_key(joint_model) not in {motor_key(found.bus_model), motor_key(found.name)}:
+        raise FileFormatError(
+            f"{where}: motor {named!r} answers as {found.bus_model!r} on the bus, but the joint's model is "
+            f"{joint_model!r}"
+        )
+    return found.name, found
+
+
+def _rating(row: Mapping[str, Any], model: str | None, found: MotorModel | None, where: str) -> float | None:
+    """The row's rating: the model's, or the profile's ``rated_nm`` when it is lower (never higher)."""
+    given = _num(row, "rated_nm", where, None)
+    if given is None:
+        return None if found is None else found.rated_nm
+    if not given > 0:
+        raise FileFormatError(f"{where}: rated_nm must be a positive number (N·m), got {given!r}")
+    if found is not None and given > found.rated_nm:
+        raise FileFormatError(
+            f"{where}: rated_nm {given:g} N·m is above the {found.name}'s rated torque {found.rated_nm:g} N·m "
+            f"({found.source}); a profile may lower a motor's rating, never raise it"
+        )
+    if found is None and given > _LARGEST_RATED_NM:
+        raise FileFormatError(
+            f"{where}: rated_nm {given:g} N·m is beyond any motor robocal knows (largest {_LARGEST_RATED_NM:g} N·m)"
+        )
+    return given
+
+
 def _not_searched(
     row: Mapping[str, Any],
     name: str,
@@ -124,7 +165,8 @@ def _not_searched(
         )
     if not reason:
         raise FileFormatError(f"{where}: stops: none needs a reason (why the joint has no hard stop)")
-    rated = _num(row, "rated_nm", where, rated_torque_nm(model))
+    motor, found = _motor(row, model, where)
+    rated = _rating(row, motor, found, where)
     return AutoJoint(
         name=name,
         stops="none",
@@ -135,6 +177,7 @@ def _not_searched(
         lower_deg=_num(row, "lower_deg", where, None),
         upper_deg=_num(row, "upper_deg", where, None),
         reason=reason,
+        motor=None if found is None else found.name,
     )
 
 
@@ -204,12 +247,15 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
             continue
         if reason:
             raise FileFormatError(f"{jw}: reason is for joints that are not searched (stops: none)")
-        rated = _num(row, "rated_nm", jw, rated_torque_nm(models[name]))
-        if rated is None:
+        motor, found = _motor(row, models[name], jw)
+        if found is None:
+            known = ", ".join(m.name for m in MOTOR_MODELS)
             raise FileFormatError(
-                f"{jw}: rated_nm missing and motor model {models[name]!r} has no known rating"
+                f"{jw}: motor model {motor!r} has no known rating; a searched joint's torque is a fraction of its "
+                f"motor's rating: give the joint a model robocal knows ({known}), or name it with motor:"
             )
-        rated = _positive(rated, "rated_nm", jw)
+        rated = _rating(row, motor, found, jw)
+        assert rated is not None
         frac = _positive(_num(row, "torque_fraction", jw, torque), "torque_fraction", jw)
         if frac > cap:
             raise FileFormatError(
@@ -251,6 +297,7 @@ def parse_auto_section(data: Any, joints: Sequence[Any], source: str) -> AutoSec
                 park_deg=park,
                 pose=tuple(pose),
                 alongside=None if alongside is None else alongside.name,
+                motor=found.name,
             )
         )
     if not any(j.searched for j in out):

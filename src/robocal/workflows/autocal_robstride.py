@@ -6,8 +6,9 @@ import math
 from contextlib import suppress
 from typing import Any
 
+from ..core.motor_models import find_motor_model
 from ..core.stop_search import Command, StopSample
-from ..errors import CalibTimeoutError, DeviceError
+from ..errors import CalibTimeoutError, DeviceError, UsageError
 from .autocal_types import Clock
 
 LIMIT_TORQUE = 0x700B
@@ -36,7 +37,9 @@ class RobstrideJointDriver:
     are in the joint's identity frame ``s = direction·raw``. The firmware's ``limit_torque`` (0x700B, a RAM
     parameter: type 18, never saved to flash) is set to ``1.05·cap`` when the motor is first enabled, so a
     rebound or a control-period delay can never push harder than the cap + 5 %; :meth:`limp` writes the value
-    read before back (a power cycle restores it too).
+    read before back (a power cycle restores it too). Whatever the caller asks, the cap, ``limit_torque`` and every
+    feed-forward torque stay within the hard ceiling of the motor model's rating (:attr:`ceiling_nm`, from the
+    bus's model name and :mod:`robocal.core.motor_models`).
 
     Args:
         bus: The bus the motor is on.
@@ -66,7 +69,16 @@ class RobstrideJointDriver:
         self.lost_reply_s = lost_reply_s
         self.name = name
         self.direction = int(direction)
-        self.cap_nm = float(cap_nm)
+        spec = getattr(bus, "motors", {}).get(name)
+        model = find_motor_model(getattr(spec, "model", None))
+        if model is None:
+            raise UsageError(
+                f"joint {name}: motor model {getattr(spec, 'model', None)!r} has no rating in robocal's model table"
+            )
+        self.ceiling_nm = model.ceiling_nm
+        """No torque asked of the motor is above this (the hard ceiling of its model's rated torque)."""
+        cap_nm = min(float(cap_nm), self.ceiling_nm)
+        self.cap_nm = cap_nm
         self.kp = cap_nm / max_lag_rad
         self.kd = 0.05 * cap_nm if kd is None else kd
         self.clock = clock
@@ -94,6 +106,7 @@ class RobstrideJointDriver:
     def _mit(self, cmd: tuple[float, float, float, float, float]) -> StopSample:
         d = self.direction
         p, v, kp, kd, t = cmd
+        t = max(-self.ceiling_nm, min(self.ceiling_nm, t))
         t_send = self.clock.now()
         try:
             fb = self.bus.mit_command(self.name, d * p, d * v, kp, kd, d * t)
@@ -124,7 +137,7 @@ class RobstrideJointDriver:
         try:
             if self._saved_limit is None:
                 self._saved_limit = float(self.bus.read_param(self.name, LIMIT_TORQUE))
-                self.bus.write_param(self.name, LIMIT_TORQUE, 1.05 * self.cap_nm)
+                self.bus.write_param(self.name, LIMIT_TORQUE, min(1.05 * self.cap_nm, self.ceiling_nm))
             fb = self.bus.enable(self.name)
         except CalibTimeoutError:
             return StopSample(self.clock.now(), math.nan, ok=False)

@@ -8,12 +8,12 @@ code drives a real arm and the simulated firmware on a pseudo-terminal.
 
 * **Feetech STS** (``Operating_Mode`` 0, position servo): every control period the position goal steps along the
   search ramp (``Goal_Position``, ``Goal_Velocity`` 0 = follow at once); the torque cap is ``Torque_Limit``
-  (0.1 % of the motor's full torque: ``1000·cap/rated``); readings are ``Present_Position``,
+  (0.1 % of the motor's full torque: ``1000·cap/stall``); readings are ``Present_Position``,
   ``Present_Velocity`` (ticks/s), ``Present_Load`` (0.1 % of full torque, signed) and ``Status`` (bit 5 overload,
   bit 3 over-current: suspect; bits 0–2 voltage, sensor, temperature: fatal). A clear (``reread``) is torque
   off (that clears the overload latch), a position read, the goal set to it, torque on.
 * **Dynamixel X** (``Operating_Mode`` 5, current-based position, where the model senses current): the goal steps
-  the same way (``Profile_Velocity`` 0); the cap is ``Goal_Current`` (``cap/rated·stall current``); readings are
+  the same way (``Profile_Velocity`` 0); the cap is ``Goal_Current`` (``cap/stall·stall current``); readings are
   ``Present_Position``, ``Present_Velocity`` (0.229 rev/min), ``Present_Current`` and ``Hardware_Error_Status``
   (bit 5 overload: suspect, the firmware has switched the torque off; any other bit: fatal). A clear is torque
   off (a motor pressed into a stop may lose its replies until it stops pushing), then, if a hardware error
@@ -22,7 +22,9 @@ code drives a real arm and the simulated firmware on a pseudo-terminal.
 
 Joint frame: ``s = ticks·2π/resolution`` of an unwrapped tick count (continuous across the encoder seam), radians,
 positive where Present_Position grows (Dynamixel with ``Drive_Mode`` as the arm's profile sets it). Torques are in
-the profile's units (``rated_nm`` is the motor's full torque). Writes that move the motor during the search are
+N·m; a register's full scale is the model's stall torque from :mod:`robocal.core.motor_models`, and no torque
+limit written is above the model's hard ceiling (:data:`~robocal.core.motor_models.HARD_MAX_TORQUE_FRACTION` of
+its rating), whatever the caller asks. Writes that move the motor during the search are
 SYNC_WRITEs (no status packet: a latched servo's error byte cannot turn them into exceptions); reads are
 SYNC_READs of one motor (one block per reading where the registers are adjacent). :meth:`limp` is a SYNC_WRITE of ``Torque_Enable`` 0 and never raises.
 
@@ -40,6 +42,7 @@ from contextlib import suppress
 from typing import Any
 
 from ..backends.servo_ratings import OVERLOAD_BIT, PWM_FULL, RATINGS, RPM_UNIT
+from ..core.motor_models import MotorModel, find_motor_model, motor_key
 from ..core.stop_search import Command, StopSample
 from ..errors import CalibTimeoutError, DeviceError, UsageError
 from .autocal_types import Clock
@@ -85,6 +88,20 @@ def dynamixel_current_mode(model: str) -> bool:
     return rating is not None and rating.current_limit > 0
 
 
+def _motor_model(joint: str, bus_model: str, motor: str | None) -> MotorModel:
+    """The model table entry of a servo: ``motor`` (a variant such as ``sts3215-12v``) or the bus model.
+
+    Raises:
+        UsageError: The model is unknown, or ``motor`` is not a variant of the bus model.
+    """
+    found = find_motor_model(motor or bus_model)
+    if found is None:
+        raise UsageError(f"joint {joint}: motor model {motor or bus_model!r} has no rating in robocal's model table")
+    if motor_key(found.bus_model) != motor_key(bus_model):
+        raise UsageError(f"joint {joint}: motor {found.name} answers as {found.bus_model!r}, the bus has {bus_model!r}")
+    return found
+
+
 class _ServoJointDriver:
     """What the Feetech and Dynamixel drivers share: the tick frame, the period, enable, the command loop.
 
@@ -104,6 +121,7 @@ class _ServoJointDriver:
         clock: Clock,
         period_s: float = 0.01,
         homing_offset: int = 0,
+        motor: str | None = None,
     ) -> None:
         if not (
             math.isfinite(rated_nm) and rated_nm > 0 and math.isfinite(cap_nm) and 0 < cap_nm <= rated_nm
@@ -115,8 +133,13 @@ class _ServoJointDriver:
         self.name = name
         self.motor_id = int(motor_id)
         self.model = str(bus.motors[motor_id])
+        self.motor_model = _motor_model(name, self.model, motor)
+        self.full_nm = self.motor_model.stall_nm
+        """The torque of ``Torque_Limit`` 1000 / the stall current / ``Goal_PWM`` 885 (the model's stall torque)."""
+        self.ceiling_nm = self.motor_model.ceiling_nm
+        """No torque limit written to the motor is above this (the hard ceiling of the model's rating)."""
         self.rated_nm = float(rated_nm)
-        self.cap_nm = float(cap_nm)
+        self.cap_nm = min(float(cap_nm), self.ceiling_nm)
         self.clock = clock
         self.period_s = period_s
         self.homing_offset = int(homing_offset)
@@ -183,7 +206,7 @@ class _ServoJointDriver:
         return StopSample(self.clock.now(), self._q, v, tau, True, suspect)
 
     def _set_limit(self, limit_nm: float) -> None:
-        limit = min(max(limit_nm, 0.02 * self.cap_nm), self.cap_nm)  # never above the cap
+        limit = min(max(limit_nm, 0.02 * self.cap_nm), self.cap_nm, self.ceiling_nm)  # never above the cap
         if limit != self._limit_nm:
             self._write_limit(limit)
             self._limit_nm = limit
@@ -241,11 +264,14 @@ class FeetechJointDriver(_ServoJointDriver):
         bus: The arm's bus.
         name: Joint name.
         motor_id: Bus id.
-        rated_nm: The motor's full torque (N·m): ``Torque_Limit`` 1000 and ``Present_Load`` 1000 are this.
-        cap_nm: Torque cap of the search (``Torque_Limit = 1000·cap/rated``, never exceeded).
+        rated_nm: The rating the cap is a fraction of (N·m; the cap must not exceed it).
+        cap_nm: Torque cap of the search (``Torque_Limit = 1000·cap/stall``, never exceeded, and never above the
+            hard ceiling of the model's rating whatever is asked).
         clock: Time source; :meth:`execute` lets ``period_s`` pass per command.
         period_s: Control period.
         homing_offset: The motor's ``Homing_Offset`` now (the caller set it; re-homing changes it).
+        motor: The motor model when it is a variant of the bus model (``sts3215-12v``); default the bus model.
+            ``Torque_Limit`` and ``Present_Load`` 1000 are its stall torque (:mod:`robocal.core.motor_models`).
     """
 
     def _init_vendor(self) -> None:
@@ -255,7 +281,7 @@ class FeetechJointDriver(_ServoJointDriver):
     def _read_raw(self) -> tuple[int, float, float, int]:
         r = self.bus.sync_read_block(_FEETECH_READ, [self.motor_id])[self.motor_id]
         v = r["Present_Velocity"] * math.tau / self.res
-        tau = r["Present_Load"] / 1000.0 * self.rated_nm
+        tau = r["Present_Load"] / 1000.0 * self.full_nm
         return r["Present_Position"], v, tau, r["Status"]
 
     def _flags(self, bits: int) -> bool:
@@ -274,7 +300,8 @@ class FeetechJointDriver(_ServoJointDriver):
         return self._ticks + delta
 
     def _write_limit(self, limit_nm: float) -> None:
-        self._sync("Torque_Limit", max(1, min(1000, round(1000.0 * limit_nm / self.rated_nm))))
+        ceiling = math.floor(1000.0 * self.ceiling_nm / self.full_nm)
+        self._sync("Torque_Limit", max(1, min(ceiling, round(1000.0 * limit_nm / self.full_nm))))
 
     def rehome(self) -> None:
         """Move the seam away: torque off, ``Homing_Offset`` so the joint reads mid-turn, goal there, torque on."""
@@ -332,14 +359,14 @@ class DynamixelJointDriver(_ServoJointDriver):
     """A Dynamixel X servo in current-based position mode (5) through :class:`~robocal.backends.dynamixel.DynamixelBus`.
 
     Models without current sensing (XL430) are driven in extended position mode (4) with ``Goal_PWM`` as the
-    cap (``885·cap/rated``); their ``Present_Current`` address is read as that model's load.
+    cap (``885·cap/stall``); their ``Present_Current`` address is read as that model's load.
 
     Args:
         bus: The arm's bus.
         name: Joint name.
         motor_id: Bus id.
-        rated_nm: The motor's full (stall) torque in N·m, at the model's stall current.
-        cap_nm: Torque cap (``Goal_Current = cap/rated·stall current``).
+        rated_nm: The rating the cap is a fraction of (N·m).
+        cap_nm: Torque cap (``Goal_Current = cap/stall torque·stall current``, never above the model's ceiling).
         clock: Time source.
         period_s: Control period.
     """
@@ -362,7 +389,7 @@ class DynamixelJointDriver(_ServoJointDriver):
     def _read_raw(self) -> tuple[int, float, float, int]:
         r = self.bus.sync_read_block(_DXL_READ, [self.motor_id])[self.motor_id]
         v = r["Present_Velocity"] * RPM_UNIT / 60.0 * math.tau
-        tau = r["Present_Current"] * self.rating.current_unit_a / self.rating.stall_current_a * self.rated_nm
+        tau = r["Present_Current"] * self.rating.current_unit_a / self.rating.stall_current_a * self.full_nm
         return r["Present_Position"], v, tau, self._read1("Hardware_Error_Status")
 
     def _flags(self, bits: int) -> bool:
@@ -374,12 +401,13 @@ class DynamixelJointDriver(_ServoJointDriver):
         return float(present)  # modes 4 and 5 report multi-turn positions
 
     def _write_limit(self, limit_nm: float) -> None:
-        fraction = limit_nm / self.rated_nm
+        fraction, top = limit_nm / self.full_nm, self.ceiling_nm / self.full_nm
         if self.current_mode:
-            units = fraction * self.rating.stall_current_a / self.rating.current_unit_a
-            self._sync("Goal_Current", max(1, min(self.rating.current_limit, round(units))))
+            per = self.rating.stall_current_a / self.rating.current_unit_a
+            units = min(self.rating.current_limit, round(fraction * per), math.floor(top * per))
+            self._sync("Goal_Current", max(1, units))
         else:
-            self._sync("Goal_PWM", max(1, min(PWM_FULL, round(fraction * PWM_FULL))))
+            self._sync("Goal_PWM", max(1, min(round(fraction * PWM_FULL), math.floor(top * PWM_FULL))))
 
     def _goal(self, target_ticks: float) -> int:
         return round(target_ticks)

@@ -38,6 +38,7 @@ from .autocal_types import (
     AutoView,
     Clock,
     ConfirmStart,
+    JointCaps,
     JointDriver,
     MonotonicClock,
     limp_all,
@@ -268,7 +269,7 @@ def run_sweep_auto(
         raise UsageError(
             f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
         )
-    caps = {j.name: j.torque_cap_nm for j in order if j.searched}
+    caps = JointCaps(order)
     if confirm_start is not None and not confirm_start(tuple(caps), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
     limits = {j.name: (j.lower, j.upper) for j in specs}

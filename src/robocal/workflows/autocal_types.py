@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from ..core.named import get_named
-from ..core.profile_auto import NOT_SEARCHED
+from ..core.profile_auto import NOT_SEARCHED, AutoJoint
 from ..core.stop_search import Command, JointStops, StopSample
 from ..errors import CalibError
 
@@ -25,6 +25,7 @@ __all__ = [
     "AutoView",
     "Clock",
     "ConfirmStart",
+    "JointCaps",
     "JointDriver",
     "JointOutcome",
     "MonotonicClock",
@@ -34,7 +35,21 @@ __all__ = [
 
 ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
 """The clear-workspace question, asked before anything moves: the joints that will move (in order) and their
-torque caps (N·m); False: nothing moves."""
+torque caps (N·m; a :class:`JointCaps`, which also knows each motor's model and rating); False: nothing moves."""
+
+
+class JointCaps(dict[str, float]):
+    """The torque cap (N·m) of each searched joint, with its motor model and that model's rating (for the prompt).
+
+    Attributes:
+        models: Joint → (motor model name, the model's rated torque in N·m).
+    """
+
+    def __init__(self, joints: Sequence[AutoJoint]) -> None:
+        super().__init__((j.name, j.torque_cap_nm) for j in joints if j.searched)
+        self.models: dict[str, tuple[str, float]] = {
+            j.name: (j.motor or "?", j.model_rated_nm) for j in joints if j.searched
+        }
 
 
 class AutoCalAbortedError(CalibError):

@@ -33,7 +33,15 @@ from ...core.stop_search import JointStops
 from ...errors import UsageError
 from ..autocal import run_autocal, select_joints
 from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver_class
-from ..autocal_types import AutoCalFailedError, AutoCalResult, AutoView, Clock, ConfirmStart, JointDriver
+from ..autocal_types import (
+    AutoCalFailedError,
+    AutoCalResult,
+    AutoView,
+    Clock,
+    ConfirmStart,
+    JointCaps,
+    JointDriver,
+)
 from .calibrate import save_calibration
 from .eeprom import (
     EEPROM_FIELDS,
@@ -205,6 +213,7 @@ def prepare_search(
             clock=clock,
             period_s=period_s,
             homing_offset=offset,
+            motor=joint.motor,
         )
         if isinstance(drv, DynamixelJointDriver):
             drv.ram = dict(HOLD_GAINS.get(spec.name, {}).get(name, {}))
@@ -344,7 +353,7 @@ def auto_calibrate(
     if path is not None:
         check_calibration_writable(path)
     searched = [j.name for j in order if j.searched]  # stops: none joints never move
-    caps = {j.name: j.torque_cap_nm for j in order if j.searched}
+    caps = JointCaps(order)
     if confirm_start is not None and not confirm_start(tuple(searched), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
     lag = math.radians(max_lag_deg if max_lag_deg is not None else MAX_LAG_DEG[spec.vendor])
