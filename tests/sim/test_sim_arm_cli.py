@@ -44,6 +44,7 @@ def calibrate_with_operator(cwd: Path, robot: str, port: str, control: str, robo
     return out
 
 
+@pytest.mark.slow
 def test_calibrate_then_check_in_two_processes_and_ctrl_c_cleans_up(sim_process, tmp_path: Path) -> None:
     sim = sim_process(["so101_follower", "--link", "so101.port"])
     link = tmp_path / "so101.port"
@@ -86,6 +87,7 @@ def test_calibrate_then_check_in_two_processes_and_ctrl_c_cleans_up(sim_process,
     assert not os.path.lexists(tmp_path / "so101.port.control")
 
 
+@pytest.mark.slow
 def test_koch_follower_calibrates_on_the_standalone_dynamixel_arm(sim_process, tmp_path: Path) -> None:
     sim = sim_process(["koch_follower", "--seed", "3"])
     calibrate_with_operator(tmp_path, "koch_follower", sim.info["port"], sim.info["control"], "k")

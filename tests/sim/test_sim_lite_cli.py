@@ -31,6 +31,7 @@ def _netns_available() -> str | None:
     return None if r.returncode == 0 else f"cannot make a private network namespace: {r.stderr.strip()}"
 
 
+@pytest.mark.slow
 def test_sweep_over_udp_multicast_matches_sim_lite(tmp_path: Path) -> None:
     reason = _netns_available()
     if reason:

@@ -142,6 +142,7 @@ def test_seeded_runs_through_the_wire_are_identical() -> None:
     assert run() == run()
 
 
+@pytest.mark.slow
 def test_lost_replies_are_applied_at_the_same_simulated_time_every_run() -> None:
     def run() -> list[float]:
         plant = make_plant(Scenario(silent_at_stop=True), NOMINAL, search_torque_nm=1.0, q0_rad=0.9)

@@ -18,14 +18,22 @@ import pytest
 
 from robocal.backends.sim.control import SimControl
 
-from .conftest import Interactive
+from .conftest import CLIENT_ENV, REPLY_TIMEOUT_ENV, Interactive
 
 pytestmark = pytest.mark.timeout(180)
 
 # the stock SO-101 follower's gripper: stops 2000..3400 actual ticks, held at 2300 for "middle"
 GRIPPER = {"id": 6, "drive_mode": 0, "homing_offset": 253, "range_min": 1747, "range_max": 3147}
+HELD_UP_S = 1.5
+"""How long a process is held up: longer than the whole unpaced sweep's first stop."""
 
 
+def test_a_command_waits_longer_for_a_reply_than_the_simulator_is_held_up() -> None:
+    """The held-up simulator's case needs it: the command's reply timeout outlasts the hold-up."""
+    assert float(CLIENT_ENV[REPLY_TIMEOUT_ENV]) / 1000.0 > HELD_UP_S + 0.25
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("held_up", ["command", "simulator"])
 def test_calibration_is_exact_when_a_process_is_held_up_during_the_sweep(
     sim_process, tmp_path: Path, held_up: str
@@ -52,9 +60,9 @@ def test_calibration_is_exact_when_a_process_is_held_up_during_the_sweep(
         run.expect("whole range of motion", after=k)
         ctl.sweep(seconds=1.2, dwell_s=0.2, paced=True, wait=False)
         pid = run.proc.pid if held_up == "command" else sim.proc.pid
-        os.kill(pid, signal.SIGSTOP)  # held up for 1.5 s, longer than the whole unpaced sweep's first stop
+        os.kill(pid, signal.SIGSTOP)
         try:
-            time.sleep(1.5)
+            time.sleep(HELD_UP_S)
         finally:
             os.kill(pid, signal.SIGCONT)
         assert ctl.request("wait", timeout_s=120)["idle"] is True

@@ -12,6 +12,7 @@ from .conftest import robocal
 pytestmark = pytest.mark.timeout(90)
 
 
+@pytest.mark.slow
 def test_extract_from_the_standalone_controller_equals_offline_correction(
     sim_process, tmp_path: Path
 ) -> None:
@@ -31,6 +32,7 @@ def test_extract_from_the_standalone_controller_equals_offline_correction(
     assert code == 0 and "simulator stopped" in err
 
 
+@pytest.mark.slow
 def test_default_controller_is_a_calibrated_ur10e(sim_process, tmp_path: Path) -> None:
     sim = sim_process(["ur", "--port", "0"], until="address")
     host, _, port = sim.info["address"].rpartition(":")

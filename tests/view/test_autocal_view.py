@@ -77,6 +77,7 @@ def test_lerobot_auto_page_draws_not_searched_joints_grey() -> None:
         web.app.stop()
 
 
+@pytest.mark.slow
 def test_the_search_drawn_with_the_report_codes(tmp_path: Path) -> None:
     rec = Recorder()
     web = open_auto_sweep_page(LITE_URDF, inner=rec, port=0)
@@ -146,6 +147,7 @@ def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, s
     return code, out, err
 
 
+@pytest.mark.slow
 def test_cli_sweep_auto_view(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "cal.yaml"
     args = ["sweep", "--auto", "--urdf", str(LITE_URDF), "--source", "sim:lite?seed=0", "--out", str(out)]
@@ -219,6 +221,7 @@ def test_cli_sweep_auto_view_failed_joint_shown_exit_3(
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_demo_auto_view_serves_the_result_until_ctrl_c() -> None:
     lines, code, _out, err = serve_then_ctrl_c(
         ["demo", "--auto", "--view", "--port", "0"], "serving the result at http://127.0.0.1:"
@@ -288,6 +291,7 @@ class SimpleAuto:
         self.joints = tuple(joints)
 
 
+@pytest.mark.slow
 def test_cli_lerobot_calibrate_auto_view(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The simulated SO-101 through the real Feetech SDK, drawn on the arm's page; then the same with the page's
     port in use: one error line before the port opens, nothing written."""

@@ -150,6 +150,7 @@ def test_cli_replay_for_a_duration(tmp_path: Path, capsys: pytest.CaptureFixture
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"]
 
 
+@pytest.mark.slow
 def test_ctrl_c_exits_cleanly() -> None:
     lines, code, out, err = serve_then_ctrl_c(
         ["view", "--urdf", str(LITE_URDF), "--source", "sim:lite", "--port", "0"],
@@ -202,6 +203,7 @@ def test_lerobot_sim_arm_through_its_calibration(tmp_path: Path) -> None:
     assert session.app.raw_unit == "ticks"
 
 
+@pytest.mark.slow
 def test_demo_view_serves_the_calibrated_lite() -> None:
     lines, code, _out, err = serve_then_ctrl_c(["demo", "--view", "--port", "0"], "robocal view: serving http://127.0.0.1:")
     assert any("largest error" in ln for ln in lines)

@@ -18,7 +18,7 @@ from robocal.lerobot import normalize, read_calibration
 from robocal.workflows.lerobot import norm_modes, robot_spec
 
 from ..test_sim_arm_cli import calibrate_with_operator
-from .conftest import Interactive, harness_argv, harness_env, result_of, robocal, run_harness
+from .conftest import Interactive, SimProcess, harness_argv, harness_env, result_of, robocal, run_harness
 
 pytestmark = [pytest.mark.interop, pytest.mark.timeout(300)]
 
@@ -45,20 +45,33 @@ def eeprom(control: str) -> dict[str, dict[str, int]]:
         return {n: {k: j[k] for k in EEPROM if k in j} for n, j in ctl.state().items()}
 
 
-@pytest.fixture(params=["so101_follower", "koch_follower"])
-def calibrated(request, lerobot_python, sim_process, tmp_path: Path):
-    """Two identically seeded simulators: one calibrated by LeRobot, one by robocal."""
+@pytest.fixture(scope="module", params=["so101_follower", "koch_follower"])
+def calibrated(request, lerobot_python, tmp_path_factory: pytest.TempPathFactory):
+    """Two identically seeded simulators: one calibrated by LeRobot, one by robocal.
+
+    Built once per robot for the tests below (two calibrations take a while); a test that changes a simulator
+    puts it back before it ends.
+    """
     robot = request.param
-    sim_le = sim_process([robot, "--seed", "5"])
-    sim_rc = sim_process([robot, "--seed", "5"])
-    le_file = lerobot_calibrate(
-        lerobot_python, tmp_path, robot, sim_le.info["port"], sim_le.info["control"], tmp_path / "le"
-    )
-    calibrate_with_operator(tmp_path, robot, sim_rc.info["port"], sim_rc.info["control"], "x")
-    rc_file = tmp_path / "cal" / "robots" / DEVICE_DIR[robot] / "x.json"
-    return robot, sim_le, sim_rc, le_file, rc_file
+    tmp_path = tmp_path_factory.mktemp(f"calibrated-{robot}")
+    started: list[SimProcess] = []
+    try:
+        sim_le = SimProcess([robot, "--seed", "5"], tmp_path)
+        started.append(sim_le)
+        sim_rc = SimProcess([robot, "--seed", "5"], tmp_path)
+        started.append(sim_rc)
+        le_file = lerobot_calibrate(
+            lerobot_python, tmp_path, robot, sim_le.info["port"], sim_le.info["control"], tmp_path / "le"
+        )
+        calibrate_with_operator(tmp_path, robot, sim_rc.info["port"], sim_rc.info["control"], "x")
+        rc_file = tmp_path / "cal" / "robots" / DEVICE_DIR[robot] / "x.json"
+        yield robot, sim_le, sim_rc, le_file, rc_file
+    finally:
+        for sim in started:
+            sim.stop()
 
 
+@pytest.mark.slow
 def test_calibrate_leaves_identical_json_bytes_and_eeprom(calibrated) -> None:
     robot, sim_le, sim_rc, le_file, rc_file = calibrated
     assert le_file.read_bytes() == rc_file.read_bytes()
@@ -70,6 +83,7 @@ def test_calibrate_leaves_identical_json_bytes_and_eeprom(calibrated) -> None:
     assert {n: v["Homing_Offset"] for n, v in le.items()} == {n: c["homing_offset"] for n, c in data.items()}
 
 
+@pytest.mark.slow
 def test_draccus_loads_robocal_files_and_connect_finds_them_calibrated(
     calibrated, lerobot_python, tmp_path: Path
 ) -> None:
@@ -91,6 +105,7 @@ def test_draccus_loads_robocal_files_and_connect_finds_them_calibrated(
     assert connected["is_calibrated"] is True
 
 
+@pytest.mark.slow
 def test_robocal_check_on_lerobot_calibrated_servos_then_names_the_changed_limit(
     calibrated, lerobot_python, tmp_path: Path
 ) -> None:
@@ -100,25 +115,35 @@ def test_robocal_check_on_lerobot_calibrated_servos_then_names_the_changed_limit
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert f"EEPROM matches {le_file}" in ok.stdout
     limit = json.loads(le_file.read_text())["elbow_flex"]["range_min"]
-    run_harness(
-        lerobot_python,
-        "write_limit",
-        tmp_path,
-        robot=robot,
-        port=port,
-        id="x",
-        cal_dir=str(le_file.parent),
-        motor="elbow_flex",
-        register="Min_Position_Limit",
-        value=limit + 7,
-    )
-    bad = robocal("lerobot", "check", "--robot", robot, "--port", port, "--file", str(le_file), cwd=tmp_path)
+
+    def write_limit(value: int) -> None:
+        run_harness(
+            lerobot_python,
+            "write_limit",
+            tmp_path,
+            robot=robot,
+            port=port,
+            id="x",
+            cal_dir=str(le_file.parent),
+            motor="elbow_flex",
+            register="Min_Position_Limit",
+            value=value,
+        )
+
+    write_limit(limit + 7)
+    try:
+        bad = robocal(
+            "lerobot", "check", "--robot", robot, "--port", port, "--file", str(le_file), cwd=tmp_path
+        )
+    finally:
+        write_limit(limit)  # the simulator is shared with the other tests (see ``calibrated``)
     assert bad.returncode == 1
     assert bad.stdout.strip().splitlines() == [
         f"differs: motor 'elbow_flex' (id 3): range_min is {limit + 7} on the motor, {limit} in the file"
     ]
 
 
+@pytest.mark.slow
 def test_normalised_reads_agree_bit_for_bit(calibrated, lerobot_python, tmp_path: Path) -> None:
     robot, _sim_le, sim_rc, _le_file, rc_file = calibrated
     spec = robot_spec(robot)
@@ -144,6 +169,7 @@ def test_normalised_reads_agree_bit_for_bit(calibrated, lerobot_python, tmp_path
     assert [float(x).hex() for x in live] == [got["norm"][n] for n in spec.motor_names]
 
 
+@pytest.mark.slow
 def test_broadcast_ping_and_scan_port(lerobot_python, sim_process, tmp_path: Path) -> None:
     so = sim_process(["so101_follower"])
     got = run_harness(
@@ -158,6 +184,7 @@ def test_broadcast_ping_and_scan_port(lerobot_python, sim_process, tmp_path: Pat
     assert [DYNAMIXEL_MODELS[m.model][0] for m in robot_spec("koch_follower").motors] == [1060, 1060] + [1200] * 4
 
 
+@pytest.mark.slow
 def test_setup_motors_on_factory_servos_then_robocal_calibrates(
     lerobot_python, sim_process, tmp_path: Path
 ) -> None:
@@ -208,7 +235,10 @@ HAND_EDITS = {
 }
 
 
-@pytest.mark.parametrize("case", list(HAND_EDITS))
+# The fast tier (`-m "not slow"`) runs one hand edit: LeRobot's environment starts in each.
+@pytest.mark.parametrize(
+    "case", [pytest.param(c, marks=() if c == "duplicate_id" else pytest.mark.slow) for c in HAND_EDITS]
+)
 def test_hand_edited_files_lerobot_loads_and_robocal_refuses(
     case: str, lerobot_python, tmp_path: Path
 ) -> None:
