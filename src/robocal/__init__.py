@@ -7,13 +7,20 @@ normalisation, and Universal Robots kinematic calibration correction. The math l
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
-
 from .errors import CalibError as CalibError
 
-try:
-    __version__ = version("robocal")
-except PackageNotFoundError:  # running from a source tree without installation
-    __version__ = "0.0.0+src"
-
 __all__ = ["CalibError", "__version__"]
+
+
+def __getattr__(name: str) -> str:
+    """``robocal.__version__``, looked up on first use (the lookup is slow; ``robocal`` starts without it)."""
+    if name != "__version__":
+        raise AttributeError(f"module 'robocal' has no attribute {name!r}")
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        found = version("robocal")
+    except PackageNotFoundError:  # running from a source tree without installation
+        found = "0.0.0+src"
+    globals()["__version__"] = found
+    return found

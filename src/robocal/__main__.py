@@ -1,5 +1,5 @@
-"""``python -m robocal`` runs the CLI."""
+"""``python -m robocal`` runs the CLI (signal handlers first: see :mod:`robocal.cli.entry`)."""
 
-from robocal.cli.main import run
+from robocal.cli.entry import run
 
 run()

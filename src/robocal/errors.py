@@ -27,6 +27,7 @@ __all__ = [
     "JointOutOfRangeError",
     "ProtocolError",
     "ShapeMismatchError",
+    "SignalInterrupt",
     "UsageError",
     "check_choice",
 ]
@@ -100,3 +101,23 @@ class ProtocolError(DeviceError):
 
 class CalibTimeoutError(DeviceError, TimeoutError):
     """A device did not answer within the timeout; the message names the device."""
+
+
+class SignalInterrupt(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived while a command ran (``robocal.cli.entry`` raises it in the main thread).
+
+    It is a ``KeyboardInterrupt``, so every path that makes motors limp and restores registers on Ctrl-C runs
+    for ``kill`` and a closed terminal too. ``exit_code`` is the shell's ``128 + signum`` (143, 129).
+
+    Attributes:
+        signum: The signal number.
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = int(signum)
+
+    @property
+    def exit_code(self) -> int:
+        """``128 + signum``."""
+        return 128 + self.signum

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -388,7 +389,12 @@ def test_cli_second_ctrl_c_after_the_report_names_it(
 
     out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
     monkeypatch.setattr(wf, "open_source", h.sim_opener(SimLite(46, noise_rad=0.0)))
-    monkeypatch.setattr(wf, "write_calibration", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+
+    def two_ctrl_c(*a: Any, **k: Any) -> None:  # real SIGINTs: the first only asks the sweep to finish
+        signal.raise_signal(signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(wf, "write_calibration", two_ctrl_c)
     rc = main(["sweep", "--urdf", str(urdf), "--source", "sim:lite", "--out", str(out), "--report", str(rep)])
     err = capsys.readouterr().err
     assert rc == 130 and not out.exists() and rep.exists()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +40,13 @@ def test_recovered_offsets_match_truth(
         assert "not_swept" not in j.warnings and "span_mismatch" not in j.warnings
         assert j.sweep == pytest.approx(j.span, abs=0.01)
     assert dict(cf.ids) == {j.name: j.can_id for j in sim.joints}
+
+
+def _two_ctrl_c() -> None:
+    """Two real Ctrl-Cs (SIGINT to this process; each handler runs before ``raise_signal`` returns)."""
+    signal.raise_signal(signal.SIGINT)
+    signal.raise_signal(signal.SIGINT)
+    raise AssertionError("a second Ctrl-C while finishing must interrupt")
 
 
 def test_joints_whose_travel_crosses_the_wrap_point(urdf: Path, tmp_path: Path, h: Any) -> None:
@@ -203,7 +211,7 @@ def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
 
     def interrupted_before(*a: Any, **k: Any) -> None:
         assert rep.exists()  # the report is already complete when the calibration is written
-        raise KeyboardInterrupt
+        _two_ctrl_c()
 
     monkeypatch.setattr(wf, "write_calibration", interrupted_before)
     with pytest.raises(SweepAbortedError) as exc:
@@ -224,7 +232,7 @@ def test_second_ctrl_c_after_the_calibration_was_written_says_so(
 
     def interrupted_after(*a: Any, **k: Any) -> None:
         real(*a, **k)
-        raise KeyboardInterrupt  # lands after the rename, before run_sweep returns
+        _two_ctrl_c()  # lands after the rename, before run_sweep returns
 
     monkeypatch.setattr(wf, "write_calibration", interrupted_after)
     with pytest.raises(SweepAbortedError) as exc:
@@ -232,7 +240,7 @@ def test_second_ctrl_c_after_the_calibration_was_written_says_so(
     assert str(exc.value) == f"sweep aborted by a second Ctrl-C after writing {out} and {rep} (complete)"
     assert read_calibration(out).calibration.joint_names == tuple(h.names)
     # without a report, an interrupt before the calibration is written leaves nothing
-    monkeypatch.setattr(wf, "write_calibration", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    monkeypatch.setattr(wf, "write_calibration", lambda *a, **k: _two_ctrl_c())
     out2 = tmp_path / "other.yaml"
     with pytest.raises(SweepAbortedError, match=r"^sweep aborted by a second Ctrl-C; nothing was written$"):
         run_sweep(urdf, "sim:lite", out2, open_source_fn=h.sim_opener(SimLite(44, noise_rad=0.0)))

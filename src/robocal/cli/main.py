@@ -14,6 +14,7 @@ import logging
 import os
 import platform
 import shlex
+import signal
 import sys
 import tempfile
 import time
@@ -27,7 +28,8 @@ from typer.core import TyperArgument, TyperOption
 
 from .. import __version__
 from ..errors import CalibError, UsageError
-from . import _common
+from ..workflows.written import files_written
+from . import _common, entry
 
 app = typer.Typer(
     name="robocal",
@@ -59,9 +61,28 @@ def _root(
 
 
 class UserInterruptError(CalibError):
-    """Ctrl-C reached the CLI without the command handling it."""
+    """Ctrl-C (or SIGTERM, SIGHUP) reached the CLI without the command handling it."""
 
     exit_code = 130
+
+
+_written_before_main = 0
+
+
+def _interrupt_error(exc: KeyboardInterrupt) -> UserInterruptError:
+    """The one line an interruption ends with, and its exit code (130, or 143 / 129 for SIGTERM / SIGHUP).
+
+    When files were written before it (atomically, so each is whole), the line says which instead of calling
+    the interruption an error.
+    """
+    signum = getattr(exc, "signum", None) or entry.first_signal() or int(signal.SIGINT)
+    text = entry.interrupted_text(signum)
+    written = files_written()[_written_before_main:]
+    if written:
+        text = f"{text} after writing {' and '.join(str(p) for p in written)} (complete)"
+    err = UserInterruptError(text)
+    err.exit_code = entry.exit_code_for(signum)
+    return err
 
 
 def _interruptible(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -71,8 +92,9 @@ def _interruptible(func: Callable[..., Any]) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
-        except KeyboardInterrupt:
-            raise UserInterruptError("interrupted") from None
+        except KeyboardInterrupt as exc:
+            entry.quiet_after_interrupt()
+            raise _interrupt_error(exc) from None
 
     return wrapper
 
@@ -129,6 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns:
         The process exit code.
     """
+    global _written_before_main
+    _written_before_main = len(files_written())  # a test calling main() twice: only this command's files
     _install_note_handler()
     command = typer.main.get_command(app)
     _polish_help(command)
@@ -138,11 +162,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         rv = command.main(args=args, prog_name="robocal", standalone_mode=False)
         sys.stdout.flush()  # a closed pipe shows here, inside the handlers below, not at interpreter exit
     except CalibError as exc:
+        if exc.exit_code == 130:
+            entry.quiet_after_interrupt()
+        if isinstance(exc, UserInterruptError):
+            _print_interrupted(str(exc))
+            return exc.exit_code
         _common.print_error(str(exc))
-        return exc.exit_code
-    except KeyboardInterrupt:
-        _common.print_error("interrupted")
-        return 130
+        return _signal_exit_code(exc.exit_code)
+    except KeyboardInterrupt as exc:
+        entry.quiet_after_interrupt()
+        err = _interrupt_error(exc)
+        _print_interrupted(str(err))
+        return err.exit_code
     except Exception as exc:  # click usage errors carry format_message/exit_code; anything else is a bug
         fmt = getattr(exc, "format_message", None)
         if type(exc).__name__ == "NoArgsIsHelpError":  # help was shown for a bare group
@@ -165,8 +196,25 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _common.EXIT_BAD_INPUT
         return _report_bug(exc, args)
     if isinstance(rv, int):
-        return rv
+        return _signal_exit_code(rv)
     return 0
+
+
+def _signal_exit_code(code: int) -> int:
+    """130 (interrupted) becomes 143 / 129 when the interruption was SIGTERM / SIGHUP (``entry.first_signal``)."""
+    first = entry.first_signal()
+    if code == 130 and first is not None:
+        return entry.exit_code_for(first)
+    return code
+
+
+def _print_interrupted(text: str) -> None:
+    """``error: interrupted``; a line saying what was written when files were (an interruption, not an error)."""
+    if " after writing " in text:
+        sys.stderr.write(f"{text}\n")
+        sys.stderr.flush()
+    else:
+        _common.print_error(text)
 
 
 class _FlagOption(TyperOption):
@@ -257,5 +305,5 @@ def _closed_pipe() -> int:
 
 
 def run() -> None:
-    """Console-script wrapper: ``sys.exit(main())``."""
-    sys.exit(main())
+    """Console-script wrapper of older installs (``robocal.cli.entry.run`` is the entry point now)."""
+    entry.run_command(main)

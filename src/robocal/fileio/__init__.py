@@ -1,10 +1,12 @@
 """Safe file reading and atomic writing shared by every file format and workflow.
 
-Writes go to a temporary file with a short name (``.rc-XXXXXXXX.tmp``) in the target's folder, are flushed and
+Writes go to a temporary file with a short name (``.rc-<pid>-XXXXXXXX.tmp``) in the target's folder, are flushed and
 fsynced, and the temporary file is renamed over the target, so a reader never sees half a file and a failure
 leaves the old file untouched. The previous file is kept as a backup, made just as atomically: it is hard-linked
 (or, where links are impossible, copied to a temporary file and fsynced) under a temporary name first, and only
-then renamed into place, so a full disk never replaces a good backup with a truncated one.
+then renamed into place, so a full disk never replaces a good backup with a truncated one. A process killed
+mid-write (SIGKILL, a power cut) leaves its temporary file; the next write in that folder removes the temporary
+files of robocal processes that no longer exist (:func:`remove_stale_temporaries`).
 
 Backups keep :data:`BACKUP_GENERATIONS` generations: ``NAME.bak`` (the newest), ``NAME.bak.1`` … ``NAME.bak.4``
 (the oldest). Each write that changes the file shifts them by one and drops the oldest; a write of the same
@@ -28,7 +30,14 @@ from __future__ import annotations
 from ._paths import BACKUP_GENERATIONS, backup_path, backup_paths
 from .preflight import OutputTarget, check_output_path, preflight_output
 from .read import MAX_FILE_BYTES, read_bytes, read_text
-from .write import WriteResult, atomic_write, atomic_write_bytes, atomic_write_text
+from .write import (
+    WriteResult,
+    atomic_write,
+    atomic_write_bytes,
+    atomic_write_text,
+    files_written,
+    remove_stale_temporaries,
+)
 
 __all__ = [
     "BACKUP_GENERATIONS",
@@ -41,7 +50,9 @@ __all__ = [
     "backup_path",
     "backup_paths",
     "check_output_path",
+    "files_written",
     "preflight_output",
     "read_bytes",
     "read_text",
+    "remove_stale_temporaries",
 ]

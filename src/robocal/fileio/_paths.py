@@ -13,7 +13,13 @@ BACKUP_GENERATIONS = 5
 
 TMP_PREFIX = ".rc-"
 TMP_SUFFIX = ".tmp"
-TMP_NAME_BYTES = len(TMP_PREFIX) + 8 + len(TMP_SUFFIX)  # mkstemp's random part is 8 characters
+TMP_PID_DIGITS = 10  # a pid is at most 2**31 - 1
+TMP_NAME_BYTES = len(TMP_PREFIX) + TMP_PID_DIGITS + 1 + 8 + len(TMP_SUFFIX)  # mkstemp's random part: 8 chars
+
+
+def tmp_prefix() -> str:
+    """The prefix of this process's temporary files: ``.rc-<pid>-`` (a later run removes them if it died)."""
+    return f"{TMP_PREFIX}{os.getpid()}-"
 
 PathLike = str | os.PathLike[str]
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import FileWriteError
-from ._paths import TMP_NAME_BYTES, TMP_PREFIX, TMP_SUFFIX, PathLike, encoded, name_max, parent_of, path_max
+from ._paths import TMP_NAME_BYTES, TMP_SUFFIX, PathLike, encoded, name_max, parent_of, path_max, tmp_prefix
 
 __all__ = ["OutputTarget", "check_output_path", "preflight_output"]
 
@@ -136,7 +136,7 @@ def preflight_output(
         raise FileWriteError(f"{what} {p}: it is a directory{link}")
     if check_folder == folder:  # a real probe: permissions, ACLs, read-only file systems, quotas on inodes
         try:
-            fd, probe = tempfile.mkstemp(prefix=TMP_PREFIX, suffix=TMP_SUFFIX, dir=folder)
+            fd, probe = tempfile.mkstemp(prefix=tmp_prefix(), suffix=TMP_SUFFIX, dir=folder)
         except OSError as exc:
             raise FileWriteError(f"{what} {p}: cannot write in {folder} ({reason(exc)})") from None
         os.close(fd)

@@ -5,18 +5,81 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 import shutil
+import stat
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import FileWriteError
-from ._paths import TMP_PREFIX, TMP_SUFFIX, PathLike, backup_paths, parent_of
+from ._paths import TMP_PREFIX, TMP_SUFFIX, PathLike, backup_paths, parent_of, tmp_prefix
 from .preflight import preflight_output, reason
 
-__all__ = ["WriteResult", "atomic_write", "atomic_write_bytes", "atomic_write_text"]
+__all__ = [
+    "WriteResult",
+    "atomic_write",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "files_written",
+    "remove_stale_temporaries",
+]
 
 log = logging.getLogger("robocal.fileio")
+
+_STALE_NAME = re.compile(re.escape(TMP_PREFIX) + r"([1-9][0-9]{0,9})-[A-Za-z0-9_]{8}" + re.escape(TMP_SUFFIX))
+_written: list[Path] = []
+
+
+def files_written() -> tuple[Path, ...]:
+    """Every path :func:`atomic_write` completed in this process, in order (what an interruption leaves)."""
+    return tuple(_written)
+
+
+def _process_gone(pid: int) -> bool:
+    """True only when no process ``pid`` exists (a process of another user, or one we cannot ask, counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # EPERM: it exists, owned by someone else
+        return False
+    return False
+
+
+def remove_stale_temporaries(folder: Path) -> list[Path]:
+    """Remove the temporary files a killed robocal process left in ``folder``; returns what was removed.
+
+    A temporary file is named ``.rc-<pid>-XXXXXXXX.tmp``. One is removed only when it is a regular file (not a
+    link), owned by this user, not this process's, and no process ``pid`` exists any more; anything else
+    (another user's file, a live writer, a name of another shape) is left alone. Errors are ignored: this is
+    housekeeping before a write, never a reason for the write to fail.
+
+    Args:
+        folder: The folder a file is about to be written in.
+    """
+    removed: list[Path] = []
+    me = os.getpid()
+    try:
+        with os.scandir(folder) as entries:
+            names = [e.name for e in entries if e.name.startswith(TMP_PREFIX) and e.name.endswith(TMP_SUFFIX)]
+    except OSError:
+        return removed
+    for name in names:
+        match = _STALE_NAME.fullmatch(name)
+        if match is None or int(match.group(1)) == me:
+            continue
+        path = folder / name
+        try:
+            st = os.lstat(path)
+            if not stat.S_ISREG(st.st_mode) or st.st_uid != os.geteuid():
+                continue
+            if _process_gone(int(match.group(1))):
+                os.unlink(path)
+                removed.append(path)
+        except OSError:
+            continue
+    return removed
 
 
 def _current_umask() -> int:
@@ -72,7 +135,7 @@ def _same_bytes(path: Path, data: bytes) -> bool:
 
 def _stage_backup(target: Path, folder: Path) -> str:
     """A temporary name in ``folder`` holding the current contents of ``target``, complete and durable."""
-    fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX, suffix=TMP_SUFFIX, dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=tmp_prefix(), suffix=TMP_SUFFIX, dir=folder)
     os.close(fd)
     os.unlink(tmp)
     try:
@@ -107,7 +170,8 @@ def _rotate_and_place(staged: str, target: Path) -> Path:
 def atomic_write(path: PathLike, data: bytes, *, backup: bool = True) -> WriteResult:
     """Write ``data`` to ``path`` atomically, keeping earlier versions as rotating backups.
 
-    The new contents go to ``.rc-XXXXXXXX.tmp`` in the target's folder and are fsynced; the current file is
+    Temporary files a killed robocal left in the folder are removed first (:func:`remove_stale_temporaries`).
+    The new contents go to ``.rc-<pid>-XXXXXXXX.tmp`` in the target's folder and are fsynced; the current file is
     hard-linked (or copied and fsynced) to another temporary name; only when both are complete are the backups
     rotated (``NAME.bak`` → ``NAME.bak.1`` …, :data:`BACKUP_GENERATIONS` kept) and the files renamed into
     place. A symbolic link is written through (see the module docstring). The file keeps its permission bits
@@ -133,8 +197,9 @@ def atomic_write(path: PathLike, data: bytes, *, backup: bool = True) -> WriteRe
     staged: str | None = None
     made_backup: Path | None = None
     rotated = False
+    remove_stale_temporaries(folder)
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=TMP_PREFIX, suffix=TMP_SUFFIX, dir=folder)
+        fd, tmp_name = tempfile.mkstemp(prefix=tmp_prefix(), suffix=TMP_SUFFIX, dir=folder)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -156,6 +221,7 @@ def atomic_write(path: PathLike, data: bytes, *, backup: bool = True) -> WriteRe
             made_backup = _rotate_and_place(staged, target)
             staged = None
         os.replace(tmp_name, target)
+        _written.append(p)  # at once: an interruption from here on must say this file was written
         tmp_name = None
     except BaseException as exc:
         for leftover in (tmp_name, staged):

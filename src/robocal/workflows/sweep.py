@@ -2,7 +2,8 @@
 
 The source is read in the identity frame (``s = direction·raw``, what the robot publishes with an empty
 calibration file). When the sweep ends (source exhausted, Enter, or a first Ctrl-C) the offsets are computed,
-validated and written atomically; a second Ctrl-C while finishing aborts and writes nothing.
+validated and written atomically; a second Ctrl-C while finishing aborts and writes nothing more (a first one
+that arrives after the sweep ended by itself asks for what is already happening, and is not a second).
 """
 
 from __future__ import annotations
@@ -21,13 +22,14 @@ from ..core.jointmap import RobotCalibration
 from ..core.profile import METHODS, RobotProfile
 from ..core.sweep import DEFAULT_ONE_SIDED_THRESHOLD_RAD
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
-from ..errors import CalibError, FileFormatError, JointMismatchError, UsageError
+from ..errors import CalibError, FileFormatError, JointMismatchError, SignalInterrupt, UsageError
 from ..fileio import atomic_write_text
 from ..formats import CalibrationFile, read_calibration, write_calibration
 from ..formats.calibration import read_existing_output
 from ..formats.profiles import resolve_profile
 from ..formats.urdf import UrdfModel, read_urdf
 from .joint_specs import joints_from_urdf
+from .sweep_interrupts import FinishingCtrlC
 from .sweep_output import (
     OUTPUT_FORMATS,
     ConfirmFn,
@@ -55,7 +57,10 @@ __all__ = [
 ]
 
 class SweepAbortedError(CalibError):
-    """A second Ctrl-C aborted the sweep; nothing was written (exit 130)."""
+    """A second Ctrl-C (or one at the prompt, SIGTERM, SIGHUP) aborted the finishing sweep (exit 130, 143, 129).
+
+    The message says which files were written before it (each whole) and which not.
+    """
 
     exit_code = 130
 
@@ -248,7 +253,7 @@ def run_sweep(
     # ---- sample
     src = _open_with_upstream_names(open_source_fn or open_source, spec, joints, profile, topic, frame)
     session = SweepSession(src, joints, method=method, stops=stops, wraps=wraps)
-    interrupted = False
+    interrupted = ctrl_c_sampling = False
     checks: dict[str, int] | None = None
     zero_sta: dict[str, int] = {}
     try:
@@ -272,30 +277,39 @@ def run_sweep(
                     view.update(session)
                 if session.exhausted:
                     break
-        except KeyboardInterrupt:
-            interrupted = True  # first Ctrl-C: finish and write
+        except KeyboardInterrupt as exc:
+            if isinstance(exc, SignalInterrupt):
+                raise  # SIGTERM / SIGHUP: stop, write nothing (the CLI says which signal)
+            interrupted = ctrl_c_sampling = True  # first Ctrl-C: finish and write
         if stop is not None and stop.is_set():
             interrupted = True
         # ---- finish: a second Ctrl-C from here on aborts; the files not yet written stay as they were
         before = {p: _file_id(p) for p in (out_path, report_path) if p is not None}
+        ctrl_c = FinishingCtrlC(seen=1 if ctrl_c_sampling else 0)  # Enter is no Ctrl-C
         try:
-            src.close()
-            result = session.result(
-                prior=prior_offsets,
-                threshold_rad=threshold_rad,
-                span_tolerance_rad=span_tolerance_rad,
-                zero_sta=zero_sta,
-                direction_check=checks,
-            )
-            if view is not None:
-                view.finish(result)
-            risky = changes_to_confirm(result) if confirm is not None else []
-            if confirm is not None and risky:
-                accepted = set(confirm(result, tuple(risky)))
-                result = keep_prior(result, {n for n in risky if n not in accepted})
-            _write(result, urdf, joints, out_path, fmt, report_path, existing, profile)
-        except KeyboardInterrupt:
-            raise SweepAbortedError(_aborted_message(before, out_path, report_path)) from None
+            with ctrl_c:
+                src.close()
+                result = session.result(
+                    prior=prior_offsets,
+                    threshold_rad=threshold_rad,
+                    span_tolerance_rad=span_tolerance_rad,
+                    zero_sta=zero_sta,
+                    direction_check=checks,
+                )
+                if view is not None:
+                    view.finish(result)
+                risky = changes_to_confirm(result) if confirm is not None else []
+                if confirm is not None and risky:
+                    with ctrl_c.at_prompt():
+                        accepted = set(confirm(result, tuple(risky)))
+                    result = keep_prior(result, {n for n in risky if n not in accepted})
+                _write(result, urdf, joints, out_path, fmt, report_path, existing, profile)
+        except KeyboardInterrupt as exc:
+            cause = ctrl_c.cause(exc)
+            err = SweepAbortedError(_aborted_message(before, out_path, report_path, cause))
+            if isinstance(exc, SignalInterrupt):
+                err.exit_code = exc.exit_code
+            raise err from None
     finally:
         with contextlib.suppress(Exception, KeyboardInterrupt):
             src.close()
@@ -344,14 +358,14 @@ def _file_id(path: Path) -> tuple[int, int, int] | None:
 
 
 def _aborted_message(
-    before: Mapping[Path, tuple[int, int, int] | None], out: Path, report: Path | None
+    before: Mapping[Path, tuple[int, int, int] | None], out: Path, report: Path | None, cause: str
 ) -> str:
-    """What a second Ctrl-C left behind, by comparing the files with their state before writing."""
+    """What an interruption while finishing left behind, by comparing the files with their state before."""
     written = [p for p, ident in before.items() if _file_id(p) != ident]
     if not written:
-        return "sweep aborted by a second Ctrl-C; nothing was written"
+        return f"sweep aborted by {cause}; nothing was written"
     kept = [str(p) for p in before if p not in written]
-    msg = f"sweep aborted by a second Ctrl-C after writing {' and '.join(str(p) for p in written)} (complete)"
+    msg = f"sweep aborted by {cause} after writing {' and '.join(str(p) for p in written)} (complete)"
     if kept:
         msg += f"; {' and '.join(kept)} not written (unchanged)"
     return msg

@@ -1,0 +1,79 @@
+"""A signal before the command line is imported, or while a command runs: one line, the signal's exit code.
+
+Issue 26: Ctrl-C in the first ~0.8 s of any command printed a raw ``KeyboardInterrupt`` traceback, and SIGTERM or
+SIGHUP ended the process without a word. The child is held at a chosen import by a ``sitecustomize`` hook, so the
+signal lands inside the import on any machine, however loaded.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+from pathlib import Path
+
+import pytest
+
+from .conftest import paused_child
+
+SIGNALS = [
+    (signal.SIGINT, 130, "error: interrupted"),
+    (signal.SIGTERM, 143, "error: interrupted by SIGTERM"),
+    (signal.SIGHUP, 129, "error: interrupted by SIGHUP"),
+]
+
+
+@pytest.mark.parametrize(("signum", "code", "line"), SIGNALS, ids=["SIGINT", "SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("module", ["typer", "numpy"])
+def test_signal_while_importing_prints_one_line(
+    tmp_path: Path, signum: int, code: int, line: str, module: str
+) -> None:
+    proc, _ = paused_child(["check", "--help"], tmp_path, module)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=120)
+    assert (proc.returncode, err, out) == (code, line + "\n", "")
+
+
+def test_old_console_script_is_covered_too(tmp_path: Path) -> None:
+    """A ``robocal`` script generated before the new entry point (``from robocal.cli.main import run``)."""
+    script = tmp_path / "robocal"
+    script.write_text("import sys\nfrom robocal.cli.main import run\nsys.exit(run())\n")
+    proc, _ = paused_child(["check", "--help"], tmp_path, "typer", program=[sys.executable, str(script)])
+    proc.send_signal(signal.SIGINT)
+    _out, err = proc.communicate(timeout=120)
+    assert (proc.returncode, err) == (130, "error: interrupted\n")
+
+
+@pytest.mark.parametrize(("signum", "code", "line"), SIGNALS, ids=["SIGINT", "SIGTERM", "SIGHUP"])
+def test_signal_while_a_command_opens_its_source(tmp_path: Path, signum: int, code: int, line: str) -> None:
+    """The sweep is running (its CAN source being opened): one line, the signal's code, nothing written."""
+    from robocal.backends.sim.lite import lite_urdf_text
+
+    (tmp_path / "lite.urdf").write_text(lite_urdf_text())
+    argv = ["sweep", "--urdf", "lite.urdf", "--source", "sim:lite?seed=3", "--out", "cal.yaml"]
+    proc, _ = paused_child(argv, tmp_path, "can")
+    proc.send_signal(signum)
+    _out, err = proc.communicate(timeout=120)
+    assert (proc.returncode, err) == (code, line + "\n")
+    assert not (tmp_path / "cal.yaml").exists()
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".rc-")]
+
+
+def test_ignored_sighup_stays_ignored(tmp_path: Path) -> None:
+    """``nohup robocal ...``: the parent ignores SIGHUP, and so does robocal (a closed terminal must not stop it)."""
+    import subprocess
+
+    from .conftest import SRC
+
+    code = (
+        "import signal, sys; signal.signal(signal.SIGHUP, signal.SIG_IGN); "
+        "from robocal.cli import entry; entry.install_startup_handlers(); "
+        "print(signal.getsignal(signal.SIGHUP) == signal.SIG_IGN, signal.getsignal(signal.SIGTERM) is not None)"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PYTHONPATH": str(SRC)},
+    )
+    assert r.stdout == "True True\n", r.stderr
