@@ -19,6 +19,7 @@ def test_scenario_meets_acceptance(robot: str, spec: object) -> None:
     assert summary["peak_over_cap"] <= 1.10
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("robot", "limit"), [("so101", 60.0), ("lite", 180.0)])
 def test_whole_robot_time(robot: str, limit: float) -> None:
     assert bench.robot_total_time(robot) < limit

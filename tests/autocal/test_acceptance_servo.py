@@ -19,8 +19,20 @@ bench = load_benchmark("bench_autocal_servo")
 SCENARIOS = {s.name: s for s in bench.SERVO_SCENARIOS}
 
 
-@pytest.mark.parametrize("spec", bench.SERVO_SCENARIOS, ids=lambda s: s.name)
-@pytest.mark.parametrize("robot", ["so101_follower", "koch_follower"])
+@pytest.mark.parametrize(
+    ("robot", "spec"),
+    [
+        # one scenario in the fast tier (`-m "not slow"`); every scenario on both firmwares in the full suite
+        pytest.param(
+            robot,
+            spec,
+            id=f"{robot}-{spec.name}",
+            marks=() if (robot, spec.name) == ("so101_follower", "cable_snag") else pytest.mark.slow,
+        )
+        for robot in ("so101_follower", "koch_follower")
+        for spec in bench.SERVO_SCENARIOS
+    ],
+)
 def test_scenario_meets_acceptance_on_the_servo_firmware(robot: str, spec: object) -> None:
     stats = bench.run_scenario(robot, spec, range(2))
     assert stats.problems() == []
@@ -30,6 +42,7 @@ def test_scenario_meets_acceptance_on_the_servo_firmware(robot: str, spec: objec
     assert len({r.joint for r in stats.runs}) == 2  # two different joints
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("robot", "scenario", "seed"),
     [("so101_follower", "stiff_100", 4), ("koch_follower", "overload_latch", 1)],

@@ -12,6 +12,20 @@ bench = load_benchmark("bench_autocal_wire")
 SPECS = {spec.name: (spec, fault) for spec, fault in bench.WIRE_SCENARIOS}
 
 
+def test_the_checked_scenarios_carry_their_faults_and_verdicts() -> None:
+    """The three scenarios below are the benchmark's own: their ``sim:lite`` fault option and expected verdict."""
+    checked = {
+        name: (SPECS[name][1], SPECS[name][0].expect)
+        for name in ("stiff_600", "missing_stop", "overload_latch")
+    }
+    assert checked == {
+        "stiff_600": ("", "accurate"),
+        "missing_stop": ("missing", "abort"),
+        "overload_latch": ("overload", "accurate"),
+    }
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["stiff_600", "missing_stop", "overload_latch"])
 def test_whole_arm_over_the_wire_meets_acceptance(name: str) -> None:
     spec, fault = SPECS[name]

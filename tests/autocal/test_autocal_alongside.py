@@ -129,6 +129,7 @@ def test_ctrl_c_in_one_joint_of_a_group_leaves_every_motor_limp() -> None:
     assert 0 < drivers["a"].steps <= 51  # a stopped with b: it was not run to its end first
 
 
+@pytest.mark.slow
 def test_whole_so101_under_60_s_simulated_with_joints_alongside() -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")

@@ -150,6 +150,7 @@ def test_lerobot_auto_stopless_joint_is_refused_before_the_question() -> None:
     assert asked == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("report_exists", [True, False])
 def test_ctrl_c_between_the_report_and_the_calibration_leaves_both_unchanged(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, report_exists: bool

@@ -25,6 +25,7 @@ def test_koch_profile_marks_the_full_turn_joints() -> None:
     assert set(robot_spec("koch_follower").full_turn) == set(FULL_TURN)  # the same joints LeRobot treats so
 
 
+@pytest.mark.slow
 def test_koch_auto_calibration_with_full_turn_joints_not_searched(tmp_path: Path) -> None:
     # a subset: the joints without a pose of their own; the full-turn ones (never moved) cannot be named
     # (tests/autocal/test_autocal_contract.py) and keep their EEPROM calibration
@@ -65,6 +66,7 @@ def test_koch_auto_calibration_with_full_turn_joints_not_searched(tmp_path: Path
     assert list(written) == list(spec.motor_names)
 
 
+@pytest.mark.slow
 def test_whole_koch_auto_calibration_finishes(tmp_path: Path) -> None:
     # LeRobot's KochFollower.configure() gains on elbow_flex (P 1500, I 0, D 600): with the XL330's default gain
     # the elbow, capped at 25 % of 0.52 N·m, stopped 1.8° short of its pose angle (shoulder_lift 0) when it had

@@ -55,6 +55,7 @@ class Recorder:
         self.done.append(outcome.name)
 
 
+@pytest.mark.slow
 def test_so101_finds_its_stops_through_the_feetech_registers(tmp_path: Path) -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
@@ -99,6 +100,7 @@ def test_so101_finds_its_stops_through_the_feetech_registers(tmp_path: Path) -> 
     assert MotorCalibration(**doc["wrist_flex"]) == res.calibration["wrist_flex"]
 
 
+@pytest.mark.slow
 def test_feetech_search_across_the_seam_rehomes_wrist_roll() -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
@@ -116,6 +118,7 @@ def test_feetech_search_across_the_seam_rehomes_wrist_roll() -> None:
     assert (hi - truth.stop_high_ticks + 2048) % 4096 - 2048 == pytest.approx(0, abs=2)
 
 
+@pytest.mark.slow
 def test_koch_current_based_and_pwm_capped_dynamixels(tmp_path: Path) -> None:
     spec = robot_spec("koch_follower")
     section = auto_section("koch_follower")
@@ -139,6 +142,7 @@ def test_koch_current_based_and_pwm_capped_dynamixels(tmp_path: Path) -> None:
     assert res.calibration["gripper"].drive_mode == 0
 
 
+@pytest.mark.slow
 def test_missing_stop_fails_the_joint_and_writes_nothing(tmp_path: Path) -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
@@ -154,7 +158,7 @@ def test_missing_stop_fails_the_joint_and_writes_nothing(tmp_path: Path) -> None
 
 
 @pytest.mark.parametrize(
-    "at", [2, 120, 700]
+    "at", [2, 120, pytest.param(700, marks=pytest.mark.slow)]
 )  # before contact, pressed into the lower stop, on the upper side
 def test_ctrl_c_limps_every_motor_and_restores_every_register(tmp_path: Path, at: int) -> None:
     spec = robot_spec("so101_follower")
@@ -193,6 +197,7 @@ def test_driver_types_per_vendor() -> None:
         servo_driver_class("robstride")
 
 
+@pytest.mark.slow
 def test_obstacle_near_the_transit_end_is_a_span_mismatch_not_an_abort() -> None:
     # the simulated block sits 1.25° short of where the fast transit ends: held short of its target at the cap
     spec = robot_spec("so101_follower")
@@ -207,6 +212,7 @@ def test_obstacle_near_the_transit_end_is_a_span_mismatch_not_an_abort() -> None
         assert registers(arm, spec) == before
 
 
+@pytest.mark.slow
 def test_dynamixel_overload_shutdown_is_rebooted_and_the_search_goes_on() -> None:
     spec = robot_spec("koch_follower")
     section = auto_section("koch_follower")
@@ -235,6 +241,7 @@ def test_dynamixel_overload_shutdown_is_rebooted_and_the_search_goes_on() -> Non
     assert (lo, hi) == pytest.approx((2000, 3000), abs=3)
 
 
+@pytest.mark.slow
 def test_feetech_silent_at_the_stop_is_confirmed_by_a_reread() -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
@@ -268,6 +275,7 @@ def test_not_confirmed_nothing_moves() -> None:
     )
 
 
+@pytest.mark.slow
 def test_ctrl_c_while_the_calibration_is_written_restores_it(tmp_path: Path) -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")

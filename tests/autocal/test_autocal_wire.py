@@ -31,6 +31,7 @@ def urdf(tmp_path: Path) -> Path:
     return p
 
 
+@pytest.mark.slow
 def test_recovers_the_true_offsets(urdf: Path, tmp_path: Path) -> None:
     holder: list[SimAutoLite] = []
     out = tmp_path / "cal.yaml"
@@ -66,6 +67,7 @@ def test_recovers_the_true_offsets(urdf: Path, tmp_path: Path) -> None:
         assert plant.peak_tau_motor_nm <= 1.05 * 0.4 + 1e-9
 
 
+@pytest.mark.slow
 def test_missing_stop_writes_nothing_and_limps(urdf: Path, tmp_path: Path) -> None:
     holder: list[SimAutoLite] = []
     out = tmp_path / "cal.yaml"
@@ -83,6 +85,7 @@ def test_missing_stop_writes_nothing_and_limps(urdf: Path, tmp_path: Path) -> No
     assert all(m.mode == 0 for m in holder[0].motors.values())
 
 
+@pytest.mark.slow
 def test_partial_writes_the_joints_that_passed(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "cal.yaml"
     outcome = run_sweep_auto(
@@ -109,7 +112,7 @@ class _Interrupt:
         pass
 
 
-@pytest.mark.parametrize("after", [5, 300, 900])
+@pytest.mark.parametrize("after", [5, 300, pytest.param(900, marks=pytest.mark.slow)])
 def test_ctrl_c_at_any_step_leaves_every_motor_limp_and_files_unchanged(
     urdf: Path, tmp_path: Path, after: int
 ) -> None:
@@ -148,6 +151,7 @@ def test_not_confirmed_moves_nothing(urdf: Path, tmp_path: Path) -> None:
     assert asked == [tuple(JOINTS)]  # in the profile's search order
 
 
+@pytest.mark.slow
 def test_cli_sweep_auto(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "cal.yaml"
     cmd = [
@@ -187,6 +191,7 @@ def test_cli_sweep_auto(urdf: Path, tmp_path: Path) -> None:
     assert fail.stderr.count("error:") == 1 and "left_wrist_roll: missing_stop" in fail.stderr
 
 
+@pytest.mark.slow
 def test_cli_demo_auto(tmp_path: Path) -> None:
     r = subprocess.run(
         [sys.executable, "-m", "robocal", "demo", "--auto", "--out", str(tmp_path)],
@@ -202,6 +207,7 @@ def test_cli_demo_auto(tmp_path: Path) -> None:
     assert doc["auto"]["total_time_s"] < 180.0
 
 
+@pytest.mark.slow
 def test_joints_not_searched_keep_their_entries(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "cal.yaml"
     out.write_text("right_elbow_pitch:\n  id: 24\n  direction: 1\n  homing_offset: 0.125\n")

@@ -10,12 +10,14 @@ from pathlib import Path
 
 import pytest
 
+from robocal.cli.main import main
 from robocal.formats.lerobot import calibration_path
 from robocal.workflows.lerobot import robot_spec
 
 pytestmark = pytest.mark.timeout(900)
 
 
+@pytest.mark.slow
 def test_cli_demo_auto_so101(tmp_path: Path) -> None:
     r = subprocess.run(
         [sys.executable, "-m", "robocal", "demo", "--auto", "--robot", "so101", "--out", str(tmp_path)],
@@ -38,3 +40,15 @@ def test_cli_demo_auto_so101(tmp_path: Path) -> None:
         set(v) >= {"id", "drive_mode", "homing_offset", "range_min", "range_max"} for v in doc.values()
     )
     assert "s simulated; wrote" in out
+
+
+def test_demo_auto_with_identify_is_refused_before_anything_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    code = main(["demo", "--auto", "--identify", "--robot", "so101", "--out", str(out)])
+    assert code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "error: --auto is its own demo; it does not go with --identify"
+    ]
+    assert not out.exists() or list(out.iterdir()) == []

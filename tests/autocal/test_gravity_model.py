@@ -141,6 +141,7 @@ def _pe_gradient_pytransform3d(urdf: Path, names: tuple[str, ...], q: np.ndarray
     return np.array(grad)
 
 
+@pytest.mark.slow
 def test_so101_urdf_against_an_independent_fk() -> None:
     urdf = DATA / "so101_new_calib.urdf"
     m = gravity_model_from_urdf(urdf)

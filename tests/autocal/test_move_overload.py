@@ -54,6 +54,7 @@ def test_a_latch_that_keeps_coming_back_ends_the_move() -> None:
     assert driver.actions.count("reread") == MOVE_OVERLOAD_CLEARS
 
 
+@pytest.mark.slow
 def test_koch_elbow_latching_in_its_transit_is_found_not_a_span_mismatch() -> None:
     """Found by the benchmark once the scenario's latch tripped (protection 0.1 s): seed 0 of the Koch's elbow_flex
     latched in the fast transit between its stops, and the transit took the cut torque for an early stop."""
@@ -65,6 +66,7 @@ def test_koch_elbow_latching_in_its_transit_is_found_not_a_span_mismatch() -> No
     assert abs(run.zero_err_deg) < 0.5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [16, 25, 27])
 def test_so101_shoulder_lift_springing_back_when_the_latch_cuts_the_torque_is_still_a_stop(seed: int) -> None:
     """Found by 100 seeded runs per joint on the Feetech firmware sim (5 of 600 ``overload_latch`` runs, all the

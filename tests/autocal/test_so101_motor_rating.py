@@ -66,6 +66,7 @@ class _PressedTorque:
         pass
 
 
+@pytest.mark.slow
 def test_the_torque_read_is_the_torque_the_simulated_joint_applies() -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
@@ -82,6 +83,7 @@ def test_the_torque_read_is_the_torque_the_simulated_joint_applies() -> None:
     assert abs(detect) == pytest.approx(cap, rel=0.1)
 
 
+@pytest.mark.slow
 def test_the_simulated_follower_lifts_its_own_arm(tmp_path: Any) -> None:
     """With the weight of the shipped URDF on shoulder_lift and elbow_flex both are found (was span_mismatch)."""
     spec = robot_spec("so101_follower")

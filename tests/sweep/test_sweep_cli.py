@@ -107,6 +107,7 @@ def test_not_swept_keeps_prior_and_errors_without(urdf: Path, tmp_path: Path, h:
     assert cal.homing_offset[cal.index(ELBOW)] == 0.75
 
 
+@pytest.mark.slow
 def test_direction_flipped_by_guided_check(urdf: Path, tmp_path: Path, capsys: Any) -> None:
     out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
     src = "sim:lite?seed=4&flip=left_elbow_pitch&noise=0"
@@ -133,6 +134,7 @@ def test_direction_flipped_by_guided_check(urdf: Path, tmp_path: Path, capsys: A
     assert "direction check: move left_elbow_pitch toward its + limit" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_in_place_update_keeps_comments(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "calibration.yaml"
     names = [
@@ -156,6 +158,7 @@ def test_in_place_update_keeps_comments(urdf: Path, tmp_path: Path) -> None:
     assert all(h != 0.0 for h in read_calibration(out).calibration.homing_offset)
 
 
+@pytest.mark.slow
 def test_lite_json_output(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "calibration.json"
     assert main(["sweep", "--urdf", str(urdf), "--source", "sim:lite?seed=2", "--out", str(out)]) in (0, 1)
@@ -217,6 +220,7 @@ def test_malformed_urdf(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     assert not (tmp_path / "c.yaml").exists()
 
 
+@pytest.mark.slow
 def test_run_demo_recovers_offsets(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
@@ -244,6 +248,7 @@ def test_cli_second_ctrl_c_exit_130_writes_nothing(
     assert out.read_text() == "# keep me\n" and not (tmp_path / "cal.yaml.bak").exists()
 
 
+@pytest.mark.slow
 def test_cli_first_ctrl_c_writes(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -346,6 +351,7 @@ class _Deaf:
             self.inner.prompt_positive(joint)
 
 
+@pytest.mark.slow
 def test_direction_unknown_is_reported_when_a_joint_does_not_move(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -381,6 +387,7 @@ def test_direction_time_must_be_positive(
     assert "error: --direction-time 0.0: expected a finite number of seconds > 0" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_second_ctrl_c_after_the_report_names_it(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -120,6 +120,7 @@ def _sweep_args(urdf: Path, tmp_path: Path, *extra: str) -> list[str]:
     return ["sweep", "--urdf", str(urdf), "--source", SHORT, "--out", str(out), "--report", str(rep), *extra]
 
 
+@pytest.mark.slow
 def test_terminal_asks_per_joint_and_keeps_the_declined_offset(
     urdf: Path, tmp_path: Path, good: dict[str, float]
 ) -> None:
@@ -148,6 +149,7 @@ def test_terminal_asks_per_joint_and_keeps_the_declined_offset(
     assert all(written[n] == report[n]["homing_offset"] for n in others)  # no warning: no question
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("answer", "elbow_new", "wrist_new"), [("all", True, True), ("none", False, False)])
 def test_all_and_none_answer_for_the_rest(
     urdf: Path, tmp_path: Path, good: dict[str, float], answer: str, elbow_new: bool, wrist_new: bool
@@ -168,6 +170,7 @@ def test_all_and_none_answer_for_the_rest(
     assert (written[WRIST] != good[WRIST]) is wrist_new
 
 
+@pytest.mark.slow
 def test_end_of_input_keeps_every_prior_offset(urdf: Path, tmp_path: Path, good: dict[str, float]) -> None:
     term = Terminal(*_sweep_args(urdf, tmp_path))
     try:
@@ -195,6 +198,7 @@ def test_ctrl_c_at_the_prompt_writes_nothing(urdf: Path, tmp_path: Path, good: d
     assert (tmp_path / "cal.yaml").read_bytes() == before and not (tmp_path / "rep.json").exists()
 
 
+@pytest.mark.slow
 def test_yes_writes_every_new_offset_without_asking(
     urdf: Path, tmp_path: Path, good: dict[str, float]
 ) -> None:
@@ -208,6 +212,7 @@ def test_yes_writes_every_new_offset_without_asking(
     assert written[ELBOW] != good[ELBOW] and written[WRIST] != good[WRIST]
 
 
+@pytest.mark.slow
 def test_without_a_terminal_nothing_is_asked(urdf: Path, tmp_path: Path, good: dict[str, float]) -> None:
     # a replay in CI: standard input and output are pipes; behaves as before (the new offsets are written)
     p = subprocess.run(
@@ -222,6 +227,7 @@ def test_without_a_terminal_nothing_is_asked(urdf: Path, tmp_path: Path, good: d
     assert written[ELBOW] != good[ELBOW] and written[WRIST] != good[WRIST]
 
 
+@pytest.mark.slow
 def test_workflow_confirm_sees_only_changed_offsets_with_a_doubtful_warning(
     urdf: Path, tmp_path: Path, good: dict[str, float], h: Any
 ) -> None:
@@ -243,6 +249,7 @@ def test_workflow_confirm_sees_only_changed_offsets_with_a_doubtful_warning(
     assert keep_prior(outcome.result, []) == outcome.result
 
 
+@pytest.mark.slow
 def test_enter_finishes_a_sweep_that_is_still_running(urdf: Path, tmp_path: Path) -> None:
     # a recording that is still being written (a FIFO fed row by row) never ends by itself: only Enter ends it
     import threading

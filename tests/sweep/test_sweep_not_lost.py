@@ -33,6 +33,7 @@ def _can_mount_read_only(tmp_path: Path) -> bool:
     return p.returncode == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("flag", ["--out", "--report"])
 def test_read_only_folder_is_refused_before_the_sweep_starts(urdf: Path, tmp_path: Path, flag: str) -> None:
     # a real read-only file system (a read-only bind mount in a private mount namespace): as root, a chmod'ed
@@ -96,6 +97,7 @@ def _fail_calibration_write(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(wf, "write_calibration", no_space)
 
 
+@pytest.mark.slow
 def test_failed_write_at_the_end_prints_the_offsets(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -123,6 +125,7 @@ def test_failed_write_at_the_end_prints_the_offsets(
     assert "sweep result" in cap.out  # and the table
 
 
+@pytest.mark.slow
 def test_failed_write_of_lite_json_prints_json(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -135,6 +138,7 @@ def test_failed_write_of_lite_json_prints_json(
     assert set(printed) == set(h.names) and not out.exists()
 
 
+@pytest.mark.slow
 def test_not_saved_error_carries_the_calibration_for_api_users(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -32,6 +32,7 @@ def _robocal(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.slow
 def test_piped_tables_keep_full_names(urdf: Path, tmp_path: Path, h: Any) -> None:
     out = tmp_path / "cal.yaml"
     p = _robocal("sweep", "--urdf", str(urdf), "--source", "sim:lite?seed=7", "--out", str(out), cwd=tmp_path)
@@ -135,6 +136,7 @@ def test_live_view_explains_a_warning_as_soon_as_it_shows(urdf: Path, tmp_path: 
     assert "no_overlap: sampled range [+0.500, +2.856] rad does not overlap" in text
 
 
+@pytest.mark.slow
 def test_demo_and_sweep_agree_on_the_exit_code(urdf: Path, tmp_path: Path) -> None:
     # seed 7: one joint has wrap_in_travel (exit 1 for both); the default demo seed is clean (0 for both)
     for source, code in (("sim:lite?seed=7", 1), (LITE_DEMO_SOURCE, 0)):

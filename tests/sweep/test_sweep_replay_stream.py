@@ -44,6 +44,7 @@ def _peak_mib(fn: Any) -> float:
         tracemalloc.stop()
 
 
+@pytest.mark.slow
 def test_replay_memory_does_not_grow_with_the_recording(urdf: Path, tmp_path: Path) -> None:
     small, large = tmp_path / "small.csv", tmp_path / "large.csv"
     write_sweep_csv(small, 2 * BLOCK_ROWS)
@@ -144,6 +145,7 @@ def test_open_recording_checks_the_header_before_any_row(tmp_path: Path) -> None
         open_recording(rec, NAMES)
 
 
+@pytest.mark.slow
 def test_piped_replay_prints_progress_lines_with_percent(urdf: Path, tmp_path: Path) -> None:
     rec = tmp_path / "r.csv"
     write_sweep_csv(rec, 2 * BLOCK_ROWS)
@@ -173,6 +175,7 @@ def test_piped_replay_prints_progress_lines_with_percent(urdf: Path, tmp_path: P
     )
 
 
+@pytest.mark.slow
 def test_rosbag_is_streamed_in_header_stamp_order(urdf: Path, tmp_path: Path) -> None:
     n = BLOCK_ROWS + 900
     k = np.arange(n)

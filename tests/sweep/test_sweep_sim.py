@@ -21,6 +21,7 @@ from robocal.workflows.sweep import SweepAbortedError, run_sweep
 TOL = 2e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("seed", "zero_sta", "single_turn"),
     [(0, 1, False), (1, 1, True), (2, 0, False), (3, 0, True)],
@@ -49,6 +50,7 @@ def _two_ctrl_c() -> None:
     raise AssertionError("a second Ctrl-C while finishing must interrupt")
 
 
+@pytest.mark.slow
 def test_joints_whose_travel_crosses_the_wrap_point(urdf: Path, tmp_path: Path, h: Any) -> None:
     # factory zeros chosen so the power-on wrap point (0 with zero_sta 0) lies inside the travel of these joints;
     # single-turn readings jump by 2π mid-sweep
@@ -65,6 +67,7 @@ def test_joints_whose_travel_crosses_the_wrap_point(urdf: Path, tmp_path: Path, 
     assert outcome.exit_code == 1
 
 
+@pytest.mark.slow
 def test_power_on_branch_selection_via_check_source(urdf: Path, tmp_path: Path, h: Any) -> None:
     zeros = {"left_elbow_pitch": 0.6}
     sim = SimLite(6, noise_rad=0.0, zero_sta=0, factory_zero_rad=zeros)
@@ -105,6 +108,7 @@ def _write_csv(path: Path, names: list[str], t: np.ndarray, s: np.ndarray) -> No
     path.write_text("\n".join(rows) + "\n")
 
 
+@pytest.mark.slow
 def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(11, noise_rad=5e-4, zero_sta=0, single_turn=True)
     opener, made = h.recording_opener(sim)
@@ -134,6 +138,7 @@ def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) ->
         assert res.samples == live.samples
 
 
+@pytest.mark.slow
 def test_first_ctrl_c_writes_a_complete_file(urdf: Path, tmp_path: Path, h: Any) -> None:
     out = tmp_path / "cal.yaml"
     prior_sim = SimLite(12, noise_rad=0.0)
@@ -198,6 +203,7 @@ def test_report_json_exact_shape(urdf: Path, tmp_path: Path, h: Any) -> None:
     assert outcome.exit_code == 1
 
 
+@pytest.mark.slow
 def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:

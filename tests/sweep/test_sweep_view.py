@@ -45,6 +45,7 @@ def test_status_colours() -> None:
     assert tuple(int(v) for v in line_rgb((245, 150, 0))) == (233, 78, 0)  # sRGB 150 is linear 78
 
 
+@pytest.mark.slow
 def test_overlay_takes_the_report_codes(tmp_path: Path, urdf: Path) -> None:
     prior = tmp_path / "prior.yaml"
     run_sweep(urdf, "sim:lite?seed=8", prior)
@@ -67,6 +68,7 @@ def test_overlay_takes_the_report_codes(tmp_path: Path, urdf: Path) -> None:
         web.app.stop()
 
 
+@pytest.mark.slow
 def test_cli_view_prints_the_page_and_sweeps(
     tmp_path: Path, urdf: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
