@@ -18,7 +18,9 @@ NORM_MEAN_PER_SIGMA = 2.0 * math.sqrt(2.0 / math.pi)
 """Mean length of a 3-D isotropic Gaussian error per its σ per axis (≈ 1.596)."""
 
 
-def _fmt(value: float, unit: str) -> str:
+def _fmt(value: float | None, unit: str) -> str:
+    if value is None:  # a σ the covariance could not give
+        return "—"
     if unit == "px":
         return f"{value:+.2f} px"
     return f"{value * 1e3:+.3f} mm" if unit == "m" else f"{math.degrees(value):+.4f}°"

@@ -39,9 +39,11 @@ def _prior(on: bool, mm: float | None, deg: float | None, offset_deg: float | No
     if mm is None and deg is None and offset_deg is None:
         return on
     d = wf.PriorSigmas()
-    for flag, v in (("--prior-mm", mm), ("--prior-deg", deg), ("--prior-offset-deg", offset_deg)):
+    for flag, v, top in (("--prior-mm", mm, 1000.0), ("--prior-deg", deg, 180.0), ("--prior-offset-deg", offset_deg, 180.0)):
         if v is not None and not (math.isfinite(v) and v > 0):
             raise UsageError(f"{flag} must be a positive number, got {v}")
+        if v is not None and not 1e-6 <= v <= top:
+            raise UsageError(f"{flag} must be from 1e-06 to {top:g}, got {v:g}")
     return wf.PriorSigmas(
         length_m=d.length_m if mm is None else mm * 1e-3,
         angle_rad=d.angle_rad if deg is None else math.radians(deg),
@@ -99,6 +101,9 @@ def identify(
     out: Annotated[Path | None, typer.Option("--out", help="Corrected URDF to write.")] = None,
     report: Annotated[Path | None, typer.Option("--report", help="JSON report to write.")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the validation split.")] = 0,
+    ticks: Annotated[
+        int, typer.Option("--ticks", help="Encoder ticks per turn: readings on the same tick are one pose; 0: exact.")
+    ] = 4096,
     joint_map: Annotated[
         Path | None,
         typer.Option("--joint-map", help="Joint map the readings went through (lerobot export-urdf output)."),
@@ -175,6 +180,7 @@ def identify(
         joint_map_ids=ids,
         ur_yaml=ur_yaml,
         ur_hash=ur_hash,
+        ticks_per_turn=ticks,
     )
     raise typer.Exit(print_identification(result))
 

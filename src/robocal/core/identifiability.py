@@ -132,6 +132,8 @@ def pivoted_qr_order(A: ArrayLike, priority: ArrayLike | None = None, *, usable:
         top = float(norms.max()) if norms.size else 0.0
         if top == 0.0:
             break
+        if not math.isfinite(top):
+            break
         cand = np.flatnonzero(norms >= usable * top)
         tier = pri[perm[k + cand]]
         cand = cand[tier == tier.min()]
@@ -142,7 +144,7 @@ def pivoted_qr_order(A: ArrayLike, priority: ArrayLike | None = None, *, usable:
         alpha = -math.copysign(float(np.linalg.norm(v)), v[0] if v[0] != 0 else 1.0)
         v[0] -= alpha
         vn = float(v @ v)
-        if vn > 0.0:
+        if vn > 0.0 and math.isfinite(2.0 / vn):
             R[k:, k:] -= np.outer(v, (2.0 / vn) * (v @ R[k:, k:]))
     return perm
 

@@ -26,6 +26,7 @@ from ..errors import UsageError
 
 __all__ = [
     "CONSTRAINT_WEIGHT",
+    "PRIOR_SIGMA_MIN",
     "FitResult",
     "PriorSigmas",
     "check_seed",
@@ -37,6 +38,9 @@ __all__ = [
 ]
 
 
+
+PRIOR_SIGMA_MIN = 1e-9
+"""Smallest prior σ (m or rad): a tighter one would weigh more than float64 can hold against the data."""
 
 CONSTRAINT_WEIGHT = 100.0
 """Metres of residual per unit of a constraint row: holds constrained directions to ~1e-8 at 1 µm residuals."""
@@ -74,10 +78,12 @@ class PriorSigmas:
     noise_m: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("length_m", "angle_rad", "offset_rad"):
+        for name, top in (("length_m", 1.0), ("angle_rad", math.pi), ("offset_rad", math.pi)):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise UsageError(f"prior {name}: must be a positive number, got {v}")
+            if not PRIOR_SIGMA_MIN <= v <= top:
+                raise UsageError(f"prior {name}: must be from {PRIOR_SIGMA_MIN:g} to {top:g}, got {v:g}")
         if self.noise_m is not None and not (math.isfinite(self.noise_m) and self.noise_m > 0):
             raise UsageError(f"prior noise: must be a positive number, got {self.noise_m}")
 

@@ -26,6 +26,7 @@ from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
     Measurements,
     Problem,
+    analyse,
     check_kind,
     dh_like_constraints,
     free_indices,
@@ -34,6 +35,7 @@ from ..errors import UsageError, check_choice
 from ..formats.kinematic_data import read_measurements
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
+from . import kinematic_gates as gates
 from . import kinematic_report as kr
 from .kinematic_export import check_export_paths
 from .kinematic_fit import (
@@ -245,6 +247,7 @@ def identify(
     joint_map_ids: Mapping[str, int] | None = None,
     ur_yaml: str | os.PathLike[str] | None = None,
     ur_hash: str | None = None,
+    ticks_per_turn: int = gates.DEFAULT_TICKS_PER_TURN,
 ) -> IdentifyResult:
     """Identify a URDF chain's geometric errors from a measurement session.
 
@@ -274,12 +277,15 @@ def identify(
         joint_map_ids: Motor ids written with the joint map.
         ur_yaml: Write ur_description's kinematics YAML of the corrected chain (UR chains only).
         ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
+        ticks_per_turn: Encoder resolution poses are told apart at (0: exact readings); see
+            :mod:`robocal.workflows.kinematic_gates`.
 
     Returns:
         The :class:`IdentifyResult`; files are written only after everything succeeded.
 
     Raises:
-        CalibError: Unreadable or malformed files, a pose outside the limits, NaN, too few poses, bad options.
+        CalibError: Unreadable or malformed files, a pose outside the limits, NaN, too few distinct poses, poses
+            that leave parameters unidentifiable that the model can identify, bad options.
     """
     check_kind(kind)
     check_choice("--frame", frame, POINT_FRAMES)
@@ -298,6 +304,7 @@ def identify(
     if validate_data is not None and seed != 0:
         raise UsageError("--seed seeds the random held-out share; with --validate-data nothing is drawn")
     check_seed(seed)
+    gates.check_ticks(ticks_per_turn)
     paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
     doc = UrdfDocument.load(urdf)
     chain = chain_from_urdf(doc.model(), base_link, tip_link)
@@ -317,16 +324,45 @@ def identify(
         assert measurements.p_world_m is not None
         T0 = _kabsch(model.points(measurements.q_rad), measurements.p_world_m)
         model = ErrorModel(chain, T_world_base=T0, T_tip_tool=model.T_tip_tool)
-    if validate_data is None:
-        train_rows, val_rows = split_validation(
-            measurements, DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction, seed
+    rows = measurements.n_poses
+    cells = gates.pose_cells(measurements, chain, ticks_per_turn, source=str(data))
+    if cells.copies:
+        measurements = measurements.subset(cells.kept)
+        warnings.append(
+            f"{data}: {cells.copies} of {rows} rows repeat an earlier row exactly (the same readings and the same "
+            "measurement): each is counted once"
         )
-        train, val = measurements.subset(train_rows), measurements.subset(val_rows)
+    free = free_indices(model, [] if frame == "tracker" else ["base"])
+    structural = gates.structural_analysis(Problem(model, measurements, free, np.zeros(model.n_params)))
+    gates.check_distinct_poses(cells, structural.rank, rows=rows, source=str(data))
+    if validate_data is None:
+        fraction = DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction
+        # split the distinct poses (each row its own when none repeats): rows of one pose stay on one side
+        train_p, _ = split_validation(measurements.subset(cells.first), fraction, seed)
+        in_train = np.isin(cells.pose, train_p)
+        train, val = measurements.subset(np.flatnonzero(in_train)), measurements.subset(np.flatnonzero(~in_train))
     else:
         train = measurements
         val = _validation_session(validate_data, kind, chain, labels, gauge_distance_m)
-    free = free_indices(model, [] if frame == "tracker" else ["base"])
+    train_cells = gates.pose_cells(train, chain, ticks_per_turn, source=str(data))
+    if val.n_poses:
+        val_cells = gates.pose_cells(val, chain, ticks_per_turn, source=str(validate_data or data))
+        repeats = gates.held_out_repeats(train_cells, val_cells)
+        if repeats.size:
+            keep = np.setdiff1d(np.arange(val_cells.kept.size), repeats)
+            val = val.subset(val_cells.kept[keep])
+            warnings.append(
+                f"{repeats.size} held-out {'pose repeats a fitted pose' if repeats.size == 1 else 'poses repeat fitted poses'} "
+                "(the same encoder readings): left out of the validation"
+            )
+    if not val.n_poses:
+        warnings.append(
+            "not validated: no held-out pose differs from the fitted ones; hold some out (--validate-fraction) or "
+            "record a separate session (--validate-data)"
+        )
     problem = Problem(model, train, free, np.zeros(model.n_params))
+    gates.check_distinct_poses(train_cells, structural.rank, rows=train.n_poses, source=str(data), fitted=True)
+    gates.check_rank(analyse(problem), structural)
     prior_s = as_prior(prior)
     result = fit(problem, huber_m=huber_m, prior=prior_s)
     if not result.success:
