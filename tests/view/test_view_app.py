@@ -265,9 +265,13 @@ def test_page_url_of_every_page_names_a_host_a_browser_can_open() -> None:
     from robocal.viewer.scene import page_url
 
     assert page_url("127.0.0.1", 8080) == "http://127.0.0.1:8080/"
-    assert page_url("0.0.0.0", 80) == "http://localhost:80/"
-    assert page_url("", 81) == "http://localhost:81/"
-    assert page_url("::", 82) == "http://localhost:82/"
+    from robocal.viewer.access import outward_address
+
+    # a wildcard: the address other machines reach this one at (the page is open to them), not localhost
+    addr = outward_address()
+    assert page_url("0.0.0.0", 80) == f"http://{addr}:80/"
+    assert page_url("", 81) == f"http://{addr}:81/"
+    assert page_url("::", 82) == f"http://{addr}:82/"
     assert page_url("::1", 83) == "http://[::1]:83/"
 
 

@@ -134,12 +134,24 @@ class _NoteHandler(logging.Handler):
         sys.stderr.flush()
 
 
+class _PageWarningHandler(logging.Handler):
+    """Print what a served page reports (refused requests, unreadable clients, exposure) as ``warning:`` lines."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        sys.stderr.write(f"warning: {record.getMessage()}\n")
+        sys.stderr.flush()
+
+
 def _install_note_handler() -> None:
     logger = logging.getLogger("robocal.fileio")
     if not any(isinstance(h, _NoteHandler) for h in logger.handlers):
         logger.addHandler(_NoteHandler(logging.INFO))
     logger.setLevel(logging.INFO)
     logger.propagate = False
+    pages = logging.getLogger("robocal.viewer")
+    if not any(isinstance(h, _PageWarningHandler) for h in pages.handlers):
+        pages.addHandler(_PageWarningHandler(logging.WARNING))
+    pages.propagate = False
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -47,7 +47,15 @@ def view(
         None, "--frame", help="Replay positions are identity (direction·raw, default) or motor (raw)."
     ),
     topic: ReplayTopic = DEFAULT_TOPIC,
-    host: str = typer.Option("127.0.0.1", "--host", help="Interface to serve on (0.0.0.0: every one)."),
+    host: str = typer.Option(
+        "127.0.0.1", "--host", help="Interface to serve on (0.0.0.0: every one; warns that the page is exposed)."
+    ),
+    allow_origin: list[str] = typer.Option(
+        [],
+        "--allow-origin",
+        metavar="ORIGIN",
+        help="Also accept the page from this origin, e.g. http://proxy:8080 (repeatable; * for any).",
+    ),
     port: int = typer.Option(8080, "--port", help="TCP port of the page (0: any free port)."),
     rate: float = typer.Option(30.0, "--rate", help="Page updates per second."),
     speed: float = typer.Option(1.0, "--speed", help="Replay speed (recording seconds per second)."),
@@ -82,6 +90,7 @@ def view(
         rate_hz=rate,
         speed=speed,
         keep_moving=True,
+        allowed_origins=tuple(allow_origin),
     )
     raise typer.Exit(serve(opts, open_browser=open_browser, duration_s=duration))
 

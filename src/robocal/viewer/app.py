@@ -10,7 +10,7 @@ import json
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -61,8 +61,9 @@ class ViewerApp(ServedPage):
         port: TCP port (0: any free port).
         rate_hz: Page updates per second (the page loop).
         clock: Monotonic clock, s (injected by tests).
-        title: Shown at the top of the panel.
+        title: Shown at the top of the panel (as text, never markdown or HTML).
         raw_unit: Unit of the raw values, shown in the panel (``rad``, ``ticks``).
+        allowed_origins: Other origins the page may be used from (``--allow-origin``, see :mod:`.access`).
     """
 
     def __init__(
@@ -77,6 +78,7 @@ class ViewerApp(ServedPage):
         clock: Callable[[], float] = time.monotonic,
         title: str = "",
         raw_unit: str = "rad",
+        allowed_origins: Sequence[str] = (),
     ) -> None:
         if not (math.isfinite(rate_hz) and 0 < rate_hz <= 240):
             raise UsageError(f"--rate {rate_hz}: expected 0 < rate <= 240 page updates per second")
@@ -90,6 +92,7 @@ class ViewerApp(ServedPage):
         self.clock = clock
         self.title = title or model.name
         self.raw_unit = raw_unit
+        self.allowed_origins = tuple(allowed_origins)
         self.slot = LatestFrame(clock)
         self.updates = 0
         """Page updates made (frames shown)."""
@@ -116,6 +119,8 @@ class ViewerApp(ServedPage):
         self._status_pending = False
         self._table_drawn_s = -math.inf
         self._banner: Any = None
+        self.title_el: Any = None
+        """The title at the top of the panel (an HTML element holding the escaped title: text only)."""
         self._outside_now = np.zeros(len(self.joint_names), dtype=bool)
 
     # ------------------------------------------------------------------------------------------- lifecycle
@@ -131,7 +136,7 @@ class ViewerApp(ServedPage):
         """
         viser = _viser()
         check_port_free(self.host, self.requested_port)
-        server = open_server(viser, self.host, self.requested_port)
+        server = open_server(viser, self.host, self.requested_port, self.allowed_origins)
         self.server = server
         try:
             self._build()
@@ -330,7 +335,7 @@ class ViewerApp(ServedPage):
         self.robot = _Robot(server, self.model, "/robot", rgb=None, opacity=None)
         if self.compare is not None:
             self.ghost = _Robot(server, self.model, "/ghost", rgb=GHOST_RGB, opacity=GHOST_OPACITY)
-        server.gui.add_markdown(f"**{html.escape(self.title)}**")
+        self.title_el = server.gui.add_html(f"<b>{html.escape(self.title)}</b>")  # text: never markdown
         self._banner = server.gui.add_html(self._banner_html())
         if self._replay is not None:
             self._build_replay()

@@ -12,6 +12,7 @@ import io
 import math
 import socket
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -21,6 +22,14 @@ import numpy.typing as npt
 from ..core.arrays import FloatArray
 from ..core.se3 import quaternion_from_matrix
 from ..errors import BackendNotAvailableError, UsageError
+from .access import (
+    LOGGER,
+    PageAccess,
+    exposure_warning,
+    guarded_server,
+    outward_address,
+    parse_allowed_origins,
+)
 from .latest import Frame
 from .model import RobotModel
 
@@ -192,17 +201,25 @@ def _viser(command: str = "robocal view") -> Any:
     return viser
 
 
-def open_server(viser: Any, host: str, port: int) -> Any:
+def open_server(viser: Any, host: str, port: int, allowed_origins: Sequence[str] = ()) -> Any:
     """A ``viser.ViserServer`` on ``host:port`` (0: any free port), without viser's own console output.
 
+    The server answers only requests whose Host and Origin are this machine's page's or in ``allowed_origins``
+    (:mod:`.access`); a page served beyond the loopback interface is logged as a warning naming its address.
+
     Raises:
-        UsageError: Another program took ``port`` after the port check (viser would have moved to the next).
+        UsageError: Another program took ``port`` after the port check (viser would have moved to the next),
+            or an ``allowed_origins`` value is not an origin.
     """
-    with contextlib.redirect_stdout(io.StringIO()):  # viser prints its own URL box; the CLI prints ours
+    access = PageAccess(host, parse_allowed_origins(allowed_origins))
+    with contextlib.redirect_stdout(io.StringIO()), guarded_server(access):  # the CLI prints our URL, not viser's
         server = viser.ViserServer(host=host, port=port, label="robocal", verbose=False)
     if port and server.get_port() != port:  # lost a race for the port
         server.stop()
         raise UsageError(f"port {port} on {host} is in use by another program")
+    warning = exposure_warning(host, page_url(host, server.get_port()))
+    if warning is not None:
+        LOGGER.warning(warning)
     return server
 
 
@@ -262,9 +279,9 @@ def stop_thread(stop: threading.Event, thread: threading.Thread | None, timeout_
 
 
 def page_url(host: str, port: int) -> str:
-    """The address of a page served on ``host:port`` (a wildcard host as ``localhost``, IPv6 in brackets)."""
+    """The address of a page served on ``host:port`` (wildcard: this machine's outward address; IPv6 bracketed)."""
     if host in ("0.0.0.0", "::", ""):
-        host = "localhost"
+        host = outward_address()
     if ":" in host:
         host = f"[{host}]"
     return f"http://{host}:{port}/"

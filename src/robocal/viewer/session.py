@@ -19,6 +19,7 @@ from ..core.arrays import FloatArray
 from ..core.jointmap import RobotCalibration
 from ..core.lifecycle import ClosesOnExit
 from ..errors import FileFormatError, JointMismatchError, UsageError
+from .access import parse_allowed_origins
 from .app import ViewerApp
 from .feeds import Feed, PollFeed, ReplayFeed, SourceFeed, reorder
 from .mapping import JointMapper
@@ -55,6 +56,7 @@ class ViewOptions:
         rate_hz: Page updates per second.
         speed: Replay speed.
         keep_moving: With ``sim:lite``, the simulated operator sweeps again and again.
+        allowed_origins: ``--allow-origin`` values: other origins the page may be used from (``*``: any).
     """
 
     urdf: Path
@@ -75,6 +77,7 @@ class ViewOptions:
     rate_hz: float = 30.0
     speed: float = 1.0
     keep_moving: bool = False
+    allowed_origins: Sequence[str] = field(default_factory=tuple)
 
 
 @dataclass
@@ -192,6 +195,7 @@ def open_view(opts: ViewOptions) -> ViewSession:
         CalibError: Any bad input (URDF, calibration, source string, port), before anything is served.
     """
     kind = _check_exclusive(opts)
+    parse_allowed_origins(opts.allowed_origins)
     packages = parse_package_paths(list(opts.package_paths))
     spec = parse_source(opts.source) if opts.source else None
     if opts.frame is not None and (spec is None or spec.kind != "replay"):
@@ -231,7 +235,13 @@ def _app(opts: ViewOptions, model: RobotModel, what: str, **mapping: Any) -> Vie
     ``mapping`` holds the page's ``calibration``, ``compare`` and ``raw_unit`` arguments.
     """
     return ViewerApp(
-        model, host=opts.host, port=opts.port, rate_hz=opts.rate_hz, title=f"{model.name} — {what}", **mapping
+        model,
+        host=opts.host,
+        port=opts.port,
+        rate_hz=opts.rate_hz,
+        title=f"{model.name} — {what}",
+        allowed_origins=opts.allowed_origins,
+        **mapping,
     )
 
 

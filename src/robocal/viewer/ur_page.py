@@ -331,8 +331,8 @@ class UrViewPage(ServedPage):
             head_length=0.08,
         )
         gui = server.gui
-        gui.add_markdown(
-            f"**UR {html.escape(self.view.model)}: nominal (grey blue) vs calibrated (orange)**  \n"
+        gui.add_html(  # the source is a file name or a host: text, never markdown
+            f"<b>UR {html.escape(self.view.model)}: nominal (grey blue) vs calibrated (orange)</b><br>"
             f"calibrated DH: {html.escape(self.source)}"
         )
         h["error"] = gui.add_text("Δp at q (m)", initial_value="", disabled=True)

@@ -171,7 +171,7 @@ class SimUrController(StartsOnEnter):
         self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self._listener.bind((host, port))
-        self._listener.listen(8)
+        self._listener.listen(128)  # a burst of clients waits in the backlog instead of retrying its SYN
         self._listener.settimeout(0.05)
         self._threads: list[threading.Thread] = []
         self._clients: list[socket.socket] = []
@@ -195,26 +195,66 @@ class SimUrController(StartsOnEnter):
         """Stop the server and close every connection (threads joined with a timeout)."""
         self._stop.set()
         with self._lock:
-            for c in self._clients:
-                with contextlib.suppress(OSError):
-                    c.shutdown(socket.SHUT_RDWR)
-                with contextlib.suppress(OSError):
-                    c.close()
-        for t in list(self._threads):
+            clients = list(self._clients)
+            threads = list(self._threads)
+        for c in clients:
+            with contextlib.suppress(OSError):
+                c.shutdown(socket.SHUT_RDWR)
+        for t in threads:
             t.join(timeout_s)
         with contextlib.suppress(OSError):
             self._listener.close()
+
+    @property
+    def open_connections(self) -> int:
+        """Connections being served now (a finished one is released: its socket closed, its thread ended)."""
+        with self._lock:
+            return len(self._clients)
 
     def _accept_loop(self) -> None:
         accept_loop(self._listener, self._stop, self._accepted)
 
     def _accepted(self, conn: socket.socket) -> None:
+        t = threading.Thread(target=self._serve_and_release, args=(conn,), name="sim-ur-client", daemon=True)
         with self._lock:
             self._clients.append(conn)
+            self._threads.append(t)
             self.connections += 1
-        t = threading.Thread(target=self._serve, args=(conn,), name="sim-ur-client", daemon=True)
-        self._threads.append(t)
         t.start()
+
+    def _serve_and_release(self, conn: socket.socket) -> None:
+        try:
+            self._serve(conn)
+        finally:
+            with contextlib.suppress(OSError):
+                conn.close()
+            with self._lock:
+                self._clients.remove(conn)
+                self._threads.remove(threading.current_thread())
+
+    def _idle(self, conn: socket.socket, seconds: float) -> bool:
+        """Wait ``seconds`` (less once stopped) reading what the client sends; False once it closed or failed.
+
+        A client that hangs up is noticed now, not at the next failed send.
+        """
+        end = time.monotonic() + seconds
+        try:
+            while not self._stop.is_set():
+                left = end - time.monotonic()
+                if left <= 0:
+                    return True
+                conn.settimeout(min(left, 0.2))
+                try:
+                    if not conn.recv(4096):  # what a client sends (URScript) is read and dropped
+                        return False
+                except TimeoutError:
+                    continue
+                except OSError:
+                    return False
+            return False
+        finally:
+            with contextlib.suppress(OSError):
+                conn.settimeout(1.0)  # sends wait up to a second for a slow reader
 
     def _send(self, conn: socket.socket, data: bytes) -> bool:
         try:
@@ -225,50 +265,47 @@ class SimUrController(StartsOnEnter):
 
     def _serve(self, conn: socket.socket) -> None:
         conn.settimeout(1.0)
-        try:
-            mode = self.mode
-            if mode == "silent":
-                self._stop.wait()
+        mode = self.mode
+        if mode == "silent":  # until the client hangs up or the server stops
+            self._idle(conn, math.inf)
+            return
+        if mode == "close":
+            return
+        if mode == "garbage":
+            self._send(conn, b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+            self._stop.wait(0.5)
+            return
+        if not self._send(conn, build_version_message()):
+            return
+        if mode == "oversized":
+            self._send(conn, struct.pack(">iB", 0x7FFFFFFF, 16) + bytes(64))
+            self._stop.wait(0.5)
+            return
+        state = build_robot_state(
+            self.dh,
+            self.calibration_status,
+            include_kinematics=mode != "no_kinematics",
+            kinematics_size=100 if mode == "short_kinematics" else 225,
+        )
+        if mode == "truncated":
+            self._send(conn, state[: len(state) // 2])
+            return
+        if mode == "bad_subpackage":
+            bad = bytearray(state)
+            struct.pack_into(">I", bad, 5, 5000)  # first sub-package claims more than the message holds
+            state = bytes(bad)
+        modbus = encode_message(5, bytes(12))  # top-level type 5 (MODBUS_INFO), not KinematicsInfo
+        next_t = time.monotonic()
+        tick = 0
+        while not self._stop.is_set():
+            if mode in ("normal", "no_cartesian") and self.moving:
+                q = tuple(1.5 * math.sin(0.37 * tick + 1.1 * i) for i in range(6))
+                state = build_robot_state(
+                    self.dh, self.calibration_status, q_rad=q, include_cartesian=mode == "normal"
+                )
+            tick += 1
+            if not self._send(conn, modbus + state):
                 return
-            if mode == "close":
+            next_t += self.period_s
+            if not self._idle(conn, max(0.0, next_t - time.monotonic())):
                 return
-            if mode == "garbage":
-                self._send(conn, b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
-                self._stop.wait(0.5)
-                return
-            if not self._send(conn, build_version_message()):
-                return
-            if mode == "oversized":
-                self._send(conn, struct.pack(">iB", 0x7FFFFFFF, 16) + bytes(64))
-                self._stop.wait(0.5)
-                return
-            state = build_robot_state(
-                self.dh,
-                self.calibration_status,
-                include_kinematics=mode != "no_kinematics",
-                kinematics_size=100 if mode == "short_kinematics" else 225,
-            )
-            if mode == "truncated":
-                self._send(conn, state[: len(state) // 2])
-                return
-            if mode == "bad_subpackage":
-                bad = bytearray(state)
-                struct.pack_into(">I", bad, 5, 5000)  # first sub-package claims more than the message holds
-                state = bytes(bad)
-            modbus = encode_message(5, bytes(12))  # top-level type 5 (MODBUS_INFO), not KinematicsInfo
-            next_t = time.monotonic()
-            tick = 0
-            while not self._stop.is_set():
-                if mode in ("normal", "no_cartesian") and self.moving:
-                    q = tuple(1.5 * math.sin(0.37 * tick + 1.1 * i) for i in range(6))
-                    state = build_robot_state(
-                        self.dh, self.calibration_status, q_rad=q, include_cartesian=mode == "normal"
-                    )
-                tick += 1
-                if not self._send(conn, modbus + state):
-                    return
-                next_t += self.period_s
-                self._stop.wait(max(0.0, next_t - time.monotonic()))
-        finally:
-            with contextlib.suppress(OSError):
-                conn.close()
