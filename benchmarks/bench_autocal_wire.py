@@ -1,6 +1,6 @@
 """Auto-calibration acceptance over the wire: the whole simulated Lite behind python-can, seeded, in parallel.
 
-``python benchmarks/run.py autocal-wire`` runs ``robocal sweep --auto``'s workflow
+``python benchmarks/run.py autocal_wire`` runs ``robocal sweep --auto``'s workflow
 (:func:`robocal.workflows.autocal_sweep.run_sweep_auto`) on the simulated Lite of ``--source sim:lite?seed=N``:
 14 simulated Robstride motors on two python-can ``virtual`` channels, each motor's firmware (MIT law, torque limit
 0x700B, type-2 feedback quantised as on the wire) moving a physics plant on one simulated clock, driven by the

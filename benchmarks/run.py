@@ -1,31 +1,138 @@
-"""Run every benchmark: ``python benchmarks/run.py [NAME ...]`` (names like ``jointmap``, ``ur``)."""
+"""Run the benchmarks: ``.venv/bin/python benchmarks/run.py [NAME ...]``.
+
+Without a name it runs the fast set (each benchmark a few seconds to a few minutes); the acceptance runs
+(thousands of seeded simulator runs, up to an hour and more) run only when named. ``--list`` prints every name
+with its set and expected duration. An unknown name is refused (exit 2) before anything runs.
+"""
 
 from __future__ import annotations
 
 import importlib.util
 import sys
 import time
+import traceback
+from dataclasses import dataclass
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
 
-def main(argv: list[str]) -> int:
-    wanted = set(argv)
-    for path in sorted(HERE.glob("bench_*.py")):
-        name = path.stem.removeprefix("bench_")
-        if wanted and name not in wanted:
-            continue
+@dataclass(frozen=True)
+class Benchmark:
+    """One ``bench_<name>.py``.
+
+    Attributes:
+        name: What ``run.py`` takes (the file name without ``bench_`` and ``.py``).
+        acceptance: True for a long acceptance run (only run when named).
+        duration: Expected wall time on a 2-core machine, as text.
+        what: What it measures, one line.
+    """
+
+    name: str
+    acceptance: bool
+    duration: str
+    what: str
+
+
+BENCHMARKS = (
+    Benchmark("jointmap", False, "~5 s", "per-tick and batch joint mapping vs a Python loop / numpy.copyto"),
+    Benchmark(
+        "lerobot", False, "~10 s", "LeRobot normalize/unnormalize vs LeRobot's loop; SYNC_READ vs READs"
+    ),
+    Benchmark("ur", False, "~20 s", "batched DH forward kinematics, correction, hash"),
+    Benchmark("sweep", False, "~30 s", "sweep tracking and replay throughput"),
+    Benchmark("kinematics", False, "~6 min", "identification of 200 poses; accuracy over seeds 0-19"),
+    Benchmark("dataset", False, "~1 min", "dataset recalibration vs a plain pyarrow copy (2,000,000 frames)"),
+    Benchmark("replay", False, "~2 min", "replay memory and time for 10^4 ... 10^6 rows (180 MB temp file)"),
+    Benchmark(
+        "scaling", False, "~5 min", "every file operation for 10^3 ... 10^6 joints (20 s budget per size)"
+    ),
+    Benchmark("view", False, "~2 min", "robocal view in headless Chromium vs bare viser"),
+    Benchmark(
+        "kinematics_tag_prior", True, "~15 min", "camera-session plans with and without --prior (docs table)"
+    ),
+    Benchmark("autocal", True, "~5 min", "auto-calibration acceptance, 100 seeds per scenario and robot"),
+    Benchmark(
+        "autocal_wire", True, "~30 min", "auto-calibration over python-can, 100 whole-Lite runs per scenario"
+    ),
+    Benchmark(
+        "autocal_servo", True, "~65 min", "auto-calibration on the servo firmware, 100 runs per SO-101 joint"
+    ),
+)
+"""Every benchmark, fast set first."""
+
+BY_NAME = {b.name: b for b in BENCHMARKS}
+FAST_SET = tuple(b.name for b in BENCHMARKS if not b.acceptance)
+"""What a run without names runs."""
+
+
+def listing() -> str:
+    """Every benchmark with its set and expected duration (what ``--list`` prints)."""
+    lines = ["benchmarks (python benchmarks/run.py NAME ...; no name: the fast set):"]
+    for b in BENCHMARKS:
+        kind = "acceptance, by name only" if b.acceptance else "fast set"
+        lines.append(f"  {b.name:22s} {b.duration:>8s}  {kind:24s}  {b.what}")
+    return "\n".join(lines)
+
+
+def _run(name: str) -> str | None:
+    """Run one benchmark; None when it passed, else why it failed (the others still run)."""
+    print(f"== {name} ==", flush=True)
+    t0 = time.perf_counter()
+    failure = None
+    try:
+        path = HERE / f"bench_{name}.py"
         spec = importlib.util.spec_from_file_location(path.stem, path)
         assert spec is not None and spec.loader is not None
         module = importlib.util.module_from_spec(spec)
         sys.modules[path.stem] = module  # dataclasses look their module up while the class is made
         spec.loader.exec_module(module)
-        print(f"== {name} ==", flush=True)
-        t0 = time.perf_counter()
         module.main()
-        print(f"({name}: {time.perf_counter() - t0:.1f} s)\n", flush=True)
-    return 0
+    except SystemExit as exc:  # a benchmark below its target says so this way
+        if exc.code not in (None, 0):
+            failure = str(exc.code)
+    except Exception as exc:  # reported, and the other benchmarks still run
+        traceback.print_exc()
+        failure = f"{type(exc).__name__}: {exc}"
+    print(f"({name}: {time.perf_counter() - t0:.1f} s)\n", flush=True)
+    return failure
+
+
+def main(argv: list[str]) -> int:
+    """Run the named benchmarks (or the fast set).
+
+    Returns:
+        0 when every one ran and met its target, 1 when one failed (the rest still ran), 2 for an unknown name or
+        option (before anything runs).
+    """
+    if any(a in ("-h", "--help", "--list") for a in argv):
+        print(__doc__.strip().splitlines()[0])
+        print(listing())
+        return 0
+    unknown = [a for a in argv if a not in BY_NAME]
+    if unknown:
+        print(
+            f"error: unknown benchmark{'s' if len(unknown) > 1 else ''} {', '.join(repr(a) for a in unknown)}; "
+            f"valid: {', '.join(BY_NAME)} "
+            "(--list shows what each measures and how long it takes)",
+            file=sys.stderr,
+        )
+        return 2
+    names = list(dict.fromkeys(argv)) or list(FAST_SET)
+    if not argv:
+        long_runs = ", ".join(f"{b.name} ({b.duration})" for b in BENCHMARKS if b.acceptance)
+        print(
+            f"the fast set: {', '.join(FAST_SET)}; the acceptance runs only by name: {long_runs}\n",
+            flush=True,
+        )
+    failed = {}
+    for name in names:
+        why = _run(name)
+        if why is not None:
+            failed[name] = why
+    for name, why in failed.items():
+        print(f"FAILED {name}: {why}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -97,8 +97,15 @@ def test_specific_option_texts(capsys: pytest.CaptureFixture[str], monkeypatch: 
         r"--port\s+<str>\s+Serial port of the arm, or 'sim' for a simulated arm\.",
         _help(capsys, monkeypatch, "lerobot", "check"),
     )
-    assert "lite-yaml or lite-json (default: from --out's extension, .json is lite-json)." in _help(
-        capsys, monkeypatch, "sweep"
+    sweep = _help(capsys, monkeypatch, "sweep")
+    assert "lite-yaml or lite-json (default: from --out's extension, .json is lite-json)." in sweep
+    # the official Lite URDFs have no <ros2_control>: the sweep takes directions and ids from the profile
+    assert "URDF with <ros2_control>" not in sweep
+    assert re.search(
+        r"--urdf\s+<path>\s+The robot's URDF \(expanded, not xacro\): joint names and limits; directions and CAN "
+        r"ids from its <ros2_control> params when it has them, else from the calibration file or the robot "
+        r"profile \(--robot, or recognised from the joint names; docs/profiles\.md\)\.",
+        re.sub(r"[\s│]+", " ", sweep),
     )
 
 

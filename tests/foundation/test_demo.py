@@ -32,7 +32,11 @@ def test_ur_demo_in_a_temporary_folder_is_removed_and_says_its_progress() -> Non
     assert result.lines[0] == f"hash: {UR10E_DEMO_HASH}"
     assert result.lines[1].endswith("ur10e_calibration.yaml (temporary folder, removed on exit)")
     assert said[0].startswith("[bold]UR demo[/]: simulated ur10e controller on 127.0.0.1:")
-    assert "d2 = 439.141 m" in said[1]
+    assert said[1].startswith(
+        "controller DH: d2 = 439.141 m, d3 = -446.027 m (the split DH of a real UR10e's calibration, upstream "
+        "ur_calibration's test set 3: joints 2 and 3 are nearly parallel, so their common normal lies far away; "
+        "docs/ur.md) → corrected (d2 = d3 = 0) forearm x = "
+    )
     reports = result.detail
     assert isinstance(reports, list) and reports and all(r.file_hash == r.dh_hash for r in reports)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -204,12 +205,23 @@ def test_gauge_needs_distance(points_session: Path, capsys) -> None:
 
 
 def test_demo_identify(capsys) -> None:
+    from tests.foundation.test_readme_commands import demo_nominal_error_mm
+
     assert main(["demo", "--robot", "koch", "--identify"]) in (0, 1)
     out = capsys.readouterr().out
     assert "against the hidden truth: the 17 held-out poses mean " in out
     assert "fit poses (50): nominal" in out and "validation poses (17): nominal" in out
     mean = float(out.split("→ identified mean ")[1].split(" mm")[0])  # on 500 new poses
     assert mean < 0.6
+    # the nominal error the README quotes for the SO-101 is computed the way the demo computes it
+    assert f"500 new poses: nominal mean {demo_nominal_error_mm('koch', 0):.2f} mm →" in out
+    # progress as each step starts, before any result (the whole demo takes a minute or two)
+    steps = re.findall(r"^step (\d)/2: (.*) \(\d+ s\)$", out, flags=re.M)
+    assert steps == [
+        ("1", "simulating 50 planned poses and 17 held-out ones, then identifying (analysis, fit, DH-like fit)"),
+        ("2", "checking the identified model against the hidden truth on 500 new poses"),
+    ]
+    assert out.index("step 2/2: ") < out.index("fit poses (50): nominal")
     assert main(["demo", "--robot", "lite", "--identify"]) == 2
 
 

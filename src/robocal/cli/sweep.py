@@ -59,7 +59,15 @@ def _not_lost() -> Iterator[None]:
 
 
 def sweep(
-    urdf: Annotated[Path, typer.Option("--urdf", help="URDF with <ros2_control> joint params.")],
+    urdf: Annotated[
+        Path,
+        typer.Option(
+            "--urdf",
+            help="The robot's URDF (expanded, not xacro): joint names and limits; directions and CAN ids from its "
+            "<ros2_control> params when it has them, else from the calibration file or the robot profile "
+            "(--robot, or recognised from the joint names; docs/profiles.md).",
+        ),
+    ],
     source: Annotated[
         str,
         typer.Option(

@@ -367,8 +367,10 @@ def _ur_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoResult:
     reports = ur_verify.verify(out, result.dh, samples=1000, seed=0)
     forearm, wrist_1 = result.kinematics.links[2], result.kinematics.links[3]
     say(
-        f"controller DH: d2 = {result.dh.d_m[1]:.3f} m, d3 = {result.dh.d_m[2]:.3f} m → corrected "
-        f"forearm x = {forearm.xyz_m[0]:.6f} m, wrist_1 x = {wrist_1.xyz_m[0]:.6f} m"
+        f"controller DH: d2 = {result.dh.d_m[1]:.3f} m, d3 = {result.dh.d_m[2]:.3f} m (the split DH of a real "
+        "UR10e's calibration, upstream ur_calibration's test set 3: joints 2 and 3 are nearly parallel, so their "
+        f"common normal lies far away; docs/ur.md) → corrected (d2 = d3 = 0) forearm x = {forearm.xyz_m[0]:.6f} m, wrist_1 x = "
+        f"{wrist_1.xyz_m[0]:.6f} m"
     )
     gone = " (temporary folder, removed on exit)" if temporary else ""
     lines = (f"hash: {result.kinematics.hash}", f"wrote {out}{gone}")
@@ -389,7 +391,7 @@ def _identify_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoR
     from .demo_identify import IDENTIFY_INTRO, identify_demo
 
     say(IDENTIFY_INTRO.format(robot=robot))
-    found = identify_demo(robot, folder)
+    found = identify_demo(robot, folder, say)
     lines = ("(temporary folder, removed on exit)",) if temporary else ()
     return DemoResult(robot, "identify", folder, temporary, 1 if found.has_warnings else 0, found, lines=lines)
 

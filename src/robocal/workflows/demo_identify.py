@@ -10,6 +10,8 @@ calibration, joint hand-eye). The results go to the CLI in an :class:`IdentifyDe
 from __future__ import annotations
 
 import os
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -126,21 +128,43 @@ def simulate_and_identify(
     return sim, result, held
 
 
-def identify_demo(robot: str, folder: Path) -> IdentifyDemo:
+class _Steps:
+    """Progress lines ``step i/n: what (t s)`` through ``say`` as each step of the demo starts."""
+
+    def __init__(self, say: Callable[[str], object], total: int) -> None:
+        self._say = say
+        self._total = total
+        self._done = 0
+        self._t0 = time.monotonic()
+
+    def start(self, what: str) -> None:
+        self._done += 1
+        elapsed_s = time.monotonic() - self._t0
+        self._say(f"step {self._done}/{self._total}: {what} ({elapsed_s:.0f} s)")
+
+
+def identify_demo(robot: str, folder: Path, say: Callable[[str], object] = lambda _line: None) -> IdentifyDemo:
     """Simulate, identify and check ``robot`` (``so101``: then the image part in ``folder/tag``).
 
     Args:
         robot: ``so101`` or ``koch``.
         folder: Folder for the files (it exists).
+        say: Called with a progress line as each step starts (the whole demo takes a minute or two).
 
     Returns:
         The :class:`IdentifyDemo`.
     """
     import numpy as np
 
+    steps = _Steps(say, 5 if robot == "so101" else 2)
+    steps.start(
+        f"simulating {DEMO_POSES} planned poses and {DEMO_HELD_OUT} held-out ones, then identifying "
+        "(analysis, fit, DH-like fit)"
+    )
     sim, result, held = simulate_and_identify(
         robot, folder, dh=True, out=folder / f"{robot}_identified.urdf", report=folder / "report.json"
     )
+    steps.start("checking the identified model against the hidden truth on 500 new poses")
     rng = np.random.default_rng(1)
     q = sim.arm.sample_q(500, rng)
     model = result.fit.problem.model
@@ -152,22 +176,25 @@ def identify_demo(robot: str, folder: Path) -> IdentifyDemo:
         f"{held.max() * 1e3:.3f} mm; 500 new poses: nominal mean {nominal.mean() * 1e3:.2f} mm → identified "
         f"mean {err.mean() * 1e3:.3f} mm, max {err.max() * 1e3:.3f} mm"
     )
-    images = _images_demo(robot, folder / "tag") if robot == "so101" else None
+    images = _images_demo(robot, folder / "tag", steps) if robot == "so101" else None
     return IdentifyDemo(result, line, images)
 
 
-def _images_demo(robot: str, folder: Path) -> ImagesDemo:
+def _images_demo(robot: str, folder: Path, steps: _Steps) -> ImagesDemo:
     """The image part: rendered AprilTag images, camera calibration, joint hand-eye."""
     import numpy as np
 
     from . import kinematic_vision as vis_wf
 
     folder.mkdir(exist_ok=True)
+    steps.start("images: rendering 20 ChArUco and 40 AprilTag images")
     try:
         sim = vis_wf.simulate_images(robot, folder, poses=40, seed=0)
     except BackendNotAvailableError as exc:  # pragma: no cover - OpenCV missing
         return ImagesDemo(f"skipping the image demo: {exc}")
+    steps.start("images: calibrating the camera from the ChArUco images")
     cal = vis_wf.camera_calibrate(sim.calibration_images, sim.board, folder / "camera.yaml")
+    steps.start("images: identifying the arm, the camera pose and the tag mounting from the tag images")
     camera_line = (
         f"camera-calibrate: fx {cal.camera.K[0, 0]:.1f} (true 905.0), RMS {cal.camera.rms_px:.3f} px"
     )

@@ -154,7 +154,8 @@ def run_sweep(
     """Run a whole sweep calibration and write the calibration file (and report).
 
     Args:
-        urdf_path: URDF with ``<ros2_control>`` joint params (direction, limits, can_id, model).
+        urdf_path: The robot's URDF: joint names and limits; direction, can_id and model from its
+            ``<ros2_control>`` params when present, else from the calibration file or the robot profile.
         source: ``--source`` string.
         out: Calibration file to write (updated in place when it exists).
         prior: Calibration whose offsets are kept for joints not swept (default: ``out`` if it exists).
