@@ -22,6 +22,7 @@ def run(
     return main(calibrate_args(tmp_path, *extra, robot=robot, port=port, robot_id=rid))
 
 
+@pytest.mark.slow
 def test_auto_writes_the_manual_procedures_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert run(tmp_path, rid="manual") == 0  # the hand procedure on the same simulated arm
     capsys.readouterr()
@@ -48,6 +49,7 @@ def test_auto_writes_the_manual_procedures_file(tmp_path: Path, capsys: pytest.C
     assert a["elbow_flex"] == MotorCalibration(3, 0, 0, 0, 4095)  # not searched: its (blank) EEPROM
 
 
+@pytest.mark.slow
 def test_auto_koch_current_based_gripper(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert run(tmp_path, "--auto", "--yes", "--joints", "gripper", robot="koch_follower") == 0
     cals = read_calibration(tmp_path / "robots" / "koch_follower" / "arm1.json")
@@ -57,6 +59,7 @@ def test_auto_koch_current_based_gripper(tmp_path: Path, capsys: pytest.CaptureF
     assert "cap 0.13 N·m" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_missing_stop_exit_3_nothing_written_and_partial(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -48,6 +48,7 @@ def _wrap(x: float) -> float:
     return (x + math.pi) % (2 * math.pi) - math.pi
 
 
+@pytest.mark.slow
 def test_gravity_model_moves_the_zero_by_the_sink_into_the_stops() -> None:
     plain, ideal = _run(False)
     fixed, ideal2 = _run(True)

@@ -20,6 +20,7 @@ from .conftest import calibrate_args
 pytestmark = pytest.mark.timeout(600)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("robot", "folder", "joints"),
     [

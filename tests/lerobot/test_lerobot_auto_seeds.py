@@ -52,6 +52,7 @@ def test_seeded_stops_stay_inside_the_profile_tolerance(robot: str) -> None:
     assert seeded_truth(robot, 3, expected_deg=expected) == seeded_truth(robot, 3, expected_deg=expected)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_whole_so101_passes_on_seeded_simulated_arms(
     seed: int, tmp_path: Path, capsys: pytest.CaptureFixture[str]

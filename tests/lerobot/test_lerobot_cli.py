@@ -142,6 +142,7 @@ def test_malformed_cli_matrix(
     assert good.read_text().startswith('{\n    "shoulder_pan"')
 
 
+@pytest.mark.slow
 def test_check_names_motor_and_field(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert _calibrate(tmp_path, "koch_leader") == 0
     path = tmp_path / "teleoperators" / "koch_leader" / "arm1.json"
@@ -262,6 +263,7 @@ def test_show_prints_normalised_values(tmp_path: Path, capsys: pytest.CaptureFix
     assert lines[1].split()[:2] == ["0", "0.000"] and len(lines) == 3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot", ["so101", "koch"])
 def test_run_demo(tmp_path: Path, capsys: pytest.CaptureFixture[str], robot: str) -> None:
     assert main(["demo", "--robot", robot, "--out", str(tmp_path)]) == 0

@@ -5,6 +5,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 import robocal.lerobot as facade
 import robocal.lerobot.legacy as facade_legacy
 from robocal.core.lerobot import legacy as core_legacy
@@ -30,6 +32,7 @@ def _imports_facade(path: Path) -> bool:
     return False
 
 
+@pytest.mark.slow
 def test_no_lower_layer_imports_the_facade() -> None:
     users = sorted(
         str(p.relative_to(SRC))

@@ -172,6 +172,7 @@ def test_use_file_ctrl_c_exit_130_eeprom_restored(
     assert arm.eeprom() == before
 
 
+@pytest.mark.slow
 def test_use_file_silent_motor_exit_3_one_error_line(
     tmp_path: Path, arm: SimArm, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -317,6 +318,7 @@ def test_bad_modes_are_one_error_line(
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_show_koch_use_degrees(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = _calibrate(tmp_path, "koch_follower")
     cals = read_calibration(path)
@@ -377,6 +379,7 @@ def test_configure_koch_follower_pid() -> None:
         assert arm.servo("gripper").get_reg("Torque_Enable") == 0
 
 
+@pytest.mark.slow
 def test_koch_leader_gripper_trigger(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from robocal.backends.sim.lerobot_arms import SimArmOperator
 

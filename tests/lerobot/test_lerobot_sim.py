@@ -408,6 +408,7 @@ def test_legacy_calibration_requires_torque_off() -> None:
             bus.close()
 
 
+@pytest.mark.slow
 @settings(max_examples=40)
 @given(
     offset=st.integers(-2047, 2047), actual=st.integers(0, 4095), dxl_offset=st.integers(-(2**31), 2**31 - 1)

@@ -115,6 +115,7 @@ def test_urdf_flags_must_come_together_nothing_written(
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_plot_writes_png(tmp_path: Path, dh_sets: dict[int, DHParameters]) -> None:
     dh = _write_dh(tmp_path / "dh.yaml", dh_sets[3])
     fig = tmp_path / "fig.png"

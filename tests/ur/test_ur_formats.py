@@ -415,6 +415,7 @@ def test_dh_yaml_typo_instead_of_key_is_refused(tmp_path: Path, capsys: pytest.C
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_deltas_yaml_unknown_key_warns_in_correct_verify_and_plot(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -249,6 +249,7 @@ def test_pose_samples_decode() -> None:
     assert parse_pose_sample(build_robot_state(dh)[5:]) is not None  # zero-filled joints still decode
 
 
+@pytest.mark.slow
 def test_verify_timeout_is_per_read_at_the_real_10_hz_rate(
     tmp_path: Path, dh_sets: dict[int, DHParameters], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -69,6 +69,7 @@ def test_docs_dh_with_spaces_reads_the_printed_numbers() -> None:
     assert warnings == []
 
 
+@pytest.mark.slow
 def test_ur_correct_writes_the_same_yaml_for_spaces_commas_block_and_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -85,6 +85,7 @@ def errors(T: np.ndarray, T_ref: np.ndarray) -> tuple[float, float]:
     return pos, rot
 
 
+@pytest.mark.slow
 def test_yaml_to_urdf_fk_equals_dh_fk(tmp_path: Path, test_set: tuple[int, DHParameters]) -> None:
     set_id, dh = test_set
     out = tmp_path / "cal.yaml"
@@ -96,6 +97,7 @@ def test_yaml_to_urdf_fk_equals_dh_fk(tmp_path: Path, test_set: tuple[int, DHPar
     assert rot <= 1e-10
 
 
+@pytest.mark.slow
 def test_upstream_yaml_through_urdf_is_off_by_tens_of_micrometres(dh_sets: dict[int, DHParameters]) -> None:
     kin = correct_kinematics(dh_sets[1], "upstream")
     q = np.random.default_rng(1).uniform(-2 * math.pi, 2 * math.pi, (300, 6))
@@ -104,6 +106,7 @@ def test_upstream_yaml_through_urdf_is_off_by_tens_of_micrometres(dh_sets: dict[
     assert 4e-5 < rot < 6.3e-5
 
 
+@pytest.mark.slow
 @given(realistic)
 def test_hypothesis_yaml_to_urdf_fk(params: tuple) -> None:  # type: ignore[type-arg]
     dh = make_realistic(params)

@@ -91,6 +91,7 @@ def _page_status(url: str) -> str:
         return r.read(2000).decode("utf-8", "replace")
 
 
+@pytest.mark.slow
 def test_cli_serves_and_stops_on_ctrl_c() -> None:
     proc, url = _start_cli("--dh", str(DH_FILE), "--view-port", "0", "--q", "0.1,-1,1.2,0.3,0.5,0.7")
     try:
