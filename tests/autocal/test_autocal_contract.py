@@ -187,6 +187,7 @@ def test_ctrl_c_between_the_report_and_the_calibration_leaves_both_unchanged(
     assert all(m.drive().tau_max_nm == 0.0 for m in holder[0].motors.values())
 
 
+@pytest.mark.slow
 def test_disk_error_on_the_calibration_takes_the_report_back(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -99,6 +99,7 @@ class _FaultAt:
         pass
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("robot", "register", "bits", "message"),
     [

@@ -126,6 +126,7 @@ def test_ctrl_c_at_the_second_touch(urdf: Path, tmp_path: Path, second_touch: Pa
     ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("move", [1, 2, 3])  # the transit to the upper stop, the park, the next joint's moves
 def test_ctrl_c_in_a_move_between_searches(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, move: int

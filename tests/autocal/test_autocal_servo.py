@@ -157,6 +157,7 @@ def test_missing_stop_fails_the_joint_and_writes_nothing(tmp_path: Path) -> None
     assert after == before and not out.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "at", [2, 120, pytest.param(700, marks=pytest.mark.slow)]
 )  # before contact, pressed into the lower stop, on the upper side

@@ -74,6 +74,7 @@ def test_a_servo_that_does_not_answer_the_read_back_ends_the_search_as_a_device_
         drv.rehome()
 
 
+@pytest.mark.slow
 def test_so101_pan_silent_at_its_stop_while_re_homing_finds_both_stops() -> None:
     """Found by 100 seeded runs per joint on the servo firmware sim: seed 48 of the SO-101's shoulder_pan re-homes
     next to its upper stop while the motor is silent; the Homing_Offset write was applied without a status packet,

@@ -136,6 +136,7 @@ def test_lost_replies_at_the_stop_confirmed_by_reread() -> None:
     assert abs(r.q_stop_rad - 1.0) < math.radians(1.0)
 
 
+@pytest.mark.slow
 def test_gravity_loaded_soft_stop_corrected() -> None:
     g = lambda q: 0.3  # noqa: E731
     truth = []

@@ -72,6 +72,7 @@ def _recalibrate_to_joint_map(
     assert (code, err) == (0, "")
 
 
+@pytest.mark.slow
 def test_recalibrate_and_back(
     files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -291,6 +292,7 @@ def test_inspect(files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureF
     _one_error(err, "missing meta/info.json")
 
 
+@pytest.mark.slow
 def test_overwrite_and_joint_map_inspect(
     files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

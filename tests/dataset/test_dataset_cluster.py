@@ -24,6 +24,7 @@ def src(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("tasks", "workers"), [(1, 1), pytest.param(3, 2, marks=pytest.mark.slow)])
 def test_datatrove_matches_local_engine(src: Path, tmp_path: Path, tasks: int, workers: int) -> None:
     local = recalibrate_dataset(src, tmp_path / "local", A, B)

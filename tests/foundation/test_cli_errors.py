@@ -69,6 +69,7 @@ def test_log_falls_back_to_the_temporary_folder(tmp_path: Path) -> None:
     assert len(list(tmp.glob("robocal-crash-*.log"))) == 1
 
 
+@pytest.mark.slow
 def test_keyboard_interrupt_stays_130_and_calib_errors_keep_their_code(tmp_path: Path) -> None:
     r = _run(tmp_path, "raise KeyboardInterrupt", {"XDG_STATE_HOME": str(tmp_path / "state")})
     assert (r.returncode, r.stderr) == (130, "error: interrupted\n")

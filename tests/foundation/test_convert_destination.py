@@ -72,6 +72,7 @@ def test_write_calibration_applies_the_rule_too(tmp_path: Path) -> None:
     assert dst.read_text() == LEROBOT
 
 
+@pytest.mark.slow
 def test_sweep_and_convert_give_the_same_reason(tmp_path: Path) -> None:
     """One rule: the same file is refused by both commands for the same reason, before any work."""
     dst = tmp_path / "notes.yaml"

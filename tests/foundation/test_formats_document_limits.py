@@ -184,6 +184,7 @@ def test_huge_integers_in_lerobot_files(tmp_path: Path) -> None:
         LegacyCalibration(["a"], [10**30], [0], [0], [100], ["DEGREE"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "content", "message"),
     [

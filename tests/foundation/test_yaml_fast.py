@@ -191,12 +191,14 @@ def test_fast_load_equals_ruamel_on_generated_documents(text: str) -> None:
     _compare(text)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(text=damaged())
 def test_fast_load_equals_ruamel_or_declines_on_damaged_documents(text: str) -> None:
     _compare(text)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(text=document(comments=False))
 def test_fast_dump_of_a_loaded_document_equals_ruamel(text: str) -> None:
@@ -218,6 +220,7 @@ NAMES = st.one_of(
 )
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(
     entries=st.dictionaries(

@@ -181,6 +181,7 @@ UR_SEEDS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(UR_SEEDS))
 @fuzz_settings(60)
 @given(data=st.data())
@@ -193,6 +194,7 @@ def test_ur_dh_and_deltas_readers_raise_only_calib_error(name: str, data: st.Dat
     reader_raises_only_calib_error(blob, name, lambda p: reader(p, warnings=[]), f"UR {name} reader")
 
 
+@pytest.mark.slow
 @fuzz_settings(50)
 @given(data=st.data())
 def test_ur_kinematics_reader_raises_only_calib_error(data: st.DataObject) -> None:
@@ -228,6 +230,7 @@ def csv_mutation(data: st.DataObject, seed: str) -> bytes:
     return text_mutation(data, seed.encode())
 
 
+@pytest.mark.slow
 @fuzz_settings(100)
 @given(data=st.data())
 def test_replay_csv_reader_raises_only_calib_error(data: st.DataObject) -> None:

@@ -131,6 +131,7 @@ def ur_server() -> Any:
     server.close()
 
 
+@pytest.mark.slow
 @fuzz_settings(60)
 @given(data=st.data())
 def test_ur_primary_client_raises_only_calib_error(ur_server: OneShotServer, data: st.DataObject) -> None:
@@ -205,6 +206,7 @@ def robstride_replies(data: st.DataObject, host: int, motor: int) -> list[tuple[
     return out
 
 
+@pytest.mark.slow
 @fuzz_settings(40)
 @given(data=st.data())
 def test_robstride_bus_raises_only_calib_error(data: st.DataObject) -> None:

@@ -77,6 +77,7 @@ def test_missing_stop_exit_3_nothing_written_and_partial(
     assert cals["elbow_flex"].range_max - cals["elbow_flex"].range_min == pytest.approx(2250, abs=4)
 
 
+@pytest.mark.slow
 def test_ctrl_c_exit_130_nothing_written(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -98,6 +99,7 @@ def test_ctrl_c_exit_130_nothing_written(
     assert not (tmp_path / "robots").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("extra", "port", "message"),
     [

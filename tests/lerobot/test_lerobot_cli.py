@@ -26,6 +26,7 @@ def _calibrate(tmp_path: Path, robot: str = "so101_follower", *extra: str) -> in
     return main(calibrate_args(tmp_path, *extra, robot=robot))
 
 
+@pytest.mark.slow
 def test_calibrate_sim_writes_lerobot_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert _calibrate(tmp_path) == 0
     out = capsys.readouterr()
@@ -202,6 +203,7 @@ def test_migrate_keeps_legacy_zero(tmp_path: Path, capsys: pytest.CaptureFixture
     }
 
 
+@pytest.mark.slow
 def test_export_urdf_joint_map_is_exact(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert _calibrate(tmp_path) == 0
     path = tmp_path / "robots" / "so_follower" / "arm1.json"
@@ -235,6 +237,7 @@ def test_export_urdf_joint_map_is_exact(tmp_path: Path, capsys: pytest.CaptureFi
     np.testing.assert_allclose(jm.to_joint(present), sign * q_lerobot + offset, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_show_prints_normalised_values(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert _calibrate(tmp_path) == 0
     capsys.readouterr()

@@ -125,6 +125,7 @@ def test_modes_by_name_mismatch_is_refused_clearly(
 
 
 # ---------------------------------------------------------------------------- compat changes rounding only
+@pytest.mark.slow
 @given(
     lo=st.integers(-2048, 4000),
     width=st.integers(1, 4095),

@@ -262,6 +262,7 @@ def _calibrate(tmp_path: Path, robot: str) -> Path:
     return tmp_path / spec.kind / spec.device_name / "a.json"
 
 
+@pytest.mark.slow
 def test_export_urdf_koch_use_degrees(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = _calibrate(tmp_path, "koch_follower")
     out = tmp_path / "koch.yaml"
@@ -284,6 +285,7 @@ def test_export_urdf_koch_use_degrees(tmp_path: Path, capsys: pytest.CaptureFixt
     np.testing.assert_allclose(jm.to_joint(present), np.array([1, 1, -1, 1, 1]) * q, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_export_urdf_so_modes_and_no_use_degrees(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = _calibrate(tmp_path, "so101_follower")
     out = tmp_path / "so.yaml"
@@ -340,6 +342,7 @@ def test_show_koch_use_degrees(tmp_path: Path, capsys: pytest.CaptureFixture[str
 
 
 # ------------------------------------------------------------------------------------------- configure
+@pytest.mark.slow
 def test_configure_cli_so_follower_and_leader(capsys: pytest.CaptureFixture[str]) -> None:
     for robot in ("so101_follower", "so101_leader"):
         with SimArm(robot_spec(robot)) as arm:

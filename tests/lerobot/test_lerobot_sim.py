@@ -161,6 +161,7 @@ def test_so101_follower_calibration_matches_truth(tmp_path: Path) -> None:
     assert result.notes == ()  # type: ignore[attr-defined]
 
 
+@pytest.mark.slow
 def test_koch_follower_and_leader_match_truth(tmp_path: Path) -> None:
     _, fol, _ = _run("koch_follower", tmp_path)
     t = DEFAULT_TRUTH["koch_follower"]["elbow_flex"]
@@ -214,6 +215,7 @@ def test_mid_pose_at_4095_does_not_crash(tmp_path: Path) -> None:
     assert any("clamped to 2047" in n for n in result.notes)  # type: ignore[attr-defined]
 
 
+@pytest.mark.slow
 def test_full_turn_joints_can_be_swept(tmp_path: Path) -> None:
     _, cals, _ = _run("so101_follower", tmp_path, sweep_full_turn=True)
     assert (cals["wrist_roll"].range_min, cals["wrist_roll"].range_max) == (113 + 0, 3981)  # #4583

@@ -46,6 +46,7 @@ def test_parse_source_forms() -> None:
             parse_source(bad)
 
 
+@pytest.mark.slow
 def test_can_source_finds_joints_on_two_channels() -> None:
     sim = SimLite(3, noise_rad=0.0, channel_prefix=f"src-test-{next(_n)}")
     with sim:
@@ -67,6 +68,7 @@ def test_can_source_finds_joints_on_two_channels() -> None:
             src.close()
 
 
+@pytest.mark.slow
 def test_can_source_names_a_motor_that_never_answers() -> None:
     sim = SimLite(3, channel_prefix=f"src-test-{next(_n)}", silent=["right_elbow_pitch"])
     with sim:

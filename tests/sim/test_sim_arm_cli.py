@@ -109,6 +109,7 @@ def test_koch_follower_calibrates_on_the_standalone_dynamixel_arm(sim_process, t
     assert check.returncode == 0, check.stdout + check.stderr
 
 
+@pytest.mark.slow
 def test_operator_cannot_move_a_joint_whose_torque_is_on(sim_process) -> None:
     sim = sim_process(["so101_leader"])
     bus = FeetechBus(sim.info["port"], {6: "sts3215"})
@@ -143,6 +144,7 @@ def test_control_socket_refuses_bad_requests_with_a_message(sim_process) -> None
         assert ctl.move("gripper", to=2500) == 2500.0  # the connection still works after refusals
 
 
+@pytest.mark.slow
 def test_link_over_a_regular_file_is_refused_and_the_file_kept(tmp_path: Path) -> None:
     keep = tmp_path / "port"
     keep.write_text("mine")

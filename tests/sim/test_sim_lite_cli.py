@@ -104,6 +104,7 @@ def test_socketcan_without_a_vcan_interface_is_a_clear_error(tmp_path: Path) -> 
     ]
 
 
+@pytest.mark.slow
 def test_lite_needs_two_different_channels(tmp_path: Path) -> None:
     r = robocal(
         "sim",

@@ -121,6 +121,7 @@ def test_baud_change_servo_answers_only_at_its_new_speed(
             ph.closePort()
 
 
+@pytest.mark.slow
 def test_factory_arm_servos_share_id_1_and_are_set_up_one_at_a_time() -> None:
     with SimArm(robot_spec("koch_follower"), factory=True) as arm:
         arm.bus.attach([6])  # only the gripper is plugged in

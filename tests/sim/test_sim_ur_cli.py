@@ -46,6 +46,7 @@ def test_default_controller_is_a_calibrated_ur10e(sim_process, tmp_path: Path) -
     assert "deviation from nominal ur10e: 0.000 mm" not in ex.stdout
 
 
+@pytest.mark.slow
 def test_port_in_use_is_a_device_error(tmp_path: Path) -> None:
     with busy_port() as port:
         r = robocal("sim", "ur", "--port", str(port), cwd=tmp_path, timeout=30)
@@ -54,6 +55,7 @@ def test_port_in_use_is_a_device_error(tmp_path: Path) -> None:
     assert len(r.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_dh_and_model_together_are_refused(tmp_path: Path) -> None:
     r = robocal("sim", "ur", "--dh", "x.yaml", "--model", "ur5e", cwd=tmp_path, timeout=30)
     assert r.returncode == 2

@@ -52,6 +52,7 @@ CASES: dict[str, tuple[np.ndarray, list[str], float]] = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("code", list(CASES))
 def test_constructed_sweep_for_each_code(
     code: str, urdf: Path, tmp_path: Path, h: Any, capsys: pytest.CaptureFixture[str]
@@ -75,6 +76,7 @@ def test_constructed_sweep_for_each_code(
         assert f"warning: {ELBOW}: {w}" in err
 
 
+@pytest.mark.slow
 def test_not_swept_keeps_prior_and_errors_without(urdf: Path, tmp_path: Path, h: Any, capsys: Any) -> None:
     rec = tmp_path / "sweep.csv"
     csv_sweep(rec, h.names, h.dirs, {ELBOW: elbow(-1.3, -1.0)})

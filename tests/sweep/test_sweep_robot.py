@@ -29,6 +29,7 @@ def _robot(urdf: Path, cal_path: Path, sim: SimLite) -> CalibratedRobot:
     return CalibratedRobot(cal, np.array([j.lower for j in joints]), np.array([j.upper for j in joints]), src)
 
 
+@pytest.mark.slow
 def test_read_after_power_cycle_and_write_mapping(urdf: Path, tmp_path: Path, h: Any) -> None:
     # elbow travel crosses the power-on wrap point (zero_sta 0): after a power cycle at q = -2.2 the raw
     # reading jumps a turn; the first read picks the branch inside the limits
@@ -67,6 +68,7 @@ def test_read_after_power_cycle_and_write_mapping(urdf: Path, tmp_path: Path, h:
             assert kp == pytest.approx(20.0, abs=0.01) and kd == pytest.approx(1.0, abs=0.01)  # unchanged
 
 
+@pytest.mark.slow
 def test_write_errors(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(22, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
@@ -81,6 +83,7 @@ def test_write_errors(urdf: Path, tmp_path: Path, h: Any) -> None:
             robot.write(np.zeros(14), kp=[math.nan] * 14)
 
 
+@pytest.mark.slow
 def test_open_robot_from_source_string(urdf: Path, tmp_path: Path) -> None:
     cal_path = tmp_path / "cal.yaml"
     run_sweep(urdf, "sim:lite?seed=3", cal_path)
@@ -93,6 +96,7 @@ def test_open_robot_from_source_string(urdf: Path, tmp_path: Path) -> None:
         open_robot(urdf, cal_path, "replay:x.csv")
 
 
+@pytest.mark.slow
 def test_read_after_write_holds_the_targets(urdf: Path, tmp_path: Path, h: Any) -> None:
     # a read between two writes must not replace the running targets with the zero-torque frame
     sim = SimLite(23, noise_rad=0.0)
@@ -112,6 +116,7 @@ def test_read_after_write_holds_the_targets(urdf: Path, tmp_path: Path, h: Any) 
         assert np.all(np.isfinite(state.position_rad))
 
 
+@pytest.mark.slow
 def test_write_rejects_bad_gains_and_types(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(24, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
@@ -127,6 +132,7 @@ def test_write_rejects_bad_gains_and_types(urdf: Path, tmp_path: Path, h: Any) -
         assert all(m.last_command is None or m.last_command[2] == 0.0 for m in sim.motors.values())
 
 
+@pytest.mark.slow
 def test_enable_disable_and_close_stops_enabled_motors(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(29, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
@@ -177,6 +183,7 @@ def test_read_follows_the_four_pi_feedback_wrap(urdf: Path, tmp_path: Path) -> N
         assert motor.last_command[0] == pytest.approx(motor.reading_rad(noisy=False), abs=1e-3)  # 2 LSB
 
 
+@pytest.mark.slow
 def test_tick_frames_and_states_are_the_reference_formula_bit_for_bit(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -87,6 +87,7 @@ def test_power_on_branch_selection_via_check_source(urdf: Path, tmp_path: Path, 
         assert checks[name].q_rad == pytest.approx(q, abs=1e-3), name
 
 
+@pytest.mark.slow
 def test_check_source_reports_the_two_pi_correction(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(8, noise_rad=0.0, zero_sta=0, factory_zero_rad={"left_shoulder_pitch": 0.2})
     out = tmp_path / "c.yaml"
@@ -159,6 +160,7 @@ def test_first_ctrl_c_writes_a_complete_file(urdf: Path, tmp_path: Path, h: Any)
     assert (tmp_path / "cal.yaml.bak").exists()
 
 
+@pytest.mark.slow
 def test_second_ctrl_c_writes_nothing(urdf: Path, tmp_path: Path, h: Any) -> None:
     out = tmp_path / "cal.yaml"
     run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(SimLite(14, noise_rad=0.0)))
@@ -170,6 +172,7 @@ def test_second_ctrl_c_writes_nothing(urdf: Path, tmp_path: Path, h: Any) -> Non
     assert not (tmp_path / "r.json").exists()
 
 
+@pytest.mark.slow
 def test_report_json_exact_shape(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(16, noise_rad=0.0, skip=["right_wrist_roll"])
     prior = tmp_path / "prior.json"
@@ -228,6 +231,7 @@ def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
     assert out.read_bytes() == old and list(json.loads(rep.read_text())) == ["joints"]
 
 
+@pytest.mark.slow
 def test_second_ctrl_c_after_the_calibration_was_written_says_so(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -253,6 +257,7 @@ def test_second_ctrl_c_after_the_calibration_was_written_says_so(
     assert not out2.exists()
 
 
+@pytest.mark.slow
 def test_nan_positions_are_skipped_alike_in_csv_and_rosbag(urdf: Path, tmp_path: Path, h: Any) -> None:
     # NaN = no reading of that joint in that sample (legal in a JointState): both replays skip and count it
     sim = SimLite(17, noise_rad=0.0)

@@ -53,6 +53,7 @@ def test_yaml_layout_key_order_hash_last_no_negative_zero(dh_sets: dict[int, DHP
     assert '"' not in text and "'" not in text.split("\n", 1)[1]
 
 
+@pytest.mark.slow
 @given(realistic)
 def test_yaml_round_trip_is_bit_exact(params: tuple) -> None:  # type: ignore[type-arg]
     import tempfile

@@ -143,6 +143,7 @@ def test_connection_refused_is_device_error() -> None:
 # --- CLI -----------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_extract_gives_the_same_file_as_correct(
     tmp_path: Path, dh_sets: dict[int, DHParameters], capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -189,6 +190,7 @@ def test_extract_status_warning_exit_1(tmp_path: Path, capsys: pytest.CaptureFix
     assert "warning: " in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["silent", "garbage", "truncated"])
 def test_extract_failures_exit_3_nothing_written(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], mode: str
@@ -214,6 +216,7 @@ def test_extract_checks_out_dir_before_connecting(tmp_path: Path, capsys: pytest
     assert "does not exist" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_verify_against_controller_pose(
     tmp_path: Path, dh_sets: dict[int, DHParameters], capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -22,6 +22,7 @@ def _urdf_with(kin_text: str, old: str, new: str) -> str:
     return kin_text.replace(old, new)
 
 
+@pytest.mark.slow
 def test_urdf_fk_runs_to_tool0_through_fixed_frames(tmp_path: Path, dh_sets: dict[int, DHParameters]) -> None:
     kin = correct_kinematics(dh_sets[3])
     good = tmp_path / "good.urdf"

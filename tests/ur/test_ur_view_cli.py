@@ -58,6 +58,7 @@ def test_parse_q() -> None:
             parse_q(bad)
 
 
+@pytest.mark.slow
 def test_verify_q_prints_the_error_at_that_pose(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cal = tmp_path / "cal.yaml"
     assert main(["ur", "correct", "--dh", str(DH_FILE), "--out", str(cal)]) == 0
@@ -106,6 +107,7 @@ def test_cli_serves_and_stops_on_ctrl_c() -> None:
     assert "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_cli_reads_the_dh_from_a_controller() -> None:
     dh = nominal_dh("ur10e") + TEST_SET_3_DELTAS
     with SimUrController(dh) as sim:

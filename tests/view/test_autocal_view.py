@@ -189,6 +189,7 @@ def test_cli_sweep_auto_view_port_in_use_moves_nothing(
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_cli_sweep_auto_view_failed_joint_shown_exit_3(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

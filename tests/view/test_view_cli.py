@@ -136,6 +136,7 @@ def test_cli_port_in_use(capsys: pytest.CaptureFixture[str]) -> None:
     )
 
 
+@pytest.mark.slow
 def test_cli_replay_for_a_duration(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "rec.csv"
     write_csv(rec, ["left_elbow_pitch"], [[0.0, -1.0], [0.5, -0.5]])
@@ -258,6 +259,7 @@ def test_ur_host_refuses_joint_calibrations(tmp_path: Path, capsys: pytest.Captu
     assert code == 2 and "robocal ur view" in err
 
 
+@pytest.mark.slow
 def test_cli_source_that_does_not_answer(capsys: pytest.CaptureFixture[str]) -> None:
     """A CAN bus with no motor: the page serves, the failure is one error line, exit 3 (device)."""
     code, out, err = run_cli(
