@@ -2,7 +2,9 @@
 
 Without a name it runs the fast set (each benchmark a few seconds to a few minutes); the acceptance runs
 (thousands of seeded simulator runs, up to an hour and more) run only when named. ``--list`` prints every name
-with its set and expected duration. An unknown name is refused (exit 2) before anything runs.
+with its set and expected duration. An unknown name is refused (exit 2) before anything runs. Arguments from the
+first ``--option`` on go to each named benchmark's ``main(argv)`` (``python benchmarks/run.py faults --trials
+1000``).
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ BENCHMARKS = (
     Benchmark(
         "autocal_servo", True, "~65 min", "auto-calibration on the servo firmware, 100 runs per SO-101 joint"
     ),
+    Benchmark(
+        "faults", True, "20-150 s a trial", "fault injection soak (--trials N): counts per fault x phase"
+    ),
 )
 """Every benchmark, fast set first."""
 
@@ -75,7 +80,7 @@ def listing() -> str:
     return "\n".join(lines)
 
 
-def _run(name: str) -> str | None:
+def _run(name: str, options: list[str] | None = None) -> str | None:
     """Run one benchmark; None when it passed, else why it failed (the others still run)."""
     print(f"== {name} ==", flush=True)
     t0 = time.perf_counter()
@@ -87,7 +92,10 @@ def _run(name: str) -> str | None:
         module = importlib.util.module_from_spec(spec)
         sys.modules[path.stem] = module  # dataclasses look their module up while the class is made
         spec.loader.exec_module(module)
-        module.main()
+        if options:
+            module.main(options)
+        else:
+            module.main()
     except SystemExit as exc:  # a benchmark below its target says so this way
         if exc.code not in (None, 0):
             failure = str(exc.code)
@@ -109,6 +117,11 @@ def main(argv: list[str]) -> int:
         print(__doc__.strip().splitlines()[0])
         print(listing())
         return 0
+    split = next((i for i, a in enumerate(argv) if a.startswith("--")), len(argv))
+    argv, options = argv[:split], argv[split:]
+    if options and not argv:
+        print("error: options (--...) go to a named benchmark: run.py NAME --option ...", file=sys.stderr)
+        return 2
     unknown = [a for a in argv if a not in BY_NAME]
     if unknown:
         print(
@@ -127,7 +140,7 @@ def main(argv: list[str]) -> int:
         )
     failed = {}
     for name in names:
-        why = _run(name)
+        why = _run(name, options)
         if why is not None:
             failed[name] = why
     for name, why in failed.items():

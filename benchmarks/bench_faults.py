@@ -1,0 +1,43 @@
+"""Fault-injection soak (issue 26 item 5): ``python benchmarks/run.py faults --trials 1000 [--seed S] [--joints J]``.
+
+Each trial starts a simulated arm (``robocal sim``, its own process), runs ``robocal lerobot calibrate --auto``
+against it and injects one fault at a random instant of a random phase; the oracle is the simulator's state (see
+``tests/faults/harness.py``). Prints one line per trial, then the counts per fault × phase (pass/fail/not reached).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from tests.faults.harness import ROBOTS, soak, table
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the soak; ``argv``: ``--trials N`` (default 8), ``--seed S``, ``--robots a,b``, ``--joints J``."""
+    parser = argparse.ArgumentParser(prog="bench_faults")
+    parser.add_argument("--trials", type=int, default=8)
+    parser.add_argument("--seed", type=int, default=26)
+    parser.add_argument("--robots", default=",".join(ROBOTS))
+    parser.add_argument("--joints", default=None, help="search only these joints (shorter trials)")
+    args = parser.parse_args(argv or [])
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill: the trial's processes are cleaned up
+    t0 = time.monotonic()
+    results = soak(args.trials, args.seed, tuple(args.robots.split(",")), args.joints)
+    print(
+        f"\n{len(results)} trials in {time.monotonic() - t0:.0f} s (seed {args.seed}); pass/fail/not-reached:"
+    )
+    print(table(results))
+    failed = [r for r in results if r.verdict == "fail"]
+    print(f"failed: {len(failed)}; passed: {sum(r.verdict == 'pass' for r in results)}; "
+          f"not reached: {sum(r.verdict == 'not-reached' for r in results)}; "
+          f"finished with exit 0 despite a signal: {sum(r.finished_despite for r in results)}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
