@@ -140,7 +140,7 @@ def main(argv: list[str]) -> int:
         )
     failed = {}
     for name in names:
-        why = _run(name, options)
+        why = _run(name, options) if options else _run(name)
         if why is not None:
             failed[name] = why
     for name, why in failed.items():

@@ -22,8 +22,15 @@ SIGNALS = [
 ]
 
 
-@pytest.mark.parametrize(("signum", "code", "line"), SIGNALS, ids=["SIGINT", "SIGTERM", "SIGHUP"])
-@pytest.mark.parametrize("module", ["typer", "numpy"])
+SLOW = pytest.mark.slow  # a Python start-up each (2-5 s on a loaded machine)
+
+
+@pytest.mark.parametrize(
+    ("signum", "code", "line"),
+    [SIGNALS[0], *(pytest.param(*s, marks=SLOW) for s in SIGNALS[1:])],
+    ids=["SIGINT", "SIGTERM", "SIGHUP"],
+)
+@pytest.mark.parametrize("module", ["typer", pytest.param("numpy", marks=SLOW)])
 def test_signal_while_importing_prints_one_line(
     tmp_path: Path, signum: int, code: int, line: str, module: str
 ) -> None:
@@ -33,6 +40,7 @@ def test_signal_while_importing_prints_one_line(
     assert (proc.returncode, err, out) == (code, line + "\n", "")
 
 
+@SLOW
 def test_old_console_script_is_covered_too(tmp_path: Path) -> None:
     """A ``robocal`` script generated before the new entry point (``from robocal.cli.main import run``)."""
     script = tmp_path / "robocal"
@@ -43,6 +51,7 @@ def test_old_console_script_is_covered_too(tmp_path: Path) -> None:
     assert (proc.returncode, err) == (130, "error: interrupted\n")
 
 
+@SLOW
 @pytest.mark.parametrize(("signum", "code", "line"), SIGNALS, ids=["SIGINT", "SIGTERM", "SIGHUP"])
 def test_signal_while_a_command_opens_its_source(tmp_path: Path, signum: int, code: int, line: str) -> None:
     """The sweep is running (its CAN source being opened): one line, the signal's code, nothing written."""

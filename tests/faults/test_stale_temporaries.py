@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from robocal.fileio import atomic_write_text, remove_stale_temporaries
 
 from .conftest import SRC
@@ -64,6 +66,7 @@ def test_sigkill_during_a_write_then_the_next_write_removes_the_temporary(tmp_pa
     assert target.read_text() == "old: 1\n" and (tmp_path / "other.yaml").read_text() == "x: 1\n"
 
 
+@pytest.mark.slow
 def test_a_live_writers_temporary_is_left_alone(tmp_path: Path) -> None:
     target = tmp_path / "cal.yaml"
     proc = _writer_held_in_fsync(target)

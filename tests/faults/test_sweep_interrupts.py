@@ -58,6 +58,7 @@ def test_one_ctrl_c_while_writing_a_finished_sweep_is_not_a_second(
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the finishing handler is gone
 
 
+@pytest.mark.slow
 def test_ctrl_c_after_the_files_were_written_says_what_was_written(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -75,6 +76,7 @@ def test_ctrl_c_after_the_files_were_written_says_what_was_written(
     assert read_calibration(out).calibration.joint_names == NAMES
 
 
+@pytest.mark.slow
 def test_sigterm_while_finishing_aborts_with_its_own_name(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -148,6 +150,7 @@ def _random_ctrl_c(tmp_path: Path, trials: int, seed: int) -> None:
         _check_one_ctrl_c(folder, code, out, err, old)
 
 
+@pytest.mark.slow
 def test_one_ctrl_c_at_random_instants(tmp_path: Path) -> None:
     _random_ctrl_c(tmp_path, trials=2, seed=26)
 

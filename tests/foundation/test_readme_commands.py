@@ -58,8 +58,8 @@ def test_benchmark_runner_refuses_unknown_names_before_running_anything() -> Non
     assert (r.returncode, r.stdout) == (2, "")  # not even jointmap ran
     assert r.stderr == (
         "error: unknown benchmarks 'all', 'nosuch'; valid: jointmap, lerobot, ur, sweep, kinematics, dataset, "
-        "replay, scaling, view, kinematics_tag_prior, autocal, autocal_wire, autocal_servo (--list shows what "
-        "each measures and how long it takes)\n"
+        "replay, scaling, view, kinematics_tag_prior, autocal, autocal_wire, autocal_servo, faults (--list shows "
+        "what each measures and how long it takes)\n"
     )
 
 
@@ -68,7 +68,7 @@ def test_every_benchmark_file_is_listed_with_its_set_and_duration() -> None:
     files = {p.stem.removeprefix("bench_") for p in (ROOT / "benchmarks").glob("bench_*.py")}
     assert set(run.BY_NAME) == files
     acceptance = {b.name for b in run.BENCHMARKS if b.acceptance}
-    assert acceptance == {"kinematics_tag_prior", "autocal", "autocal_wire", "autocal_servo"}
+    assert acceptance == {"kinematics_tag_prior", "autocal", "autocal_wire", "autocal_servo", "faults"}
     r = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "run.py"), "--list"],
         capture_output=True,
