@@ -58,6 +58,16 @@ NO_WATCHDOG = {"so101_follower"}
 LITE_FAULTS = tuple(f for f in FAULTS if f != "lost-device")
 HOST_LOST = ("sigkill", "lost-device", "frozen-device")  # the host cannot act: only a watchdog can
 HANG_GUARD_S = 600.0
+
+
+def _default_signals() -> None:
+    """In each child: SIGINT, SIGTERM, SIGHUP as a fresh terminal has them.
+
+    A harness started in the background (``cmd &`` in a script) inherits SIGINT ignored, and so would robocal:
+    it keeps a signal its parent ignores (``nohup``), so every SIGINT trial would test nothing.
+    """
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_DFL)
 SIGNAL_FAULTS = ("sigint", "double-sigint", "sigterm", "sighup")
 
 
@@ -104,7 +114,7 @@ class _Sim:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "robocal", "sim", robot, "--no-view"],
             cwd=folder, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-            text=True,
+            text=True, preexec_fn=_default_signals,
         )  # fmt: skip
         assert self.proc.stdout is not None
         self.info: dict[str, str] = {}
@@ -230,7 +240,7 @@ def _trial(
     env = dict(os.environ, PYTHONPATH=str(SRC), ROBOCAL_REPLY_TIMEOUT_MS="2000", COLUMNS="200")
     run = _Run(subprocess.Popen(
         [sys.executable, "-m", "robocal", *args], cwd=folder, env=env, stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals,
     ))  # fmt: skip
     run.start_reader()
     try:
@@ -414,7 +424,9 @@ def _lite_in_netns(fault: str, phase: str, seed: int, joints: str | None) -> Tri
     cmd = ["unshare", "--net", "sh", "-c", f'{NETNS_SETUP} && exec "$0" "$@"', sys.executable, __file__,
            "lite", fault, phase, str(seed), joints or ""]  # fmt: skip
     env = dict(os.environ, ROBOCAL_FAULT_NETNS="1", PYTHONPATH=str(SRC))
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_GUARD_S + 120, env=env)
+    r = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=HANG_GUARD_S + 120, env=env, preexec_fn=_default_signals
+    )
     lines = r.stdout.strip().splitlines()
     if r.returncode != 0 or not lines:
         return TrialResult(
