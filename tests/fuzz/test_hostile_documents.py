@@ -296,6 +296,8 @@ NOT_FILE_READERS = {
     "formats.calibration.transmission:_append_transmission": "an XML snippet robocal builds itself",
     "viewer.shapes:add_simple_shapes": "a URDF text parse_urdf has already accepted",
     "workflows.demo:_lerobot_demo": "the calibration JSON the demo has just written",
+    "workflows.motion_snapshot:find_left_changed": "robocal's own register snapshot in its state folder (a "
+    "file it cannot read is ignored, never an error)",
 }
 """Parse calls in src/ that read no user file, with the reason."""
 

@@ -13,6 +13,12 @@ from typing import Any, NamedTuple
 from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from . import inproc_serial, reply_timeout_floor_s, require
+from .bus_transaction import transaction
+
+try:  # pyserial raises termios.error (not an OSError) when a USB adapter vanishes under tcflush/tcgetattr
+    from termios import error as _TERMIOS_ERROR  # noqa: N812
+except ImportError:  # pragma: no cover - Windows
+    _TERMIOS_ERROR = OSError  # type: ignore[misc,assignment]
 
 __all__ = ["SdkBusBase", "ServoModel"]
 
@@ -233,9 +239,13 @@ class SdkBusBase(ClosesOnExit):
                 self._drain()
             garbled = ""
             try:
-                value, result, error = fn()
-            except OSError as exc:  # pyserial's SerialException: the port went away
-                raise DeviceError(f"{self.port}: {who}: {what} {register!r} failed: {exc}") from None
+                with transaction():  # a signal's exception comes out after the exchange, never inside it
+                    self._port_handler.is_using = False  # a packet cut short (other thread) left it set
+                    value, result, error = fn()
+            except (OSError, _TERMIOS_ERROR) as exc:  # SerialException, EIO, termios.error: the port went away
+                raise DeviceError(
+                    f"{self.port}: {who}: {what} {register!r} failed: the device is gone or not answering ({exc})"
+                ) from None
             except (IndexError, KeyError, ValueError, TypeError, ZeroDivisionError) as exc:
                 # the SDK indexes into a status packet it did not check (e.g. a stray short reply
                 # answering a read): a garbled packet, retried like a bad checksum
@@ -362,6 +372,8 @@ class SdkBusBase(ClosesOnExit):
         self._call("sync write", None, register, call)
 
     def close(self) -> None:
-        """Close the port."""
+        """Close the port (a device that is gone is closed as far as it can be; never raises)."""
         if self._port_handler.is_open:
-            self._port_handler.closePort()
+            with contextlib.suppress(Exception):
+                self._port_handler.closePort()
+            self._port_handler.is_open = False

@@ -24,6 +24,12 @@ EXIT_PIPE = 141
 """Standard output was closed early (``robocal ... | head``), like a shell's 128 + SIGPIPE."""
 
 
+def interrupt_exit_code(exc: BaseException) -> int:
+    """128 + the signal that ended the command (an :class:`~robocal.errors.SignalInterrupt`), else 130 (Ctrl-C)."""
+    code = getattr(exc, "exit_code", EXIT_INTERRUPTED)
+    return code if isinstance(code, int) and 129 <= code <= 159 else EXIT_INTERRUPTED
+
+
 class FitConsole(Console):
     """A console that, when it is not a terminal (piped, CI), prints tables at their full width.
 

@@ -123,6 +123,7 @@ def calibrate_auto(
                 on_status=status,
                 sweep_full_turn=sweep_full_turn,
                 gravity_model=gravity_model,
+                snapshot_port=port if arm.sim is None else None,
             )
         except KeyboardInterrupt as exc:
             raise interrupted(

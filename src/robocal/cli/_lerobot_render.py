@@ -26,13 +26,13 @@ __all__ = [
 
 
 def interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") -> typer.Exit:
-    """Print the one ``error: interrupted`` line; exit 130.
+    """Print the one ``error: interrupted`` line; exit 130 (Ctrl-C), 143 (SIGTERM), 129 (SIGHUP), 131 (SIGQUIT).
 
     The workflows re-raise Ctrl-C with the motors they could not restore as its argument; then that is shown.
     """
     what = f"{exc}{not_restored}" if exc.args else restored
     _common.print_error(f"interrupted: {what}")
-    return typer.Exit(130)
+    return typer.Exit(_common.interrupt_exit_code(exc))
 
 
 def print_range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[str]:

@@ -174,8 +174,9 @@ def run_autocal(
                     if outcome.ok:
                         run.offsets[joint.name] = outcome.stops.offset_rad
         except (DeviceError, AutoCalAbortedError) as exc:
-            limp_all(drivers)
-            raise AutoCalAbortedError(f"auto-calibration aborted, every motor limp: {exc}") from None
+            unsure = limp_all(drivers)
+            limp = "every motor limp" if not unsure else f"{', '.join(unsure)} did not answer the torque-off"
+            raise AutoCalAbortedError(f"auto-calibration aborted, {limp}: {exc}") from None
     t_end = clock.now() if clock is not None else drivers[moving[-1].name].read().t_s
     rank = {j.name: i for i, j in enumerate(order)}
     outcomes.sort(key=lambda o: rank[o.name])

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager, suppress
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -211,12 +211,16 @@ class AutoCalResult:
 
 
 # ------------------------------------------------------------------------------------------------ limp
-def limp_all(drivers: Mapping[str, JointDriver] | Sequence[JointDriver]) -> None:
-    """Torque off every driver (errors ignored: each motor gets its chance)."""
+def limp_all(drivers: Mapping[str, JointDriver] | Sequence[JointDriver]) -> list[str]:
+    """Torque off every driver (errors ignored: each motor gets its chance); returns the joints whose limp failed."""
     items = drivers.values() if isinstance(drivers, Mapping) else drivers
+    failed: list[str] = []
     for d in items:
-        with suppress(Exception):  # a limp must reach every motor
+        try:  # a limp must reach every motor
             d.limp()
+        except Exception:
+            failed.append(d.name)
+    return failed
 
 
 @contextmanager

@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
-from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,16 +41,11 @@ from ..autocal_types import (
     JointCaps,
     JointDriver,
 )
+from ..motion_guard import RestoreReport
 from .calibrate import save_calibration
-from .eeprom import (
-    EEPROM_FIELDS,
-    RollbackReport,
-    _reraise_after_rollback,
-    _restore_plan,
-    _rollback,
-    _write_plan,
-)
+from .eeprom import EEPROM_FIELDS, _restore_plan, _write_plan
 from .files import check_calibration_writable
+from .guard import arm_guard, limp_arm, restore_registers
 
 __all__ = [
     "HOLD_GAINS",
@@ -141,32 +135,6 @@ def snapshot_registers(bus: ServoBus, spec: RobotSpec, searched: Sequence[str]) 
         names = search_registers(bus, spec, m.motor_id) if m.name in searched else (*EEPROM_FIELDS, "Lock")
         out[m.name] = {f: bus.read(f, m.motor_id) for f in names if bus.has_register(m.motor_id, f)}
     return out
-
-
-def _limp_all_at_once(bus: ServoBus, spec: RobotSpec) -> None:
-    """Torque off on every motor in one SYNC_WRITE (then once more per motor); never raises."""
-    with suppress(Exception):
-        bus.sync_write("Torque_Enable", {m.motor_id: 0 for m in spec.motors})
-    for m in spec.motors:
-        with suppress(Exception):
-            bus.sync_write("Torque_Enable", {m.motor_id: 0})
-
-
-def restore_registers(
-    bus: ServoBus,
-    spec: RobotSpec,
-    before: Mapping[str, Mapping[str, int]],
-    on_status: Callable[[str], None] | None,
-) -> RollbackReport:
-    """Every motor limp, latched Dynamixels rebooted, the snapshot written back (checked)."""
-    _limp_all_at_once(bus, spec)
-    if spec.vendor == "dynamixel":
-        reboot = getattr(bus, "reboot", None)
-        for m in spec.motors:
-            with suppress(Exception):
-                if reboot is not None and bus.sync_read("Hardware_Error_Status", [m.motor_id])[m.motor_id]:
-                    reboot(m.motor_id)
-    return _rollback(bus, spec, before, on_status)
 
 
 def prepare_search(
@@ -305,6 +273,7 @@ def auto_calibrate(
     period_s: float = 0.01,
     max_lag_deg: float | None = None,
     gravity_model: GravityModel | None = None,
+    snapshot_port: str | None = None,
 ) -> AutoCalibrationResult:
     """Find every selected joint's stops, then write LeRobot's calibration to the EEPROM and the JSON file.
 
@@ -328,6 +297,8 @@ def auto_calibrate(
             :func:`robocal.workflows.lerobot.auto_sim.auto_gravity_model`): each joint's stops are corrected
             for the gravity torque in its profile search pose before the midpoint (docs/auto_calibration.md).
             The URDF joint must turn the way Present_Position grows (LeRobot's ``so101_new_calib`` does).
+        snapshot_port: Keep the register snapshot in robocal's state folder under this port's name until the
+            run ends cleanly (:mod:`robocal.workflows.motion_snapshot`); None: not kept (a simulated arm).
 
     Returns:
         The calibration of every motor, the searches, the file written.
@@ -338,7 +309,8 @@ def auto_calibrate(
         AutoCalFailedError: A joint failed and ``partial`` is not given (EEPROM restored, nothing written;
             exit 3).
         AutoCalAbortedError: A device fault (every motor limp, EEPROM restored; exit 3).
-        KeyboardInterrupt: Ctrl-C, after every motor went limp and the EEPROM was restored.
+        KeyboardInterrupt: Ctrl-C (:class:`~robocal.errors.SignalInterrupt` for SIGINT, SIGTERM, SIGHUP, SIGQUIT),
+            after every motor went limp and the EEPROM was restored.
         CalibrationNotSavedError: The file write failed at the end (EEPROM restored, result attached).
     """
     order = select_joints(section, joints, movable_only=True)
@@ -359,8 +331,12 @@ def auto_calibrate(
     lag = math.radians(max_lag_deg if max_lag_deg is not None else MAX_LAG_DEG[spec.vendor])
     ids = {m.name: m.motor_id for m in spec.motors}
     before = snapshot_registers(bus, spec, searched)
-    failed: tuple[AutoCalResult, RollbackReport] | None = None
-    try:
+    failed: tuple[AutoCalResult, RestoreReport | None] | None = None
+    guard = arm_guard(
+        bus, spec, command="lerobot calibrate --auto", on_status=on_status, snapshot_port=snapshot_port
+    )
+    with guard:  # from the first write on: limp + restore on any signal or fault (motion_guard.py)
+        guard.snapshot(before, robot=spec.name, ids={m.name: m.motor_id for m in spec.motors})
         drivers = prepare_search(bus, spec, section, searched, clock, period_s)
         auto = run_autocal(  # the stops: none joints too: reported not_searched, never driven
             drivers,
@@ -372,9 +348,9 @@ def auto_calibrate(
             clock=clock,
             gravity_model=gravity_model,
         )
-        _limp_all_at_once(bus, spec)
+        limp_arm(bus, spec)
         if auto.failed and not partial:
-            failed = (auto, restore_registers(bus, spec, before, on_status))
+            failed = (auto, guard.restore_now())
         else:
             cals: dict[str, MotorCalibration] = {}
             kept: list[str] = []
@@ -412,13 +388,11 @@ def auto_calibrate(
                 if "Lock" in before[m.name]:
                     bus.write("Lock", m.motor_id, before[m.name]["Lock"])
             written = save_calibration(path, cals)
-    except BaseException as exc:
-        _reraise_after_rollback(exc, restore_registers(bus, spec, before, on_status))
-        raise
     if failed is not None:
         auto, report = failed
+        done = report.summary() if report is not None else "nothing to restore"
         raise AutoCalFailedError(
-            f"auto-calibration failed for {auto.failure_summary()}; nothing was written, {report.summary()} "
+            f"auto-calibration failed for {auto.failure_summary()}; nothing was written, {done} "
             "(pass --partial to write the joints that passed)",
             auto,
         )

@@ -1,0 +1,57 @@
+"""Bus transactions that a signal cannot cut in half.
+
+A signal handler that raises (Ctrl-C's ``KeyboardInterrupt``, or the exceptions
+:class:`robocal.workflows.motion_guard.MotionGuard` raises for SIGTERM, SIGHUP and SIGQUIT) may fire between any two
+byte codes. Inside a vendor SDK call that leaves the port half used: scservo_sdk and dynamixel_sdk set
+``PortHandler.is_using`` before a packet goes out and clear it only after its reply was read, so an exception in
+between makes every later packet fail with "port is in use" — including the writes that would turn the motors'
+torque off. A bus runs each packet exchange inside :func:`transaction`; a guard's signal handler calls
+:func:`raise_now_or_after` instead of raising, and the exception comes out as soon as the exchange is complete
+(at most one packet timeout later), with the port in a clean state.
+
+Module state: the nesting depth of the exchange running on the main thread (signal handlers run there) and the
+one exception held back. Other threads' exchanges are not counted.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from collections.abc import Iterator
+
+__all__ = ["in_transaction", "raise_now_or_after", "transaction"]
+
+_depth = 0
+_held: BaseException | None = None
+
+
+def in_transaction() -> bool:
+    """Whether the main thread is inside a packet exchange."""
+    return _depth > 0
+
+
+@contextlib.contextmanager
+def transaction() -> Iterator[None]:
+    """One packet exchange; an exception a signal handler held back is raised when it ends (main thread only)."""
+    global _depth, _held
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _depth += 1
+    try:
+        yield
+    finally:
+        _depth -= 1
+        if _depth == 0 and _held is not None:
+            held, _held = _held, None
+            raise held
+
+
+def raise_now_or_after(exc: BaseException) -> None:
+    """Raise ``exc`` now, or, inside a packet exchange, once it is complete (the first one held wins)."""
+    global _held
+    if _depth > 0:
+        if _held is None:
+            _held = exc
+        return
+    raise exc

@@ -1,0 +1,126 @@
+"""Issue 26: ``lerobot calibrate --auto`` killed by a signal mid-motion ends limp and restored.
+
+robocal runs as a child process against a simulated SO-101 with physics in another process (on a pseudo-terminal,
+on the wall clock); the signal is sent when robocal says a joint started its search (the arm is moving). The
+oracle is the simulated arm: after robocal exited, every servo's Torque_Enable is 0 and every register robocal
+may change (EEPROM and RAM) holds its value from before the run. On main before the guard, SIGTERM and SIGHUP
+killed robocal on the spot (exit -15 / -1, torque on, Homing_Offset changed).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from .guardlib import HANG_GUARD_S, SIGNAL_EXIT, ArmHost, Robocal, auto_args, kept_registers, torque_on
+
+pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+
+
+@pytest.fixture
+def arm() -> Iterator[ArmHost]:
+    host = ArmHost("so101_follower")
+    try:
+        yield host
+    finally:
+        host.close()
+
+
+@pytest.fixture
+def state_home(tmp_path: Path) -> Path:
+    return tmp_path / "state"
+
+
+def _run(arm: ArmHost, tmp_path: Path, state_home: Path, joints: str | None = None) -> Robocal:
+    return Robocal(
+        auto_args(arm.port, tmp_path, joints=joints), tmp_path, env={"XDG_STATE_HOME": str(state_home)}
+    )
+
+
+@pytest.mark.parametrize(
+    ("signum", "nth"),
+    [
+        (signal.SIGTERM, 1),  # the first joint's search (shoulder_lift)
+        (signal.SIGHUP, 2),  # a closed terminal during the second joint's search
+        (signal.SIGINT, 1),
+        (signal.SIGQUIT, 2),
+    ],
+)
+def test_signal_mid_motion_leaves_every_motor_limp_and_every_register_as_before(
+    arm: ArmHost, tmp_path: Path, state_home: Path, signum: int, nth: int
+) -> None:
+    before = arm.state()
+    run = _run(arm, tmp_path, state_home, joints="shoulder_lift,gripper")
+    run.wait_for("searching its stops", nth)
+    run.signal(signum)
+    code = run.finish()
+    after = arm.state()
+    assert torque_on(after) == []
+    assert kept_registers(after, "feetech") == kept_registers(before, "feetech")
+    assert code == SIGNAL_EXIT[signum], run.stderr
+    errors = [line for line in run.err_lines if line.startswith("error:")]
+    assert errors == [
+        "error: interrupted: every motor is limp, every register the search changed was written back; "
+        "no file was written"
+    ], run.stderr
+    assert "Traceback" not in run.stderr
+    assert not (tmp_path / "cal" / "robots" / "so_follower" / "g.json").exists()
+    assert not (state_home / "robocal" / "left-changed").exists() or not any(
+        (state_home / "robocal" / "left-changed").iterdir()
+    )  # everything was restored: no snapshot is kept
+
+
+def test_a_second_signal_during_the_restore_does_not_cut_it_short(
+    arm: ArmHost, tmp_path: Path, state_home: Path
+) -> None:
+    before = arm.state()
+    run = _run(arm, tmp_path, state_home, joints="shoulder_lift")
+    run.wait_for("searching its stops")
+    run.signal(signal.SIGTERM)
+    run.wait_for("restoring the previous EEPROM")
+    run.signal(signal.SIGINT)
+    run.signal(signal.SIGHUP)
+    code = run.finish()
+    after = arm.state()
+    assert torque_on(after) == []
+    assert kept_registers(after, "feetech") == kept_registers(before, "feetech")
+    assert code == 143, run.stderr  # the first signal's code
+    assert "Traceback" not in run.stderr
+
+
+def test_a_vanished_device_exits_3_naming_the_motors_that_may_hold_torque(
+    arm: ArmHost, tmp_path: Path, state_home: Path
+) -> None:
+    """The USB cable pulled mid-search (the pseudo-terminal closes): exit 3, never 70, one line that says which
+    motors may still hold torque and what to do; the snapshot of the registers stays in the state folder."""
+    before = arm.state()
+    run = _run(arm, tmp_path, state_home, joints="shoulder_lift")
+    run.wait_for("searching its stops")
+    deadline = time.monotonic() + HANG_GUARD_S
+    while "shoulder_lift" not in torque_on(arm.state()):  # pushing: the cable goes now
+        assert time.monotonic() < deadline and run.proc.poll() is None, run.stderr
+    arm.vanish()
+    code = run.finish()
+    after = arm.state()  # the simulated servos as the cable left them
+    assert code == 3, run.stderr
+    assert "Traceback" not in run.stderr and "internal error" not in run.stderr
+    errors = [line for line in run.err_lines if line.startswith("error:")]
+    assert len(errors) == 1, run.stderr
+    line = errors[0]
+    on = torque_on(after)
+    assert on  # the search was pushing when the cable went: nothing could turn it off
+    for name in on:  # every motor that still holds torque is named as one that may
+        assert f"{name} (id " in line.split("may still hold torque")[0]
+    assert "switch the arm's power off" in line
+    kept = list((state_home / "robocal" / "left-changed").iterdir())
+    assert len(kept) == 1 and str(kept[0]) in line
+    doc = json.loads(kept[0].read_text())
+    assert doc["port"] == arm.port and doc["command"] == "lerobot calibrate --auto"
+    for motor, regs in doc["registers"].items():  # the values from before the run, as the servos held them
+        assert regs == {r: before[motor][r] for r in regs}
+    assert "Homing_Offset" in doc["registers"]["shoulder_lift"]
