@@ -30,9 +30,12 @@ def interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") -
 
     The workflows re-raise Ctrl-C with the motors they could not restore as its argument; then that is shown.
     """
+    from .entry import interrupted_text
+
     what = f"{exc}{not_restored}" if exc.args else restored
-    _common.print_error(f"interrupted: {what}")
-    return typer.Exit(_common.interrupt_exit_code(exc))
+    code = _common.interrupt_exit_code(exc)
+    _common.print_error(f"{interrupted_text(code - 128)}: {what}")
+    return typer.Exit(code)
 
 
 def print_range_warnings(spec: RobotSpec, cals: dict[str, MotorCalibration]) -> list[str]:
