@@ -252,7 +252,7 @@ def main() -> None:
                         t0 = time.process_time()
                         call()
                         best = min(best, time.process_time() - t0)
-                except CalibError as exc:  # e.g. robocal's 256 MiB input-file limit
+                except CalibError as exc:  # e.g. robocal's 8 MiB calibration-file and 16 MiB URDF limits
                     stopped[name] = f"stopped at N={n:,}: {exc}"
                     continue
                 pts.append((n, best))

@@ -27,7 +27,7 @@ from robocal.formats.ur_kinematics import read_deltas, read_dh, read_kinematics
 N = 5_000
 DEEP_JSON = "[" * N + "]" * N
 DEEP_JSON_OBJ = '{"a":' * N + "1" + "}" * N
-DEEP_YAML_BLOCK = "".join("  " * i + "a:\n" for i in range(3000))
+DEEP_YAML_BLOCK = "".join("  " * i + "a:\n" for i in range(2000))  # 4 MB: under the 8 MiB document limit
 
 LITE_JSON_READERS: dict[str, Callable[[Path], Any]] = {
     "detect": detect_format,

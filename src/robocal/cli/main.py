@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import functools
+import gc
 import logging
 import os
 import platform
@@ -198,6 +199,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 130
         if isinstance(exc, BrokenPipeError):  # e.g. `robocal check ... | head -1`: not an error of robocal
             return _closed_pipe()
+        if isinstance(exc, MemoryError):  # an input too large for the memory this process may use: not a bug
+            exc.__traceback__ = None  # let go of what the failed command held before printing
+            gc.collect()
+            _common.print_error(_out_of_memory(args))
+            return _common.EXIT_BAD_INPUT
         if isinstance(exc, OSError) and exc.errno == errno.ENAMETOOLONG:  # a path the user gave: not a bug
             name = os.fsdecode(exc.filename) if exc.filename is not None else "a path"
             shown = name if len(name) <= 80 else f"{name[:40]}…{name[-30:]} ({len(os.fsencode(name))} bytes)"
@@ -209,6 +215,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     if isinstance(rv, int):
         return _signal_exit_code(rv)
     return 0
+
+
+def _command_words(args: Sequence[str]) -> str:
+    """The command path of ``args`` (``convert``, ``dataset recalibrate``): the leading words naming commands."""
+    group: Any = typer.main.get_command(app)
+    words: list[str] = []
+    for arg in args:
+        sub = getattr(group, "commands", {}).get(arg)
+        if sub is None:
+            break
+        words.append(arg)
+        group = sub
+    return " ".join(words)
+
+
+def _out_of_memory(args: Sequence[str]) -> str:
+    """The one line for a command that ran out of memory: which command, and the process's memory limit if set."""
+    command = f"robocal {_command_words(args)}".strip()
+    limit = ""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            limit = f" ({soft // (1024 * 1024)} MiB of address space, ulimit -v)"
+    except (ImportError, OSError, ValueError):  # no resource module (Windows)
+        pass
+    return (
+        f"{command} ran out of memory{limit}: an input is too large for this machine (robocal's input "
+        "limits: docs/design.md, Input limits)"
+    )
 
 
 def _signal_exit_code(code: int) -> int:

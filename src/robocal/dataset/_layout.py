@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import FileFormatError, UsageError
-from ..fileio import read_text
+from ..fileio import MAX_DOCUMENT_BYTES, read_text
 from ..formats._json import load_json
 
 __all__ = [
@@ -196,7 +196,7 @@ def read_layout(root: str | Path) -> DatasetLayout:
     info_path = r / "meta" / "info.json"
     if not info_path.is_file():
         raise FileFormatError(f"dataset {r}: missing meta/info.json (is this a LeRobot v3 dataset?)")
-    info = load_json(read_text(info_path, "dataset info"), str(info_path))
+    info = load_json(read_text(info_path, "dataset info", limit=MAX_DOCUMENT_BYTES), str(info_path))
     if not isinstance(info, dict) or not isinstance(info.get("features"), dict):
         raise FileFormatError(f"{info_path}: expected an object with a 'features' object")
     version = info.get("codebase_version")

@@ -16,7 +16,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..errors import FileFormatError
-from ..fileio import read_text
+from ..fileio import MAX_DOCUMENT_BYTES, read_text
 from ..formats._json import load_json
 from ._layout import DatasetLayout
 from ._stats import StatAccumulator, is_known_stat
@@ -43,7 +43,7 @@ def check_metadata(layout: DatasetLayout) -> None:
 
 
 def _read_stats(path: Path) -> dict[str, Any]:
-    data = load_json(read_text(path, "statistics JSON"), str(path), item="feature")
+    data = load_json(read_text(path, "statistics JSON", limit=MAX_DOCUMENT_BYTES), str(path), item="feature")
     if not isinstance(data, dict):
         raise FileFormatError(f"{path}: expected a JSON object of features")
     return data

@@ -37,7 +37,7 @@ from ..core.lerobot.legacy import revert_calibration
 from ..core.lerobot.normalisation import NormMode, normalize, unnormalize
 from ..core.profile import RobotProfile
 from ..errors import FileFormatError, InvalidCalibrationError, UsageError
-from ..fileio import read_text
+from ..fileio import MAX_DOCUMENT_BYTES, read_text
 from ..formats.lerobot import read_current, read_legacy
 from ._convention import JointMapConvention, ValueConvention, select_indices
 
@@ -420,7 +420,7 @@ def _json_kind(path: Path) -> str | None:
     if path.suffix.lower() != ".json":
         return None
     try:
-        data = json.loads(read_text(path, "calibration file"))
+        data = json.loads(read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES))
     except (ValueError, RecursionError):  # not JSON (or too deep / too long a number): the reader reports it
         return None
     if isinstance(data, dict) and "motor_names" in data:

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from ._paths import BACKUP_GENERATIONS, backup_path, backup_paths
 from .preflight import OutputTarget, check_output_path, preflight_output
-from .read import MAX_FILE_BYTES, read_bytes, read_text
+from .read import MAX_DOCUMENT_BYTES, MAX_FILE_BYTES, MAX_URDF_BYTES, read_bytes, read_text
 from .write import (
     WriteResult,
     atomic_write,
@@ -41,7 +41,9 @@ from .write import (
 
 __all__ = [
     "BACKUP_GENERATIONS",
+    "MAX_DOCUMENT_BYTES",
     "MAX_FILE_BYTES",
+    "MAX_URDF_BYTES",
     "OutputTarget",
     "WriteResult",
     "atomic_write",

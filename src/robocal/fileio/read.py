@@ -7,37 +7,56 @@ from pathlib import Path
 from ..errors import FileFormatError
 from ._paths import PathLike
 
-__all__ = ["MAX_FILE_BYTES", "read_bytes", "read_text"]
+__all__ = ["MAX_DOCUMENT_BYTES", "MAX_FILE_BYTES", "MAX_URDF_BYTES", "read_bytes", "read_text"]
 
 MAX_FILE_BYTES = 1024 * 1024 * 1024
-"""Refuse to read calibration or description files larger than this (1 GiB: a URDF of a million joints is
-about 300 MB, the largest file a robot can plausibly need)."""
+"""The most robocal reads of any file (1 GiB): the limit of data tables (measurement CSVs, pose tables)."""
+
+MAX_DOCUMENT_BYTES = 8 * 1024 * 1024
+"""The most robocal reads of a structured document (8 MiB): calibration files of every format, robot profiles,
+LeRobot calibration JSON, UR kinematics / DH / deltas YAML and ``calibration.conf``, camera_info YAML, a
+dataset's ``meta/info.json`` and ``meta/stats.json``. A calibration of 8 MiB holds some 100 000 joints (robots
+have tens). Measured: reading an 8 MiB YAML calibration takes about 360 MB, and converting one into an existing
+8 MiB YAML file (updated in place) stays within 1 GiB of address space."""
+
+MAX_URDF_BYTES = 16 * 1024 * 1024
+"""The most robocal reads of a URDF (16 MiB, some 50 000 joints; real URDFs are well under 1 MiB, their meshes
+are separate files). Parsing one takes at most about 300 MB."""
 
 
-def read_bytes(path: PathLike, what: str = "file") -> bytes:
+def _mib(n: int) -> str:
+    return f"{n / (1024 * 1024):.0f} MiB" if n >= 1024 * 1024 else f"{n} bytes"
+
+
+def read_bytes(path: PathLike, what: str = "file", *, limit: int | None = None) -> bytes:
     """Read a whole file, turning OS errors into :class:`~robocal.errors.FileFormatError`.
 
     Args:
         path: File to read.
         what: Human name of the file's role, used in the error message (e.g. ``"URDF"``).
+        limit: Most bytes to read (default :data:`MAX_FILE_BYTES`); a larger file is refused before it is read,
+            and a pipe or special file that turns out larger is refused after ``limit + 1`` bytes.
 
     Returns:
         The file's bytes.
 
     Raises:
-        FileFormatError: The file is missing, unreadable, a directory, larger than 1 GiB, or its name is not
-            a possible file name (a lone surrogate, a NUL byte, too long).
+        FileFormatError: The file is missing, unreadable, a directory, larger than ``limit``, or its name is
+            not a possible file name (a lone surrogate, a NUL byte, too long).
     """
     p = Path(path)
+    cap = MAX_FILE_BYTES if limit is None else limit
     try:
         size = p.stat().st_size
         if p.is_dir():
             raise FileFormatError(f"{what} {p}: is a directory, expected a file")
-        if size > MAX_FILE_BYTES:
-            raise FileFormatError(
-                f"{what} {p}: {size} bytes is larger than robocal's {MAX_FILE_BYTES} byte input limit"
-            )
-        return p.read_bytes()
+        if size > cap:
+            raise FileFormatError(_too_large(what, p, size, cap))
+        with p.open("rb") as fh:
+            data = fh.read(cap + 1)
+        if len(data) > cap:  # a pipe or a file that grew
+            raise FileFormatError(_too_large(what, p, None, cap))
+        return data
     except FileFormatError:  # a ValueError too: not to be taken for a bad file name below
         raise
     except FileNotFoundError:
@@ -54,9 +73,20 @@ def read_bytes(path: PathLike, what: str = "file") -> bytes:
         raise FileFormatError(f"{what} {str(p)!a}: not a possible file name ({exc})") from None
 
 
-def read_text(path: PathLike, what: str = "file") -> str:
-    """Read a UTF-8 text file; see :func:`read_bytes` for the errors raised."""
-    data = read_bytes(path, what)
+def _too_large(what: str, p: Path, size: int | None, cap: int) -> str:
+    """``size`` None: a pipe or special file found larger than ``cap`` while reading."""
+    if cap == MAX_FILE_BYTES:
+        limit = f"robocal's {cap} byte input limit"
+    else:
+        limit = f"robocal's {cap} byte ({_mib(cap)}) limit for a {what}"
+    if size is None:
+        return f"{what} {p}: more than {cap} bytes, {limit}"
+    return f"{what} {p}: {size} bytes is larger than {limit}"
+
+
+def read_text(path: PathLike, what: str = "file", *, limit: int | None = None) -> str:
+    """Read a UTF-8 text file of at most ``limit`` bytes; see :func:`read_bytes` for the errors raised."""
+    data = read_bytes(path, what, limit=limit)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..backends.vision import CameraIntrinsics
 from ..errors import FileFormatError
-from ..fileio import atomic_write_text, read_text
+from ..fileio import MAX_DOCUMENT_BYTES, atomic_write_text, read_text
 from ._yaml import load_yaml, yaml_float
 
 __all__ = ["camera_info_text", "read_camera_info", "write_camera_info"]
@@ -94,7 +94,7 @@ def read_camera_info(path: str | os.PathLike[str]) -> CameraIntrinsics:
             that is not ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` with positive focal lengths.
     """
     source = str(path)
-    doc = load_yaml(read_text(path, "camera file"), source)
+    doc = load_yaml(read_text(path, "camera file", limit=MAX_DOCUMENT_BYTES), source)
     if not isinstance(doc, dict):
         raise FileFormatError(f"{source}: expected a camera_info mapping (image_width, camera_matrix, ...)")
     size = []

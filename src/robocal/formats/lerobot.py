@@ -20,7 +20,7 @@ from typing import Any
 
 from ..core.lerobot import LegacyCalibration, MotorCalibration, ranges_beyond_one_turn
 from ..errors import CalibError, FileFormatError, InvalidCalibrationError, UsageError
-from ..fileio import atomic_write_text, check_output_path, read_text
+from ..fileio import MAX_DOCUMENT_BYTES, atomic_write_text, check_output_path, read_text
 from ._json import load_json
 
 __all__ = [
@@ -153,7 +153,7 @@ def parse_current(text: str, source: str = "<string>") -> dict[str, MotorCalibra
 
 def read_current(path: str | os.PathLike[str]) -> dict[str, MotorCalibration]:
     """Read a current LeRobot calibration JSON file (see :func:`parse_current`)."""
-    return parse_current(read_text(path, "LeRobot calibration"), str(path))
+    return parse_current(read_text(path, "LeRobot calibration", limit=MAX_DOCUMENT_BYTES), str(path))
 
 
 def write_current(
@@ -268,7 +268,7 @@ def parse_legacy(text: str, source: str = "<string>") -> LegacyCalibration:
 
 def read_legacy(path: str | os.PathLike[str]) -> LegacyCalibration:
     """Read a legacy LeRobot calibration JSON file (see :func:`parse_legacy`)."""
-    return parse_legacy(read_text(path, "LeRobot legacy calibration"), str(path))
+    return parse_legacy(read_text(path, "LeRobot legacy calibration", limit=MAX_DOCUMENT_BYTES), str(path))
 
 
 def write_legacy(path: str | os.PathLike[str], cal: LegacyCalibration) -> Path:

@@ -26,7 +26,7 @@ from ..core.profile import (
     RobotProfile,
 )
 from ..errors import FileFormatError, UsageError
-from ..fileio import read_text
+from ..fileio import MAX_DOCUMENT_BYTES, read_text
 from ._numbers import parse_direction, parse_finite, parse_int, parse_motor_id
 from ._profile_auto import check_known_keys, parse_auto_section
 from ._yaml import load_yaml
@@ -272,7 +272,7 @@ def parse_profile(data: Any, source: str) -> RobotProfile:
 
 def _read_profile_file(path: Path) -> RobotProfile:
     source = str(path)
-    return parse_profile(load_yaml(read_text(path, "robot profile"), source), source)
+    return parse_profile(load_yaml(read_text(path, "robot profile", limit=MAX_DOCUMENT_BYTES), source), source)
 
 
 def _builtin_dir() -> Any:

@@ -47,7 +47,7 @@ from typing import Any
 from ..core.dh import DHParameters
 from ..core.ur import JOINT_NAMES, LINK_NAMES, LinkOrigin, UrKinematics
 from ..errors import FileFormatError, JointMismatchError
-from ..fileio import atomic_write_bytes, atomic_write_text, read_text
+from ..fileio import MAX_DOCUMENT_BYTES, atomic_write_bytes, atomic_write_text, read_text
 from ._yaml import load_yaml, yaml_float
 from .urdf import UrdfDocument, UrdfModel
 
@@ -139,7 +139,7 @@ def read_kinematics(path: str | os.PathLike[str]) -> UrKinematics:
     Raises:
         FileFormatError: Missing links or fields, non-numbers, NaN, or a malformed hash (names file and key).
     """
-    text = read_text(path, "kinematics YAML")
+    text = read_text(path, "kinematics YAML", limit=MAX_DOCUMENT_BYTES)
     data = load_yaml(text, str(path))
     where = f"kinematics YAML {path}"
     if not isinstance(data, Mapping):
@@ -356,7 +356,7 @@ def _close_key(name: str, candidates: list[str]) -> str | None:
 def _load_mapping(
     path: str | os.PathLike[str], what: str, keys: tuple[str, ...], warnings: list[str] | None
 ) -> dict[str, Any]:
-    text = _strip_log_prefixes(read_text(path, what))
+    text = _strip_log_prefixes(read_text(path, what, limit=MAX_DOCUMENT_BYTES))
     source = f"{what} {path}"
     stripped = text.lstrip()
     is_conf = stripped.startswith("[") or re.search(r"^\s*\w+\s*=\s*\[", text, re.MULTILINE) is not None

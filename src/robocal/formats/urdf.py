@@ -20,7 +20,7 @@ from lxml import etree
 from ..core.arrays import Vec3
 from ..core.chain import URDF_JOINT_TYPES, ChainJoint
 from ..errors import FileFormatError, JointMismatchError, UsageError
-from ..fileio import atomic_write_bytes, read_bytes
+from ..fileio import MAX_URDF_BYTES, atomic_write_bytes, read_bytes
 from ._numbers import format_float, parse_finite
 
 __all__ = [
@@ -295,7 +295,7 @@ def parse_urdf(data: bytes | str, source: str = "<string>") -> UrdfModel:
 
 def read_urdf(path: str | os.PathLike[str]) -> UrdfModel:
     """Read a URDF file (an expanded URDF, not xacro) into a :class:`UrdfModel`."""
-    return parse_urdf(read_bytes(path, "URDF"), str(path))
+    return parse_urdf(read_bytes(path, "URDF", limit=MAX_URDF_BYTES), str(path))
 
 
 def _prolog_epilog(original: bytes, tree: Any) -> tuple[bytes | None, bytes | None]:
@@ -348,7 +348,7 @@ class UrdfDocument:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> UrdfDocument:
         """Parse a URDF file for editing (same safety rules as :func:`read_urdf`)."""
-        data = read_bytes(path, "URDF")
+        data = read_bytes(path, "URDF", limit=MAX_URDF_BYTES)
         tree = _parse_tree(data, str(path))
         _model_from_tree(tree, str(path))  # validate once up front
         return cls(tree, str(path), data)

@@ -32,7 +32,7 @@ import numpy.typing as npt
 
 from ..core.arrays import FloatArray
 from ..errors import BackendNotAvailableError, FileFormatError, UsageError
-from ..fileio import read_bytes
+from ..fileio import MAX_URDF_BYTES, read_bytes
 from ..formats.urdf import parse_urdf
 
 __all__ = [
@@ -332,7 +332,7 @@ def load_robot_model(
     import trimesh
 
     path = Path(urdf_path)
-    data = read_bytes(path, "URDF")
+    data = read_bytes(path, "URDF", limit=MAX_URDF_BYTES)
     parse_urdf(data, str(path))  # robocal's hardened reader: a clear error for a malformed file
     try:
         urdf = yourdfpy.URDF.load(

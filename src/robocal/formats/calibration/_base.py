@@ -16,7 +16,7 @@ from typing import Any, Literal, Protocol
 from ...core.jointmap import RobotCalibration
 from ...core.profile import RobotProfile
 from ...errors import FileFormatError, UsageError
-from ...fileio import read_text
+from ...fileio import MAX_DOCUMENT_BYTES, read_text
 from .._yaml import load_yaml
 from ..profiles import joint_motor_id
 from ..urdf import UrdfModel
@@ -182,4 +182,4 @@ def yaml_data(path: Path, parsed: Any) -> Any:
     """The file's YAML document: ``parsed`` when format detection already parsed it (parse once), else load."""
     if parsed is not None:
         return parsed
-    return load_yaml(read_text(path, "calibration file"), str(path), item="joint")
+    return load_yaml(read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES), str(path), item="joint")

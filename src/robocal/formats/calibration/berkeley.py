@@ -17,7 +17,7 @@ from ...core.conventions import berkeley_offset_from_homing, homing_from_berkele
 from ...core.jointmap import RobotCalibration
 from ...core.profile import RobotProfile
 from ...errors import FileFormatError, JointMismatchError, UsageError
-from ...fileio import atomic_write_text, read_text
+from ...fileio import MAX_DOCUMENT_BYTES, atomic_write_text, read_text
 from .._numbers import format_float, parse_finite
 from .._yaml import load_yaml
 from ..profiles import builtin_profile_names, joint_direction, joint_motor_id, profile_for_joints
@@ -95,7 +95,7 @@ def read(
 ) -> CalibrationFile:
     """Read a ``berkeley-offsets`` file: the joint order from ``joint_order``, the file's comment or the profile."""
     source = str(path)
-    text = read_text(path, "calibration file")  # also read for the joint-order comment
+    text = read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES)  # also read for the joint-order comment
     data = parsed_yaml if parsed_yaml is not None else load_yaml(text, source)
     if not isinstance(data, Mapping) or "position_offsets" not in data:
         raise FileFormatError(f"{source}: expected a mapping with key position_offsets")

@@ -8,7 +8,7 @@ from typing import Any
 
 from ...core.profile import RobotProfile
 from ...errors import FileFormatError
-from ...fileio import atomic_write_text, read_text
+from ...fileio import MAX_DOCUMENT_BYTES, atomic_write_text, read_text
 from .._json import load_json
 from ..urdf import UrdfModel
 from ._base import CalibrationFile, Content, FormatSpec, Traits, first_value
@@ -29,7 +29,7 @@ def refuse_motor_configuration(data: object, source: str) -> None:
 
 def read(path: Path, **_: Any) -> CalibrationFile:
     """Read a ``lite-json`` file."""
-    text = read_text(path, "calibration file")
+    text = read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES)
     try:  # before its Infinity values fail the strict JSON reader
         loose = json.loads(text)
     except (ValueError, RecursionError):

@@ -13,7 +13,7 @@ from ruamel.yaml.comments import CommentedMap
 
 from ...core.profile import RobotProfile
 from ...errors import FileFormatError
-from ...fileio import atomic_write_text, read_text
+from ...fileio import MAX_DOCUMENT_BYTES, atomic_write_text, read_text
 from .._yaml import dump_yaml, load_yaml
 from ..urdf import UrdfModel
 from ._base import CalibrationFile, Content, FormatSpec, Traits, first_value, yaml_data
@@ -33,7 +33,7 @@ def write(
     doc: Any = None
     if path.exists():
         try:
-            doc = load_yaml(read_text(path, "calibration file"), str(path), item="joint", round_trip=True)
+            doc = load_yaml(read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES), str(path), item="joint", round_trip=True)
             parse_lite(doc, str(path), "lite-yaml")
         except FileFormatError:
             doc = None  # not a lite-yaml file we can update: replace it (the old one is kept as .bak)

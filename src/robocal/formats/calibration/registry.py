@@ -18,7 +18,7 @@ from typing import Any
 from ...core.jointmap import RobotCalibration
 from ...core.profile import RobotProfile
 from ...errors import CalibError, FileFormatError, InvalidCalibrationError, UsageError
-from ...fileio import read_text
+from ...fileio import MAX_DOCUMENT_BYTES, read_text
 from .._json import is_valid_unicode, load_json
 from .._yaml import load_yaml
 from ..profiles import resolve_profile
@@ -125,7 +125,7 @@ def detect_format(path: str | os.PathLike[str]) -> str:
 def _detect(path: str | os.PathLike[str]) -> tuple[str, Any]:
     """The format and, for YAML formats, the parsed document (so the reader does not parse it again)."""
     source = str(path)
-    text = read_text(path, "calibration file")
+    text = read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES)
     fmt, data = _sniff(text, source)
     for other in NOT_JOINT_MAPS:
         if fmt == other.name:
@@ -287,7 +287,7 @@ def read_existing_output(
     p = Path(path)
     if not os.path.exists(p):  # os.path: a name too long is "missing" here and refused by the writer
         return None
-    text = read_text(p, what)
+    text = read_text(p, what, limit=MAX_DOCUMENT_BYTES)
     if all(not ln.strip() or ln.lstrip().startswith("#") for ln in text.splitlines()):
         return None  # empty, or only comments: nothing to keep
 

@@ -14,7 +14,7 @@ from lxml import etree
 
 from ...core.jointmap import RobotCalibration
 from ...errors import FileFormatError
-from ...fileio import atomic_write_bytes, read_bytes
+from ...fileio import MAX_URDF_BYTES, atomic_write_bytes, read_bytes
 from .._numbers import format_float, parse_finite
 from ..urdf import UrdfDocument, UrdfModel, _model_from_tree, _parse_tree
 from ._base import CalibrationFile, Content, FormatSpec, Traits
@@ -67,7 +67,7 @@ def _reduction_el(tr: Any, joint: Any) -> Any:
 def read(path: Path, **_: Any) -> CalibrationFile:
     """Read the ``SimpleTransmission`` elements of a URDF (other transmissions are skipped with a note)."""
     source = str(path)
-    tree = _parse_tree(read_bytes(path, "URDF"), source)
+    tree = _parse_tree(read_bytes(path, "URDF", limit=MAX_URDF_BYTES), source)
     root = tree.getroot()
     names, dirs, offs, scales = [], [], [], []
     seen: set[str] = set()
