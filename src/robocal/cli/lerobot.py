@@ -306,6 +306,25 @@ def check(
     raise typer.Exit(_common.exit_code_for([*diffs, *beyond]))
 
 
+_LEGACY_DATASET_NOTE_OTHER = (
+    "old datasets (legacy degrees): key = name.removeprefix('main_') + '.pos'; convert the values exactly with "
+    "`robocal dataset recalibrate --old LEGACY.json --new CURRENT.json`"
+)
+_LEGACY_DATASET_NOTES = {
+    "feetech": (  # the SO-100/SO-101 family (Feetech)
+        "old SO-100/SO-101 datasets (legacy degrees) → current DEGREES, LeRobot's documented transform: "
+        "key = name.removeprefix('main_') + '.pos'; shoulder_lift_new = -(old - 90); "
+        "elbow_flex_new = old - 90; other joints unchanged"
+    ),
+    "dynamixel": (  # Koch arms (Dynamixel)
+        "old Koch datasets (legacy degrees): LeRobot documents no value transform for Koch arms (its "
+        "documented one is for SO-100/SO-101 only); key = name.removeprefix('main_') + '.pos'; convert the "
+        "values exactly with `robocal dataset recalibrate --old LEGACY.json --new CURRENT.json`"
+    ),
+}
+"""What ``lerobot migrate`` says about the old datasets of each vendor's arms (LeRobot's documented transforms)."""
+
+
 @app.command()
 def migrate(
     legacy_file: Annotated[
@@ -332,20 +351,7 @@ def migrate(
         _common.console.print(f"wrote {out}")
     else:
         _common.console.print(calibration_json(cals), markup=False)
-    if vendor == "feetech":  # the SO-100/SO-101 family (Feetech); Koch arms are Dynamixel
-        _common.console.print(
-            "old SO-100/SO-101 datasets (legacy degrees) → current DEGREES, LeRobot's documented transform: "
-            "key = name.removeprefix('main_') + '.pos'; shoulder_lift_new = -(old - 90); "
-            "elbow_flex_new = old - 90; other joints unchanged",
-            markup=False,
-        )
-    else:
-        _common.console.print(
-            "old Koch datasets (legacy degrees): LeRobot documents no value transform for Koch arms (its "
-            "documented one is for SO-100/SO-101 only); key = name.removeprefix('main_') + '.pos'; convert the "
-            "values exactly with `robocal dataset recalibrate --old LEGACY.json --new CURRENT.json`",
-            markup=False,
-        )
+    _common.console.print(_LEGACY_DATASET_NOTES.get(vendor, _LEGACY_DATASET_NOTE_OTHER), markup=False)
     raise typer.Exit(_common.print_warnings(warnings))
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import JointMismatchError
 from .named import find_named
 from .profile_auto import AutoSection
+from .vendors import homing_vendors
 
 __all__ = [
     "LEGACY_MODES",
@@ -40,8 +41,8 @@ LEGACY_MODES = ("DEGREE", "LINEAR")
 """LeRobot's 2024 legacy ``CalibrationMode`` values (``legacy_mode``)."""
 LEROBOT_KINDS = ("robots", "teleoperators")
 """Where LeRobot keeps a device's calibration: a robot (follower) or a teleoperator (leader)."""
-LEROBOT_VENDORS = ("feetech", "dynamixel")
-"""Servo vendors of LeRobot arms robocal drives."""
+LEROBOT_VENDORS = homing_vendors()
+"""Servo vendors of LeRobot arms robocal drives (those declared with a homing rule in :mod:`.vendors`)."""
 
 
 def stop_angle_rad(stop_deg: float) -> float:

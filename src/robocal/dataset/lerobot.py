@@ -36,6 +36,7 @@ from ..core.lerobot import (
 from ..core.lerobot.legacy import revert_calibration
 from ..core.lerobot.normalisation import NormMode, normalize, unnormalize
 from ..core.profile import RobotProfile
+from ..core.vendors import VendorSpec, expected_homing_vendors, homing_vendor, vendor_spec
 from ..errors import FileFormatError, InvalidCalibrationError, UsageError
 from ..fileio import MAX_DOCUMENT_BYTES, read_text
 from ..formats.lerobot import read_current, read_legacy
@@ -151,8 +152,8 @@ class LeRobotConvention:
         for name, mode in zip(self.joint_names, self.modes, strict=True):
             if mode not in valid:
                 raise UsageError(f"joint {name!r}: mode {mode!r} is not one of {', '.join(valid)}")
-        if self.family not in ("feetech", "dynamixel"):
-            raise UsageError(f"motor family {self.family!r}: expected feetech or dynamixel")
+        if homing_vendor(self.family) is None:
+            raise UsageError(f"motor family {self.family!r}: expected {expected_homing_vendors(quoted=False)}")
         parse_compat(self.compat, "compat")
         parse_convention(self.convention, "convention")
 
@@ -178,16 +179,21 @@ class LeRobotConvention:
         return cls(names, cals, tuple(modes[n] for n in names), family, compat, convention=convention)
 
     @property
+    def _vendor(self) -> VendorSpec:
+        return vendor_spec(self.family)
+
+    @property
     def _apply_drive_mode(self) -> bool:
-        return self.family == "feetech"
+        return self._vendor.applies_drive_mode_in_software
 
     @property
     def _wraps(self) -> bool:
-        return self.family == "feetech" if self.wrap is None else self.wrap
+        return self._vendor.homing_rule().wraps_per_turn if self.wrap is None else self.wrap
 
     @property
     def _homing_sign(self) -> float:
-        return 1.0 if self.family == "feetech" else -1.0
+        """``Actual = Present + sign · Homing_Offset`` (the inverse of the vendor's homing rule)."""
+        return -float(self._vendor.homing_rule().offset_sign)
 
     def _norm_options(self) -> dict[str, Any]:
         """Keyword arguments of ``normalize`` / ``unnormalize`` for this convention."""
@@ -231,7 +237,11 @@ class LeRobotConvention:
         Raises:
             UsageError: Naming the joints.
         """
-        if not (isinstance(new, LeRobotConvention) and self.family == "dynamixel" == new.family):
+        if not (
+            isinstance(new, LeRobotConvention)
+            and self.family == new.family
+            and self._vendor.drive_mode_in_hardware
+        ):
             return
         flipped = [
             n

@@ -42,6 +42,7 @@ from contextlib import suppress
 from typing import Any
 
 from ..backends.servo_ratings import OVERLOAD_BIT, PWM_FULL, RATINGS, RPM_UNIT
+from ..core.lerobot.homing import half_turn_homing_offset
 from ..core.motor_models import MotorModel, find_motor_model, motor_key
 from ..core.stop_search import Command, StopSample
 from ..errors import CalibTimeoutError, DeviceError, UsageError
@@ -78,8 +79,7 @@ def mid_turn_offset(actual_ticks: int, res: int) -> int:
     ``Present = (Actual − Homing_Offset) mod res``; the offset is kept inside the sign-magnitude register's
     ±(res/2 − 1), so the seam is (almost) half a turn away.
     """
-    limit = res // 2 - 1
-    return max(-limit, min(limit, actual_ticks - (res - 1) // 2))
+    return half_turn_homing_offset(actual_ticks, vendor="feetech", resolution=res)  # the one homing rule
 
 
 def dynamixel_current_mode(model: str) -> bool:

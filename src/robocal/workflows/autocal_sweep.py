@@ -26,6 +26,7 @@ import numpy as np
 from ..core.profile import RobotProfile
 from ..core.sweep import analyse_sweep
 from ..core.sweep_result import SweepResult
+from ..core.vendors import speaks_live_can_sweep
 from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, backup_paths
 from ..formats.profiles import resolve_profile
@@ -253,7 +254,7 @@ def run_sweep_auto(
             f"--auto needs a robot profile with an auto_calibration section; {who} (pass --robot NAME; "
             "docs/profiles.md)"
         )
-    if profile.actuator not in (None, "robstride"):
+    if not speaks_live_can_sweep(profile.actuator):
         raise UsageError(
             f"--auto: robot {profile.name} has {profile.actuator} actuators; sweep --auto drives Robstride motors "
             "(LeRobot arms: robocal lerobot calibrate --auto)"

@@ -9,9 +9,10 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, cast
 
 from ..core.lerobot import parse_compat, parse_convention
+from ..core.vendors import expected_homing_vendors, homing_vendor
 from ..errors import JointMismatchError, UsageError
 
 if TYPE_CHECKING:
@@ -84,9 +85,9 @@ def _family(opts: DatasetOptions, robot: str | None) -> Literal["feetech", "dyna
     from ..dataset.lerobot import motor_family_for_robot
 
     if opts.motor_family is not None:
-        if opts.motor_family not in ("feetech", "dynamixel"):
-            raise UsageError(f"--motor-family {opts.motor_family!r}: expected feetech or dynamixel")
-        return "feetech" if opts.motor_family == "feetech" else "dynamixel"
+        if homing_vendor(opts.motor_family) is None:
+            raise UsageError(f"--motor-family {opts.motor_family!r}: expected {expected_homing_vendors(quoted=False)}")
+        return cast(Literal["feetech", "dynamixel"], opts.motor_family)
     return motor_family_for_robot(robot) if robot else None
 
 

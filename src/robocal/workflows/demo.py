@@ -321,7 +321,7 @@ def _lerobot_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoRe
             for n, c in result.calibration.items():
                 tr = arm.truth[n]
                 lo, hi = stops[n]
-                shift = 4096 * round((tr.stop_low_ticks - lo) / 4096) if spec.vendor == "feetech" else 0
+                shift = spec.homing.turn_shift(tr.stop_low_ticks, lo, arm.servo(n).resolution)
                 lo, hi = lo + shift, hi + shift
                 good = abs(lo - tr.stop_low_ticks) <= STOP_TOLERANCE_TICKS and (
                     abs(hi - tr.stop_high_ticks) <= STOP_TOLERANCE_TICKS

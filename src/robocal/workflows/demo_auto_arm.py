@@ -69,12 +69,12 @@ def auto_arm_demo(
         c = result.calibration[n]
         if n in spec.full_turn:  # LeRobot's full-turn convention: range 0..res−1, the homing centres the stops
             mid = 0.5 * (tr.stop_low_ticks + tr.stop_high_ticks)
-            present_mid = mid - c.homing_offset if spec.vendor == "feetech" else mid + c.homing_offset
+            present_mid = spec.homing.present(mid, c.homing_offset)
             err = abs((present_mid - (res[n] // 2 - 1) + res[n] / 2) % res[n] - res[n] / 2)
             recovered = f"mid at {present_mid % res[n]:g} (full turn)"
         else:
             lo, hi = stops[n]
-            shift = res[n] * round((tr.stop_low_ticks - lo) / res[n]) if spec.vendor == "feetech" else 0
+            shift = spec.homing.turn_shift(tr.stop_low_ticks, lo, res[n])
             lo, hi = lo + shift, hi + shift
             err = max(abs(lo - tr.stop_low_ticks), abs(hi - tr.stop_high_ticks))
             recovered = f"{lo}..{hi}"

@@ -22,6 +22,7 @@ from ..core.jointmap import RobotCalibration
 from ..core.profile import METHODS, RobotProfile
 from ..core.sweep import DEFAULT_ONE_SIDED_THRESHOLD_RAD
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
+from ..core.vendors import speaks_live_can_sweep
 from ..errors import CalibError, FileFormatError, JointMismatchError, SignalInterrupt, UsageError
 from ..fileio import atomic_write_text
 from ..formats import CalibrationFile, read_calibration, write_calibration
@@ -212,7 +213,7 @@ def run_sweep(
             "--format berkeley-offsets is positional in the order of the robot's low-level code; "
             "pass --robot NAME or a profile file"
         )
-    if spec.kind == "can" and profile is not None and profile.actuator not in (None, "robstride"):
+    if spec.kind == "can" and profile is not None and not speaks_live_can_sweep(profile.actuator):
         raise UsageError(
             f"--source {source}: robot {profile.name} has {profile.actuator} actuators; a live sweep speaks "
             "the Robstride protocol only. Record the joint positions (CSV or rosbag2) and use replay:FILE"

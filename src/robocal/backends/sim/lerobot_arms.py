@@ -209,15 +209,13 @@ class SimArm(StartsOnEnter):
     def recovered_stops(self, cals: Mapping[str, MotorCalibration]) -> dict[str, tuple[int, int]]:
         """Hard stops implied by a calibration, mapped back to actual ticks (modulo a turn on Feetech)."""
         out: dict[str, tuple[int, int]] = {}
+        rule = self.spec.homing
+        hardware_drive_mode = self.spec.vendor_spec.drive_mode_in_hardware
         for name, c in cals.items():
-            servo = self.servo(name)
-            if servo.vendor == "feetech":
-                lo, hi = c.range_min + c.homing_offset, c.range_max + c.homing_offset
-            else:
-                sign = -1 if c.drive_mode else 1
-                a, b = sign * (c.range_min - c.homing_offset), sign * (c.range_max - c.homing_offset)
-                lo, hi = min(a, b), max(a, b)
-            out[name] = (lo, hi)
+            sign = -1 if (hardware_drive_mode and c.drive_mode) else 1
+            a = sign * (c.range_min - rule.offset_sign * c.homing_offset)
+            b = sign * (c.range_max - rule.offset_sign * c.homing_offset)
+            out[name] = (min(a, b), max(a, b))
         return out
 
 

@@ -18,7 +18,7 @@ from ..arrays import FloatArray, IntArray
 from ._values import _as_float_array, _check_resolution, _check_values, _to_ticks
 from .arm import LeRobotMotor, RobotSpec
 from .calibration import MotorCalibration, ranges_beyond_one_turn
-from .homing import centre_homing, half_turn_homing_offset, wrap_feetech_offset
+from .homing import centre_homing, half_turn_homing_offset, offset_in_register, wrap_feetech_offset
 from .legacy import (
     HALF_TURN_DEGREE,
     LEGACY_BOUNDS,
@@ -92,6 +92,7 @@ __all__ = [
     "nearest_rounded_position",
     "normalize",
     "normalize_array",
+    "offset_in_register",
     "parse_compat",
     "parse_convention",
     "ranges_beyond_one_turn",

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, cast
 
 from ...errors import UsageError
 from ..profile import RobotProfile
+from ..vendors import HomingRule, VendorSpec, vendor_spec
 
 __all__ = ["LeRobotMotor", "RobotSpec"]
 
@@ -42,11 +42,25 @@ class RobotSpec:
     device_name: str
     old_device_name: str
     kind: str
-    vendor: Literal["feetech", "dynamixel"]
+    vendor: str
     motors: tuple[LeRobotMotor, ...]
     full_turn: tuple[str, ...]
     operating_mode: int
     inverted: tuple[str, ...] = ()
+
+    @property
+    def vendor_spec(self) -> VendorSpec:
+        """The declaration of its vendor (:mod:`robocal.core.vendors`): every vendor-dependent rule.
+
+        Raises:
+            UsageError: No vendor is declared under its name.
+        """
+        return vendor_spec(self.vendor)
+
+    @property
+    def homing(self) -> HomingRule:
+        """Its vendor's homing rule (sign and encoding of ``Homing_Offset``)."""
+        return self.vendor_spec.homing_rule()
 
     @property
     def motor_names(self) -> tuple[str, ...]:
@@ -75,7 +89,7 @@ class RobotSpec:
             lr.device_name,
             lr.old_device_name,
             lr.kind,
-            cast(Literal["feetech", "dynamixel"], lr.vendor),
+            lr.vendor,
             tuple(motors),
             lr.full_turn,
             lr.operating_mode,

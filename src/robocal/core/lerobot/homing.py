@@ -2,19 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Literal
-
 from ...errors import InvalidCalibrationError
+from ..vendors import HomingRule, expected_homing_vendors, homing_vendor
 from .normalisation import Compat
 from .registers import encode_sign_magnitude
 
-__all__ = ["centre_homing", "half_turn_homing_offset", "wrap_feetech_offset"]
+__all__ = ["centre_homing", "half_turn_homing_offset", "offset_in_register", "wrap_feetech_offset"]
 
 
 def half_turn_homing_offset(
     present_ticks: int,
     *,
-    vendor: Literal["feetech", "dynamixel"],
+    vendor: str,
     resolution: int = 4096,
     compat: Compat = "exact",
 ) -> int:
@@ -32,19 +31,22 @@ def half_turn_homing_offset(
     Raises:
         InvalidCalibrationError: ``compat="lerobot"`` and the Feetech offset is not encodable.
     """
+    spec = homing_vendor(vendor)
+    if spec is None:
+        raise InvalidCalibrationError(f"vendor {vendor!r}: expected {expected_homing_vendors()}")
+    rule = spec.homing_rule()
     half = (resolution - 1) // 2
     pos = int(present_ticks)
-    if vendor == "feetech":
-        if compat == "lerobot":
-            offset = pos - half
-            encode_sign_magnitude(offset, 11)
-            return offset
-        offset = pos % resolution - half
-        limit = resolution // 2 - 1
-        return max(-limit, min(limit, offset))
-    if vendor == "dynamixel":
-        return half - pos
-    raise InvalidCalibrationError(f"vendor {vendor!r}: expected 'feetech' or 'dynamixel'")
+    if not rule.wraps_per_turn:
+        return rule.offset_reading(pos, half)
+    if compat == "lerobot":
+        offset = rule.offset_reading(pos, half)
+        if rule.encoding == "sign-magnitude":
+            encode_sign_magnitude(offset, rule.sign_bit)
+        return offset
+    offset = rule.offset_reading(pos % resolution, half)
+    limit = resolution // 2 - 1
+    return max(-limit, min(limit, offset))
 
 
 def centre_homing(min_unwrapped: int, max_unwrapped: int, *, resolution: int = 4096) -> tuple[int, int, int]:
@@ -84,3 +86,16 @@ def wrap_feetech_offset(offset: int, lo: int, hi: int, res: int) -> tuple[int, i
         off = -half + 1
         lo, hi = lo - 1, hi - 1
     return off, lo, hi
+
+
+def offset_in_register(rule: HomingRule, offset: int, lo: int, hi: int, res: int) -> tuple[int, int, int]:
+    """A homing offset and its range as the register holds them.
+
+    Brought into a half turn where the reading wraps per turn (:func:`wrap_feetech_offset`), unchanged otherwise.
+
+    Returns:
+        ``(offset, lo, hi)``.
+    """
+    if rule.wraps_per_turn:
+        return wrap_feetech_offset(offset, lo, hi, res)
+    return offset, lo, hi

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -19,6 +19,7 @@ from ...errors import InvalidCalibrationError, JointOutOfRangeError, ShapeMismat
 from ..arrays import FloatArray, IntArray
 from ..conventions import homing_from_lerobot_legacy
 from ..jointmap import RobotCalibration
+from ..vendors import expected_homing_vendors, homing_vendor
 from ._values import _as_float_array, _check_resolution, _check_values, _to_ticks
 
 __all__ = [
@@ -331,7 +332,7 @@ def legacy_calibration_from_poses(
     zero_pos: npt.ArrayLike,
     rotated_pos: npt.ArrayLike,
     *,
-    vendor: Literal["feetech", "dynamixel"],
+    vendor: str,
     calib_mode: Sequence[str] | None = None,
     resolution: int = 4096,
 ) -> LegacyCalibration:
@@ -360,15 +361,13 @@ def legacy_calibration_from_poses(
     drive_mode = (rot < zero).astype(np.int64)
     rot_driven = np.where(drive_mode == 1, -rot, rot)
     quarter = resolution // 4
-    if vendor == "dynamixel":
-        nearest = nearest_rounded_position(rot_driven, resolution)
-    elif vendor == "feetech":
-        nearest = rot_driven
-    else:
-        raise InvalidCalibrationError(f"vendor {vendor!r}: expected 'feetech' or 'dynamixel'")
+    spec = homing_vendor(vendor)
+    if spec is None:
+        raise InvalidCalibrationError(f"vendor {vendor!r}: expected {expected_homing_vendors()}")
+    nearest = nearest_rounded_position(rot_driven, resolution) if spec.legacy_quarter_turn else rot_driven
     homing = quarter - nearest
     if calib_mode is None:
-        modes = ["LINEAR" if (vendor == "feetech" and m == "gripper") else "DEGREE" for m in motor_names]
+        modes = ["LINEAR" if (spec.legacy_linear_gripper and m == "gripper") else "DEGREE" for m in motor_names]
     else:
         modes = list(calib_mode)
     return LegacyCalibration(motor_names, homing, drive_mode, zero, rot_driven, modes)

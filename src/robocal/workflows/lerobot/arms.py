@@ -51,8 +51,10 @@ def open_bus(
 ) -> ServoBus:
     """Open the vendor-SDK bus of an arm on ``port`` (a serial port, a simulator's pty or ``inproc://`` port)."""
     motors = {m.motor_id: m.model for m in spec.motors}
-    bus_class = load_backend("feetech") if spec.vendor == "feetech" else load_backend("dynamixel")
-    return bus_class(port, motors, retries=retries, packet_timeout_ms=packet_timeout_ms)
+    bus: ServoBus = load_backend(spec.vendor_spec.backend)(
+        port, motors, retries=retries, packet_timeout_ms=packet_timeout_ms
+    )
+    return bus
 
 def norm_modes(
     spec: RobotSpec, *, use_degrees: bool | None = None, overrides: Mapping[str, str] | None = None

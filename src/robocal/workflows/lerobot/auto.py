@@ -26,12 +26,13 @@ from pathlib import Path
 
 from ...backends.servo_bus import ServoBus
 from ...core.gravity import GravityModel
-from ...core.lerobot import MotorCalibration, RobotSpec, centre_homing, wrap_feetech_offset
+from ...core.lerobot import MotorCalibration, RobotSpec, centre_homing, offset_in_register
 from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
+from ...core.vendors import VENDORS
 from ...errors import UsageError
 from ..autocal import run_autocal, select_joints
-from ..autocal_servo import DynamixelJointDriver, mid_turn_offset, servo_driver_class
+from ..autocal_servo import DynamixelJointDriver, FeetechJointDriver, mid_turn_offset, servo_driver_class
 from ..autocal_types import (
     AutoCalFailedError,
     AutoCalResult,
@@ -60,14 +61,10 @@ __all__ = [
     "snapshot_registers",
 ]
 
-MAX_LAG_DEG = {"feetech": 3.0, "dynamixel": 10.0}
+MAX_LAG_DEG = {n: v.max_lag_deg for n, v in VENDORS.items() if v.max_lag_deg is not None}
 """How far the position goal may lead the joint, per vendor: above the firmware's lag at the torque cap (the
-Feetech P gain reaches the cap within ~1–2°, the Dynamixel current-based position gain within ~2–6°)."""
-
-_RAM = {
-    "feetech": ("Torque_Limit", "Goal_Velocity", "Acceleration"),
-    "dynamixel": ("Goal_Current", "Goal_PWM", "Profile_Velocity", "Profile_Acceleration"),
-}
+Feetech P gain reaches the cap within ~1–2°, the Dynamixel current-based position gain within ~2–6°). Read
+from each vendor's declaration (:attr:`~robocal.core.vendors.VendorSpec.max_lag_deg`)."""
 
 HOLD_GAINS: dict[str, dict[str, dict[str, int]]] = {
     "koch_follower": {"elbow_flex": {"Position_P_Gain": 1500, "Position_I_Gain": 0, "Position_D_Gain": 600}},
@@ -120,11 +117,12 @@ def auto_section(robot: str | os.PathLike[str]) -> AutoSection:
 
 def search_registers(bus: ServoBus, spec: RobotSpec, motor_id: int) -> tuple[str, ...]:
     """The registers the search changes on a motor, in the order a restore writes them (EEPROM, RAM, Lock)."""
-    names = ["Operating_Mode", *EEPROM_FIELDS, *_RAM[spec.vendor]]
+    vs = spec.vendor_spec
+    names = ["Operating_Mode", *EEPROM_FIELDS, *vs.torque_cap_registers]
     motor = next((m.name for m in spec.motors if m.motor_id == motor_id), None)
     names += list(HOLD_GAINS.get(spec.name, {}).get(motor or "", {}))
-    if spec.vendor == "feetech":
-        names.append("Lock")
+    if vs.lock_register is not None:
+        names.append(vs.lock_register)
     return tuple(n for n in names if bus.has_register(motor_id, n))
 
 
@@ -152,17 +150,19 @@ def prepare_search(
     """
     drivers: dict[str, JointDriver] = {}
     ids = {m.name: m.motor_id for m in spec.motors}
+    lock = spec.vendor_spec.lock_register
     for m in spec.motors:
         bus.write("Torque_Enable", m.motor_id, 0)
-        if spec.vendor == "feetech" and bus.has_register(m.motor_id, "Lock"):
-            bus.write("Lock", m.motor_id, 0)
+        if lock is not None and bus.has_register(m.motor_id, lock):
+            bus.write(lock, m.motor_id, 0)
     for name in searched:
         i = ids[name]
         joint = section.joint(name)
         assert joint is not None
         res = bus.resolution(i)
         offset = 0
-        if spec.vendor == "feetech":
+        driver = servo_driver_class(spec.vendor)
+        if issubclass(driver, FeetechJointDriver):  # position goals stay inside a turn: the seam half a turn away
             bus.write("Operating_Mode", i, 0)
             bus.write("Min_Position_Limit", i, 0)
             bus.write("Max_Position_Limit", i, res - 1)
@@ -172,7 +172,7 @@ def prepare_search(
             bus.write("Homing_Offset", i, offset)
             bus.write("Goal_Velocity", i, 0)
             bus.write("Acceleration", i, 0)
-        drv = servo_driver_class(spec.vendor)(
+        drv = driver(
             bus,
             name,
             i,
@@ -217,11 +217,9 @@ def calibration_from_stops(
     lo = math.ceil(lower_rad * resolution / (2 * math.pi) - 1e-9)
     hi = math.floor(upper_rad * resolution / (2 * math.pi) + 1e-9)
     shift, rmin, rmax = centre_homing(lo, hi, resolution=resolution)
-    dm = 1 if (spec.vendor == "dynamixel" and motor in spec.inverted) else 0
-    if spec.vendor == "feetech":
-        offset, rmin, rmax = wrap_feetech_offset(shift, rmin, rmax, resolution)
-    else:
-        offset = -shift
+    dm = 1 if (spec.vendor_spec.drive_mode_in_hardware and motor in spec.inverted) else 0
+    rule = spec.homing
+    offset, rmin, rmax = offset_in_register(rule, rule.offset_for_shift(0, shift), rmin, rmax, resolution)
     if full_range:
         rmin, rmax = 0, resolution - 1
     return MotorCalibration(m.motor_id, dm, offset, rmin, rmax)
@@ -247,7 +245,7 @@ def _stop_pair(section: AutoSection, stops: JointStops) -> tuple[float, float]:
 
 def _eeprom_calibration(spec: RobotSpec, motor: str, regs: Mapping[str, int]) -> MotorCalibration:
     m = spec.motors[spec.motor_names.index(motor)]
-    dm = regs.get("Drive_Mode", 0) & 1 if spec.vendor == "dynamixel" else 0
+    dm = regs.get("Drive_Mode", 0) & 1 if spec.vendor_spec.drive_mode_in_hardware else 0
     return MotorCalibration(
         m.motor_id,
         dm,

@@ -29,7 +29,7 @@ from ...core.lerobot import (
     centre_homing,
     half_turn_homing_offset,
     legacy_calibration_from_poses,
-    wrap_feetech_offset,
+    offset_in_register,
 )
 from ...core.wrap_range import RangeTracker
 from ...errors import CalibError, InvalidCalibrationError, UsageError
@@ -164,13 +164,15 @@ def calibrate(
     res = {m.name: bus.resolution(m.motor_id) for m in spec.motors}
     before = read_eeprom(bus, spec)
     notes: list[str] = []
+    vs = spec.vendor_spec
+    rule = spec.homing
     try:
         _disable_torque(bus, spec)
-        if spec.vendor == "feetech":
+        if vs.multi_turn_phase_bit:
             clear_phase_bit4(bus, spec)  # multi-turn feedback would break the half-turn homing (#1296)
         for m in spec.motors:
             bus.write("Operating_Mode", m.motor_id, spec.operating_mode)
-            if spec.vendor == "dynamixel":
+            if vs.drive_mode_in_hardware:
                 bus.write("Drive_Mode", m.motor_id, 1 if m.name in spec.inverted else 0)
         operator.prompt("middle", "Move the arm to the middle of its range of motion and press ENTER")
         # reset_calibration: offsets 0 and full limits, so Present = Actual
@@ -184,7 +186,7 @@ def calibrate(
             offsets[m.name] = half_turn_homing_offset(
                 mid[m.motor_id], vendor=spec.vendor, resolution=res[m.name]
             )
-            if spec.vendor == "feetech" and mid[m.motor_id] % res[m.name] == res[m.name] - 1:
+            if rule.wraps_per_turn and mid[m.motor_id] % res[m.name] == res[m.name] - 1:
                 notes.append(
                     f"{m.name}: mid pose at {res[m.name] - 1}; Homing_Offset clamped to 2047 (no overflow)"
                 )
@@ -240,16 +242,15 @@ def calibrate(
                         f"{naive[m.name][0]}..{naive[m.name][1]}); re-homed so the seam is outside the travel"
                     )
                 shift, rmin, rmax = centre_homing(lo, hi, resolution=r)
-                offset = base + shift if spec.vendor == "feetech" else base - shift
+                offset = rule.offset_for_shift(base, shift)
             else:
                 offset, rmin, rmax = base, lo, hi
-            if spec.vendor == "feetech":
-                offset, rmin, rmax = wrap_feetech_offset(offset, rmin, rmax, r)
-            dm = 1 if (spec.vendor == "dynamixel" and m.name in spec.inverted) else 0
+            offset, rmin, rmax = offset_in_register(rule, offset, rmin, rmax, r)
+            dm = 1 if (vs.drive_mode_in_hardware and m.name in spec.inverted) else 0
             cals[m.name] = MotorCalibration(m.motor_id, dm, offset, rmin, rmax)
         for m in spec.motors:
             if m.name not in cals:  # full-turn joint not swept: LeRobot forces 0..res-1
-                dm = 1 if (spec.vendor == "dynamixel" and m.name in spec.inverted) else 0
+                dm = 1 if (vs.drive_mode_in_hardware and m.name in spec.inverted) else 0
                 cals[m.name] = MotorCalibration(m.motor_id, dm, offsets[m.name], 0, res[m.name] - 1)
         ordered = {n: cals[n] for n in names}
         _write_plan(bus, spec, _restore_plan(bus, spec, ordered))
@@ -279,7 +280,7 @@ def calibrate_legacy(
         UsageError: A Dynamixel motor has torque enabled (LeRobot's precondition).
     """
     ids = [m.motor_id for m in spec.motors]
-    if spec.vendor == "dynamixel":
+    if spec.vendor_spec.torque_off_to_calibrate:
         on = [m.name for m in spec.motors if bus.read("Torque_Enable", m.motor_id) != 0]
         if on:
             raise UsageError(

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 from ...backends.servo_bus import ServoBus
 from ...core.lerobot import (
     MotorCalibration,
     RobotSpec,
 )
-from ...errors import InvalidCalibrationError
+from ...errors import InvalidCalibrationError, UsageError
 
 __all__ = [
     "clear_phase_bit4",
@@ -57,7 +57,13 @@ def configure(
 
     Returns:
         ``(motor, register, value)`` for every register written, in order (Phase only where changed).
+
+    Raises:
+        UsageError: The arm's vendor has no presets here (nothing written).
     """
+    presets = _PRESETS.get(spec.vendor)
+    if presets is None:
+        raise UsageError(f"no LeRobot configure presets for vendor {spec.vendor!r}; valid: {', '.join(_PRESETS)}")
     written: list[tuple[str, str, int]] = []
 
     def put(name: str, motor_id: int, register: str, value: int) -> None:
@@ -70,24 +76,50 @@ def configure(
             put(m.name, m.motor_id, "Lock", 0)
     for m in spec.motors:
         put(m.name, m.motor_id, "Return_Delay_Time", 0)
+    presets(bus, spec, put, written, calibration, gripper_open_pos)
+    return written
+
+
+_Put = Callable[[str, int, str, int], None]
+
+
+def _feetech_presets(
+    bus: ServoBus,
+    spec: RobotSpec,
+    put: _Put,
+    written: list[tuple[str, str, int]],
+    calibration: Mapping[str, MotorCalibration] | None,
+    gripper_open_pos: float,
+) -> None:
+    """LeRobot's SO arms (Feetech): Phase bit 4, accelerations, position mode; the follower's P/I/D and gripper."""
     follower = spec.kind == "robots"
-    if spec.vendor == "feetech":
-        by_id = {m.motor_id: m.name for m in spec.motors}
-        for i in clear_phase_bit4(bus, spec):
-            written.append((by_id[i], "Phase", bus.read("Phase", i)))
-        for m in spec.motors:
-            presets = [("Maximum_Acceleration", 254), ("Acceleration", 254), ("Operating_Mode", 0)]
-            if follower:
-                presets += [("P_Coefficient", 16), ("I_Coefficient", 0), ("D_Coefficient", 32)]
-                if m.name == "gripper":
-                    presets += [
-                        ("Max_Torque_Limit", 500),
-                        ("Protection_Current", 250),
-                        ("Overload_Torque", 25),
-                    ]
-            for reg, value in presets:
-                put(m.name, m.motor_id, reg, value)
-        return written
+    by_id = {m.motor_id: m.name for m in spec.motors}
+    for i in clear_phase_bit4(bus, spec):
+        written.append((by_id[i], "Phase", bus.read("Phase", i)))
+    for m in spec.motors:
+        presets = [("Maximum_Acceleration", 254), ("Acceleration", 254), ("Operating_Mode", 0)]
+        if follower:
+            presets += [("P_Coefficient", 16), ("I_Coefficient", 0), ("D_Coefficient", 32)]
+            if m.name == "gripper":
+                presets += [
+                    ("Max_Torque_Limit", 500),
+                    ("Protection_Current", 250),
+                    ("Overload_Torque", 25),
+                ]
+        for reg, value in presets:
+            put(m.name, m.motor_id, reg, value)
+
+
+def _dynamixel_presets(
+    bus: ServoBus,
+    spec: RobotSpec,
+    put: _Put,
+    written: list[tuple[str, str, int]],
+    calibration: Mapping[str, MotorCalibration] | None,
+    gripper_open_pos: float,
+) -> None:
+    """LeRobot's Koch arms (Dynamixel): operating modes, the follower's elbow gains, the leader's gripper trigger."""
+    follower = spec.kind == "robots"
     for m in spec.motors:
         put(m.name, m.motor_id, "Operating_Mode", 5 if m.name == "gripper" else 4)
     if follower:
@@ -107,4 +139,13 @@ def configure(
         )
         put(gripper.name, gripper.motor_id, "Torque_Enable", 1)
         put(gripper.name, gripper.motor_id, "Goal_Position", goal)
-    return written
+
+
+_PRESETS: dict[
+    str,
+    Callable[
+        [ServoBus, RobotSpec, _Put, list[tuple[str, str, int]], Mapping[str, MotorCalibration] | None, float],
+        None,
+    ],
+] = {"feetech": _feetech_presets, "dynamixel": _dynamixel_presets}
+"""LeRobot's ``configure()`` of each vendor's arms (the adapter; everything else reads the vendor declaration)."""

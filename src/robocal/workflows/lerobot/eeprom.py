@@ -172,7 +172,7 @@ def _restore_plan(
     plan: list[tuple[str, str, int, int]] = []
     for m in spec.motors:
         c = cals[m.name]
-        if spec.vendor == "dynamixel":
+        if spec.vendor_spec.drive_mode_in_hardware:
             plan.append((m.name, "Drive_Mode", m.motor_id, c.drive_mode))
         if bus.has_register(m.motor_id, "Homing_Offset"):
             plan.append((m.name, "Homing_Offset", m.motor_id, c.homing_offset))
@@ -258,7 +258,7 @@ def check(bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]) 
             ("range_min", "Min_Position_Limit", c.range_min),
             ("range_max", "Max_Position_Limit", c.range_max),
         ]
-        if spec.vendor == "dynamixel":
+        if spec.vendor_spec.drive_mode_in_hardware:
             pairs.append(("drive_mode", "Drive_Mode", c.drive_mode))
         for fname, reg, fval in pairs:
             if reg not in e:

@@ -54,11 +54,12 @@ def restore_registers(
 ) -> RollbackReport:
     """Every motor limp, latched Dynamixels rebooted, the snapshot written back (checked)."""
     limp_arm(bus, spec)
-    if spec.vendor == "dynamixel":
+    latched = spec.vendor_spec.latched_error_register
+    if latched is not None:
         reboot = getattr(bus, "reboot", None)
         for m in spec.motors:
             with suppress(Exception):
-                if reboot is not None and bus.sync_read("Hardware_Error_Status", [m.motor_id])[m.motor_id]:
+                if reboot is not None and bus.sync_read(latched, [m.motor_id])[m.motor_id]:
                     reboot(m.motor_id)
     return _rollback(bus, spec, before, on_status)
 

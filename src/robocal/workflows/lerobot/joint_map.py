@@ -73,7 +73,7 @@ def export_joint_map(
         c = cals[m.name]
         s = signs.get(m.name, 1)
         ticks = 4096 if physical else 4095
-        d = s * (-1 if (physical and c.drive_mode and spec.vendor == "feetech") else 1)
+        d = s * (-1 if (physical and c.drive_mode and spec.vendor_spec.applies_drive_mode_in_software) else 1)
         k = 2 * math.pi / ticks
         mid = (c.range_min + c.range_max) / 2
         off_rad = math.radians(offsets_deg.get(m.name, 0.0))

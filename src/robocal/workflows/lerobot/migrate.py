@@ -9,8 +9,9 @@ from ...core.lerobot import (
     LegacyCalibration,
     MotorCalibration,
     centre_homing,
-    wrap_feetech_offset,
+    offset_in_register,
 )
+from ...core.vendors import expected_homing_vendors, homing_vendor
 from ...errors import InvalidCalibrationError, UsageError
 from ...formats.lerobot import read_legacy, write_current
 
@@ -53,8 +54,10 @@ def legacy_to_current(
     """
     if not isinstance(legacy_cal, LegacyCalibration):
         raise UsageError("legacy_to_current needs a LegacyCalibration")
-    if vendor not in ("feetech", "dynamixel"):
-        raise UsageError(f"vendor {vendor!r}: expected 'feetech' or 'dynamixel'")
+    spec = homing_vendor(vendor)
+    if spec is None:
+        raise UsageError(f"vendor {vendor!r}: expected {expected_homing_vendors()}")
+    rule = spec.homing_rule()
     n = len(legacy_cal.motor_names)
     motor_ids = list(ids) if ids is not None else list(range(1, n + 1))
     if len(motor_ids) != n:
@@ -80,12 +83,12 @@ def legacy_to_current(
             # falls as the reading rises; Feetech's software drive_mode 1 (100 − n) keeps that exactly.
             lin_dm = 0
             if start > end:
-                if vendor == "feetech":
+                if spec.applies_drive_mode_in_software:
                     lin_dm = 1
                 else:
                     warnings.append(
                         f"{name}: legacy LINEAR start_pos {start} > end_pos {end} (0 % at the higher reading); "
-                        "RANGE_0_100 on Dynamixel counts from range_min, so this joint's percentage is reversed"
+                        f"RANGE_0_100 on {spec.title} counts from range_min, so this joint's percentage is reversed"
                     )
             offset = 0
             if lo < 0 or hi > 4095:  # legacy Feetech readings were unwrapped past the 0/4095 seam
@@ -95,10 +98,7 @@ def legacy_to_current(
                         "or more of a 4096-tick servo; no range of one turn holds it (recalibrate this motor)"
                     )
                 shift, new_lo, new_hi = centre_homing(lo, hi, resolution=4096)
-                if vendor == "feetech":
-                    offset, new_lo, new_hi = wrap_feetech_offset(shift, new_lo, new_hi, 4096)
-                else:
-                    offset = -shift
+                offset, new_lo, new_hi = offset_in_register(rule, rule.offset_for_shift(0, shift), new_lo, new_hi, 4096)
                 warnings.append(
                     f"{name}: legacy LINEAR range {lo}..{hi} goes beyond one turn of a 4096-tick servo "
                     f"(0..4095); re-homed to homing_offset {offset}, range {new_lo}..{new_hi} (the same travel; "
@@ -107,17 +107,16 @@ def legacy_to_current(
                 lo, hi = new_lo, new_hi
             out[name] = MotorCalibration(motor_ids[k], lin_dm, offset, lo, hi)
             continue
-        if vendor == "feetech":
-            offset = (-h - 2047 + 2048) % 4096 - 2048
+        offset = rule.offset_sign * (h + 2047)  # legacy 0° reads 2047
+        if rule.wraps_per_turn:
+            offset = (offset + 2048) % 4096 - 2048
             if offset == -2048:
                 offset = -2047
                 warnings.append(f"{name}: offset clamped by one tick")
-            if dm:
-                warnings.append(
-                    f"{name}: inverted (drive_mode 1) but LeRobot's DEGREES ignores drive_mode on Feetech; "
-                    "the sign of this joint flips"
-                )
-        else:
-            offset = h + 2047
+        if dm and spec.applies_drive_mode_in_software:
+            warnings.append(
+                f"{name}: inverted (drive_mode 1) but LeRobot's DEGREES ignores drive_mode on {spec.title}; "
+                "the sign of this joint flips"
+            )
         out[name] = MotorCalibration(motor_ids[k], dm, offset, 0, 4094)
     return out, warnings

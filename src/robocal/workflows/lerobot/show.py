@@ -55,7 +55,7 @@ def read_positions(
             [raw[i] for i in ids],
             order,
             list(modes),
-            apply_drive_mode=spec.vendor == "feetech",
+            apply_drive_mode=spec.vendor_spec.applies_drive_mode_in_software,
             compat=compat,
             convention=convention,
         )

@@ -1,0 +1,241 @@
+"""What differs between motor vendors, declared once per vendor and looked up by name.
+
+Every rule that depends on the vendor (the homing offset's sign and register encoding, whether ``Drive_Mode``
+lives in the motor, which lock, torque-cap and operating-mode registers exist, how a motor is made limp, ...)
+is a field of that vendor's :class:`VendorSpec`; code elsewhere reads the fields and never compares vendor
+names (``tests/foundation/test_vendor_seam.py`` enforces it). :func:`vendor_spec` is the one lookup: a name
+with no declaration raises :class:`~robocal.errors.UsageError` naming the valid ones, so a new vendor never
+quietly inherits another vendor's signs. Adding a vendor is one :class:`VendorSpec` in :data:`VENDORS` (and its
+bus in ``robocal.backends.BACKENDS``); see CONTRIBUTING.md.
+
+Pure data and integer arithmetic (no numpy needed), so core, the workflows, the dataset code and the
+simulators can all read it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from ..errors import UsageError
+
+__all__ = [
+    "VENDORS",
+    "HomingRule",
+    "VendorSpec",
+    "expected_homing_vendors",
+    "homing_vendor",
+    "homing_vendors",
+    "speaks_live_can_sweep",
+    "vendor_spec",
+]
+
+
+@dataclass(frozen=True)
+class HomingRule:
+    """How a servo's ``Homing_Offset`` register moves its ``Present_Position`` reading.
+
+    Attributes:
+        offset_sign: ``Present = Actual + offset_sign · Homing_Offset`` (Feetech −1, Dynamixel +1).
+        encoding: The register's encoding of a negative offset: ``"sign-magnitude"`` (sign bit
+            :attr:`sign_bit`) or ``"twos-complement"``.
+        sign_bit: Index of the sign bit of a sign-magnitude register (Feetech 11); unused otherwise.
+        wraps_per_turn: Present is reported modulo one turn, so the offset is kept within a half turn
+            (±(res/2 − 1), the sign-magnitude register's reach) and readings are known modulo a turn.
+    """
+
+    offset_sign: Literal[1, -1]
+    encoding: Literal["sign-magnitude", "twos-complement"]
+    sign_bit: int
+    wraps_per_turn: bool
+
+    def offset_for_shift(self, base: int, shift_ticks: int) -> int:
+        """The offset that lowers every reading by ``shift_ticks`` from one of ``base``.
+
+        Feetech adds the shift, Dynamixel subtracts it.
+        """
+        return int(base) - self.offset_sign * int(shift_ticks)
+
+    def present(self, actual_ticks: float, offset: int) -> float:
+        """The reading of a shaft at ``actual_ticks`` under ``offset`` (before any wrap to a turn)."""
+        return actual_ticks + self.offset_sign * offset
+
+    def offset_reading(self, actual_ticks: int, present_ticks: int) -> int:
+        """The offset that makes a shaft at ``actual_ticks`` read ``present_ticks``."""
+        return self.offset_sign * (int(present_ticks) - int(actual_ticks))
+
+    def turn_shift(self, true_ticks: float, recovered_ticks: float, resolution: int) -> int:
+        """Whole turns (in ticks) to add to a recovered reading to compare it with the true one.
+
+        Readings that wrap per turn are known only modulo a turn; others are absolute (0).
+        """
+        if not self.wraps_per_turn:
+            return 0
+        return resolution * round((true_ticks - recovered_ticks) / resolution)
+
+
+@dataclass(frozen=True)
+class VendorSpec:
+    """Everything robocal needs to know that differs between motor vendors (one frozen value per vendor).
+
+    Attributes:
+        name: The vendor's name as profiles and options spell it (``"feetech"``).
+        title: The name in messages (``"Feetech"``).
+        backend: Name of its bus in ``robocal.backends.BACKENDS`` (reached through ``load_backend``).
+        resolution_ticks: Encoder ticks per turn of its usual models (a model's table may say otherwise).
+        homing: How its ``Homing_Offset`` moves the reading; None: no such register (Robstride: the zero is
+            set by a command).
+        drive_mode_in_hardware: ``Drive_Mode`` bit 0 is a motor register that inverts the reading (Dynamixel);
+            False: LeRobot applies ``drive_mode`` in software when normalising (Feetech).
+        lock_register: The EEPROM write-lock register cleared before EEPROM writes, or None.
+        operating_mode_register: The register selecting position / current / ... control, or None.
+        torque_cap_registers: The RAM registers the stop search changes to cap torque and shape goals (saved and
+            restored around it).
+        latched_error_register: A hardware-error register whose error only a REBOOT clears (the motor switches
+            its torque off), or None.
+        multi_turn_phase_bit: Bit 4 of its ``Phase`` register turns on multi-turn feedback, which must be off
+            for the half-turn homing (Feetech).
+        limp: How a motor is made limp (for people): the write that removes its torque.
+        max_lag_deg: How far the stop search's position goal may lead the joint (above the firmware's lag at the
+            torque cap), degrees; None where no servo stop search exists.
+        legacy_quarter_turn: LeRobot's 2024 calibration rounds the rotated pose to a quarter turn (Dynamixel);
+            False: uses it exactly (Feetech).
+        legacy_linear_gripper: LeRobot's 2024 calibration makes the ``gripper`` LINEAR by default (Feetech).
+        torque_off_to_calibrate: LeRobot refuses to calibrate while a motor's torque is on (Dynamixel).
+        live_can_sweep: The live CAN sweep (``--source can:``) and ``sweep --auto`` speak its protocol
+            (Robstride).
+    """
+
+    name: str
+    title: str
+    backend: str
+    resolution_ticks: int | None
+    homing: HomingRule | None
+    drive_mode_in_hardware: bool
+    lock_register: str | None
+    operating_mode_register: str | None
+    torque_cap_registers: tuple[str, ...]
+    latched_error_register: str | None
+    multi_turn_phase_bit: bool
+    limp: str
+    max_lag_deg: float | None
+    legacy_quarter_turn: bool = False
+    legacy_linear_gripper: bool = False
+    torque_off_to_calibrate: bool = False
+    live_can_sweep: bool = False
+
+    @property
+    def applies_drive_mode_in_software(self) -> bool:
+        """LeRobot's normalisation applies ``drive_mode`` itself (it is not a motor register)."""
+        return not self.drive_mode_in_hardware
+
+    def homing_rule(self) -> HomingRule:
+        """Its homing rule.
+
+        Raises:
+            UsageError: The vendor has no ``Homing_Offset`` register.
+        """
+        if self.homing is None:
+            raise UsageError(f"vendor {self.name!r} has no Homing_Offset register")
+        return self.homing
+
+
+FEETECH = VendorSpec(
+    name="feetech",
+    title="Feetech",
+    backend="feetech",
+    resolution_ticks=4096,
+    homing=HomingRule(offset_sign=-1, encoding="sign-magnitude", sign_bit=11, wraps_per_turn=True),
+    drive_mode_in_hardware=False,
+    lock_register="Lock",
+    operating_mode_register="Operating_Mode",
+    torque_cap_registers=("Torque_Limit", "Goal_Velocity", "Acceleration"),
+    latched_error_register=None,
+    multi_turn_phase_bit=True,
+    limp="Torque_Enable 0",
+    max_lag_deg=3.0,
+    legacy_linear_gripper=True,
+)
+"""Feetech STS/SCS servos (SO-100/SO-101): ``Present = (Actual − Homing_Offset) mod 4096``, offset in
+sign-magnitude (bit 11); drive mode in software; ``Lock`` guards the EEPROM; the P gain reaches the torque cap
+within ~1–2°."""
+
+DYNAMIXEL = VendorSpec(
+    name="dynamixel",
+    title="Dynamixel",
+    backend="dynamixel",
+    resolution_ticks=4096,
+    homing=HomingRule(offset_sign=1, encoding="twos-complement", sign_bit=31, wraps_per_turn=False),
+    drive_mode_in_hardware=True,
+    lock_register=None,
+    operating_mode_register="Operating_Mode",
+    torque_cap_registers=("Goal_Current", "Goal_PWM", "Profile_Velocity", "Profile_Acceleration"),
+    latched_error_register="Hardware_Error_Status",
+    multi_turn_phase_bit=False,
+    limp="Torque_Enable 0",
+    max_lag_deg=10.0,
+    legacy_quarter_turn=True,
+    torque_off_to_calibrate=True,
+)
+"""Dynamixel X servos (Koch): ``Present = (±Actual) + Homing_Offset`` (``−`` with ``Drive_Mode`` bit 0), two's
+complement; a hardware error latches until REBOOT; the current-based position gain reaches the cap within
+~2–6°."""
+
+ROBSTRIDE = VendorSpec(
+    name="robstride",
+    title="Robstride",
+    backend="robstride",
+    resolution_ticks=None,
+    homing=None,
+    drive_mode_in_hardware=False,
+    lock_register=None,
+    operating_mode_register=None,
+    torque_cap_registers=(),
+    latched_error_register=None,
+    multi_turn_phase_bit=False,
+    limp="a zero-torque MIT frame",
+    max_lag_deg=None,
+    live_can_sweep=True,
+)
+"""Robstride CAN actuators (MIT frames, radians; the zero is set by a command, no homing register)."""
+
+VENDORS: dict[str, VendorSpec] = {v.name: v for v in (FEETECH, DYNAMIXEL, ROBSTRIDE)}
+"""Vendor name → its declaration: the one registry (a new vendor is one line here)."""
+
+
+def vendor_spec(name: str) -> VendorSpec:
+    """The declaration of vendor ``name``.
+
+    Raises:
+        UsageError: No vendor has that name (the message lists the valid ones).
+    """
+    spec = VENDORS.get(name)
+    if spec is None:
+        raise UsageError(f"unknown vendor {name!r}; valid: {', '.join(sorted(VENDORS))}")
+    return spec
+
+
+def homing_vendors() -> tuple[str, ...]:
+    """Names of the vendors whose servos have a ``Homing_Offset`` register (LeRobot's), in declaration order."""
+    return tuple(n for n, v in VENDORS.items() if v.homing is not None)
+
+
+def speaks_live_can_sweep(actuator: str | None) -> bool:
+    """Whether a profile's ``actuator`` (None: not stated) is driven by the live CAN sweep."""
+    spec = VENDORS.get(actuator) if actuator is not None else None
+    return actuator is None or (spec is not None and spec.live_can_sweep)
+
+
+def homing_vendor(name: str) -> VendorSpec | None:
+    """The declaration of a vendor with a ``Homing_Offset`` register, or None.
+
+    The caller words the refusal with :func:`expected_homing_vendors`.
+    """
+    spec = VENDORS.get(name)
+    return spec if spec is not None and spec.homing is not None else None
+
+
+def expected_homing_vendors(*, quoted: bool = True) -> str:
+    """``"'feetech' or 'dynamixel'"`` (or unquoted): the valid vendors for a refusal message."""
+    names = [f"{n!r}" if quoted else n for n in homing_vendors()]
+    return " or ".join(names)
