@@ -18,13 +18,7 @@ from robocal.errors import InvalidCalibrationError, UsageError
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "robocal"
 DECLARATIONS = {"core/vendors.py"}
-"""Modules that may name vendors in comparisons (the declarations)."""
-FIRMWARE = {
-    "backends/sim/servo.py",
-    "backends/sim/servo_firmware.py",
-    "backends/sim/servo_model.py",
-}
-"""The simulated Feetech / Dynamixel firmware: still branches on the vendor (to become one firmware per vendor)."""
+"""Modules that may name vendors in comparisons (the declarations; they need none today)."""
 NAMES = frozenset(VENDORS)
 
 
@@ -74,7 +68,7 @@ def test_no_code_outside_the_declarations_compares_vendor_names() -> None:
     offenders = []
     for path in sorted(SRC.rglob("*.py")):
         rel = path.relative_to(SRC).as_posix()
-        if rel in DECLARATIONS or rel in FIRMWARE:
+        if rel in DECLARATIONS:
             continue
         offenders += [f"{rel}:{line} compares with {v!r}" for line, v in vendor_comparisons(path.read_text())]
     assert offenders == [], "read the vendor's declaration (robocal.core.vendors) instead:\n" + "\n".join(offenders)

@@ -43,13 +43,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ...core.lerobot import encode_sign_magnitude, encode_twos_complement
 from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from .. import inproc_serial
-from ..dynamixel import X_TABLE
-from .servo_model import BAUD_RATES, BROADCAST_ID, SimServo, Vendor
-from .servo_packets import dxl_crc16, dynamixel_status, feetech_status, parse_dynamixel, parse_feetech
+from .servo_model import BAUD_RATES, BROADCAST_ID, SIM_SERVO_KINDS, SimServo, Vendor
+from .servo_packets import dxl_crc16
 
 if TYPE_CHECKING:
     from .physics import SimClock
@@ -101,6 +99,7 @@ class SimServoBus(StartsOnEnter):
         if len(vendors) != 1:
             raise UsageError("a simulated bus holds servos of exactly one vendor")
         self.vendor: Vendor = vendors.pop()
+        self.kind = SIM_SERVO_KINDS[self.vendor]
         self.servos: dict[int, SimServo] = {s.motor_id: s for s in servos}
         self.noise_ticks = noise_ticks
         self.enforce_lock = enforce_lock
@@ -243,8 +242,7 @@ class SimServoBus(StartsOnEnter):
 
     def _parse(self, buf: bytearray) -> int:
         """Handle one packet at the start of ``buf``; return bytes consumed (0 = need more)."""
-        parse = parse_feetech if self.vendor == "feetech" else parse_dynamixel
-        consumed, inst = parse(buf)
+        consumed, inst = self.kind.parse(buf)
         if inst is not None:
             if self.packet_log is not None:
                 self.packet_log.append(("rx", bytes(buf[:consumed])))
@@ -256,9 +254,7 @@ class SimServoBus(StartsOnEnter):
     def _status(self, motor_id: int, error: int, params: bytes = b"") -> bytes:
         corrupt = self.corrupt_next > 0
         self.corrupt_next -= int(corrupt)
-        if self.vendor == "feetech":
-            return feetech_status(motor_id, error, params, corrupt=corrupt)
-        return dynamixel_status(motor_id, error, params, corrupt=corrupt)
+        return self.kind.status(motor_id, error, params, corrupt=corrupt)
 
     def _reply(self, servo: SimServo, error: int, params: bytes = b"") -> None:
         """Send a status packet from ``servo`` (its firmware adds its fault bits; a silent plant sends nothing)."""
@@ -291,14 +287,7 @@ class SimServoBus(StartsOnEnter):
         noise = int(self._rng.integers(-self.noise_ticks, self.noise_ticks + 1)) if self.noise_ticks else 0
         present = servo.present_ticks(noise)
         addr, size = servo.table["Present_Position"]
-        if servo.vendor == "feetech":
-            if not servo.big_endian:
-                raw = encode_sign_magnitude(max(-32767, min(32767, present)), 15)
-            else:
-                raw = present & 0xFFFF
-        else:
-            raw = encode_twos_complement(present, 4)
-        servo.regs[addr : addr + size] = servo._pack(raw, size)
+        servo.regs[addr : addr + size] = servo._pack(servo.encode_reading("Present_Position", present), size)
         if servo.firmware is not None:
             servo.firmware.refresh()
         else:
@@ -313,16 +302,15 @@ class SimServoBus(StartsOnEnter):
 
     def _write(self, servo: SimServo, addr: int, data: bytes) -> int:
         """Apply a register write; return the status error byte."""
-        if servo.vendor == "dynamixel":
-            torque_addr = X_TABLE["Torque_Enable"][0]
+        torque_addr = servo.table["Torque_Enable"][0]
+        lock = servo.vendor_spec.lock_register
+        if servo.kind.eeprom_locked_by_torque:
             if addr < torque_addr and servo.regs[torque_addr]:
                 return 7  # Access error: EEPROM is locked while torque is on
-        else:
-            lock_addr = servo.table["Lock"][0]
-            torque_addr = servo.table["Torque_Enable"][0]
+        elif lock is not None:
+            lock_addr = servo.table[lock][0]
             if self.enforce_lock and addr < torque_addr and servo.regs[lock_addr]:
                 return 0x08
-        torque_addr = servo.table["Torque_Enable"][0]
         fw = servo.firmware
         if fw is not None:
             refused = fw.write_error(addr, data)
@@ -371,7 +359,7 @@ class SimServoBus(StartsOnEnter):
             return
 
     def _ping_params(self, servo: SimServo) -> bytes:
-        if servo.vendor == "dynamixel":
+        if servo.kind.ping_reports_model:
             number = servo.get_reg("Model_Number")
             return bytes([number & 0xFF, number >> 8, servo.get_reg("Firmware_Version")])
         return b""
@@ -382,12 +370,12 @@ class SimServoBus(StartsOnEnter):
         servo.last_write_time = time.monotonic()
 
     def _handle_unchecked(self, motor_id: int, inst: int, params: bytes) -> None:
-        dxl = self.vendor == "dynamixel"
+        wide = self.kind.address_bytes == 2  # Dynamixel 2.0: 2-byte addresses and lengths
         with self._lock:
             self._tick()
             listening = self.on_bus(BROADCAST_ID)
             if inst == 0x82:  # SYNC_READ
-                if dxl:
+                if wide:
                     addr, size, ids = params[0] | params[1] << 8, params[2] | params[3] << 8, params[4:]
                 else:
                     addr, size, ids = params[0], params[1], params[2:]
@@ -397,7 +385,7 @@ class SimServoBus(StartsOnEnter):
                             self._reply(servo, 0, self._read(servo, addr, size))
                 return
             if inst == 0x83:  # SYNC_WRITE
-                if dxl:
+                if wide:
                     addr, size, rest = params[0] | params[1] << 8, params[2] | params[3] << 8, params[4:]
                 else:
                     addr, size, rest = params[0], params[1], params[2:]
@@ -412,7 +400,7 @@ class SimServoBus(StartsOnEnter):
                         if servo.bus_id not in self.silent_ids:
                             self._reply(servo, 0, self._ping_params(servo))
                 elif inst == 0x03:  # broadcast WRITE: applied by all, answered by none
-                    addr, data = (params[0] | params[1] << 8, params[2:]) if dxl else (params[0], params[1:])
+                    addr, data = (params[0] | params[1] << 8, params[2:]) if wide else (params[0], params[1:])
                     for servo in listening:
                         if not self._write(servo, addr, data):
                             self._note_write(servo, addr, len(data))
@@ -424,26 +412,26 @@ class SimServoBus(StartsOnEnter):
                 if inst == 0x01:  # PING
                     self._reply(servo, 0, self._ping_params(servo))
                 elif inst == 0x02:  # READ
-                    if dxl:
+                    if wide:
                         addr, size = params[0] | params[1] << 8, params[2] | params[3] << 8
                     else:
                         addr, size = params[0], params[1]
                     self._reply(servo, 0, self._read(servo, addr, size))
                 elif inst == 0x03:  # WRITE: acknowledged with the old id at the old speed, then applied
-                    addr, data = (params[0] | params[1] << 8, params[2:]) if dxl else (params[0], params[1:])
+                    addr, data = (params[0] | params[1] << 8, params[2:]) if wide else (params[0], params[1:])
                     old_id = servo.bus_id
                     error = self._write(servo, addr, data)
                     if not error:
                         self._note_write(servo, addr, len(data))
                     self._reply_as(servo, old_id, error)
-                elif inst == 0x08 and dxl:  # REBOOT: clears a hardware error, torque off
+                elif inst == 0x08 and self.kind.reboot:  # REBOOT: clears a hardware error, torque off
                     servo.set_reg("Hardware_Error_Status", 0)
                     servo.set_reg("Torque_Enable", 0)
                     if servo.firmware is not None:
                         servo.firmware.reboot()
                     self._reply(servo, 0)
                 else:
-                    self._reply(servo, 2 if dxl else 0)
+                    self._reply(servo, self.kind.unknown_instruction_error)
 
     # ------------------------------------------------------------------------------------- helpers
     def move(self, positions: Mapping[int, float]) -> None:

@@ -65,7 +65,8 @@ class ServoFirmware:
         self.res = servo.resolution
         self.setpoint_ticks = servo.actual_ticks
         self.ramp_ticks_s = 0.0
-        self.dxl = servo.vendor == "dynamixel"
+        self.dxl = servo.kind.x_series_law
+        """Runs the Dynamixel X control law (else the Feetech STS one); the vendor's simulator adapter says."""
         self.scenario_overload = plant.overload
         """A scenario's overload latch (from :func:`~.scenarios.make_plant`) replaces the firmware's own rule."""
         self._law_key: tuple[bytes, float] | None = None

@@ -9,8 +9,9 @@ Also the bus constants (broadcast id, baud-rate register values).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 from ...core.lerobot import (
     decode_sign_magnitude,
@@ -18,21 +19,25 @@ from ...core.lerobot import (
     encode_sign_magnitude,
     encode_twos_complement,
 )
+from ...core.vendors import VendorSpec, vendor_spec
 from ...errors import UsageError
+from .._servo_common import ServoModel
 from ..dynamixel import DYNAMIXEL_MODELS
 from ..feetech import FEETECH_MODELS, SIGN_BITS
+from .servo_packets import Instruction, dynamixel_status, feetech_status, parse_dynamixel, parse_feetech
 
 if TYPE_CHECKING:
     from .servo_firmware import ServoFirmware
 
-__all__ = ["BAUD_RATES", "BROADCAST_ID", "FACTORY_BAUD", "SimServo", "Vendor"]
+__all__ = ["BAUD_RATES", "BROADCAST_ID", "FACTORY_BAUD", "SIM_SERVO_KINDS", "SimServo", "SimServoKind", "Vendor"]
 
-Vendor = Literal["feetech", "dynamixel"]
+Vendor = str
+"""A vendor's name (a key of :data:`SIM_SERVO_KINDS` and of :data:`robocal.core.vendors.VENDORS`)."""
 
 BROADCAST_ID = 0xFE
 """Packets to this id reach every servo; only PING is answered (by each servo)."""
 
-BAUD_RATES: dict[Vendor, dict[int, int]] = {
+BAUD_RATES: dict[str, dict[int, int]] = {
     "feetech": {
         0: 1_000_000,
         1: 500_000,
@@ -56,8 +61,111 @@ BAUD_RATES: dict[Vendor, dict[int, int]] = {
 }
 """``Baud_Rate`` register value → bit/s (Feetech STS/SCS; Dynamixel X series)."""
 
-FACTORY_BAUD: dict[Vendor, int] = {"feetech": 0, "dynamixel": 1}
+FACTORY_BAUD: dict[str, int] = {"feetech": 0, "dynamixel": 1}
 """``Baud_Rate`` as shipped: Feetech 1 Mbit/s, Dynamixel X 57600 bit/s."""
+
+
+@dataclass(frozen=True)
+class SimServoKind:
+    """How the simulated servos of one vendor differ on the wire and in their firmware (the simulator's adapter).
+
+    The homing rule, where ``Drive_Mode`` lives and the lock register come from the vendor's declaration
+    (:mod:`robocal.core.vendors`); this holds what only the simulator needs.
+
+    Attributes:
+        vendor: The vendor's name.
+        models: Model name → the backend's :class:`~robocal.backends.servo_bus.ServoModel`.
+        power_on: ``(register, value)`` a new servo holds, set where its model's table has the register.
+        twos_complement: Registers whose value is signed (two's complement); the others read unsigned. Unused
+            where signed registers are sign-magnitude (their sign bits are the backend's ``SIGN_BITS``).
+        clamps_goal: The firmware clamps ``Goal_Position`` into ``Min/Max_Position_Limit``.
+        single_turn_mode: The ``Operating_Mode`` in which Present wraps to one turn (None: the homing rule says).
+        address_bytes: Width of the address and length fields of READ / WRITE / SYNC packets.
+        parse: Parses one instruction packet (:mod:`.servo_packets`).
+        status: Builds one status packet.
+        ping_reports_model: PING answers with ``Model_Number`` and ``Firmware_Version``.
+        reboot: Knows REBOOT (0x08), which clears a hardware error.
+        unknown_instruction_error: Status error byte for an instruction it does not know.
+        eeprom_locked_by_torque: EEPROM (addresses below ``Torque_Enable``) refuses writes while the torque is on
+            (Access error 7).
+        x_series_law: Runs the Dynamixel X control law (:mod:`.servo_firmware`), else the Feetech STS one.
+    """
+
+    vendor: str
+    models: Mapping[str, ServoModel]
+    power_on: tuple[tuple[str, int], ...]
+    twos_complement: tuple[str, ...]
+    clamps_goal: bool
+    single_turn_mode: int | None
+    address_bytes: int
+    parse: Callable[[bytes | bytearray], tuple[int, Instruction | None]]
+    status: Callable[..., bytes]
+    ping_reports_model: bool
+    reboot: bool
+    unknown_instruction_error: int
+    eeprom_locked_by_torque: bool
+    x_series_law: bool
+
+
+SIM_SERVO_KINDS: dict[str, SimServoKind] = {
+    "feetech": SimServoKind(
+        vendor="feetech",
+        models=FEETECH_MODELS,
+        power_on=(
+            ("Lock", 1),
+            ("Baud_Rate", FACTORY_BAUD["feetech"]),
+            ("Firmware_Major_Version", 3),
+            ("Firmware_Minor_Version", 10),
+            ("Phase", 0),
+        ),
+        twos_complement=(),
+        clamps_goal=True,
+        single_turn_mode=None,
+        address_bytes=1,
+        parse=parse_feetech,
+        status=feetech_status,
+        ping_reports_model=False,
+        reboot=False,
+        unknown_instruction_error=0,
+        eeprom_locked_by_torque=False,
+        x_series_law=False,
+    ),
+    "dynamixel": SimServoKind(
+        vendor="dynamixel",
+        models=DYNAMIXEL_MODELS,
+        power_on=(("Operating_Mode", 3), ("Baud_Rate", 3), ("Firmware_Version", 52)),  # 1 Mbit/s, as LeRobot's setup
+        twos_complement=(
+            "Homing_Offset",
+            "Present_Position",
+            "Goal_Position",
+            "Max_Position_Limit",
+            "Min_Position_Limit",
+        ),
+        clamps_goal=False,
+        single_turn_mode=3,
+        address_bytes=2,
+        parse=parse_dynamixel,
+        status=dynamixel_status,
+        ping_reports_model=True,
+        reboot=True,
+        unknown_instruction_error=2,
+        eeprom_locked_by_torque=True,
+        x_series_law=True,
+    ),
+}
+"""Vendor name → how its simulated servos behave (a new simulated vendor is one entry here)."""
+
+
+def _kind_of_model(model: str) -> SimServoKind:
+    """The simulated vendor whose backend lists ``model``.
+
+    Raises:
+        UsageError: No simulated vendor has that model.
+    """
+    for kind in SIM_SERVO_KINDS.values():
+        if model in kind.models:
+            return kind
+    raise UsageError(f"simulated servo model {model!r} is unknown")
 
 
 @dataclass
@@ -91,43 +199,49 @@ class SimServo:
 
     @property
     def vendor(self) -> Vendor:
-        """``"feetech"`` or ``"dynamixel"``."""
-        return "feetech" if self.model in FEETECH_MODELS else "dynamixel"
+        """The vendor's name (``"feetech"``, ``"dynamixel"``)."""
+        return self.kind.vendor
 
     def __post_init__(self) -> None:
-        if self.model not in FEETECH_MODELS and self.model not in DYNAMIXEL_MODELS:
-            raise UsageError(f"simulated servo model {self.model!r} is unknown")
+        self.kind: SimServoKind = _kind_of_model(self.model)
+        self.vendor_spec: VendorSpec = vendor_spec(self.kind.vendor)
         self.actual_ticks = min(self.stop_high_ticks, max(self.stop_low_ticks, self.actual_ticks))
-        spec = FEETECH_MODELS[self.model] if self.vendor == "feetech" else DYNAMIXEL_MODELS[self.model]
+        spec = self.kind.models[self.model]
         self.table = spec.table
         self.big_endian = spec.protocol == 1
         self.resolution = spec.resolution
         self.set_reg("Model_Number", spec.model_number)
         self.set_reg("ID", self.motor_id)
         self.set_reg("Max_Position_Limit", spec.resolution - 1)
-        if self.vendor == "feetech":
-            self.set_reg("Lock", 1)
-            self.set_reg("Baud_Rate", FACTORY_BAUD["feetech"])
-            if "Firmware_Major_Version" in spec.table:
-                self.set_reg("Firmware_Major_Version", 3)
-                self.set_reg("Firmware_Minor_Version", 10)
-            if "Phase" in spec.table:
-                self.set_reg("Phase", 0)
-        else:
-            self.set_reg("Operating_Mode", 3)
-            self.set_reg("Baud_Rate", 3)  # 1 Mbit/s, as LeRobot's setup leaves it
-            self.set_reg("Firmware_Version", 52)
+        for name, value in self.kind.power_on:
+            if name in spec.table:
+                self.set_reg(name, value)
 
     # ---------------------------------------------------------------------------------- register access
     def _pack(self, value: int, size: int) -> bytes:
         return int(value).to_bytes(size, "big" if self.big_endian else "little")
 
+    @property
+    def _sign_magnitude(self) -> bool:
+        """Signed registers are sign-magnitude (else two's complement), as the vendor declares its offset."""
+        return self.vendor_spec.homing_rule().encoding == "sign-magnitude"
+
     def _signed_to_raw(self, name: str, value: int, size: int) -> int:
-        if self.vendor == "feetech":
+        if self._sign_magnitude:
             if not self.big_endian and name in SIGN_BITS:
                 return encode_sign_magnitude(value, SIGN_BITS[name])
             return int(value) & ((1 << (8 * size)) - 1)
         return encode_twos_complement(value, size) if value < 0 else int(value)
+
+    def encode_reading(self, name: str, value: int) -> int:
+        """A reading (``Present_Position``) as the firmware stores it, saturated to the register's reach."""
+        size = self.table[name][1]
+        if self._sign_magnitude:
+            if not self.big_endian and name in SIGN_BITS:
+                limit = (1 << SIGN_BITS[name]) - 1
+                return encode_sign_magnitude(max(-limit, min(limit, value)), SIGN_BITS[name])
+            return int(value) & ((1 << (8 * size)) - 1)
+        return encode_twos_complement(value, size)
 
     def set_reg(self, name: str, value: int) -> None:
         """Set a register by name from a signed value (encoded like the firmware)."""
@@ -138,17 +252,11 @@ class SimServo:
         """Decoded value of a register by name."""
         addr, size = self.table[name]
         raw = int.from_bytes(self.regs[addr : addr + size], "big" if self.big_endian else "little")
-        if self.vendor == "feetech":
+        if self._sign_magnitude:
             if not self.big_endian and name in SIGN_BITS:
                 return decode_sign_magnitude(raw, SIGN_BITS[name])
             return raw
-        if name in (
-            "Homing_Offset",
-            "Present_Position",
-            "Goal_Position",
-            "Max_Position_Limit",
-            "Min_Position_Limit",
-        ):
+        if name in self.kind.twos_complement:
             return decode_twos_complement(raw, size)
         return raw
 
@@ -183,36 +291,40 @@ class SimServo:
         if self.firmware is not None:
             self.firmware.plant.set_state(self.firmware.rad(self.actual_ticks))
 
+    @property
+    def _drive_sign(self) -> int:
+        """−1 where a hardware ``Drive_Mode`` bit 0 inverts the reading, else 1."""
+        inverted = self.vendor_spec.drive_mode_in_hardware and self.get_reg("Drive_Mode") & 1
+        return -1 if inverted else 1
+
+    def _wraps_now(self) -> bool:
+        """Present is reported modulo one turn with the registers as they are."""
+        if self.vendor_spec.multi_turn_phase_bit and "Phase" in self.table and self.get_reg("Phase") & 0x10:
+            return False
+        mode = self.kind.single_turn_mode
+        if mode is not None:
+            return bool(self.get_reg("Operating_Mode") == mode)
+        return self.vendor_spec.homing_rule().wraps_per_turn
+
     def present_ticks(self, noise: int = 0) -> int:
         """The Present_Position the firmware would report now."""
         actual = round(self.actual_ticks) + noise
         res = self.resolution
-        if self.vendor == "feetech":
-            if "Homing_Offset" not in self.table:
-                return actual % res
-            present = actual - self.get_reg("Homing_Offset")
-            if "Phase" in self.table and self.get_reg("Phase") & 0x10:
-                return present
-            return present % res
-        signed = -actual if self.get_reg("Drive_Mode") & 1 else actual
-        present = signed + self.get_reg("Homing_Offset")
-        if self.get_reg("Operating_Mode") == 3:
-            return present % res
-        return present
+        if "Homing_Offset" not in self.table:
+            return actual % res
+        present = int(self.vendor_spec.homing_rule().present(self._drive_sign * actual, self.get_reg("Homing_Offset")))
+        return present % res if self._wraps_now() else present
 
     def goal_to_actual(self, goal_ticks: int) -> float:
         """Actual position that makes Present equal ``goal_ticks`` (nearest to the current position)."""
         res = self.resolution
-        if self.vendor == "feetech":
-            offset = self.get_reg("Homing_Offset") if "Homing_Offset" in self.table else 0
+        offset = self.get_reg("Homing_Offset") if "Homing_Offset" in self.table else 0
+        goal = goal_ticks
+        if self.kind.clamps_goal:
             lo, hi = self.get_reg("Min_Position_Limit"), self.get_reg("Max_Position_Limit")
             goal = min(hi, max(lo, goal_ticks))
-            target = goal + offset
-            turns = round((self.actual_ticks - target) / res)
-            return float(target + turns * res)
-        sign = -1 if self.get_reg("Drive_Mode") & 1 else 1
-        target = sign * (goal_ticks - self.get_reg("Homing_Offset"))
-        if self.get_reg("Operating_Mode") == 3:
+        target = self._drive_sign * (goal - self.vendor_spec.homing_rule().offset_sign * offset)
+        if self.vendor_spec.homing_rule().wraps_per_turn or self._wraps_now():  # known modulo a turn
             turns = round((self.actual_ticks - target) / res)
             target += turns * res
         return float(target)
