@@ -20,7 +20,7 @@ import numpy as np
 from robocal.backends.sim.lite import LITE_JOINTS, lite_urdf_text
 from robocal.core.sweep import RangeTracker, analyse_sweep
 from robocal.workflows.robot import open_robot
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 
 N = len(LITE_JOINTS)
 RATE_HZ = 1000.0
@@ -84,7 +84,7 @@ def bench_runtime(ticks: int = 400) -> None:
         urdf = Path(tmp) / "lite.urdf"
         urdf.write_text(lite_urdf_text())
         cal_path = Path(tmp) / "cal.yaml"
-        run_sweep(urdf, "sim:lite?seed=5", cal_path)
+        run_sweep(SweepRequest(urdf, "sim:lite?seed=5", cal_path))
         with open_robot(urdf, cal_path, "sim:lite?seed=5&noise=0", timeout_s=0.5) as robot:
             src = robot.source
             for _ in range(20):

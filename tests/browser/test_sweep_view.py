@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robocal.viewer.sweep_page import STATUS_RGB, open_sweep_page
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 
 pytest.importorskip("viser", reason="viser comes with robocal[view]")
 
@@ -34,8 +34,17 @@ def test_sweep_arcs_have_the_report_codes(page: Any, tmp_path: Path) -> None:
         cam.up_direction = (0.0, 0.0, 1.0)
         report = tmp_path / "report.json"
         prior = tmp_path / "previous.yaml"  # an earlier clean sweep: the un-swept elbow keeps its offset
-        run_sweep(LITE_URDF, "sim:lite?seed=8", prior)
-        outcome = run_sweep(LITE_URDF, SOURCE, tmp_path / "cal.yaml", prior=prior, report=report, view=web)
+        run_sweep(SweepRequest(LITE_URDF, "sim:lite?seed=8", prior))
+        outcome = run_sweep(
+            SweepRequest(
+                LITE_URDF,
+                SOURCE,
+                tmp_path / "cal.yaml",
+                prior=prior,
+                report=report,
+            ),
+            view=web,
+        )
         assert web.result is outcome.result
         codes = {
             name: (entry["warnings"] or ["ok"])[0]

@@ -19,7 +19,7 @@ from robocal.backends.sources import JointSpec, SimLiteSource
 from robocal.cli.main import main
 from robocal.formats import read_calibration
 from robocal.workflows import sweep as wf
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 
 from .conftest import paused_child
 
@@ -53,7 +53,7 @@ def test_one_ctrl_c_while_writing_a_finished_sweep_is_not_a_second(
 
     monkeypatch.setattr(wf, "write_calibration", ctrl_c_then_write)
     out = tmp_path / "cal.yaml"
-    outcome = run_sweep(urdf, "sim:lite", out, open_source_fn=_opener(SimLite(51, noise_rad=0.0)))
+    outcome = run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=_opener(SimLite(51, noise_rad=0.0)))
     assert outcome.out == out and read_calibration(out).calibration.joint_names == NAMES
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the finishing handler is gone
 
@@ -88,7 +88,7 @@ def test_sigterm_while_finishing_aborts_with_its_own_name(
     monkeypatch.setattr(wf, "write_calibration", terminated)
     out = tmp_path / "cal.yaml"
     with pytest.raises(wf.SweepAbortedError) as exc:
-        run_sweep(urdf, "sim:lite", out, open_source_fn=_opener(SimLite(53, noise_rad=0.0)))
+        run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=_opener(SimLite(53, noise_rad=0.0)))
     assert (str(exc.value), exc.value.exit_code) == ("sweep aborted by SIGTERM; nothing was written", 143)
     assert not out.exists()
 

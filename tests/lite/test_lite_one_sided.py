@@ -30,7 +30,7 @@ from robocal.core.sweep import analyse_sweep, one_sided_position_offset
 from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
 from robocal.workflows.joint_specs import joints_from_urdf
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 from robocal.workflows.sweep_session import SweepSession
 
 
@@ -111,7 +111,7 @@ def test_one_sided_to_lite_yaml(tmp_path: Path) -> None:
 
 def test_two_sided_stays_default_for_bimanual(tmp_path: Path) -> None:
     out = tmp_path / "c.yaml"
-    outcome = run_sweep(BIMANUAL_URDF, "sim:lite?seed=3", out, max_samples=50)
+    outcome = run_sweep(SweepRequest(BIMANUAL_URDF, "sim:lite?seed=3", out, max_samples=50))
     assert outcome.method == "two-sided" and outcome.robot == "bhl_arms"
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from robocal.backends.sim.lite import SimLite
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 
 POSITION_LSB_RAD = 8 * math.pi / 0xFFFF
 """One step of the 16-bit position field (±4π rad)."""
@@ -18,7 +18,7 @@ POSITION_LSB_RAD = 8 * math.pi / 0xFFFF
 
 def test_without_noise_every_offset_is_within_one_position_step(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(0, noise_rad=0.0)
-    outcome = run_sweep(urdf, "sim:lite", tmp_path / "cal.yaml", open_source_fn=h.sim_opener(sim))
+    outcome = run_sweep(SweepRequest(urdf, "sim:lite", tmp_path / "cal.yaml"), open_source_fn=h.sim_opener(sim))
     truth = sim.true_offsets()
     errors = {j.name: j.homing_offset - truth[j.name] for j in outcome.result.joints}
     assert len(errors) == 14
@@ -33,7 +33,7 @@ def test_mean_offset_error_over_many_seeds_is_within_the_noise(urdf: Path, tmp_p
     errors: list[float] = []
     for seed in range(16):
         sim = SimLite(seed, noise_rad=3e-4)
-        outcome = run_sweep(urdf, "sim:lite", tmp_path / f"cal{seed}.yaml", open_source_fn=h.sim_opener(sim))
+        outcome = run_sweep(SweepRequest(urdf, "sim:lite", tmp_path / f"cal{seed}.yaml"), open_source_fn=h.sim_opener(sim))
         truth = sim.true_offsets()
         errors += [j.homing_offset - truth[j.name] for j in outcome.result.joints]
     e = np.array(errors)

@@ -22,7 +22,7 @@ import pytest
 
 from robocal.cli.main import main
 from robocal.formats import read_calibration
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 from robocal.workflows.sweep_output import changes_to_confirm, keep_prior
 
 ELBOW = "left_elbow_pitch"
@@ -238,13 +238,13 @@ def test_workflow_confirm_sees_only_changed_offsets_with_a_doubtful_warning(
         assert changes_to_confirm(result) == list(names)
         return set()
 
-    outcome = run_sweep(urdf, SHORT, tmp_path / "cal.yaml", confirm=confirm)
+    outcome = run_sweep(SweepRequest(urdf, SHORT, tmp_path / "cal.yaml"), confirm=confirm)
     assert asked == [(ELBOW, WRIST)]  # wrap_in_travel of left_shoulder_pitch is no reason to ask
     assert outcome.result[ELBOW].homing_offset == good[ELBOW] and outcome.result[ELBOW].kept_prior
     # a joint without a prior offset has nothing to protect: nothing is asked
     fresh = tmp_path / "fresh.yaml"
     asked.clear()
-    run_sweep(urdf, SHORT, fresh, confirm=confirm)
+    run_sweep(SweepRequest(urdf, SHORT, fresh), confirm=confirm)
     assert asked == []
     assert keep_prior(outcome.result, []) == outcome.result
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -11,7 +13,9 @@ import pytest
 
 from robocal.backends.sim.lite import LITE_JOINTS
 from robocal.cli.main import main
+from robocal.errors import UsageError
 from robocal.formats import read_calibration
+from robocal.workflows.sweep import SweepRequest
 
 FULL_CSV = "full.csv"
 
@@ -229,3 +233,29 @@ def test_check_source_with_a_partial_calibration(urdf: Path, tmp_path: Path, cap
     assert rc == 1 and "error:" not in captured.err
     assert "joints missing from the calibration file" in captured.err
     assert captured.out.count(": q = ") == 1 and "left_elbow_pitch: q = " in captured.out
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"threshold_rad": math.nan}, "--threshold nan: expected a finite number of rad >= 0"),
+        ({"span_tolerance_rad": -0.1}, "--span-tolerance -0.1: expected a finite number of rad >= 0"),
+        ({"method": "three-sided"}, "--method 'three-sided': expected one of "),
+        ({"direction_step_s": 0.0}, "--direction-time 0.0: expected a finite number of seconds > 0"),
+    ],
+)
+def test_a_sweep_request_is_checked_where_it_is_built(
+    tmp_path: Path, kwargs: dict[str, Any], message: str
+) -> None:
+    with pytest.raises(UsageError) as info:
+        SweepRequest("lite.urdf", "sim:lite", tmp_path / "c.yaml", **kwargs)
+    assert str(info.value).startswith(message)
+    assert list(tmp_path.iterdir()) == []  # nothing opened or written
+
+
+def test_a_sweep_request_is_a_frozen_value_with_its_numbers_as_floats(tmp_path: Path) -> None:
+    request = SweepRequest("lite.urdf", "sim:lite", tmp_path / "c.yaml", threshold_rad=1, span_tolerance_rad=0)
+    assert (request.threshold_rad, request.span_tolerance_rad) == (1.0, 0.0)
+    assert isinstance(request.threshold_rad, float) and isinstance(request.span_tolerance_rad, float)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        request.source = "sim:lite?seed=2"  # type: ignore[misc]

@@ -17,7 +17,7 @@ from robocal.cli.main import main
 from robocal.errors import FileWriteError
 from robocal.formats import read_calibration
 from robocal.workflows import sweep as wf
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 from robocal.workflows.sweep_output import SweepNotSavedError
 
 ELBOW = "left_elbow_pitch"
@@ -86,7 +86,14 @@ def test_unwritable_output_is_refused_before_the_source_opens(
     monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
     opened: list[Any] = []
     with pytest.raises(FileWriteError, match=r"--out .*ro/cal.yaml: cannot write in .*Read-only file system"):
-        run_sweep(urdf, "sim:lite", ro / "cal.yaml", open_source_fn=lambda *a, **k: opened.append(1))
+        run_sweep(
+            SweepRequest(
+                urdf,
+                "sim:lite",
+                ro / "cal.yaml",
+            ),
+            open_source_fn=lambda *a, **k: opened.append(1),
+        )
     assert opened == []
 
 
@@ -145,7 +152,7 @@ def test_not_saved_error_carries_the_calibration_for_api_users(
     _fail_calibration_write(monkeypatch)
     sim = SimLite(5)
     with pytest.raises(SweepNotSavedError) as info:
-        run_sweep(urdf, "sim:lite", tmp_path / "cal.yaml", open_source_fn=h.sim_opener(sim))
+        run_sweep(SweepRequest(urdf, "sim:lite", tmp_path / "cal.yaml"), open_source_fn=h.sim_opener(sim))
     err = info.value
     assert err.exit_code == 2 and err.fmt == "lite-yaml" and err.written == ()
     printed = YAML(typ="safe").load(err.calibration_text)

@@ -18,7 +18,7 @@ from robocal.backends.replay import BLOCK_ROWS, open_recording, read_recording
 from robocal.backends.sim.lite import LITE_JOINTS
 from robocal.backends.sources import StreamReplaySource, open_source
 from robocal.errors import FileFormatError
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 
 NAMES = [j.name for j in LITE_JOINTS]
 
@@ -52,7 +52,7 @@ def test_replay_memory_does_not_grow_with_the_recording(urdf: Path, tmp_path: Pa
     peaks = {}
     for name, rec in (("small", small), ("large", large)):
         out = tmp_path / f"{name}.yaml"
-        peaks[name] = _peak_mib(lambda rec=rec, out=out: run_sweep(urdf, f"replay:{rec}", out))
+        peaks[name] = _peak_mib(lambda rec=rec, out=out: run_sweep(SweepRequest(urdf, f"replay:{rec}", out)))
     # bounded: the large file costs no more than the small one (a few blocks), not 10x
     assert peaks["large"] < 1.25 * peaks["small"] + 0.5, peaks
     assert peaks["large"] < 16.0, peaks
@@ -197,7 +197,7 @@ def test_rosbag_is_streamed_in_header_stamp_order(urdf: Path, tmp_path: Path) ->
     assert np.all(np.diff(got_t) > 0)  # back in stamp order
     order = np.argsort(stamps, kind="stable")
     np.testing.assert_array_equal(got_s, s[order])
-    out = run_sweep(urdf, f"replay:{bag}", tmp_path / "c.yaml")
+    out = run_sweep(SweepRequest(urdf, f"replay:{bag}", tmp_path / "c.yaml"))
     assert out.samples == n and all(abs(j.homing_offset) < 1e-5 for j in out.result.joints)
 
 

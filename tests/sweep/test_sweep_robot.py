@@ -17,7 +17,7 @@ from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
 from robocal.workflows.joint_specs import joints_from_urdf
 from robocal.workflows.robot import CalibratedRobot, open_robot
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 
 
 def _robot(urdf: Path, cal_path: Path, sim: SimLite) -> CalibratedRobot:
@@ -35,7 +35,7 @@ def test_read_after_power_cycle_and_write_mapping(urdf: Path, tmp_path: Path, h:
     # reading jumps a turn; the first read picks the branch inside the limits
     sim = SimLite(21, noise_rad=0.0, zero_sta=0, factory_zero_rad={"left_elbow_pitch": -0.6})
     cal_path = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", cal_path), open_source_fn=h.sim_opener(sim))
     sim.motors["left_elbow_pitch"].set_position(-0.2)  # raw = 0.2 - 0.6 = -0.4 -> 2π - 0.4 after power-on
     sim.power_cycle()
     truth_q = sim.joint_positions()
@@ -72,7 +72,7 @@ def test_read_after_power_cycle_and_write_mapping(urdf: Path, tmp_path: Path, h:
 def test_write_errors(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(22, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", cal_path), open_source_fn=h.sim_opener(sim))
     with _robot(urdf, cal_path, sim) as robot:
         with pytest.raises(UsageError, match=r"before the first robot\.read"):
             robot.write(np.zeros(14))
@@ -86,7 +86,7 @@ def test_write_errors(urdf: Path, tmp_path: Path, h: Any) -> None:
 @pytest.mark.slow
 def test_open_robot_from_source_string(urdf: Path, tmp_path: Path) -> None:
     cal_path = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite?seed=3", cal_path)
+    run_sweep(SweepRequest(urdf, "sim:lite?seed=3", cal_path))
     with open_robot(urdf, cal_path, "sim:lite?seed=3&noise=0") as robot:
         state = robot.read()
         assert state.position_rad.shape == (14,) and np.all(np.isfinite(state.position_rad))
@@ -101,7 +101,7 @@ def test_read_after_write_holds_the_targets(urdf: Path, tmp_path: Path, h: Any) 
     # a read between two writes must not replace the running targets with the zero-torque frame
     sim = SimLite(23, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", cal_path), open_source_fn=h.sim_opener(sim))
     with _robot(urdf, cal_path, sim) as robot:
         assert robot.read().position_rad.shape == (14,)
         first = {n: m.last_command for n, m in sim.motors.items()}
@@ -120,7 +120,7 @@ def test_read_after_write_holds_the_targets(urdf: Path, tmp_path: Path, h: Any) 
 def test_write_rejects_bad_gains_and_types(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(24, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", cal_path), open_source_fn=h.sim_opener(sim))
     with _robot(urdf, cal_path, sim) as robot:
         q = robot.read().position_rad
         with pytest.raises(UsageError, match=r"joint 'left_shoulder_pitch' \(RS02\): kp -1 / kd 0 outside"):
@@ -136,7 +136,7 @@ def test_write_rejects_bad_gains_and_types(urdf: Path, tmp_path: Path, h: Any) -
 def test_enable_disable_and_close_stops_enabled_motors(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(29, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", cal_path), open_source_fn=h.sim_opener(sim))
     with _robot(urdf, cal_path, sim) as robot:
         robot.read()
         assert {m.mode for m in sim.motors.values()} == {0}  # never enabled by reading
@@ -193,7 +193,7 @@ def test_tick_frames_and_states_are_the_reference_formula_bit_for_bit(
 
     sim = SimLite(23, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite", cal_path, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", cal_path), open_source_fn=h.sim_opener(sim))
     with _robot(urdf, cal_path, sim) as robot:
         calls = {"model_limits": 0}
         real = robot_mod.model_limits

@@ -16,7 +16,7 @@ from robocal.backends.sim.lite import SimLite
 from robocal.core.sweep import wrap_in_travel
 from robocal.formats import read_calibration
 from robocal.workflows.power_on_check import check_source
-from robocal.workflows.sweep import SweepAbortedError, run_sweep
+from robocal.workflows.sweep import SweepAbortedError, SweepRequest, run_sweep
 
 TOL = 2e-3
 
@@ -31,7 +31,7 @@ def test_recovered_offsets_match_truth(
 ) -> None:
     sim = SimLite(seed, noise_rad=5e-4, zero_sta=zero_sta, single_turn=single_turn)
     out = tmp_path / "cal.yaml"
-    outcome = run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(sim))
+    outcome = run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=h.sim_opener(sim))
     truth = sim.true_offsets()
     cf = read_calibration(out)
     assert cf.calibration.joint_names == tuple(h.names)
@@ -56,7 +56,7 @@ def test_joints_whose_travel_crosses_the_wrap_point(urdf: Path, tmp_path: Path, 
     # single-turn readings jump by 2π mid-sweep
     zeros = {"left_shoulder_pitch": 0.3, "left_elbow_pitch": -0.6, "right_shoulder_roll": 0.2}
     sim = SimLite(5, noise_rad=5e-4, zero_sta=0, single_turn=True, factory_zero_rad=zeros)
-    outcome = run_sweep(urdf, "sim:lite", tmp_path / "c.yaml", open_source_fn=h.sim_opener(sim))
+    outcome = run_sweep(SweepRequest(urdf, "sim:lite", tmp_path / "c.yaml"), open_source_fn=h.sim_opener(sim))
     truth = sim.true_offsets()
     for name in zeros:
         j = outcome.result[name]
@@ -72,7 +72,7 @@ def test_power_on_branch_selection_via_check_source(urdf: Path, tmp_path: Path, 
     zeros = {"left_elbow_pitch": 0.6}
     sim = SimLite(6, noise_rad=0.0, zero_sta=0, factory_zero_rad=zeros)
     out = tmp_path / "c.yaml"
-    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=h.sim_opener(sim))
     # after a power cycle at another pose every joint must still read its true position
     h_cal = read_calibration(out).calibration.homing_offset[3]
     sim.motors["left_elbow_pitch"].set_position(-2.3)
@@ -91,7 +91,7 @@ def test_power_on_branch_selection_via_check_source(urdf: Path, tmp_path: Path, 
 def test_check_source_reports_the_two_pi_correction(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(8, noise_rad=0.0, zero_sta=0, factory_zero_rad={"left_shoulder_pitch": 0.2})
     out = tmp_path / "c.yaml"
-    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=h.sim_opener(sim))
     sp = sim.motors["left_shoulder_pitch"]  # dir -1: raw = -q + 0.2 (+ branch)
     results = []
     for q in (-2.5, 0.5):  # raw 2.7 and -0.3: the second wraps to 2π - 0.3 at power-on
@@ -113,7 +113,7 @@ def _write_csv(path: Path, names: list[str], t: np.ndarray, s: np.ndarray) -> No
 def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) -> None:
     sim = SimLite(11, noise_rad=5e-4, zero_sta=0, single_turn=True)
     opener, made = h.recording_opener(sim)
-    live = run_sweep(urdf, "sim:lite", tmp_path / "live.yaml", open_source_fn=opener)
+    live = run_sweep(SweepRequest(urdf, "sim:lite", tmp_path / "live.yaml"), open_source_fn=opener)
     rec = made[0]
     t = np.array([s.t_s for s in rec.samples])
     raw = np.vstack([s.position_rad for s in rec.samples])
@@ -132,7 +132,7 @@ def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) ->
         (f"replay:{tmp_path / 'bag_mcap'}", {"topic": "/robot/js"}),
     ]
     for i, (src, kw) in enumerate(cases):
-        res = run_sweep(urdf, src, tmp_path / f"r{i}.yaml", **kw)
+        res = run_sweep(SweepRequest(urdf, src, tmp_path / f"r{i}.yaml", **kw))
         for name, off in live_off.items():
             assert res.result[name].homing_offset == pytest.approx(off, abs=1e-12), (src, name)
         assert [j.warnings for j in res.result.joints] == [j.warnings for j in live.result.joints]
@@ -143,11 +143,11 @@ def test_replay_csv_and_rosbag_match_live(urdf: Path, tmp_path: Path, h: Any) ->
 def test_first_ctrl_c_writes_a_complete_file(urdf: Path, tmp_path: Path, h: Any) -> None:
     out = tmp_path / "cal.yaml"
     prior_sim = SimLite(12, noise_rad=0.0)
-    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(prior_sim))
+    run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=h.sim_opener(prior_sim))
     before = read_calibration(out).calibration
     sim = SimLite(13, noise_rad=0.0, skip=["left_wrist_pitch"])
     opener, _ = h.recording_opener(sim, interrupt_at=60)
-    outcome = run_sweep(urdf, "sim:lite", out, open_source_fn=opener)
+    outcome = run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=opener)
     assert outcome.interrupted and outcome.samples == 60
     after = read_calibration(out).calibration
     assert after.joint_names == tuple(h.names)  # complete: every joint present
@@ -163,11 +163,11 @@ def test_first_ctrl_c_writes_a_complete_file(urdf: Path, tmp_path: Path, h: Any)
 @pytest.mark.slow
 def test_second_ctrl_c_writes_nothing(urdf: Path, tmp_path: Path, h: Any) -> None:
     out = tmp_path / "cal.yaml"
-    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(SimLite(14, noise_rad=0.0)))
+    run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=h.sim_opener(SimLite(14, noise_rad=0.0)))
     old = out.read_bytes()
     opener, _ = h.recording_opener(SimLite(15), interrupt_at=30, interrupt_close=True)
     with pytest.raises(SweepAbortedError, match="second Ctrl-C; nothing was written"):
-        run_sweep(urdf, "sim:lite", out, report=tmp_path / "r.json", open_source_fn=opener)
+        run_sweep(SweepRequest(urdf, "sim:lite", out, report=tmp_path / "r.json"), open_source_fn=opener)
     assert out.read_bytes() == old
     assert not (tmp_path / "r.json").exists()
 
@@ -181,7 +181,16 @@ def test_report_json_exact_shape(urdf: Path, tmp_path: Path, h: Any) -> None:
         json.dumps({n: {"id": ids[n], "direction": h.dirs[n], "homing_offset": 0.125} for n in h.names})
     )
     out, rep = tmp_path / "cal.json", tmp_path / "report.json"
-    outcome = run_sweep(urdf, "sim:lite", out, prior=prior, report=rep, open_source_fn=h.sim_opener(sim))
+    outcome = run_sweep(
+        SweepRequest(
+            urdf,
+            "sim:lite",
+            out,
+            prior=prior,
+            report=rep,
+        ),
+        open_source_fn=h.sim_opener(sim),
+    )
     data = json.loads(rep.read_text())
     assert list(data) == ["joints"] and list(data["joints"]) == h.names
     keys = [
@@ -215,7 +224,7 @@ def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
     from robocal.workflows import sweep as wf
 
     out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
-    run_sweep(urdf, "sim:lite", out, open_source_fn=h.sim_opener(SimLite(41, noise_rad=0.0)))
+    run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=h.sim_opener(SimLite(41, noise_rad=0.0)))
     old = out.read_bytes()
 
     def interrupted_before(*a: Any, **k: Any) -> None:
@@ -224,7 +233,15 @@ def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
 
     monkeypatch.setattr(wf, "write_calibration", interrupted_before)
     with pytest.raises(SweepAbortedError) as exc:
-        run_sweep(urdf, "sim:lite", out, report=rep, open_source_fn=h.sim_opener(SimLite(42, noise_rad=0.0)))
+        run_sweep(
+            SweepRequest(
+                urdf,
+                "sim:lite",
+                out,
+                report=rep,
+            ),
+            open_source_fn=h.sim_opener(SimLite(42, noise_rad=0.0)),
+        )
     assert str(exc.value) == (
         f"sweep aborted by a second Ctrl-C after writing {rep} (complete); {out} not written (unchanged)"
     )
@@ -246,14 +263,29 @@ def test_second_ctrl_c_after_the_calibration_was_written_says_so(
 
     monkeypatch.setattr(wf, "write_calibration", interrupted_after)
     with pytest.raises(SweepAbortedError) as exc:
-        run_sweep(urdf, "sim:lite", out, report=rep, open_source_fn=h.sim_opener(SimLite(43, noise_rad=0.0)))
+        run_sweep(
+            SweepRequest(
+                urdf,
+                "sim:lite",
+                out,
+                report=rep,
+            ),
+            open_source_fn=h.sim_opener(SimLite(43, noise_rad=0.0)),
+        )
     assert str(exc.value) == f"sweep aborted by a second Ctrl-C after writing {out} and {rep} (complete)"
     assert read_calibration(out).calibration.joint_names == tuple(h.names)
     # without a report, an interrupt before the calibration is written leaves nothing
     monkeypatch.setattr(wf, "write_calibration", lambda *a, **k: _two_ctrl_c())
     out2 = tmp_path / "other.yaml"
     with pytest.raises(SweepAbortedError, match=r"^sweep aborted by a second Ctrl-C; nothing was written$"):
-        run_sweep(urdf, "sim:lite", out2, open_source_fn=h.sim_opener(SimLite(44, noise_rad=0.0)))
+        run_sweep(
+            SweepRequest(
+                urdf,
+                "sim:lite",
+                out2,
+            ),
+            open_source_fn=h.sim_opener(SimLite(44, noise_rad=0.0)),
+        )
     assert not out2.exists()
 
 
@@ -262,7 +294,7 @@ def test_nan_positions_are_skipped_alike_in_csv_and_rosbag(urdf: Path, tmp_path:
     # NaN = no reading of that joint in that sample (legal in a JointState): both replays skip and count it
     sim = SimLite(17, noise_rad=0.0)
     opener, made = h.recording_opener(sim)
-    live = run_sweep(urdf, "sim:lite", tmp_path / "live.yaml", open_source_fn=opener)
+    live = run_sweep(SweepRequest(urdf, "sim:lite", tmp_path / "live.yaml"), open_source_fn=opener)
     rec = made[0]
     t = np.array([s.t_s for s in rec.samples])
     d = np.array([h.dirs[n] for n in h.names], dtype=float)
@@ -276,7 +308,7 @@ def test_nan_positions_are_skipped_alike_in_csv_and_rosbag(urdf: Path, tmp_path:
     write_joint_states(tmp_path / "nan_bag", h.names, t, ident)
     want = {"left_shoulder_pitch": 1, "left_elbow_pitch": len(rows)}
     for i, src in enumerate((tmp_path / "nan.csv", tmp_path / "nan_bag")):
-        res = run_sweep(urdf, f"replay:{src}", tmp_path / f"n{i}.yaml")
+        res = run_sweep(SweepRequest(urdf, f"replay:{src}", tmp_path / f"n{i}.yaml"))
         assert dict(res.missing_samples) == want, src
         assert res.samples == len(t)
         for name, off in live.result.offsets().items():
@@ -293,7 +325,7 @@ def test_infinite_positions_are_refused_alike_in_csv_and_rosbag(urdf: Path, tmp_
     _write_csv(tmp_path / "inf.csv", h.names, t, s)
     write_joint_states(tmp_path / "inf_bag", h.names, t, s, plugin="sqlite3")
     with pytest.raises(FileFormatError, match=r"line 3: left_elbow_pitch is not finite"):
-        run_sweep(urdf, f"replay:{tmp_path / 'inf.csv'}", tmp_path / "a.yaml")
+        run_sweep(SweepRequest(urdf, f"replay:{tmp_path / 'inf.csv'}", tmp_path / "a.yaml"))
     with pytest.raises(FileFormatError, match=r"joint left_elbow_pitch is inf at t = 1\.01.* not finite"):
-        run_sweep(urdf, f"replay:{tmp_path / 'inf_bag'}", tmp_path / "b.yaml")
+        run_sweep(SweepRequest(urdf, f"replay:{tmp_path / 'inf_bag'}", tmp_path / "b.yaml"))
     assert not (tmp_path / "a.yaml").exists() and not (tmp_path / "b.yaml").exists()

@@ -24,7 +24,7 @@ from robocal.viewer.sweep_page import (
     open_sweep_page,
     status_rgb,
 )
-from robocal.workflows.sweep import run_sweep
+from robocal.workflows.sweep import SweepRequest, run_sweep
 
 
 def test_arc_points_follow_the_joint_rotation() -> None:
@@ -48,12 +48,12 @@ def test_status_colours() -> None:
 @pytest.mark.slow
 def test_overlay_takes_the_report_codes(tmp_path: Path, urdf: Path) -> None:
     prior = tmp_path / "prior.yaml"
-    run_sweep(urdf, "sim:lite?seed=8", prior)
+    run_sweep(SweepRequest(urdf, "sim:lite?seed=8", prior))
     web = open_sweep_page(urdf, port=0)
     try:
         rep = tmp_path / "r.json"
         src = "sim:lite?seed=8&skip=left_elbow_pitch&short=right_elbow_pitch:1.0"
-        run_sweep(urdf, src, tmp_path / "cal.yaml", prior=prior, report=rep, view=web)
+        run_sweep(SweepRequest(urdf, src, tmp_path / "cal.yaml", prior=prior, report=rep), view=web)
         report = json.loads(rep.read_text())["joints"]
         arcs = {a["name"]: a for a in web.overlay.status()["joints"]}
         for name, entry in report.items():

@@ -13,7 +13,7 @@ import typer
 
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD
 from ..errors import UsageError
-from ..workflows.sweep import run_sweep
+from ..workflows.sweep import SweepRequest, run_sweep
 from ..workflows.sweep_output import SweepNotSavedError
 from ..workflows.sweep_session import DEFAULT_DIRECTION_STEP_S
 from . import _common
@@ -171,23 +171,25 @@ def sweep(
         _web_view(web_view, urdf, view_port, live_view, threshold, span_tolerance) as view,
     ):
         outcome = run_sweep(
-            urdf,
-            source,
-            out,
-            prior=prior,
-            threshold_rad=threshold,
-            span_tolerance_rad=span_tolerance,
-            report=report,
-            fmt=fmt,
-            direction_check=direction_check,
-            direction_step_s=direction_time,
-            topic=topic,
-            frame=frame,
+            SweepRequest(
+                urdf,
+                source,
+                out,
+                prior=prior,
+                threshold_rad=threshold,
+                span_tolerance_rad=span_tolerance,
+                report=report,
+                fmt=fmt,
+                direction_check=direction_check,
+                direction_step_s=direction_time,
+                topic=topic,
+                frame=frame,
+                robot=robot,
+                method=method,
+            ),
             view=view,
             stop=stop,
-            robot=robot,
             confirm=confirm,
-            method=method,
         )
     _common.console.print(result_table(outcome.result))
     print_sweep_warnings(outcome.result)

@@ -236,7 +236,7 @@ def _sweep_demo(
     from ..backends.sim.lite import lite_urdf_text
     from ..backends.sources import open_source
     from ..fileio import atomic_write_text
-    from .sweep import run_sweep
+    from .sweep import SweepRequest, run_sweep
 
     urdf = folder / "lite_bimanual.urdf"
     atomic_write_text(urdf, lite_urdf_text(), backup=False)
@@ -250,7 +250,13 @@ def _sweep_demo(
     say("robocal demo: simulated Lite bimanual robot, 14 Robstride joints on two virtual CAN buses")
     say("a simulated operator pushes every joint into both hard stops (encoder noise 3e-4 rad)")
     outcome = run_sweep(
-        urdf, source, folder / "calibration.yaml", report=folder / "sweep_report.json", open_source_fn=capture
+        SweepRequest(
+            urdf,
+            source,
+            folder / "calibration.yaml",
+            report=folder / "sweep_report.json",
+        ),
+        open_source_fn=capture,
     )
     truth: Mapping[str, float] = opened[0].sim.true_offsets()
     rows = []

@@ -54,6 +54,7 @@ __all__ = [
     "OUTPUT_FORMATS",
     "SweepAbortedError",
     "SweepOutcome",
+    "SweepRequest",
     "run_sweep",
 ]
 
@@ -130,31 +131,15 @@ def _check_foreign_ids(out: Path, existing: CalibrationFile, joints: Sequence[Jo
             )
 
 
-def run_sweep(
-    urdf_path: str | Path,
-    source: str,
-    out: str | Path,
-    *,
-    prior: str | Path | None = None,
-    threshold_rad: float | None = None,
-    span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD,
-    report: str | Path | None = None,
-    fmt: str | None = None,
-    direction_check: bool = False,
-    direction_step_s: float = DEFAULT_DIRECTION_STEP_S,
-    topic: str = DEFAULT_TOPIC,
-    frame: str | None = None,
-    view: HardStopSweepView | None = None,
-    stop: threading.Event | None = None,
-    max_samples: int | None = None,
-    open_source_fn: Callable[..., Source] | None = None,
-    robot: str | os.PathLike[str] | RobotProfile | None = None,
-    confirm: ConfirmFn | None = None,
-    method: str | None = None,
-) -> SweepOutcome:
-    """Run a whole sweep calibration and write the calibration file (and report).
+@dataclass(frozen=True)
+class SweepRequest:
+    """One hard-stop sweep calibration: what to read, what to write and how to judge it.
 
-    Args:
+    The numbers and choices are checked once, when the request is built (``UsageError`` naming the flag);
+    files, the source and the robot are checked by :func:`run_sweep` before anything is opened or written.
+    The CLI builds it from ``robocal sweep``'s options; Python callers build it directly.
+
+    Attributes:
         urdf_path: The robot's URDF: joint names and limits; direction, can_id and model from its
             ``<ros2_control>`` params when present, else from the calibration file or the robot profile.
         source: ``--source`` string.
@@ -168,20 +153,64 @@ def run_sweep(
         direction_step_s: Time the direction check waits per joint for the motion, s (source clock).
         topic: JointState topic of a rosbag2 replay.
         frame: Frame of a replay (``identity`` or ``motor``).
-        view: Live view.
-        stop: Set to end the sweep (Enter).
         max_samples: Stop after this many samples (None: until the source ends or the user stops).
-        open_source_fn: Opens the source (default :func:`robocal.backends.sources.open_source`).
         robot: Robot profile (name, path or profile); default: the built-in robot the URDF's joint names match.
             Gives directions and CAN ids the URDF lacks, the default output format and the joint order of
             ``berkeley-offsets``.
+        method: ``one-sided`` (each joint pushed into the profile's stop: ``position_offset = limit_reading −
+            stop_angle``, as Berkeley-Humanoid-Lite-Lowlevel) or ``two-sided`` (bisection); default: the
+            profile's procedure, else ``two-sided``.
+
+    Raises:
+        UsageError: ``threshold_rad`` or ``span_tolerance_rad`` not a finite number ≥ 0, an unknown ``method``,
+            ``direction_step_s`` not a finite number > 0.
+    """
+
+    urdf_path: str | Path
+    source: str
+    out: str | Path
+    prior: str | Path | None = None
+    threshold_rad: float | None = None
+    span_tolerance_rad: float = DEFAULT_SPAN_TOLERANCE_RAD
+    report: str | Path | None = None
+    fmt: str | None = None
+    direction_check: bool = False
+    direction_step_s: float = DEFAULT_DIRECTION_STEP_S
+    topic: str = DEFAULT_TOPIC
+    frame: str | None = None
+    max_samples: int | None = None
+    robot: str | os.PathLike[str] | RobotProfile | None = None
+    method: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.threshold_rad is not None:
+            object.__setattr__(self, "threshold_rad", _check_number(self.threshold_rad, "--threshold"))
+        if self.method is not None and self.method not in METHODS:
+            raise UsageError(f"--method {self.method!r}: expected one of {', '.join(METHODS)}")
+        object.__setattr__(self, "span_tolerance_rad", _check_number(self.span_tolerance_rad, "--span-tolerance"))
+        if not (math.isfinite(self.direction_step_s) and self.direction_step_s > 0):
+            raise UsageError(f"--direction-time {self.direction_step_s}: expected a finite number of seconds > 0")
+
+
+def run_sweep(
+    request: SweepRequest,
+    *,
+    view: HardStopSweepView | None = None,
+    stop: threading.Event | None = None,
+    open_source_fn: Callable[..., Source] | None = None,
+    confirm: ConfirmFn | None = None,
+) -> SweepOutcome:
+    """Run a whole sweep calibration and write the calibration file (and report).
+
+    Args:
+        request: What to sweep, write and judge (:class:`SweepRequest`, checked when it was built).
+        view: Live view.
+        stop: Set to end the sweep (Enter).
+        open_source_fn: Opens the source (default :func:`robocal.backends.sources.open_source`).
         confirm: Asked, before anything is written, about the joints of :func:`changes_to_confirm` (a prior
             offset would be replaced while the joint has a span_mismatch, no_overlap, offset_large or wrong_side warning);
             returns the joints whose new offset to write, the others keep their prior offset. None (no
             terminal, ``--yes``): every new offset is written.
-        method: ``one-sided`` (each joint pushed into the profile's stop: ``position_offset = limit_reading −
-            stop_angle``, as Berkeley-Humanoid-Lite-Lowlevel) or ``two-sided`` (bisection); default: the
-            profile's procedure, else ``two-sided``.
 
     Returns:
         The :class:`SweepOutcome`.
@@ -192,20 +221,16 @@ def run_sweep(
         SweepAbortedError: a second Ctrl-C; the message says which files were already written (the
             report is written before the calibration, so a calibration is never newer than its report).
     """
-    # ---- validate everything before touching a device or a file
-    if threshold_rad is not None:
-        threshold_rad = _check_number(threshold_rad, "--threshold")
-    if method is not None and method not in METHODS:
-        raise UsageError(f"--method {method!r}: expected one of {', '.join(METHODS)}")
-    span_tolerance_rad = _check_number(span_tolerance_rad, "--span-tolerance")
-    if not (math.isfinite(direction_step_s) and direction_step_s > 0):
-        raise UsageError(f"--direction-time {direction_step_s}: expected a finite number of seconds > 0")
-    out_path, report_path = check_outputs(out, report, fmt)
+    r = request
+    source, topic, frame, fmt, method, max_samples = r.source, r.topic, r.frame, r.fmt, r.method, r.max_samples
+    threshold_rad, span_tolerance_rad = r.threshold_rad, r.span_tolerance_rad
+    # ---- validate everything before touching a device or a file (the request checked its numbers)
+    out_path, report_path = check_outputs(r.out, r.report, fmt)
     spec = check_source_options(source, frame)
-    if direction_check and spec.kind == "replay":
+    if r.direction_check and spec.kind == "replay":
         raise UsageError("--direction-check needs a live or simulated source, not a replay")
-    urdf = read_urdf(urdf_path)
-    profile = resolve_profile(robot, urdf)
+    urdf = read_urdf(r.urdf_path)
+    profile = resolve_profile(r.robot, urdf)
     if fmt is None:
         fmt = output_format(out_path, profile)
     if fmt == "berkeley-offsets" and profile is None:
@@ -247,8 +272,8 @@ def run_sweep(
     if existing is not None:
         _check_foreign_ids(out_path, existing, joints)
     prior_offsets: dict[str, float] = {}
-    if prior is not None:
-        prior_offsets = _offsets(read_calibration(Path(prior), urdf=urdf, robot=profile))
+    if r.prior is not None:
+        prior_offsets = _offsets(read_calibration(Path(r.prior), urdf=urdf, robot=profile))
     elif existing is not None:
         prior_offsets = _offsets(existing)
 
@@ -260,13 +285,13 @@ def run_sweep(
     zero_sta: dict[str, int] = {}
     try:
         try:
-            if direction_check:
+            if r.direction_check:
                 checks = run_direction_check(
                     src,
                     joints,
                     on_prompt=view.prompt if view else None,
                     on_result=view.direction_result if view else None,
-                    step_s=direction_step_s,
+                    step_s=r.direction_step_s,
                 )
             zero_sta = src.zero_sta()
             src.begin_sweep()
