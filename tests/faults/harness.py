@@ -68,6 +68,8 @@ def _default_signals() -> None:
     """
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, signal.SIG_DFL)
+
+
 SIGNAL_FAULTS = ("sigint", "double-sigint", "sigterm", "sighup")
 
 
@@ -289,6 +291,10 @@ def _wait_for_phase(run: _Run, sim: _Sim, phase: str, n_joints: int, rng: random
         return False
     while alive() and run.count(": ok") + run.count(": FAILED") < n_joints:
         time.sleep(0.02)
+    if run.count(": FAILED"):
+        return (
+            False  # the search failed: robocal ends on its own (exit 3), there is no new calibration to write
+        )
     time.sleep(rng.uniform(0.0, 0.4) if phase == "restore" else rng.uniform(0.3, 1.5))
     return alive()
 
@@ -397,6 +403,8 @@ def results_from_log(text: str) -> list[TrialResult]:
         m = pattern.match(line)
         if m:
             robot, fault, phase, verdict, code, rest = m.groups()
+            if phase in ("restore", "file-write") and ": FAILED " in rest:
+                verdict = "not-reached"  # as _wait_for_phase decides now: the run had failed on its own
             failures = (rest or "failed",) if verdict == "fail" else ()
             out.append(TrialResult(robot, fault, phase, verdict != "not-reached", int(code), failures))
     return out
@@ -413,6 +421,12 @@ def table(results: list[TrialResult]) -> str:
             for p in PHASES
         ]
         rows.append(f"{f:15s}" + "".join(f"{c:>16s}" for c in cells))
+    per_robot = Counter((r.robot, r.verdict) for r in results)
+    for robot in sorted({r.robot for r in results}):
+        rows.append(
+            f"{robot}: {per_robot[(robot, 'pass')]} pass, {per_robot[(robot, 'fail')]} fail, "
+            f"{per_robot[(robot, 'not-reached')]} not reached"
+        )
     return "\n".join(rows)
 
 

@@ -53,7 +53,9 @@ def test_one_ctrl_c_while_writing_a_finished_sweep_is_not_a_second(
 
     monkeypatch.setattr(wf, "write_calibration", ctrl_c_then_write)
     out = tmp_path / "cal.yaml"
-    outcome = run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=_opener(SimLite(51, noise_rad=0.0)))
+    outcome = run_sweep(
+        SweepRequest(urdf, "sim:lite", out), open_source_fn=_opener(SimLite(51, noise_rad=0.0))
+    )
     assert outcome.out == out and read_calibration(out).calibration.joint_names == NAMES
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the finishing handler is gone
 
