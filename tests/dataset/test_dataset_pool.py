@@ -189,3 +189,27 @@ def test_worker_exits_when_its_parent_is_already_gone() -> None:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_GUARD_S)
     assert (done.returncode, done.stdout) == (1, "")
     assert _pool.WorkerDiedError.exit_code == 3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["forkserver", "spawn"])
+def test_workers_under_other_start_methods(tmp_path: Path, method: str) -> None:
+    """Workers must be this process's children (forkserver's would see the server as their parent and quit at
+    once): under forkserver the pool spawns them; spawn works as it is."""
+    code = (
+        "import multiprocessing, sys\n"
+        f"sys.path[:0] = {sys.path!r}\n"
+        "from pathlib import Path\n"
+        "from dataset_testutil import A, B\n"
+        "from robocal.dataset import generate_dataset, recalibrate_dataset\n"
+        "if __name__ == '__main__':\n"
+        f"    multiprocessing.set_start_method({method!r})\n"
+        f"    root = Path({str(tmp_path)!r})\n"
+        "    generate_dataset(root / 'src', n_episodes=4, frames_per_episode=5, episodes_per_file=1, convention=A)\n"
+        "    rep = recalibrate_dataset(root / 'src', root / 'dst', A, B, workers=2)\n"
+        "    print(rep.files, rep.frames)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_GUARD_S, cwd=Path(__file__).parent
+    )
+    assert (done.returncode, done.stdout) == (0, "4 20\n"), done.stderr

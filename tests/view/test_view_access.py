@@ -274,3 +274,26 @@ def test_cli_prints_the_exposure_warning_and_refuses_a_bad_allow_origin(
         "error: --allow-origin 'proxy:8080': expected an origin such as http://robot-pc.local:8080 (scheme, host, "
         "optional port; no path), or * for any\n"
     )
+
+
+def test_ur_page_has_the_same_rules_and_shows_its_source_as_text(page_log: list[str]) -> None:
+    from robocal.core.ur import nominal_dh
+    from robocal.viewer.ur_page import UrViewModel, UrViewPage
+
+    page = UrViewPage(
+        UrViewModel(nominal_dh("ur5e"), "ur5e"),
+        source="![](http://evil.example/x.png).yaml",
+        samples=10,
+        port=0,
+        allowed_origins=("http://proxy.example:9000",),
+    ).start()
+    try:
+        assert _ws(page, "http://evil.example") == (403, 0)  # type: ignore[arg-type]
+        status, size = _ws(page, "http://proxy.example:9000")  # type: ignore[arg-type]
+        assert status is None and size > 0
+        carrying = [m for m in _page_messages(page) if "evil.example" in str(m)]  # type: ignore[arg-type]
+        assert carrying and {m["type"] for m in carrying} <= {"GuiHtmlMessage", "GuiUpdateMessage"}
+        assert all("<img" not in str(m) for m in carrying)
+    finally:
+        page.stop()
+    assert len(page_log) == 1 and "Origin 'http://evil.example'" in page_log[0]

@@ -205,6 +205,10 @@ def view(
     arrow_scale: Annotated[float, typer.Option("--arrow-scale", help="Drawn arrow length per metre of error.")] = 100.0,
     view_host: Annotated[str, typer.Option("--view-host", help="Interface the web page is served on.")] = "127.0.0.1",
     view_port: Annotated[int, typer.Option("--view-port", help="TCP port of the web page (0: any free port).")] = 8080,
+    allow_origin: Annotated[
+        list[str] | None,
+        typer.Option("--allow-origin", metavar="ORIGIN", help="Also accept the page from this origin (repeatable)."),
+    ] = None,
 ) -> None:
     """Show the nominal and the calibrated arm side by side in the browser, with tool0's position error.
 
@@ -235,6 +239,7 @@ def view(
         arrow_scale=arrow_scale,
         host=view_host,
         port=view_port,
+        allowed_origins=tuple(allow_origin or ()),
     ).start()
     try:
         c = page.current

@@ -21,7 +21,7 @@ import sys
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
-from multiprocessing import get_context
+from multiprocessing import get_context, get_start_method
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 from typing import Any, Generic, TypeVar
@@ -155,7 +155,8 @@ def run_pool(
         WorkerDiedError: A worker died (killed, out of memory) before finishing; the message names its job.
         BaseException: The first exception ``fn`` raised in a worker, or Ctrl-C here.
     """
-    ctx = get_context()
+    # a worker must be this process's own child (its parent-death signal and check need that): not forkserver's
+    ctx = get_context("spawn" if get_start_method() == "forkserver" else None)
     parent = os.getpid()
     pool: list[_Worker[J]] = []
     results: dict[int, R] = {}

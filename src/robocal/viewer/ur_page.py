@@ -205,6 +205,7 @@ class UrViewPage(ServedPage):
         arrow_scale: Length of the drawn error arrow per metre of error.
         host: Interface to serve on.
         port: TCP port (0: any free port).
+        allowed_origins: Other origins the page may be used from (``--allow-origin``, see :mod:`.access`).
     """
 
     def __init__(
@@ -218,6 +219,7 @@ class UrViewPage(ServedPage):
         arrow_scale: float = 100.0,
         host: str = "127.0.0.1",
         port: int = 8080,
+        allowed_origins: Sequence[str] = (),
     ) -> None:
         if not (math.isfinite(arrow_scale) and arrow_scale > 0):
             raise UsageError(f"--arrow-scale {arrow_scale}: expected a positive number")
@@ -229,6 +231,7 @@ class UrViewPage(ServedPage):
         self.arrow_scale = float(arrow_scale)
         self.host = host
         self.requested_port = port
+        self.allowed_origins = tuple(allowed_origins)
         self.verify_m = view.verify_number(samples=samples, seed=seed)
         self.updates = 0
         self.side_by_side = True
@@ -247,7 +250,7 @@ class UrViewPage(ServedPage):
         """
         viser = _viser("robocal ur view")
         _check_port_free(self.host, self.requested_port)
-        self.server = open_server(viser, self.host, self.requested_port)
+        self.server = open_server(viser, self.host, self.requested_port, self.allowed_origins)
         try:
             self._build()
         except BaseException:
