@@ -1,17 +1,10 @@
-"""Dynamixel X servos (protocol 2.0, little-endian) via ``dynamixel_sdk``.
-
-The SDK is imported lazily (``pip install 'robocal[dynamixel]'``). Signed registers are two's complement;
-firmware ``Present = Actual + Homing_Offset``; ``Drive_Mode`` bit 0 reverses the direction in hardware.
-"""
+"""Dynamixel X control table, models and signed registers as data (a vendor's registers and quirks, no code)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from .._servo_common import ServoModel
 
-from ..core.lerobot import decode_twos_complement, encode_twos_complement
-from ._servo_common import SdkBusBase, ServoModel
-
-__all__ = ["DYNAMIXEL_MODELS", "SIGNED_BYTES", "X_TABLE", "DynamixelBus"]
+__all__ = ["DYNAMIXEL_MODELS", "SIGNED_BYTES", "X_TABLE"]
 
 X_TABLE: dict[str, tuple[int, int]] = {
     "Model_Number": (0, 2),
@@ -83,47 +76,3 @@ SIGNED_BYTES: dict[str, int] = {
     "Present_Velocity": 4,
 }
 """Two's-complement registers and their width."""
-
-
-class DynamixelBus(SdkBusBase):
-    """A Dynamixel protocol 2.0 bus through the unmodified ``dynamixel_sdk``.
-
-    Args:
-        port: Serial device or a simulator's pseudo-terminal.
-        motors: Motor id → model (``"xl330-m288"``, ...).
-        baudrate: Bus speed, default 1 Mbit/s.
-        retries: Extra attempts after a failed transfer.
-        packet_timeout_ms: Minimum wait for a status packet (the SDK's own is ~34 ms at 1 Mbit/s); None keeps
-            the SDK's.
-
-    Raises:
-        BackendNotAvailableError: ``dynamixel_sdk`` is not installed.
-        DeviceError: The port cannot be opened (exit 3).
-    """
-
-    vendor = "dynamixel"
-    _sdk_module = "dynamixel_sdk"
-    _models = DYNAMIXEL_MODELS
-
-    def _protocol(self, motors: Mapping[int, str]) -> float:
-        return 2.0
-
-    def _encode(self, motor_id: int, register: str, value: int) -> int:
-        if register in SIGNED_BYTES:
-            return encode_twos_complement(value, SIGNED_BYTES[register])
-        return int(value)
-
-    def _decode(self, motor_id: int, register: str, raw: int) -> int:
-        if register in SIGNED_BYTES:
-            return decode_twos_complement(raw, SIGNED_BYTES[register])
-        return int(raw)
-
-    def reboot(self, motor_id: int) -> None:
-        """REBOOT instruction (0x08): the only way to clear ``Hardware_Error_Status``; torque is off after it."""
-        self._entry(motor_id, "Torque_Enable")
-
-        def call() -> tuple[None, int, int]:
-            result, error = self._ph.reboot(self._port_handler, motor_id)
-            return None, result, error
-
-        self._call("reboot", motor_id, "Torque_Enable", call)
