@@ -109,3 +109,41 @@ def test_an_unknown_vendor_is_refused_not_given_another_vendors_rules() -> None:
     spec = RobotSpec("arm", "arm", "arm", "robots", "damiao", (), (), 3)
     with pytest.raises(UsageError, match="unknown vendor 'damiao'"):
         _ = spec.homing
+
+
+def test_every_servo_vendor_has_each_of_its_adapters() -> None:
+    """A vendor with a homing rule (a LeRobot servo vendor) is declared with all its adapters, not some."""
+    from robocal.backends import BACKENDS
+    from robocal.backends.sim.servo_model import SIM_SERVO_KINDS
+    from robocal.workflows.autocal_servo import SERVO_DRIVERS
+    from robocal.workflows.lerobot.configure import _PRESETS
+
+    servo_vendors = {n for n, v in VENDORS.items() if v.homing is not None}
+    assert servo_vendors == {"feetech", "dynamixel"}
+    for registry in (SERVO_DRIVERS, _PRESETS, SIM_SERVO_KINDS):
+        assert set(registry) == servo_vendors
+    assert {v.backend for v in VENDORS.values()} <= set(BACKENDS)
+
+
+class _RecordingBus:
+    """A bus that records writes (and has every register)."""
+
+    def __init__(self) -> None:
+        self.writes: list[tuple[str, int, int]] = []
+
+    def write(self, register: str, motor_id: int, value: int) -> None:
+        self.writes.append((register, motor_id, value))
+
+    def has_register(self, motor_id: int, register: str) -> bool:
+        return True
+
+
+def test_lerobot_configure_refuses_an_undeclared_vendor_before_writing() -> None:
+    from robocal.core.lerobot import LeRobotMotor
+    from robocal.workflows.lerobot.configure import configure
+
+    spec = RobotSpec("arm", "arm", "arm", "robots", "damiao", (LeRobotMotor("gripper", 1, "m", "range_0_100"),), (), 3)
+    bus = _RecordingBus()
+    with pytest.raises(UsageError, match="no LeRobot configure presets for vendor 'damiao'; valid: feetech, dynamixel"):
+        configure(bus, spec)  # type: ignore[arg-type]
+    assert bus.writes == []
