@@ -26,6 +26,9 @@ from .plant import Plant, PlantDriver
 
 pytestmark = pytest.mark.timeout(600)
 
+INPROC = "sim?transport=inproc"
+"""The simulated arm behind an in-process port: the pty's packets (test_lerobot_auto_inproc), no polling."""
+
 KP = 1.5 / math.radians(3)
 
 
@@ -134,7 +137,7 @@ def test_whole_so101_under_60_s_simulated_with_joints_alongside() -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
     assert [[j.name for j in g] for g in section.groups()][-1] == ["wrist_roll", "gripper", "shoulder_pan"]
-    with open_auto_arm(spec, "sim", section) as arm:
+    with open_auto_arm(spec, INPROC, section) as arm:
         res = auto_calibrate(arm.bus, spec, section, clock=arm.clock)
         recovered = arm.sim.recovered_stops(res.calibration)
         truth = dict(arm.sim.truth)

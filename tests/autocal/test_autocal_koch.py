@@ -14,6 +14,9 @@ from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
 pytestmark = pytest.mark.timeout(600)
 
+INPROC = "sim?transport=inproc"
+"""The simulated arm behind an in-process port: the pty's packets (test_lerobot_auto_inproc), no polling."""
+
 FULL_TURN = ("shoulder_pan", "wrist_roll")
 
 
@@ -39,7 +42,7 @@ def test_koch_auto_calibration_with_full_turn_joints_not_searched(tmp_path: Path
         asked.append(tuple(joints))  # type: ignore[arg-type]
         return True
 
-    with open_auto_arm(spec, "sim", section) as arm:
+    with open_auto_arm(spec, INPROC, section) as arm:
         eeprom_before = arm.sim.eeprom()
         start = {n: arm.plants[n].q_rad for n in FULL_TURN}  # type: ignore[index]
         res = auto_calibrate(
@@ -73,7 +76,7 @@ def test_whole_koch_auto_calibration_finishes(tmp_path: Path) -> None:
     # to hold it for wrist_flex's search, and the run aborted
     spec = robot_spec("koch_follower")
     section = auto_section("koch_follower")
-    with open_auto_arm(spec, "sim", section) as arm:
+    with open_auto_arm(spec, INPROC, section) as arm:
         gains_before = arm.sim.servo("elbow_flex").get_reg("Position_P_Gain")
         eeprom_before = arm.sim.eeprom()
         res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, path=tmp_path / "koch.json")

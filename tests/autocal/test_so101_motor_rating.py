@@ -24,6 +24,9 @@ from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
 pytestmark = pytest.mark.timeout(600)
 
+INPROC = "sim?transport=inproc"
+"""The simulated arm behind an in-process port: the pty's packets (test_lerobot_auto_inproc), no polling."""
+
 STS3215_NM = 19.5 * 9.80665 / 100  # 19.5 kg·cm at 7.4 V
 
 
@@ -70,7 +73,7 @@ class _PressedTorque:
 def test_the_torque_read_is_the_torque_the_simulated_joint_applies() -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
-    with open_auto_arm(spec, "sim", section) as arm:
+    with open_auto_arm(spec, INPROC, section) as arm:
         view = _PressedTorque(arm, "gripper")
         res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"], view=view)
     cap = section.joint("gripper").torque_cap_nm  # type: ignore[union-attr]
@@ -88,7 +91,7 @@ def test_the_simulated_follower_lifts_its_own_arm(tmp_path: Any) -> None:
     """With the weight of the shipped URDF on shoulder_lift and elbow_flex both are found (was span_mismatch)."""
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
-    port = "sim?seed=1&gravity=shoulder_lift,elbow_flex"
+    port = "sim?seed=1&gravity=shoulder_lift,elbow_flex&transport=inproc"  # the pty's packets, no polling
     with open_auto_arm(spec, port, section) as arm:
         res = auto_calibrate(
             arm.bus, spec, section, clock=arm.clock, joints=["shoulder_lift", "elbow_flex"], path=None

@@ -21,7 +21,7 @@ from robocal.workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm
 pytestmark = pytest.mark.timeout(600)
 
 DATA = Path(__file__).resolve().parents[2] / "src" / "robocal" / "data"
-PORT = "sim?seed=1&soft=elbow_flex&gravity=elbow_flex"
+PORT = "sim?seed=1&soft=elbow_flex&gravity=elbow_flex&transport=inproc"  # the pty's packets, no polling
 
 
 def _run(with_gravity: bool) -> tuple[object, float]:

@@ -66,7 +66,7 @@ def test_whole_so101_passes_on_seeded_simulated_arms(
             "--robot",
             "so101_follower",
             "--port",
-            f"sim?seed={seed}",
+            f"sim?seed={seed}&transport=inproc",  # the pty's packets (test_lerobot_auto_inproc), faster
             "--id",
             f"s{seed}",
             "--calibration-dir",

@@ -296,7 +296,18 @@ class SimpleAuto:
 def test_cli_lerobot_calibrate_auto_view(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The simulated SO-101 through the real Feetech SDK, drawn on the arm's page; then the same with the page's
     port in use: one error line before the port opens, nothing written."""
-    args = ["lerobot", "calibrate", "--auto", "--robot", "so101_follower", "--port", "sim", "--id", "a"]
+    # the in-process port: the pty's packets (test_lerobot_auto_inproc), no polling
+    args = [
+        "lerobot",
+        "calibrate",
+        "--auto",
+        "--robot",
+        "so101_follower",
+        "--port",
+        "sim?transport=inproc",
+        "--id",
+        "a",
+    ]
     code, stdout, err = run_cli(
         [*args, "--calibration-dir", str(tmp_path / "ok"), "--yes", "--view", "--view-port", "0"], capsys
     )
