@@ -340,3 +340,23 @@ def test_mixed_feature_through_the_cli_with_wheel_motors(
         "arm_gripper": "range_0_100",
         "arm_elbow_flex": "degrees",
     }
+
+
+def test_the_job_takes_one_request_and_writes_what_the_cli_writes(
+    files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.workflows.dataset import DatasetOptions, RecalibrateRequest, recalibrate
+
+    args = ["dataset", "recalibrate", files["src"], tmp_path / "cli", "--old", files["a"], "--new", files["b"]]
+    code, _, err = run(capsys, *args)
+    assert (code, err) == (0, "")
+    done: list[int] = []
+    request = RecalibrateRequest(
+        files["src"], tmp_path / "py", files["a"], files["b"], options=DatasetOptions(robot="so101_follower")
+    )
+    report = recalibrate(request, on_file_done=lambda _path, frames: done.append(frames))
+    assert (report.frames, sum(done)) == (95, 95)
+    assert tree(tmp_path / "py") == tree(tmp_path / "cli")
+    for name in tree(tmp_path / "cli"):
+        cli_file, py_file = tmp_path / "cli" / name, tmp_path / "py" / name
+        assert cli_file.is_dir() or py_file.read_bytes() == cli_file.read_bytes(), name

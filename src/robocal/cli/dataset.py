@@ -68,7 +68,7 @@ def recalibrate(
     ] = False,
 ) -> None:
     """Re-calibrate the joint features of a dataset: value → actual encoder position → new value."""
-    from ..workflows.dataset import data_file_count
+    from ..workflows.dataset import RecalibrateRequest, data_file_count
     from ..workflows.dataset import recalibrate as run
 
     feats = _common.parse_csv_list(features, "--features")
@@ -93,14 +93,9 @@ def recalibrate(
 
         progress.update(task, total=data_file_count(src))
         report = run(
-            src,
-            dst,
-            old,
-            new,
-            features=feats,
-            workers=workers,
-            overwrite=overwrite,
-            options=opts,
+            RecalibrateRequest(
+                src, dst, old, new, features=feats, workers=workers, overwrite=overwrite, options=opts
+            ),
             on_file_done=on_file_done,
         )
     for note in report.notes:

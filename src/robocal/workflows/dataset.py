@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from ..dataset import DatasetReport, InspectReport, ValueConvention
     from ..dataset._driver import ProgressCallback
 
-__all__ = ["DatasetOptions", "data_file_count", "inspect", "recalibrate", "resolve_modes"]
+__all__ = ["DatasetOptions", "RecalibrateRequest", "data_file_count", "inspect", "recalibrate", "resolve_modes"]
 
 _VALID_MODES = ("degrees", "range_m100_100", "range_0_100")
 
@@ -131,36 +131,57 @@ def _conventions(
     return [f.key for f in feats], load(old, old_modes, "--old"), load(new, new_modes, "--new")
 
 
-def recalibrate(
-    src: str | Path,
-    dst: str | Path,
-    old: str | Path,
-    new: str | Path,
-    *,
-    features: Sequence[str] | None = None,
-    workers: int = 1,
-    overwrite: bool = False,
-    options: DatasetOptions | None = None,
-    on_file_done: ProgressCallback | None = None,
-) -> DatasetReport:
-    """Re-calibrate dataset ``src`` recorded with ``old`` into ``dst`` for ``new``.
+@dataclass(frozen=True)
+class RecalibrateRequest:
+    """One dataset re-calibration: ``src`` recorded with calibration ``old`` → ``dst`` for ``new``.
+
+    The CLI builds it from ``robocal dataset recalibrate``'s arguments; Python callers build it directly.
+
+    Attributes:
+        src: Dataset root (LeRobot v3).
+        dst: New dataset root to write.
+        old: The calibration the dataset was recorded with.
+        new: The calibration to convert to.
+        features: Joint features to convert (default: every position feature).
+        workers: Processes converting files in parallel.
+        overwrite: Replace ``dst`` once the new root is complete.
+        options: How to read the calibrations (robot, motor family, modes, compat, convention).
+    """
+
+    src: str | Path
+    dst: str | Path
+    old: str | Path
+    new: str | Path
+    features: Sequence[str] | None = None
+    workers: int = 1
+    overwrite: bool = False
+    options: DatasetOptions | None = None
+
+
+def recalibrate(request: RecalibrateRequest, *, on_file_done: ProgressCallback | None = None) -> DatasetReport:
+    """Re-calibrate a dataset as ``request`` says (see :func:`robocal.dataset.recalibrate_dataset`).
+
+    Args:
+        request: What to convert and how.
+        on_file_done: Called with each data file's path and frame count when it is written.
 
     Returns:
         The :class:`~robocal.dataset.DatasetReport`.
     """
     from ..dataset import recalibrate_dataset
 
-    opts = options or DatasetOptions()
-    keys, c_old, c_new = _conventions(Path(src), Path(old), Path(new), features, opts)
+    r = request
+    opts = r.options or DatasetOptions()
+    keys, c_old, c_new = _conventions(Path(r.src), Path(r.old), Path(r.new), r.features, opts)
     assert c_old is not None and c_new is not None
     return recalibrate_dataset(
-        src,
-        dst,
+        r.src,
+        r.dst,
         c_old,
         c_new,
         features=keys,
-        workers=workers,
-        overwrite=overwrite,
+        workers=r.workers,
+        overwrite=r.overwrite,
         on_file_done=on_file_done,
     )
 
