@@ -19,7 +19,7 @@ import pytest
 
 from .guardlib import HANG_GUARD_S, SIGNAL_EXIT, ArmHost, Robocal, auto_args, kept_registers, torque_on
 
-pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+pytestmark = [pytest.mark.timeout(600)]
 
 
 @pytest.fixture
@@ -42,6 +42,7 @@ def _run(arm: ArmHost, tmp_path: Path, state_home: Path, joints: str | None = No
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("signum", "nth"),
     [
@@ -76,6 +77,7 @@ def test_signal_mid_motion_leaves_every_motor_limp_and_every_register_as_before(
     )  # everything was restored: no snapshot is kept
 
 
+@pytest.mark.slow
 def test_a_second_signal_during_the_restore_does_not_cut_it_short(
     arm: ArmHost, tmp_path: Path, state_home: Path
 ) -> None:
@@ -94,6 +96,7 @@ def test_a_second_signal_during_the_restore_does_not_cut_it_short(
     assert "Traceback" not in run.stderr
 
 
+@pytest.mark.slow
 def test_a_vanished_device_exits_3_naming_the_motors_that_may_hold_torque(
     arm: ArmHost, tmp_path: Path, state_home: Path
 ) -> None:
@@ -125,3 +128,45 @@ def test_a_vanished_device_exits_3_naming_the_motors_that_may_hold_torque(
     for motor, regs in doc["registers"].items():  # the values from before the run, as the servos held them
         assert regs == {r: before[motor][r] for r in regs}
     assert "Homing_Offset" in doc["registers"]["shoulder_lift"]
+
+
+class _Restored:
+    def __init__(self, snapshot: dict[str, dict[str, int]]) -> None:
+        self.restored = tuple(snapshot)
+        self.not_restored: dict[str, tuple[str, ...]] = {}
+
+    def summary(self) -> str:
+        return f"restored {', '.join(self.restored)}"
+
+
+def test_the_guard_in_process_makes_limp_before_it_restores_and_exits_with_the_signal() -> None:
+    """The quick representative: SIGTERM inside the guard → limp, then the snapshot back, exit code 143."""
+    import os
+
+    from robocal.errors import SignalInterrupt
+    from robocal.workflows.motion_guard import MotionGuard
+
+    calls: list[str] = []
+    seen: list[dict[str, dict[str, int]]] = []
+
+    def limp() -> tuple[str, ...]:
+        calls.append("limp")
+        return ()
+
+    def restore(snapshot: dict[str, dict[str, int]]) -> _Restored:
+        calls.append("restore")
+        seen.append({m: dict(r) for m, r in snapshot.items()})
+        return _Restored({m: dict(r) for m, r in snapshot.items()})
+
+    before = signal.getsignal(signal.SIGTERM)
+    with MotionGuard(limp=limp, restore=restore):  # a clean run: nothing made limp, nothing restored
+        pass
+    assert calls == []
+    with pytest.raises(SignalInterrupt) as caught, MotionGuard(limp=limp, restore=restore) as guard:
+        guard.snapshot({"shoulder_lift": {"Homing_Offset": 17}})
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # never reached: the handler raises at once in the main thread
+    assert caught.value.exit_code == 143
+    assert calls == ["limp", "restore"]
+    assert seen == [{"shoulder_lift": {"Homing_Offset": 17}}]
+    assert signal.getsignal(signal.SIGTERM) is before
