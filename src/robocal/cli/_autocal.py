@@ -68,6 +68,8 @@ def make_confirm_start(yes: bool, what: str = "robot") -> Any:
         )
         for n in names:
             con.print(f"  {n}  ({cap_text(n, caps)})", markup=False)
+        if getattr(caps, "host_loss", ""):
+            con.print(caps.host_loss, markup=False)  # type: ignore[attr-defined]
         con.print("Ctrl-C at any time makes every motor limp at once.", markup=False)
         return bool(typer.confirm("Start?", default=False))
 

@@ -13,8 +13,27 @@ from .autocal_types import Clock
 
 LIMIT_TORQUE = 0x700B
 """Robstride ``limit_torque`` parameter (f32, N·m; RAM until a type-22 save, which robocal never sends)."""
+WATCHDOG_S = 0.5
+"""The host-loss watchdog armed on every motor that moves: ``canTimeout`` so that a motor that hears no frame for
+this long (a killed process, a pulled cable, a host held up) enters reset mode on its own."""
+KEEPALIVE_S = 0.1
+"""A motor enabled but not commanded (a joint holding its pose while another is searched) is sent its last
+command again at least this often, so its watchdog only trips when robocal stops sending altogether."""
+_ENABLED: dict[int, list[RobstrideJointDriver]] = {}
+"""Enabled drivers per clock (the joints of one run): each frame a driver sends refreshes the quiet others."""
 
-__all__ = ["MAX_LAG_RAD", "ROBSTRIDE_FATAL_BITS", "ROBSTRIDE_OVERCURRENT_BIT", "RobstrideJointDriver"]
+__all__ = [
+    "MAX_LAG_RAD",
+    "ROBSTRIDE_FATAL_BITS",
+    "ROBSTRIDE_OVERCURRENT_BIT",
+    "WATCHDOG_S",
+    "RobstrideJointDriver",
+    "RobstrideWatchdogError",
+]
+
+
+class RobstrideWatchdogError(DeviceError):
+    """A motor left run mode on its own while robocal drove it: its CAN timeout tripped (the host was silent)."""
 
 MAX_LAG_RAD = math.radians(3.0)
 """The position target leads a Robstride joint by at most this: ``kp = cap / 3°`` (``sweep --auto``, its sim)."""
@@ -87,11 +106,20 @@ class RobstrideJointDriver:
         self._last: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, self.kd, 0.0)
         self._q = math.nan
         self._saved_limit: float | None = None
+        self._saved_watchdog_s: float | None = None
+        self._last_tx_s = -math.inf
 
     def _sample(self, fb: Any) -> StopSample:
         d = self.direction
         if fb.faults & ROBSTRIDE_FATAL_BITS:
             raise DeviceError(f"joint {self.name}: motor fault bits {fb.faults:#04x}")
+        if self.enabled and getattr(fb, "mode", 2) != 2:
+            self.enabled = False
+            raise RobstrideWatchdogError(
+                f"joint {self.name}: the motor left run mode on its own (mode {fb.mode}): its CAN timeout "
+                f"({WATCHDOG_S:g} s) stopped it because no frame reached it in time (robocal was held up or the "
+                "bus dropped frames)"
+            )
         s = StopSample(
             self.clock.now(),
             d * fb.position_rad,
@@ -108,13 +136,26 @@ class RobstrideJointDriver:
         p, v, kp, kd, t = cmd
         t = max(-self.ceiling_nm, min(self.ceiling_nm, t))
         t_send = self.clock.now()
+        self._last_tx_s = t_send
         try:
             fb = self.bus.mit_command(self.name, d * p, d * v, kp, kd, d * t)
         except CalibTimeoutError:
             return self._lost(t_send)
         s = self._sample(fb)
+        self._keep_others_alive(t_send)
         self.clock.sleep(self.period_s - (self.clock.now() - t_send))
         return s
+
+    def _keep_others_alive(self, now_s: float) -> None:
+        """Send the quiet enabled motors of this run their last command again (their watchdogs stay armed)."""
+        for other in _ENABLED.get(id(self.clock), []):
+            if other is not self and other.enabled and now_s - other._last_tx_s >= KEEPALIVE_S:
+                other._last_tx_s = now_s
+                d = other.direction
+                p, v, kp, kd, t = other._last
+                t = max(-other.ceiling_nm, min(other.ceiling_nm, t))
+                with suppress(CalibTimeoutError):
+                    other._sample(other.bus.mit_command(other.name, d * p, d * v, kp, kd, d * t))
 
     def _lost(self, t_send: float) -> StopSample:
         """A reply that did not come: the exchange lasted the bus's reply timeout.
@@ -138,6 +179,7 @@ class RobstrideJointDriver:
             if self._saved_limit is None:
                 self._saved_limit = float(self.bus.read_param(self.name, LIMIT_TORQUE))
                 self.bus.write_param(self.name, LIMIT_TORQUE, min(1.05 * self.cap_nm, self.ceiling_nm))
+            self.arm_watchdog()
             fb = self.bus.enable(self.name)
         except CalibTimeoutError:
             return StopSample(self.clock.now(), math.nan, ok=False)
@@ -185,8 +227,29 @@ class RobstrideJointDriver:
             self._last = (cmd.q_target_rad, cmd.v_target_rad_s, kp, self.kd, 0.0)
         return self._mit(self._last)
 
+    def arm_watchdog(self) -> None:
+        """Arm the motor's host-loss watchdog (``canTimeout`` = :data:`WATCHDOG_S`) before it moves (once)."""
+        arm = getattr(self.bus, "arm_watchdog", None)
+        if self._saved_watchdog_s is None and arm is not None:
+            self._saved_watchdog_s = float(arm(self.name, WATCHDOG_S))
+        peers = _ENABLED.setdefault(id(self.clock), [])
+        if self not in peers:
+            peers.append(self)
+
+    def disarm_watchdog(self) -> None:
+        """Put ``canTimeout`` back as it was before :meth:`arm_watchdog`; never raises."""
+        peers = _ENABLED.get(id(self.clock), [])
+        if self in peers:
+            peers.remove(self)
+        if not peers:
+            _ENABLED.pop(id(self.clock), None)
+        if self._saved_watchdog_s is not None:
+            with suppress(Exception):
+                self.bus.disarm_watchdog(self.name, self._saved_watchdog_s)
+                self._saved_watchdog_s = None
+
     def limp(self) -> None:
-        """MIT zero torque, then type 4 stop (reset mode); never raises."""
+        """MIT zero torque, then type 4 stop (reset mode), the watchdog disarmed; never raises."""
         self._last = (0.0, 0.0, 0.0, 0.0, 0.0)
         with suppress(Exception):
             self.bus.mit_command(self.name, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -196,4 +259,5 @@ class RobstrideJointDriver:
             with suppress(Exception):
                 self.bus.write_param(self.name, LIMIT_TORQUE, self._saved_limit)
                 self._saved_limit = None
+        self.disarm_watchdog()
         self.enabled = False

@@ -31,7 +31,7 @@ from ..errors import UsageError
 from ..fileio import atomic_write_bytes, atomic_write_text, backup_paths
 from ..formats.profiles import resolve_profile
 from .autocal import run_autocal, select_joints
-from .autocal_robstride import MAX_LAG_RAD, RobstrideJointDriver
+from .autocal_robstride import MAX_LAG_RAD, WATCHDOG_S, RobstrideJointDriver
 from .autocal_types import (
     AutoCalAbortedError,
     AutoCalFailedError,
@@ -270,7 +270,11 @@ def run_sweep_auto(
         raise UsageError(
             f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
         )
-    caps = JointCaps(order)
+    caps = JointCaps(
+        order,
+        f"If robocal is killed or the CAN bus is lost, each moving motor's CAN timeout puts it in reset mode "
+        f"within {WATCHDOG_S:g} s.",
+    )
     if confirm_start is not None and not confirm_start(tuple(caps), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
     limits = {j.name: (j.lower, j.upper) for j in specs}

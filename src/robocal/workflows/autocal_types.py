@@ -43,10 +43,12 @@ class JointCaps(dict[str, float]):
 
     Attributes:
         models: Joint → (motor model name, the model's rated torque in N·m).
+        host_loss: What stops the motors if robocal is killed or the bus is lost (their watchdog, or none).
     """
 
-    def __init__(self, joints: Sequence[AutoJoint]) -> None:
+    def __init__(self, joints: Sequence[AutoJoint], host_loss: str = "") -> None:
         super().__init__((j.name, j.torque_cap_nm) for j in joints if j.searched)
+        self.host_loss = host_loss
         self.models: dict[str, tuple[str, float]] = {
             j.name: (j.motor or "?", j.model_rated_nm) for j in joints if j.searched
         }

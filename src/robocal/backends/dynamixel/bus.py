@@ -6,11 +6,11 @@ firmware ``Present = Actual + Homing_Offset``; ``Drive_Mode`` bit 0 reverses the
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 from ...core.lerobot import decode_twos_complement, encode_twos_complement
 from .._servo_common import SdkBusBase
-from .tables import DYNAMIXEL_MODELS, SIGNED_BYTES
+from .tables import BUS_WATCHDOG_UNIT_S, DYNAMIXEL_MODELS, SIGNED_BYTES
 
 __all__ = ["DynamixelBus"]
 
@@ -47,6 +47,20 @@ class DynamixelBus(SdkBusBase):
         if register in SIGNED_BYTES:
             return decode_twos_complement(raw, SIGNED_BYTES[register])
         return int(raw)
+
+    def arm_watchdog(self, motor_ids: Sequence[int], timeout_s: float) -> None:
+        """Arm the host-loss watchdog (``Bus_Watchdog``, RAM) of each motor, checked with a status packet.
+
+        With torque on and no instruction packet for ``timeout_s`` (20 ms units, at most 2.54 s) the motor stops
+        on its own and refuses goal writes until :meth:`disarm_watchdog`.
+        """
+        units = max(1, min(127, round(timeout_s / BUS_WATCHDOG_UNIT_S)))
+        for motor_id in motor_ids:
+            self.write("Bus_Watchdog", motor_id, units)
+
+    def disarm_watchdog(self, motor_ids: Sequence[int]) -> None:
+        """``Bus_Watchdog`` 0 on each motor (off, and a tripped watchdog's error cleared); one SYNC_WRITE."""
+        self.sync_write("Bus_Watchdog", dict.fromkeys(motor_ids, 0))
 
     def reboot(self, motor_id: int) -> None:
         """REBOOT instruction (0x08): the only way to clear ``Hardware_Error_Status``; torque is off after it."""

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from .._servo_common import ServoModel
 
-__all__ = ["DYNAMIXEL_MODELS", "SIGNED_BYTES", "X_TABLE"]
+__all__ = ["BUS_WATCHDOG_UNIT_S", "DYNAMIXEL_MODELS", "SIGNED_BYTES", "X_TABLE"]
+
+BUS_WATCHDOG_UNIT_S = 0.02
+"""One unit of ``Bus_Watchdog`` (98): 20 ms; 1..127 arm it, 0 disarms and clears its error, −1 is the error."""
 
 X_TABLE: dict[str, tuple[int, int]] = {
     "Model_Number": (0, 2),
@@ -38,6 +41,7 @@ X_TABLE: dict[str, tuple[int, int]] = {
     "Position_D_Gain": (80, 2),
     "Position_I_Gain": (82, 2),
     "Position_P_Gain": (84, 2),
+    "Bus_Watchdog": (98, 1),
     "Goal_PWM": (100, 2),
     "Goal_Current": (102, 2),
     "Goal_Velocity": (104, 4),
@@ -66,6 +70,7 @@ DYNAMIXEL_MODELS: dict[str, ServoModel] = {
 
 SIGNED_BYTES: dict[str, int] = {
     "Homing_Offset": 4,
+    "Bus_Watchdog": 1,
     "Goal_PWM": 2,
     "Goal_Current": 2,
     "Goal_Velocity": 4,

@@ -36,13 +36,17 @@ from .protocol import (
     split_id,
 )
 
-__all__ = ["MotorSpec", "RobstrideBus"]
+__all__ = ["CAN_TIMEOUT_UNITS_PER_S", "MotorSpec", "RobstrideBus"]
 
 DEFAULT_TIMEOUT_S = 0.1
 """Default time to wait for one reply (s)."""
 _LATE_FRAMES = 1024
 """At most this many frames already queued are taken once a deadline has passed (a busy bus cannot hold a read
 forever)."""
+
+
+CAN_TIMEOUT_UNITS_PER_S = 20000
+"""``canTimeout`` (0x7028) units per second (the manual: "20000 is 1s"; 0 off)."""
 
 
 @dataclass(frozen=True)
@@ -286,6 +290,22 @@ class RobstrideBus(ClosesOnExit):
         spec = self._spec(motor)
         frame = encode_param_write(self.host_id, spec.can_id, index, value)
         return self._feedback_all({spec.can_id: frame})[spec.name]
+
+    def arm_watchdog(self, motor: str | int, timeout_s: float) -> float:
+        """Arm the motor's host-loss watchdog: ``canTimeout`` (0x7028, RAM; robocal never saves it).
+
+        With no frame for ``timeout_s`` the motor enters reset mode (stops pushing) on its own.
+
+        Returns:
+            The ``canTimeout`` the motor had before (s; 0: off), for :meth:`disarm_watchdog`.
+        """
+        before = self.read_param(motor, Param.CAN_TIMEOUT) / CAN_TIMEOUT_UNITS_PER_S
+        self.write_param(motor, Param.CAN_TIMEOUT, round(timeout_s * CAN_TIMEOUT_UNITS_PER_S))
+        return before
+
+    def disarm_watchdog(self, motor: str | int, timeout_s: float = 0.0) -> None:
+        """Put ``canTimeout`` back (default 0: off, the factory setting)."""
+        self.write_param(motor, Param.CAN_TIMEOUT, round(timeout_s * CAN_TIMEOUT_UNITS_PER_S))
 
     def read_position(self, motor: str | int) -> float:
         """``mechPos`` (0x7019) as float32, motor frame, rad."""

@@ -139,6 +139,7 @@ class Param(IntEnum):
     MECH_POS = 0x7019
     MECH_VEL = 0x701B
     VBUS = 0x701C
+    CAN_TIMEOUT = 0x7028
     ZERO_STA = 0x7029
     ADD_OFFSET = 0x702B
 
@@ -150,6 +151,7 @@ PARAMS: dict[int, tuple[str, str]] = {
     Param.MECH_POS: ("mechPos", "f32"),
     Param.MECH_VEL: ("mechVel", "f32"),
     Param.VBUS: ("VBUS", "f32"),
+    Param.CAN_TIMEOUT: ("canTimeout", "u32"),
     Param.ZERO_STA: ("zero_sta", "u8"),
     Param.ADD_OFFSET: ("add_offset", "f32"),
 }

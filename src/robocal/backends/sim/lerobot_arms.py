@@ -255,6 +255,16 @@ class ArmHands:
                 "baudrate": servo.baudrate,
                 "attached": servo.attached,
                 **servo.eeprom_snapshot(),
+                **(
+                    {
+                        "Bus_Watchdog": servo.get_reg("Bus_Watchdog"),
+                        "Goal_Position": servo.get_reg("Goal_Position"),
+                        "watchdog_rx_s": servo.watchdog_rx_s,
+                        "watchdog_trips": [list(t) for t in servo.watchdog_trips],
+                    }
+                    if "Bus_Watchdog" in servo.table
+                    else {}
+                ),
             },
         )
 

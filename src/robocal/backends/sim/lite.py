@@ -311,7 +311,14 @@ class LiteHands:
             reading=m.reading_rad(noisy=False),
             last_write=last,
             last_write_age_s=None,
-            extra={"can_id": m.can_id, "bus": self._bus_of[name], "enabled": m.mode == 2},
+            extra={
+                "can_id": m.can_id,
+                "bus": self._bus_of[name],
+                "enabled": m.mode == 2,
+                "can_timeout": m.can_timeout,
+                "last_rx_s": m.last_rx_s,
+                "watchdog_trips": [list(t) for t in m.watchdog_trips],
+            },
         )
 
     def reads(self, name: str) -> int:

@@ -11,8 +11,10 @@ simulation runs as fast as the protocol allows, not in real time. With a :class:
 :class:`~.physics.SimClock` the commands move the joint: every request first advances the clock by the bus
 latency and integrates the plant up to it, under the firmware's MIT law as it stood (``τ = kp·(p − θ) +
 kd·(v − ω) + τ_ff``, motor frame, clipped at the model's torque range and the ``limit_torque`` parameter
-0x700B; zero torque in reset mode). The type-2 feedback then carries the plant's position, velocity and torque;
-a latched overload sets fault bit 4 (bit 20 of the identifier; the torque is cut) until a type-4 stop with
+0x700B; zero torque in reset mode). ``canTimeout`` (0x7028, 20000 = 1 s) is the manual's host-loss watchdog: a
+motor in run mode that hears no frame for that long enters reset mode (limp), on the simulated clock with a
+plant, on the monotonic clock without (checked by the bus thread every 20 ms). The type-2 feedback then carries
+the plant's position, velocity and torque; a latched overload sets fault bit 4 (bit 20 of the identifier; the torque is cut) until a type-4 stop with
 "clear faults"; a plant that does not answer (pressed into a stop, :attr:`JointPlant.answers`) loses its reply.
 """
 
@@ -23,6 +25,7 @@ import math
 import socket
 import struct
 import threading
+import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -103,6 +106,12 @@ class SimMotor:
     """Bus latency added to the simulated clock per request (with a plant)."""
     limit_torque_nm: float | None = None
     """``limit_torque`` (0x700B); None: the model's torque range."""
+    can_timeout: int = 0
+    """``canTimeout`` (0x7028, 20000 = 1 s, 0 off): in run mode, no frame for that long puts the motor in reset mode."""
+    last_rx_s: float | None = None
+    """When the last frame addressed to the motor came (its clock: simulated with a plant, else monotonic)."""
+    watchdog_trips: list[tuple[float, float]] = field(default_factory=list)
+    """(last frame, trip time) of every CAN timeout that put the motor into reset mode."""
     _branch_rad: float = 0.0
     _rng: Any = None
 
@@ -136,10 +145,32 @@ class SimMotor:
         q_ref = d * (p - self.true_homing_offset_rad)
         return Drive(kp, kd, q_ref, d * v, d * t, limit)
 
+    def now_s(self) -> float:
+        """The motor's time: the simulated clock with a plant, else the monotonic clock."""
+        return self.clock.now() if self.clock is not None else time.monotonic()
+
+    def check_watchdog(self, now_s: float | None = None) -> bool:
+        """Apply ``canTimeout``: in run mode with no frame for that long, the motor enters reset mode (limp).
+
+        With a plant the joint is integrated under the last command up to the trip, then limp. Returns whether it
+        tripped now.
+        """
+        if self.can_timeout <= 0 or self.mode != 2 or self.last_rx_s is None:
+            return False
+        due = self.last_rx_s + self.can_timeout / 20000.0
+        if (self.now_s() if now_s is None else now_s) < due:
+            return False
+        if self.plant is not None:
+            self.plant.run_until(due, self.drive())
+        self.mode = 0
+        self.watchdog_trips.append((self.last_rx_s, due))
+        return True
+
     def sync(self) -> None:
         """Integrate the plant up to the clock under the current command (no-op without a plant)."""
         if self.plant is None or self.clock is None:
             return
+        self.check_watchdog()
         self.plant.run_until(self.clock.now(), self.drive())
         self.q_rad, self.v_rad_s = self.plant.q_rad, self.plant.v_rad_s
 
@@ -205,6 +236,9 @@ class SimMotor:
         if self.plant is not None and self.clock is not None:
             self.clock.advance(self.latency_s)
             self.sync()
+        else:
+            self.check_watchdog()
+        self.last_rx_s = self.now_s()
         replies = self._handle(arbitration_id, data)
         if self.plant is not None and not self.plant.answers():
             return []  # the reply is lost (the command was heard and obeyed)
@@ -252,6 +286,8 @@ class SimMotor:
                 self.run_mode = int(value)
             elif index == Param.LIMIT_TORQUE:
                 self.limit_torque_nm = value
+            elif index == Param.CAN_TIMEOUT:
+                self.can_timeout = int(value)
         elif comm == CommType.SAVE:
             pass
         else:
@@ -273,6 +309,8 @@ class SimMotor:
             return self.limits.t_max_nm if self.limit_torque_nm is None else self.limit_torque_nm
         if index == Param.VBUS:
             return 24.0
+        if index == Param.CAN_TIMEOUT:
+            return float(self.can_timeout)
         if index == 0x701E:  # loc_kp (the manual's example)
             return 30.0
         return None
@@ -387,6 +425,10 @@ class SimMotorBus(StartsOnEnter):
         bus = self._bus
         while not self._stop.is_set():
             msg = bus.recv(timeout=0.02)
+            with self.lock:  # a host that fell silent: the motors' CAN timeouts (wall clock without a plant)
+                for m in self.motors.values():
+                    if m.clock is None:
+                        m.check_watchdog()
             if msg is not None and not msg.is_extended_id and msg.arbitration_id == _SETTLE_ID:
                 if self._settles:
                     self._settles.pop(0).set()

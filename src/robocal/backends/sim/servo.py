@@ -46,6 +46,7 @@ import numpy as np
 from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from .. import inproc_serial
+from . import servo_watchdog
 from .servo_model import BAUD_RATES, BROADCAST_ID, SIM_SERVO_KINDS, SimServo, Vendor
 from .servo_packets import dxl_crc16
 
@@ -176,6 +177,10 @@ class SimServoBus(StartsOnEnter):
             except (OSError, ValueError):
                 return
             if not ready:
+                if self.clock is None:  # the watchdogs of a silent host, on the wall clock
+                    with self._lock:
+                        for servo in self.servos.values():
+                            servo_watchdog.trip_if_due(servo, time.monotonic())
                 continue
             try:
                 chunk = os.read(self._master, 4096)
@@ -281,6 +286,7 @@ class SimServoBus(StartsOnEnter):
         self.clock.advance(self.latency_s)
         for servo in self.servos.values():
             if servo.firmware is not None:
+                servo_watchdog.trip_if_due(servo, self.clock.now())
                 servo.firmware.sync()
 
     def _refresh(self, servo: SimServo) -> None:
@@ -302,6 +308,8 @@ class SimServoBus(StartsOnEnter):
 
     def _write(self, servo: SimServo, addr: int, data: bytes) -> int:
         """Apply a register write; return the status error byte."""
+        if refused := servo_watchdog.write_error(servo, addr, data):
+            return refused
         torque_addr = servo.table["Torque_Enable"][0]
         lock = servo.vendor_spec.lock_register
         if servo.kind.eeprom_locked_by_torque:
@@ -373,7 +381,11 @@ class SimServoBus(StartsOnEnter):
         wide = self.kind.address_bytes == 2  # Dynamixel 2.0: 2-byte addresses and lengths
         with self._lock:
             self._tick()
+            now = self.clock.now() if self.clock is not None else time.monotonic()
+            for servo in self.servos.values():  # a servo whose watchdog ran out before this packet has stopped
+                servo_watchdog.trip_if_due(servo, now)
             listening = self.on_bus(BROADCAST_ID)
+            servo_watchdog.heard(listening, now)
             if inst == 0x82:  # SYNC_READ
                 if wide:
                     addr, size, ids = params[0] | params[1] << 8, params[2] | params[3] << 8, params[4:]

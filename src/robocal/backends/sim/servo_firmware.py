@@ -217,13 +217,13 @@ class ServoFirmware:
             self._drive_key, self._drive = key, self.drive()
         return self._drive
 
-    def sync(self) -> None:
-        """Integrate the plant to the clock, moving the setpoint along its ramp.
+    def sync(self, until_s: float | None = None) -> None:
+        """Integrate the plant to the clock (or to ``until_s`` before it), moving the setpoint along its ramp.
 
         A joint that rested at the end of the last sync, with the same registers and setpoint (nothing written to
         it, no ramp, no encoder noise), only has its time moved on: what the loop below would do for it.
         """
-        plant, now = self.plant, self.clock.now()
+        plant, now = self.plant, self.clock.now() if until_s is None else min(until_s, self.clock.now())
         plant.overload = self._registers_law()[4]
         held = (bytes(self.servo.regs), self.servo.actual_ticks, self.setpoint_ticks)
         if held == self._held and plant.hold_until(now, self._current_drive()):

@@ -140,6 +140,7 @@ SIM_SERVO_KINDS: dict[str, SimServoKind] = {
             "Goal_Position",
             "Max_Position_Limit",
             "Min_Position_Limit",
+            "Bus_Watchdog",
         ),
         clamps_goal=False,
         single_turn_mode=3,
@@ -196,6 +197,10 @@ class SimServo:
     """Reads (READ, SYNC_READ) answered whose span holds ``Present_Position``."""
     firmware: ServoFirmware | None = None
     """Physics and control law (:mod:`.servo_firmware`); None: the shaft is placed from outside."""
+    watchdog_rx_s: float | None = None
+    """When this servo last heard an instruction packet (the bus's clock), for ``Bus_Watchdog``."""
+    watchdog_trips: list[tuple[float, float]] = field(default_factory=list)
+    """(last instruction, trip time) of every ``Bus_Watchdog`` trip (:mod:`.servo_watchdog`)."""
 
     @property
     def vendor(self) -> Vendor:

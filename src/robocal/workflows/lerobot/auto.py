@@ -50,7 +50,9 @@ from .guard import arm_guard, limp_arm, restore_registers
 
 __all__ = [
     "HOLD_GAINS",
+    "HOST_LOSS",
     "MAX_LAG_DEG",
+    "WATCHDOG_S",
     "AutoCalibrationResult",
     "auto_calibrate",
     "auto_section",
@@ -65,6 +67,17 @@ MAX_LAG_DEG = {n: v.max_lag_deg for n, v in VENDORS.items() if v.max_lag_deg is 
 """How far the position goal may lead the joint, per vendor: above the firmware's lag at the torque cap (the
 Feetech P gain reaches the cap within ~1–2°, the Dynamixel current-based position gain within ~2–6°). Read
 from each vendor's declaration (:attr:`~robocal.core.vendors.VendorSpec.max_lag_deg`)."""
+
+WATCHDOG_S = 0.5
+"""The Dynamixel ``Bus_Watchdog`` armed on the searched motors before the first motion (25 × 20 ms)."""
+HOST_LOSS = {
+    "dynamixel": f"If robocal is killed or the cable is pulled, each moving servo's Bus Watchdog stops it within "
+    f"{WATCHDOG_S:g} s.",
+    "feetech": "Feetech STS servos have no host-loss watchdog: if robocal is killed or the cable is pulled, a servo "
+    "keeps its last goal and pushes with at most its cap until the power is cut (the caps and speeds are kept "
+    "low for that reason).",
+}
+"""What stops the motors when the host is lost, per vendor (said in the clear-workspace prompt)."""
 
 HOLD_GAINS: dict[str, dict[str, dict[str, int]]] = {
     "koch_follower": {"elbow_flex": {"Position_P_Gain": 1500, "Position_I_Gain": 0, "Position_D_Gain": 600}},
@@ -323,7 +336,7 @@ def auto_calibrate(
     if path is not None:
         check_calibration_writable(path)
     searched = [j.name for j in order if j.searched]  # stops: none joints never move
-    caps = JointCaps(order)
+    caps = JointCaps(order, HOST_LOSS.get(spec.vendor, ""))
     if confirm_start is not None and not confirm_start(tuple(searched), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
     lag = math.radians(max_lag_deg if max_lag_deg is not None else MAX_LAG_DEG[spec.vendor])
@@ -336,6 +349,9 @@ def auto_calibrate(
     with guard:  # from the first write on: limp + restore on any signal or fault (motion_guard.py)
         guard.snapshot(before, robot=spec.name, ids={m.name: m.motor_id for m in spec.motors})
         drivers = prepare_search(bus, spec, section, searched, clock, period_s)
+        arm = getattr(bus, "arm_watchdog", None)  # Dynamixel; Feetech STS has no host-loss watchdog
+        if arm is not None:
+            arm([ids[n] for n in searched], WATCHDOG_S)
         auto = run_autocal(  # the stops: none joints too: reported not_searched, never driven
             drivers,
             section,

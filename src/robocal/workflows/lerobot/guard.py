@@ -52,8 +52,12 @@ def restore_registers(
     before: Mapping[str, Mapping[str, int]],
     on_status: Callable[[str], None] | None,
 ) -> RollbackReport:
-    """Every motor limp, latched Dynamixels rebooted, the snapshot written back (checked)."""
+    """Every motor limp, the watchdogs disarmed, latched Dynamixels rebooted, the snapshot written back (checked)."""
     limp_arm(bus, spec)
+    disarm = getattr(bus, "disarm_watchdog", None)  # Dynamixel Bus_Watchdog; Feetech has none
+    if disarm is not None:  # first: a tripped Bus_Watchdog refuses the goal registers the snapshot restores
+        with suppress(Exception):
+            disarm([m.motor_id for m in spec.motors])
     latched = spec.vendor_spec.latched_error_register
     if latched is not None:
         reboot = getattr(bus, "reboot", None)
