@@ -249,3 +249,27 @@ def test_the_question_names_every_joint_that_moves_and_its_cap(
     assert "pushing with at most 0.86 N·m" in out
     assert "  shoulder_lift  (cap 0.86 N·m)" in out and "  gripper  (cap 0.48 N·m)" in out
     assert "Ctrl-C at any time makes every motor limp at once." in out
+
+
+def test_the_question_states_each_cap_as_a_share_of_the_motors_rating_and_what_a_lost_host_leaves(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sys
+
+    import typer
+
+    from robocal.cli._autocal import make_confirm_start
+    from robocal.formats.profiles import load_profile
+    from robocal.workflows.autocal_types import JointCaps
+    from robocal.workflows.lerobot.auto import HOST_LOSS
+
+    monkeypatch.setattr(sys.stdin, "isatty", lambda: True)
+    monkeypatch.setattr(typer, "confirm", lambda text, default=False: False)
+    section = load_profile("so101_follower").auto
+    assert section is not None
+    caps = JointCaps(section.searched_joints[:2], HOST_LOSS["feetech"])
+    assert make_confirm_start(False, what="so101_follower")(tuple(caps), caps) is False
+    out = capsys.readouterr().out
+    assert "  shoulder_lift  (cap 0.86 N·m = 45 % of the STS3215's 1.91 N·m rating)" in out
+    assert "  elbow_flex  (cap 0.76 N·m = 40 % of the STS3215's 1.91 N·m rating)" in out
+    assert "Feetech STS servos have no host-loss watchdog: if robocal is killed or the cable is pulled" in out

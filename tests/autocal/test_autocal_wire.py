@@ -142,6 +142,11 @@ def test_not_confirmed_moves_nothing(urdf: Path, tmp_path: Path) -> None:
     def no(names: Any, caps: Any) -> bool:
         asked.append(tuple(names))
         assert caps["left_wrist_roll"] == pytest.approx(0.4)
+        assert caps.models["left_wrist_roll"] == ("RS05", 1.6)  # the prompt: 25 % of the RS05's 1.6 N·m
+        assert caps.host_loss == (  # the prompt says what stops the motors if robocal is killed
+            "If robocal is killed or the CAN bus is lost, each moving motor's CAN timeout puts it in reset mode "
+            "within 0.5 s."
+        )
         return False
 
     with pytest.raises(UsageError, match="not confirmed: nothing moved"):
