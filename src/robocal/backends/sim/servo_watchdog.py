@@ -30,7 +30,7 @@ _GOALS = ("Goal_PWM", "Goal_Current", "Goal_Velocity", "Goal_Position")
 
 
 def _watchdog(servo: SimServo) -> int:
-    if servo.vendor != "dynamixel" or "Bus_Watchdog" not in servo.table:
+    if "Bus_Watchdog" not in servo.table:  # only the Dynamixel X table has it
         return 0
     return servo.get_reg("Bus_Watchdog")
 
