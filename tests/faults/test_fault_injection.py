@@ -95,3 +95,35 @@ def test_fault_leaves_the_arm_limp_and_restored(robot: str, fault: str, phase: s
     )
     assert result.injected, f"the run ended before the {phase} phase (exit {result.exit_code})"
     assert result.failures == (), f"exit {result.exit_code}: {'; '.join(result.failures)}"
+
+
+def test_a_soak_log_becomes_the_table() -> None:
+    """``results_from_log`` reads the soak's lines (a soak stopped early keeps its counts); a restore-phase trial
+    whose search had failed on its own is 'not reached'."""
+    from .harness import results_from_log, table
+
+    log = "\n".join(
+        [
+            "== faults ==",
+            "[1/9] so101_follower sigint @ search: pass (exit 130, 12 s) ",
+            "[2/9] koch_follower sigkill @ contact: fail (exit -9, 20 s) torque on after the run: gripper [robocal: x]",
+            "[3/9] lite sighup @ restore: fail (exit 3, 26 s) exit 3, expected 129 [robocal: j: FAILED span_mismatch: ...]",
+            "[4/9] lite sigterm @ file-write: not-reached (exit 3, 17 s) ",
+        ]
+    )
+    results = results_from_log(log)
+    assert [(r.robot, r.fault, r.phase, r.verdict, r.exit_code) for r in results] == [
+        ("so101_follower", "sigint", "search", "pass", 130),
+        ("koch_follower", "sigkill", "contact", "fail", -9),
+        ("lite", "sighup", "restore", "not-reached", 3),
+        ("lite", "sigterm", "file-write", "not-reached", 3),
+    ]
+    rows = table(results).splitlines()
+    assert rows[0].split() == ["fault", "start-up", "search", "contact", "restore", "file-write"]
+    assert rows[1].split() == ["sigint", "0/0/0", "1/0/0", "0/0/0", "0/0/0", "0/0/0"]
+    assert rows[5].split() == ["sigkill", "0/0/0", "0/0/0", "0/1/0", "0/0/0", "0/0/0"]
+    assert rows[-3:] == [
+        "koch_follower: 0 pass, 1 fail, 0 not reached",
+        "lite: 0 pass, 0 fail, 2 not reached",
+        "so101_follower: 1 pass, 0 fail, 0 not reached",
+    ]
