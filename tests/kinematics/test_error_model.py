@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -25,6 +26,7 @@ def test_parameter_layout() -> None:
     assert MODEL.parameters[MODEL.index("elbow_flex.offset")].unit == "rad"
 
 
+@pytest.mark.slow
 @given(st.integers(0, 2**32 - 1))
 def test_jacobian_matches_central_differences(seed: int) -> None:
     rng = np.random.default_rng(seed)

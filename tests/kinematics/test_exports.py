@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 from tests.robots import UR_LINKS
 from tests.ur.test_ur_urdf import ur_urdf_text
 
@@ -35,6 +36,7 @@ def _lerobot_map() -> RobotCalibration:
     return RobotCalibration(names, [1, -1, 1, 1, -1, 1], [2047.5, 2100.0, 1980.0, 2001.5, 2047.5, 2500.0], k)
 
 
+@pytest.mark.slow
 def test_joint_map_out_carries_the_offsets_and_the_urdf_leaves_them_out(
     points_session: Path, tmp_path: Path, capsys
 ) -> None:

@@ -52,6 +52,7 @@ def test_noise_free_recovers_tool_points_below_a_micrometre() -> None:
     assert result.method == "lm" and result.success
 
 
+@pytest.mark.slow
 def test_50_selected_poses_half_mm_noise_4096_ticks() -> None:
     """Averaged over six draws of the hidden errors (single draws scatter by about ±0.05 mm)."""
     q = CANDIDATES[plan_poses(MODEL, CANDIDATES, 50, criterion="I")]
@@ -74,6 +75,7 @@ def test_50_selected_poses_half_mm_noise_4096_ticks() -> None:
     assert max(means) < 0.5e-3
 
 
+@pytest.mark.slow
 def test_20_selected_poses_mean_below_0_8_mm() -> None:
     q = CANDIDATES[plan_poses(MODEL, CANDIDATES, 20, criterion="I")]
     means = []
@@ -177,6 +179,7 @@ def test_split_and_validation_on_points() -> None:
         split_validation(data, 0.99)
 
 
+@pytest.mark.slow
 def test_touch_and_gauge_sessions() -> None:
     arm, rng = _arm(8, ticks=0)
     gauge = arm.gauge([0.2, 0.0, 0.05], 0.05, 15, rng)
@@ -197,6 +200,7 @@ def test_touch_and_gauge_sessions() -> None:
     assert np.linalg.norm((R @ a0.T).T - b0, axis=1).max() < 1e-6
 
 
+@pytest.mark.slow
 def test_accuracy_bars_per_draw_over_twenty_seeds() -> None:
     """Issue 13's bars checked per draw of the hidden errors (seeds 0-19), not only on average.
 

@@ -97,6 +97,7 @@ def test_observability_indices_of_a_known_matrix() -> None:
     assert pytest.approx(sv[1] ** 2 / sv[0]) == obs2.O5
 
 
+@pytest.mark.slow
 def test_greedy_selection_beats_random_poses() -> None:
     pr = _problem(n=1500, seed=5)
     ident = analyse(pr)

@@ -47,6 +47,7 @@ def _identify(session: Path, data: Path, tmp: Path, *extra: str) -> int:
     )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_camera_calibration_recovers_the_intrinsics(session: Path) -> None:
     cam = read_camera_info(session / "camera.yaml")
     assert (cam.width, cam.height) == (1280, 960)
@@ -56,6 +57,7 @@ def test_camera_calibration_recovers_the_intrinsics(session: Path) -> None:
     assert cam.rms_px is not None and cam.rms_px < 0.2
 
 
+@pytest.mark.slow
 def test_tag_images_identify_the_arm_below_a_millimetre(session: Path, tmp_path: Path, capsys) -> None:
     code = _identify(session, session / "tag.csv", tmp_path)
     out = capsys.readouterr().out
@@ -98,6 +100,7 @@ def _corrected_points(tmp: Path, rep: dict, q: np.ndarray) -> np.ndarray:
     return T[:, :3, 3]
 
 
+@pytest.mark.slow
 def test_tag_not_found_is_a_per_pose_warning(session: Path, tmp_path: Path, capsys) -> None:
     lines = (session / "tag.csv").read_text().splitlines()[:13]  # 12 poses
     blank = tmp_path / "blank.png"
@@ -114,6 +117,7 @@ def test_tag_not_found_is_a_per_pose_warning(session: Path, tmp_path: Path, caps
     assert json.loads((tmp_path / "r.json").read_text())["images"]["with_target"] == 11
 
 
+@pytest.mark.slow
 def test_unreadable_image_is_an_error_and_nothing_is_written(session: Path, tmp_path: Path, capsys) -> None:
     bad = tmp_path / "bad.png"
     bad.write_bytes(b"not a png")
@@ -126,6 +130,7 @@ def test_unreadable_image_is_an_error_and_nothing_is_written(session: Path, tmp_
     assert not (tmp_path / "id.urdf").exists() and not (tmp_path / "r.json").exists()
 
 
+@pytest.mark.slow
 def test_tag_kind_needs_camera_and_target(session: Path, tmp_path: Path, capsys) -> None:
     code = main(["kinematics", "identify", "--kind", "tag", "--urdf", str(session / "so101.urdf"), "--data",
                  str(session / "tag.csv")])  # fmt: skip
@@ -151,6 +156,7 @@ def test_bad_target_strings(text: str, message: str) -> None:
         parse_target(text)
 
 
+@pytest.mark.slow
 def test_rendered_tag_corners_are_detected_within_a_pixel() -> None:
     target = parse_target("apriltag:36h11:3:60")
     rng = np.random.default_rng(2)
@@ -210,6 +216,7 @@ def test_image_problem_jacobian_matches_central_differences() -> None:
     check_jacobian(problem, theta, 1e-7, 1e-4)
 
 
+@pytest.mark.slow
 def test_tag_with_joint_map_out_reaches_the_truth_through_the_map(session: Path, tmp_path: Path, capsys) -> None:
     """--kind tag with --joint-map-out: the map carries the zero offsets, the URDF leaves them out."""
     from robocal.core.jointmap import RobotCalibration
@@ -251,6 +258,7 @@ def test_tag_with_joint_map_out_reaches_the_truth_through_the_map(session: Path,
     assert off.mean() > 3e-3
 
 
+@pytest.mark.slow
 def test_tag_ur_yaml_needs_a_ur_chain_and_writes_nothing(session: Path, tmp_path: Path, capsys) -> None:
     code = _identify(session, session / "tag.csv", tmp_path, "--ur-yaml", str(tmp_path / "k.yaml"))
     assert code == 2
@@ -259,6 +267,7 @@ def test_tag_ur_yaml_needs_a_ur_chain_and_writes_nothing(session: Path, tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_tag_joint_map_out_without_a_map_is_refused_before_any_image_is_read(
     session: Path, tmp_path: Path, capsys
 ) -> None:

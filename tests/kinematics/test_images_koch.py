@@ -15,6 +15,14 @@ from .conftest import simulate, truth_errors
 pytest.importorskip("cv2")
 
 
+def test_a_koch_session_names_the_gripper_link_as_its_tip(tmp_path: Path, capsys) -> None:
+    """The quick check of this module: a Koch session (points, no images) and the tip link the test below uses."""
+    assert simulate(tmp_path, "--robot", "koch", "--poses", "24") == 0
+    assert "--tip-link gripper_static_1" in capsys.readouterr().out
+    assert json.loads((tmp_path / "truth.json").read_text())["robot"] == "koch"
+
+
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_koch_tag_images_identify_the_arm(tmp_path: Path, capsys) -> None:
     from robocal.backends.vision import CameraIntrinsics

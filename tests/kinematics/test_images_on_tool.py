@@ -98,6 +98,7 @@ def _identify(session: Path, tmp: Path, *extra: str) -> int:
     )  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
     session: Path, tmp_path: Path, capsys
@@ -138,6 +139,7 @@ def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
     assert np.linalg.norm(mount - np.array(truth["T_tip_camera_nominal"])[:3, 3]) < 5e-3
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_refine_intrinsics_from_the_cli_reports_the_camera_matrix(
     session: Path, tmp_path: Path, capsys

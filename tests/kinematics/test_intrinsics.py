@@ -68,6 +68,7 @@ def test_jacobian_with_intrinsics_matches_central_differences() -> None:
     )
 
 
+@pytest.mark.slow
 def test_a_wrong_calibration_is_refined_and_the_arm_is_found_better() -> None:
     K_wrong = SIM_CAMERA_K.copy()
     K_wrong[0, 0] *= 1.02  # 2 % focal length error, principal point 8 px off
@@ -108,6 +109,7 @@ def test_refine_intrinsics_is_for_tag_images(tmp_path, capsys) -> None:
     )
 
 
+@pytest.mark.slow
 def test_prior_on_image_data_estimates_every_joint_parameter_but_not_the_camera() -> None:
     from robocal.workflows.kinematic_fit import PriorSigmas
 

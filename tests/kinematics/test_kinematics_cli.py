@@ -25,6 +25,7 @@ from .conftest import identify_cli as _identify
 TOOL = "0.0121,0,-0.0981"
 
 
+@pytest.mark.slow
 def test_identify_writes_a_urdf_that_reproduces_the_fit(points_session: Path, tmp_path: Path, capsys) -> None:
     code = _identify(points_session, points_session / "points.csv", tmp_path, "--dh")
     out = capsys.readouterr().out
@@ -107,6 +108,7 @@ def test_existing_output_is_kept_on_failure(points_session: Path, tmp_path: Path
     assert (tmp_path / "id.urdf").read_text() == "old"
 
 
+@pytest.mark.slow
 def test_marker_on_axis_is_reported_as_a_warning(tmp_path: Path, capsys) -> None:
     assert simulate(tmp_path, "--on-axis", "--poses", "40") == 0
     capsys.readouterr()
@@ -150,6 +152,7 @@ def test_tracker_frame_is_registered(points_session: Path, tmp_path: Path, capsy
     np.testing.assert_allclose(np.array(rep["T_world_base"])[:3, 3], [1.2, -0.4, 0.3], atol=5e-3)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["touch", "gauge"])
 def test_touch_and_gauge_sessions_from_the_cli(tmp_path: Path, capsys, kind: str) -> None:
     assert simulate(tmp_path, "--kind", kind, "--poses", "14") == 0
@@ -204,6 +207,7 @@ def test_gauge_needs_distance(points_session: Path, capsys) -> None:
     assert "--gauge-mm" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_demo_identify(capsys) -> None:
     from tests.foundation.test_readme_commands import demo_nominal_error_mm
 
@@ -268,6 +272,7 @@ def test_csv_round_trip_is_exact(n: int, kind: str, seed: int) -> None:
         np.testing.assert_array_equal(back.group, m.group)
 
 
+@pytest.mark.slow
 def test_plan_writes_poses_inside_the_limits(tmp_path: Path, capsys) -> None:
     from robocal.workflows.kinematic_sim import shipped_urdf
 
@@ -303,6 +308,7 @@ def test_plan_writes_poses_inside_the_limits(tmp_path: Path, capsys) -> None:
     assert main([*args[:-2], "--out", str(tmp_path / "nofolder" / "p.csv")]) == 2
 
 
+@pytest.mark.slow
 def test_prior_options_reach_the_fit_and_the_report(points_session: Path, tmp_path: Path, capsys) -> None:
     assert _identify(points_session, points_session / "points.csv", tmp_path, "--prior-mm", "2", "--prior-offset-deg", "3") in (0, 1)
     rep = json.loads((tmp_path / "report.json").read_text())

@@ -20,6 +20,7 @@ from robocal.workflows.kinematic_vision_sim import SIM_CAMERA_K
 from .test_intrinsics import _session
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("images", "ok"), [(3, False), (4, False), (6, True)])
 def test_an_image_fit_needs_more_target_poses_than_unknowns(images: int, ok: bool) -> None:
     """Each image shows the target's pose (6 numbers) whatever its corner count: 3 or 4 images cannot settle the
@@ -39,6 +40,7 @@ def test_an_image_fit_needs_more_target_poses_than_unknowns(images: int, ok: boo
     )
 
 
+@pytest.mark.slow
 def test_simulate_creates_a_new_out_folder_but_not_its_parents(tmp_path: Path, capsys) -> None:
     code = main(["kinematics", "simulate", "--out", str(tmp_path / "sim"), "--poses", "20"])
     assert code == 0, capsys.readouterr()
@@ -66,6 +68,7 @@ def test_identify_names_every_choice_it_takes(
     assert capsys.readouterr().err == error  # one error line, no traceback
 
 
+@pytest.mark.slow
 def test_a_point_touched_once_is_a_warning(tmp_path: Path, capsys) -> None:
     assert main(["kinematics", "simulate", "--out", str(tmp_path), "--kind", "touch", "--poses", "14"]) == 0
     rows = (tmp_path / "touch.csv").read_text().splitlines()
@@ -109,6 +112,7 @@ def test_unreadable_or_cut_images_are_refused(tmp_path: Path, name: str, cut, me
         read_image(tmp_path / "missing.png")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("sep", "name"), [(";", "semicolons"), ("\t", "tabs")])
 def test_a_session_separated_by_semicolons_or_tabs_is_named(tmp_path: Path, capsys, sep: str, name: str) -> None:
     """A spreadsheet saved in a comma-decimal locale writes semicolons: the error says so, not "missing columns"."""

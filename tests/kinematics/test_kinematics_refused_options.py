@@ -25,6 +25,7 @@ def _one_error(capsys: pytest.CaptureFixture[str], message: str) -> None:
     assert err.count("error:") == 1 and message in err and "Traceback" not in err, err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("extra", "message"),
     [

@@ -47,6 +47,7 @@ def test_each_greedy_step_is_the_brute_force_best() -> None:
         select_poses_i_optimal(Jc, 41)
 
 
+@pytest.mark.slow
 def test_i_optimal_plan_predicts_the_tool_point_better_than_d_optimal() -> None:
     model = so101_model()
     cand = SimulatedKinematicArm(model, np.zeros(model.n_params)).sample_q(600, np.random.default_rng(7))
@@ -83,6 +84,7 @@ def _plan(tmp_path: Path, *extra: str, out: Path | None = None) -> list[str]:
     ]  # fmt: skip
 
 
+@pytest.mark.slow
 def test_plan_criteria_and_frames(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(_plan(tmp_path, "--poses", "25", "--candidates", "500")) == 0
     out = capsys.readouterr().out
@@ -174,6 +176,7 @@ def test_joint_table_reader() -> None:
         parse_joint_table("shoulder_pan,wrist_roll\n0\n", ("shoulder_pan", "wrist_roll"))
 
 
+@pytest.mark.slow
 def test_reach_point_lands_on_the_target_inside_the_limits() -> None:
     from robocal.core.pose_plan import reach_point
 
@@ -188,6 +191,7 @@ def test_reach_point_lands_on_the_target_inside_the_limits() -> None:
     assert reach_point(model, np.array([2.0, 0.0, 0.0]), starts, (lo, up)).shape == (0, 5)  # out of reach
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["touch", "gauge"])
 def test_contact_plans_touch_the_given_points(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str

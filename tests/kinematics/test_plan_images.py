@@ -60,6 +60,7 @@ def _predicted_sigma(model: ErrorModel, q_images: np.ndarray, q_all: np.ndarray,
     return float(np.sqrt(np.mean(np.einsum("nrk,kl,nrl->n", G, cov, G))))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("on_tool", [False, True], ids=["camera-fixed", "camera-on-tool"])
 def test_planned_images_predict_better_than_random_visible_ones(on_tool: bool) -> None:
     model = _on_tool_model() if on_tool else _fixed_model()
@@ -78,6 +79,7 @@ def test_planned_images_predict_better_than_random_visible_ones(on_tool: bool) -
     assert planned < 0.85 * min(random), (planned, random)
 
 
+@pytest.mark.slow
 def test_refining_the_intrinsics_adds_four_unknowns_to_the_plan() -> None:
     model = _fixed_model()
     cand = _visible_candidates(model, False, 3000, seed=2)[:300]
@@ -86,6 +88,7 @@ def test_refining_the_intrinsics_adds_four_unknowns_to_the_plan() -> None:
     assert plan.identifiability.names[-4:] == ("camera.fx", "camera.fy", "camera.cx", "camera.cy")
 
 
+@pytest.mark.slow
 def test_too_few_images_or_candidates_are_refused() -> None:
     model = _fixed_model()
     cand = _visible_candidates(model, False, 3000, seed=2)[:100]
@@ -130,6 +133,7 @@ def _plan_args(tmp: Path, *extra: str) -> list[str]:
     ]  # fmt: skip
 
 
+@pytest.mark.slow
 def test_cli_plans_images_the_camera_sees(tmp_path: Path, capsys) -> None:
     pytest.importorskip("cv2")  # parse_target needs cv2.aruco
     code = main(
@@ -149,6 +153,7 @@ def test_cli_plans_images_the_camera_sees(tmp_path: Path, capsys) -> None:
     assert target_visible(model.tool_poses(q), TAG, (0, 0, 1), SIM_CAMERA_K, SIZE).all()
 
 
+@pytest.mark.slow
 def test_cli_plans_a_camera_on_the_tool(tmp_path: Path, capsys) -> None:
     pytest.importorskip("cv2")
     code = main(
@@ -166,6 +171,7 @@ def test_cli_plans_a_camera_on_the_tool(tmp_path: Path, capsys) -> None:
     assert target_visible(np.linalg.inv(model.tool_poses(q)), TAG, (0, 0, 1), SIM_CAMERA_K, SIZE).all()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
@@ -231,6 +237,7 @@ def _posterior_sigma(
     return float(np.sqrt(np.mean(np.einsum("nrk,kl,nrl->n", G, np.linalg.inv(info), G))))
 
 
+@pytest.mark.slow
 def test_bayesian_tag_plan_counts_the_kinematic_prior_only() -> None:
     from robocal.workflows.kinematic_fit import PriorSigmas
 
@@ -256,6 +263,7 @@ def test_bayesian_tag_plan_counts_the_kinematic_prior_only() -> None:
         plan_image_poses(model, cand, TAG, SIM_CAMERA_K, 12, prior_sigma=bad)
 
 
+@pytest.mark.slow
 def test_cli_plans_tag_images_with_a_prior(tmp_path: Path, capsys) -> None:
     pytest.importorskip("cv2")
     args = ("--camera-pose=-0.08,0,0.55", "--look-at", "0.11,0,0.19", "--target-pose", "0.0121,0,-0.0981,0,0,0",

@@ -196,6 +196,7 @@ def _reader_thread(stream, q: queue.Queue[str]) -> None:
         q.put(line)
 
 
+@pytest.mark.slow
 def test_cli_with_scripted_enter_presses(arm, tmp_path: Path) -> None:
     """The command as a person runs it: the arm is moved, then Enter; the test waits for each pose's line."""
     sim, cals, cal_path = arm

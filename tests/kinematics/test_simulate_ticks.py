@@ -14,6 +14,7 @@ from robocal.formats.kinematic_data import parse_measurements
 from .conftest import JOINTS, identify_cli, simulate
 
 
+@pytest.mark.slow
 def test_noise_free_session_from_the_cli_recovers_the_points_below_a_micrometre(
     tmp_path: Path, capsys
 ) -> None:
@@ -31,6 +32,7 @@ def test_noise_free_session_from_the_cli_recovers_the_points_below_a_micrometre(
     assert "→ corrected mean 0.000 µm" in out and "the marker noise" not in out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ticks", [4096, 1024])
 def test_readings_are_whole_ticks(tmp_path: Path, ticks: int) -> None:
     assert simulate(tmp_path, "--poses", "30", "--ticks", str(ticks)) == 0

@@ -32,6 +32,7 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return folder
 
 
+@pytest.mark.slow
 def test_simulate_writes_the_held_out_session_without_changing_the_session(tmp_path: Path, capsys) -> None:
     assert simulate(tmp_path / "a", "--poses", "20", "--seed", "4", "--validation-poses", "9") == 0
     out = capsys.readouterr().out
@@ -46,6 +47,7 @@ def test_simulate_writes_the_held_out_session_without_changing_the_session(tmp_p
     assert held.n_poses == 9 and held.p_world_m is not None
 
 
+@pytest.mark.slow
 def test_identify_fits_every_pose_and_validates_on_the_separate_session(
     session: Path, tmp_path: Path, capsys
 ) -> None:
@@ -77,6 +79,7 @@ def test_identify_fits_every_pose_and_validates_on_the_separate_session(
     )
 
 
+@pytest.mark.slow
 def test_the_demo_pipeline_against_the_hidden_truth() -> None:
     """50 planned poses fitted, 17 random held-out poses against the truth (the demo's draw, seed 0).
 
@@ -106,6 +109,7 @@ def test_the_demo_pipeline_against_the_hidden_truth() -> None:
             assert 0.2e-3 < predicted < 0.4e-3 and 0.8 < predicted / true_rms < 1.25
 
 
+@pytest.mark.slow
 def test_touch_groups_are_matched_by_label(tmp_path: Path, capsys) -> None:
     assert simulate(tmp_path, "--kind", "touch", "--poses", "12", "--validation-poses", "4") == 0
     capsys.readouterr()
@@ -202,6 +206,7 @@ def gauge_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return folder
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("extra", "fit", "held"),
     [
@@ -245,6 +250,7 @@ def _plan(out: Path, *extra: str) -> int:
     return main([*args, "--out", str(out), *extra])
 
 
+@pytest.mark.slow
 def test_plan_writes_held_out_poses_beside_the_plan_without_changing_it(tmp_path: Path, capsys) -> None:
     assert _plan(tmp_path / "a.csv", "--poses", "30", "--validation-poses", "12") == 0
     out = capsys.readouterr().out
@@ -265,6 +271,7 @@ def test_plan_writes_held_out_poses_beside_the_plan_without_changing_it(tmp_path
     assert np.all(held >= lo + 0.05 - 1e-12) and np.all(held <= up - 0.05 + 1e-12)
 
 
+@pytest.mark.slow
 def test_plan_touch_held_out_poses_name_their_point(tmp_path: Path, capsys) -> None:
     points = "0.2,0,0.05;0.2,0.06,0.05"
     args = ["--kind", "touch", "--touch-points", points, "--poses", "12", "--candidates", "50"]
@@ -275,6 +282,7 @@ def test_plan_touch_held_out_poses_name_their_point(tmp_path: Path, capsys) -> N
     assert {ln.rsplit(",", 1)[1] for ln in lines[1:]} <= {"P1", "P2"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
