@@ -19,3 +19,11 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 # interactive default back; subprocesses inherit it (an ignored signal is inherited across exec, a handler is not).
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+# robocal keeps register snapshots (and crash logs) in $XDG_STATE_HOME/robocal: a test run must not leave them in
+# the home folder of whoever runs it. One folder for the whole session (subprocesses inherit it); a test that
+# checks the snapshots sets its own.
+if "ROBOCAL_TESTS_KEEP_XDG_STATE" not in os.environ:
+    import tempfile
+
+    os.environ["XDG_STATE_HOME"] = tempfile.mkdtemp(prefix="robocal-tests-state-")

@@ -17,6 +17,7 @@ from ..core.lerobot import RobotSpec
 from ..errors import UsageError
 from . import _common
 from ._autocal import AutoLiveView, auto_table, auto_web_view, make_confirm_start
+from ._left_changed import offer_restore
 from ._lerobot_render import print_calibration, status
 
 __all__ = ["calibrate_auto", "check_auto_options"]
@@ -109,6 +110,7 @@ def calibrate_auto(
 
     live_view = view if view is not None else AutoLiveView()
     with auto_web_view(view_port, None, live_view, "", page=page) as live, open_auto_arm(spec, port, section) as arm:
+        offer_restore(arm.bus, spec, port, arm.sim)
         try:
             result = auto_calibrate(
                 arm.bus,

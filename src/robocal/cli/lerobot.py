@@ -12,6 +12,7 @@ from ..core.lerobot import RobotSpec, parse_compat
 from ..core.lerobot.calibration import MotorCalibration
 from ..errors import UsageError
 from . import _common
+from ._left_changed import offer_restore
 from ._lerobot_render import (
     ConsoleOperator,
     interrupted,
@@ -170,8 +171,9 @@ def calibrate(
         cals = read_calibration_file(path)
         beyond = print_range_warnings(spec, cals)
         with open_arm(spec, port) as (bus, _arm):
+            offer_restore(bus, spec, port, _arm)
             try:
-                restore(bus, spec, cals, on_status=status)
+                restore(bus, spec, cals, on_status=status, snapshot_port=port if _arm is None else None)
             except KeyboardInterrupt as exc:
                 raise interrupted(exc, "the motors' previous EEPROM was written back") from None
         print_calibration(cals)
@@ -195,6 +197,7 @@ def calibrate(
     update, close = sweep_renderer()
     web = _web_view(robot, spec, update, view_port) if web_view else None
     with open_arm(spec, port) as (bus, arm):
+        offer_restore(bus, spec, port, arm)
         operator: object = sim_operator(arm) if arm is not None else ConsoleOperator()
 
         def status_line(message: str) -> None:
@@ -211,6 +214,7 @@ def calibrate(
                 sweep_full_turn=sweep_full_turn,
                 on_sweep=update if web is None else web,
                 on_status=status_line,
+                snapshot_port=port if arm is None else None,
             )
         except KeyboardInterrupt as exc:
             close()
@@ -263,11 +267,22 @@ def configure(
         else:
             _path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
     with open_arm(spec, port) as (bus, arm):
+        offer_restore(bus, spec, port, arm)
         if arm is not None and cals is not None:
             from ..workflows.lerobot import restore
 
             restore(bus, spec, cals)
-        written = run(bus, spec, calibration=cals, gripper_open_pos=gripper_open_pos)
+        try:
+            written = run(
+                bus,
+                spec,
+                calibration=cals,
+                gripper_open_pos=gripper_open_pos,
+                on_status=status,
+                snapshot_port=port if arm is None else None,
+            )
+        except KeyboardInterrupt as exc:
+            raise interrupted(exc, "every motor is limp and every register written so far was written back") from None
     t = Table(title=f"{spec.name}: registers written")
     t.add_column("motor")
     t.add_column("registers")
@@ -298,6 +313,7 @@ def check(
     path, cals = _read_cal_file(spec, robot_id, calibration_dir, file)
     beyond = print_range_warnings(spec, cals)
     with open_arm(spec, port) as (bus, _arm):
+        offer_restore(bus, spec, port, _arm)
         diffs = run(bus, spec, cals)
     for d in diffs:
         _common.console.print(f"differs: {d}")
@@ -431,3 +447,11 @@ def export_urdf(
     if skipped:
         _common.print_warning(f"not exported (range modes, no angle): {', '.join(skipped)}")
     raise typer.Exit(_common.exit_code_for([*skipped, *beyond]))
+
+
+@app.command("restore-previous")
+def restore_previous(robot: Robot, port: ArmPort) -> None:
+    """Write back the registers a run that did not finish left changed (kept in robocal's state folder)."""
+    from ._left_changed import restore_previous as run
+
+    run(robot, port)

@@ -44,6 +44,7 @@ from .autocal_types import (
     MonotonicClock,
     limp_all,
 )
+from .motion_guard import MotionGuard
 
 __all__ = ["AutoSweepOutcome", "auto_sweep_result", "run_sweep_auto"]
 
@@ -288,17 +289,20 @@ def run_sweep_auto(
             opener = _open_robstride
     drivers, clock, close = opener(spec, specs, profile)
     try:
-        auto = run_autocal(
-            drivers,
-            profile.auto,
-            limits,
-            joints=[j.name for j in order],
-            max_lag_rad=MAX_LAG_RAD,
-            gravity=gravity,
-            gravity_model=gravity_model,
-            view=view,
-            clock=clock,
-        )
+        # the one motion guard (motion_guard.py): SIGINT/SIGTERM/SIGHUP/SIGQUIT or a fault → every motor limp
+        # (signals held off until it is done), the line says which motors did not answer the torque-off
+        with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
+            auto = run_autocal(
+                drivers,
+                profile.auto,
+                limits,
+                joints=[j.name for j in order],
+                max_lag_rad=MAX_LAG_RAD,
+                gravity=gravity,
+                gravity_model=gravity_model,
+                view=view,
+                clock=clock,
+            )
     except BaseException:
         limp_all(drivers)
         with contextlib.suppress(Exception):

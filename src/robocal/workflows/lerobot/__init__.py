@@ -32,6 +32,7 @@ from .files import (
     range_warnings,
     read_calibration_file,
 )
+from .guard import LeftOver, find_left_over, restore_left_over
 from .joint_map import export_joint_map, write_joint_map
 from .migrate import legacy_to_current, migrate_file
 from .show import read_positions, require_motors
@@ -41,6 +42,7 @@ __all__ = [
     "CalibrationNotSavedError",
     "CalibrationResult",
     "Difference",
+    "LeftOver",
     "Operator",
     "RangeView",
     "RollbackReport",
@@ -53,6 +55,7 @@ __all__ = [
     "clear_phase_bit4",
     "configure",
     "export_joint_map",
+    "find_left_over",
     "legacy_to_current",
     "migrate_file",
     "norm_modes",
@@ -64,6 +67,7 @@ __all__ = [
     "read_positions",
     "require_motors",
     "restore",
+    "restore_left_over",
     "robot_names",
     "robot_spec",
     "sim_operator",

@@ -35,15 +35,9 @@ from ...core.wrap_range import RangeTracker
 from ...errors import CalibError, InvalidCalibrationError, UsageError
 from ...formats.lerobot import write_current, write_legacy
 from .configure import clear_phase_bit4
-from .eeprom import (
-    _disable_torque,
-    _reraise_after_rollback,
-    _restore_plan,
-    _rollback,
-    _write_plan,
-    read_eeprom,
-)
+from .eeprom import _disable_torque, _restore_plan, _write_plan, read_eeprom
 from .files import check_calibration_writable
+from .guard import arm_guard
 
 __all__ = [
     "CalibrationNotSavedError",
@@ -131,6 +125,7 @@ def calibrate(
     on_sweep: Callable[[RangeView], None] | None = None,
     max_steps: int | None = None,
     on_status: Callable[[str], None] | None = None,
+    snapshot_port: str | None = None,
 ) -> CalibrationResult:
     """Run LeRobot's current calibration with robocal's fixes and write the JSON file.
 
@@ -145,6 +140,8 @@ def calibrate(
         max_steps: Stop the sweep after this many readings (None: until the operator finishes).
         on_status: Called with a one-line status while the previous EEPROM is being restored (and for each
             Ctrl-C deferred meanwhile).
+        snapshot_port: Keep the EEPROM snapshot in robocal's state folder under this port's name until the run
+            ends (:class:`~robocal.workflows.motion_guard.MotionGuard`); None: not kept (a simulated arm).
 
     Returns:
         The calibration, the file written and notes.
@@ -166,7 +163,9 @@ def calibrate(
     notes: list[str] = []
     vs = spec.vendor_spec
     rule = spec.homing
-    try:
+    guard = arm_guard(bus, spec, command="lerobot calibrate", on_status=on_status, snapshot_port=snapshot_port)
+    with guard:  # any signal or fault from here on: limp, the snapshot written back (motion_guard.py)
+        guard.snapshot(before, robot=spec.name)
         _disable_torque(bus, spec)
         if vs.multi_turn_phase_bit:
             clear_phase_bit4(bus, spec)  # multi-turn feedback would break the half-turn homing (#1296)
@@ -255,9 +254,6 @@ def calibrate(
         ordered = {n: cals[n] for n in names}
         _write_plan(bus, spec, _restore_plan(bus, spec, ordered))
         written = save_calibration(path, ordered)
-    except BaseException as exc:
-        _reraise_after_rollback(exc, _rollback(bus, spec, before, on_status))
-        raise
     return CalibrationResult(ordered, written, tuple(notes), naive)
 
 def calibrate_legacy(

@@ -41,6 +41,8 @@ def configure(
     *,
     calibration: Mapping[str, MotorCalibration] | None = None,
     gripper_open_pos: float = 50.0,
+    on_status: Callable[[str], None] | None = None,
+    snapshot_port: str | None = None,
 ) -> list[tuple[str, str, int]]:
     """LeRobot's ``configure()`` presets (torque stays off, except the Koch leader's gripper trigger).
 
@@ -55,28 +57,45 @@ def configure(
     goal the motor has); robocal then skips the trigger. LeRobot's followers re-enable torque afterwards;
     robocal leaves it off.
 
+    Runs under the arm's :class:`~robocal.workflows.motion_guard.MotionGuard`: each register's value is read
+    before its first write (the snapshot, kept in robocal's state folder under ``snapshot_port``); a signal or a
+    fault midway makes every motor limp and writes the snapshot back (the presets are all or nothing).
+    ``Torque_Enable`` and ``Goal_Position`` are never restored (a restore leaves the motors limp).
+
     Returns:
         ``(motor, register, value)`` for every register written, in order (Phase only where changed).
 
     Raises:
         UsageError: The arm's vendor has no presets here (nothing written).
     """
+    from .guard import arm_guard
+
     presets = _PRESETS.get(spec.vendor)
     if presets is None:
         raise UsageError(f"no LeRobot configure presets for vendor {spec.vendor!r}; valid: {', '.join(_PRESETS)}")
     written: list[tuple[str, str, int]] = []
+    before: dict[str, dict[str, int]] = {}
+    guard = arm_guard(bus, spec, command="lerobot configure", on_status=on_status, snapshot_port=snapshot_port)
 
     def put(name: str, motor_id: int, register: str, value: int) -> None:
+        regs = before.setdefault(name, {})
+        if register not in ("Torque_Enable", "Goal_Position") and register not in regs:
+            regs[register] = bus.read(register, motor_id)  # the snapshot: each register before its first write
+            guard.snapshot(before, robot=spec.name)
         bus.write(register, motor_id, value)
         written.append((name, register, value))
 
-    for m in spec.motors:  # torque off first (EEPROM writes)
-        put(m.name, m.motor_id, "Torque_Enable", 0)
-        if bus.has_register(m.motor_id, "Lock"):
-            put(m.name, m.motor_id, "Lock", 0)
-    for m in spec.motors:
-        put(m.name, m.motor_id, "Return_Delay_Time", 0)
-    presets(bus, spec, put, written, calibration, gripper_open_pos)
+    with guard:  # a signal or fault midway: every motor limp, the snapshot written back (motion_guard.py)
+        for m in spec.motors:  # Phase (clear_phase_bit4 writes it without put): its old value first
+            if bus.has_register(m.motor_id, "Phase"):
+                before.setdefault(m.name, {})["Phase"] = bus.read("Phase", m.motor_id)
+        for m in spec.motors:  # torque off first (EEPROM writes)
+            put(m.name, m.motor_id, "Torque_Enable", 0)
+            if bus.has_register(m.motor_id, "Lock"):
+                put(m.name, m.motor_id, "Lock", 0)
+        for m in spec.motors:
+            put(m.name, m.motor_id, "Return_Delay_Time", 0)
+        presets(bus, spec, put, written, calibration, gripper_open_pos)
     return written
 
 

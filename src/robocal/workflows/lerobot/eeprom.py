@@ -114,6 +114,7 @@ def _rollback(
         interrupts = 0
         for m in spec.motors:
             regs = [(f, v) for f, v in before.get(m.name, {}).items() if bus.has_register(m.motor_id, f)]
+            regs.sort(key=lambda fv: fv[0] == "Lock")  # the EEPROM lock last, after the EEPROM it guards
             done: list[str] = []
             try:
                 for f, v in regs:
@@ -139,22 +140,6 @@ def _rollback(
             else:
                 restored.append(m.name)
     return RollbackReport(tuple(restored), not_restored, deferred[0] + interrupts)
-
-def _reraise_after_rollback(exc: BaseException, report: RollbackReport) -> None:
-    """Re-raise ``exc`` with what the rollback did (one message line); other exceptions pass unchanged.
-
-    A CalibError keeps its type (so its exit code) and gains ``"; previous EEPROM values written back"`` or
-    exactly which motors and registers could not be restored; a KeyboardInterrupt gains the latter as its
-    argument (no argument: everything was restored).
-    """
-    note = report.summary()
-    if report.not_restored and isinstance(exc, KeyboardInterrupt):
-        raise KeyboardInterrupt(note) from None
-    saved = getattr(exc, "calibration", None)
-    if isinstance(exc, CalibError) and saved is not None:  # CalibrationNotSavedError keeps its result
-        raise type(exc)(f"{exc}; {note}", saved) from exc
-    if isinstance(exc, CalibError):
-        raise type(exc)(f"{exc}; {note}") from exc
 
 def _disable_torque(bus: ServoBus, spec: RobotSpec) -> None:
     for m in spec.motors:
@@ -196,12 +181,14 @@ def restore(
     cals: Mapping[str, MotorCalibration],
     *,
     on_status: Callable[[str], None] | None = None,
+    snapshot_port: str | None = None,
 ) -> None:
     """Write a calibration to the motors, all or nothing: Homing_Offset, limits and (Dynamixel) Drive_Mode.
 
     Every value is checked to fit its register before anything is sent; then the registers about to be written
     are read (the snapshot), torque is disabled (EEPROM writes) and the calibration is written. On a device
-    error or Ctrl-C midway the snapshot is written back to every motor that still answers, so the motors are
+    error or a signal midway (under :class:`~robocal.workflows.motion_guard.MotionGuard`; ``snapshot_port``: the
+    snapshot is kept in robocal's state folder meanwhile) the snapshot is written back to every motor that still answers, so the motors are
     left as they were (torque stays off); the error then says so, or names the motors that could not be
     restored. LeRobot's Dynamixel ``write_calibration`` omits Drive_Mode, so a restored Koch leader stayed
     uncalibrated; robocal writes it.
@@ -211,13 +198,16 @@ def restore(
         DeviceError: Bus failure (snapshot written back; the message says what was restored).
         KeyboardInterrupt: Re-raised after the snapshot was written back (argument: motors not restored).
     """
+    from .guard import arm_guard
+
     plan = _restore_plan(bus, spec, cals)
     before = read_eeprom(bus, spec)
-    try:
+    guard = arm_guard(
+        bus, spec, command="lerobot calibrate --use-file", on_status=on_status, snapshot_port=snapshot_port
+    )
+    with guard:  # a signal or fault midway: limp, the snapshot written back and checked (motion_guard.py)
+        guard.snapshot(before, robot=spec.name)
         _write_plan(bus, spec, plan)
-    except BaseException as exc:
-        _reraise_after_rollback(exc, _rollback(bus, spec, before, on_status))
-        raise
 
 @dataclass(frozen=True)
 class Difference:

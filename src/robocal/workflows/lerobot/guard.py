@@ -11,23 +11,23 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from contextlib import suppress
+from dataclasses import dataclass
 
 from ...backends.servo_bus import ServoBus
 from ...core.lerobot import RobotSpec
-from ...errors import DeviceError
+from ...errors import CalibError
 from ..motion_guard import MotionGuard
-from ..motion_snapshot import SnapshotStore
+from ..motion_snapshot import LeftChanged, SnapshotStore, find_left_changed
 from .eeprom import RollbackReport, _rollback
 
-__all__ = ["arm_guard", "limp_arm", "restore_registers"]
+__all__ = ["LeftOver", "arm_guard", "find_left_over", "limp_arm", "restore_left_over", "restore_registers"]
 
 
 def limp_arm(bus: ServoBus, spec: RobotSpec) -> list[str]:
     """Torque off on every motor in one SYNC_WRITE, then once more per motor, then read back; never raises.
 
     Returns:
-        ``"name (id N)"`` of the motors whose ``Torque_Enable`` did not read back 0 (or could not be read: the
-        read-back is one SYNC_READ of every motor).
+        ``"name (id N)"`` of the motors whose ``Torque_Enable`` did not read back 0 or could not be read.
     """
     with suppress(Exception):
         bus.sync_write("Torque_Enable", {m.motor_id: 0 for m in spec.motors})
@@ -35,11 +35,9 @@ def limp_arm(bus: ServoBus, spec: RobotSpec) -> list[str]:
         with suppress(Exception):
             bus.sync_write("Torque_Enable", {m.motor_id: 0})
     now: dict[int, int] = {}
-    try:  # one SYNC_READ: a bus that does not answer costs one timeout, not one per motor
+    try:  # one SYNC_READ when every motor answers
         now = bus.sync_read("Torque_Enable", [m.motor_id for m in spec.motors])
-    except DeviceError:
-        pass
-    except Exception:  # a bus without SYNC_READ (Feetech SCS): one read per motor
+    except Exception:  # a silent motor, or a bus without SYNC_READ (Feetech SCS): one read per motor
         for m in spec.motors:
             with suppress(Exception):
                 now[m.motor_id] = bus.read("Torque_Enable", m.motor_id)
@@ -83,3 +81,80 @@ def arm_guard(
         on_status=on_status,
         store=SnapshotStore(snapshot_port, command) if snapshot_port is not None else None,
     )
+
+
+@dataclass(frozen=True)
+class LeftOver:
+    """What a previous run left changed on a bus (its kept snapshot, compared with the motors now).
+
+    Attributes:
+        kept: The snapshot file the previous run left.
+        differing: ``(motor, register, value now, value before)`` for every register that differs.
+        torque_on: Motors whose ``Torque_Enable`` reads 1.
+        unreadable: Motors that did not answer.
+    """
+
+    kept: LeftChanged
+    differing: tuple[tuple[str, str, int, int], ...]
+    torque_on: tuple[str, ...]
+    unreadable: tuple[str, ...]
+
+    def describe(self) -> str:
+        """One line: which run, which registers (by motor and name, now → before), which motors hold torque."""
+        per: dict[str, list[str]] = {}
+        for motor, reg, now, before in self.differing:
+            per.setdefault(motor, []).append(f"{reg} {now} (was {before})")
+        what = "; ".join(f"{m}: {', '.join(r)}" for m, r in per.items()) or "no register differs"
+        text = (
+            f"a previous `robocal {self.kept.command}` (pid {self.kept.pid}, {self.kept.time_utc}) on "
+            f"{self.kept.port} did not finish: {what}"
+        )
+        if self.torque_on:
+            text += f"; torque on: {', '.join(self.torque_on)}"
+        if self.unreadable:
+            text += f"; not answering: {', '.join(self.unreadable)}"
+        return text
+
+
+def find_left_over(bus: ServoBus, spec: RobotSpec, port: str) -> LeftOver | None:
+    """The registers a previous run left changed on ``port`` (None: nothing kept, or nothing differs any more).
+
+    A kept snapshot whose registers all read back equal is removed (someone restored them, or the run's last
+    step did and then the process was killed).
+    """
+    kept = find_left_changed(port)
+    if kept is None:
+        return None
+    differing: list[tuple[str, str, int, int]] = []
+    torque: list[str] = []
+    unreadable: list[str] = []
+    for m in spec.motors:
+        regs = {r: v for r, v in kept.registers.get(m.name, {}).items() if bus.has_register(m.motor_id, r)}
+        try:
+            for reg, value in regs.items():
+                now = bus.read(reg, m.motor_id)
+                if now != value:
+                    differing.append((m.name, reg, now, value))
+            if bus.read("Torque_Enable", m.motor_id) != 0:
+                torque.append(m.name)
+        except CalibError:
+            unreadable.append(m.name)
+    if not differing and not unreadable:
+        SnapshotStore(port, kept.command).remove()
+        return None
+    return LeftOver(kept, tuple(differing), tuple(torque), tuple(unreadable))
+
+
+def restore_left_over(
+    bus: ServoBus, spec: RobotSpec, left: LeftOver, on_status: Callable[[str], None] | None = None
+) -> RollbackReport:
+    """Every motor limp, the kept values written back and read back; the file removed when all are back."""
+    before: dict[str, dict[str, int]] = {}
+    for motor, reg, _now, value in left.differing:
+        before.setdefault(motor, {})[reg] = value
+    report = restore_registers(bus, spec, before, on_status)
+    if not report.not_restored:
+        SnapshotStore(left.kept.port, left.kept.command).remove()
+        with suppress(OSError):
+            left.kept.path.unlink()
+    return report
