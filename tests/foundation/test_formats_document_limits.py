@@ -78,7 +78,9 @@ def test_dataset_metadata_too_deep(tmp_path: Path) -> None:
     with pytest.raises(FileFormatError, match=r"info\.json: nested more than 100 levels deep"):
         read_layout(tmp_path)
     (tmp_path / "meta" / "info.json").write_text('{"features": {}, "total_frames": ' + "9" * 5000 + "}")
-    with pytest.raises(FileFormatError, match=r"info\.json: invalid JSON: Exceeds the limit"):
+    with pytest.raises(
+        FileFormatError, match=r"info\.json: invalid JSON \(line 1, column 34\): an integer of 5000 digits; robocal"
+    ):
         read_layout(tmp_path)
     (tmp_path / "stats.json").write_text(DEEP_JSON)
     with pytest.raises(FileFormatError, match=r"stats\.json: nested more than 100 levels deep"):
@@ -275,12 +277,14 @@ def test_calib_error_is_the_only_exception(tmp_path: Path) -> None:
         (
             "l.json",
             '{"a": {"id": 1, "direction": 1, "homing_offset": ' + "9" * 5000 + "}}",
-            "Exceeds the limit (4300 digits)",
+            "invalid JSON (line 1, column 50): an integer of 5000 digits; robocal reads integers of at most 4300 "
+            "digits",
         ),
         (
             "l.yaml",
             "a:\n  id: 1\n  direction: 1\n  homing_offset: " + "9" * 5000 + "\n",
-            "invalid YAML: Exceeds the limit (4300 digits)",
+            "invalid YAML (line 4, column 18): an integer of 5000 digits; robocal reads integers of at most 4300 "
+            "digits",
         ),
     ],
 )
@@ -290,3 +294,38 @@ def test_huge_numbers_in_calibration_files(tmp_path: Path, name: str, content: s
     with pytest.raises(FileFormatError) as info:
         read_calibration(p)
     assert str(info.value).startswith(str(p)) and message in str(info.value)
+
+
+@pytest.mark.parametrize("python_limit", [None, 0, 5000], ids=["default", "no-limit", "raised"])
+@pytest.mark.parametrize(
+    ("name", "content", "where"),
+    [
+        ("h.json", '{"a": {"id": 1, "direction": 1, "homing_offset": ' + "9" * 4301 + "}}", "JSON (line 1, column 50)"),
+        ("h.yaml", "a:\n  id: 1\n  direction: 1\n  homing_offset: -" + "9" * 4301 + "\n", "YAML (line 4, column 18)"),
+    ],
+)
+def test_huge_integer_is_worded_by_robocal_whatever_pythons_limit(
+    tmp_path: Path, python_limit: int | None, name: str, content: str, where: str
+) -> None:
+    """Issue 27 item 6: Python's own refusal (its limit, its words) differs between versions and asks to change
+    Python's settings; robocal words it, the same whether Python has no limit (before 3.10.7, or set to 0) or a
+    higher one. 4300 digits are still read."""
+    before = getattr(sys, "get_int_max_str_digits", lambda: None)()
+    if python_limit is not None:
+        if before is None:  # pragma: no cover - Python before 3.10.7: no limit at all
+            pytest.skip("this Python has no integer string limit")
+        sys.set_int_max_str_digits(python_limit)
+    try:
+        p = tmp_path / name
+        p.write_text(content)
+        with pytest.raises(FileFormatError) as info:
+            read_calibration(p)
+        assert str(info.value) == (
+            f"{p}: invalid {where}: an integer of 4301 digits; robocal reads integers of at most 4300 digits"
+        )
+        p.write_text(content.replace("9" * 4301, "9" * 4300))
+        with pytest.raises(FileFormatError, match="homing_offset is an integer of 4300 digits; expected a finite"):
+            read_calibration(p)  # read, then refused by the field's own check
+    finally:
+        if before is not None:
+            sys.set_int_max_str_digits(before)

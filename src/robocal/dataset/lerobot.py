@@ -39,6 +39,7 @@ from ..core.profile import RobotProfile
 from ..core.vendors import VendorSpec, expected_homing_vendors, homing_vendor, vendor_spec
 from ..errors import FileFormatError, InvalidCalibrationError, UsageError
 from ..fileio import MAX_DOCUMENT_BYTES, read_text
+from ..formats._json import json_int
 from ..formats.lerobot import read_current, read_legacy
 from ._convention import JointMapConvention, ValueConvention, select_indices
 
@@ -430,7 +431,7 @@ def _json_kind(path: Path) -> str | None:
     if path.suffix.lower() != ".json":
         return None
     try:
-        data = json.loads(read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES))
+        data = json.loads(read_text(path, "calibration file", limit=MAX_DOCUMENT_BYTES), parse_int=json_int)
     except (ValueError, RecursionError):  # not JSON (or too deep / too long a number): the reader reports it
         return None
     if isinstance(data, dict) and "motor_names" in data:

@@ -2,8 +2,9 @@ r"""Strict JSON loading shared by the file formats, and the checks every parsed 
 
 Refused, each as a :class:`~robocal.errors.FileFormatError` naming the file (and, where JSON allows, the line):
 duplicate keys, ``NaN`` / ``Infinity`` (``file:line: joint 'x': homing_offset is NaN``), documents nested more
-than :data:`MAX_NESTING` levels deep (also those too deep for Python's parser), and strings that are not valid
-Unicode (a lone surrogate written as ``\ud800``).
+than :data:`MAX_NESTING` levels deep (also those too deep for Python's parser), integers of more than
+:data:`MAX_INT_DIGITS` digits (worded by robocal, the same on every Python), and strings that are not valid Unicode
+(a lone surrogate written as ``\ud800``).
 """
 
 from __future__ import annotations
@@ -15,10 +16,58 @@ from typing import Any
 
 from ..errors import FileFormatError
 
-__all__ = ["MAX_NESTING", "check_tree", "describe_path", "is_valid_unicode", "load_json"]
+__all__ = [
+    "MAX_INT_DIGITS",
+    "MAX_NESTING",
+    "HugeIntegerError",
+    "check_tree",
+    "decimal_digits",
+    "describe_path",
+    "huge_integer_problem",
+    "is_valid_unicode",
+    "json_int",
+    "load_json",
+]
 
 MAX_NESTING = 100
 """Deepest nesting of lists and mappings accepted in a JSON or YAML document (robocal's files need < 10)."""
+
+MAX_INT_DIGITS = 4300
+"""Most decimal digits of an integer read from a JSON or YAML document.
+
+Python itself refuses to convert longer digit strings (its ``sys.get_int_max_str_digits()``, 4300 by default,
+absent before 3.10.7 and 3.11) with a message that differs between versions and asks to change Python's settings;
+robocal refuses them first, in its own words, on every Python."""
+
+
+def decimal_digits(token: str) -> int:
+    """Decimal digits of an integer token (``-123`` → 3; ``1_000`` → 4); 0 for a token that is not decimal."""
+    body = token.lstrip("+-").replace("_", "")
+    return len(body) if body.isdigit() and body.isascii() else 0
+
+
+def huge_integer_problem(digits: int) -> str:
+    """The words for an integer of ``digits`` digits (more than :data:`MAX_INT_DIGITS`)."""
+    return f"an integer of {digits} digits; robocal reads integers of at most {MAX_INT_DIGITS} digits"
+
+
+class HugeIntegerError(ValueError):
+    """:func:`json_int` refused an integer token of more than :data:`MAX_INT_DIGITS` digits."""
+
+    def __init__(self, token: str) -> None:
+        self.token = token
+        super().__init__(huge_integer_problem(decimal_digits(token)))
+
+
+def json_int(token: str) -> int:
+    """``int(token)`` for ``json.loads(parse_int=...)``, refusing more than :data:`MAX_INT_DIGITS` digits.
+
+    Raises:
+        HugeIntegerError: The token has more digits (a ``ValueError``, as Python's own refusal is).
+    """
+    if decimal_digits(token) > MAX_INT_DIGITS:
+        raise HugeIntegerError(token)
+    return int(token)
 
 # a JSON string, or a NaN / Infinity constant outside strings (in document order)
 _TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|-?Infinity|NaN', re.DOTALL)
@@ -139,7 +188,8 @@ def load_json(text: str, source: str, *, item: str = "key", strict: bool = True)
 
     Raises:
         FileFormatError: Syntax errors (with line and column), duplicate keys, ``NaN`` / ``Infinity`` (with
-            line and key path), nesting deeper than :data:`MAX_NESTING`, lone surrogates.
+            line and key path), nesting deeper than :data:`MAX_NESTING`, integers of more than
+            :data:`MAX_INT_DIGITS` digits (with line and column), lone surrogates.
     """
 
     def number(text: str) -> float:
@@ -161,9 +211,16 @@ def load_json(text: str, source: str, *, item: str = "key", strict: bool = True)
 
     try:
         if strict:
-            data = json.loads(text, object_pairs_hook=pairs, parse_constant=_constant, parse_float=number)
+            data = json.loads(
+                text, object_pairs_hook=pairs, parse_constant=_constant, parse_float=number, parse_int=json_int
+            )
         else:
-            data = json.loads(text)
+            data = json.loads(text, parse_int=json_int)
+    except HugeIntegerError as exc:
+        at = text.find(exc.token)
+        line = text.count("\n", 0, at) + 1
+        column = at - text.rfind("\n", 0, at)
+        raise FileFormatError(f"{source}: invalid JSON (line {line}, column {column}): {exc}") from None
     except json.JSONDecodeError as exc:
         raise FileFormatError(
             f"{source}: invalid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}"

@@ -22,7 +22,7 @@ from ruamel.yaml.representer import RoundTripRepresenter
 from ruamel.yaml.scalarfloat import ScalarFloat
 
 from ..errors import FileFormatError
-from ._json import MAX_NESTING, check_tree
+from ._json import MAX_INT_DIGITS, MAX_NESTING, check_tree, decimal_digits, huge_integer_problem
 from ._yaml_fast import fast_dump, fast_load
 
 __all__ = ["dump_yaml", "load_yaml", "yaml_float"]
@@ -65,6 +65,7 @@ def _represent_scalar_float(representer: Any, data: Any) -> Any:
 
 
 _STR_TAG = "tag:yaml.org,2002:str"
+_INT_TAG = "tag:yaml.org,2002:int"
 _KEY_KINDS = {
     "tag:yaml.org,2002:int": "a number",
     "tag:yaml.org,2002:float": "a number",
@@ -79,8 +80,10 @@ class _PlainComposer(Composer):
 
     Refused: anchors (``&a``), aliases (``*a``) and merge keys (``<<: *a``), which make two entries one shared
     object (an update in place would change both); explicit tags (``!!binary``, ``!!python/object``, ``!foo``);
-    keys that are not text (a mapping or sequence used as a key, ``1:``, ``null:``, ``true:``); and dates
-    (``2001-12-14``), which no reader expects. Each is a ``ComposerError``, worded by :func:`load_yaml_ruamel`.
+    keys that are not text (a mapping or sequence used as a key, ``1:``, ``null:``, ``true:``); dates
+    (``2001-12-14``), which no reader expects; and integers of more than
+    :data:`~robocal.formats._json.MAX_INT_DIGITS` digits. Each is a ``ComposerError``, worded by
+    :func:`load_yaml_ruamel`.
     """
 
     def compose_node(self, parent: Any, index: Any) -> Any:
@@ -98,6 +101,10 @@ class _PlainComposer(Composer):
             self._check_key(node)
         elif isinstance(node, ScalarNode) and str(node.tag) == "tag:yaml.org,2002:timestamp":
             self._refuse(f"the date {node.value!r}; expected a number or text (quote it if it is a name)", node)
+        elif isinstance(node, ScalarNode) and str(node.tag) == _INT_TAG:
+            digits = decimal_digits(node.value)
+            if digits > MAX_INT_DIGITS:  # before Python's own refusal, whose words differ between versions
+                self._refuse(huge_integer_problem(digits), node)
         return node
 
     def _check_key(self, node: Any) -> None:

@@ -30,6 +30,8 @@ from ruamel.yaml.nodes import ScalarNode
 from ruamel.yaml.scalarfloat import ScalarFloat
 from ruamel.yaml.scalarstring import DoubleQuotedScalarString
 
+from ._json import MAX_INT_DIGITS, decimal_digits
+
 __all__ = ["fast_dump", "fast_load"]
 
 MAX_DEPTH = 16
@@ -83,6 +85,8 @@ class _Resolver:
             return text
         if tag not in _CONSTRUCTED:
             return _NO  # null, timestamps, merge keys...: leave them to ruamel
+        if tag == _INT and decimal_digits(text) > MAX_INT_DIGITS:
+            return _NO  # refused by ruamel's path (robocal's words, the same on every Python)
         node = ScalarNode(tag, text, None, None, style=None)
         try:
             return self._constructor.yaml_constructors[tag](self._constructor, node)
@@ -91,7 +95,8 @@ class _Resolver:
 
 
 _STR = "tag:yaml.org,2002:str"
-_CONSTRUCTED = frozenset({"tag:yaml.org,2002:int", "tag:yaml.org,2002:float", "tag:yaml.org,2002:bool"})
+_INT = "tag:yaml.org,2002:int"
+_CONSTRUCTED = frozenset({_INT, "tag:yaml.org,2002:float", "tag:yaml.org,2002:bool"})
 _NO = object()
 _resolver: _Resolver | None = None
 

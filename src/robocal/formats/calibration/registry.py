@@ -19,7 +19,7 @@ from ...core.jointmap import RobotCalibration
 from ...core.profile import RobotProfile
 from ...errors import CalibError, FileFormatError, InvalidCalibrationError, UsageError
 from ...fileio import MAX_DOCUMENT_BYTES, read_text
-from .._json import is_valid_unicode, load_json
+from .._json import is_valid_unicode, json_int, load_json
 from .._yaml import load_yaml
 from ..profiles import resolve_profile
 from ..urdf import UrdfModel
@@ -78,7 +78,7 @@ def _parse_for_sniffing(text: str, source: str) -> Content | None:
         return Content("xml", None, source)
     if stripped.startswith(("{", "[")):
         try:
-            data = json.loads(stripped)
+            data = json.loads(stripped, parse_int=json_int)
         except (ValueError, RecursionError):  # reported by the real reader below
             data = None
         if isinstance(data, dict):
