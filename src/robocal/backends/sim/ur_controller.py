@@ -28,6 +28,7 @@ from ..ur_primary import (
     encode_subpackage,
 )
 from ._sockets import accept_loop
+from .ur_arm_state import RobotModeSample, UrArmState, encode_robot_mode_data
 
 __all__ = [
     "FAULT_MODES",
@@ -91,6 +92,7 @@ def build_robot_state(
     kinematics_size: int = 225,
     q_rad: tuple[float, ...] | None = None,
     include_cartesian: bool = True,
+    robot_mode: RobotModeSample | None = None,
 ) -> bytes:
     """A complete RobotState message (type 16) with the URSim sub-package sequence.
 
@@ -102,6 +104,7 @@ def build_robot_state(
         q_rad: Joint positions to report; Joint data and CartesianInfo (base → flange from the DH FK, zero
             TCP offset) are then filled in, otherwise they are zero-filled.
         include_cartesian: Leave CartesianInfo out (a fault: the pose a verification needs never arrives).
+        robot_mode: RobotModeData to report (default: a powered, running arm, timestamp 0).
 
     Returns:
         The framed message (1386 bytes for the default layout).
@@ -109,6 +112,9 @@ def build_robot_state(
     subs = []
     for sub_type, size in ROBOT_STATE_LAYOUT:
         if sub_type == 4 and not include_cartesian:
+            continue
+        if sub_type == 0:
+            subs.append(encode_robot_mode_data(robot_mode or RobotModeSample()))
             continue
         if sub_type == 5:
             if not include_kinematics:
@@ -147,6 +153,8 @@ class SimUrController(StartsOnEnter):
         port: Bind port (0 = a free port; see :attr:`address`).
         moving: Report a different joint configuration in every RobotState (with the matching base → flange
             CartesianInfo from the DH FK), for ``robocal ur verify --host``.
+        arm: The arm's mode reported in RobotModeData (shared with a dashboard server; default: a new
+            :class:`UrArmState`, powered and running).
     """
 
     def __init__(
@@ -159,6 +167,7 @@ class SimUrController(StartsOnEnter):
         host: str = "127.0.0.1",
         port: int = 0,
         moving: bool = True,
+        arm: UrArmState | None = None,
     ) -> None:
         if mode not in FAULT_MODES:
             raise ValueError(f"unknown simulator mode {mode!r}; valid: {', '.join(FAULT_MODES)}")
@@ -166,6 +175,7 @@ class SimUrController(StartsOnEnter):
         self.calibration_status = calibration_status
         self.mode = mode
         self.moving = moving
+        self.arm = arm if arm is not None else UrArmState()
         self.period_s = 1.0 / rate_hz
         self._stop = threading.Event()
         self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -286,6 +296,7 @@ class SimUrController(StartsOnEnter):
             self.calibration_status,
             include_kinematics=mode != "no_kinematics",
             kinematics_size=100 if mode == "short_kinematics" else 225,
+            robot_mode=self.arm.sample(),
         )
         if mode == "truncated":
             self._send(conn, state[: len(state) // 2])
@@ -298,10 +309,14 @@ class SimUrController(StartsOnEnter):
         next_t = time.monotonic()
         tick = 0
         while not self._stop.is_set():
-            if mode in ("normal", "no_cartesian") and self.moving:
-                q = tuple(1.5 * math.sin(0.37 * tick + 1.1 * i) for i in range(6))
+            if mode in ("normal", "no_cartesian"):  # the mode follows the dashboard; the joints move
+                q = tuple(1.5 * math.sin(0.37 * tick + 1.1 * i) for i in range(6)) if self.moving else None
                 state = build_robot_state(
-                    self.dh, self.calibration_status, q_rad=q, include_cartesian=mode == "normal"
+                    self.dh,
+                    self.calibration_status,
+                    q_rad=q,
+                    include_cartesian=mode == "normal",
+                    robot_mode=self.arm.sample(),
                 )
             tick += 1
             if not self._send(conn, modbus + state):
