@@ -55,7 +55,7 @@ from robocal.backends.sim.physics import SimClock
 from robocal.workflows.autocal import AutoCalFailedError, AutoCalResult
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.arms import open_bus
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 
 __all__ = ["SERVO_SCENARIOS", "arm_total_time", "run_one", "run_scenario"]
 
@@ -134,7 +134,15 @@ def run_one(
         try:
             auto: AutoCalResult
             try:
-                auto = auto_calibrate(bus, arm_spec, section, clock=clock, joints=[name]).auto
+                auto = auto_calibrate(
+                    bus,
+                    AutoCalibrationRequest(
+                        arm_spec,
+                        section,
+                        joints=[name],
+                    ),
+                    clock=clock,
+                ).auto
             except AutoCalFailedError as exc:
                 auto = exc.result
             servo = arm.servo(name)
@@ -213,7 +221,7 @@ def arm_total_time(robot: str, seed: int = 0, *, transport: str = "inproc") -> f
         attach_physics(arm, clock, search_torque_nm=push, seed=seed)
         bus = open_bus(arm_spec, arm.port)
         try:
-            auto = auto_calibrate(bus, arm_spec, section, clock=clock).auto
+            auto = auto_calibrate(bus, AutoCalibrationRequest(arm_spec, section), clock=clock).auto
         finally:
             bus.close()
     assert not auto.failed, auto.failure_summary()

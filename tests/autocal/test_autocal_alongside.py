@@ -19,7 +19,7 @@ from robocal.workflows.autocal import run_autocal
 from robocal.workflows.autocal_group import run_lockstep
 from robocal.workflows.autocal_joint import calibrate_joint, calibrate_joint_steps
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
 from .plant import Plant, PlantDriver
@@ -138,7 +138,7 @@ def test_whole_so101_under_60_s_simulated_with_joints_alongside() -> None:
     section = auto_section("so101_follower")
     assert [[j.name for j in g] for g in section.groups()][-1] == ["wrist_roll", "gripper", "shoulder_pan"]
     with open_auto_arm(spec, INPROC, section) as arm:
-        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock)
+        res = auto_calibrate(arm.bus, AutoCalibrationRequest(spec, section), clock=arm.clock)
         recovered = arm.sim.recovered_stops(res.calibration)
         truth = dict(arm.sim.truth)
     auto = res.auto

@@ -26,7 +26,7 @@ from robocal.workflows.autocal import select_joints
 from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
 from robocal.workflows.autocal_sweep import run_sweep_auto
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -140,10 +140,12 @@ def test_lerobot_auto_stopless_joint_is_refused_before_the_question() -> None:
         with pytest.raises(UsageError, match="wrist_roll cannot be auto-calibrated"):
             auto_calibrate(
                 arm.bus,
-                spec,
-                section,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                    joints=["gripper", "wrist_roll"],
+                ),
                 clock=arm.clock,
-                joints=["gripper", "wrist_roll"],
                 confirm_start=lambda *a: bool(asked.append(a)) or True,
             )
         assert arm.sim.eeprom() == before

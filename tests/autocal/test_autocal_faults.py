@@ -22,7 +22,12 @@ from robocal.cli.main import main
 from robocal.workflows.autocal import AutoCalAbortedError
 from robocal.workflows.autocal_sim import SimAutoLite, open_sim_lite
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section, search_registers
+from robocal.workflows.lerobot.auto import (
+    AutoCalibrationRequest,
+    auto_calibrate,
+    auto_section,
+    search_registers,
+)
 from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
 pytestmark = pytest.mark.timeout(600)
@@ -117,7 +122,17 @@ def test_servo_fault_limp_eeprom_restored_nothing_written(
         before = _registers(arm, spec)
         view = _FaultAt(arm, "gripper", register, bits)
         with pytest.raises(AutoCalAbortedError, match=re.escape(message)) as info:
-            auto_calibrate(arm.bus, spec, section, clock=arm.clock, path=out, joints=["gripper"], view=view)
+            auto_calibrate(
+                arm.bus,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                    path=out,
+                    joints=["gripper"],
+                ),
+                clock=arm.clock,
+                view=view,
+            )
         arm.sim.servo("gripper").set_reg(register, 0)  # the fault was the test's; the rest must be as before
         after = _registers(arm, spec)
     assert info.value.exit_code == 3 and "every motor limp" in str(info.value)

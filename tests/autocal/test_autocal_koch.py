@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
 pytestmark = pytest.mark.timeout(600)
@@ -46,7 +46,15 @@ def test_koch_auto_calibration_with_full_turn_joints_not_searched(tmp_path: Path
         eeprom_before = arm.sim.eeprom()
         start = {n: arm.plants[n].q_rad for n in FULL_TURN}  # type: ignore[index]
         res = auto_calibrate(
-            arm.bus, spec, section, clock=arm.clock, path=out, confirm_start=confirm, joints=joints
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                path=out,
+                joints=joints,
+            ),
+            clock=arm.clock,
+            confirm_start=confirm,
         )
         eeprom_after = arm.sim.eeprom()
         recovered = arm.sim.recovered_stops(res.calibration)
@@ -79,7 +87,15 @@ def test_whole_koch_auto_calibration_finishes(tmp_path: Path) -> None:
     with open_auto_arm(spec, INPROC, section) as arm:
         gains_before = arm.sim.servo("elbow_flex").get_reg("Position_P_Gain")
         eeprom_before = arm.sim.eeprom()
-        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, path=tmp_path / "koch.json")
+        res = auto_calibrate(
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                path=tmp_path / "koch.json",
+            ),
+            clock=arm.clock,
+        )
         recovered = arm.sim.recovered_stops(res.calibration)
         truth = dict(arm.sim.truth)
         elbow = arm.sim.servo("elbow_flex")

@@ -18,7 +18,12 @@ from robocal.errors import UsageError
 from robocal.workflows.autocal import AutoCalFailedError
 from robocal.workflows.autocal_servo import DynamixelJointDriver, FeetechJointDriver
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section, search_registers
+from robocal.workflows.lerobot.auto import (
+    AutoCalibrationRequest,
+    auto_calibrate,
+    auto_section,
+    search_registers,
+)
 from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
 pytestmark = pytest.mark.timeout(600)
@@ -64,7 +69,15 @@ def test_so101_finds_its_stops_through_the_feetech_registers(tmp_path: Path) -> 
     with open_auto_arm(spec, "sim", section) as arm:
         before = registers(arm, spec)
         res = auto_calibrate(
-            arm.bus, spec, section, clock=arm.clock, path=out, joints=["wrist_flex", "elbow_flex"], view=view
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                path=out,
+                joints=["wrist_flex", "elbow_flex"],
+            ),
+            clock=arm.clock,
+            view=view,
         )
         after = registers(arm, spec)
         truth = arm.sim.truth
@@ -106,7 +119,14 @@ def test_feetech_search_across_the_seam_rehomes_wrist_roll() -> None:
     section = auto_section("so101_follower")
     with open_auto_arm(spec, "sim?seed=2", section) as arm:
         res = auto_calibrate(
-            arm.bus, spec, section, clock=arm.clock, joints=["wrist_roll"], sweep_full_turn=True
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=["wrist_roll"],
+                sweep_full_turn=True,
+            ),
+            clock=arm.clock,
         )
         truth = arm.sim.truth["wrist_roll"]
         lo, hi = arm.sim.recovered_stops(res.calibration)["wrist_roll"]
@@ -125,11 +145,13 @@ def test_koch_current_based_and_pwm_capped_dynamixels(tmp_path: Path) -> None:
     with open_auto_arm(spec, "sim", section) as arm:
         res = auto_calibrate(
             arm.bus,
-            spec,
-            section,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                path=tmp_path / "k.json",
+                joints=["shoulder_lift", "gripper"],
+            ),
             clock=arm.clock,
-            path=tmp_path / "k.json",
-            joints=["shoulder_lift", "gripper"],
         )
         truth = arm.sim.truth
         recovered = arm.sim.recovered_stops(res.calibration)
@@ -150,7 +172,16 @@ def test_missing_stop_fails_the_joint_and_writes_nothing(tmp_path: Path) -> None
     with open_auto_arm(spec, "sim?missing=gripper", section) as arm:
         before = registers(arm, spec)
         with pytest.raises(AutoCalFailedError, match=r"gripper: missing_stop .*nothing was written") as err:
-            auto_calibrate(arm.bus, spec, section, clock=arm.clock, path=out, joints=["gripper"])
+            auto_calibrate(
+                arm.bus,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                    path=out,
+                    joints=["gripper"],
+                ),
+                clock=arm.clock,
+            )
         after = registers(arm, spec)
     assert err.value.exit_code == 3
     assert err.value.result["gripper"].stops.code == "missing_stop"
@@ -171,7 +202,15 @@ def test_ctrl_c_limps_every_motor_and_restores_every_register(tmp_path: Path, at
         view = Recorder(interrupt_at=at)
         with pytest.raises(KeyboardInterrupt):
             auto_calibrate(
-                arm.bus, spec, section, clock=arm.clock, path=out, joints=["gripper", "elbow_flex"], view=view
+                arm.bus,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                    path=out,
+                    joints=["gripper", "elbow_flex"],
+                ),
+                clock=arm.clock,
+                view=view,
             )
         after = registers(arm, spec)
         torque = {m.name: arm.sim.servo(m.name).get_reg("Torque_Enable") for m in spec.motors}
@@ -209,7 +248,15 @@ def test_obstacle_near_the_transit_end_is_a_span_mismatch_not_an_abort() -> None
             AutoCalFailedError,
             match=r"gripper: span_mismatch \(span 9\d\.\d° differs from the expected 125\.0°",
         ):
-            auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"])
+            auto_calibrate(
+                arm.bus,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                    joints=["gripper"],
+                ),
+                clock=arm.clock,
+            )
         assert registers(arm, spec) == before
 
 
@@ -234,7 +281,16 @@ def test_dynamixel_overload_shutdown_is_rebooted_and_the_search_goes_on() -> Non
                         servo.set_reg("Hardware_Error_Status", 0x20)
                         servo.set_reg("Torque_Enable", 0)
 
-        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"], view=Latch())
+        res = auto_calibrate(
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=["gripper"],
+            ),
+            clock=arm.clock,
+            view=Latch(),
+        )
         lo, hi = arm.sim.recovered_stops(res.calibration)["gripper"]
         errors = servo.get_reg("Hardware_Error_Status")
     assert flagged and flagged[0] == 61  # the next reading carries the flag; the REBOOT then clears it
@@ -247,7 +303,15 @@ def test_feetech_silent_at_the_stop_is_confirmed_by_a_reread() -> None:
     spec = robot_spec("so101_follower")
     section = auto_section("so101_follower")
     with open_auto_arm(spec, "sim?silent=gripper", section) as arm:
-        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"])
+        res = auto_calibrate(
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=["gripper"],
+            ),
+            clock=arm.clock,
+        )
         lo, hi = arm.sim.recovered_stops(res.calibration)["gripper"]
     stops = res.auto["gripper"].stops
     assert (stops.lower.test, stops.upper.test) == ("no-reply+reread", "no-reply+reread")  # type: ignore[union-attr]
@@ -267,7 +331,15 @@ def test_not_confirmed_nothing_moves() -> None:
         before = registers(arm, spec)
         instructions = arm.sim.bus.instructions
         with pytest.raises(Exception, match="not confirmed: nothing moved, nothing written"):
-            auto_calibrate(arm.bus, spec, section, clock=arm.clock, confirm_start=confirm)
+            auto_calibrate(
+                arm.bus,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                ),
+                clock=arm.clock,
+                confirm_start=confirm,
+            )
         assert arm.sim.bus.instructions == instructions  # not one packet sent
         assert registers(arm, spec) == before
     assert asked[0][0] == ("shoulder_lift", "elbow_flex", "wrist_flex", "gripper")
@@ -303,6 +375,15 @@ def test_ctrl_c_while_the_calibration_is_written_restores_it(tmp_path: Path) -> 
         before = registers(arm, spec)
         bus = CtrlCOnThirdLimit(arm.bus)
         with pytest.raises(KeyboardInterrupt):
-            auto_calibrate(bus, spec, section, clock=arm.clock, path=out, joints=["gripper"])  # type: ignore[arg-type]
+            auto_calibrate(
+                bus,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                    path=out,
+                    joints=["gripper"],
+                ),
+                clock=arm.clock,
+            )  # type: ignore[arg-type]
         assert bus.limit_writes >= 3
         assert registers(arm, spec) == before and not out.exists()

@@ -158,7 +158,7 @@ def test_dynamixel_bus_watchdog_stops_the_servo_and_refuses_goals_until_cleared(
 
 def test_lerobot_auto_arms_the_bus_watchdog_while_searching_and_restores_it() -> None:
     from robocal.workflows.lerobot import robot_spec
-    from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+    from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
     from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
     spec = robot_spec("koch_follower")
@@ -184,7 +184,16 @@ def test_lerobot_auto_arms_the_bus_watchdog_while_searching_and_restores_it() ->
 
     with open_auto_arm(spec, "sim?seed=1&transport=inproc", section) as arm:
         res = auto_calibrate(
-            arm.bus, spec, section, clock=arm.clock, joints=["gripper"], view=View(), path=None, confirm_start=confirm
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=["gripper"],
+                path=None,
+            ),
+            clock=arm.clock,
+            view=View(),
+            confirm_start=confirm,
         )
         assert res.auto["gripper"].ok
         assert asked[0].host_loss == (

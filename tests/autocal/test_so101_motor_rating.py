@@ -19,7 +19,7 @@ from robocal.backends.servo_ratings import RATINGS
 from robocal.core.stop_search import StopSample
 from robocal.formats.profiles import load_profile
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
 pytestmark = pytest.mark.timeout(600)
@@ -75,7 +75,16 @@ def test_the_torque_read_is_the_torque_the_simulated_joint_applies() -> None:
     section = auto_section("so101_follower")
     with open_auto_arm(spec, INPROC, section) as arm:
         view = _PressedTorque(arm, "gripper")
-        res = auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=["gripper"], view=view)
+        res = auto_calibrate(
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=["gripper"],
+            ),
+            clock=arm.clock,
+            view=view,
+        )
     cap = section.joint("gripper").torque_cap_nm  # type: ignore[union-attr]
     assert res.auto["gripper"].ok and len(view.pairs) > 10
     for read, applied in view.pairs:
@@ -94,7 +103,14 @@ def test_the_simulated_follower_lifts_its_own_arm(tmp_path: Any) -> None:
     port = "sim?seed=1&gravity=shoulder_lift,elbow_flex&transport=inproc"  # the pty's packets, no polling
     with open_auto_arm(spec, port, section) as arm:
         res = auto_calibrate(
-            arm.bus, spec, section, clock=arm.clock, joints=["shoulder_lift", "elbow_flex"], path=None
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=["shoulder_lift", "elbow_flex"],
+                path=None,
+            ),
+            clock=arm.clock,
         )
         recovered = arm.sim.recovered_stops(res.calibration)
         truth = dict(arm.sim.truth)

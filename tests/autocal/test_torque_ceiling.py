@@ -290,14 +290,23 @@ def test_prompt_states_the_cap_in_nm_and_percent_of_the_rating() -> None:
 @pytest.mark.parametrize("robot", ["so101_follower", "koch_follower"])
 def test_a_shipped_arm_search_never_pushes_past_the_ceiling_at_the_simulated_motor(robot: str) -> None:
     from robocal.workflows.lerobot import robot_spec
-    from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+    from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
     from robocal.workflows.lerobot.auto_sim import open_auto_arm
 
     spec = robot_spec(robot)
     section = auto_section(robot)
     joints = [j.name for j in section.searched_joints][:2]
     with open_auto_arm(spec, "sim?seed=3&transport=inproc", section) as arm:
-        auto_calibrate(arm.bus, spec, section, clock=arm.clock, joints=joints, path=None)
+        auto_calibrate(
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=joints,
+                path=None,
+            ),
+            clock=arm.clock,
+        )
         assert arm.plants is not None
         for name in joints:
             j = section.joint(name)

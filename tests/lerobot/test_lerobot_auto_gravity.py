@@ -15,7 +15,7 @@ import pytest
 from robocal.cli.main import main
 from robocal.workflows.autocal import joint_gravity_for
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 from robocal.workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm, sim_gravity_model
 
 pytestmark = pytest.mark.timeout(600)
@@ -31,7 +31,14 @@ def _run(with_gravity: bool) -> tuple[object, float]:
     model = sim_gravity_model(spec) if with_gravity else None
     with open_auto_arm(spec, PORT, section) as arm:
         res = auto_calibrate(
-            arm.bus, spec, section, clock=arm.clock, joints=["elbow_flex"], gravity_model=model
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                joints=["elbow_flex"],
+                gravity_model=model,
+            ),
+            clock=arm.clock,
         )
         plant = arm.plants["elbow_flex"]  # type: ignore[index]
         t = arm.sim.truth["elbow_flex"]

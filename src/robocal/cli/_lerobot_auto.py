@@ -91,7 +91,7 @@ def calibrate_auto(
     Ctrl-C: every motor limp, every register restored, no file (exit 130); a fault or a failed joint: exit 3
     with one ``error:`` line (the CLI's error handler).
     """
-    from ..workflows.lerobot.auto import auto_calibrate, auto_section
+    from ..workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
     from ..workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm, parse_sim_port
     from ._lerobot_render import interrupted
 
@@ -114,18 +114,20 @@ def calibrate_auto(
         try:
             result = auto_calibrate(
                 arm.bus,
-                spec,
-                section,
+                AutoCalibrationRequest(
+                    spec,
+                    section,
+                    path=path,
+                    joints=names,
+                    partial=partial,
+                    sweep_full_turn=sweep_full_turn,
+                    gravity_model=gravity_model,
+                    snapshot_port=port if arm.sim is None else None,
+                ),
                 clock=arm.clock,
-                path=path,
-                joints=names,
-                partial=partial,
                 confirm_start=confirm,
                 view=live,
                 on_status=status,
-                sweep_full_turn=sweep_full_turn,
-                gravity_model=gravity_model,
-                snapshot_port=port if arm.sim is None else None,
             )
         except KeyboardInterrupt as exc:
             raise interrupted(

@@ -38,7 +38,7 @@ def auto_arm_demo(
     from ..formats.lerobot import calibration_path
     from .demo import DemoResult, DemoSection, TruthTable, temporary_note
     from .lerobot import robot_spec
-    from .lerobot.auto import auto_calibrate, auto_section
+    from .lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
     from .lerobot.auto_sim import open_auto_arm, sim_gravity_model
 
     name = AUTO_ARM_ROBOTS[robot]
@@ -53,7 +53,15 @@ def auto_arm_demo(
     path = calibration_path(spec.kind, spec.device_name, "demo", root=folder)
     with open_auto_arm(spec, AUTO_ARM_PORT, section) as arm:
         result = auto_calibrate(
-            arm.bus, spec, section, clock=arm.clock, path=path, view=view, gravity_model=sim_gravity_model(spec)
+            arm.bus,
+            AutoCalibrationRequest(
+                spec,
+                section,
+                path=path,
+                gravity_model=sim_gravity_model(spec),
+            ),
+            clock=arm.clock,
+            view=view,
         )
         stops = arm.sim.recovered_stops(result.calibration)
         truth = dict(arm.sim.truth)

@@ -53,6 +53,7 @@ __all__ = [
     "HOST_LOSS",
     "MAX_LAG_DEG",
     "WATCHDOG_S",
+    "AutoCalibrationRequest",
     "AutoCalibrationResult",
     "auto_calibrate",
     "auto_section",
@@ -268,38 +269,19 @@ def _eeprom_calibration(spec: RobotSpec, motor: str, regs: Mapping[str, int]) ->
     )
 
 
-def auto_calibrate(
-    bus: ServoBus,
-    spec: RobotSpec,
-    section: AutoSection,
-    *,
-    clock: Clock,
-    path: str | os.PathLike[str] | None = None,
-    joints: Sequence[str] | None = None,
-    partial: bool = False,
-    confirm_start: ConfirmStart | None = None,
-    view: AutoView | None = None,
-    on_status: Callable[[str], None] | None = None,
-    sweep_full_turn: bool = False,
-    period_s: float = 0.01,
-    max_lag_deg: float | None = None,
-    gravity_model: GravityModel | None = None,
-    snapshot_port: str | None = None,
-) -> AutoCalibrationResult:
-    """Find every selected joint's stops, then write LeRobot's calibration to the EEPROM and the JSON file.
+@dataclass(frozen=True)
+class AutoCalibrationRequest:
+    """One ``lerobot calibrate --auto`` run: which arm and joints, what to write and how to search.
 
-    Args:
-        bus: The arm's bus (real port or a simulator's pseudo-terminal).
+    The CLI builds it from its options; Python callers build it directly. The joints, motors and file are
+    checked by :func:`auto_calibrate` before anything moves.
+
+    Attributes:
         spec: The arm.
         section: Its profile's ``auto_calibration`` section (:func:`auto_section`).
-        clock: Time of the control loop (:class:`~robocal.workflows.autocal.MonotonicClock` on hardware, the
-            simulator's clock in a simulation).
         path: LeRobot JSON to write (None: EEPROM only).
         joints: Subset to search (``--joints``), run in the profile's order.
         partial: Write the joints that passed although others failed (those keep their EEPROM values).
-        confirm_start: Asked before anything moves (the clear-workspace prompt); False ends with nothing moved.
-        view: Live view (the observer the Robstride auto sweep uses).
-        on_status: One-line status while the snapshot is written back.
         sweep_full_turn: LeRobot's full-turn joints that were searched get the found range (as the manual
             ``--sweep-full-turn``) instead of ``0..resolution − 1``.
         period_s: Control period.
@@ -310,6 +292,39 @@ def auto_calibrate(
             The URDF joint must turn the way Present_Position grows (LeRobot's ``so101_new_calib`` does).
         snapshot_port: Keep the register snapshot in robocal's state folder under this port's name until the
             run ends cleanly (:mod:`robocal.workflows.motion_snapshot`); None: not kept (a simulated arm).
+    """
+
+    spec: RobotSpec
+    section: AutoSection
+    path: str | os.PathLike[str] | None = None
+    joints: Sequence[str] | None = None
+    partial: bool = False
+    sweep_full_turn: bool = False
+    period_s: float = 0.01
+    max_lag_deg: float | None = None
+    gravity_model: GravityModel | None = None
+    snapshot_port: str | None = None
+
+
+def auto_calibrate(
+    bus: ServoBus,
+    request: AutoCalibrationRequest,
+    *,
+    clock: Clock,
+    confirm_start: ConfirmStart | None = None,
+    view: AutoView | None = None,
+    on_status: Callable[[str], None] | None = None,
+) -> AutoCalibrationResult:
+    """Find every selected joint's stops, then write LeRobot's calibration to the EEPROM and the JSON file.
+
+    Args:
+        bus: The arm's bus (real port or a simulator's pseudo-terminal).
+        request: The arm, joints, file and search settings (:class:`AutoCalibrationRequest`).
+        clock: Time of the control loop (:class:`~robocal.workflows.autocal.MonotonicClock` on hardware, the
+            simulator's clock in a simulation).
+        confirm_start: Asked before anything moves (the clear-workspace prompt); False ends with nothing moved.
+        view: Live view (the observer the Robstride auto sweep uses).
+        on_status: One-line status while the snapshot is written back.
 
     Returns:
         The calibration of every motor, the searches, the file written.
@@ -324,6 +339,10 @@ def auto_calibrate(
             after every motor went limp and the EEPROM was restored.
         CalibrationNotSavedError: The file write failed at the end (EEPROM restored, result attached).
     """
+    r = request
+    spec, section, path, joints, partial = r.spec, r.section, r.path, r.joints, r.partial
+    sweep_full_turn, period_s, max_lag_deg = r.sweep_full_turn, r.period_s, r.max_lag_deg
+    gravity_model, snapshot_port = r.gravity_model, r.snapshot_port
     order = select_joints(section, joints, movable_only=True)
     kept_by_profile = [j.name for j in order if not j.searched]  # stops: none (a full-turn joint): never moves
     if len(kept_by_profile) == len(order):
