@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import json
 import signal
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -170,3 +172,36 @@ def test_the_guard_in_process_makes_limp_before_it_restores_and_exits_with_the_s
     assert calls == ["limp", "restore"]
     assert seen == [{"shoulder_lift": {"Homing_Offset": 17}}]
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_two_calibrations_side_by_side_under_load_each_ctrl_c_ends_limp_and_restored(tmp_path: Path) -> None:
+    """Two arms, two ``calibrate --auto`` at once, a busy sibling process on the same cores, one Ctrl-C each
+    while its arm moves: both arms end limp with every register as before (issue 26's "side by side" case)."""
+    hosts = [ArmHost("so101_follower", seed) for seed in (1, 2)]
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        befores = [h.state() for h in hosts]
+        runs = [
+            Robocal(
+                auto_args(h.port, tmp_path / f"run{i}", joints="shoulder_lift,elbow_flex"),
+                tmp_path,
+                env={"XDG_STATE_HOME": str(tmp_path / f"state{i}")},
+            )
+            for i, h in enumerate(hosts)
+        ]
+        for run in runs:
+            run.wait_for("searching its stops")
+        for run in runs:
+            run.signal(signal.SIGINT)
+        codes = [run.finish() for run in runs]
+        for host, before, run, code in zip(hosts, befores, runs, codes, strict=True):
+            after = host.state()
+            assert torque_on(after) == [], run.stderr
+            assert kept_registers(after, "feetech") == kept_registers(before, "feetech")
+            assert code == 130, run.stderr
+            assert "Traceback" not in run.stderr
+    finally:
+        busy.kill()
+        busy.wait()
+        for h in hosts:
+            h.close()

@@ -20,7 +20,9 @@ One search drives one joint into one stop (``direction`` −1 or +1)::
   re-read (``Command.action == "reread"``: clear the latch, read the position). If the joint was armed and
   slow, and the re-read position agrees with the last good one within ``confirm_tol_rad``, the stop is
   confirmed (test ``overload+reread`` or ``no-reply+reread``); otherwise the approach continues (at most
-  ``max_suspects`` times). Replies missing for longer than ``reply_timeout_s`` fail the search (``no_reply``).
+  ``max_suspects`` times). Replies missing for longer than ``reply_timeout_s`` fail the search (``no_reply``), and
+  so does a reading that comes more than ``reply_timeout_s`` after the one before while the joint is driven (the
+  host was descheduled or the reply was late: a fault, the joint limp, never a missed stop; issue 26).
 * **Bounds.** Travel beyond ``max_travel_rad`` from the start fails the search (``missing_stop``); a search
   running longer than ``max_time_s`` fails it too (``timeout``). Both end with ``Command.action == "limp"``.
 * **Stiffness.** At contact the joint is pressed at the cap (reading ``q_hi``, ``τ_hi``), then at
@@ -153,6 +155,15 @@ class StopSearch:
             return self._final_cmd()
         dt = sample.t_s - self._t_last if math.isfinite(self._t_last) else 0.0
         self._t_last = sample.t_s
+        if dt > cfg.reply_timeout_s and self._phase in (_APPROACH, _PRESS_HI, _PRESS_LO, _BACKOFF):
+            # the host was held up (descheduled, a reply that came late): what the joint did in between is
+            # unknown, so the reading is not evidence of a stop or of free travel; a fault, never a missed stop
+            return self._fail(
+                "no_reply",
+                f"a reading came {dt:.2f} s after the one before (more than {cfg.reply_timeout_s:.2f} s: robocal "
+                "was held up or the reply was late)",
+                sample,
+            )
         if sample.t_s - self._t0 > cfg.max_time_s:
             return self._fail(
                 "timeout",

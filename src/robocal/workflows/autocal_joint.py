@@ -11,6 +11,7 @@ from collections.abc import Callable, Generator
 from dataclasses import replace
 from typing import Concatenate, ParamSpec, TypeVar
 
+from ..backends import reply_timeout_floor_s
 from ..core.profile_auto import AutoJoint, AutoSection
 from ..core.stop_search import (
     Command,
@@ -83,6 +84,9 @@ def _config(
         backoff_rad=math.radians(section.backoff_deg),
         second_touch=section.second_touch,
         gravity_nm=gravity,
+        # a reading later than this after the one before is a fault (stop_search.py); a machine whose replies
+        # may take longer ($ROBOCAL_REPLY_TIMEOUT_MS, a simulator in another process) gets twice that
+        reply_timeout_s=max(0.5, 2.0 * reply_timeout_floor_s()),
     )
 
 
