@@ -59,7 +59,7 @@ def run_arm(fault: str, seed: int) -> list[RunResult]:
     """Auto-calibrate the whole simulated Lite (``sim:lite?seed=seed``, ``fault`` on every joint); one result a joint."""
     from robocal.backends.sim.lite import LITE_JOINTS, lite_urdf_text
     from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-    from robocal.workflows.autocal_sweep import run_sweep_auto
+    from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
     names = [j.name for j in LITE_JOINTS]
     span_rad = {j.name: j.upper - j.lower for j in LITE_JOINTS}
@@ -71,7 +71,15 @@ def run_arm(fault: str, seed: int) -> list[RunResult]:
         out = Path(tmp) / "cal.yaml"
         recovered: dict[str, float] = {}
         try:
-            outcome = run_sweep_auto(urdf, source, out, robot="bhl_arms", open_drivers_fn=sim_opener(holder))
+            outcome = run_sweep_auto(
+                SweepAutoRequest(
+                    urdf,
+                    source,
+                    out,
+                    robot="bhl_arms",
+                ),
+                open_drivers_fn=sim_opener(holder),
+            )
             auto: AutoCalResult = outcome.auto
             recovered = {j.name: j.homing_offset for j in outcome.result.joints}
         except AutoCalFailedError as e:

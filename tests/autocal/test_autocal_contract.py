@@ -24,7 +24,7 @@ from robocal.formats.profiles import load_profile
 from robocal.lerobot import read_calibration
 from robocal.workflows.autocal import select_joints
 from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 
@@ -82,7 +82,14 @@ def test_sweep_auto_refuses_an_empty_subset_before_the_drivers_open(urdf: Path, 
 
     with pytest.raises(UsageError, match="--joints: give at least one joint name"):
         run_sweep_auto(
-            urdf, "sim:lite", tmp_path / "c.yaml", robot="bhl_arms", joints=[], open_drivers_fn=opener
+            SweepAutoRequest(
+                urdf,
+                "sim:lite",
+                tmp_path / "c.yaml",
+                robot="bhl_arms",
+                joints=[],
+            ),
+            open_drivers_fn=opener,
         )
     assert opened == [] and not (tmp_path / "c.yaml").exists()
 
@@ -175,12 +182,14 @@ def test_ctrl_c_between_the_report_and_the_calibration_leaves_both_unchanged(
     holder: list[SimAutoLite] = []
     with pytest.raises(KeyboardInterrupt):
         run_sweep_auto(
-            urdf,
-            "sim:lite?seed=2",
-            out,
-            robot="bhl_arms",
-            joints=JOINTS,
-            report=report,
+            SweepAutoRequest(
+                urdf,
+                "sim:lite?seed=2",
+                out,
+                robot="bhl_arms",
+                joints=JOINTS,
+                report=report,
+            ),
             open_drivers_fn=sim_opener(holder),
         )
     assert calls == [out]  # the report was written, then Ctrl-C came

@@ -22,7 +22,7 @@ from robocal.backends.sim.lite import lite_urdf_text
 from robocal.cli.main import main
 from robocal.core.stop_search import StopSample
 from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -83,8 +83,16 @@ def _run_interrupted(
     holder: list[SimAutoLite] = []
     with pytest.raises(KeyboardInterrupt):
         run_sweep_auto(
-            urdf, source, out, robot=robot, joints=JOINTS, view=view, open_drivers_fn=sim_opener(holder),
-            report=out.with_suffix(".json"),
+            SweepAutoRequest(
+                urdf,
+                source,
+                out,
+                robot=robot,
+                joints=JOINTS,
+                report=out.with_suffix(".json"),
+            ),
+            view=view,
+            open_drivers_fn=sim_opener(holder),
         )  # fmt: skip
     assert out.read_bytes() == before
     assert not out.with_suffix(".json").exists()
@@ -170,11 +178,13 @@ def test_ctrl_c_at_the_question_moves_nothing(
     out.write_text(PRIOR)
     with pytest.raises(KeyboardInterrupt):
         run_sweep_auto(
-            urdf,
-            "sim:lite",
-            out,
-            robot="bhl_arms",
-            joints=JOINTS,
+            SweepAutoRequest(
+                urdf,
+                "sim:lite",
+                out,
+                robot="bhl_arms",
+                joints=JOINTS,
+            ),
             confirm_start=ctrl_c,
             open_drivers_fn=opener,
         )

@@ -9,7 +9,7 @@ import pytest
 from robocal.backends.sim.lite import lite_urdf_text
 from robocal.cli.main import main
 from robocal.errors import UsageError
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
 
 @pytest.fixture
@@ -39,7 +39,7 @@ def test_refused_before_anything_moves(
     source = str(args.pop("source"))
     out = tmp_path / "c.yaml"
     with pytest.raises(Exception, match=message.replace("(", r"\(").replace(")", r"\)")) as info:
-        run_sweep_auto(urdf, source, out, **args)  # type: ignore[arg-type]
+        run_sweep_auto(SweepAutoRequest(urdf, source, out, **args))  # type: ignore[arg-type]
     assert getattr(info.value, "exit_code", 2) == 2
     assert not out.exists()
 
@@ -53,7 +53,7 @@ def test_profile_without_auto_section(tmp_path: Path) -> None:
     urdf = tmp_path / "lite.urdf"
     urdf.write_text(lite_urdf_text())
     with pytest.raises(UsageError, match="profile p has none"):
-        run_sweep_auto(urdf, "sim:lite", tmp_path / "c.yaml", robot=str(prof))
+        run_sweep_auto(SweepAutoRequest(urdf, "sim:lite", tmp_path / "c.yaml", robot=str(prof)))
 
 
 @pytest.mark.parametrize(

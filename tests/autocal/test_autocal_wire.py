@@ -19,7 +19,7 @@ from robocal.errors import UsageError
 from robocal.formats import read_calibration
 from robocal.workflows.autocal import AutoCalFailedError
 from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
 JOINTS = ["left_wrist_roll", "left_wrist_pitch"]
 
@@ -37,12 +37,14 @@ def test_recovers_the_true_offsets(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "cal.yaml"
     rep = tmp_path / "rep.json"
     outcome = run_sweep_auto(
-        urdf,
-        "sim:lite?seed=4",
-        out,
-        robot="bhl_arms",
-        joints=JOINTS,
-        report=rep,
+        SweepAutoRequest(
+            urdf,
+            "sim:lite?seed=4",
+            out,
+            robot="bhl_arms",
+            joints=JOINTS,
+            report=rep,
+        ),
         open_drivers_fn=sim_opener(holder),
     )
     truth = holder[0].true_offsets()
@@ -73,11 +75,13 @@ def test_missing_stop_writes_nothing_and_limps(urdf: Path, tmp_path: Path) -> No
     out = tmp_path / "cal.yaml"
     with pytest.raises(AutoCalFailedError, match="left_wrist_pitch: missing_stop") as info:
         run_sweep_auto(
-            urdf,
-            "sim:lite?seed=4&missing=left_wrist_pitch",
-            out,
-            robot="bhl_arms",
-            joints=JOINTS,
+            SweepAutoRequest(
+                urdf,
+                "sim:lite?seed=4&missing=left_wrist_pitch",
+                out,
+                robot="bhl_arms",
+                joints=JOINTS,
+            ),
             open_drivers_fn=sim_opener(holder),
         )
     assert info.value.exit_code == 3
@@ -89,7 +93,14 @@ def test_missing_stop_writes_nothing_and_limps(urdf: Path, tmp_path: Path) -> No
 def test_partial_writes_the_joints_that_passed(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "cal.yaml"
     outcome = run_sweep_auto(
-        urdf, "sim:lite?seed=4&snag=left_wrist_pitch", out, robot="bhl_arms", joints=JOINTS, partial=True
+        SweepAutoRequest(
+            urdf,
+            "sim:lite?seed=4&snag=left_wrist_pitch",
+            out,
+            robot="bhl_arms",
+            joints=JOINTS,
+            partial=True,
+        ),
     )
     assert outcome.exit_code == 1
     assert outcome.auto["left_wrist_pitch"].stops.code == "span_mismatch"
@@ -122,11 +133,13 @@ def test_ctrl_c_at_any_step_leaves_every_motor_limp_and_files_unchanged(
     before = out.read_bytes()
     with pytest.raises(KeyboardInterrupt):
         run_sweep_auto(
-            urdf,
-            "sim:lite?seed=2",
-            out,
-            robot="bhl_arms",
-            joints=JOINTS,
+            SweepAutoRequest(
+                urdf,
+                "sim:lite?seed=2",
+                out,
+                robot="bhl_arms",
+                joints=JOINTS,
+            ),
             view=_Interrupt(after),
             open_drivers_fn=sim_opener(holder),
         )
@@ -151,7 +164,14 @@ def test_not_confirmed_moves_nothing(urdf: Path, tmp_path: Path) -> None:
 
     with pytest.raises(UsageError, match="not confirmed: nothing moved"):
         run_sweep_auto(
-            urdf, "sim:lite", tmp_path / "c.yaml", robot="bhl_arms", joints=JOINTS, confirm_start=no
+            SweepAutoRequest(
+                urdf,
+                "sim:lite",
+                tmp_path / "c.yaml",
+                robot="bhl_arms",
+                joints=JOINTS,
+            ),
+            confirm_start=no,
         )
     assert asked == [tuple(JOINTS)]  # in the profile's search order
 
@@ -216,7 +236,7 @@ def test_cli_demo_auto(tmp_path: Path) -> None:
 def test_joints_not_searched_keep_their_entries(urdf: Path, tmp_path: Path) -> None:
     out = tmp_path / "cal.yaml"
     out.write_text("right_elbow_pitch:\n  id: 24\n  direction: 1\n  homing_offset: 0.125\n")
-    outcome = run_sweep_auto(urdf, "sim:lite?seed=6", out, robot="bhl_arms", joints=JOINTS)
+    outcome = run_sweep_auto(SweepAutoRequest(urdf, "sim:lite?seed=6", out, robot="bhl_arms", joints=JOINTS))
     cal = read_calibration(out).calibration
     assert set(cal.joint_names) == {"right_elbow_pitch", *JOINTS}
     assert cal.homing_offset[cal.index("right_elbow_pitch")] == 0.125

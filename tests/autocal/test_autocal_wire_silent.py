@@ -13,7 +13,7 @@ pytest.importorskip("can")
 from robocal.backends.sim.lite import lite_urdf_text
 from robocal.workflows.autocal import AutoCalFailedError
 from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
 
 def test_silent_motor_at_the_stop_fails_with_no_reply_in_bounded_time(tmp_path: Path) -> None:
@@ -26,11 +26,13 @@ def test_silent_motor_at_the_stop_fails_with_no_reply_in_bounded_time(tmp_path: 
         AutoCalFailedError, match=r"left_wrist_roll: no_reply \(lower stop: no reply for 0\.50 s\)"
     ) as info:
         run_sweep_auto(
-            urdf,
-            "sim:lite?seed=4&silent=left_wrist_roll",
-            out,
-            robot="bhl_arms",
-            joints=["left_wrist_roll"],
+            SweepAutoRequest(
+                urdf,
+                "sim:lite?seed=4&silent=left_wrist_roll",
+                out,
+                robot="bhl_arms",
+                joints=["left_wrist_roll"],
+            ),
             open_drivers_fn=sim_opener(holder),
         )
     assert time.monotonic() - t0 < 120  # was: a timed-out re-read did not move the simulated clock (minutes+)

@@ -323,14 +323,22 @@ def test_the_lite_search_never_pushes_past_the_ceiling_at_the_simulated_motor(tm
     pytest.importorskip("can")
     from robocal.backends.sim.lite import lite_urdf_text
     from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-    from robocal.workflows.autocal_sweep import run_sweep_auto
+    from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
     urdf = tmp_path / "lite.urdf"
     urdf.write_text(lite_urdf_text())
     holder: list[SimAutoLite] = []
     joints = ["left_wrist_roll", "left_elbow_pitch"]
-    run_sweep_auto(urdf, "sim:lite?seed=2", tmp_path / "c.yaml", robot="bhl_arms", joints=joints,
-                   open_drivers_fn=sim_opener(holder))
+    run_sweep_auto(
+        SweepAutoRequest(
+            urdf,
+            "sim:lite?seed=2",
+            tmp_path / "c.yaml",
+            robot="bhl_arms",
+            joints=joints,
+        ),
+        open_drivers_fn=sim_opener(holder),
+    )
     section = load_profile("bhl_arms").auto
     assert section is not None
     for name in joints:

@@ -15,7 +15,7 @@ import pytest
 
 from robocal.viewer.autocal_page import open_auto_sweep_page
 from robocal.viewer.sweep_page import FAIL_RGB, STATUS_RGB
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
 pytest.importorskip("viser", reason="viser comes with robocal[view]")
 
@@ -60,12 +60,14 @@ def test_stop_search_drawn_live_then_with_the_report_codes(page: Any, tmp_path: 
         def run() -> None:
             try:
                 done["outcome"] = run_sweep_auto(
-                    LITE_URDF,
-                    SOURCE,
-                    tmp_path / "cal.yaml",
-                    joints=JOINTS,
-                    report=report,
-                    partial=True,
+                    SweepAutoRequest(
+                        LITE_URDF,
+                        SOURCE,
+                        tmp_path / "cal.yaml",
+                        joints=JOINTS,
+                        report=report,
+                        partial=True,
+                    ),
                     view=web,
                 )
             except BaseException as exc:  # pragma: no cover - reported below

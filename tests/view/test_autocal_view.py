@@ -21,7 +21,7 @@ from tests.net import busy_port
 from robocal.cli.main import main
 from robocal.viewer.autocal_page import open_auto_sweep_page
 from robocal.viewer.sweep_page import FAIL_RGB, LIVE_RGB, STATUS_RGB, status_rgb
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
 from .conftest import LITE_URDF, serve_then_ctrl_c
 
@@ -84,7 +84,15 @@ def test_the_search_drawn_with_the_report_codes(tmp_path: Path) -> None:
     try:
         report = tmp_path / "report.json"
         outcome = run_sweep_auto(
-            LITE_URDF, SOURCE, tmp_path / "cal.yaml", joints=JOINTS, report=report, partial=True, view=web
+            SweepAutoRequest(
+                LITE_URDF,
+                SOURCE,
+                tmp_path / "cal.yaml",
+                joints=JOINTS,
+                report=report,
+                partial=True,
+            ),
+            view=web,
         )
         web.finish(outcome.auto, outcome.result)
         # every call reached the terminal's view too, in the search order

@@ -212,7 +212,7 @@ def sweep_auto(
 
     With ``view_port`` (``--view``), the search is drawn on the robot in the browser as well.
     """
-    from ..workflows.autocal_sweep import run_sweep_auto
+    from ..workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
     from ._sweep_view import print_sweep_warnings, result_table
 
     names = _common.parse_csv_list(joints, "--joints")  # "" or "a,,b": one error line, nothing moves
@@ -220,14 +220,16 @@ def sweep_auto(
     with auto_web_view(view_port, urdf, AutoLiveView(), "sweep --auto") as live:
         try:
             outcome = run_sweep_auto(
-                urdf,
-                source,
-                out,
-                robot=robot,
-                joints=names,
-                report=report,
-                fmt=fmt,
-                partial=partial,
+                SweepAutoRequest(
+                    urdf,
+                    source,
+                    out,
+                    robot=robot,
+                    joints=names,
+                    report=report,
+                    fmt=fmt,
+                    partial=partial,
+                ),
                 confirm_start=confirm,
                 view=live,
             )

@@ -46,7 +46,7 @@ from .autocal_types import (
 )
 from .motion_guard import MotionGuard
 
-__all__ = ["AutoSweepOutcome", "auto_sweep_result", "run_sweep_auto"]
+__all__ = ["AutoSweepOutcome", "SweepAutoRequest", "auto_sweep_result", "run_sweep_auto"]
 
 
 @dataclass(frozen=True)
@@ -198,24 +198,14 @@ def _parse_auto_source(text: str) -> _SimSpec:
     return _SimSpec("sim", opts, text)
 
 
-def run_sweep_auto(
-    urdf_path: str | Path,
-    source: str,
-    out: str | Path,
-    *,
-    robot: str | os.PathLike[str] | RobotProfile | None = None,
-    joints: Sequence[str] | None = None,
-    report: str | Path | None = None,
-    fmt: str | None = None,
-    partial: bool = False,
-    confirm_start: ConfirmStart | None = None,
-    view: AutoView | None = None,
-    open_drivers_fn: OpenDrivers | None = None,
-    gravity: Mapping[str, Callable[[float], float]] | None = None,
-) -> AutoSweepOutcome:
-    """Auto-calibrate the Robstride joints of a robot and write the calibration like ``robocal sweep``.
+@dataclass(frozen=True)
+class SweepAutoRequest:
+    """One ``robocal sweep --auto`` run: the robot, its source, what to write and which joints.
 
-    Args:
+    The CLI builds it from ``robocal sweep``'s options; Python callers build it directly. The outputs, source
+    and profile are checked by :func:`run_sweep_auto` before anything moves.
+
+    Attributes:
         urdf_path: The robot's URDF (limits: the default expected stop angles).
         source: ``can:<interface>:<channel>[,...]`` or ``sim:lite[?...]``.
         out: Calibration file (updated in place when it exists; joints not searched keep their offsets).
@@ -224,12 +214,36 @@ def run_sweep_auto(
         report: JSON report to write (the sweep report plus an ``auto`` part).
         fmt: Output format (default as ``robocal sweep``).
         partial: Write the joints that passed even when others failed.
-        confirm_start: Asked before anything moves; returning False ends the run with nothing moved.
-        view: Live view.
-        open_drivers_fn: Opens the drivers (default: Robstride buses from ``source``; the simulator passes its own).
         gravity: Joint → gravity torque model in the driver's frame, for the correction (a simulator's truth).
             Without it, a URDF with ``<inertial>`` masses gives the correction
             (:func:`robocal.formats.urdf_gravity.gravity_model_if_any`).
+    """
+
+    urdf_path: str | Path
+    source: str
+    out: str | Path
+    robot: str | os.PathLike[str] | RobotProfile | None = None
+    joints: Sequence[str] | None = None
+    report: str | Path | None = None
+    fmt: str | None = None
+    partial: bool = False
+    gravity: Mapping[str, Callable[[float], float]] | None = None
+
+
+def run_sweep_auto(
+    request: SweepAutoRequest,
+    *,
+    confirm_start: ConfirmStart | None = None,
+    view: AutoView | None = None,
+    open_drivers_fn: OpenDrivers | None = None,
+) -> AutoSweepOutcome:
+    """Auto-calibrate the Robstride joints of a robot and write the calibration like ``robocal sweep``.
+
+    Args:
+        request: The robot, source, outputs and joints (:class:`SweepAutoRequest`).
+        confirm_start: Asked before anything moves; returning False ends the run with nothing moved.
+        view: Live view.
+        open_drivers_fn: Opens the drivers (default: Robstride buses from ``source``; the simulator passes its own).
 
     Raises:
         UsageError: Bad options, no auto section, not a Robstride robot, the start not confirmed.
@@ -237,6 +251,9 @@ def run_sweep_auto(
         AutoCalAbortedError: A device fault (exit 3; every motor limp, nothing written).
         KeyboardInterrupt: Ctrl-C (every motor limp, nothing written; the CLI exits 130).
     """
+    r = request
+    urdf_path, source, out, robot, joints = r.urdf_path, r.source, r.out, r.robot, r.joints
+    report, fmt, partial, gravity = r.report, r.fmt, r.partial, r.gravity
     from ..backends.sources import parse_source
     from ..formats.urdf import read_urdf
     from ..formats.urdf_gravity import gravity_model_if_any

@@ -55,7 +55,7 @@ def auto_demo(
         result: DemoResult = auto_arm_demo(robot, folder, say, temporary, view=view)
         return result
     from .autocal_sim import SimAutoLite, sim_opener, write_sim_lite_urdf
-    from .autocal_sweep import run_sweep_auto
+    from .autocal_sweep import SweepAutoRequest, run_sweep_auto
 
     urdf = write_sim_lite_urdf(folder / "lite_bimanual.urdf")
     say(
@@ -64,11 +64,13 @@ def auto_demo(
     )
     holder: list[SimAutoLite] = []
     outcome = run_sweep_auto(
-        urdf,
-        AUTO_DEMO_SOURCE,
-        folder / "calibration.yaml",
-        robot="bhl_arms",
-        report=folder / "sweep_report.json",
+        SweepAutoRequest(
+            urdf,
+            AUTO_DEMO_SOURCE,
+            folder / "calibration.yaml",
+            robot="bhl_arms",
+            report=folder / "sweep_report.json",
+        ),
         view=view_for(urdf) if view_for is not None else view,
         open_drivers_fn=sim_opener(holder),
     )
