@@ -205,3 +205,28 @@ def test_two_calibrations_side_by_side_under_load_each_ctrl_c_ends_limp_and_rest
         busy.wait()
         for h in hosts:
             h.close()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_koch_signal_mid_motion_leaves_every_motor_limp_and_every_register_as_before(
+    tmp_path: Path, signum: int
+) -> None:
+    """The same on a Koch follower (Dynamixel protocol 2: current-based position mode, Goal_Current, gains)."""
+    host = ArmHost("koch_follower")
+    try:
+        before = host.state()
+        run = Robocal(
+            auto_args(host.port, tmp_path, robot="koch_follower", joints="gripper"),
+            tmp_path,
+            env={"XDG_STATE_HOME": str(tmp_path / "state")},
+        )
+        run.wait_for("searching its stops")
+        run.signal(signum)
+        code = run.finish()
+        after = host.state()
+        assert torque_on(after) == []
+        assert kept_registers(after, "dynamixel") == kept_registers(before, "dynamixel")
+        assert code == SIGNAL_EXIT[signum], run.stderr
+        assert "Traceback" not in run.stderr
+    finally:
+        host.close()
