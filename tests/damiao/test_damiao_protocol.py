@@ -71,7 +71,12 @@ def _hex(data: bytes) -> str:
 MIT_VECTORS = [
     (DM4310, MitCommand(0.0, 0.0, 10.0, 0.5, 0.0), (32767, 2047, 81, 409, 2047), "7F FF 7F F0 51 19 97 FF"),
     (DM4310, MitCommand(0.0, 0.0, 0.0, 0.0, 0.0), (32767, 2047, 0, 0, 2047), "7F FF 7F F0 00 00 07 FF"),
-    (DM8009, MitCommand(1.0, 0.0, 240.0, 5.0, 0.0), (35388, 2047, 1965, 4095, 2047), "8A 3C 7F F7 AD FF F7 FF"),
+    (
+        DM8009,
+        MitCommand(1.0, 0.0, 240.0, 5.0, 0.0),
+        (35388, 2047, 1965, 4095, 2047),
+        "8A 3C 7F F7 AD FF F7 FF",
+    ),
     (
         DM4340_LR,
         MitCommand(-math.pi / 2, 1.0, 45.0, 1.2, 2.0),
@@ -175,7 +180,9 @@ STATE_VECTORS = [
 ]
 
 
-@pytest.mark.parametrize(("limits", "hexdata", "mid", "code", "q", "dq", "tau", "tmos", "trot"), STATE_VECTORS)
+@pytest.mark.parametrize(
+    ("limits", "hexdata", "mid", "code", "q", "dq", "tau", "tmos", "trot"), STATE_VECTORS
+)
 def test_state_frame_unpacks_to_the_reference_values(
     limits: MotorLimits,
     hexdata: str,
@@ -194,7 +201,9 @@ def test_state_frame_unpacks_to_the_reference_values(
     assert s.torque_nm == pytest.approx(tau, rel=3e-3)
 
 
-@pytest.mark.parametrize(("limits", "hexdata", "mid", "code", "q", "dq", "tau", "tmos", "trot"), STATE_VECTORS)
+@pytest.mark.parametrize(
+    ("limits", "hexdata", "mid", "code", "q", "dq", "tau", "tmos", "trot"), STATE_VECTORS
+)
 def test_state_values_pack_to_the_reference_bytes(
     limits: MotorLimits,
     hexdata: str,

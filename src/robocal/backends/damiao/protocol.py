@@ -45,6 +45,7 @@ from .tables import (
 
 __all__ = [
     "SPECIAL_COMMANDS",
+    "ConfigRequest",
     "Frame",
     "MitCommand",
     "MotorState",
@@ -52,6 +53,7 @@ __all__ = [
     "check_state",
     "clear_error_frame",
     "command_id",
+    "decode_config_request",
     "decode_mit_command",
     "decode_register_reply",
     "decode_special",
@@ -417,6 +419,35 @@ def decode_register_reply(data: bytes) -> RegisterReply:
     if raw[3] not in Register._value2member_map_:
         raise ProtocolError(f"register reply names unknown register {raw[3]}")
     return RegisterReply(raw[0] | (raw[1] << 8), raw[2], raw[3], unpack_register_value(raw[3], raw[4:8]))
+
+
+@dataclass(frozen=True)
+class ConfigRequest:
+    """A host frame to 0x7FF as a motor reads it: refresh, register read / write, or save.
+
+    Attributes:
+        can_id: ESC_ID of the motor addressed (bytes 0-1).
+        op: ``OP_REFRESH``, ``OP_READ``, ``OP_WRITE`` or ``OP_SAVE``.
+        register: Byte 3 (the register id; 0 or 1 for a save, 0 for a refresh).
+        value: Bytes 4-7 as sent (decode a write's with :func:`unpack_register_value`).
+    """
+
+    can_id: int
+    op: int
+    register: int
+    value: bytes
+
+
+def decode_config_request(data: bytes) -> ConfigRequest:
+    """Read a frame sent to 0x7FF (the simulator's side).
+
+    Raises:
+        ProtocolError: Not 8 bytes, or an op byte no source names.
+    """
+    raw = _check_data(data, "0x7FF frame")
+    if raw[2] not in (OP_REFRESH, OP_READ, OP_WRITE, OP_SAVE):
+        raise ProtocolError(f"0x7FF frame op byte {raw[2]:#04x}; expected one of 0xcc, 0x33, 0x55, 0xaa")
+    return ConfigRequest(raw[0] | (raw[1] << 8), raw[2], raw[3], raw[4:8])
 
 
 # ------------------------------------------------------------------------------------------- state checking
