@@ -19,7 +19,7 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, cast
+from typing import Any
 
 import numpy as np
 
@@ -52,7 +52,9 @@ __all__ = [
     "preset_modes",
 ]
 
-MotorFamily = Literal["feetech", "dynamixel"]
+MotorFamily = str
+"""A servo vendor's name with a homing rule in :mod:`robocal.core.vendors` (``"feetech"``, ``"dynamixel"``);
+checked where a convention is built."""
 
 def _arm_profile(robot: str) -> RobotProfile:
     """The LeRobot arm profile of a robot type: the profile of that name, else one whose ``robot_types`` prefix it.
@@ -88,7 +90,7 @@ def motor_family_for_robot(robot: str) -> MotorFamily:
     """
     lr = _arm_profile(robot).lerobot
     assert lr is not None
-    return cast(MotorFamily, lr.vendor)
+    return lr.vendor
 
 
 def preset_modes(robot: str, joint_names: Sequence[str], use_degrees: bool | None = None) -> dict[str, str]:

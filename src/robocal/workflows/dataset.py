@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, cast
+from typing import TYPE_CHECKING
 
 from ..core.lerobot import parse_compat, parse_convention
 from ..core.vendors import expected_homing_vendors, homing_vendor
@@ -81,13 +81,13 @@ def resolve_modes(
     return old, new
 
 
-def _family(opts: DatasetOptions, robot: str | None) -> Literal["feetech", "dynamixel"] | None:
+def _family(opts: DatasetOptions, robot: str | None) -> str | None:
     from ..dataset.lerobot import motor_family_for_robot
 
     if opts.motor_family is not None:
         if homing_vendor(opts.motor_family) is None:
             raise UsageError(f"--motor-family {opts.motor_family!r}: expected {expected_homing_vendors(quoted=False)}")
-        return cast(Literal["feetech", "dynamixel"], opts.motor_family)
+        return opts.motor_family
     return motor_family_for_robot(robot) if robot else None
 
 
