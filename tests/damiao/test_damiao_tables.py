@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
 from robocal.backends.damiao.faults import FAULT_ERRORS
@@ -87,3 +90,15 @@ def test_every_state_code_is_named_and_every_error_state_has_an_error() -> None:
     assert set(STATE_NAMES) == set(State)
     assert set(FAULT_ERRORS) == set(State) - {State.DISABLED, State.ENABLED}
     assert len({cls.__name__ for cls in FAULT_ERRORS.values()}) == 7
+
+
+def test_the_protocol_layer_imports_without_python_can() -> None:
+    """tables, protocol, modes and faults are pure: importing them loads neither python-can nor numpy."""
+    code = (
+        "import sys; import robocal.backends.damiao.modes, robocal.backends.damiao.faults; "
+        "print(sorted(m for m in ('can', 'numpy') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert out.stdout.strip() == "[]"
