@@ -17,7 +17,7 @@ import pytest
 
 from .guardlib import HANG_GUARD_S, ArmHost, Robocal, auto_args, kept_registers, torque_on
 
-pytestmark = [pytest.mark.timeout(600), pytest.mark.slow]
+pytestmark = [pytest.mark.timeout(600)]
 
 
 @pytest.fixture
@@ -29,6 +29,7 @@ def arm() -> Iterator[ArmHost]:
         host.close()
 
 
+@pytest.mark.slow
 def test_after_sigkill_the_next_command_says_what_is_left_and_restore_previous_writes_it_back(
     arm: ArmHost, tmp_path: Path
 ) -> None:
@@ -91,3 +92,28 @@ def test_after_sigkill_the_next_command_says_what_is_left_and_restore_previous_w
     )
     assert again.finish() == 0
     assert again.out.strip() == f"nothing left changed on {arm.port}"
+
+
+def test_the_kept_snapshot_is_found_by_the_next_run_on_that_port_until_it_is_removed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The quick representative: the state file a killed run leaves, read back exactly, and gone once resolved."""
+    from robocal.workflows.motion_snapshot import SnapshotStore, find_left_changed
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    port = str(tmp_path / "ttyACM0")
+    assert find_left_changed(port) is None
+    store = SnapshotStore(port, "lerobot calibrate --auto")
+    store.save(
+        {"shoulder_lift": {"Homing_Offset": -1203, "Max_Position_Limit": 4095}}, robot="so101_follower"
+    )
+    left = find_left_changed(port)
+    assert left is not None
+    assert left.path == tmp_path / "state" / "robocal" / "left-changed" / store.path.name
+    assert (left.port, left.command) == (port, "lerobot calibrate --auto")
+    assert left.registers == {"shoulder_lift": {"Homing_Offset": -1203, "Max_Position_Limit": 4095}}
+    assert left.about == {"robot": "so101_follower"}
+    assert find_left_changed(str(tmp_path / "ttyACM1")) is None  # another bus has its own file
+    assert [p.name for p in store.path.parent.iterdir()] == [store.path.name]  # no temporary file left
+    store.remove()
+    assert find_left_changed(port) is None
