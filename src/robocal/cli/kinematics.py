@@ -104,6 +104,16 @@ def identify(
     ticks: Annotated[
         int, typer.Option("--ticks", help="Encoder ticks per turn: readings on the same tick are one pose; 0: exact.")
     ] = 4096,
+    noise_mm: Annotated[
+        float | None,
+        typer.Option("--noise-mm", help="Marker noise per axis, mm: a residual far above it is a warning naming the poses."),
+    ] = None,
+    max_correction_mm: Annotated[
+        float, typer.Option("--max-correction-mm", help="Largest plausible length correction, mm; beyond it: refused.")
+    ] = 20.0,
+    max_correction_deg: Annotated[
+        float, typer.Option("--max-correction-deg", help="Largest plausible angle correction, degrees; beyond it: refused.")
+    ] = 10.0,
     joint_map: Annotated[
         Path | None,
         typer.Option("--joint-map", help="Joint map the readings went through (lerobot export-urdf output)."),
@@ -181,6 +191,9 @@ def identify(
         ur_yaml=ur_yaml,
         ur_hash=ur_hash,
         ticks_per_turn=ticks,
+        noise_m=None if noise_mm is None else noise_mm * 1e-3,
+        max_correction_mm=max_correction_mm,
+        max_correction_deg=max_correction_deg,
     )
     raise typer.Exit(print_identification(result))
 

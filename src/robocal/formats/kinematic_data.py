@@ -19,7 +19,9 @@ import csv
 import io
 import math
 import os
-from collections.abc import Iterable, Mapping, Sequence
+import re
+from array import array
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -54,23 +56,40 @@ def _float(text: str, where: str, column: str) -> float:
     return value
 
 
-def _csv_rows(text: str, source: str) -> tuple[list[int], list[list[str]]]:
-    """The rows of a session CSV without blank and ``#`` lines: their line numbers, and the rows (header first).
+_LINE_ENDS = "\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"
+_LINE = re.compile(f"([^{_LINE_ENDS}]*)(?:\r\n|[{_LINE_ENDS}])|([^{_LINE_ENDS}]+)\\Z")
+"""One line as ``str.splitlines`` splits them, found lazily (a session may have a million rows)."""
 
-    The header's names are stripped of blanks.
+
+def _lines(text: str) -> Iterator[tuple[int, str]]:
+    """``enumerate(text.splitlines(), 1)`` without the list, blank and ``#`` lines left out."""
+    for n, m in enumerate(_LINE.finditer(text), 1):
+        line = m.group(1) if m.group(1) is not None else m.group(2)
+        if line.strip() and not line.lstrip().startswith("#"):
+            yield n, line
+
+
+def _csv_stream(text: str, source: str) -> tuple[list[str], Iterator[tuple[int, list[str]]]]:
+    """The header of a session CSV (names stripped of blanks) and its rows, lazily, with their line numbers.
+
+    Blank and ``#`` lines are skipped.
 
     Raises:
         FileFormatError: No rows at all, columns separated by semicolons or tabs, or a column named twice.
     """
-    lines = [
-        (n, line)
-        for n, line in enumerate(text.splitlines(), 1)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if not lines:
+    lines = _lines(text)
+    current = [0]
+
+    def feed() -> Iterator[str]:
+        for n, line in lines:
+            current[0] = n
+            yield line + "\n"
+
+    reader = csv.reader(feed())
+    first = next(reader, None)
+    if first is None:
         raise FileFormatError(f"{source}: no header row and no poses")
-    rows = list(csv.reader(io.StringIO("\n".join(line for _, line in lines))))
-    header = [h.strip() for h in rows[0]]
+    header = [h.strip() for h in first]
     for sep, name in ((";", "semicolons"), ("\t", "tabs")):
         if len(header) == 1 and sep in header[0]:
             raise FileFormatError(
@@ -80,7 +99,20 @@ def _csv_rows(text: str, source: str) -> tuple[list[int], list[list[str]]]:
     if len(set(header)) != len(header):
         dup = sorted({h for h in header if header.count(h) > 1})
         raise FileFormatError(f"{source}: duplicate columns {', '.join(dup)}")
-    return [n for n, _ in lines], [header, *rows[1:]]
+    return header, ((current[0], row) for row in reader)
+
+
+def _csv_rows(text: str, source: str) -> tuple[list[int], list[list[str]]]:
+    """The rows of a session CSV without blank and ``#`` lines: their line numbers, and the rows (header first).
+
+    The header's names are stripped of blanks.
+
+    Raises:
+        FileFormatError: No rows at all, columns separated by semicolons or tabs, or a column named twice.
+    """
+    header, stream = _csv_stream(text, source)
+    numbered = list(stream)
+    return [0] + [n for n, _ in numbered], [header, *(row for _, row in numbered)]
 
 
 def _joint_columns(
@@ -180,8 +212,7 @@ def parse_measurements(
         FileFormatError: Missing, unknown or duplicate columns, a non-number, NaN or inf, a bad socket, no rows.
     """
     check_kind(kind)
-    line_numbers, rows = _csv_rows(text, source)
-    header = rows[0]
+    header, stream = _csv_stream(text, source)
     extra_cols: dict[str, list[str]] = {
         "points": ["x", "y", "z"],
         "touch": ["group"],
@@ -192,37 +223,44 @@ def parse_measurements(
     if kind == "points" and all(f"{c}_mm" in header for c in need):
         need = [f"{c}_mm" for c in need]
         scale_xyz = 1e-3
-    joint_cols = _table_columns(rows, source, joint_names, need=need)
-    q = np.zeros((len(rows) - 1, len(joint_names)))
-    p = np.zeros((len(rows) - 1, 3))
+    joint_cols = _table_columns([header, []], source, joint_names, need=need)
+    need_cols = [header.index(c) for c in need]
+    # numbers go into flat float64 arrays as they are read: 8 bytes each, whatever the number of rows
+    q_flat: array[float] = array("d")
+    p_flat: array[float] = array("d")
     labels: list[str] = []
-    group: list[int] = []
-    for r, row in enumerate(rows[1:]):
-        where = f"{source} line {line_numbers[r + 1]}"
-        q[r] = _joint_values(row, header, joint_cols, where)
+    group: array[int] = array("q")
+    n_rows = 0
+    for line_number, row in stream:
+        n_rows += 1
+        where = f"{source} line {line_number}"
+        q_flat.extend(_joint_values(row, header, joint_cols, where))
         if kind == "points":
-            for a, c in enumerate(need):
-                p[r, a] = _float(row[header.index(c)].strip(), where, c) * scale_xyz
-        else:
-            label = row[header.index(need[0])].strip()
-            if kind == "gauge":
-                label = label.upper()
-                if label not in ("A", "B"):
-                    raise FileFormatError(f"{where}: socket is {label!r}; expected A or B")
-                group.append(0 if label == "A" else 1)
-                continue
-            if not label:
-                raise FileFormatError(f"{where}: empty group")
-            if label not in labels:
-                labels.append(label)
-            group.append(labels.index(label))
-    if kind == "points":
+            p_flat.extend(_float(row[i].strip(), where, c) * scale_xyz for i, c in zip(need_cols, need, strict=True))
+            continue
+        label = row[need_cols[0]].strip()
+        if kind == "gauge":
+            label = label.upper()
+            if label not in ("A", "B"):
+                raise FileFormatError(f"{where}: socket is {label!r}; expected A or B")
+            group.append(0 if label == "A" else 1)
+            continue
+        if not label:
+            raise FileFormatError(f"{where}: empty group")
+        if label not in labels:
+            labels.append(label)
+        group.append(labels.index(label))
+    if not n_rows:
+        raise FileFormatError(f"{source}: has a header but no poses")
+    q = np.frombuffer(q_flat, dtype=np.float64).reshape(n_rows, len(joint_names)).copy()
+    p = np.frombuffer(p_flat, dtype=np.float64).reshape(n_rows, 3).copy() if kind == "points" else None
+    if p is not None:
         return Measurements("points", q, p), ()
     if kind == "gauge":
         if set(group) != {0, 1} and not held_out:
             raise FileFormatError(f"{source}: a gauge session needs poses in both socket A and socket B")
-        return Measurements("gauge", q, group=np.array(group), distance_m=distance_m), ("A", "B")
-    return Measurements("touch", q, group=np.array(group)), tuple(labels)
+        return Measurements("gauge", q, group=np.array(group, dtype=np.int64), distance_m=distance_m), ("A", "B")
+    return Measurements("touch", q, group=np.array(group, dtype=np.int64)), tuple(labels)
 
 
 def read_measurements(

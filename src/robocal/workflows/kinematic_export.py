@@ -36,6 +36,7 @@ __all__ = [
     "ExportPaths",
     "Exports",
     "check_export_paths",
+    "check_ur_chain",
     "identified_joint_map",
     "is_ur_chain",
     "prepare_exports",
@@ -203,10 +204,23 @@ def ur_kinematics_from_chain(chain: SerialChain, hash_: str) -> UrKinematics:
         JointMismatchError: Not a UR chain.
         UsageError: A malformed hash.
     """
+    check_ur_chain(chain)
+    return _ur_kinematics(chain, hash_)
+
+
+def check_ur_chain(chain: SerialChain) -> None:
+    """Refuse a chain that is not a UR arm's (``--ur-yaml`` writes only those).
+
+    Raises:
+        JointMismatchError: Not a UR chain.
+    """
     if not is_ur_chain(chain):
         raise JointMismatchError(
             f"--ur-yaml needs a UR chain ({', '.join(JOINT_NAMES)}); this one moves {', '.join(chain.joint_names)}"
         )
+
+
+def _ur_kinematics(chain: SerialChain, hash_: str) -> UrKinematics:
     body = hash_.removeprefix("calib_")
     if not (hash_.startswith("calib_") and body.isascii() and body.isdigit() and int(body) < 2**64):
         raise UsageError(f"--ur-hash {hash_!r}: expected calib_<unsigned 64-bit integer>")

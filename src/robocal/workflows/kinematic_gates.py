@@ -13,7 +13,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -22,17 +24,20 @@ from ..core.chain import SerialChain
 from ..core.identifiability import Identifiability
 from ..core.kinematic_problem import Measurements, Problem, analyse
 from ..errors import UsageError
+from .kinematic_fit import split_validation
 
 __all__ = [
     "DEFAULT_TICKS_PER_TURN",
     "MAX_DISTINCT_ROWS",
     "PRISMATIC_RESOLUTION_M",
     "PoseCells",
+    "Sessions",
     "check_distinct_poses",
     "check_rank",
     "check_ticks",
     "held_out_repeats",
     "pose_cells",
+    "sessions",
     "structural_analysis",
 ]
 
@@ -218,3 +223,106 @@ def check_rank(data: Identifiability, structural: Identifiability) -> None:
         f"not identifiable from them: {'; '.join(parts)}; record poses that move every joint through its range "
         "(robocal kinematics plan chooses them)"
     )
+
+
+@dataclass(frozen=True, eq=False)
+class Sessions:
+    """The fitted and held-out poses after the gates on distinct poses.
+
+    Attributes:
+        train: The poses to fit (exact copies merged).
+        validation: The held-out poses (none that repeat a fitted pose).
+        train_rows: ``(N,)`` the data row (0-based, in the file's order) of each fitted pose.
+        structural: What the model can identify with well spread poses (:func:`structural_analysis`).
+        report: The report's ``plausibility`` block so far (rows, copies, distinct poses, the model's rank).
+        warnings: What the user should know (copies, held-out repeats, no validation).
+    """
+
+    train: Measurements
+    validation: Measurements
+    train_rows: IntArray
+    structural: Identifiability
+    report: dict[str, Any]
+    warnings: tuple[str, ...]
+
+
+def sessions(
+    data: Measurements,
+    problem_of: Callable[[Measurements], Problem],
+    chain: SerialChain,
+    *,
+    source: str,
+    held_out: Measurements | None,
+    held_out_source: str | None,
+    fraction: float,
+    seed: int,
+    ticks_per_turn: int,
+    check: Callable[[Measurements], None] = lambda _: None,
+) -> Sessions:
+    """Merge exact copies, count distinct poses, split or take the held-out poses, and check what the fit needs.
+
+    Args:
+        data: The session as read.
+        problem_of: The identification problem of a set of poses (model, free parameters, nominal values).
+        chain: The chain (its joint types set the resolution).
+        source: The session file, for messages.
+        held_out: A separate held-out session (``--validate-data``), or None to hold ``fraction`` out.
+        held_out_source: Its file, for messages.
+        fraction: Share of the distinct poses held out when ``held_out`` is None.
+        seed: Seed of that split.
+        ticks_per_turn: Encoder resolution (0: exact readings).
+        check: Judges the session once exact copies are merged (units, reach; see
+            :mod:`robocal.workflows.kinematic_plausibility`), before anything else is computed from it.
+
+    Raises:
+        UsageError: Too few distinct poses (the session, or its fitted share), or a rank below the model's.
+    """
+    warnings: list[str] = []
+    cells = pose_cells(data, chain, ticks_per_turn, source=source)
+    if cells.copies:
+        data = data.subset(cells.kept)
+        warnings.append(
+            f"{source}: {cells.copies} of {cells.copies + cells.kept.size} rows repeat an earlier row exactly (the "
+            "same readings and the same measurement): each is counted once"
+        )
+    check(data)
+    structural = structural_analysis(problem_of(data))
+    check_distinct_poses(cells, structural.rank, rows=cells.copies + cells.kept.size, source=source)
+    if held_out is None:
+        # the distinct poses are split (each row its own when none repeats): rows of one pose stay on one side
+        train_p, _ = split_validation(data.subset(cells.first), fraction, seed)
+        in_train = np.isin(cells.pose, train_p)
+        train, val = data.subset(np.flatnonzero(in_train)), data.subset(np.flatnonzero(~in_train))
+        train_rows = cells.kept[in_train]
+    else:
+        train, val, train_rows = data, held_out, cells.kept
+    train_cells = pose_cells(train, chain, ticks_per_turn, source=source)
+    val_distinct = 0
+    if val.n_poses:
+        val_cells = pose_cells(val, chain, ticks_per_turn, source=held_out_source or source)
+        repeats = held_out_repeats(train_cells, val_cells)
+        keep = np.setdiff1d(np.arange(val_cells.kept.size), repeats)
+        val_distinct = val_cells.n_poses - len({int(val_cells.pose[k]) for k in repeats})
+        if repeats.size:
+            val = val.subset(val_cells.kept[keep])
+            these = "pose repeats a fitted pose" if repeats.size == 1 else "poses repeat fitted poses"
+            warnings.append(
+                f"{repeats.size} held-out {these} (the same encoder readings): left out of the validation"
+            )
+    if not val.n_poses:
+        warnings.append(
+            "not validated: no held-out pose differs from the fitted ones; hold some out (--validate-fraction) or "
+            "record a separate session (--validate-data)"
+        )
+    problem = problem_of(train)
+    check_distinct_poses(train_cells, structural.rank, rows=train.n_poses, source=source, fitted=True)
+    check_rank(analyse(problem), structural)
+    report = {
+        "rows": cells.copies + cells.kept.size,
+        "copies": cells.copies,
+        "distinct_poses": {"fit": train_cells.n_poses, "validation": val_distinct},
+        "ticks_per_turn": ticks_per_turn,
+        "model_rank": structural.rank,
+    }
+    return Sessions(train, val, train_rows.astype(np.int64), structural, report, tuple(warnings))
+

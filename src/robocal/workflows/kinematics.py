@@ -26,7 +26,6 @@ from ..core.kinematic_errors import ErrorModel
 from ..core.kinematic_problem import (
     Measurements,
     Problem,
-    analyse,
     check_kind,
     dh_like_constraints,
     free_indices,
@@ -36,15 +35,15 @@ from ..formats.kinematic_data import read_measurements
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from . import kinematic_gates as gates
+from . import kinematic_plausibility as plaus
 from . import kinematic_report as kr
-from .kinematic_export import check_export_paths
+from .kinematic_export import check_export_paths, check_ur_chain
 from .kinematic_fit import (
     FitResult,
     PriorSigmas,
     check_seed,
     fit,
     predicted_error_m,
-    split_validation,
     validation_errors,
 )
 
@@ -248,6 +247,9 @@ def identify(
     ur_yaml: str | os.PathLike[str] | None = None,
     ur_hash: str | None = None,
     ticks_per_turn: int = gates.DEFAULT_TICKS_PER_TURN,
+    noise_m: float | None = None,
+    max_correction_mm: float = plaus.MAX_CORRECTION_MM,
+    max_correction_deg: float = plaus.MAX_CORRECTION_DEG,
 ) -> IdentifyResult:
     """Identify a URDF chain's geometric errors from a measurement session.
 
@@ -279,6 +281,10 @@ def identify(
         ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
         ticks_per_turn: Encoder resolution poses are told apart at (0: exact readings); see
             :mod:`robocal.workflows.kinematic_gates`.
+        noise_m: The marker noise per axis the user states (m); None: the residual is compared with what the
+            fit estimates (:mod:`robocal.workflows.kinematic_plausibility`).
+        max_correction_mm: Largest length correction a URDF is plausibly off by (mm).
+        max_correction_deg: Largest angle correction (degrees).
 
     Returns:
         The :class:`IdentifyResult`; files are written only after everything succeeded.
@@ -305,9 +311,14 @@ def identify(
         raise UsageError("--seed seeds the random held-out share; with --validate-data nothing is drawn")
     check_seed(seed)
     gates.check_ticks(ticks_per_turn)
+    plaus.check_bounds(max_correction_mm, max_correction_deg)
+    if noise_m is not None and not (math.isfinite(noise_m) and 0 < noise_m <= 1.0):
+        raise UsageError(f"--noise-mm must be a positive number of millimetres up to 1000, got {noise_m * 1e3:g}")
     paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
     doc = UrdfDocument.load(urdf)
     chain = chain_from_urdf(doc.model(), base_link, tip_link)
+    if ur_yaml is not None:
+        check_ur_chain(chain)  # before the data are judged: an option that cannot work is the first thing to say
     measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=gauge_distance_m)
     chain.check_q(measurements.q_rad, what=f"{data}: pose")
     model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
@@ -322,51 +333,33 @@ def identify(
         ]
     if frame == "tracker":
         assert measurements.p_world_m is not None
-        T0 = _kabsch(model.points(measurements.q_rad), measurements.p_world_m)
+        distinct = measurements.subset(gates.pose_cells(measurements, chain, ticks_per_turn, source=str(data)).kept)
+        assert distinct.p_world_m is not None
+        T0 = _kabsch(model.points(distinct.q_rad), distinct.p_world_m)
         model = ErrorModel(chain, T_world_base=T0, T_tip_tool=model.T_tip_tool)
-    rows = measurements.n_poses
-    cells = gates.pose_cells(measurements, chain, ticks_per_turn, source=str(data))
-    if cells.copies:
-        measurements = measurements.subset(cells.kept)
-        warnings.append(
-            f"{data}: {cells.copies} of {rows} rows repeat an earlier row exactly (the same readings and the same "
-            "measurement): each is counted once"
-        )
     free = free_indices(model, [] if frame == "tracker" else ["base"])
-    structural = gates.structural_analysis(Problem(model, measurements, free, np.zeros(model.n_params)))
-    gates.check_distinct_poses(cells, structural.rank, rows=rows, source=str(data))
-    if validate_data is None:
-        fraction = DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction
-        # split the distinct poses (each row its own when none repeats): rows of one pose stay on one side
-        train_p, _ = split_validation(measurements.subset(cells.first), fraction, seed)
-        in_train = np.isin(cells.pose, train_p)
-        train, val = measurements.subset(np.flatnonzero(in_train)), measurements.subset(np.flatnonzero(~in_train))
-    else:
-        train = measurements
-        val = _validation_session(validate_data, kind, chain, labels, gauge_distance_m)
-    train_cells = gates.pose_cells(train, chain, ticks_per_turn, source=str(data))
-    if val.n_poses:
-        val_cells = gates.pose_cells(val, chain, ticks_per_turn, source=str(validate_data or data))
-        repeats = gates.held_out_repeats(train_cells, val_cells)
-        if repeats.size:
-            keep = np.setdiff1d(np.arange(val_cells.kept.size), repeats)
-            val = val.subset(val_cells.kept[keep])
-            warnings.append(
-                f"{repeats.size} held-out {'pose repeats a fitted pose' if repeats.size == 1 else 'poses repeat fitted poses'} "
-                "(the same encoder readings): left out of the validation"
-            )
-    if not val.n_poses:
-        warnings.append(
-            "not validated: no held-out pose differs from the fitted ones; hold some out (--validate-fraction) or "
-            "record a separate session (--validate-data)"
-        )
-    problem = Problem(model, train, free, np.zeros(model.n_params))
-    gates.check_distinct_poses(train_cells, structural.rank, rows=train.n_poses, source=str(data), fitted=True)
-    gates.check_rank(analyse(problem), structural)
+
+    def problem_of(poses: Measurements) -> Problem:
+        return Problem(model, poses, free, np.zeros(model.n_params))
+
+    gated = gates.sessions(
+        measurements, problem_of, chain, source=str(data),
+        held_out=None if validate_data is None
+        else _validation_session(validate_data, kind, chain, labels, gauge_distance_m),
+        held_out_source=None if validate_data is None else str(validate_data),
+        fraction=DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction,
+        seed=seed, ticks_per_turn=ticks_per_turn, check=lambda poses: plaus.check_session(model, poses, frame=frame, source=str(data)),
+    )  # fmt: skip
+    warnings += gated.warnings
+    train, val = gated.train, gated.validation
+    problem = problem_of(train)
     prior_s = as_prior(prior)
     result = fit(problem, huber_m=huber_m, prior=prior_s)
+    plaus.check_corrections(result, model, max_mm=max_correction_mm, max_deg=max_correction_deg)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the data for gross errors")
+    residual, residual_report = plaus.residual_warnings(result, gated.train_rows, noise_m=noise_m, source=str(data))
+    warnings += residual
     val_err = validation_errors(result, val) if val.n_poses else np.zeros(0)
     nominal_x = np.zeros(model.n_params)
     val_nom = np.zeros(0)
@@ -431,6 +424,11 @@ def identify(
                 "validation": _stats_mm(dh_cmp.validation_errors_m),
             },
             "note": "DH cannot tilt an axis towards a parallel neighbour: this is a floor, not noise",
+        },
+        "plausibility": {
+            **gated.report,
+            **residual_report,
+            "max_correction": {"mm": max_correction_mm, "deg": max_correction_deg},
         },
         "warnings": warnings,
     }
