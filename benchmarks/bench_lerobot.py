@@ -18,7 +18,7 @@ from _timing import best_time
 
 from robocal.backends.sim.lerobot_arms import SimArm, SimArmOperator
 from robocal.lerobot import MotorCalibration, normalize, unnormalize
-from robocal.workflows.lerobot import calibrate, open_bus, robot_spec
+from robocal.workflows.lerobot import CalibrateRequest, calibrate, open_bus, robot_spec
 
 CALS = [MotorCalibration(i + 1, i % 2, 0, 900 + 20 * i, 3000 + 30 * i) for i in range(6)]
 MODES = ["degrees"] * 5 + ["range_0_100"]
@@ -108,7 +108,7 @@ def bench_calibration() -> None:
                 bus = open_bus(arm.spec, arm.port)
                 try:
                     t0 = time.perf_counter()
-                    calibrate(bus, arm.spec, SimArmOperator(arm), path=Path(tmp) / f"{k}.json")
+                    calibrate(bus, CalibrateRequest(arm.spec, path=Path(tmp) / f"{k}.json"), SimArmOperator(arm))
                     times.append(time.perf_counter() - t0)
                 finally:
                     bus.close()

@@ -25,7 +25,7 @@ from robocal.cli import _common
 from robocal.cli.main import main
 from robocal.errors import UsageError
 from robocal.lerobot import MotorCalibration
-from robocal.workflows.lerobot import calibrate, open_bus, robot_spec
+from robocal.workflows.lerobot import CalibrateRequest, calibrate, open_bus, robot_spec
 
 from .conftest import PREVIOUS, calibrate_args
 
@@ -84,7 +84,7 @@ def test_second_ctrl_c_during_rollback_restores_every_register(
         bus = CtrlCDuringRollback(open_bus(arm.spec, arm.port), at, direct=direct)
         try:
             with pytest.raises(KeyboardInterrupt) as info:
-                calibrate(bus, arm.spec, FirstCtrlC(arm, bus, 6), path=tmp_path / "c.json")  # type: ignore[arg-type]
+                calibrate(bus, CalibrateRequest(arm.spec, path=tmp_path / "c.json"), FirstCtrlC(arm, bus, 6))  # type: ignore[arg-type]
         finally:
             bus.close()
         assert bus.sent == len(at)  # the second (and third...) Ctrl-C really came during the rollback
@@ -102,7 +102,13 @@ def test_rollback_reports_that_it_is_restoring_and_each_deferred_ctrl_c(tmp_path
         try:
             with pytest.raises(KeyboardInterrupt):
                 calibrate(
-                    bus, arm.spec, FirstCtrlC(arm, bus, 3), path=tmp_path / "c.json", on_status=status.append
+                    bus,
+                    CalibrateRequest(
+                        arm.spec,
+                        path=tmp_path / "c.json",
+                    ),
+                    FirstCtrlC(arm, bus, 3),
+                    on_status=status.append,
                 )  # type: ignore[arg-type]
         finally:
             bus.close()
@@ -130,7 +136,7 @@ def test_rollback_names_exactly_the_motors_and_registers_not_restored(tmp_path: 
         bus = DiesDuringRollback(open_bus(arm.spec, arm.port), set())
         try:
             with pytest.raises(KeyboardInterrupt) as info:
-                calibrate(bus, arm.spec, FirstCtrlC(arm, bus, 6), path=tmp_path / "c.json")  # type: ignore[arg-type]
+                calibrate(bus, CalibrateRequest(arm.spec, path=tmp_path / "c.json"), FirstCtrlC(arm, bus, 6))  # type: ignore[arg-type]
         finally:
             bus.close()
         assert str(info.value) == (
@@ -241,7 +247,14 @@ def test_calibrate_into_read_only_folder_fails_before_any_motor_write(readonly_d
         op = SimArmOperator(arm)
         try:
             with pytest.raises(UsageError, match="cannot create folders in"):
-                calibrate(bus, arm.spec, op, path=readonly_dir / "robots" / "so_follower" / "a.json")  # type: ignore[arg-type]
+                calibrate(
+                    bus,
+                    CalibrateRequest(
+                        arm.spec,
+                        path=readonly_dir / "robots" / "so_follower" / "a.json",
+                    ),
+                    op,
+                )  # type: ignore[arg-type]
         finally:
             bus.close()
         assert bus.count == 0 and op.prompts == []  # no motor touched, no prompt shown
@@ -301,7 +314,15 @@ def test_ctrl_c_while_the_restoring_line_is_shown_is_deferred(tmp_path: Path) ->
 
         try:
             with pytest.raises(KeyboardInterrupt) as info:
-                calibrate(bus, arm.spec, FirstCtrlC(arm, bus, 3), path=tmp_path / "c.json", on_status=show)  # type: ignore[arg-type]
+                calibrate(
+                    bus,
+                    CalibrateRequest(
+                        arm.spec,
+                        path=tmp_path / "c.json",
+                    ),
+                    FirstCtrlC(arm, bus, 3),
+                    on_status=show,
+                )  # type: ignore[arg-type]
         finally:
             bus.close()
         assert info.value.args == ()

@@ -16,7 +16,7 @@ from robocal.cli.main import main
 from robocal.errors import CalibError, CalibTimeoutError
 from robocal.formats import read_calibration as read_joint_map
 from robocal.lerobot import MotorCalibration, normalize, read_calibration, unnormalize, write_calibration
-from robocal.workflows.lerobot import calibrate, configure, open_bus, restore, robot_spec
+from robocal.workflows.lerobot import CalibrateRequest, calibrate, configure, open_bus, restore, robot_spec
 
 from .conftest import PREVIOUS
 
@@ -218,7 +218,7 @@ def test_calibrate_rollback_skips_a_dead_motor_and_restores_the_others(tmp_path:
         bus = FaultyBus(open_bus(arm.spec, arm.port), 12 + 6 + 18 + 1, lambda: sim.silent_ids.add(2))
         try:
             with pytest.raises(CalibTimeoutError) as info:
-                calibrate(bus, arm.spec, SimArmOperator(arm), path=tmp_path / "c.json")  # type: ignore[arg-type]
+                calibrate(bus, CalibrateRequest(arm.spec, path=tmp_path / "c.json"), SimArmOperator(arm))  # type: ignore[arg-type]
         finally:
             bus.close()
         assert ("Homing_Offset", 1, 2100 - 2047) in bus.writes
@@ -394,7 +394,7 @@ def test_koch_leader_gripper_trigger(tmp_path: Path, capsys: pytest.CaptureFixtu
     with SimArm(robot_spec("koch_leader")) as arm:
         bus = open_bus(arm.spec, arm.port)
         try:
-            cals = calibrate(bus, arm.spec, SimArmOperator(arm), path=tmp_path / "lead.json").calibration
+            cals = calibrate(bus, CalibrateRequest(arm.spec, path=tmp_path / "lead.json"), SimArmOperator(arm)).calibration
         finally:
             bus.close()
         base = ["lerobot", "configure", "--robot", "koch_leader", "--port", arm.port]

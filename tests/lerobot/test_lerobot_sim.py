@@ -15,7 +15,7 @@ from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH, JointTruth, SimArm,
 from robocal.backends.sim.servo import SimServo, SimServoBus, dxl_crc16
 from robocal.errors import CalibTimeoutError, DeviceError, ProtocolError
 from robocal.lerobot import MotorCalibration, read_calibration
-from robocal.workflows.lerobot import calibrate, check, open_bus, restore, robot_spec
+from robocal.workflows.lerobot import CalibrateRequest, calibrate, check, open_bus, restore, robot_spec
 
 from .conftest import PREVIOUS
 
@@ -134,7 +134,15 @@ def _run(robot: str, tmp_path: Path, **kw: object) -> tuple[SimArm, dict[str, Mo
     arm = SimArm(robot_spec(robot), truth=kw.pop("truth", None), eeprom=kw.pop("eeprom", None)).start()  # type: ignore[arg-type]
     bus = open_bus(arm.spec, arm.port)
     try:
-        result = calibrate(bus, arm.spec, SimArmOperator(arm, **op_kw), path=tmp_path / "cal.json", **kw)  # type: ignore[arg-type]
+        result = calibrate(
+            bus,
+            CalibrateRequest(
+                arm.spec,
+                path=tmp_path / "cal.json",
+                **kw,
+            ),
+            SimArmOperator(arm, **op_kw),
+        )  # type: ignore[arg-type]
         return arm, result.calibration, result
     finally:
         bus.close()
@@ -236,7 +244,7 @@ def test_ctrl_c_restores_eeprom_and_leaves_file(tmp_path: Path, robot: str, wher
         before = arm.eeprom()
         assert before["gripper"]["Homing_Offset"] == PREVIOUS[robot]["gripper"]["Homing_Offset"]
         with pytest.raises(KeyboardInterrupt):
-            calibrate(bus, arm.spec, SimArmOperator(arm, **where), path=path)  # type: ignore[arg-type]
+            calibrate(bus, CalibrateRequest(arm.spec, path=path), SimArmOperator(arm, **where))  # type: ignore[arg-type]
         assert arm.eeprom() == before
         assert path.read_text() == "previous file\n"
         assert not (tmp_path / "cal.json.bak").exists()
@@ -271,7 +279,7 @@ def test_noisy_calibration_within_two_ticks(tmp_path: Path) -> None:
     arm = SimArm(robot_spec("so101_leader"), noise_ticks=1, seed=3).start()
     bus = open_bus(arm.spec, arm.port)
     try:
-        cals = calibrate(bus, arm.spec, SimArmOperator(arm), path=None, sweep_full_turn=True).calibration
+        cals = calibrate(bus, CalibrateRequest(arm.spec, path=None, sweep_full_turn=True), SimArmOperator(arm)).calibration
         for name, (lo, hi) in arm.recovered_stops(cals).items():
             t = arm.truth[name]
             assert abs(lo - t.stop_low_ticks) <= 2 and abs(hi - t.stop_high_ticks) <= 2, name

@@ -155,6 +155,7 @@ def calibrate(
         urdf=urdf,
     )
     from ..workflows.lerobot import (
+        CalibrateRequest,
         CalibrationNotSavedError,
         calibration_json,
         check_calibration_writable,
@@ -207,14 +208,16 @@ def calibrate(
         try:
             result = run(
                 bus,
-                spec,
+                CalibrateRequest(
+                    spec,
+                    path=path,
+                    home_after_sweep=home_after_sweep,
+                    sweep_full_turn=sweep_full_turn,
+                    snapshot_port=port if arm is None else None,
+                ),
                 operator,  # type: ignore[arg-type]
-                path=path,
-                home_after_sweep=home_after_sweep,
-                sweep_full_turn=sweep_full_turn,
                 on_sweep=update if web is None else web,
                 on_status=status_line,
-                snapshot_port=port if arm is None else None,
             )
         except KeyboardInterrupt as exc:
             close()

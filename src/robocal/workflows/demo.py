@@ -309,7 +309,7 @@ def _lerobot_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoRe
     """Calibrate the simulated follower and leader through the real SDK on a pty; recovered vs true stops."""
     from ..backends.sim.lerobot_arms import SimArm, SimArmOperator
     from ..formats.lerobot import calibration_path
-    from .lerobot import calibrate, open_bus, robot_spec
+    from .lerobot import CalibrateRequest, calibrate, open_bus, robot_spec
 
     ok = True
     sections = []
@@ -319,7 +319,7 @@ def _lerobot_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoRe
             bus = open_bus(spec, arm.port)
             try:
                 path = calibration_path(spec.kind, spec.device_name, "demo", root=folder)
-                result = calibrate(bus, spec, SimArmOperator(arm), path=path, sweep_full_turn=True)
+                result = calibrate(bus, CalibrateRequest(spec, path=path, sweep_full_turn=True), SimArmOperator(arm))
             finally:
                 bus.close()
             stops = arm.recovered_stops(result.calibration)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from .arms import norm_modes, open_arm, open_bus, robot_names, robot_spec, sim_operator
 from .calibrate import (
+    CalibrateRequest,
     CalibrationNotSavedError,
     CalibrationResult,
     Operator,
@@ -39,6 +40,7 @@ from .show import read_positions, require_motors
 
 __all__ = [
     "EEPROM_FIELDS",
+    "CalibrateRequest",
     "CalibrationNotSavedError",
     "CalibrationResult",
     "Difference",

@@ -40,6 +40,7 @@ from .files import check_calibration_writable
 from .guard import arm_guard
 
 __all__ = [
+    "CalibrateRequest",
     "CalibrationNotSavedError",
     "CalibrationResult",
     "Operator",
@@ -114,34 +115,47 @@ def save_calibration(
     except CalibError as exc:
         raise CalibrationNotSavedError(str(exc), calibration) from None
 
+@dataclass(frozen=True)
+class CalibrateRequest:
+    """One run of LeRobot's current calibration (``lerobot calibrate``): which arm, what to write, how to sweep.
+
+    The CLI builds it from its options; Python callers build it directly.
+
+    Attributes:
+        spec: The arm.
+        path: Where to write the LeRobot JSON (None: do not write).
+        home_after_sweep: Sweep first, then choose the homing so the travel is centred on the half turn.
+        sweep_full_turn: Also sweep the joints LeRobot forces to 0..4095 (#4583).
+        max_steps: Stop the sweep after this many readings (None: until the operator finishes).
+        snapshot_port: Keep the EEPROM snapshot in robocal's state folder under this port's name until the run
+            ends (:class:`~robocal.workflows.motion_guard.MotionGuard`); None: not kept (a simulated arm).
+    """
+
+    spec: RobotSpec
+    path: str | os.PathLike[str] | None = None
+    home_after_sweep: bool = False
+    sweep_full_turn: bool = False
+    max_steps: int | None = None
+    snapshot_port: str | None = None
+
+
 def calibrate(
     bus: ServoBus,
-    spec: RobotSpec,
+    request: CalibrateRequest,
     operator: Operator,
     *,
-    path: str | os.PathLike[str] | None = None,
-    home_after_sweep: bool = False,
-    sweep_full_turn: bool = False,
     on_sweep: Callable[[RangeView], None] | None = None,
-    max_steps: int | None = None,
     on_status: Callable[[str], None] | None = None,
-    snapshot_port: str | None = None,
 ) -> CalibrationResult:
     """Run LeRobot's current calibration with robocal's fixes and write the JSON file.
 
     Args:
         bus: The arm's bus.
-        spec: The arm.
+        request: The arm, the file and the sweep settings (:class:`CalibrateRequest`).
         operator: Moves the arm and confirms steps.
-        path: Where to write the LeRobot JSON (None: do not write).
-        home_after_sweep: Sweep first, then choose the homing so the travel is centred on the half turn.
-        sweep_full_turn: Also sweep the joints LeRobot forces to 0..4095 (#4583).
         on_sweep: Called after each reading of the sweep (live table).
-        max_steps: Stop the sweep after this many readings (None: until the operator finishes).
         on_status: Called with a one-line status while the previous EEPROM is being restored (and for each
             Ctrl-C deferred meanwhile).
-        snapshot_port: Keep the EEPROM snapshot in robocal's state folder under this port's name until the run
-            ends (:class:`~robocal.workflows.motion_guard.MotionGuard`); None: not kept (a simulated arm).
 
     Returns:
         The calibration, the file written and notes.
@@ -153,6 +167,9 @@ def calibrate(
         KeyboardInterrupt: Re-raised after the EEPROM was restored (Ctrl-C is deferred while restoring); no
             file written. Its argument names the motors and registers that could not be restored.
     """
+    req = request
+    spec, path, home_after_sweep, sweep_full_turn = req.spec, req.path, req.home_after_sweep, req.sweep_full_turn
+    max_steps, snapshot_port = req.max_steps, req.snapshot_port
     if path is not None:
         # refuse an impossible output (read-only folder, full disk, ...) before any EEPROM write or sweep
         check_calibration_writable(path)
