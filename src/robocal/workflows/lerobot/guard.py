@@ -73,13 +73,21 @@ def arm_guard(
     command: str,
     on_status: Callable[[str], None] | None = None,
     snapshot_port: str | None = None,
+    arm: Callable[[], None] | None = None,
+    disarm: Callable[[], None] | None = None,
 ) -> MotionGuard:
-    """The guard of ``bus`` (``snapshot_port``: keep the snapshot in the state folder under that port's name)."""
+    """The guard of ``bus`` (``snapshot_port``: keep the snapshot in the state folder under that port's name).
+
+    ``arm`` / ``disarm``: called when the guard is entered and when it is left (cleanly or after the limp), e.g.
+    a host-loss watchdog of the motors (Dynamixel ``Bus_Watchdog``).
+    """
     return MotionGuard(
         limp=lambda: limp_arm(bus, spec),
         restore=lambda snap: restore_registers(bus, spec, snap, on_status),
         on_status=on_status,
         store=SnapshotStore(snapshot_port, command) if snapshot_port is not None else None,
+        arm=arm,
+        disarm=disarm,
     )
 
 
