@@ -17,7 +17,14 @@ from types import FrameType
 import typer
 
 from ..errors import UsageError
-from ..workflows.sim import ARM_ROBOTS, ServedDevice, serve_arm, serve_lite, serve_ur
+from ..workflows.sim import (
+    ARM_ROBOTS,
+    UR_STANDARD_BASE_PORT,
+    ServedDevice,
+    serve_arm,
+    serve_lite,
+    serve_ur,
+)
 from . import _common
 
 app = typer.Typer(
@@ -136,12 +143,32 @@ def lite(
 
 @app.command("ur")
 def ur(
-    port: int = typer.Option(30001, "--port", min=0, max=65535, help="TCP port (0: any free port)."),
+    port: int | None = typer.Option(
+        None, "--port", min=0, max=65535, help="Primary interface port alone (0: any free port; default 30001)."
+    ),
     host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on (loopback by default)."),
     dh: str | None = typer.Option(None, "--dh", help="DH YAML the controller reports."),
     model: str | None = typer.Option(None, "--model", help="UR model: its nominal DH (+ --deltas)."),
     deltas: str | None = typer.Option(None, "--deltas", help="Calibration deltas added to --model's DH."),
+    standard_ports: bool = typer.Option(
+        False,
+        "--standard-ports",
+        help="Serve all ports as a controller does: dashboard 29999, primary 30001, secondary 30002, real-time 30003.",
+    ),
+    base_port: int | None = typer.Option(
+        None,
+        "--base-port",
+        help="Serve all ports at these offsets from N: dashboard N, primary N+2, secondary N+3, real-time N+4 "
+        "(0: each on any free port).",
+    ),
 ) -> None:
-    """Serve a simulated UR controller's primary interface on TCP until Ctrl-C (default: a calibrated UR10e, as the UR demo)."""
-    with serve_ur(port=port, host=host, dh=dh, model=model, deltas=deltas) as device:
+    """Serve a simulated UR controller on TCP until Ctrl-C: its primary interface, or with --standard-ports / --base-port all its ports (default: a calibrated UR10e, as the UR demo)."""
+    chosen = [o for o, given in (("--port", port is not None), ("--standard-ports", standard_ports),
+                                 ("--base-port", base_port is not None)) if given]  # fmt: skip
+    if len(chosen) > 1:
+        raise UsageError(f"give one of --port, --standard-ports and --base-port, not {' and '.join(chosen)}")
+    base = UR_STANDARD_BASE_PORT if standard_ports else base_port
+    with serve_ur(
+        port=30001 if port is None else port, host=host, dh=dh, model=model, deltas=deltas, base_port=base
+    ) as device:
         _serve(device, view=False)

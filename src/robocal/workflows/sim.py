@@ -16,7 +16,16 @@ from typing import Any
 
 from ..errors import DeviceError, UsageError
 
-__all__ = ["ARM_ROBOTS", "LITE_CHANNELS", "ServedDevice", "serve_arm", "serve_lite", "serve_ur"]
+__all__ = [
+    "ARM_ROBOTS",
+    "LITE_CHANNELS",
+    "UR_PORT_OFFSETS",
+    "UR_STANDARD_BASE_PORT",
+    "ServedDevice",
+    "serve_arm",
+    "serve_lite",
+    "serve_ur",
+]
 
 ARM_ROBOTS: tuple[str, ...] = ("so101_follower", "so101_leader", "koch_follower", "koch_leader")
 """LeRobot arms ``robocal sim`` serves on a pseudo-terminal."""
@@ -169,6 +178,18 @@ def serve_lite(
         yield ServedDevice(f"Lite on {interface}", lines, session.operator)
 
 
+UR_PORT_OFFSETS: tuple[tuple[str, int], ...] = (
+    ("dashboard", 0),
+    ("primary", 2),
+    ("secondary", 3),
+    ("real-time", 4),
+)
+"""A UR controller's ports as offsets from the dashboard's: 29999, 30001, 30002, 30003 from base 29999."""
+
+UR_STANDARD_BASE_PORT = 29999
+"""The dashboard's port on a real controller."""
+
+
 @contextlib.contextmanager
 def serve_ur(
     *,
@@ -177,37 +198,74 @@ def serve_ur(
     dh: str | None = None,
     model: str | None = None,
     deltas: str | None = None,
+    base_port: int | None = None,
 ) -> Iterator[ServedDevice]:
-    """Serve a simulated UR controller's primary interface on TCP.
+    """Serve a simulated UR controller on TCP: its primary interface, or all its ports.
 
     Without ``dh``, ``model`` and ``deltas`` it is a UR10e with a factory calibration (the UR demo's).
 
+    Args:
+        port: Primary interface port when ``base_port`` is None (0: any free port).
+        host: Address to listen on.
+        dh: DH YAML the controller reports.
+        model: UR model (its nominal DH, plus ``deltas``).
+        deltas: Calibration deltas added to ``model``'s DH.
+        base_port: Serve every port of :data:`UR_PORT_OFFSETS` (dashboard, primary, secondary, real-time) at
+            ``base_port`` + offset (29999: the standard ports; 0: each on any free port).
+
     Raises:
-        DeviceError: The address cannot be listened on.
-        UsageError, FileFormatError: Bad DH inputs.
+        DeviceError: An address cannot be listened on.
+        UsageError, FileFormatError: Bad DH inputs, or a base port whose last port passes 65535.
     """
+    from ..backends.sim.ur_arm_state import UrArmState
     from ..backends.sim.ur_controller import SimUrController
+    from ..backends.sim.ur_dashboard import SimUrDashboard
+    from ..backends.sim.ur_realtime import SimUrRealtime
     from ..core.ur import TEST_SET_3_DELTAS, nominal_dh
     from .ur import load_dh_input
 
+    last = UR_PORT_OFFSETS[-1][1]
+    if base_port is not None and not 0 <= base_port <= 65535 - last:
+        raise UsageError(f"--base-port {base_port}: expected 0 (any free ports) or 1..{65535 - last}")
     warnings: list[str] = []
     if dh is None and model is None and deltas is None:
         params = nominal_dh("ur10e") + TEST_SET_3_DELTAS
         what = "UR10e with a factory calibration (the deltas of robocal's UR demo)"
+        model = "ur10e"
     else:
         params = load_dh_input(dh, model, deltas, warnings=warnings)
         what = (
             f"DH from {dh}" if dh is not None else f"{model} nominal DH" + (f" + {deltas}" if deltas else "")
         )
-    try:
-        controller = SimUrController(params, host=host, port=port)
-    except OSError as exc:
-        raise DeviceError(f"cannot listen on {host}:{port} ({exc.strerror or exc})") from None
-    with controller:
-        bound_host, bound_port = controller.address
-        lines = (
+    arm = UrArmState(model=(model or "ur10e").upper().removesuffix("E"))
+    makers: dict[str, Callable[[int], Any]] = {
+        "dashboard": lambda p: SimUrDashboard(arm, host=host, port=p),
+        "primary": lambda p: SimUrController(params, host=host, port=p, arm=arm),
+        "secondary": lambda p: SimUrController(params, host=host, port=p, arm=arm),
+        "real-time": lambda p: SimUrRealtime(params, arm, host=host, port=p),
+    }
+    wanted = (
+        [("primary", port)]
+        if base_port is None
+        else [(name, base_port + off if base_port else 0) for name, off in UR_PORT_OFFSETS]
+    )
+    with contextlib.ExitStack() as stack:
+        served: dict[str, tuple[str, int]] = {}
+        for name, p in wanted:
+            try:
+                server = makers[name](p)
+            except OSError as exc:
+                raise DeviceError(f"cannot listen on {host}:{p} ({exc.strerror or exc})") from None
+            stack.enter_context(server)
+            served[name] = server.address
+        bound_host, bound_port = served["primary"]
+        lines = [f"{name}: {h}:{p}" for name, (h, p) in served.items() if name != "primary"]
+        ports = "primary interface" if base_port is None else "dashboard, primary, secondary and real-time"
+        lines += [
             f"address: {bound_host}:{bound_port}",
-            f"simulated UR controller, primary interface ({what}); Ctrl-C stops it",
+            f"simulated UR controller, {ports} ({what}); Ctrl-C stops it",
             f"try: robocal ur extract --host {bound_host} --port {bound_port} --out kinematics.yaml",
+        ]
+        yield ServedDevice(
+            f"UR controller on {bound_host}:{bound_port}", tuple(lines), warnings=tuple(warnings)
         )
-        yield ServedDevice(f"UR controller on {bound_host}:{bound_port}", lines, warnings=tuple(warnings))

@@ -9,13 +9,11 @@ docs/sim.md (UR section).
 
 from __future__ import annotations
 
-import contextlib
 import socket
-import threading
 from collections.abc import Callable
 
 from ...core.lifecycle import StartsOnEnter
-from ._sockets import accept_loop
+from ._sockets import LoopbackServer
 from .ur_arm_state import UrArmState
 
 __all__ = ["DASHBOARD_GREETING", "SimUrDashboard", "dashboard_reply"]
@@ -82,7 +80,7 @@ def dashboard_reply(arm: UrArmState, line: str, *, version: str = "5.8.0.0") -> 
     return f"Could not understand: '{cmd}'"
 
 
-class SimUrDashboard(StartsOnEnter):
+class SimUrDashboard(LoopbackServer, StartsOnEnter):
     """Loopback dashboard server on a real TCP socket (context manager).
 
     Args:
@@ -98,79 +96,25 @@ class SimUrDashboard(StartsOnEnter):
     def __init__(
         self, arm: UrArmState, *, host: str = "127.0.0.1", port: int = 0, version: str = "5.8.0.0"
     ) -> None:
+        super().__init__(host=host, port=port, name="sim-ur-dashboard")
         self.arm = arm
         self.version = version
-        self._stop = threading.Event()
-        self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            self._listener.bind((host, port))
-            self._listener.listen(32)
-        except OSError:
-            self._listener.close()
-            raise
-        self._listener.settimeout(0.05)
-        self._lock = threading.Lock()
-        self._clients: dict[socket.socket, threading.Thread] = {}
-        self._accepter: threading.Thread | None = None
-
-    @property
-    def address(self) -> tuple[str, int]:
-        """``(host, port)`` the server listens on."""
-        host, port = self._listener.getsockname()[:2]
-        return str(host), int(port)
-
-    def start(self) -> SimUrDashboard:
-        """Accept connections in a background thread."""
-        self._accepter = threading.Thread(
-            target=accept_loop, args=(self._listener, self._stop, self._accepted), daemon=True
-        )
-        self._accepter.start()
-        return self
-
-    def stop(self, timeout_s: float = 2.0) -> None:
-        """Stop accepting, close every connection, join the threads (with a timeout)."""
-        self._stop.set()
-        with self._lock:
-            clients = dict(self._clients)
-        for conn in clients:
-            with contextlib.suppress(OSError):
-                conn.shutdown(socket.SHUT_RDWR)
-        for t in [*clients.values(), *([self._accepter] if self._accepter else [])]:
-            t.join(timeout_s)
-        with contextlib.suppress(OSError):
-            self._listener.close()
-
-    def _accepted(self, conn: socket.socket) -> None:
-        t = threading.Thread(target=self._serve, args=(conn,), name="sim-ur-dashboard", daemon=True)
-        with self._lock:
-            self._clients[conn] = t
-        t.start()
 
     def _serve(self, conn: socket.socket) -> None:
-        try:
-            conn.settimeout(None)
-            conn.sendall((DASHBOARD_GREETING + "\n").encode())
-            buf = b""
-            while not self._stop.is_set():
-                data = conn.recv(4096)
-                if not data:
+        conn.settimeout(None)
+        conn.sendall((DASHBOARD_GREETING + "\n").encode())
+        buf = b""
+        while not self.stopping:
+            data = conn.recv(4096)
+            if not data:
+                return
+            buf += data
+            while b"\n" in buf:
+                raw, buf = buf.split(b"\n", 1)
+                line = raw.decode("ascii", "replace")
+                conn.sendall((dashboard_reply(self.arm, line, version=self.version) + "\n").encode())
+                if line.strip().lower() == "quit":
                     return
-                buf += data
-                while b"\n" in buf:
-                    raw, buf = buf.split(b"\n", 1)
-                    line = raw.decode("ascii", "replace")
-                    reply = dashboard_reply(self.arm, line, version=self.version)
-                    conn.sendall((reply + "\n").encode())
-                    if line.strip().lower() == "quit":
-                        return
-                if len(buf) > _MAX_LINE_BYTES:  # no newline in sight: answer and drop it
-                    conn.sendall((dashboard_reply(self.arm, buf.decode("ascii", "replace")) + "\n").encode())
-                    buf = b""
-        except OSError:
-            return
-        finally:
-            with contextlib.suppress(OSError):
-                conn.close()
-            with self._lock:
-                self._clients.pop(conn, None)
+            if len(buf) > _MAX_LINE_BYTES:  # no newline in sight: answer and drop it
+                conn.sendall((dashboard_reply(self.arm, buf.decode("ascii", "replace")) + "\n").encode())
+                buf = b""
