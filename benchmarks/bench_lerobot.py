@@ -5,6 +5,11 @@
 * one SYNC_READ of 6 Present_Position registers vs 6 single READs, through the unmodified vendor SDKs and the
   pseudo-terminal simulator (Feetech and Dynamixel);
 * a whole simulated SO-101 calibration (mid pose, 25-reading sweep, EEPROM writes, JSON file).
+
+Targets for the normalisation (issue 27): at least fc3533f's speed, ≥ 17× (normalize) and ≥ 28× (unnormalize)
+LeRobot's loop in the same run. Measured 2026-11-28 on the shared 2-core machine (load average 11–13), three
+alternating runs per version: fc3533f 8–24× / 23–41×; main before the column-group kernels (two runs) 11–16× /
+10–14×; now 31–38× / 44–56× (1.0–1.3 M / 1.2–1.4 M rows/s); the table is in docs/lerobot.md.
 """
 
 from __future__ import annotations
@@ -57,7 +62,7 @@ def _lerobot_loop_unnormalize(values: np.ndarray) -> list[list[int]]:
 
 def _row(what: str, ours: float, base: float, unit: str, n: int) -> None:
     print(
-        f"{what:<48} robocal {n / ours:>12,.0f} {unit}   baseline {n / base:>12,.0f} {unit}   ratio {base / ours:6.1f}x"
+        f"{what:<64} robocal {n / ours:>12,.0f} {unit}   baseline {n / base:>12,.0f} {unit}   ratio {base / ours:6.1f}x"
     )
 
 
@@ -68,12 +73,12 @@ def bench_normalize() -> None:
     ours = best_time(lambda: normalize(raw, CALS, MODES))
     base = best_time(lambda: _lerobot_loop_normalize(raw), repeat=1)
     assert np.array_equal(normalize(raw, CALS, MODES), np.array(_lerobot_loop_normalize(raw)))
-    _row("normalize (100k x 6) vs LeRobot per-motor loop", ours, base, "rows/s", t)
+    _row("normalize (100k x 6) vs LeRobot per-motor loop [target >= 17x]", ours, base, "rows/s", t)
     vals = normalize(raw, CALS, MODES)
     ours = best_time(lambda: unnormalize(vals, CALS, MODES))
     base = best_time(lambda: _lerobot_loop_unnormalize(vals), repeat=1)
     assert unnormalize(vals, CALS, MODES).tolist() == _lerobot_loop_unnormalize(vals)
-    _row("unnormalize (100k x 6) vs LeRobot per-motor loop", ours, base, "rows/s", t)
+    _row("unnormalize (100k x 6) vs LeRobot per-motor loop [target >= 28x]", ours, base, "rows/s", t)
     ours = best_time(
         lambda: unnormalize(normalize(raw, CALS, MODES, compat="exact"), CALS, MODES, compat="exact")
     )

@@ -61,13 +61,13 @@ def _as_float_array(x: npt.ArrayLike, what: str) -> FloatArray:
         name = _KIND_NAMES.get(kind, f"dtype {probe.dtype}")
         raise InvalidCalibrationError(f"{what} contains {name} ({x!r:.60}); expected real numbers")
     with np.errstate(invalid="ignore", over="ignore"):
-        arr: FloatArray = probe.astype(np.float64)
+        arr: FloatArray = probe.astype(np.float64, copy=False)  # never written to by the kernels
     return arr
 
 
 def _to_ticks(x: npt.NDArray[np.floating[Any]], what: str) -> IntArray:
     """Whole-valued float ticks → int64, refusing values an int64 cannot hold (instead of wrapping)."""
-    if np.any(np.abs(x) >= 2.0**63):
+    if x.size and (x.max() >= 2.0**63 or x.min() <= -(2.0**63)):  # |x| >= 2**63, without a temporary array
         raise InvalidCalibrationError(
             f"{what}: the resulting ticks exceed the int64 range (largest |value| {np.max(np.abs(x)):g})"
         )

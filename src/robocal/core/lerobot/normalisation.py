@@ -178,18 +178,49 @@ def normalize_array(
     x, lo, hi, dm, mc, resolution = _inputs(
         raw_ticks, "raw", range_min, range_max, drive_mode, mode_codes, apply_drive_mode, resolution
     )
-    bounded = np.minimum(hi, np.maximum(lo, x))
-    frac = (bounded - lo) / (hi - lo)
-    m100 = frac * 200 - 100
-    m100 = np.where(dm, -m100, m100)
-    p100 = frac * 100
-    p100 = np.where(dm, 100 - p100, p100)
-    mid = (lo + hi) / 2
     per_turn, dm_deg = _degrees_setup(dm, compat, convention, resolution)
-    deg = (x - mid) * 360 / per_turn
-    deg = np.where(dm_deg, -deg, deg)
-    out: FloatArray = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
+    out: FloatArray = np.empty(x.shape)
+    for code, cols in _mode_groups(mc):
+        xs = x[..., cols]  # a view for a run of columns
+        if code == 2:  # DEGREES: (x − mid) · 360 / per_turn, negated for an inverted motor
+            buf = np.subtract(xs, ((lo + hi) / 2)[cols])
+            buf *= 360
+            buf /= per_turn
+            _flip(buf, dm_deg[cols], 0.0)
+        else:  # the ranges: frac = (clip(x) − lo) / (hi − lo); frac·200 − 100 or frac·100 (100 − that inverted)
+            buf = np.maximum(xs, lo[cols])
+            np.minimum(buf, hi[cols], out=buf)
+            buf -= lo[cols]
+            buf /= (hi - lo)[cols]
+            if code == 0:
+                buf *= 200
+                buf -= 100
+                _flip(buf, dm[cols], 0.0)
+            else:
+                buf *= 100
+                _flip(buf, dm[cols], 100.0)
+        out[..., cols] = buf
     return out
+
+
+def _mode_groups(mc: IntArray) -> list[tuple[int, slice | IntArray]]:
+    """``(mode code, its columns)`` for each mode present: a slice for a run of columns, else their indices."""
+    groups: list[tuple[int, slice | IntArray]] = []
+    for code in (0, 1, 2):
+        idx = np.flatnonzero(mc == code)
+        if idx.size:
+            run = idx[-1] - idx[0] + 1 == idx.size
+            groups.append((code, slice(int(idx[0]), int(idx[-1]) + 1) if run else idx))
+    return groups
+
+
+def _flip(buf: FloatArray, inverted: npt.NDArray[np.bool_], around: float) -> None:
+    """``around − buf`` in place in the inverted columns (−buf for ``around`` 0; IEEE: the same bits)."""
+    if inverted.any():
+        sign = np.where(inverted, -1.0, 1.0)
+        buf *= sign
+        if around:
+            buf += np.where(inverted, around, 0.0)
 
 
 def unnormalize_array(
@@ -215,18 +246,35 @@ def unnormalize_array(
     v, lo, hi, dm, mc, resolution = _inputs(
         values, "values", range_min, range_max, drive_mode, mode_codes, apply_drive_mode, resolution
     )
-    vm = np.where(dm, -v, v)
-    m100 = (np.minimum(100.0, np.maximum(-100.0, vm)) + 100) / 200 * (hi - lo) + lo
-    vp = np.where(dm, 100 - v, v)
-    p100 = np.minimum(100.0, np.maximum(0.0, vp)) / 100 * (hi - lo) + lo
-    mid = (lo + hi) / 2
     per_turn, dm_deg = _degrees_setup(dm, compat, convention, resolution)
-    vd = np.where(dm_deg, -v, v)
-    deg = vd * per_turn / 360 + mid
-    out = np.where(mc == 0, m100, np.where(mc == 1, p100, deg))
+    out: FloatArray = np.empty(v.shape)
+    for code, cols in _mode_groups(mc):
+        buf = np.array(v[..., cols])
+        if code == 2:  # DEGREES: v · per_turn / 360 + mid (v negated for an inverted motor)
+            _flip(buf, dm_deg[cols], 0.0)
+            buf *= per_turn
+            buf /= 360
+            buf += ((lo + hi) / 2)[cols]
+        else:  # the ranges: clip, (v + 100) / 200 or v / 100, · (hi − lo) + lo (−v or 100 − v inverted)
+            _flip(buf, dm[cols], 0.0 if code == 0 else 100.0)
+            np.maximum(buf, -100.0 if code == 0 else 0.0, out=buf)
+            np.minimum(buf, 100.0, out=buf)
+            if code == 0:
+                buf += 100
+                buf /= 200
+            else:
+                buf /= 100
+            buf *= (hi - lo)[cols]
+            buf += lo[cols]
+        out[..., cols] = buf
     if compat == "lerobot":
-        return _to_ticks(np.trunc(out), "values")
-    return _to_ticks(np.sign(out) * np.floor(np.abs(out) + 0.5), "values")
+        np.trunc(out, out=out)
+    else:  # half away from zero
+        away = np.abs(out)
+        away += 0.5
+        np.floor(away, out=away)
+        out = np.copysign(away, out, out=away)
+    return _to_ticks(out, "values")
 
 
 # ------------------------------------------------------------------ per-motor dispatch (public API)
