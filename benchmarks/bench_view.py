@@ -47,7 +47,7 @@ import browserlib  # noqa: E402
 from robocal.viewer import ViewerApp, load_robot_model  # noqa: E402
 from robocal.viewer.feeds import CallableFeed  # noqa: E402
 from robocal.viewer.latest import next_tick  # noqa: E402
-from robocal.viewer.scene import _wxyz  # noqa: E402
+from robocal.viewer.scene import wxyz_from_matrix  # noqa: E402
 
 LITE_URDF = REPO / "examples" / "lite" / "lite_bimanual.urdf"
 WINDOW_S = float(os.environ.get("VIEW_BENCH_WINDOW_S", "8"))
@@ -229,7 +229,7 @@ def run_baseline(page: Any | None) -> dict[str, float]:
             _, local = model.poses(fn(time.monotonic() - start))
             with server.atomic():
                 for link, T in local.items():
-                    frames[link].wxyz = _wxyz(T[:3, :3])
+                    frames[link].wxyz = wxyz_from_matrix(T[:3, :3])
                     frames[link].position = tuple(float(v) for v in T[:3, 3])
                 count[0] += 1
                 counter.content = f'<div id="baseline" data-updates="{count[0]}"></div>'

@@ -1,7 +1,8 @@
 """Run the benchmarks: ``.venv/bin/python benchmarks/run.py [NAME ...]``.
 
-Without a name it runs the fast set (each benchmark a few seconds to a few minutes); the acceptance runs
-(thousands of seeded simulator runs, up to an hour and more) run only when named. ``--list`` prints every name
+Without a name it runs the fast set (each benchmark a few seconds to a few minutes, about 20 minutes in all); the
+long runs (the acceptance runs, thousands of seeded simulator runs, and the scaling run to 10^6 joints; up to an
+hour and more) run only when named. ``--list`` prints every name
 with its set and expected duration. An unknown name is refused (exit 2) before anything runs. Arguments from the
 first ``--option`` on go to each named benchmark's ``main(argv)`` (``python benchmarks/run.py faults --trials
 1000``).
@@ -25,13 +26,14 @@ class Benchmark:
 
     Attributes:
         name: What ``run.py`` takes (the file name without ``bench_`` and ``.py``).
-        acceptance: True for a long acceptance run (only run when named).
-        duration: Expected wall time on a 2-core machine, as text.
+        long: True for a long run (acceptance, scaling): only run when named.
+        duration: Expected wall time on a 2-core machine shared with other work (measured 2026-11-28, load
+            average 11-17; an idle machine is faster), as text.
         what: What it measures, one line.
     """
 
     name: str
-    acceptance: bool
+    long: bool
     duration: str
     what: str
 
@@ -43,13 +45,13 @@ BENCHMARKS = (
     ),
     Benchmark("ur", False, "~20 s", "batched DH forward kinematics, correction, hash"),
     Benchmark("sweep", False, "~30 s", "sweep tracking and replay throughput"),
-    Benchmark("kinematics", False, "~6 min", "identification of 200 poses; accuracy over seeds 0-19"),
-    Benchmark("dataset", False, "~1 min", "dataset recalibration vs a plain pyarrow copy (2,000,000 frames)"),
-    Benchmark("replay", False, "~2 min", "replay memory and time for 10^4 ... 10^6 rows (180 MB temp file)"),
-    Benchmark(
-        "scaling", False, "~5 min", "every file operation for 10^3 ... 10^6 joints (20 s budget per size)"
-    ),
+    Benchmark("kinematics", False, "~4 min", "identification of 200 poses; accuracy over seeds 0-19"),
+    Benchmark("dataset", False, "~4 min", "dataset recalibration vs a plain pyarrow copy (2,000,000 frames)"),
+    Benchmark("replay", False, "~8 min", "replay memory and time for 10^4 ... 10^6 rows (180 MB temp file)"),
     Benchmark("view", False, "~2 min", "robocal view in headless Chromium vs bare viser"),
+    Benchmark(
+        "scaling", True, "~65 min", "every file operation for 10^3 ... 10^6 joints (20 s budget per size)"
+    ),
     Benchmark(
         "kinematics_tag_prior", True, "~15 min", "camera-session plans with and without --prior (docs table)"
     ),
@@ -67,7 +69,7 @@ BENCHMARKS = (
 """Every benchmark, fast set first."""
 
 BY_NAME = {b.name: b for b in BENCHMARKS}
-FAST_SET = tuple(b.name for b in BENCHMARKS if not b.acceptance)
+FAST_SET = tuple(b.name for b in BENCHMARKS if not b.long)
 """What a run without names runs."""
 
 
@@ -75,7 +77,7 @@ def listing() -> str:
     """Every benchmark with its set and expected duration (what ``--list`` prints)."""
     lines = ["benchmarks (python benchmarks/run.py NAME ...; no name: the fast set):"]
     for b in BENCHMARKS:
-        kind = "acceptance, by name only" if b.acceptance else "fast set"
+        kind = "long, by name only" if b.long else "fast set"
         lines.append(f"  {b.name:22s} {b.duration:>8s}  {kind:24s}  {b.what}")
     return "\n".join(lines)
 
@@ -133,9 +135,9 @@ def main(argv: list[str]) -> int:
         return 2
     names = list(dict.fromkeys(argv)) or list(FAST_SET)
     if not argv:
-        long_runs = ", ".join(f"{b.name} ({b.duration})" for b in BENCHMARKS if b.acceptance)
+        long_runs = ", ".join(f"{b.name} ({b.duration})" for b in BENCHMARKS if b.long)
         print(
-            f"the fast set: {', '.join(FAST_SET)}; the acceptance runs only by name: {long_runs}\n",
+            f"the fast set: {', '.join(FAST_SET)}; the long runs only by name: {long_runs}\n",
             flush=True,
         )
     failed = {}

@@ -58,7 +58,7 @@ def test_benchmark_runner_refuses_unknown_names_before_running_anything() -> Non
     assert (r.returncode, r.stdout) == (2, "")  # not even jointmap ran
     assert r.stderr == (
         "error: unknown benchmarks 'all', 'nosuch'; valid: jointmap, lerobot, ur, sweep, kinematics, dataset, "
-        "replay, scaling, view, kinematics_tag_prior, autocal, autocal_wire, autocal_servo, faults (--list shows "
+        "replay, view, scaling, kinematics_tag_prior, autocal, autocal_wire, autocal_servo, faults (--list shows "
         "what each measures and how long it takes)\n"
     )
 
@@ -67,8 +67,8 @@ def test_every_benchmark_file_is_listed_with_its_set_and_duration() -> None:
     run = load_runner()
     files = {p.stem.removeprefix("bench_") for p in (ROOT / "benchmarks").glob("bench_*.py")}
     assert set(run.BY_NAME) == files
-    acceptance = {b.name for b in run.BENCHMARKS if b.acceptance}
-    assert acceptance == {"kinematics_tag_prior", "autocal", "autocal_wire", "autocal_servo", "faults"}
+    long = {b.name for b in run.BENCHMARKS if b.long}
+    assert long == {"scaling", "kinematics_tag_prior", "autocal", "autocal_wire", "autocal_servo", "faults"}
     r = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "run.py"), "--list"],
         capture_output=True,
@@ -77,7 +77,7 @@ def test_every_benchmark_file_is_listed_with_its_set_and_duration() -> None:
         check=False,
     )
     assert r.returncode == 0 and r.stderr == ""
-    assert re.search(r"\n  autocal_servo +~65 min  acceptance, by name only  auto-calibration on the servo", r.stdout)
+    assert re.search(r"\n  autocal_servo +~65 min  long, by name only +auto-calibration on the servo", r.stdout)
     assert re.search(r"\n  jointmap +~5 s  fast set  ", r.stdout)
 
 
@@ -86,8 +86,9 @@ def test_a_run_without_names_is_the_fast_set(monkeypatch: pytest.MonkeyPatch, ca
     ran: list[str] = []
     monkeypatch.setattr(run, "_run", lambda name: ran.append(name))
     assert run.main([]) == 0
-    assert ran == ["jointmap", "lerobot", "ur", "sweep", "kinematics", "dataset", "replay", "scaling", "view"]
-    assert "the acceptance runs only by name: kinematics_tag_prior (~15 min), autocal (~5 min)" in capsys.readouterr().out
+    assert ran == ["jointmap", "lerobot", "ur", "sweep", "kinematics", "dataset", "replay", "view"]
+    out = capsys.readouterr().out
+    assert "the long runs only by name: scaling (~65 min), kinematics_tag_prior (~15 min), autocal (~5 min)" in out
     ran.clear()
     monkeypatch.setattr(run, "_run", lambda name: ran.append(name) or ("below target" if name == "ur" else None))
     assert run.main(["ur", "jointmap", "ur"]) == 1  # a failed one does not stop the others; each runs once
@@ -106,11 +107,11 @@ def test_readme_benchmark_commands_work_as_written_on_a_fresh_clone() -> None:
         for argv in commands(line):
             assert argv[:2] == [".venv/bin/python", "benchmarks/run.py"], line
             names = [a for a in argv[2:] if not a.startswith("-")]
-            assert set(names) <= set(run.BY_NAME) - {b.name for b in run.BENCHMARKS if b.acceptance}, line
+            assert set(names) <= set(run.BY_NAME), line
     assert "python benchmarks/run.py" not in README.replace(".venv/bin/python benchmarks/run.py", "")
     section = " ".join(README.split("\n## Benchmarks\n", 1)[1].split())
     for b in run.BENCHMARKS:
-        if b.acceptance:  # each long run named with how long it takes
+        if b.long:  # each long run named with how long it takes
             assert f"`{b.name}` ({b.duration})" in section, b.name
 
 
