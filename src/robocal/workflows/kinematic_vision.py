@@ -42,7 +42,7 @@ from ..formats.kinematic_data import read_image_session
 from ..formats.urdf import UrdfDocument
 from ..formats.urdf_chain import chain_from_urdf
 from . import kinematic_report as kr
-from .kinematic_export import check_export_paths
+from .kinematic_export import check_export_paths, check_ur_chain
 from .kinematic_fit import FitResult, PriorSigmas, check_seed, fit
 
 __all__ = [
@@ -270,6 +270,8 @@ def identify_images(
     cam = read_camera_info(camera)
     doc = UrdfDocument.load(urdf)
     chain = chain_from_urdf(doc.model(), base_link, tip_link)
+    if ur_yaml is not None:
+        check_ur_chain(chain)  # before any image is read: an option that cannot work is the first thing to say
     q, images = read_image_session(data, chain.joint_names)
     chain.check_q(q, what=f"{data}: pose")
     obs, rows, warnings = detect_session(q, images, tgt, cam)
