@@ -14,7 +14,10 @@ servo up to it; its status packets carry its fault bits; its replies are lost wh
 Dynamixel REBOOT (0x08) clears a hardware error.
 
 Dynamixel EEPROM (addresses < 64) is read-only while torque is on (Access error); Feetech EEPROM writes are
-refused with Lock = 1 only when ``enforce_lock`` is set.
+refused with Lock = 1 only when ``enforce_lock`` is set. Registers start at the model's factory values
+(:mod:`.servo_defaults`); a servo answers only what its status return level allows (Feetech
+``Response_Status_Level`` 0: PING and READ); Feetech ``Torque_Enable`` 128 is "set middle" and ``Torque_Limit`` 0
+means no torque (:meth:`SimServo.apply_set_middle`, :attr:`SimServo.drives`).
 
 Bus behaviour as on hardware: a servo answers the id in its ``ID`` register (not the one it was built with),
 only while it is plugged in (:attr:`SimServo.attached`) and only at its own baud rate (``Baud_Rate`` register).
@@ -319,6 +322,7 @@ class SimServoBus(StartsOnEnter):
             lock_addr = servo.table[lock][0]
             if self.enforce_lock and addr < torque_addr and servo.regs[lock_addr]:
                 return 0x08
+        data = servo.apply_set_middle(addr, data)  # Feetech Torque_Enable 128: Homing_Offset so Present reads 2048
         fw = servo.firmware
         if fw is not None:
             refused = fw.write_error(addr, data)
@@ -330,7 +334,7 @@ class SimServoBus(StartsOnEnter):
             return 0
         servo.regs[addr : addr + len(data)] = data
         goal_addr, _goal_size = servo.table["Goal_Position"]
-        if servo.regs[torque_addr] and addr <= goal_addr < addr + len(data):
+        if servo.drives and addr <= goal_addr < addr + len(data):  # Torque_Limit 0: no torque, no move
             servo.move_to(servo.goal_to_actual(servo.get_reg("Goal_Position")))
         return 0
 
@@ -421,6 +425,7 @@ class SimServoBus(StartsOnEnter):
             if not targets or motor_id in self.silent_ids:
                 return
             for servo in targets:  # two servos sharing an id both answer (and collide), as on hardware
+                answer = servo.answers(inst)  # its status return level when the instruction arrives
                 if inst == 0x01:  # PING
                     self._reply(servo, 0, self._ping_params(servo))
                 elif inst == 0x02:  # READ
@@ -428,21 +433,25 @@ class SimServoBus(StartsOnEnter):
                         addr, size = params[0] | params[1] << 8, params[2] | params[3] << 8
                     else:
                         addr, size = params[0], params[1]
-                    self._reply(servo, 0, self._read(servo, addr, size))
+                    data = self._read(servo, addr, size)
+                    if answer:
+                        self._reply(servo, 0, data)
                 elif inst == 0x03:  # WRITE: acknowledged with the old id at the old speed, then applied
                     addr, data = (params[0] | params[1] << 8, params[2:]) if wide else (params[0], params[1:])
                     old_id = servo.bus_id
                     error = self._write(servo, addr, data)
                     if not error:
                         self._note_write(servo, addr, len(data))
-                    self._reply_as(servo, old_id, error)
+                    if answer:
+                        self._reply_as(servo, old_id, error)
                 elif inst == 0x08 and self.kind.reboot:  # REBOOT: clears a hardware error, torque off
                     servo.set_reg("Hardware_Error_Status", 0)
                     servo.set_reg("Torque_Enable", 0)
                     if servo.firmware is not None:
                         servo.firmware.reboot()
-                    self._reply(servo, 0)
-                else:
+                    if answer:
+                        self._reply(servo, 0)
+                elif answer:
                     self._reply(servo, self.kind.unknown_instruction_error)
 
     # ------------------------------------------------------------------------------------- helpers

@@ -24,6 +24,7 @@ from ...errors import UsageError
 from .._servo_common import ServoModel
 from ..dynamixel import DYNAMIXEL_MODELS
 from ..feetech import FEETECH_MODELS, SIGN_BITS
+from .servo_defaults import FACTORY_DEFAULTS
 from .servo_packets import Instruction, dynamixel_status, feetech_status, parse_dynamixel, parse_feetech
 
 if TYPE_CHECKING:
@@ -89,6 +90,11 @@ class SimServoKind:
         eeprom_locked_by_torque: EEPROM (addresses below ``Torque_Enable``) refuses writes while the torque is on
             (Access error 7).
         x_series_law: Runs the Dynamixel X control law (:mod:`.servo_firmware`), else the Feetech STS one.
+        status_level: The register gating replies (None: every instruction is answered).
+        reply_levels: Instruction → the lowest ``status_level`` value at which it is still answered; an
+            instruction not listed needs ``full_reply_level``.
+        full_reply_level: The ``status_level`` value at which every instruction is answered.
+        set_middle: The ``Torque_Enable`` value that makes the present position read half a turn (None: none).
     """
 
     vendor: str
@@ -105,6 +111,10 @@ class SimServoKind:
     unknown_instruction_error: int
     eeprom_locked_by_torque: bool
     x_series_law: bool
+    status_level: str | None = None
+    reply_levels: Mapping[int, int] = field(default_factory=dict)
+    full_reply_level: int = 0
+    set_middle: int | None = None
 
 
 SIM_SERVO_KINDS: dict[str, SimServoKind] = {
@@ -116,7 +126,6 @@ SIM_SERVO_KINDS: dict[str, SimServoKind] = {
             ("Baud_Rate", FACTORY_BAUD["feetech"]),
             ("Firmware_Major_Version", 3),
             ("Firmware_Minor_Version", 10),
-            ("Phase", 0),
         ),
         twos_complement=(),
         clamps_goal=True,
@@ -129,6 +138,10 @@ SIM_SERVO_KINDS: dict[str, SimServoKind] = {
         unknown_instruction_error=0,
         eeprom_locked_by_torque=False,
         x_series_law=False,
+        status_level="Response_Status_Level",
+        reply_levels={0x01: 0, 0x02: 0, 0x82: 0},  # level 0: PING and READ only; 1: all (Feetech's table)
+        full_reply_level=1,
+        set_middle=128,
     ),
     "dynamixel": SimServoKind(
         vendor="dynamixel",
@@ -215,6 +228,8 @@ class SimServo:
         self.table = spec.table
         self.big_endian = spec.protocol == 1
         self.resolution = spec.resolution
+        for addr, (size, value) in FACTORY_DEFAULTS.get(self.model, {}).items():
+            self.regs[addr : addr + size] = self._pack(value, size)
         self.set_reg("Model_Number", spec.model_number)
         self.set_reg("ID", self.motor_id)
         self.set_reg("Max_Position_Limit", spec.resolution - 1)
@@ -288,6 +303,42 @@ class SimServo:
         """Calibration-relevant EEPROM values (Homing_Offset, limits, Drive_Mode where present)."""
         names = ["Homing_Offset", "Min_Position_Limit", "Max_Position_Limit", "Drive_Mode"]
         return {n: self.get_reg(n) for n in names if n in self.table}
+
+    def answers(self, inst: int) -> bool:
+        """The servo sends a status packet for instruction ``inst`` at its status return level now."""
+        name = self.kind.status_level
+        if name is None or name not in self.table:
+            return True
+        return self.get_reg(name) >= self.kind.reply_levels.get(inst, self.kind.full_reply_level)
+
+    @property
+    def drives(self) -> bool:
+        """Torque is on and may be nonzero (Feetech ``Torque_Limit`` 0: no torque, the shaft stays put)."""
+        on = bool(self.get_reg("Torque_Enable"))
+        return on and ("Torque_Limit" not in self.table or self.get_reg("Torque_Limit") > 0)
+
+    def apply_set_middle(self, addr: int, data: bytes) -> bytes:
+        """Feetech's set middle, if ``data`` written at ``addr`` sets ``Torque_Enable`` to 128; the data to store.
+
+        The firmware rewrites ``Homing_Offset`` so that ``Present_Position`` reads half a turn (2048) at the
+        shaft's present angle (wrapped into the offset's ±2047; at an angle that needs −2048 it reads 2047), and
+        ``Torque_Enable`` reads 0 afterwards: 128 does not switch the torque on (docs/sim.md).
+        """
+        torque = self.table["Torque_Enable"][0]
+        value = self.kind.set_middle
+        if value is None or "Homing_Offset" not in self.table or not addr <= torque < addr + len(data):
+            return data
+        if data[torque - addr] != value:
+            return data
+        self.set_reg("Homing_Offset", 0)
+        half = self.resolution // 2
+        wrapped = (self.present_ticks() - half + half) % self.resolution - half  # the reading to take away
+        offset = -self.vendor_spec.homing_rule().offset_sign * wrapped
+        limit = (1 << SIGN_BITS["Homing_Offset"]) - 1
+        self.set_reg("Homing_Offset", max(-limit, min(limit, offset)))
+        stored = bytearray(data)
+        stored[torque - addr] = 0
+        return bytes(stored)
 
     # ------------------------------------------------------------------------------------------ physics
     def move_to(self, actual_ticks: float) -> None:
