@@ -93,14 +93,14 @@ def all_ports() -> Iterator[dict[str, tuple[str, int]]]:
         yield {
             k: (h, int(p))
             for k, _, v in (line.partition(": ") for line in device.lines)
-            if k in ("dashboard", "secondary", "real-time", "address")
+            if k in ("dashboard", "secondary", "real-time", "rtde", "address")
             for h, _, p in [v.rpartition(":")]
         }
 
 
 def test_all_ports_share_one_arm(all_ports) -> None:
-    assert set(all_ports) == {"dashboard", "secondary", "real-time", "address"}
-    assert len({p for _, p in all_ports.values()}) == 4
+    assert set(all_ports) == {"dashboard", "secondary", "real-time", "rtde", "address"}
+    assert len({p for _, p in all_ports.values()}) == 5
     with socket.create_connection(all_ports["dashboard"], timeout=HANG_GUARD_S) as dash:
         f = dash.makefile("rw", newline="\n")
         assert f.readline() == "Connected: Universal Robots Dashboard Server\n"
@@ -119,7 +119,7 @@ def test_all_ports_share_one_arm(all_ports) -> None:
 
 
 def test_port_offsets_are_the_controllers() -> None:
-    assert [29999 + off for _, off in UR_PORT_OFFSETS] == [29999, 30001, 30002, 30003]
+    assert [29999 + off for _, off in UR_PORT_OFFSETS] == [29999, 30001, 30002, 30003, 30004]
 
 
 @pytest.mark.parametrize(
@@ -127,8 +127,8 @@ def test_port_offsets_are_the_controllers() -> None:
     [
         (["--port", "0", "--base-port", "0"], "give one of --port, --standard-ports and --base-port, not --port and --base-port"),
         (["--standard-ports", "--base-port", "0"], "give one of --port, --standard-ports and --base-port, not --standard-ports and --base-port"),
-        (["--base-port", "65532"], "--base-port 65532: expected 0 (any free ports) or 1..65531"),
-        (["--base-port", "-1"], "--base-port -1: expected 0 (any free ports) or 1..65531"),
+        (["--base-port", "65532"], "--base-port 65532: expected 0 (any free ports) or 1..65530"),
+        (["--base-port", "-1"], "--base-port -1: expected 0 (any free ports) or 1..65530"),
     ],
 )  # fmt: skip
 def test_port_choice_refusals(args: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
@@ -139,7 +139,7 @@ def test_port_choice_refusals(args: list[str], message: str, capsys: pytest.Capt
 @pytest.mark.slow
 def test_standalone_controller_with_base_port_serves_every_port(sim_process, tmp_path: Path) -> None:
     sim = sim_process(["ur", "--base-port", "0"], until="address")
-    assert set(sim.info) >= {"dashboard", "secondary", "real-time", "address"}
+    assert set(sim.info) >= {"dashboard", "secondary", "real-time", "rtde", "address"}
     host, _, port = sim.info["dashboard"].rpartition(":")
     with socket.create_connection((host, int(port)), timeout=HANG_GUARD_S) as dash:
         f = dash.makefile("rw", newline="\n")

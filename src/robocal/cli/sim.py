@@ -153,12 +153,12 @@ def ur(
     standard_ports: bool = typer.Option(
         False,
         "--standard-ports",
-        help="Serve all ports as a controller does: dashboard 29999, primary 30001, secondary 30002, real-time 30003.",
+        help="Serve all ports as a controller does: dashboard 29999, primary 30001, secondary 30002, real-time 30003, RTDE 30004.",
     ),
     base_port: int | None = typer.Option(
         None,
         "--base-port",
-        help="Serve all ports at these offsets from N: dashboard N, primary N+2, secondary N+3, real-time N+4 "
+        help="Serve all ports at these offsets from N: dashboard N, primary N+2, secondary N+3, real-time N+4, RTDE N+5 "
         "(0: each on any free port).",
     ),
 ) -> None:

@@ -183,8 +183,9 @@ UR_PORT_OFFSETS: tuple[tuple[str, int], ...] = (
     ("primary", 2),
     ("secondary", 3),
     ("real-time", 4),
+    ("rtde", 5),
 )
-"""A UR controller's ports as offsets from the dashboard's: 29999, 30001, 30002, 30003 from base 29999."""
+"""A UR controller's ports as offsets from the dashboard's: 29999, 30001, 30002, 30003, 30004 from base 29999."""
 
 UR_STANDARD_BASE_PORT = 29999
 """The dashboard's port on a real controller."""
@@ -210,7 +211,7 @@ def serve_ur(
         dh: DH YAML the controller reports.
         model: UR model (its nominal DH, plus ``deltas``).
         deltas: Calibration deltas added to ``model``'s DH.
-        base_port: Serve every port of :data:`UR_PORT_OFFSETS` (dashboard, primary, secondary, real-time) at
+        base_port: Serve every port of :data:`UR_PORT_OFFSETS` (dashboard, primary, secondary, real-time, RTDE) at
             ``base_port`` + offset (29999: the standard ports; 0: each on any free port).
 
     Raises:
@@ -221,6 +222,7 @@ def serve_ur(
     from ..backends.sim.ur_controller import SimUrController
     from ..backends.sim.ur_dashboard import SimUrDashboard
     from ..backends.sim.ur_realtime import SimUrRealtime
+    from ..backends.sim.ur_rtde import SimUrRtde
     from ..core.ur import TEST_SET_3_DELTAS, nominal_dh
     from .ur import load_dh_input
 
@@ -243,6 +245,7 @@ def serve_ur(
         "primary": lambda p: SimUrController(params, host=host, port=p, arm=arm),
         "secondary": lambda p: SimUrController(params, host=host, port=p, arm=arm),
         "real-time": lambda p: SimUrRealtime(params, arm, host=host, port=p),
+        "rtde": lambda p: SimUrRtde(params, arm, host=host, port=p),
     }
     wanted = (
         [("primary", port)]
@@ -260,7 +263,7 @@ def serve_ur(
             served[name] = server.address
         bound_host, bound_port = served["primary"]
         lines = [f"{name}: {h}:{p}" for name, (h, p) in served.items() if name != "primary"]
-        ports = "primary interface" if base_port is None else "dashboard, primary, secondary and real-time"
+        ports = "primary interface" if base_port is None else "dashboard, primary, secondary, real-time and RTDE"
         lines += [
             f"address: {bound_host}:{bound_port}",
             f"simulated UR controller, {ports} ({what}); Ctrl-C stops it",
