@@ -43,7 +43,7 @@ BENCHMARKS = (
     Benchmark(
         "lerobot", False, "~10 s", "LeRobot normalize/unnormalize vs LeRobot's loop; SYNC_READ vs READs"
     ),
-    Benchmark("ur", False, "~20 s", "batched DH forward kinematics, correction, hash"),
+    Benchmark("ur", False, "~50 s", "batched DH forward kinematics, correction, hash"),
     Benchmark("sweep", False, "~30 s", "sweep tracking and replay throughput"),
     Benchmark("kinematics", False, "~4 min", "identification of 200 poses; accuracy over seeds 0-19"),
     Benchmark("dataset", False, "~4 min", "dataset recalibration vs a plain pyarrow copy (2,000,000 frames)"),
