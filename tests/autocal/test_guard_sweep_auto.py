@@ -19,7 +19,7 @@ from robocal.backends.sim.lite import lite_urdf_text
 from robocal.core.stop_search import StopSample
 from robocal.errors import SignalInterrupt
 from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import run_sweep_auto
+from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -46,7 +46,9 @@ class _SignalAt:
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT])
-def test_a_signal_mid_search_leaves_every_motor_limp_and_the_files_unchanged(tmp_path: Path, signum: int) -> None:
+def test_a_signal_mid_search_leaves_every_motor_limp_and_the_files_unchanged(
+    tmp_path: Path, signum: int
+) -> None:
     urdf = tmp_path / "lite.urdf"
     urdf.write_text(lite_urdf_text())
     out = tmp_path / "cal.yaml"
@@ -56,8 +58,11 @@ def test_a_signal_mid_search_leaves_every_motor_limp_and_the_files_unchanged(tmp
     try:
         with pytest.raises(SignalInterrupt) as info:
             run_sweep_auto(
-                urdf, "sim:lite?seed=2", out, robot="bhl_arms", joints=["left_wrist_roll", "left_wrist_pitch"],
-                view=_SignalAt(signum, 30), open_drivers_fn=sim_opener(holder), report=tmp_path / "r.json",
+                SweepAutoRequest(
+                    urdf, "sim:lite?seed=2", out, robot="bhl_arms", joints=["left_wrist_roll", "left_wrist_pitch"],
+                    report=tmp_path / "r.json",
+                ),
+                view=_SignalAt(signum, 30), open_drivers_fn=sim_opener(holder),
             )  # fmt: skip
         assert signal.getsignal(signum) is signal.SIG_DFL  # the guard put the disposition back
     finally:

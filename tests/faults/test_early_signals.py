@@ -19,6 +19,7 @@ SIGNALS = [
     (signal.SIGINT, 130, "error: interrupted"),
     (signal.SIGTERM, 143, "error: interrupted by SIGTERM"),
     (signal.SIGHUP, 129, "error: interrupted by SIGHUP"),
+    (signal.SIGQUIT, 131, "error: interrupted by SIGQUIT"),
 ]
 
 
@@ -28,7 +29,7 @@ SLOW = pytest.mark.slow  # a Python start-up each (2-5 s on a loaded machine)
 @pytest.mark.parametrize(
     ("signum", "code", "line"),
     [SIGNALS[0], *(pytest.param(*s, marks=SLOW) for s in SIGNALS[1:])],
-    ids=["SIGINT", "SIGTERM", "SIGHUP"],
+    ids=["SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"],
 )
 @pytest.mark.parametrize("module", ["typer", pytest.param("numpy", marks=SLOW)])
 def test_signal_while_importing_prints_one_line(
@@ -52,7 +53,7 @@ def test_old_console_script_is_covered_too(tmp_path: Path) -> None:
 
 
 @SLOW
-@pytest.mark.parametrize(("signum", "code", "line"), SIGNALS, ids=["SIGINT", "SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize(("signum", "code", "line"), SIGNALS, ids=["SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"])
 def test_signal_while_a_command_opens_its_source(tmp_path: Path, signum: int, code: int, line: str) -> None:
     """The sweep is running (its CAN source being opened): one line, the signal's code, nothing written."""
     from robocal.backends.sim.lite import lite_urdf_text

@@ -42,9 +42,12 @@ __all__ = [
 ]
 
 HANDLED_SIGNALS: tuple[int, ...] = tuple(
-    int(s) for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP")) if s is not None
+    int(s)
+    for s in (getattr(signal, n, None) for n in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"))
+    if s is not None
 )
-"""Signals that end a command with one line: SIGINT (Ctrl-C), SIGTERM (``kill``), SIGHUP (terminal closed)."""
+"""Signals that end a command with one line: SIGINT (Ctrl-C), SIGTERM (``kill``), SIGHUP (terminal closed),
+SIGQUIT (Ctrl-\\; Python's default would dump core)."""
 
 _received: list[int] = []
 _installed = False
