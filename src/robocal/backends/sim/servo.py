@@ -50,6 +50,7 @@ from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from .. import inproc_serial
 from . import servo_watchdog
+from .servo_group_reads import BULK_WRITE, GROUP_READS, bulk_write, group_read
 from .servo_model import BAUD_RATES, BROADCAST_ID, SIM_SERVO_KINDS, SimServo, Vendor
 from .servo_packets import dxl_crc16
 
@@ -338,6 +339,8 @@ class SimServoBus(StartsOnEnter):
             servo.move_to(servo.goal_to_actual(servo.get_reg("Goal_Position")))
         return 0
 
+    send, reply, read_registers, write_registers = _send, _reply, _read, _write  # for :mod:`.servo_group_reads`
+
     def client_baudrate(self) -> int | None:
         """Bit/s the client last set on the terminal (``TCGETS2``), or None where it cannot be read.
 
@@ -381,6 +384,8 @@ class SimServoBus(StartsOnEnter):
         servo.last_write = ", ".join(f"{n}={servo.get_reg(n)}" for n in names) or f"{size} byte(s) at {addr}"
         servo.last_write_time = time.monotonic()
 
+    note_write = _note_write  # for :mod:`.servo_group_reads`
+
     def _handle_unchecked(self, motor_id: int, inst: int, params: bytes) -> None:
         wide = self.kind.address_bytes == 2  # Dynamixel 2.0: 2-byte addresses and lengths
         with self._lock:
@@ -390,6 +395,12 @@ class SimServoBus(StartsOnEnter):
                 servo_watchdog.trip_if_due(servo, now)
             listening = self.on_bus(BROADCAST_ID)
             servo_watchdog.heard(listening, now)
+            if wide and inst in GROUP_READS:  # Dynamixel Bulk Read, Fast Sync Read, Fast Bulk Read
+                group_read(self, inst, params, listening)
+                return
+            if wide and inst == BULK_WRITE and motor_id == BROADCAST_ID:
+                bulk_write(self, params, listening)
+                return
             if inst == 0x82:  # SYNC_READ
                 if wide:
                     addr, size, ids = params[0] | params[1] << 8, params[2] | params[3] << 8, params[4:]

@@ -165,6 +165,9 @@ SIM_SERVO_KINDS: dict[str, SimServoKind] = {
         unknown_instruction_error=2,
         eeprom_locked_by_torque=True,
         x_series_law=True,
+        status_level="Status_Return_Level",
+        reply_levels={0x01: 0, 0x02: 1},  # 0: PING only; 1: PING and READ; 2: all (the e-Manual)
+        full_reply_level=2,
     ),
 }
 """Vendor name → how its simulated servos behave (a new simulated vendor is one entry here)."""
