@@ -360,11 +360,11 @@ def test_configure_cli_so_follower_and_leader(capsys: pytest.CaptureFixture[str]
             assert arm.servo("shoulder_lift").get_reg("Phase") == 0b11101111
             assert g.get_reg("Acceleration") == 254 and g.get_reg("Operating_Mode") == 0
             follower = robot == "so101_follower"
-            # LeRobot's SO leader configure() sets no PID and no gripper limits
+            # LeRobot's SO leader configure() sets no PID and no gripper limits: the factory values stay
             assert (g.get_reg("P_Coefficient"), g.get_reg("D_Coefficient")) == (
-                (16, 32) if follower else (0, 0)
+                (16, 32) if follower else (32, 32)
             )
-            assert g.get_reg("Max_Torque_Limit") == (500 if follower else 0)
+            assert g.get_reg("Max_Torque_Limit") == (500 if follower else 1000)
             assert ("P_Coefficient=16" in out) is follower
             assert all(arm.servo(m.name).get_reg("Torque_Enable") == 0 for m in arm.spec.motors)
 
