@@ -174,6 +174,7 @@ def test_the_guard_in_process_makes_limp_before_it_restores_and_exits_with_the_s
     assert signal.getsignal(signal.SIGTERM) is before
 
 
+@pytest.mark.slow
 def test_two_calibrations_side_by_side_under_load_each_ctrl_c_ends_limp_and_restored(tmp_path: Path) -> None:
     """Two arms, two ``calibrate --auto`` at once, a busy sibling process on the same cores, one Ctrl-C each
     while its arm moves: both arms end limp with every register as before (issue 26's "side by side" case)."""
@@ -207,6 +208,7 @@ def test_two_calibrations_side_by_side_under_load_each_ctrl_c_ends_limp_and_rest
             h.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
 def test_koch_signal_mid_motion_leaves_every_motor_limp_and_every_register_as_before(
     tmp_path: Path, signum: int

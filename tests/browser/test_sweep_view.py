@@ -79,6 +79,7 @@ def test_sweep_arcs_have_the_report_codes(page: Any, tmp_path: Path) -> None:
         web.app.stop()
 
 
+@pytest.mark.slow
 def test_arcs_change_colour_while_the_page_is_open(page: Any) -> None:
     """The arcs drawn after the page connected (the usual case: the page is open during the sweep) have their
     colour: a line node created with one colour was drawn white after its per-vertex colour update."""
