@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import BinaryIO
 
 from ..errors import FileFormatError
 from ._paths import PathLike
@@ -53,7 +54,7 @@ def read_bytes(path: PathLike, what: str = "file", *, limit: int | None = None) 
         if size > cap:
             raise FileFormatError(_too_large(what, p, size, cap))
         with p.open("rb") as fh:
-            data = fh.read(cap + 1)
+            data = _read_bounded(fh, size, cap)
         if len(data) > cap:  # a pipe or a file that grew
             raise FileFormatError(_too_large(what, p, None, cap))
         return data
@@ -71,6 +72,25 @@ def read_bytes(path: PathLike, what: str = "file", *, limit: int | None = None) 
         ) from None
     except ValueError as exc:  # embedded NUL byte
         raise FileFormatError(f"{what} {str(p)!a}: not a possible file name ({exc})") from None
+
+
+def _read_bounded(fh: BinaryIO, size: int, cap: int) -> bytes:
+    """At most ``cap + 1`` bytes, never asking for more than the file holds plus one at a time.
+
+    ``read(n)`` allocates ``n`` bytes first, so ``read(cap + 1)`` cost the whole limit (16 MiB for a URDF) on
+    every read; a pipe, a special file or a file that grew (more than ``size`` bytes) is read on in 1 MiB chunks.
+    """
+    data = fh.read(min(cap, size) + 1)
+    if len(data) <= size:
+        return data
+    parts, total = [data], len(data)
+    while total <= cap:
+        chunk = fh.read(min(1 << 20, cap + 1 - total))
+        if not chunk:
+            break
+        parts.append(chunk)
+        total += len(chunk)
+    return b"".join(parts)
 
 
 def _too_large(what: str, p: Path, size: int | None, cap: int) -> str:
