@@ -11,12 +11,32 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from robocal.backends import REPLY_TIMEOUT_ENV
 
 CLIENT_ENV = {REPLY_TIMEOUT_ENV: "2000", "COLUMNS": "200"}
+
+
+def open_sdk(sdk: Any, port: str, baud: int, protocol: float) -> tuple[Any, Any]:
+    """A vendor SDK's (scservo_sdk / dynamixel_sdk) port and packet handler on a simulator's pseudo-terminal.
+
+    Every packet timeout is at least 500 ms: the simulator shares the cores with the test suite.
+    """
+    ph = sdk.PortHandler(port)
+    assert ph.openPort() and ph.setBaudRate(baud)
+    original = ph.setPacketTimeout
+
+    def at_least_500_ms(packet_length: int) -> None:
+        original(packet_length)
+        ph.packet_timeout = max(ph.packet_timeout, 500.0)
+
+    ph.setPacketTimeout = at_least_500_ms
+    return ph, sdk.PacketHandler(protocol)
+
+
 """Environment of robocal's commands that talk to a ``robocal sim`` process: the simulator is a process the
 machine's load can hold up for a moment, so a reply is waited for up to 2 s (a servo's 100 ms is meant for a
 motor that answers in 1 ms); a simulator that never answers still times out."""

@@ -14,6 +14,8 @@ import pytest
 
 from robocal.backends.sim.servo import SimServo, SimServoBus
 
+from .conftest import open_sdk
+
 pytestmark = pytest.mark.timeout(60)
 
 XL330_M288 = {  # address: (bytes, value)
@@ -28,23 +30,10 @@ XL430_W250 = {
 }  # fmt: skip
 
 
-def _open(port: str) -> tuple[Any, Any]:
-    ph = dxl.PortHandler(port)
-    assert ph.openPort() and ph.setBaudRate(1_000_000)
-    original = ph.setPacketTimeout
-
-    def at_least_500_ms(packet_length: int) -> None:  # the simulator shares the cores with the test suite
-        original(packet_length)
-        ph.packet_timeout = max(ph.packet_timeout, 500.0)
-
-    ph.setPacketTimeout = at_least_500_ms
-    return ph, dxl.PacketHandler(2.0)
-
-
 @pytest.fixture
 def sdk() -> Iterator[tuple[SimServoBus, Any, Any]]:
     with SimServoBus([SimServo(1, "xl330-m288", 166.0), SimServo(2, "xl430-w250", 4096 + 2079.0)]) as sim:
-        ph, pk = _open(sim.port)
+        ph, pk = open_sdk(dxl, sim.port, 1_000_000, 2.0)
         try:
             yield sim, ph, pk
         finally:

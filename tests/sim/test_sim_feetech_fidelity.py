@@ -19,6 +19,8 @@ from robocal.backends.sim.physics import JointPlant, PlantParams, SimClock
 from robocal.backends.sim.servo import SimServo, SimServoBus
 from robocal.backends.sim.servo_firmware import ServoFirmware
 
+from .conftest import open_sdk
+
 pytestmark = pytest.mark.timeout(60)
 
 FACTORY = {  # address: (bytes, value) of a new STS3215 (Feetech's table; voltage and temperature assumed)
@@ -59,23 +61,10 @@ FACTORY = {  # address: (bytes, value) of a new STS3215 (Feetech's table; voltag
 }
 
 
-def _open(port: str) -> tuple[Any, Any]:
-    ph = scs.PortHandler(port)
-    assert ph.openPort() and ph.setBaudRate(1_000_000)
-    original = ph.setPacketTimeout
-
-    def at_least_500_ms(packet_length: int) -> None:  # the simulator shares the cores with the test suite
-        original(packet_length)
-        ph.packet_timeout = max(ph.packet_timeout, 500.0)
-
-    ph.setPacketTimeout = at_least_500_ms
-    return ph, scs.PacketHandler(0)
-
-
 @pytest.fixture
 def sdk() -> Iterator[tuple[SimServoBus, Any, Any]]:
     with SimServoBus([SimServo(1, "sts3215", 1000.0), SimServo(2, "sts3215", 4096 + 3500.0)]) as sim:
-        ph, pk = _open(sim.port)
+        ph, pk = open_sdk(scs, sim.port, 1_000_000, 0)
         try:
             yield sim, ph, pk
         finally:

@@ -18,20 +18,9 @@ from robocal.backends.sim.lerobot_arms import SimArm, seeded_truth
 from robocal.backends.sim.servo import BAUD_RATES, SimServo, SimServoBus
 from robocal.workflows.lerobot import robot_spec
 
+from .conftest import open_sdk as _open
+
 pytestmark = pytest.mark.timeout(60)
-
-
-def _open(sdk: Any, port: str, baud: int, protocol: float) -> tuple[Any, Any]:
-    ph = sdk.PortHandler(port)
-    assert ph.openPort() and ph.setBaudRate(baud)
-    original = ph.setPacketTimeout
-
-    def at_least_500_ms(packet_length: int) -> None:  # the simulator shares the cores with the test suite
-        original(packet_length)
-        ph.packet_timeout = max(ph.packet_timeout, 500.0)
-
-    ph.setPacketTimeout = at_least_500_ms
-    return ph, sdk.PacketHandler(protocol)
 
 
 def feetech_broadcast_ping(ph: Any, pk: Any) -> dict[int, int]:
