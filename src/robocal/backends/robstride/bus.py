@@ -167,11 +167,19 @@ class RobstrideBus(ClosesOnExit):
                 comm, data16, low = split_id(msg.arbitration_id)
                 yield comm, data16 & 0xFF, low, msg  # every reply carries the motor id in bits 15..8
 
-    def _collect(self, want: dict[int, set[int]], deadline: float) -> dict[int, tuple[int, bytes]]:
-        """Receive until each motor in ``want`` (id → accepted types) answered or the deadline passed."""
+    def _collect(
+        self, want: dict[int, set[int]], deadline: float, *, any_host: bool = False
+    ) -> dict[int, tuple[int, bytes]]:
+        """Receive until each motor in ``want`` (id → accepted types) answered or the deadline passed.
+
+        A reply counts when bits 7..0 carry this bus's host id (the motor answers the host id of the request),
+        or for any host id with ``any_host``: a type-1 (MIT) request carries the torque where the others carry
+        the host id, so the motor addresses its feedback to a host it keeps (the last one that addressed it, in
+        the simulator; possibly another program's); the motor id in bits 15..8 still picks the reply.
+        """
         got: dict[int, tuple[int, bytes]] = {}
         for comm, motor_id, low, msg in self._receive(deadline) if want else ():
-            if comm != CommType.GET_ID and low != self.host_id:
+            if comm != CommType.GET_ID and low != self.host_id and not any_host:
                 continue  # addressed to another host
             if motor_id in want and comm in want[motor_id] and motor_id not in got:
                 got[motor_id] = (msg.arbitration_id, bytes(msg.data))
@@ -184,14 +192,15 @@ class RobstrideBus(ClosesOnExit):
         return got
 
     def _request_many(
-        self, frames: Mapping[int, tuple[int, bytes]], reply_types: set[int]
+        self, frames: Mapping[int, tuple[int, bytes]], reply_types: set[int], *, any_host: bool = False
     ) -> dict[int, tuple[int, bytes]]:
         for arb, data in frames.values():
             self._send(arb, data)
-        return self._collect(dict.fromkeys(frames, reply_types), time.monotonic() + self.timeout_s)
+        want = dict.fromkeys(frames, reply_types)
+        return self._collect(want, time.monotonic() + self.timeout_s, any_host=any_host)
 
-    def _feedback_all(self, frames: Mapping[int, tuple[int, bytes]]) -> dict[str, Feedback]:
-        got = self._request_many(frames, {CommType.FEEDBACK})
+    def _feedback_all(self, frames: Mapping[int, tuple[int, bytes]], *, mit: bool = False) -> dict[str, Feedback]:
+        got = self._request_many(frames, {CommType.FEEDBACK}, any_host=mit)
         return {self._by_id[i].name: decode_feedback(a, d, self._limits[i]) for i, (a, d) in got.items()}
 
     def _simple(self, motor: str | int, comm: int, data: bytes = bytes(8)) -> Feedback:
@@ -257,7 +266,7 @@ class RobstrideBus(ClosesOnExit):
         for motor, (p, v, kp, kd, t) in commands.items():
             spec = self._spec(motor)
             frames[spec.can_id] = encode_mit_command(spec.can_id, p, v, kp, kd, t, self._limits[spec.can_id])
-        return self._feedback_all(frames)
+        return self._feedback_all(frames, mit=True)
 
     def zero_torque(self, motors: Iterable[str | int] | None = None) -> dict[str, Feedback]:
         """Passive read: MIT ``(0, 0, 0, 0, 0)`` to each motor (all by default); never moves a joint."""

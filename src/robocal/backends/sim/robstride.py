@@ -92,6 +92,9 @@ class SimMotor:
     firmware: tuple[int, int, int, int] = (0, 0, 3, 6)
     seed: int = 0
     host_id: int = 0xFD
+    """The last host id that addressed the motor (any request but type 1); replies to type 1 go there."""
+    master_id: int | None = None
+    """A fixed host id for the replies to type 1 instead of :attr:`host_id` (firmware that keeps a master id)."""
     mode: int = 0
     run_mode: int = 0
     add_offset_rad: float = 0.0
@@ -254,7 +257,8 @@ class SimMotor:
             return [(make_id(CommType.GET_ID, self.can_id, 0xFE), uid)]
         if comm == CommType.MIT:
             _, p, v, kp, kd, t = decode_mit_command(arbitration_id, data, self.limits)
-            host = self.host_id  # type 1 carries the torque in the id: answer the last host seen
+            # type 1 carries the torque where the others carry the host id: answer the last host seen
+            host = self.host_id if self.master_id is None else self.master_id
             self.last_command = (p, v, kp, kd, t)
         elif comm == CommType.ENABLE:
             self.mode = 2
