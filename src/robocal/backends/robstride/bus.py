@@ -75,6 +75,7 @@ class RobstrideBus(ClosesOnExit):
         timeout_s: Time to wait for each reply, s (at least ``$ROBOCAL_REPLY_TIMEOUT_MS``, see
             :func:`robocal.backends.reply_timeout_floor_s`).
         bus: An already open python-can bus to use instead of opening one (not closed by :meth:`close`).
+        bus_options: More keyword arguments of ``can.Bus`` (``socketcand``: ``host``, ``port``).
     """
 
     def __init__(
@@ -86,6 +87,7 @@ class RobstrideBus(ClosesOnExit):
         host_id: int = DEFAULT_HOST_ID,
         timeout_s: float = DEFAULT_TIMEOUT_S,
         bus: Any = None,
+        bus_options: Mapping[str, Any] | None = None,
     ) -> None:
         if not timeout_s > 0:
             raise UsageError(f"Robstride bus {channel}: timeout {timeout_s} s must be > 0")
@@ -114,7 +116,9 @@ class RobstrideBus(ClosesOnExit):
                     f"CAN interface {interface!r} is unknown to python-can; expected one of {', '.join(valid)}"
                 )
             try:
-                self._bus = self._can.Bus(channel=channel, interface=interface, receive_own_messages=False)
+                self._bus = self._can.Bus(
+                    channel=channel, interface=interface, receive_own_messages=False, **dict(bus_options or {})
+                )
             except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
                 raise DeviceError(f"cannot open CAN {interface}:{channel}: {exc}") from None
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ...errors import CalibTimeoutError, JointMismatchError, UsageError
 from .. import load_backend
-from .spec import JointSpec, Sample, SourceSpec
+from .spec import JointSpec, Sample, SourceSpec, can_bus_options
 
 __all__ = ["RobstrideSource", "SimLiteSource", "open_can", "open_sim_lite_source"]
 
@@ -184,6 +184,7 @@ def open_can(spec: SourceSpec, joints: Sequence[JointSpec], timeout_s: float) ->
     from ..robstride.protocol import model_limits
 
     bus_class = load_backend("robstride")
+    opts = can_bus_options(spec)
 
     missing_ids = [j.name for j in joints if j.can_id <= 0]
     if missing_ids:
@@ -195,10 +196,12 @@ def open_can(spec: SourceSpec, joints: Sequence[JointSpec], timeout_s: float) ->
             raise UsageError(f"joint {j.name!r}: {exc}") from None
     if len(spec.channels) == 1:
         specs = [MotorSpec(j.name, j.can_id, j.model) for j in joints]
-        bus = bus_class(spec.channels[0], specs, interface=spec.interface, timeout_s=timeout_s)
+        bus = bus_class(spec.channels[0], specs, interface=spec.interface, timeout_s=timeout_s, bus_options=opts)
         return RobstrideSource(joints, [bus])
     # several channels: find each joint where its CAN id answers a (harmless) type-0 device-id request
-    probes = [bus_class(ch, [], interface=spec.interface, timeout_s=timeout_s) for ch in spec.channels]
+    probes = [
+        bus_class(ch, [], interface=spec.interface, timeout_s=timeout_s, bus_options=opts) for ch in spec.channels
+    ]
     try:
         found = [p.probe([j.can_id for j in joints]) for p in probes]
     finally:
@@ -212,7 +215,7 @@ def open_can(spec: SourceSpec, joints: Sequence[JointSpec], timeout_s: float) ->
         ]
         placed.update(s.name for s in specs)
         if specs:
-            buses.append(bus_class(ch, specs, interface=spec.interface, timeout_s=timeout_s))
+            buses.append(bus_class(ch, specs, interface=spec.interface, timeout_s=timeout_s, bus_options=opts))
     lost = [f"{j.name!r} (CAN id {j.can_id})" for j in joints if j.name not in placed]
     if lost:
         for b in buses:

@@ -12,12 +12,15 @@ from ...core.arrays import FloatArray
 from ...errors import UsageError
 
 __all__ = [
+    "CAN_OPTIONS",
     "REPLAY_FRAMES",
     "SIM_OPTIONS",
+    "SOCKETCAND_DEFAULT_PORT",
     "JointSpec",
     "Sample",
     "Source",
     "SourceSpec",
+    "can_bus_options",
     "check_replay_frame",
     "parse_sim_options",
     "parse_source",
@@ -83,7 +86,7 @@ class SourceSpec:
     Attributes:
         kind: ``"sim"``, ``"can"`` or ``"replay"``.
         robot: Simulated robot name (``"lite"``).
-        options: ``sim:`` query options.
+        options: ``sim:`` query options; ``can:socketcand:`` ``host`` and ``port``.
         interface: python-can interface for ``can:``.
         channels: CAN channels for ``can:``.
         path: Recording for ``replay:``.
@@ -100,6 +103,20 @@ class SourceSpec:
 
 
 SIM_OPTIONS = ("seed", "noise", "skip", "short", "flip", "zero_sta", "single_turn")
+CAN_OPTIONS = ("host", "port")
+"""Options of a ``can:socketcand:…?host=H&port=P`` source (the socketcand server; default 127.0.0.1:29536)."""
+SOCKETCAND_DEFAULT_PORT = 29536
+"""The socketcand daemon's default TCP port."""
+
+
+def can_bus_options(spec: SourceSpec) -> dict[str, str | int]:
+    """The extra ``can.Bus`` keyword arguments of a ``can:`` source (``socketcand``: host and port, defaulted)."""
+    if spec.interface != "socketcand":
+        return {}
+    return {
+        "host": spec.options.get("host", "127.0.0.1"),
+        "port": int(spec.options.get("port", SOCKETCAND_DEFAULT_PORT)),
+    }
 
 
 def parse_sim_options(
@@ -153,7 +170,9 @@ def parse_source(text: str) -> SourceSpec:
     Raises:
         UsageError: The string is malformed; the message shows the accepted forms.
     """
-    forms = "expected sim:lite[?seed=N], can:<interface>:<channel>[,<channel>...] or replay:<file>"
+    forms = (
+        "expected sim:lite[?seed=N], can:<interface>:<channel>[,<channel>...][?host=H&port=P] or replay:<file>"
+    )
     kind, sep, rest = text.partition(":")
     if not sep or not rest:
         raise UsageError(f"--source {text!r}: {forms}")
@@ -174,13 +193,21 @@ def parse_source(text: str) -> SourceSpec:
                 raise UsageError(f"--source {text!r}: noise must be a number >= 0 rad, got {opts['noise']!r}")
         return SourceSpec("sim", robot=robot, options=opts, text=text)
     if kind == "can":
-        interface, sep2, chans = rest.partition(":")
+        body, _, query = rest.partition("?")
+        interface, sep2, chans = body.partition(":")
         channels = tuple(c.strip() for c in chans.split(",")) if sep2 else ()
         if not interface or not channels or any(not c for c in channels):
             raise UsageError(f"--source {text!r}: expected can:<interface>:<channel>[,<channel>...]")
         if len(set(channels)) != len(channels):
             raise UsageError(f"--source {text!r}: a CAN channel is listed twice")
-        return SourceSpec("can", interface=interface, channels=channels, text=text)
+        opts = parse_sim_options(text, query, CAN_OPTIONS)
+        if opts and interface != "socketcand":
+            raise UsageError(f"--source {text!r}: host and port apply to can:socketcand only")
+        if "port" in opts and not (opts["port"].isascii() and opts["port"].isdigit() and 0 < int(opts["port"]) < 65536):
+            raise UsageError(f"--source {text!r}: port must be 1..65535, got {opts['port']!r}")
+        if "host" in opts and not opts["host"]:
+            raise UsageError(f"--source {text!r}: host is empty")
+        return SourceSpec("can", options=opts, interface=interface, channels=channels, text=text)
     if kind == "replay":
         return SourceSpec("replay", path=rest, text=text)
     raise UsageError(f"--source {text!r}: unknown kind {kind!r}; {forms}")
