@@ -10,14 +10,14 @@ from robocal.errors import BackendNotAvailableError, UsageError
 
 
 def test_registry_loads_every_builtin_backend() -> None:
-    assert {"robstride", "feetech", "dynamixel", "ur_primary"} <= set(list_backends())
+    assert {"robstride", "feetech", "dynamixel", "ur_primary", "damiao"} <= set(list_backends())
     for name, (module, attr) in BACKENDS.items():
         cls = load_backend(name)
         assert cls.__name__ == attr and cls.__module__.startswith(module)
 
 
 def test_unknown_backend_lists_valid_names() -> None:
-    with pytest.raises(UsageError, match="unknown backend 'nope'; valid: dynamixel, feetech"):
+    with pytest.raises(UsageError, match="unknown backend 'nope'; valid: damiao, dynamixel, feetech"):
         load_backend("nope")
 
 

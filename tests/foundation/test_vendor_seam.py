@@ -75,7 +75,7 @@ def test_no_code_outside_the_declarations_compares_vendor_names() -> None:
 
 
 def test_every_vendor_is_declared_once_under_its_own_name() -> None:
-    assert set(VENDORS) == {"feetech", "dynamixel", "robstride"}
+    assert set(VENDORS) == {"feetech", "dynamixel", "robstride", "damiao"}
     for name, spec in VENDORS.items():
         assert isinstance(spec, VendorSpec) and spec.name == name
         assert vendor_spec(name) is spec
@@ -102,12 +102,14 @@ def test_the_declared_homing_rules_are_the_firmware_rules() -> None:
 
 
 def test_an_unknown_vendor_is_refused_not_given_another_vendors_rules() -> None:
-    with pytest.raises(UsageError, match=r"unknown vendor 'damiao'; valid: dynamixel, feetech, robstride"):
-        vendor_spec("damiao")
+    with pytest.raises(UsageError, match=r"unknown vendor 'kinova'; valid: damiao, dynamixel, feetech, robstride"):
+        vendor_spec("kinova")
+    with pytest.raises(InvalidCalibrationError, match=r"vendor 'kinova': expected 'feetech' or 'dynamixel'"):
+        half_turn_homing_offset(1000, vendor="kinova")
     with pytest.raises(InvalidCalibrationError, match=r"vendor 'damiao': expected 'feetech' or 'dynamixel'"):
-        half_turn_homing_offset(1000, vendor="damiao")
-    spec = RobotSpec("arm", "arm", "arm", "robots", "damiao", (), (), 3)
-    with pytest.raises(UsageError, match="unknown vendor 'damiao'"):
+        half_turn_homing_offset(1000, vendor="damiao")  # declared, but no Homing_Offset register
+    spec = RobotSpec("arm", "arm", "arm", "robots", "kinova", (), (), 3)
+    with pytest.raises(UsageError, match="unknown vendor 'kinova'"):
         _ = spec.homing
 
 
@@ -142,8 +144,8 @@ def test_lerobot_configure_refuses_an_undeclared_vendor_before_writing() -> None
     from robocal.core.lerobot import LeRobotMotor
     from robocal.workflows.lerobot.configure import configure
 
-    spec = RobotSpec("arm", "arm", "arm", "robots", "damiao", (LeRobotMotor("gripper", 1, "m", "range_0_100"),), (), 3)
+    spec = RobotSpec("arm", "arm", "arm", "robots", "kinova", (LeRobotMotor("gripper", 1, "m", "range_0_100"),), (), 3)
     bus = _RecordingBus()
-    with pytest.raises(UsageError, match="no LeRobot configure presets for vendor 'damiao'; valid: feetech, dynamixel"):
+    with pytest.raises(UsageError, match="no LeRobot configure presets for vendor 'kinova'; valid: feetech, dynamixel"):
         configure(bus, spec)  # type: ignore[arg-type]
     assert bus.writes == []

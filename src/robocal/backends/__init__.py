@@ -17,6 +17,7 @@ from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Literal, overload
 
 if TYPE_CHECKING:
+    from .damiao.bus import DamiaoBus
     from .dynamixel import DynamixelBus
     from .feetech import FeetechBus
     from .robstride import RobstrideBus
@@ -39,6 +40,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "feetech": ("robocal.backends.feetech", "FeetechBus"),
     "dynamixel": ("robocal.backends.dynamixel", "DynamixelBus"),
     "ur_primary": ("robocal.backends.ur_primary", "PrimaryClient"),
+    "damiao": ("robocal.backends.damiao.bus", "DamiaoBus"),
 }
 """Backend name → (module, attribute). Extended by the ``robocal.backends`` entry points."""
 
@@ -121,6 +123,8 @@ def load_backend(name: Literal["feetech"]) -> type[FeetechBus]: ...
 def load_backend(name: Literal["dynamixel"]) -> type[DynamixelBus]: ...
 @overload
 def load_backend(name: Literal["ur_primary"]) -> type[PrimaryClient]: ...
+@overload
+def load_backend(name: Literal["damiao"]) -> type[DamiaoBus]: ...
 @overload
 def load_backend(name: str) -> Any: ...
 

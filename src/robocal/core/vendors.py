@@ -199,7 +199,28 @@ ROBSTRIDE = VendorSpec(
 )
 """Robstride CAN actuators (MIT frames, radians; the zero is set by a command, no homing register)."""
 
-VENDORS: dict[str, VendorSpec] = {v.name: v for v in (FEETECH, DYNAMIXEL, ROBSTRIDE)}
+DAMIAO = VendorSpec(
+    name="damiao",
+    title="Damiao",
+    backend="damiao",
+    resolution_ticks=None,
+    homing=None,
+    drive_mode_in_hardware=False,
+    lock_register=None,
+    operating_mode_register="CTRL_MODE",
+    torque_cap_registers=(),
+    latched_error_register=None,
+    multi_turn_phase_bit=False,
+    limp="disable (0xFD), or the zero-torque MIT frame",
+    max_lag_deg=None,
+)
+"""Damiao CAN motors (the OpenArm's DM4310 / DM4340 / DM8009): MIT frames in radians scaled by the motor's PMAX /
+VMAX / TMAX registers; the zero is set by a command (0xFE) into the motor's flash, no homing register; register
+CTRL_MODE (10) selects MIT / position-velocity / velocity / position-force; an error state latches until the
+clear-error command (0xFB), not a reboot; torque is capped per command (no cap register). The live CAN sweep
+speaks Robstride's protocol, not this one."""
+
+VENDORS: dict[str, VendorSpec] = {v.name: v for v in (FEETECH, DYNAMIXEL, ROBSTRIDE, DAMIAO)}
 """Vendor name → its declaration: the one registry (a new vendor is one line here)."""
 
 
