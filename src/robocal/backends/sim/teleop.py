@@ -1,0 +1,366 @@
+"""Simulated teleoperation sessions with a known truth: a human moves a leader arm, a follower servo arm tracks it.
+
+A session is a few episodes. In each, a simulated operator moves every leader joint through via points on
+minimum-jerk paths with pauses (human-like), taking some joints into a range end (pushed against the stop and
+held), some near one (2–10° short) and the rest through the middle of their range. The leader's reading is its
+angle plus its calibration offset, quantised; that number is the ``action`` and the follower's goal in the
+follower's *own* calibration frame, so the follower stands at ``action − offset_follower``. The follower is the
+vectorised servo plant of :mod:`.teleop_plant` (LeRobot's gains, gravity, friction, backlash, stops, encoder
+quantisation); its reading plus its offset is ``observation.state``.
+
+Faults (:class:`TeleopFaults`), each on one joint: a calibration offset on either arm, an encoder slip mid-episode
+(the follower's reading jumps, then the arm moves so that its reading follows the goal again), values clipped at a
+calibrated range end short of the stop (LeRobot clamps a value to the calibration's range), a mirrored sign
+convention (the action recorded with the opposite sign, huggingface/lerobot PR #4256).
+
+Arms (:data:`TELEOP_ARMS`): SO-101 (STS3215, ``P_Coefficient`` 16, ``D_Coefficient`` 32) and Koch (XL430 /
+XL330 at their factory gains, ``elbow_flex`` 1500 / 600, as LeRobot configures them). Stops are the robot
+profiles' ``auto_calibration`` angles. Gravity comes from the caller (the SO-101 URDF's masses) or, for Koch
+(whose URDF has no masses), from per-joint amplitudes assumed here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...core.arrays import FloatArray
+from ..servo_ratings import RATINGS
+from .teleop_plant import GravityFn, PlantArrays, simulate_tracking
+
+__all__ = [
+    "TELEOP_ARMS",
+    "TeleopArm",
+    "TeleopFaults",
+    "TeleopJointTruth",
+    "TeleopSession",
+    "simulate_sessions",
+]
+
+_INF = math.inf
+
+
+@dataclass(frozen=True)
+class TeleopArm:
+    """A leader/follower pair's joints and the follower's servo physics.
+
+    Attributes:
+        name: ``so101`` or ``koch``.
+        robot_type: ``robot_type`` of the dataset (the follower's LeRobot name).
+        joints: Joint names, bus order.
+        stop_lo_deg: Lower stop per joint (``-inf``: none, a full-turn joint).
+        stop_hi_deg: Upper stop per joint.
+        kp_nm_rad: Position gain per joint.
+        kd_nms_rad: D gain per joint.
+        tau_max_nm: Torque cap (the servo's stall torque) per joint.
+        gravity_amp_nm: Gravity amplitude per joint when no gravity callback is given (``τ = −A·sin q``).
+        back_emf_nms_rad: The motor's back-EMF damping under voltage (PWM) control, stall torque over no-load
+            speed (STS3215 1.91 N·m / 4.7 rad/s; XL430 1.5 / 6.0; XL330-M288 0.52 / 10.8).
+        modes: LeRobot normalisation mode per joint (with degrees).
+        range_modes: Modes without ``use_degrees`` (LeRobot's default for Koch).
+    """
+
+    name: str
+    robot_type: str
+    joints: tuple[str, ...]
+    stop_lo_deg: tuple[float, ...]
+    stop_hi_deg: tuple[float, ...]
+    kp_nm_rad: tuple[float, ...]
+    kd_nms_rad: tuple[float, ...]
+    tau_max_nm: tuple[float, ...]
+    gravity_amp_nm: tuple[float, ...]
+    back_emf_nms_rad: tuple[float, ...]
+    modes: tuple[str, ...]
+    range_modes: tuple[str, ...]
+
+    def plant(self) -> PlantArrays:
+        """The follower's physics as arrays (printed-arm friction, 300 N·m/rad stops, 0.2° backlash)."""
+        n = len(self.joints)
+
+        def arr(x: float | tuple[float, ...]) -> FloatArray:
+            out: FloatArray = np.broadcast_to(np.asarray(x, dtype=np.float64), (n,)).copy()
+            return out
+
+        return PlantArrays(
+            kp_nm_rad=arr(self.kp_nm_rad),
+            kd_nms_rad=arr(self.kd_nms_rad),
+            tau_max_nm=arr(self.tau_max_nm),
+            inertia_kgm2=arr(0.004),
+            coulomb_nm=arr(0.04) * arr(self.tau_max_nm) / 1.91,
+            stiction_nm=arr(0.06) * arr(self.tau_max_nm) / 1.91,
+            viscous_nms_rad=arr(0.02) + arr(self.back_emf_nms_rad),
+            backlash_rad=arr(math.radians(0.2)),
+            stop_lo_rad=np.radians(arr(self.stop_lo_deg)),
+            stop_hi_rad=np.radians(arr(self.stop_hi_deg)),
+            stop_k_nm_rad=arr(300.0),
+            noise_rad=arr(0.4 * math.tau / 4096),
+        )
+
+
+def _feetech_gains(p: int, d: int, model: str = "sts3215") -> tuple[float, float, float]:
+    stall = RATINGS[model].stall_torque_nm
+    return p / 1024 * stall * 4096 / math.tau, d * 0.005 * stall, stall
+
+
+def _dxl_gains(p: int, d: int, model: str) -> tuple[float, float, float]:
+    r = RATINGS[model]
+    amp = r.current_unit_a * r.kt_nm_a
+    per_rad = 4096 / math.tau
+    return p / 128 * amp * per_rad, d / 16 * amp * per_rad * 0.001, r.stall_torque_nm
+
+
+_ARM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
+_SO = _feetech_gains(16, 32)
+_XL430 = _dxl_gains(640, 0, "xl430-w250")
+_XL330 = _dxl_gains(400, 0, "xl330-m288")
+_XL330_ELBOW = _dxl_gains(1500, 600, "xl330-m288")
+_KOCH = (_XL430, _XL430, _XL330_ELBOW, _XL330, _XL330, _XL330)
+
+TELEOP_ARMS: dict[str, TeleopArm] = {
+    "so101": TeleopArm(
+        name="so101",
+        robot_type="so101_follower",
+        joints=_ARM_JOINTS,
+        stop_lo_deg=(-110.0, -100.0, -96.83, -95.0, -170.0, -10.0),
+        stop_hi_deg=(110.0, 100.0, 96.83, 95.0, 170.0, 115.0),
+        kp_nm_rad=(_SO[0],) * 6,
+        kd_nms_rad=(_SO[1],) * 6,
+        tau_max_nm=(_SO[2],) * 6,
+        gravity_amp_nm=(0.0, 0.6, 0.3, 0.05, 0.0, 0.0),
+        back_emf_nms_rad=(1.91 / 4.7,) * 6,
+        modes=("degrees",) * 5 + ("range_0_100",),
+        range_modes=("range_m100_100",) * 5 + ("range_0_100",),
+    ),
+    "koch": TeleopArm(
+        name="koch",
+        robot_type="koch_follower",
+        joints=_ARM_JOINTS,
+        stop_lo_deg=(-_INF, -96.7, -96.7, -97.4, -_INF, -11.46),
+        stop_hi_deg=(_INF, 96.7, 96.7, 97.4, _INF, 76.4),
+        kp_nm_rad=tuple(g[0] for g in _KOCH),
+        kd_nms_rad=tuple(g[1] for g in _KOCH),
+        tau_max_nm=tuple(g[2] for g in _KOCH),
+        gravity_amp_nm=(0.0, 0.35, 0.12, 0.015, 0.0, 0.0),
+        back_emf_nms_rad=(1.5 / 6.0, 1.5 / 6.0) + (0.52 / 10.8,) * 4,
+        modes=("degrees",) * 5 + ("range_0_100",),
+        range_modes=("range_m100_100",) * 5 + ("range_0_100",),
+    ),
+}
+"""The simulated pairs. SO-101 stops: ``so101_follower.yaml``; Koch: ``koch_follower.yaml`` (pan and wrist roll
+turn fully: no stops). Koch gravity amplitudes are assumptions (its URDF carries no masses)."""
+
+
+@dataclass(frozen=True)
+class TeleopFaults:
+    """What is wrong in a session (all optional; angles in degrees).
+
+    Attributes:
+        offset_joint: Joint whose calibration is off.
+        offset_deg: Reading minus true angle on that joint, on ``offset_arm``.
+        offset_arm: ``follower`` or ``leader``.
+        slip_joint: Joint whose follower encoder jumps.
+        slip_episode: Episode of the jump.
+        slip_frame: Frame of the jump within the episode.
+        slip_deg: Size of the jump (added to the follower's reading from then on).
+        clip_joint: Joint whose follower values are clipped at a calibrated range end.
+        clip_end: ``lo`` or ``hi``.
+        clip_short_deg: How far short of the stop the clipped range ends.
+        flip_joint: Joint whose action is recorded with the opposite sign.
+    """
+
+    offset_joint: str | None = None
+    offset_deg: float = 0.0
+    offset_arm: str = "follower"
+    slip_joint: str | None = None
+    slip_episode: int = 0
+    slip_frame: int = 0
+    slip_deg: float = 0.0
+    clip_joint: str | None = None
+    clip_end: str = "hi"
+    clip_short_deg: float = 8.0
+    flip_joint: str | None = None
+
+
+@dataclass(frozen=True)
+class TeleopJointTruth:
+    """What really happened on one joint.
+
+    Attributes:
+        offset_deg: Follower calibration minus leader calibration (what a health check should report).
+        approach_lo_deg: Closest the leader came to the lower stop over the session (0: pushed against it).
+        approach_hi_deg: Closest to the upper stop.
+        follower_contact: The follower was pressed against a stop by more than 0.5° of goal beyond it.
+    """
+
+    offset_deg: float
+    approach_lo_deg: float
+    approach_hi_deg: float
+    follower_contact: bool
+
+
+@dataclass(frozen=True)
+class TeleopSession:
+    """A simulated session: what the dataset holds and the truth.
+
+    Attributes:
+        arm: The pair.
+        fps: Frames per second.
+        action_deg: ``(E, T, J)`` leader readings (degrees, offsets included; before value mapping).
+        state_deg: ``(E, T, J)`` follower readings.
+        faults: The injected faults.
+        truth: Joint → truth.
+        seed: Seed.
+    """
+
+    arm: TeleopArm
+    fps: float
+    action_deg: FloatArray
+    state_deg: FloatArray
+    faults: TeleopFaults
+    truth: dict[str, TeleopJointTruth] = field(default_factory=dict)
+    seed: int = 0
+
+
+def _min_jerk(
+    rng: np.random.Generator, frames: int, fps: float, targets: list[float], start: float
+) -> FloatArray:
+    """A path through ``targets`` (minimum-jerk moves of 0.8–2.5 s, pauses of 0–1 s), ``frames`` long."""
+    out = np.empty(frames)
+    t = 0
+    pos = start
+    k = 0
+    while t < frames:
+        goal = targets[k % len(targets)]
+        k += 1
+        n_move = max(2, int(rng.uniform(0.8, 2.5) * fps))
+        s = np.linspace(0.0, 1.0, n_move)
+        path = pos + (goal - pos) * (10 * s**3 - 15 * s**4 + 6 * s**5)
+        n_hold = int(rng.uniform(0.0, 1.0) * fps)
+        seg = np.concatenate([path, np.full(n_hold, goal)])
+        m = min(len(seg), frames - t)
+        out[t : t + m] = seg[:m]
+        t += m
+        pos = goal
+    return out
+
+
+def _leader_paths(
+    rng: np.random.Generator, arm: TeleopArm, episodes: int, frames: int, fps: float, p_end: float
+) -> FloatArray:
+    """``(E, T, J)`` leader true angles, degrees: a human's via points, some at or near a range end."""
+    lo, hi = np.asarray(arm.stop_lo_deg), np.asarray(arm.stop_hi_deg)
+    out = np.empty((episodes, frames, len(arm.joints)))
+    for e in range(episodes):
+        for j in range(len(arm.joints)):
+            a, b = (lo[j], hi[j]) if math.isfinite(lo[j]) else (-150.0, 150.0)
+            mid, half = 0.5 * (a + b), 0.5 * (b - a)
+            targets = [float(mid + half * rng.uniform(-0.7, 0.7)) for _ in range(6)]
+            if math.isfinite(lo[j]) and rng.uniform() < p_end:
+                end = rng.choice([-1.0, 1.0])
+                stop = b if end > 0 else a
+                # pushed into the stop (held there by the stop) or stopped 2-10° short of it
+                gap = -rng.uniform(1.0, 5.0) if rng.uniform() < 0.6 else rng.uniform(2.0, 10.0)
+                targets[int(rng.integers(1, 5))] = float(stop - end * gap)
+            start = targets[-1]
+            path = _min_jerk(rng, frames, fps, targets, start)
+            out[e, :, j] = np.clip(path + rng.normal(0.0, 0.05, frames), a, b)
+    return out
+
+
+def _quantise_deg(x: FloatArray) -> FloatArray:
+    step = 360.0 / 4096
+    out: FloatArray = np.round(x / step) * step
+    return out
+
+
+def simulate_sessions(
+    arm: TeleopArm,
+    seeds: list[int],
+    faults: list[TeleopFaults],
+    *,
+    gravity: GravityFn | None = None,
+    episodes: int = 6,
+    episode_s: float = 15.0,
+    fps: float = 30.0,
+    p_end: float = 0.35,
+) -> list[TeleopSession]:
+    """Simulate one session per seed (all sessions integrated together, one lane per episode).
+
+    Args:
+        arm: The pair.
+        seeds: One seed per session.
+        faults: One fault set per session.
+        gravity: Link angles ``(L, J)`` rad (joint order of ``arm``) → gravity torque; default
+            ``−A·sin q`` per joint with the arm's amplitudes.
+        episodes: Episodes per session.
+        episode_s: Length of an episode.
+        fps: Frames per second.
+        p_end: Chance that an episode takes a joint to or near a range end.
+
+    Returns:
+        The sessions, in the order of ``seeds``.
+    """
+    names = arm.joints
+    frames = round(episode_s * fps)
+    n_j = len(names)
+    amp = np.asarray(arm.gravity_amp_nm)
+
+    def default_gravity(q: FloatArray) -> FloatArray:
+        out: FloatArray = -amp * np.sin(q)
+        return out
+
+    leader_true: list[FloatArray] = []
+    e_lead, e_foll, slips = [], [], []
+    for seed, f in zip(seeds, faults, strict=True):
+        rng = np.random.default_rng(seed)
+        leader_true.append(_leader_paths(rng, arm, episodes, frames, fps, p_end))
+        el, ef = np.zeros(n_j), np.zeros(n_j)
+        if f.offset_joint is not None:
+            (el if f.offset_arm == "leader" else ef)[names.index(f.offset_joint)] = f.offset_deg
+        slip = np.zeros((episodes, frames, n_j))
+        if f.slip_joint is not None:
+            slip[f.slip_episode, f.slip_frame :, names.index(f.slip_joint)] = f.slip_deg
+        e_lead.append(el)
+        e_foll.append(ef)
+        slips.append(slip)
+    lead = np.concatenate(leader_true)  # (S·E, T, J)
+    el_all = np.repeat(np.stack(e_lead), episodes, axis=0)[:, None, :]
+    ef_all = np.repeat(np.stack(e_foll), episodes, axis=0)[:, None, :] + np.concatenate(slips)
+    rng_all = np.random.default_rng(seeds[0] if seeds else 0)
+    action = _quantise_deg(lead + el_all + rng_all.normal(0.0, 0.02, lead.shape))
+    # the follower's goal in its true frame: the leader's number minus the follower's own offset
+    goal_rad = np.radians(action - ef_all)
+    # each episode starts with the follower settled on its first goal (a second of holding, then cut)
+    settle = int(fps)
+    padded = np.concatenate([np.repeat(goal_rad[:, :1, :], settle, axis=1), goal_rad], axis=1)
+    q_f = simulate_tracking(
+        padded, arm.plant(), gravity or default_gravity, fps=fps, rng=rng_all, q0_rad=goal_rad[:, 0, :]
+    )[:, settle:, :]
+    state = np.degrees(q_f) + ef_all
+    sessions = []
+    lo, hi = np.asarray(arm.stop_lo_deg), np.asarray(arm.stop_hi_deg)
+    for s, (seed, f) in enumerate(zip(seeds, faults, strict=True)):
+        sl = slice(s * episodes, (s + 1) * episodes)
+        a, st, lt = action[sl].copy(), state[sl].copy(), lead[sl]
+        if f.clip_joint is not None:
+            j = names.index(f.clip_joint)
+            if f.clip_end == "hi":
+                st[..., j] = np.minimum(st[..., j], hi[j] - f.clip_short_deg + ef_all[sl.start, 0, j])
+            else:
+                st[..., j] = np.maximum(st[..., j], lo[j] + f.clip_short_deg + ef_all[sl.start, 0, j])
+        if f.flip_joint is not None:
+            a[..., names.index(f.flip_joint)] *= -1.0
+        goal_true = np.degrees(goal_rad[sl])
+        truth = {}
+        for j, name in enumerate(names):
+            past = np.maximum(goal_true[..., j] - hi[j], lo[j] - goal_true[..., j])
+            truth[name] = TeleopJointTruth(
+                offset_deg=float(e_foll[s][j] - e_lead[s][j]),
+                approach_lo_deg=float(np.min(lt[..., j] - lo[j])) if math.isfinite(lo[j]) else _INF,
+                approach_hi_deg=float(np.min(hi[j] - lt[..., j])) if math.isfinite(hi[j]) else _INF,
+                follower_contact=bool(np.any(past > 0.5)),
+            )
+        sessions.append(TeleopSession(arm, fps, a, st, f, truth, seed))
+    return sessions

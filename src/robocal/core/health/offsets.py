@@ -1,0 +1,355 @@
+"""Per-joint calibration health from a teleoperation recording: range-end contacts, steps, mirrored signs, clipping.
+
+Notation (one joint, the dataset's units; ``upd`` units per degree): ``a`` the leader's number (``action``), ``s``
+the follower's (``observation.state``), ``sag`` the model's rest residual (:mod:`.model`). A calibration offset
+``o = e_follower − e_leader`` (what the follower reads minus what the leader reads at the same physical angle)
+moves the arms ``o`` apart while ``a`` and ``s`` agree. It shows only at a range end:
+
+* **pinned** — at the upper end with ``o < 0`` the follower meets its stop first (reading ``F = stop + e_F``) while
+  the leader goes on to its own (``A = stop + e_L``): ``o = F − A``, measured (both arms held at the end give the
+  value, a leader that stopped short a lower bound on ``|o|``). The lower end mirrors it (``o > 0``).
+* **together** — the arms reach the end with the same number: the offset has not the sign that end would show,
+  a one-sided bound (upper end: ``o ≥ −(band + gap)``; lower end: ``o ≤ band + gap``; ``gap`` how far the follower
+  stayed from the end's expected reading).
+* **clipped** — the follower's value sits bit-for-bit constant at its extreme while the leader goes on: a value
+  clamped at a calibrated range end (a real encoder pressed on a stop jitters by a tick); not an offset reading.
+
+Verdicts: ``offset`` (a pinned end or the bounds put ``|o|`` past the threshold), ``ok`` (both ends bound ``o``
+inside ``±ok_limit``), ``suspect`` (a step in the follower's reading no commanded motion explains, a mirrored
+sign, clipping, ends that contradict each other, episodes that disagree), ``unobservable`` (otherwise: the data
+cannot show an offset of at least one sign).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..arrays import FloatArray, IntArray
+from .model import model_band
+
+__all__ = ["EndEvidence", "HealthConfig", "JointData", "JointHealth", "JumpEvent", "analyse_joint"]
+
+
+@dataclass(frozen=True)
+class HealthConfig:
+    """Thresholds, in degrees (scaled by a joint's units per degree).
+
+    Attributes:
+        threshold_deg: Smallest offset flagged ``offset``.
+        ok_limit_deg: ``ok`` needs the interval inside ``±ok_limit_deg``.
+        window_deg: A follower extreme farther than this inside the end's expected reading is not a range end.
+        near_deg: Readings within this of the follower's extreme count as "at the end" (stop compliance, ticks).
+        slow_deg: Slow frames move less than this per frame (the band is fitted on them).
+        band_floor_deg: Smallest model band (dead band and ticks).
+        jump_floor_deg: Smallest step reported as a jump.
+        min_frames: Frames at an end needed for evidence.
+        clip_frames: Bit-identical frames at an extreme (and 90 % of the frames there) that make a clipped value.
+    """
+
+    threshold_deg: float = 1.5
+    ok_limit_deg: float = 3.0
+    window_deg: float = 30.0
+    near_deg: float = 0.6
+    slow_deg: float = 0.3
+    band_floor_deg: float = 0.5
+    jump_floor_deg: float = 3.0
+    min_frames: int = 3
+    clip_frames: int = 10
+
+
+@dataclass(frozen=True, eq=False)
+class JointData:
+    """One joint's frames.
+
+    Attributes:
+        name: Joint name.
+        action: ``(N,)`` leader values.
+        state: ``(N,)`` follower values.
+        episode: ``(N,)`` episode index of each frame (frames of an episode consecutive, in order).
+        sag: ``(N,)`` modelled rest residual (``action − state``), same units.
+        stop_lo: Expected reading of the lower stop for a correct calibration (NaN: none known).
+        stop_hi: Same, upper stop.
+        units_per_deg: Dataset units per degree (1 in degrees).
+    """
+
+    name: str
+    action: FloatArray
+    state: FloatArray
+    episode: IntArray
+    sag: FloatArray
+    stop_lo: float = math.nan
+    stop_hi: float = math.nan
+    units_per_deg: float = 1.0
+
+
+@dataclass(frozen=True)
+class EndEvidence:
+    """What one range end shows.
+
+    Attributes:
+        end: ``lo`` or ``hi``.
+        kind: ``pinned``, ``together`` or ``clipped``.
+        follower: The follower's value at the end (``F``).
+        leader: The leader's furthest value while the follower was there (``A``).
+        lower: Lower bound on the offset from this end (``-inf``: none).
+        upper: Upper bound (``inf``: none).
+        frames: Frames at the end.
+        episodes: Episodes those frames belong to.
+    """
+
+    end: str
+    kind: str
+    follower: float
+    leader: float
+    lower: float
+    upper: float
+    frames: int
+    episodes: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class JumpEvent:
+    """A step in the follower's reading that the commanded motion cannot explain.
+
+    Attributes:
+        episode: Episode index.
+        frame: Frame index within the episode.
+        size: Step size (dataset units).
+    """
+
+    episode: int
+    frame: int
+    size: float
+
+
+@dataclass(frozen=True, eq=False)
+class JointHealth:
+    """The verdict on one joint (dataset units).
+
+    Attributes:
+        name: Joint name.
+        status: ``ok``, ``unobservable``, ``suspect`` or ``offset``.
+        offset: Offset estimate (follower minus leader calibration) or None.
+        ci: ``(lo, hi)`` interval or None.
+        reasons: Sentences behind the verdict.
+        ends: Evidence per range end.
+        jumps: Steps located in time.
+        band: Model band half-width.
+        residual: ``(N,)`` ``action(t−1) − state(t) − sag(t)`` (NaN at an episode's first frame).
+        used: ``(N,)`` frames the band was fitted on or an end was read from.
+    """
+
+    name: str
+    status: str
+    offset: float | None
+    ci: tuple[float, float] | None
+    reasons: tuple[str, ...]
+    ends: tuple[EndEvidence, ...]
+    jumps: tuple[JumpEvent, ...]
+    band: float
+    residual: FloatArray = field(repr=False)
+    used: FloatArray = field(repr=False)
+
+
+def _lagged(d: JointData) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(same-episode mask of t vs t−1, a(t−1), |Δa(t)|) with NaN where t is an episode's first frame."""
+    same = np.zeros(d.action.shape, dtype=bool)
+    same[1:] = d.episode[1:] == d.episode[:-1]
+    a_prev = np.full(d.action.shape, np.nan)
+    a_prev[1:] = d.action[:-1]
+    a_prev[~same] = np.nan
+    da = np.full(d.action.shape, np.nan)
+    da[1:] = np.abs(np.diff(d.action))
+    da[~same] = np.nan
+    return same.astype(np.float64), a_prev, da
+
+
+def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent, ...]:
+    """Steps in ``s`` that the follower's own tracking dynamics cannot explain.
+
+    The follower's motion is fitted per joint as a second-order linear response to the commands,
+    ``Δs(t) = c1·(a(t−1) − s(t−1)) + c2·(a(t−2) − s(t−2)) + c3·Δs(t−1)`` (least squares, refitted without the
+    outliers); a frame whose prediction error passes ``max(jump_floor, 8·σ)`` (σ from the median absolute
+    error) and moves the reading away from the goal is a step (friction lets a follower stick, then jump
+    *towards* its goal). Frames at the follower's extremes (a stop holds it, the linear response does not apply)
+    are left out.
+    """
+    s, a = d.state, d.action
+    n = s.size
+    ok = np.zeros(n, dtype=bool)
+    ok[3:] = (same[3:] > 0) & (same[2:-1] > 0) & (same[1:-2] > 0)
+    lo_x, hi_x = float(np.min(s)), float(np.max(s))
+    edge = cfg.near_deg * 3 * d.units_per_deg
+    for lag in (0, 1):
+        sl = np.roll(s, lag)
+        ok &= (sl > lo_x + edge) & (sl < hi_x - edge)
+    idx = np.flatnonzero(ok)
+    if idx.size < 20:
+        return ()
+    y = s[idx] - s[idx - 1]
+    x = np.stack([a[idx - 1] - s[idx - 1], a[idx - 2] - s[idx - 2], s[idx - 1] - s[idx - 2]], axis=1)
+    keep = np.ones(idx.size, dtype=bool)
+    err = y
+    for _ in range(2):
+        coef, *_ = np.linalg.lstsq(x[keep], y[keep], rcond=None)
+        err = y - x @ coef
+        sigma = 1.4826 * float(np.median(np.abs(err - np.median(err)))) + 1e-9
+        keep = np.abs(err) < 6 * sigma
+    thr = max(cfg.jump_floor_deg * d.units_per_deg, 8.0 * sigma)
+    events: list[JumpEvent] = []
+    last = -10
+    # a slipped reading jumps away from the goal; a follower breaking free of friction jumps towards it
+    grows = np.abs(a[idx - 1] - s[idx]) > np.abs(a[idx - 2] - s[idx - 1]) + 0.5 * thr
+    for k in np.flatnonzero((np.abs(err) > thr) & grows):
+        t = int(idx[k])
+        if t - last > 3:
+            ep = int(d.episode[t])
+            first = int(np.flatnonzero(d.episode == ep)[0])
+            events.append(JumpEvent(ep, t - first, float(err[k])))
+        last = t
+    return tuple(events)
+
+
+def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndarray) -> EndEvidence | None:
+    """Evidence at the upper (``sgn`` +1) or lower (−1) end from the frames in ``mask``."""
+    stop = d.stop_hi if sgn > 0 else d.stop_lo
+    if not math.isfinite(stop) or not mask.any():
+        return None
+    upd = d.units_per_deg
+    fv, av = sgn * d.state[mask], sgn * d.action[mask]
+    f_ext = float(np.max(fv))
+    if f_ext < sgn * stop - cfg.window_deg * upd:
+        return None
+    near = fv >= f_ext - cfg.near_deg * upd
+    if int(near.sum()) < cfg.min_frames:
+        return None
+    idx = np.flatnonzero(near)
+    prev = np.clip(idx - 1, 0, None)
+    a_ext = float(max(np.max(av[idx]), np.max(av[prev])))
+    sag_away = max(0.0, float(np.median(sgn * d.sag[mask][near])))  # gravity holding it off the stop
+    excess = a_ext - f_ext - sag_away
+    eps = tuple(sorted({int(e) for e in d.episode[mask][near]}))
+    u = 0.5 * upd + 0.5 * band
+    name = "hi" if sgn > 0 else "lo"
+    if excess > band:
+        same = int(np.sum(fv == f_ext))
+        if same >= cfg.clip_frames and same >= 0.9 * len(idx):
+            return EndEvidence(name, "clipped", sgn * f_ext, sgn * a_ext, -math.inf, math.inf, len(idx), eps)
+        held = int(np.sum(av[idx] >= a_ext - 0.25 * upd)) >= 5
+        o = -sgn * excess
+        # the leader may have stopped short of its stop: widen towards a larger offset by what it had left
+        slack = max(0.0, sgn * stop - a_ext) + (0.0 if held else 1.0 * upd)
+        lo, hi = (o - u - slack, o + u) if sgn > 0 else (o - u, o + u + slack)
+        return EndEvidence(name, "pinned", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps)
+    gap = max(0.0, sgn * stop - f_ext)
+    bound = band + u + gap
+    lo, hi = (-bound, math.inf) if sgn > 0 else (-math.inf, bound)
+    return EndEvidence(name, "together", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps)
+
+
+def _verdict(
+    ends: list[EndEvidence], thr: float, ok_limit: float
+) -> tuple[str, float | None, tuple[float, float] | None, list[str]]:
+    usable = [e for e in ends if e.kind != "clipped"]
+    reasons: list[str] = []
+    if not usable:
+        return "unobservable", None, None, ["no range-end contact"]
+    lo = max(e.lower for e in usable)
+    hi = min(e.upper for e in usable)
+    pinned = [e for e in usable if e.kind == "pinned"]
+    est = None
+    if pinned:
+        best = max(pinned, key=lambda e: abs(e.follower - e.leader))
+        est = best.follower - best.leader
+    if lo > hi + 1e-9:
+        reasons.append(f"range ends disagree (bounds {lo:.2f} > {hi:.2f})")
+        return "suspect", est, None, reasons
+    if est is not None and abs(est) >= thr:
+        return "offset", est, (lo, hi), reasons
+    if lo >= thr or hi <= -thr:
+        est = lo if lo >= thr else hi
+        return "offset", est, (lo, hi), reasons
+    if math.isfinite(lo) and math.isfinite(hi) and -ok_limit <= lo and hi <= ok_limit:
+        return "ok", est if est is not None else 0.5 * (lo + hi), (lo, hi), reasons
+    side = "negative" if not math.isfinite(lo) else "positive"
+    return "unobservable", est, None, [f"no range-end contact that would show a {side} offset"]
+
+
+def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
+    """Calibration health of one joint (see the module docstring).
+
+    Args:
+        d: The joint's frames and expected stop readings.
+        cfg: Thresholds (default :class:`HealthConfig`).
+
+    Returns:
+        The verdict, its evidence and the residual trace.
+    """
+    cfg = cfg or HealthConfig()
+    upd = d.units_per_deg
+    same, a_prev, da = _lagged(d)
+    residual = a_prev - d.state - d.sag
+    slow = (np.nan_to_num(da, nan=np.inf) < cfg.slow_deg * upd) & (
+        np.nan_to_num(np.roll(da, 1), nan=np.inf) < cfg.slow_deg * upd
+    )
+    band = model_band(residual[slow & np.isfinite(residual)], cfg.band_floor_deg * upd)
+    used = slow.astype(np.float64)
+    thr = max(cfg.threshold_deg * upd, band + 0.5 * upd)
+    moving = float(np.ptp(d.action)) if d.action.size else 0.0
+    if moving < 1.0 * upd:
+        return JointHealth(
+            d.name, "unobservable", None, None, ("the joint does not move",), (), (), band, residual, used
+        )
+    if np.std(d.state) > 0 and np.std(d.action) > 0:
+        r = float(np.corrcoef(d.action, d.state)[0, 1])
+        if r < -0.5:
+            return JointHealth(
+                d.name,
+                "suspect",
+                None,
+                None,
+                (f"sign flip: action mirrors observation.state (correlation {r:.2f})",),
+                (),
+                (),
+                band,
+                residual,
+                used,
+            )
+    jumps = _jumps(d, same, cfg)
+    everything = np.ones(d.action.shape, dtype=bool)
+    ends = [e for e in (_end(d, 1.0, band, cfg, everything), _end(d, -1.0, band, cfg, everything)) if e]
+    for e in ends:
+        sgn = 1.0 if e.end == "hi" else -1.0
+        used[sgn * d.state >= sgn * e.follower - cfg.near_deg * upd] = 2.0
+    status, est, ci, reasons = _verdict(ends, thr, cfg.ok_limit_deg * upd)
+    for e in ends:
+        if e.kind == "clipped":
+            reasons.append(
+                f"values clipped at {e.follower:.2f} ({e.frames} identical frames) while the leader "
+                f"went on to {e.leader:.2f}: a calibrated range end short of the stop"
+            )
+            if status != "offset":
+                status = "suspect"
+    if jumps:
+        reasons.append(
+            "; ".join(f"step of {j.size:+.2f} in episode {j.episode} frame {j.frame}" for j in jumps)
+        )
+        if status != "offset":
+            status = "suspect"
+    return JointHealth(d.name, status, est, ci, tuple(reasons), tuple(ends), jumps, band, residual, used)
+
+
+def episode_verdicts(d: JointData, band: float, cfg: HealthConfig | None = None) -> list[dict[str, object]]:
+    """Per-episode offset, interval and verdict from that episode's range-end evidence alone."""
+    cfg = cfg or HealthConfig()
+    thr = max(cfg.threshold_deg * d.units_per_deg, band + 0.5 * d.units_per_deg)
+    out: list[dict[str, object]] = []
+    for ep in np.unique(d.episode):
+        mask = d.episode == ep
+        ends = [e for e in (_end(d, 1.0, band, cfg, mask), _end(d, -1.0, band, cfg, mask)) if e]
+        status, est, ci, _ = _verdict(ends, thr, cfg.ok_limit_deg * d.units_per_deg)
+        out.append({"episode": int(ep), "offset": est, "ci": ci, "status": status, "frames": int(mask.sum())})
+    return out

@@ -1,0 +1,240 @@
+"""Simulated teleoperation datasets with their truth, for the calibration health check and its benchmark.
+
+:func:`generate_teleop_datasets` simulates sessions (:mod:`robocal.backends.sim.teleop`: a human-like leader, a
+follower servo arm with LeRobot's gains, gravity, friction, backlash, stops, encoder ticks; injected offsets,
+slips, clipping, a mirrored sign) and writes each as a LeRobot v3 dataset root (``meta/info.json``,
+``data/chunk-000/file-000.parquet`` with one row group per episode, ``meta/episodes``, ``meta/tasks.parquet``,
+``meta/stats.json``), the layout every ``robocal dataset`` command reads, with ``ROOT.truth.json`` beside it.
+
+The SO-101's gravity comes from the shipped ``so101_new_calib.urdf``'s masses (the whole arm's pose each frame);
+Koch's from per-joint amplitudes (its URDF has no masses). Values: degrees for the arm joints when
+``use_degrees`` (LeRobot's SO default), else ``range_m100_100`` (Koch's default); the gripper ``range_0_100``;
+a range mode maps the profile's stops to ±100 (0..100), as a calibration recorded at the stops does.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ..backends.sim.teleop import TELEOP_ARMS, TeleopArm, TeleopFaults, TeleopSession, simulate_sessions
+from ..backends.sim.teleop_plant import GravityFn
+from ..core.arrays import FloatArray
+from ..errors import UsageError
+from ._generate import data_schema
+from ._stats import StatAccumulator, merge_all
+
+__all__ = ["arm_gravity", "generate_teleop_datasets", "to_values", "write_teleop_dataset"]
+
+_STATS = ("min", "max", "mean", "std", "count", "q01", "q10", "q50", "q90", "q99")
+
+
+def arm_gravity(arm: TeleopArm) -> GravityFn | None:
+    """The gravity of ``arm`` from its shipped URDF's masses (SO-101), or None (Koch: per-joint amplitudes)."""
+    if arm.name != "so101":
+        return None
+    from ..core.gravity import gravity_torques
+    from ..formats.urdf_gravity import gravity_model_from_urdf
+
+    urdf = Path(__file__).resolve().parent.parent / "data" / "so101_new_calib.urdf"
+    model = gravity_model_from_urdf(urdf)
+    cols = [model.joint_names.index(n) for n in arm.joints]
+
+    def gravity(q: FloatArray) -> FloatArray:
+        qm = np.zeros((q.shape[0], len(model.joint_names)))
+        qm[:, cols] = q
+        out: FloatArray = gravity_torques(model, qm)[:, cols]
+        return out
+
+    return gravity
+
+
+def to_values(arm: TeleopArm, deg: FloatArray, use_degrees: bool) -> FloatArray:
+    """Degrees ``(..., J)`` → the dataset's values (degrees, or a range mode scaled on the profile's stops)."""
+    modes = arm.modes if use_degrees else arm.range_modes
+    out = np.array(deg, dtype=np.float64)
+    for j, mode in enumerate(modes):
+        lo, hi = arm.stop_lo_deg[j], arm.stop_hi_deg[j]
+        if not math.isfinite(lo):
+            lo, hi = -180.0, 180.0
+        if mode == "range_0_100":
+            out[..., j] = (deg[..., j] - lo) / (hi - lo) * 100.0
+        elif mode == "range_m100_100":
+            out[..., j] = (deg[..., j] - 0.5 * (lo + hi)) / (0.5 * (hi - lo)) * 100.0
+    return out
+
+
+def write_teleop_dataset(session: TeleopSession, root: str | Path, *, use_degrees: bool = True) -> Path:
+    """Write one session as a LeRobot v3 dataset at ``root`` and its truth at ``ROOT.truth.json``.
+
+    Returns:
+        The truth file's path.
+
+    Raises:
+        UsageError: ``root`` exists.
+    """
+    r = Path(root)
+    if r.exists():
+        raise UsageError(f"simulated dataset {r}: already exists")
+    arm = session.arm
+    d = len(arm.joints)
+    schema = data_schema(d)
+    (r / "meta" / "episodes" / "chunk-000").mkdir(parents=True)
+    (r / "data" / "chunk-000").mkdir(parents=True)
+    state = to_values(arm, session.state_deg, use_degrees).astype(np.float32)
+    action = to_values(arm, session.action_deg, use_degrees).astype(np.float32)
+    episodes, frames, _ = state.shape
+    rows: list[dict[str, Any]] = []
+    accs: list[dict[str, StatAccumulator]] = []
+    index = 0
+    with pq.ParquetWriter(r / "data/chunk-000/file-000.parquet", schema=schema, compression="snappy") as w:
+        for e in range(episodes):
+            ts = (np.arange(frames) / session.fps).astype(np.float32)
+            table = pa.table(
+                {
+                    "observation.state": pa.FixedSizeListArray.from_arrays(pa.array(state[e].ravel()), d),
+                    "action": pa.FixedSizeListArray.from_arrays(pa.array(action[e].ravel()), d),
+                    "timestamp": pa.array(ts),
+                    "frame_index": pa.array(np.arange(frames, dtype=np.int64)),
+                    "episode_index": pa.array(np.full(frames, e, dtype=np.int64)),
+                    "index": pa.array(np.arange(index, index + frames, dtype=np.int64)),
+                    "task_index": pa.array(np.zeros(frames, dtype=np.int64)),
+                }
+            ).cast(schema)
+            w.write_table(table, row_group_size=frames)
+            acc = {
+                "observation.state": StatAccumulator.of(state[e].astype(np.float64)),
+                "action": StatAccumulator.of(action[e].astype(np.float64)),
+            }
+            accs.append(acc)
+            row: dict[str, Any] = {
+                "episode_index": e,
+                "tasks": ["teleoperate"],
+                "length": frames,
+                "data/chunk_index": 0,
+                "data/file_index": 0,
+                "dataset_from_index": index,
+                "dataset_to_index": index + frames,
+                "meta/episodes/chunk_index": 0,
+                "meta/episodes/file_index": 0,
+            }
+            for key, a in acc.items():
+                for stat in _STATS:
+                    row[f"stats/{key}/{stat}"] = a.get(stat)
+            rows.append(row)
+            index += frames
+    pq.write_table(pa.Table.from_pylist(rows), r / "meta/episodes/chunk-000/file-000.parquet")
+    pq.write_table(
+        pa.table({"task_index": pa.array([0], pa.int64()), "task": pa.array(["teleoperate"])}),
+        r / "meta" / "tasks.parquet",
+    )
+    stats = {}
+    for key in ("observation.state", "action"):
+        total = merge_all(a[key] for a in accs)
+        assert total is not None
+        stats[key] = {stat: total.get(stat) for stat in _STATS}
+    (r / "meta" / "stats.json").write_text(json.dumps(stats, indent=2))
+    features: dict[str, Any] = {
+        key: {"dtype": "float32", "shape": [d], "names": [f"{n}.pos" for n in arm.joints]}
+        for key in ("action", "observation.state")
+    }
+    for key, dt in (
+        ("timestamp", "float32"),
+        ("frame_index", "int64"),
+        ("episode_index", "int64"),
+        ("index", "int64"),
+        ("task_index", "int64"),
+    ):
+        features[key] = {"dtype": dt, "shape": [1], "names": None}
+    info = {
+        "codebase_version": "v3.0",
+        "robot_type": arm.robot_type,
+        "total_episodes": episodes,
+        "total_frames": index,
+        "total_tasks": 1,
+        "chunks_size": 1000,
+        "data_files_size_in_mb": 100,
+        "video_files_size_in_mb": 500,
+        "fps": int(session.fps),
+        "splits": {"train": f"0:{episodes}"},
+        "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+        "video_path": None,
+        "features": features,
+    }
+    (r / "meta" / "info.json").write_text(json.dumps(info, indent=2))
+    truth = {
+        "robot": arm.name,
+        "seed": session.seed,
+        "use_degrees": use_degrees,
+        "faults": asdict(session.faults),
+        "joints": {
+            name: {
+                k: (v if not isinstance(v, float) or math.isfinite(v) else None) for k, v in asdict(t).items()
+            }
+            for name, t in session.truth.items()
+        },
+    }
+    out = r.with_name(r.name + ".truth.json")
+    out.write_text(json.dumps(truth, indent=2))
+    return out
+
+
+def generate_teleop_datasets(
+    folder: str | Path,
+    robot: str,
+    seeds: Sequence[int],
+    faults: Sequence[TeleopFaults],
+    *,
+    use_degrees: bool = True,
+    episodes: int = 6,
+    episode_s: float = 15.0,
+    p_end: float = 0.35,
+) -> list[Path]:
+    """Simulate and write one dataset per seed as ``folder/<robot>-<seed>`` (+ ``.truth.json``).
+
+    Args:
+        folder: Where the roots go (created).
+        robot: ``so101`` or ``koch``.
+        seeds: One seed per dataset.
+        faults: One fault set per dataset.
+        use_degrees: Arm joints in degrees (else ``range_m100_100``).
+        episodes: Episodes per dataset.
+        episode_s: Seconds per episode (30 fps).
+        p_end: Chance per episode and joint of a visit to (or near) a range end.
+
+    Returns:
+        The dataset roots.
+
+    Raises:
+        UsageError: Unknown robot, or ``seeds`` and ``faults`` differ in length.
+    """
+    if robot not in TELEOP_ARMS:
+        raise UsageError(f"simulated teleoperation: robot {robot!r}; expected {', '.join(TELEOP_ARMS)}")
+    if len(seeds) != len(faults):
+        raise UsageError("simulated teleoperation: one fault set per seed")
+    arm = TELEOP_ARMS[robot]
+    sessions = simulate_sessions(
+        arm,
+        list(seeds),
+        list(faults),
+        gravity=arm_gravity(arm),
+        episodes=episodes,
+        episode_s=episode_s,
+        p_end=p_end,
+    )
+    base = Path(folder)
+    base.mkdir(parents=True, exist_ok=True)
+    roots = []
+    for s in sessions:
+        root = base / f"{robot}-{s.seed}"
+        write_teleop_dataset(s, root, use_degrees=use_degrees)
+        roots.append(root)
+    return roots

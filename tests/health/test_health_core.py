@@ -1,0 +1,119 @@
+"""The dataset health check's core on simulated teleoperation sessions with a known truth (issue 30)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robocal.backends.sim.physics import Drive, JointPlant, PlantParams
+from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults, TeleopSession, simulate_sessions
+from robocal.backends.sim.teleop_plant import PlantArrays, simulate_tracking
+from robocal.core.health import JointData, JointHealth, analyse_joint
+
+
+def _joint(session: TeleopSession, name: str) -> JointHealth:
+    arm = session.arm
+    e, t, j = session.action_deg.shape
+    k = arm.joints.index(name)
+    a = session.action_deg.reshape(-1, j)[:, k]
+    s = session.state_deg.reshape(-1, j)[:, k]
+    data = JointData(
+        name, a, s, np.repeat(np.arange(e), t), np.zeros_like(a), arm.stop_lo_deg[k], arm.stop_hi_deg[k]
+    )
+    return analyse_joint(data)
+
+
+def test_vectorised_plant_matches_the_joint_plant() -> None:
+    """One joint, no gravity, no stops reached: the numpy plant follows JointPlant's steps to within a tick."""
+    p = PlantParams(
+        inertia_kgm2=0.004,
+        coulomb_nm=0.04,
+        stiction_nm=0.06,
+        viscous_nms_rad=0.02,
+        stop_lower_rad=-2.0,
+        stop_upper_rad=2.0,
+        stiffness_lower=300,
+        stiffness_upper=300,
+        counts_per_rev=4096,
+        dt_s=1 / 240,
+    )
+    kp, kd = 19.455, 0.3056
+    goals = np.concatenate([np.zeros(10), np.full(30, 0.5), np.full(30, -0.3)])
+    plant = JointPlant(p, q0_rad=0.0)
+    ref = []
+    for k, g in enumerate(goals):
+        ref.append(plant.read().q_rad)
+        plant.run_until((k + 1) / 30, Drive(kp, kd, float(g), 0.0, 0.0, 1.91))
+    one = np.array([1.0])
+    arrays = PlantArrays(
+        kp * one,
+        kd * one,
+        1.91 * one,
+        0.004 * one,
+        0.04 * one,
+        0.06 * one,
+        0.02 * one,
+        0.0 * one,
+        -2.0 * one,
+        2.0 * one,
+        300.0 * one,
+        0.0 * one,
+    )
+    got = simulate_tracking(goals[None, :, None], arrays, None, fps=30, substeps=8)[0, :, 0]
+    assert np.max(np.abs(got - np.array(ref))) <= 2 * math.tau / 4096
+
+
+@pytest.fixture(scope="module")
+def so101_sessions() -> list[TeleopSession]:
+    arm = TELEOP_ARMS["so101"]
+    faults = [
+        TeleopFaults(),
+        TeleopFaults(offset_joint="elbow_flex", offset_deg=-17.0),
+        TeleopFaults(slip_joint="wrist_flex", slip_episode=1, slip_frame=120, slip_deg=8.0),
+        TeleopFaults(flip_joint="wrist_flex"),
+        TeleopFaults(clip_joint="shoulder_lift", clip_end="hi", clip_short_deg=6.0),
+    ]
+    return simulate_sessions(arm, [11, 12, 13, 14, 15], faults, episodes=3, episode_s=10.0, p_end=1.0)
+
+
+def test_17_degree_offset_is_flagged_on_its_joint(so101_sessions: list[TeleopSession]) -> None:
+    s = so101_sessions[1]
+    h = _joint(s, "elbow_flex")
+    assert s.truth["elbow_flex"].follower_contact
+    assert h.status == "offset"
+    assert h.offset is not None and h.ci is not None
+    assert h.ci[0] - 0.5 <= -17.0 <= h.ci[1] + 0.5
+    assert abs(h.offset + 17.0) < 4.0
+
+
+def test_offset_free_session_flags_nothing(so101_sessions: list[TeleopSession]) -> None:
+    statuses = {n: _joint(so101_sessions[0], n).status for n in TELEOP_ARMS["so101"].joints[:5]}
+    assert set(statuses.values()) <= {"ok", "unobservable"}
+
+
+def test_slip_is_located_to_its_episode_and_frame(so101_sessions: list[TeleopSession]) -> None:
+    h = _joint(so101_sessions[2], "wrist_flex")
+    assert h.status == "suspect"
+    assert [(j.episode, abs(j.frame - 120) <= 2) for j in h.jumps] == [(1, True)]
+    assert h.jumps[0].size == pytest.approx(8.0, abs=1.5)
+
+
+def test_mirrored_sign_is_suspect(so101_sessions: list[TeleopSession]) -> None:
+    h = _joint(so101_sessions[3], "wrist_flex")
+    assert h.status == "suspect"
+    assert "sign flip" in h.reasons[0]
+
+
+def test_clipped_values_are_not_read_as_an_offset(so101_sessions: list[TeleopSession]) -> None:
+    h = _joint(so101_sessions[4], "shoulder_lift")
+    assert h.status == "suspect"
+    assert [e.kind for e in h.ends if e.end == "hi"] == ["clipped"]
+
+
+def test_a_joint_that_never_moves_is_unobservable() -> None:
+    a = np.zeros(100)
+    h = analyse_joint(JointData("j", a, a, np.zeros(100, dtype=np.int64), a, -90.0, 90.0))
+    assert h.status == "unobservable"
+    assert h.offset is None and h.ci is None
