@@ -55,3 +55,14 @@ def run_harness(python: Path, action: str, cwd: Path, **args: object) -> dict:
 def result_of(output: str) -> dict:
     line = next(x for x in reversed(output.splitlines()) if x.startswith("RESULT "))
     return json.loads(line[len("RESULT ") :])
+
+
+def client_env_python(name: str) -> Path:
+    """The Python of a third-party client's own environment (built once, cached; see client_envs.py), or skip with
+    the reason the client cannot be installed here."""
+    from .client_envs import client_python
+
+    python, note = client_python(name)
+    if python is None:
+        pytest.skip(note)
+    return python

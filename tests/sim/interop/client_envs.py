@@ -1,0 +1,110 @@
+"""Build (or find) one virtual environment per third-party client library the interop tests drive.
+
+``python tests/sim/interop/client_envs.py [NAME…]`` builds them (all by default) and prints one line per client:
+its Python, or ``SKIP <name>: <reason>``. Each environment holds exactly the pinned client and its dependencies
+(:data:`CLIENT_ENVS`), from the package index pip is configured with, and never robocal: the harness scripts in
+``clients/`` run there and talk to ``robocal sim`` over a real socket or pseudo-terminal only.
+
+Cache: ``$ROBOCAL_INTEROP_CACHE`` or ``~/.cache/robocal-interop``, one folder per client and key (requirements and
+Python version), reused between runs; delete the folder to rebuild. The Python is the one running this file (the
+project's 3.10+), so a client without a wheel or source build for it is skipped with pip's own error.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["CLIENT_ENVS", "ClientEnv", "client_python"]
+
+
+def cache_root() -> Path:
+    """Where the environments live (as make_env.py's LeRobot one)."""
+    return Path(os.environ.get("ROBOCAL_INTEROP_CACHE", "~/.cache/robocal-interop")).expanduser()
+
+
+@dataclass(frozen=True)
+class ClientEnv:
+    """A third-party client's environment.
+
+    Attributes:
+        requirements: What pip installs (pinned).
+        imports: Modules imported once after the install, to check it.
+    """
+
+    requirements: tuple[str, ...]
+    imports: tuple[str, ...]
+
+
+CLIENT_ENVS: dict[str, ClientEnv] = {
+    "robstride": ClientEnv(("robstride==0.1.0", "python-can==4.6.1"), ("robstride.client", "can")),
+    "ur_rtde": ClientEnv(("ur-rtde==1.6.5",), ("rtde_receive", "dashboard_client")),
+    "urx": ClientEnv(("urx==0.11.0",), ("urx",)),
+    "dynamixel_sdk": ClientEnv(("dynamixel-sdk==4.1.0",), ("dynamixel_sdk",)),
+    "st3215": ClientEnv(("st3215==0.4.2",), ("st3215",)),
+    "feetech_cli": ClientEnv(("feetech-cli==0.1.8",), ("feetech",)),
+}
+"""Client → its environment (the versions issue 29 names, or the newest the index serves)."""
+
+
+def client_python(name: str) -> tuple[Path | None, str]:
+    """The client's environment's Python (built if missing), or None and the reason (pip's error)."""
+    env = CLIENT_ENVS[name]
+    ver = f"{sys.version_info[0]}.{sys.version_info[1]}"
+    digest = hashlib.sha256("\n".join(env.requirements).encode()).hexdigest()[:10]
+    folder = cache_root() / f"client-{name}-py{ver}-{digest}"
+    python = folder / "bin" / "python"
+    if (folder / ".ready").exists():
+        return python, f"reused {folder}"
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    # built in place (console scripts name their interpreter by its absolute path), one builder at a time
+    with open(folder.with_name(folder.name + ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if (folder / ".ready").exists():
+            return python, f"reused {folder}"
+        return _build(folder, env)
+
+
+def _build(folder: Path, env: ClientEnv) -> tuple[Path | None, str]:
+    start = time.monotonic()
+    python = folder / "bin" / "python"
+    shutil.rmtree(folder, ignore_errors=True)
+    pip = [
+        sys.executable,
+        "-m",
+        "pip",
+        "--python",
+        str(python),
+        "install",
+        "-q",
+        "--disable-pip-version-check",
+    ]
+    try:
+        subprocess.run(
+            [sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, capture_output=True
+        )
+        subprocess.run([*pip, *env.requirements], check=True, capture_output=True, text=True, timeout=900)
+        check = "; ".join(f"import {m}" for m in env.imports)
+        subprocess.run([str(python), "-c", check], check=True, capture_output=True, text=True)
+    except subprocess.CalledProcessError as exc:
+        shutil.rmtree(folder, ignore_errors=True)
+        errors = [line for line in (exc.stderr or "").splitlines() if "ERROR" in line or "Error" in line]
+        return None, f"cannot install {' '.join(env.requirements)}: {' | '.join(errors[-3:]) or exc}"
+    except subprocess.TimeoutExpired:
+        shutil.rmtree(folder, ignore_errors=True)
+        return None, f"installing {' '.join(env.requirements)} took over 900 s"
+    (folder / ".ready").write_text("\n".join(env.requirements) + "\n")
+    return python, f"built {folder} in {time.monotonic() - start:.0f} s"
+
+
+if __name__ == "__main__":
+    for client in sys.argv[1:] or list(CLIENT_ENVS):
+        py, note = client_python(client)
+        print(f"{client}: {py}  ({note})" if py is not None else f"SKIP {client}: {note}")
