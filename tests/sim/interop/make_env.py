@@ -30,8 +30,9 @@ REQUIREMENTS = (
     "tqdm>=4.66,<5",
     "termcolor>=2.4,<4",
     "packaging>=24.2,<26",
+    "python-can>=4.2.0,<5.0.0",
 )
-"""LeRobot's own pins (its core and its feetech/dynamixel extras) for what its motor and robot code imports."""
+"""LeRobot's own pins (its core and its feetech/dynamixel/damiao extras) for what its motor and robot code imports."""
 
 
 def cache_root() -> Path:
