@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from collections.abc import Iterator
 
 import pytest
@@ -45,10 +46,14 @@ def test_the_joint_table_is_the_openarm_v10s() -> None:
         ("joint_7", 0x07, 0x17, "DM4310"),
         ("gripper", 0x08, 0x18, "DM4310"),
     ]
-    stops = [(round(math.degrees(j.stop_lower_rad)), round(math.degrees(j.stop_upper_rad))) for j in OPENARM_V10]
+    stops = [
+        (round(math.degrees(j.stop_lower_rad)), round(math.degrees(j.stop_upper_rad))) for j in OPENARM_V10
+    ]
     assert stops == [(-80, 200), (-10, 190), (-90, 90), (0, 140), (-90, 90), (-45, 45), (-90, 90), (-60, 0)]
     left = openarm_joints("left")
-    assert [(round(math.degrees(j.stop_lower_rad)), round(math.degrees(j.stop_upper_rad))) for j in left[:3]] == [
+    assert [
+        (round(math.degrees(j.stop_lower_rad)), round(math.degrees(j.stop_upper_rad))) for j in left[:3]
+    ] == [
         (-200, 80),
         (-190, 10),
         (-90, 90),
@@ -82,7 +87,9 @@ def test_a_zeroed_arm_reads_the_joint_angles() -> None:
         assert state.position_rad == pytest.approx(truth[name], abs=LSB_RAD), name
 
 
-def test_driving_joint_4_into_its_metal_stop_stops_it_at_140_degrees(arm: tuple[SimOpenArm, DamiaoBus]) -> None:
+def test_driving_joint_4_into_its_metal_stop_stops_it_at_140_degrees(
+    arm: tuple[SimOpenArm, DamiaoBus],
+) -> None:
     sim, bus = arm
     start = bus.refresh(["joint_4"])["joint_4"].position_rad
     bus.enable(["joint_4"])
@@ -92,7 +99,9 @@ def test_driving_joint_4_into_its_metal_stop_stops_it_at_140_degrees(arm: tuple[
         sim.clock.sleep(0.01)
     assert sim.joint_rad("joint_4") == pytest.approx(math.radians(140), abs=math.radians(0.5))
     state = bus.read_state("joint_4")
-    assert state.position_rad - start == pytest.approx(sim.joint_rad("joint_4") - math.radians(2), abs=3 * LSB_RAD)
+    assert state.position_rad - start == pytest.approx(
+        sim.joint_rad("joint_4") - math.radians(2), abs=3 * LSB_RAD
+    )
     assert state.torque_nm > 2.0  # pressing into the stop (and holding the forearm against gravity)
     bus.disable(["joint_4"])
 
@@ -122,3 +131,17 @@ def test_a_scenario_changes_only_its_joint() -> None:
     assert sim.plants["joint_5"].params.stop_upper_rad == pytest.approx(math.pi / 2)
     with pytest.raises(UsageError, match="no joint\\(s\\) joint_9 on the OpenArm"):
         SimOpenArm(_channel(), scenarios={"joint_9": Scenario()})
+
+
+def test_a_realtime_arm_moves_with_the_wall_clock() -> None:
+    ch = _channel()
+    sim = SimOpenArm(ch, zeroed=True, realtime=True)
+    with sim, DamiaoBus(ch, sim.motor_specs(), interface="virtual", timeout_s=5.0, allow_motion=True) as bus:
+        bus.enable(["joint_5"])
+        bus.mit("joint_5", MitCommand(0.5, 0.0, 20.0, 0.5, 0.0))
+        deadline = time.monotonic() + 60.0  # a hang guard: the joint settles in ~0.5 s of simulated time
+        while abs(sim.joint_rad("joint_5") - 0.5) > 0.01 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert sim.joint_rad("joint_5") == pytest.approx(0.5, abs=0.01)
+        assert sim.clock.now() > 0.05  # moved by the pacer: the ~25 frames sent add 0.2 ms each
+        assert bus.read_state("joint_5").position_rad == pytest.approx(sim.joint_rad("joint_5"), abs=LSB_RAD)

@@ -16,6 +16,8 @@ calibration would (the motor reads the joint angle). The joint angle of the trut
 from __future__ import annotations
 
 import math
+import threading
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -144,6 +146,8 @@ class SimOpenArm(StartsOnEnter):
         clock: Simulated time shared with the host (default a new one).
         interface: python-can interface (``virtual`` by default).
         bus_kwargs: More ``can.Bus`` arguments for the simulator's side of the channel.
+        realtime: Move the simulated clock with the wall clock (every 5 ms, integrating every joint), for a
+            standalone device whose clients do not sleep on :attr:`clock` (``robocal sim openarm``).
     """
 
     def __init__(
@@ -158,8 +162,12 @@ class SimOpenArm(StartsOnEnter):
         clock: SimClock | None = None,
         interface: str = "virtual",
         bus_kwargs: dict[str, object] | None = None,
+        realtime: bool = False,
     ) -> None:
         self.side: Side = side
+        self.realtime = realtime
+        self._pacer: threading.Thread | None = None
+        self._stop_pacer = threading.Event()
         self.joints = openarm_joints(side)
         names = {j.name for j in self.joints}
         unknown = sorted(set(scenarios or {}) - names)
@@ -196,13 +204,32 @@ class SimOpenArm(StartsOnEnter):
         self.channel = channel
 
     def start(self) -> SimOpenArm:
-        """Start answering on the channel."""
+        """Start answering on the channel (and, ``realtime``, moving the clock with the wall clock)."""
         self.bus.start()
+        if self.realtime:
+            self._stop_pacer.clear()
+            self._pacer = threading.Thread(target=self._pace, name=f"sim-openarm-{self.channel}", daemon=True)
+            self._pacer.start()
         return self
 
     def stop(self) -> None:
         """Stop answering."""
+        self._stop_pacer.set()
+        if self._pacer is not None:
+            self._pacer.join(timeout=2.0)
+            self._pacer = None
         self.bus.stop()
+
+    def _pace(self, period_s: float = 0.005) -> None:
+        """Keep simulated time level with the wall clock (never behind it), integrating every joint."""
+        wall0, sim0 = time.monotonic(), self.clock.now()
+        while not self._stop_pacer.wait(period_s):
+            with self.bus.lock:
+                behind = sim0 + (time.monotonic() - wall0) - self.clock.now()
+                if behind > 0:
+                    self.clock.advance(behind)
+                for m in self.motors.values():
+                    m.sync()
 
     def motor_specs(self) -> list[DamiaoMotor]:
         """The arm's motors as :class:`~.bus.DamiaoBus` takes them."""
