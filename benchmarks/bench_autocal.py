@@ -8,7 +8,7 @@ the bound, false stops, peak torque against the cap, and the total simulated tim
 (tests/autocal/test_acceptance.py) runs a few seeds through the same :func:`run_scenario` and :data:`THRESHOLDS`.
 
 Each run is one joint of the robot (seed → joint, cycling through the robot's joints, so every joint gets runs)
-auto-calibrated by :func:`robocal.workflows.autocal.calibrate_joint` — the workflow code the CLI runs — on a
+auto-calibrated by :func:`robocal.workflows.autocal.job.calibrate_joint` — the workflow code the CLI runs — on a
 :class:`PlantDriver`: a drive law like the Robstride MIT one (``kp = cap/max_lag``, small ``kd``, the firmware
 torque limit 1.05·cap the Robstride driver sets) stepping :mod:`robocal.backends.sim.physics` for one 10 ms control period per
 command. The truth is the plant's own stops: the ideal offset is the midpoint rule applied to the true stop
@@ -29,8 +29,8 @@ import numpy as np
 from robocal.backends.sim.physics import Drive, JointPlant, PlantParams, Scenario, make_plant
 from robocal.core.profile_auto import AutoJoint, AutoSection
 from robocal.core.stop_search import Command, StopSample
-from robocal.workflows.autocal import calibrate_joint
-from robocal.workflows.autocal_types import JointOutcome
+from robocal.workflows.autocal.job import calibrate_joint
+from robocal.workflows.autocal.model import JointOutcome
 
 PERIOD_S = 0.01
 MAX_LAG_RAD = math.radians(3.0)

@@ -52,7 +52,7 @@ from robocal.backends.servo_ratings import RATINGS
 from robocal.backends.sim.arm_physics import ARM_NOMINAL, attach_physics
 from robocal.backends.sim.lerobot_arms import JointTruth, SimArm, seeded_truth
 from robocal.backends.sim.physics import SimClock
-from robocal.workflows.autocal import AutoCalFailedError, AutoCalResult
+from robocal.workflows.autocal.job import AutoCalFailedError, AutoCalResult
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.arms import open_bus
 from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section

@@ -1,7 +1,7 @@
 """Auto-calibration acceptance over the wire: the whole simulated Lite behind python-can, seeded, in parallel.
 
 ``python benchmarks/run.py autocal_wire`` runs ``robocal sweep --auto``'s workflow
-(:func:`robocal.workflows.autocal_sweep.run_sweep_auto`) on the simulated Lite of ``--source sim:lite?seed=N``:
+(:func:`robocal.workflows.autocal.sweep.run_sweep_auto`) on the simulated Lite of ``--source sim:lite?seed=N``:
 14 simulated Robstride motors on two python-can ``virtual`` channels, each motor's firmware (MIT law, torque limit
 0x700B, type-2 feedback quantised as on the wire) moving a physics plant on one simulated clock, driven by the
 same :class:`~robocal.backends.robstride.RobstrideBus` and joint drivers as real motors. One run is the whole
@@ -35,7 +35,7 @@ from bench_autocal import (
 )
 
 from robocal.backends.sim.physics import Scenario
-from robocal.workflows.autocal import AutoCalFailedError, AutoCalResult
+from robocal.workflows.autocal.job import AutoCalFailedError, AutoCalResult
 
 __all__ = ["WIRE_SCENARIOS", "run_arm", "run_wire_scenario"]
 
@@ -58,8 +58,8 @@ WIRE_SCENARIOS: tuple[tuple[ScenarioSpec, str], ...] = (
 def run_arm(fault: str, seed: int) -> list[RunResult]:
     """Auto-calibrate the whole simulated Lite (``sim:lite?seed=seed``, ``fault`` on every joint); one result a joint."""
     from robocal.backends.sim.lite import LITE_JOINTS, lite_urdf_text
-    from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-    from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+    from robocal.workflows.autocal.sim import SimAutoLite, sim_opener
+    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
     names = [j.name for j in LITE_JOINTS]
     span_rad = {j.name: j.upper - j.lower for j in LITE_JOINTS}

@@ -17,7 +17,7 @@ from robocal.core.kinematic_errors import ErrorModel
 from robocal.core.kinematic_problem import Problem, analyse, free_indices
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
-from robocal.workflows.kinematic_fit import fit
+from robocal.workflows.kinematics.fit import fit
 
 
 def _numeric_fit(problem: Problem) -> None:
@@ -77,7 +77,7 @@ def _accuracy_per_seed(model: ErrorModel, seeds: int = 20) -> None:
 
     cand = SimulatedKinematicArm(model, np.zeros(model.n_params)).sample_q(2000, np.random.default_rng(99))
     free = free_indices(model, ["base"])
-    from robocal.workflows.kinematic_fit import PriorSigmas
+    from robocal.workflows.kinematics.fit import PriorSigmas
 
     for n, bar in ((50, "mean <= 0.4, max <= 0.9 mm"), (20, "mean <= 0.8 mm")):
         q = cand[plan_poses(model, cand, n, criterion="I")]
@@ -108,7 +108,7 @@ def _session_pipeline_per_seed(seeds: int) -> None:
     the held-out poses; and the covariance's predicted RMS against the parameters' true RMS."""
     import tempfile
 
-    from robocal.workflows.demo_identify import simulate_and_identify
+    from robocal.workflows.demo.identify import simulate_and_identify
 
     for robot in ("so101", "koch"):
         means, maxima, ratio, nominal = [], [], [], []

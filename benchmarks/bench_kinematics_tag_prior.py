@@ -23,9 +23,15 @@ from robocal.core.kinematic_images import ImageObservations, ImageProblem, hand_
 from robocal.core.pose_plan import plan_image_poses, target_visible
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
-from robocal.workflows.kinematic_fit import PriorSigmas, fit
-from robocal.workflows.kinematic_sim import SIM_ROBOTS, shipped_urdf
-from robocal.workflows.kinematic_vision_sim import SIM_CAMERA_K, SIM_CAMERA_SIZE, SIM_MOUNT, SIM_VIEW, look_at
+from robocal.workflows.kinematics.fit import PriorSigmas, fit
+from robocal.workflows.kinematics.sim import SIM_ROBOTS, shipped_urdf
+from robocal.workflows.kinematics.vision_sim import (
+    SIM_CAMERA_K,
+    SIM_CAMERA_SIZE,
+    SIM_MOUNT,
+    SIM_VIEW,
+    look_at,
+)
 
 NOISE_PX = 0.3
 K = SIM_CAMERA_K

@@ -46,7 +46,7 @@ def write_csv(path: Path, rows: int, chunk: int = 100_000) -> None:
 def child(mode: str, csv: str, urdf: str, out: str) -> None:
     """Run one measurement and print ``peak_MiB seconds``."""
     from robocal.backends.replay import read_recording
-    from robocal.workflows.sweep import SweepRequest, run_sweep
+    from robocal.workflows.sweep.job import SweepRequest, run_sweep
 
     t0 = time.perf_counter()
     if mode == "sweep":

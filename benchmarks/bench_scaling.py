@@ -34,7 +34,7 @@ from robocal.core import RobotCalibration
 from robocal.errors import CalibError
 from robocal.formats import detect_format, read_calibration, write_calibration
 from robocal.formats.urdf import read_urdf
-from robocal.workflows.calibration import check_calibration, convert_file
+from robocal.workflows.files.job import check_calibration, convert_file
 
 SIZES = (1_000, 3_000, 10_000, 30_000, 100_000, 300_000, 1_000_000)
 MIN_FIT_S = 0.02

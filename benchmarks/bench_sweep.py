@@ -19,8 +19,8 @@ import numpy as np
 
 from robocal.backends.sim.lite import LITE_JOINTS, lite_urdf_text
 from robocal.core.sweep import RangeTracker, analyse_sweep
-from robocal.workflows.robot import open_robot
-from robocal.workflows.sweep import SweepRequest, run_sweep
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
+from robocal.workflows.sweep.robot import open_robot
 
 N = len(LITE_JOINTS)
 RATE_HZ = 1000.0

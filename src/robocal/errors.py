@@ -109,7 +109,7 @@ class SignalInterrupt(KeyboardInterrupt):
     It is a ``KeyboardInterrupt``, so every path that makes motors limp and restores registers on Ctrl-C runs
     for ``kill`` and a closed terminal too. ``exit_code`` is the shell's ``128 + signum`` (143, 129).
 
-    The motion guard (``robocal.workflows.motion_guard``) raises it for SIGINT and SIGQUIT too. ``args`` hold only
+    The motion guard (``robocal.workflows.motion.guard``) raises it for SIGINT and SIGQUIT too. ``args`` hold only
     what a clean-up added (the motors or registers it could not restore), as for a plain ``KeyboardInterrupt``
     re-raised by a rollback: empty means everything was restored.
 

@@ -114,7 +114,7 @@ def run_search(plant: Plant, search: StopSearch, max_steps: int = 100_000) -> li
 
 
 class PlantDriver:
-    """A :class:`robocal.workflows.autocal.JointDriver` over a :class:`Plant` (no wire; tests of the workflow)."""
+    """A :class:`robocal.workflows.autocal.job.JointDriver` over a :class:`Plant` (no wire; tests of the workflow)."""
 
     def __init__(self, name: str, plant: Plant, interrupt_after: int | None = None) -> None:
         self.name = name

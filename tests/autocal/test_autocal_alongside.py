@@ -15,9 +15,9 @@ import pytest
 from robocal.core.profile_auto import AutoJoint, AutoSection
 from robocal.errors import FileFormatError
 from robocal.formats.profiles import parse_profile
-from robocal.workflows.autocal import run_autocal
-from robocal.workflows.autocal_group import run_lockstep
-from robocal.workflows.autocal_joint import calibrate_joint, calibrate_joint_steps
+from robocal.workflows.autocal.group import run_lockstep
+from robocal.workflows.autocal.job import run_autocal
+from robocal.workflows.autocal.joint import calibrate_joint, calibrate_joint_steps
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 from robocal.workflows.lerobot.auto_sim import open_auto_arm

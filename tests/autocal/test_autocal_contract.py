@@ -22,9 +22,9 @@ from robocal.errors import UsageError
 from robocal.fileio import backup_paths
 from robocal.formats.profiles import load_profile
 from robocal.lerobot import read_calibration
-from robocal.workflows.autocal import select_joints
-from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.job import select_joints
+from robocal.workflows.autocal.sim import SimAutoLite, sim_opener
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 
@@ -164,7 +164,7 @@ def test_lerobot_auto_stopless_joint_is_refused_before_the_question() -> None:
 def test_ctrl_c_between_the_report_and_the_calibration_leaves_both_unchanged(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, report_exists: bool
 ) -> None:
-    import robocal.workflows.sweep as sweep_module
+    import robocal.workflows.sweep.job as sweep_module
 
     out, report = tmp_path / "cal.yaml", tmp_path / "report.json"
     out.write_text("left_wrist_roll:\n  id: 16\n  direction: -1\n  homing_offset: 0.25\n")
@@ -202,7 +202,7 @@ def test_ctrl_c_between_the_report_and_the_calibration_leaves_both_unchanged(
 def test_disk_error_on_the_calibration_takes_the_report_back(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    import robocal.workflows.sweep as sweep_module
+    import robocal.workflows.sweep.job as sweep_module
 
     out, report = tmp_path / "cal.yaml", tmp_path / "report.json"
 
@@ -271,7 +271,7 @@ def test_the_question_states_each_cap_as_a_share_of_the_motors_rating_and_what_a
 
     from robocal.cli._autocal import make_confirm_start
     from robocal.formats.profiles import load_profile
-    from robocal.workflows.autocal_types import JointCaps
+    from robocal.workflows.autocal.model import JointCaps
     from robocal.workflows.lerobot.auto import HOST_LOSS
 
     monkeypatch.setattr(sys.stdin, "isatty", lambda: True)

@@ -19,8 +19,8 @@ pytest.importorskip("can")
 from robocal.backends.sim.lite import lite_urdf_text
 from robocal.backends.sim.robstride import SimMotor
 from robocal.cli.main import main
-from robocal.workflows.autocal import AutoCalAbortedError
-from robocal.workflows.autocal_sim import SimAutoLite, open_sim_lite
+from robocal.workflows.autocal.job import AutoCalAbortedError
+from robocal.workflows.autocal.sim import SimAutoLite, open_sim_lite
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import (
     AutoCalibrationRequest,
@@ -60,7 +60,7 @@ def test_lite_motor_fault_limp_nothing_written_exit_3(
         return sims[-1]
 
     monkeypatch.setattr(SimMotor, "feedback", hot_after_200)
-    monkeypatch.setattr("robocal.workflows.autocal_sim.open_sim_lite", keep)
+    monkeypatch.setattr("robocal.workflows.autocal.sim.open_sim_lite", keep)
     rc = main(
         ["sweep", "--auto", "--urdf", str(urdf), "--robot", "bhl_arms", "--source", "sim:lite?seed=2",
          "--out", str(out), "--report", str(report), "--joints", "left_wrist_roll,left_wrist_pitch", "--yes"]

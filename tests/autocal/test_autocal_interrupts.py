@@ -17,12 +17,12 @@ import pytest
 
 pytest.importorskip("can")
 
-import robocal.workflows.autocal_joint as autocal_joint
+import robocal.workflows.autocal.joint as autocal_joint
 from robocal.backends.sim.lite import lite_urdf_text
 from robocal.cli.main import main
 from robocal.core.stop_search import StopSample
-from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.sim import SimAutoLite, sim_opener
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
 pytestmark = pytest.mark.timeout(600)
 

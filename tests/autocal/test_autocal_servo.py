@@ -15,8 +15,8 @@ import pytest
 
 from robocal.core.lerobot import MotorCalibration
 from robocal.errors import UsageError
-from robocal.workflows.autocal import AutoCalFailedError
-from robocal.workflows.autocal_servo import DynamixelJointDriver, FeetechJointDriver
+from robocal.workflows.autocal.job import AutoCalFailedError
+from robocal.workflows.autocal.servo_driver import DynamixelJointDriver, FeetechJointDriver
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import (
     AutoCalibrationRequest,
@@ -222,7 +222,7 @@ def test_ctrl_c_limps_every_motor_and_restores_every_register(tmp_path: Path, at
 def test_driver_types_per_vendor() -> None:
     spec = robot_spec("koch_follower")
     section = auto_section("koch_follower")
-    from robocal.workflows.autocal_servo import servo_driver_class
+    from robocal.workflows.autocal.servo_driver import servo_driver_class
 
     with open_auto_arm(spec, "sim", section) as arm:
         d = servo_driver_class("dynamixel")(arm.bus, "elbow_flex", 3, rated_nm=0.52, cap_nm=0.13, clock=arm.clock)

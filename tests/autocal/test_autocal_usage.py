@@ -9,7 +9,7 @@ import pytest
 from robocal.backends.sim.lite import lite_urdf_text
 from robocal.cli.main import main
 from robocal.errors import UsageError
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
 
 @pytest.fixture

@@ -17,9 +17,9 @@ from robocal.backends.sim.lite import lite_urdf_text
 from robocal.core.stop_search import StopSample
 from robocal.errors import UsageError
 from robocal.formats import read_calibration
-from robocal.workflows.autocal import AutoCalFailedError
-from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.job import AutoCalFailedError
+from robocal.workflows.autocal.sim import SimAutoLite, sim_opener
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
 JOINTS = ["left_wrist_roll", "left_wrist_pitch"]
 

@@ -11,9 +11,9 @@ import pytest
 pytest.importorskip("can")
 
 from robocal.backends.sim.lite import lite_urdf_text
-from robocal.workflows.autocal import AutoCalFailedError
-from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.job import AutoCalFailedError
+from robocal.workflows.autocal.sim import SimAutoLite, sim_opener
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
 
 def test_silent_motor_at_the_stop_fails_with_no_reply_in_bounded_time(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ import pytest
 
 from robocal.core.profile_auto import AutoJoint, AutoSection
 from robocal.errors import UsageError
-from robocal.workflows.autocal import AutoCalAbortedError, run_autocal, select_joints
+from robocal.workflows.autocal.job import AutoCalAbortedError, run_autocal, select_joints
 
 from .plant import Plant, PlantDriver
 

@@ -13,7 +13,7 @@ from robocal.backends.sim.physics import PlantParams, Scenario, make_plant
 from robocal.core.gravity import GravityModel
 from robocal.formats.profiles import load_profile
 from robocal.formats.urdf_gravity import gravity_model_from_urdf
-from robocal.workflows.autocal import joint_gravity_for, run_autocal
+from robocal.workflows.autocal.job import joint_gravity_for, run_autocal
 
 from .test_acceptance import bench
 

@@ -98,7 +98,7 @@ def test_the_kept_snapshot_is_found_by_the_next_run_on_that_port_until_it_is_rem
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The quick representative: the state file a killed run leaves, read back exactly, and gone once resolved."""
-    from robocal.workflows.motion_snapshot import SnapshotStore, find_left_changed
+    from robocal.workflows.motion.snapshot import SnapshotStore, find_left_changed
 
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
     port = str(tmp_path / "ttyACM0")

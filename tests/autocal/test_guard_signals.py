@@ -146,7 +146,7 @@ def test_the_guard_in_process_makes_limp_before_it_restores_and_exits_with_the_s
     import os
 
     from robocal.errors import SignalInterrupt
-    from robocal.workflows.motion_guard import MotionGuard
+    from robocal.workflows.motion.guard import MotionGuard
 
     calls: list[str] = []
     seen: list[dict[str, dict[str, int]]] = []

@@ -18,8 +18,8 @@ pytest.importorskip("can")
 from robocal.backends.sim.lite import lite_urdf_text
 from robocal.core.stop_search import StopSample
 from robocal.errors import SignalInterrupt
-from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.sim import SimAutoLite, sim_opener
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
 pytestmark = pytest.mark.timeout(600)
 

@@ -23,7 +23,7 @@ from robocal.backends.sim.physics import JointPlant, PlantParams, SimClock
 from robocal.backends.sim.robstride import SimMotor, SimMotorBus
 from robocal.core.stop_search import Command
 from robocal.errors import DeviceError
-from robocal.workflows.autocal_robstride import (
+from robocal.workflows.autocal.robstride_driver import (
     MAX_LAG_RAD,
     WATCHDOG_S,
     RobstrideJointDriver,

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from robocal.errors import DeviceError, SignalInterrupt
-from robocal.workflows.motion_guard import MotionGuard
-from robocal.workflows.motion_snapshot import SnapshotStore, find_left_changed
+from robocal.workflows.motion.guard import MotionGuard
+from robocal.workflows.motion.snapshot import SnapshotStore, find_left_changed
 
 
 @dataclass

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from robocal.workflows.autocal import AutoCalAbortedError
-from robocal.workflows.autocal_joint import FRICTION_SETTLE_S, move_to
+from robocal.workflows.autocal.job import AutoCalAbortedError
+from robocal.workflows.autocal.joint import FRICTION_SETTLE_S, move_to
 
 from .plant import Plant, PlantDriver
 

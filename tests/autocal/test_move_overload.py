@@ -7,8 +7,8 @@ import math
 import pytest
 
 from robocal.core.stop_types import Command, StopSample
-from robocal.workflows.autocal import AutoCalAbortedError
-from robocal.workflows.autocal_joint import MOVE_OVERLOAD_CLEARS, move_to
+from robocal.workflows.autocal.job import AutoCalAbortedError
+from robocal.workflows.autocal.joint import MOVE_OVERLOAD_CLEARS, move_to
 
 from .bench_loader import load_benchmark
 from .plant import Plant, PlantDriver

@@ -9,7 +9,7 @@ import pytest
 
 from robocal.backends.sim.physics import SimClock
 from robocal.errors import CalibTimeoutError, DeviceError
-from robocal.workflows.autocal_servo import FeetechJointDriver
+from robocal.workflows.autocal.servo_driver import FeetechJointDriver
 
 from .bench_loader import load_benchmark
 

@@ -23,9 +23,9 @@ from robocal.core.profile_auto import AutoSection
 from robocal.core.stop_search import Command
 from robocal.errors import FileFormatError
 from robocal.formats.profiles import load_profile, parse_profile
-from robocal.workflows.autocal_robstride import LIMIT_TORQUE, MAX_LAG_RAD, RobstrideJointDriver
-from robocal.workflows.autocal_servo import servo_driver_class
-from robocal.workflows.autocal_types import JointCaps
+from robocal.workflows.autocal.model import JointCaps
+from robocal.workflows.autocal.robstride_driver import LIMIT_TORQUE, MAX_LAG_RAD, RobstrideJointDriver
+from robocal.workflows.autocal.servo_driver import servo_driver_class
 
 PINNED = {  # model: (rated N·m, stall/peak N·m, family)
     "RS00": (5.0, 14.0, "robstride"),
@@ -322,8 +322,8 @@ def test_a_shipped_arm_search_never_pushes_past_the_ceiling_at_the_simulated_mot
 def test_the_lite_search_never_pushes_past_the_ceiling_at_the_simulated_motor(tmp_path: Any) -> None:
     pytest.importorskip("can")
     from robocal.backends.sim.lite import lite_urdf_text
-    from robocal.workflows.autocal_sim import SimAutoLite, sim_opener
-    from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+    from robocal.workflows.autocal.sim import SimAutoLite, sim_opener
+    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
     urdf = tmp_path / "lite.urdf"
     urdf.write_text(lite_urdf_text())

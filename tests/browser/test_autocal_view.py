@@ -15,7 +15,7 @@ import pytest
 
 from robocal.viewer.autocal_page import open_auto_sweep_page
 from robocal.viewer.sweep_page import FAIL_RGB, STATUS_RGB
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
 pytest.importorskip("viser", reason="viser comes with robocal[view]")
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robocal.viewer.sweep_page import STATUS_RGB, open_sweep_page
-from robocal.workflows.sweep import SweepRequest, run_sweep
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
 
 pytest.importorskip("viser", reason="viser comes with robocal[view]")
 

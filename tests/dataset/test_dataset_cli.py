@@ -345,7 +345,7 @@ def test_mixed_feature_through_the_cli_with_wheel_motors(
 def test_the_job_takes_one_request_and_writes_what_the_cli_writes(
     files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from robocal.workflows.dataset import DatasetOptions, RecalibrateRequest, recalibrate
+    from robocal.workflows.dataset.job import DatasetOptions, RecalibrateRequest, recalibrate
 
     args = ["dataset", "recalibrate", files["src"], tmp_path / "cli", "--old", files["a"], "--new", files["b"]]
     code, _, err = run(capsys, *args)

@@ -18,8 +18,8 @@ from robocal.backends.sim.lite import LITE_JOINTS, SimLite, lite_urdf_text
 from robocal.backends.sources import JointSpec, SimLiteSource
 from robocal.cli.main import main
 from robocal.formats import read_calibration
-from robocal.workflows import sweep as wf
-from robocal.workflows.sweep import SweepRequest, run_sweep
+from robocal.workflows.sweep import job as wf
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
 
 from .conftest import paused_child
 

@@ -32,7 +32,7 @@ def test_missing_optional_dependency_names_the_extra(monkeypatch: pytest.MonkeyP
 
 def test_missing_opencv_and_scipy_keep_their_own_messages(monkeypatch: pytest.MonkeyPatch) -> None:
     from robocal.backends.vision import _cv2
-    from robocal.workflows.kinematic_fit import _least_squares
+    from robocal.workflows.kinematics.fit import _least_squares
 
     monkeypatch.setitem(sys.modules, "cv2", None)
     with pytest.raises(BackendNotAvailableError) as err:

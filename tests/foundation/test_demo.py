@@ -1,4 +1,4 @@
-"""``robocal demo`` as one workflow (robocal.workflows.demo) rendered by a thin CLI (robocal.cli.demo)."""
+"""``robocal demo`` as one workflow (robocal.workflows.demo.job) rendered by a thin CLI (robocal.cli.demo)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from robocal.cli.demo import render
 from robocal.cli.main import main
 from robocal.errors import UsageError
-from robocal.workflows.demo import (
+from robocal.workflows.demo.job import (
     DEMO_ROBOTS,
     JOBS,
     MODE_ROBOTS,
@@ -125,8 +125,8 @@ def test_demo_auto_is_a_job_for_the_lite_and_refuses_other_robots_in_its_own_wor
 def test_render_prints_the_auto_table_before_the_truth_table(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    from robocal.workflows.autocal_sweep import AutoSweepOutcome
-    from robocal.workflows.autocal_types import AutoCalResult
+    from robocal.workflows.autocal.model import AutoCalResult
+    from robocal.workflows.autocal.sweep import AutoSweepOutcome
 
     outcome = AutoSweepOutcome(AutoCalResult((), 12.5), None, None, "robocal", None, 0)  # type: ignore[arg-type]
     table = TruthTable("true vs recovered homing_offset (rad)", ("joint", "true"), (("j1", "+0.1000"),))
@@ -140,7 +140,7 @@ def test_render_prints_the_auto_table_before_the_truth_table(
 
 @pytest.mark.slow
 def test_demo_auto_job_recovers_the_simulated_zeros_and_hands_its_urdf_to_the_view(tmp_path: Path) -> None:
-    from robocal.workflows.autocal_sweep import AutoSweepOutcome
+    from robocal.workflows.autocal.sweep import AutoSweepOutcome
 
     urdfs: list[Path] = []
     started: list[str] = []

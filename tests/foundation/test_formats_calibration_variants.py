@@ -13,7 +13,7 @@ from robocal.core.jointmap import RobotCalibration
 from robocal.errors import FileFormatError, InvalidCalibrationError, JointMismatchError, ShapeMismatchError
 from robocal.formats import CalibrationFile, read_calibration, write_calibration
 from robocal.formats.urdf import parse_urdf, read_urdf
-from robocal.workflows.calibration import check_calibration
+from robocal.workflows.files.job import check_calibration
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "lite"
 LITE_URDF = EXAMPLES / "lite_bimanual.urdf"

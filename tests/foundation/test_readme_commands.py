@@ -211,7 +211,7 @@ def demo_nominal_error_mm(robot: str, seed: int) -> float:
     from robocal.core.kinematic_errors import ErrorModel
     from robocal.formats.urdf import read_urdf
     from robocal.formats.urdf_chain import chain_from_urdf
-    from robocal.workflows.kinematic_sim import SIM_ROBOTS, shipped_urdf, tool_frame
+    from robocal.workflows.kinematics.sim import SIM_ROBOTS, shipped_urdf, tool_frame
 
     spec = SIM_ROBOTS[robot]
     chain = chain_from_urdf(read_urdf(str(shipped_urdf(robot))), tip_link=spec.tip_link)

@@ -13,7 +13,7 @@ from robocal.core import RobotCalibration
 from robocal.core.chain import ChainJoint
 from robocal.formats import CalibrationFile, read_calibration, write_calibration
 from robocal.formats.urdf import UrdfModel, read_urdf
-from robocal.workflows.calibration import check_calibration
+from robocal.workflows.files.job import check_calibration
 
 
 def _names(n: int) -> list[str]:

@@ -117,7 +117,7 @@ def test_every_servo_vendor_has_each_of_its_adapters() -> None:
     """A vendor with a homing rule (a LeRobot servo vendor) is declared with all its adapters, not some."""
     from robocal.backends import BACKENDS
     from robocal.backends.sim.servo_model import SIM_SERVO_KINDS
-    from robocal.workflows.autocal_servo import SERVO_DRIVERS
+    from robocal.workflows.autocal.servo_driver import SERVO_DRIVERS
     from robocal.workflows.lerobot.configure import _PRESETS
 
     servo_vendors = {n for n, v in VENDORS.items() if v.homing is not None}

@@ -295,8 +295,8 @@ NOT_FILE_READERS = {
     "backends.sim.control:request": "the simulator's control socket (its own JSON answers)",
     "formats.calibration.transmission:_append_transmission": "an XML snippet robocal builds itself",
     "viewer.shapes:add_simple_shapes": "a URDF text parse_urdf has already accepted",
-    "workflows.demo:_lerobot_demo": "the calibration JSON the demo has just written",
-    "workflows.motion_snapshot:find_left_changed": "robocal's own register snapshot in its state folder (a "
+    "workflows.demo.job:_lerobot_demo": "the calibration JSON the demo has just written",
+    "workflows.motion.snapshot:find_left_changed": "robocal's own register snapshot in its state folder (a "
     "file it cannot read is ignored, never an error)",
 }
 """Parse calls in src/ that read no user file, with the reason."""

@@ -1,4 +1,4 @@
-"""workflows.kinematic_fit on the simulated SO-101: the done-when numbers of issue 13 (held-out poses)."""
+"""workflows.kinematics.fit on the simulated SO-101: the done-when numbers of issue 13 (held-out poses)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from robocal.backends.sim.kinematic_arm import SimulatedKinematicArm, hidden_err
 from robocal.core.kinematic_errors import ErrorModel
 from robocal.core.kinematic_problem import Measurements, Problem, free_indices, plan_poses
 from robocal.errors import UsageError
-from robocal.workflows.kinematic_fit import PriorSigmas, fit, split_validation, validation_errors
+from robocal.workflows.kinematics.fit import PriorSigmas, fit, split_validation, validation_errors
 
 from .conftest import so101_model
 

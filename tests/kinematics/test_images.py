@@ -22,7 +22,7 @@ pytestmark = pytest.mark.timeout(900)  # 60 rendered images, detected several ti
 
 from robocal.backends.vision import CameraIntrinsics, detect, parse_target, read_image, render  # noqa: E402
 from robocal.formats.camera_info import read_camera_info, write_camera_info  # noqa: E402
-from robocal.workflows.kinematic_vision import SIM_CAMERA_K, simulate_images  # noqa: E402
+from robocal.workflows.kinematics.vision import SIM_CAMERA_K, simulate_images  # noqa: E402
 
 
 @pytest.fixture(scope="module")

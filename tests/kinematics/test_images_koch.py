@@ -30,7 +30,7 @@ def test_koch_tag_images_identify_the_arm(tmp_path: Path, capsys) -> None:
     from robocal.formats.camera_info import write_camera_info
     from robocal.formats.urdf import read_urdf
     from robocal.formats.urdf_chain import chain_from_urdf
-    from robocal.workflows.kinematic_vision import SIM_CAMERA_K
+    from robocal.workflows.kinematics.vision import SIM_CAMERA_K
 
     code = simulate(tmp_path, "--robot", "koch", "--kind", "tag", "--poses", "24")
     assert code == 0

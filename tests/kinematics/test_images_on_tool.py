@@ -82,7 +82,7 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     pytest.importorskip("cv2")
     from robocal.backends.vision import CameraIntrinsics
     from robocal.formats.camera_info import write_camera_info
-    from robocal.workflows.kinematic_vision import SIM_CAMERA_K, simulate_images
+    from robocal.workflows.kinematics.vision import SIM_CAMERA_K, simulate_images
 
     folder = tmp_path_factory.mktemp("eye_in_hand")
     simulate_images("so101", folder, poses=30, seed=2, camera_on_tool=True, calibration_images=0)
@@ -144,7 +144,7 @@ def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
 def test_refine_intrinsics_from_the_cli_reports_the_camera_matrix(
     session: Path, tmp_path: Path, capsys
 ) -> None:
-    from robocal.workflows.kinematic_vision import SIM_CAMERA_K
+    from robocal.workflows.kinematics.vision import SIM_CAMERA_K
 
     assert _identify(session, tmp_path, "--camera-on-tool", "--refine-intrinsics") in (0, 1)
     out = capsys.readouterr().out

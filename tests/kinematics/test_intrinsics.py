@@ -9,8 +9,8 @@ from robocal.core.kinematic_errors import ErrorModel
 from robocal.core.kinematic_images import INTRINSICS, ImageObservations, ImageProblem
 from robocal.core.se3 import homogeneous
 from robocal.errors import InvalidCalibrationError, UsageError
-from robocal.workflows.kinematic_fit import fit
-from robocal.workflows.kinematic_vision_sim import SIM_CAMERA_K, look_at
+from robocal.workflows.kinematics.fit import fit
+from robocal.workflows.kinematics.vision_sim import SIM_CAMERA_K, look_at
 
 from .conftest import check_jacobian, so101_model
 
@@ -111,7 +111,7 @@ def test_refine_intrinsics_is_for_tag_images(tmp_path, capsys) -> None:
 
 @pytest.mark.slow
 def test_prior_on_image_data_estimates_every_joint_parameter_but_not_the_camera() -> None:
-    from robocal.workflows.kinematic_fit import PriorSigmas
+    from robocal.workflows.kinematics.fit import PriorSigmas
 
     obs, model, x_true = _session(SIM_CAMERA_K, n=30, seed=4)
     problem = ImageProblem(model, obs, tuple(range(model.n_params)), np.zeros(model.n_params))

@@ -1,4 +1,4 @@
-"""workflows.kinematic_report: the report parts ``identify`` and ``identify_images`` share, on the SO-101 chain."""
+"""workflows.kinematics.report: the report parts ``identify`` and ``identify_images`` share, on the SO-101 chain."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import types
 
 import numpy as np
 
-from robocal.workflows.kinematic_fit import PriorSigmas
-from robocal.workflows.kinematic_report import (
+from robocal.workflows.kinematics.fit import PriorSigmas
+from robocal.workflows.kinematics.report import (
     CONDITION_LIMIT,
     chain_summary,
     condition_warnings,

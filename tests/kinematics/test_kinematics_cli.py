@@ -274,7 +274,7 @@ def test_csv_round_trip_is_exact(n: int, kind: str, seed: int) -> None:
 
 @pytest.mark.slow
 def test_plan_writes_poses_inside_the_limits(tmp_path: Path, capsys) -> None:
-    from robocal.workflows.kinematic_sim import shipped_urdf
+    from robocal.workflows.kinematics.sim import shipped_urdf
 
     out = tmp_path / "plan.csv"
     args = [

@@ -14,8 +14,8 @@ import pytest
 from robocal.cli.main import main
 from robocal.core.kinematic_images import ImageProblem
 from robocal.errors import UsageError
-from robocal.workflows.kinematic_fit import fit
-from robocal.workflows.kinematic_vision_sim import SIM_CAMERA_K
+from robocal.workflows.kinematics.fit import fit
+from robocal.workflows.kinematics.vision_sim import SIM_CAMERA_K
 
 from .test_intrinsics import _session
 

@@ -49,7 +49,7 @@ def test_identify_refuses_options_it_would_ignore_or_crash_on(
 
 
 def test_plan_refuses_a_negative_seed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from robocal.workflows.kinematic_sim import shipped_urdf
+    from robocal.workflows.kinematics.sim import shipped_urdf
 
     code = main(
         ["kinematics", "plan", "--urdf", str(shipped_urdf("so101")), *TOOL, "--out", str(tmp_path / "p.csv"),

@@ -13,8 +13,8 @@ from robocal.core.identifiability import select_poses, select_poses_i_optimal
 from robocal.core.kinematic_problem import Measurements, Problem, analyse, free_indices, plan_poses
 from robocal.errors import FileFormatError, UsageError
 from robocal.formats.kinematic_data import parse_joint_table
-from robocal.workflows.kinematic_fit import PriorSigmas
-from robocal.workflows.kinematic_sim import shipped_urdf
+from robocal.workflows.kinematics.fit import PriorSigmas
+from robocal.workflows.kinematics.sim import shipped_urdf
 
 from .conftest import so101_model
 

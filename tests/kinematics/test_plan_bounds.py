@@ -8,7 +8,7 @@ import pytest
 from robocal.errors import UsageError
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
-from robocal.workflows.kinematic_plan import sampling_bounds
+from robocal.workflows.kinematics.plan import sampling_bounds
 
 from .conftest import SO101_URDF
 
@@ -27,7 +27,7 @@ def test_bounds_are_the_limits_shrunk_by_the_margin_and_a_too_wide_margin_names_
 
 def test_touch_plans_draw_their_starts_inside_the_same_bounds(tmp_path) -> None:
     """A touch plan's random starts come from the same bounds: a margin wider than a joint's range is refused."""
-    from robocal.workflows.kinematic_plan import plan
+    from robocal.workflows.kinematics.plan import plan
 
     chain = chain_from_urdf(read_urdf(str(SO101_URDF)), tip_link="gripper_link")
     lim_lo, lim_up = (np.asarray(v) for v in chain.limits())

@@ -16,8 +16,8 @@ from robocal.errors import UsageError
 from robocal.formats.kinematic_data import read_pose_plan
 from robocal.formats.urdf import read_urdf
 from robocal.formats.urdf_chain import chain_from_urdf
-from robocal.workflows.kinematic_sim import shipped_urdf
-from robocal.workflows.kinematic_vision_sim import SIM_CAMERA_K, look_at
+from robocal.workflows.kinematics.sim import shipped_urdf
+from robocal.workflows.kinematics.vision_sim import SIM_CAMERA_K, look_at
 
 TAG = np.array([[-0.03, 0.03, 0.0], [0.03, 0.03, 0.0], [0.03, -0.03, 0.0], [-0.03, -0.03, 0.0]])  # 60 mm
 SIZE = (1280, 960)
@@ -239,7 +239,7 @@ def _posterior_sigma(
 
 @pytest.mark.slow
 def test_bayesian_tag_plan_counts_the_kinematic_prior_only() -> None:
-    from robocal.workflows.kinematic_fit import PriorSigmas
+    from robocal.workflows.kinematics.fit import PriorSigmas
 
     model = _fixed_model()
     cand = _visible_candidates(model, False, 3000, seed=4)[:300]

@@ -17,8 +17,8 @@ from robocal.core.lerobot import MotorCalibration
 from robocal.errors import JointMismatchError, UsageError
 from robocal.formats.kinematic_data import read_measurements
 from robocal.lerobot import write_calibration
-from robocal.workflows.kinematic_record import open_reader, record
-from robocal.workflows.kinematic_sim import shipped_urdf
+from robocal.workflows.kinematics.record import open_reader, record
+from robocal.workflows.kinematics.sim import shipped_urdf
 from robocal.workflows.lerobot import robot_spec
 
 pytest.importorskip("scservo_sdk")

@@ -12,7 +12,7 @@ import pytest
 from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH
 from robocal.cli.main import main
 from robocal.formats.kinematic_data import read_measurements
-from robocal.workflows.kinematic_record import lerobot_joint_map
+from robocal.workflows.kinematics.record import lerobot_joint_map
 from robocal.workflows.lerobot import robot_spec
 
 from .test_record import CHAIN, ROBOT, _calibration, _homing

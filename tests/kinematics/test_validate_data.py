@@ -16,8 +16,8 @@ from robocal.cli.main import main
 from robocal.core.kinematic_problem import Measurements
 from robocal.errors import UsageError
 from robocal.formats.kinematic_data import parse_measurements
-from robocal.workflows import kinematics as wf
-from robocal.workflows.demo_identify import simulate_and_identify
+from robocal.workflows.demo.identify import simulate_and_identify
+from robocal.workflows.kinematics import job as wf
 
 from .conftest import JOINTS, identify_cli, simulate
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from robocal.cli.main import main
-from robocal.workflows.autocal import joint_gravity_for
+from robocal.workflows.autocal.job import joint_gravity_for
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
 from robocal.workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm, sim_gravity_model

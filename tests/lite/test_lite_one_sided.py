@@ -29,9 +29,9 @@ from robocal.cli.main import main
 from robocal.core.sweep import analyse_sweep, one_sided_position_offset
 from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
-from robocal.workflows.joint_specs import joints_from_urdf
-from robocal.workflows.sweep import SweepRequest, run_sweep
-from robocal.workflows.sweep_session import SweepSession
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
+from robocal.workflows.sweep.joint_specs import joints_from_urdf
+from robocal.workflows.sweep.session import SweepSession
 
 
 def _replay(path: Path = REPLAY) -> tuple[list[str], np.ndarray]:

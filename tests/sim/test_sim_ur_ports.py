@@ -26,7 +26,7 @@ from robocal.cli.main import main
 from robocal.core.dh import fk_dh
 from robocal.core.se3 import rotvec_from_matrix
 from robocal.core.ur import nominal_dh
-from robocal.workflows.sim import UR_PORT_OFFSETS, serve_ur
+from robocal.workflows.sim.job import UR_PORT_OFFSETS, serve_ur
 
 from .conftest import robocal
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from robocal.backends.sim.lite import SimLite
-from robocal.workflows.sweep import SweepRequest, run_sweep
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
 
 POSITION_LSB_RAD = 8 * math.pi / 0xFFFF
 """One step of the 16-bit position field (±4π rad)."""

@@ -235,7 +235,7 @@ def test_cli_second_ctrl_c_exit_130_writes_nothing(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from robocal.backends.sim.lite import SimLite
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     out = tmp_path / "cal.yaml"
     out.write_text("# keep me\n")
@@ -255,7 +255,7 @@ def test_cli_first_ctrl_c_writes(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from robocal.backends.sim.lite import SimLite
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     out = tmp_path / "cal.yaml"
     opener, _ = h.recording_opener(SimLite(32), interrupt_at=250)
@@ -274,8 +274,8 @@ def test_live_view_table_and_plain_lines(urdf: Path, tmp_path: Path, h: Any) -> 
     from robocal.backends.sources import ReplaySource
     from robocal.cli._sweep_view import LiveView
     from robocal.formats.urdf import read_urdf
-    from robocal.workflows.joint_specs import joints_from_urdf
-    from robocal.workflows.sweep_session import SweepSession
+    from robocal.workflows.sweep.joint_specs import joints_from_urdf
+    from robocal.workflows.sweep.session import SweepSession
 
     joints = joints_from_urdf(read_urdf(urdf))
     n = len(joints)
@@ -320,7 +320,7 @@ class _StillSource:
 
 def test_direction_check_waits_by_time_not_samples() -> None:
     from robocal.backends.sources import JointSpec
-    from robocal.workflows.sweep_session import run_direction_check
+    from robocal.workflows.sweep.session import run_direction_check
 
     j = [JointSpec("j", 1, "rs-00", 1, -1.0, 1.0)]
     # a person who starts moving 2.5 s after the prompt on a 1 kHz bus (2,500 samples) is still seen
@@ -358,7 +358,7 @@ def test_direction_unknown_is_reported_when_a_joint_does_not_move(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from robocal.backends.sim.lite import SimLite
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     base = h.sim_opener(SimLite(45, noise_rad=0.0))
     monkeypatch.setattr(wf, "open_source", lambda *a, **k: _Deaf(base(*a, **k), ELBOW))
@@ -394,7 +394,7 @@ def test_cli_second_ctrl_c_after_the_report_names_it(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from robocal.backends.sim.lite import SimLite
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
     monkeypatch.setattr(wf, "open_source", h.sim_opener(SimLite(46, noise_rad=0.0)))

@@ -22,8 +22,8 @@ import pytest
 
 from robocal.cli.main import main
 from robocal.formats import read_calibration
-from robocal.workflows.sweep import SweepRequest, run_sweep
-from robocal.workflows.sweep_output import changes_to_confirm, keep_prior
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
+from robocal.workflows.sweep.output import changes_to_confirm, keep_prior
 
 ELBOW = "left_elbow_pitch"
 WRIST = "right_wrist_roll"

@@ -15,7 +15,7 @@ from robocal.backends.sim.lite import LITE_JOINTS
 from robocal.cli.main import main
 from robocal.errors import UsageError
 from robocal.formats import read_calibration
-from robocal.workflows.sweep import SweepRequest
+from robocal.workflows.sweep.job import SweepRequest
 
 FULL_CSV = "full.csv"
 
@@ -140,7 +140,7 @@ def test_urdf_ids_checked_before_sampling(
     capsys: Any,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     bad = tmp_path / "bad.urdf"
     text = urdf.read_text()
@@ -180,7 +180,7 @@ def test_unwritable_out_folder_is_refused_up_front(
 def test_write_failure_is_one_error_line(
     urdf: Path, tmp_path: Path, capsys: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     rec = _full_sweep(tmp_path)
 

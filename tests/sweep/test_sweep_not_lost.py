@@ -16,9 +16,9 @@ from robocal.backends.sim.lite import SimLite
 from robocal.cli.main import main
 from robocal.errors import FileWriteError
 from robocal.formats import read_calibration
-from robocal.workflows import sweep as wf
-from robocal.workflows.sweep import SweepRequest, run_sweep
-from robocal.workflows.sweep_output import SweepNotSavedError
+from robocal.workflows.sweep import job as wf
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
+from robocal.workflows.sweep.output import SweepNotSavedError
 
 ELBOW = "left_elbow_pitch"
 

@@ -17,7 +17,7 @@ from robocal.cli._sweep_view import LiveView
 from robocal.cli.main import main
 from robocal.core.sweep import analyse_sweep
 from robocal.core.sweep_result import WARNING_CODES, JointSweep, SweepResult, explain_warning
-from robocal.workflows.demo import LITE_DEMO_SOURCE, run_demo
+from robocal.workflows.demo.job import LITE_DEMO_SOURCE, run_demo
 
 ELBOW = "left_elbow_pitch"  # dir -1, limits [-2.356, 0]
 
@@ -116,7 +116,7 @@ def test_sweep_prints_the_sentence_with_the_measured_numbers(
 def test_live_view_explains_a_warning_as_soon_as_it_shows(urdf: Path, tmp_path: Path, h: Any) -> None:
     from robocal.backends.sim.lite import LITE_JOINTS
     from robocal.backends.sources import JointSpec, ReplaySource
-    from robocal.workflows.sweep_session import SweepSession
+    from robocal.workflows.sweep.session import SweepSession
 
     joints = [JointSpec(j.name, j.can_id, j.model, j.direction, j.lower, j.upper) for j in LITE_JOINTS]
     n = len(joints)
@@ -156,7 +156,7 @@ def test_result_explain_uses_the_result_tolerances() -> None:
 def test_the_output_checks_and_default_format_shared_by_sweep_and_sweep_auto(tmp_path: Path) -> None:
     from robocal.errors import UsageError
     from robocal.formats.profiles import load_profile
-    from robocal.workflows.sweep_output import check_outputs, output_format
+    from robocal.workflows.sweep.output import check_outputs, output_format
 
     out = tmp_path / "cal.yaml"
     assert check_outputs(str(out), None, None) == (out, None)

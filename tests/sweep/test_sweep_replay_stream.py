@@ -18,7 +18,7 @@ from robocal.backends.replay import BLOCK_ROWS, open_recording, read_recording
 from robocal.backends.sim.lite import LITE_JOINTS
 from robocal.backends.sources import StreamReplaySource, open_source
 from robocal.errors import FileFormatError
-from robocal.workflows.sweep import SweepRequest, run_sweep
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
 
 NAMES = [j.name for j in LITE_JOINTS]
 
@@ -205,7 +205,7 @@ def test_terminal_live_view_draws_a_progress_bar_over_the_table(urdf: Path, tmp_
     from rich.console import Console
 
     from robocal.cli._sweep_view import LiveView
-    from robocal.workflows.sweep_session import SweepSession
+    from robocal.workflows.sweep.session import SweepSession
 
     rec = tmp_path / "r.csv"
     write_sweep_csv(rec, 4 * BLOCK_ROWS)

@@ -15,9 +15,9 @@ from robocal.core import RobotCalibration
 from robocal.errors import ShapeMismatchError, UsageError
 from robocal.formats import read_calibration
 from robocal.formats.urdf import read_urdf
-from robocal.workflows.joint_specs import joints_from_urdf
-from robocal.workflows.robot import CalibratedRobot, open_robot
-from robocal.workflows.sweep import SweepRequest, run_sweep
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
+from robocal.workflows.sweep.joint_specs import joints_from_urdf
+from robocal.workflows.sweep.robot import CalibratedRobot, open_robot
 
 
 def _robot(urdf: Path, cal_path: Path, sim: SimLite) -> CalibratedRobot:
@@ -189,7 +189,7 @@ def test_tick_frames_and_states_are_the_reference_formula_bit_for_bit(
 ) -> None:
     """The per-tick fast path (fused map, precomputed limits) sends and returns exactly the reference numbers,
     and looks nothing up per tick (model limits are resolved once, when the robot is built)."""
-    import robocal.workflows.robot as robot_mod
+    import robocal.workflows.sweep.robot as robot_mod
 
     sim = SimLite(23, noise_rad=0.0)
     cal_path = tmp_path / "cal.yaml"

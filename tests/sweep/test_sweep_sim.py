@@ -15,8 +15,8 @@ from tests.bags import write_joint_states
 from robocal.backends.sim.lite import SimLite
 from robocal.core.sweep import wrap_in_travel
 from robocal.formats import read_calibration
-from robocal.workflows.power_on_check import check_source
-from robocal.workflows.sweep import SweepAbortedError, SweepRequest, run_sweep
+from robocal.workflows.sweep.job import SweepAbortedError, SweepRequest, run_sweep
+from robocal.workflows.sweep.power_on_check import check_source
 
 TOL = 2e-3
 
@@ -221,7 +221,7 @@ def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
 ) -> None:
     # the report is written first, the calibration last; a Ctrl-C between the two names the report as written
     # and the calibration as unchanged
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
     run_sweep(SweepRequest(urdf, "sim:lite", out), open_source_fn=h.sim_opener(SimLite(41, noise_rad=0.0)))
@@ -252,7 +252,7 @@ def test_second_ctrl_c_between_report_and_calibration_says_what_was_written(
 def test_second_ctrl_c_after_the_calibration_was_written_says_so(
     urdf: Path, tmp_path: Path, h: Any, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from robocal.workflows import sweep as wf
+    from robocal.workflows.sweep import job as wf
 
     real = wf.write_calibration
     out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"

@@ -24,7 +24,7 @@ from robocal.viewer.sweep_page import (
     open_sweep_page,
     status_rgb,
 )
-from robocal.workflows.sweep import SweepRequest, run_sweep
+from robocal.workflows.sweep.job import SweepRequest, run_sweep
 
 
 def test_arc_points_follow_the_joint_rotation() -> None:

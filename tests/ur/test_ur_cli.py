@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 from tests.net import free_port
 
-import robocal.workflows.ur as wf
+import robocal.workflows.ur.job as wf
 from robocal.cli.main import main
 from robocal.core.dh import DHParameters
 from robocal.core.ur import check_rpy_convention, correct_kinematics, default_kinematics, nominal_dh

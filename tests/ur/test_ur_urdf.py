@@ -15,7 +15,7 @@ from robocal.core.dh import DHParameters, fk_dh
 from robocal.core.se3 import rotation_angle_between
 from robocal.core.ur import JOINT_NAMES, UrKinematics, correct_kinematics
 from robocal.formats.ur_kinematics import read_kinematics, update_urdf_origins, write_kinematics
-from robocal.workflows.ur_verify import urdf_fk
+from robocal.workflows.ur.verify import urdf_fk
 
 from .test_ur_core import make_realistic, realistic
 

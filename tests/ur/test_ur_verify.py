@@ -1,4 +1,4 @@
-"""workflows/ur_verify.py: the URDF-chain FK of an expanded UR URDF (to tool0 through the fixed frames), refusals."""
+"""workflows/ur/verify.py: the URDF-chain FK of an expanded UR URDF (to tool0 through the fixed frames), refusals."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from robocal.cli.main import main
 from robocal.core.dh import DHParameters
 from robocal.core.ur import correct_kinematics, default_kinematics
 from robocal.errors import JointMismatchError
-from robocal.workflows.ur_verify import urdf_fk
+from robocal.workflows.ur.verify import urdf_fk
 
 from .test_ur_urdf import pytransform3d_fk, ur_urdf_text
 

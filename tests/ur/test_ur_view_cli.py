@@ -114,7 +114,7 @@ def test_cli_reads_the_dh_from_a_controller() -> None:
         host, port = sim.address
         page = None
         try:
-            from robocal.workflows.ur import read_controller_dh
+            from robocal.workflows.ur.job import read_controller_dh
 
             got, warnings = read_controller_dh(host, port=port, timeout_s=5.0)
             assert warnings == []

@@ -21,7 +21,7 @@ from tests.net import busy_port
 from robocal.cli.main import main
 from robocal.viewer.autocal_page import open_auto_sweep_page
 from robocal.viewer.sweep_page import FAIL_RGB, LIVE_RGB, STATUS_RGB, status_rgb
-from robocal.workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
 from .conftest import LITE_URDF, serve_then_ctrl_c
 

@@ -1,7 +1,7 @@
 """Bus transactions that a signal cannot cut in half.
 
 A signal handler that raises (Ctrl-C's ``KeyboardInterrupt``, or the exceptions
-:class:`robocal.workflows.motion_guard.MotionGuard` raises for SIGTERM, SIGHUP and SIGQUIT) may fire between any two
+:class:`robocal.workflows.motion.guard.MotionGuard` raises for SIGTERM, SIGHUP and SIGQUIT) may fire between any two
 byte codes. Inside a vendor SDK call that leaves the port half used: scservo_sdk and dynamixel_sdk set
 ``PortHandler.is_using`` before a packet goes out and clear it only after its reply was read, so an exception in
 between makes every later packet fail with "port is in use" — including the writes that would turn the motors'

@@ -1,8 +1,8 @@
 """CLI side of the automatic hard-stop calibration (``sweep --auto``, ``lerobot calibrate --auto``, ``demo --auto``).
 
 The clear-workspace prompt, the live view and the result table; the logic lives in
-:mod:`robocal.workflows.autocal` and :mod:`robocal.workflows.autocal_sweep` (``demo --auto``: a job of
-:mod:`robocal.workflows.demo`).
+:mod:`robocal.workflows.autocal.job` and :mod:`robocal.workflows.autocal.sweep` (``demo --auto``: a job of
+:mod:`robocal.workflows.demo.job`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from rich.table import Table
 
 from ..core.stop_search import StopSample
 from ..errors import UsageError
-from ..workflows.autocal_types import AutoCalResult, JointOutcome
+from ..workflows.autocal.model import AutoCalResult, JointOutcome
 from . import _common
 
 __all__ = [
@@ -129,7 +129,7 @@ def auto_web_view(
         yield inner
         return
     from ..viewer.autocal_page import open_auto_sweep_page
-    from ..workflows.autocal_types import AutoCalAbortedError, AutoCalFailedError
+    from ..workflows.autocal.model import AutoCalAbortedError, AutoCalFailedError
 
     if page is not None:
         web = page(inner, port)
@@ -212,7 +212,7 @@ def sweep_auto(
 
     With ``view_port`` (``--view``), the search is drawn on the robot in the browser as well.
     """
-    from ..workflows.autocal_sweep import SweepAutoRequest, run_sweep_auto
+    from ..workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
     from ._sweep_view import print_sweep_warnings, result_table
 
     names = _common.parse_csv_list(joints, "--joints")  # "" or "a,,b": one error line, nothing moves
@@ -259,7 +259,7 @@ def auto_demo_view(run: Callable[[Any], Any], render: Callable[[Any], int], port
     """
     import tempfile
 
-    from ..workflows.autocal_sim import write_sim_lite_urdf
+    from ..workflows.autocal.sim import write_sim_lite_urdf
 
     with tempfile.TemporaryDirectory(prefix="robocal-demo-auto-view-") as folder:
         urdf = write_sim_lite_urdf(Path(folder) / "lite_bimanual.urdf")

@@ -1,8 +1,8 @@
-"""``robocal demo --robot so101|koch --identify``: print the job's results (run by :mod:`robocal.workflows.demo`)."""
+"""``robocal demo --robot so101|koch --identify``: print the job's results (run by :mod:`robocal.workflows.demo.job`)."""
 
 from __future__ import annotations
 
-from ..workflows.demo_identify import IMAGES_INTRO, IdentifyDemo
+from ..workflows.demo.identify import IMAGES_INTRO, IdentifyDemo
 from ._common import EXIT_WARNINGS, console, print_warning
 from ._kinematics_print import print_identification, print_images
 

@@ -140,7 +140,7 @@ def plan(
         raise UsageError(
             f"{', '.join(wrong)} {'apply' if len(wrong) > 1 else 'applies'} to --kind tag (camera images)"
         )
-    from ..workflows import kinematic_plan as plan_wf
+    from ..workflows.kinematics import plan as plan_wf
 
     result = plan_wf.plan(
         urdf,
@@ -227,7 +227,7 @@ def _plan_tag(
         raise UsageError(
             "--look-at places a fixed camera; with --camera-on-tool give --camera-pose with six numbers"
         )
-    from ..workflows import kinematic_plan_images as tag_wf
+    from ..workflows.kinematics import plan_images as tag_wf
 
     T_camera = tag_wf.frame_from_pose(
         parse_numbers(camera_pose, "--camera-pose", "0.1,0,0.5,3.1416,0,0"),

@@ -9,7 +9,7 @@ from typing import Any
 
 from rich.table import Table
 
-from ..workflows import kinematics as wf
+from ..workflows.kinematics import job as wf
 from ._common import console, print_warnings
 
 __all__ = ["print_identification", "print_images"]
@@ -117,7 +117,7 @@ def print_identification(result: wf.IdentifyResult) -> int:
 
 def print_images(result: object) -> int:
     """Print an image identification (``--kind tag``); return the exit code (0 ok, 1 warnings)."""
-    from ..workflows.kinematic_vision import ImageIdentifyResult
+    from ..workflows.kinematics.vision import ImageIdentifyResult
 
     assert isinstance(result, ImageIdentifyResult)
     rep = result.report

@@ -1,7 +1,7 @@
 """What a previous run left changed on a LeRobot arm's bus: said, and offered back (issue 26).
 
 A guarded run that could not finish its restore (a lost device, SIGKILL, a power cut) keeps its register snapshot
-in robocal's state folder (:mod:`robocal.workflows.motion_snapshot`). The next ``lerobot`` command that opens that
+in robocal's state folder (:mod:`robocal.workflows.motion.snapshot`). The next ``lerobot`` command that opens that
 port calls :func:`offer_restore`: one ``note:`` line names the run and every register it left changed (motor,
 name, value now and before); on a terminal it asks whether to write them back, otherwise it says how
 (``robocal lerobot restore-previous``).

@@ -10,8 +10,8 @@ from typing import Annotated
 
 import typer
 
-from ..workflows.calibration import robot_profile_names
-from ..workflows.sweep import DEFAULT_TOPIC
+from ..workflows.files.job import robot_profile_names
+from ..workflows.sweep.job import DEFAULT_TOPIC
 
 __all__ = [
     "DEFAULT_TOPIC",

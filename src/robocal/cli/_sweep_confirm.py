@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 from rich.table import Table
 
 from ..core.sweep_result import SweepResult
-from ..workflows.sweep_output import CONFIRM_CODES
+from ..workflows.sweep.output import CONFIRM_CODES
 from . import _common
 
 __all__ = ["ANSWERS", "StdinLines", "confirm_table", "make_confirm", "stdin_is_terminal", "terminal"]

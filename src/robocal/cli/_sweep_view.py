@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..core.sweep import DEFAULT_ONE_SIDED_THRESHOLD_RAD
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
-from ..workflows.sweep_session import SweepSession
+from ..workflows.sweep.session import SweepSession
 from . import _common
 
 __all__ = ["LIVE_WARNINGS", "STATUS_STYLE", "LiveView", "print_sweep_warnings", "result_table"]

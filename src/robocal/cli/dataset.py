@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from ..workflows.dataset import DatasetOptions
+from ..workflows.dataset.job import DatasetOptions
 from . import _common
 from ._options import LeRobotArm, LeRobotCompat, LeRobotModes, LeRobotPhysical, LeRobotUseDegrees
 
@@ -68,8 +68,8 @@ def recalibrate(
     ] = False,
 ) -> None:
     """Re-calibrate the joint features of a dataset: value → actual encoder position → new value."""
-    from ..workflows.dataset import RecalibrateRequest, data_file_count
-    from ..workflows.dataset import recalibrate as run
+    from ..workflows.dataset.job import RecalibrateRequest, data_file_count
+    from ..workflows.dataset.job import recalibrate as run
 
     feats = _common.parse_csv_list(features, "--features")
     opts = _options(robot, motor_family, use_degrees, modes, old_modes, compat, physical)
@@ -122,7 +122,7 @@ def inspect(
     physical: LeRobotPhysical = False,
 ) -> None:
     """Per-joint min/max/mean; flags full-turn jumps and values outside the calibrated range (exit 1)."""
-    from ..workflows.dataset import inspect as run
+    from ..workflows.dataset.job import inspect as run
 
     opts = _options(robot, motor_family, use_degrees, modes, None, compat, physical)
     report = run(

@@ -1,4 +1,4 @@
-"""``robocal demo``: the main job end to end on a simulated robot (run by :mod:`robocal.workflows.demo`)."""
+"""``robocal demo``: the main job end to end on a simulated robot (run by :mod:`robocal.workflows.demo.job`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import typer
 from rich.table import Table
 
 from ..errors import UsageError
-from ..workflows.demo import (
+from ..workflows.demo.job import (
     DEMO_ROBOTS,
     IDENTIFY_ROBOTS,
     LITE_DEMO_SOURCE,
@@ -35,7 +35,7 @@ def render(result: DemoResult) -> int:
     """Print a demo's result (tables, the job's own output, lines, warnings); return the exit code."""
     con = _common.console
     if result.job == "auto":
-        from ..workflows.autocal_types import AutoCalResult
+        from ..workflows.autocal.model import AutoCalResult
         from ._autocal import auto_table
 
         auto = getattr(result.detail, "auto", None)  # AutoSweepOutcome (lite) or AutoCalibrationResult (arms)
@@ -52,7 +52,7 @@ def render(result: DemoResult) -> int:
         assert isinstance(result.detail, list)
         code = max(code, print_reports(result.detail))
     if result.job == "identify":
-        from ..workflows.demo_identify import IdentifyDemo
+        from ..workflows.demo.identify import IdentifyDemo
         from ._kinematics_demo import print_identify_demo
 
         assert isinstance(result.detail, IdentifyDemo)

@@ -8,7 +8,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..workflows.calibration import check_file, convert_file, format_names
+from ..workflows.files.job import check_file, convert_file, format_names
 from ._common import (
     EXIT_OK,
     EXIT_WARNINGS,
@@ -74,7 +74,7 @@ def check(
 ) -> None:
     """Check a calibration file against a URDF: matched joints, ids, directions, offsets."""
     if source is not None:  # a malformed --source / --frame fails before anything is printed
-        from ..workflows.power_on_check import check_source_options
+        from ..workflows.sweep.power_on_check import check_source_options
 
         check_source_options(source, frame)
     checked = check_file(calibration, urdf, fmt, robot)
@@ -116,8 +116,8 @@ def check(
     ok = report.ok and not checked.notes
     if (
         source is not None
-    ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.power_on_check)
-        from ..workflows.power_on_check import check_source
+    ):  # first reading after power-on, with the 2π branch selection (robocal.workflows.sweep.power_on_check)
+        from ..workflows.sweep.power_on_check import check_source
 
         for c in check_source(urdf, calibration, source, topic=topic, frame=frame, robot=profile):
             turns = f" ({c.turns:+d} turn)" if c.turns else ""

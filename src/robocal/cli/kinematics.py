@@ -11,8 +11,8 @@ import typer
 from ..core.arrays import FloatArray
 from ..core.kinematic_problem import ALL_KINDS, check_kind
 from ..errors import UsageError
-from ..workflows import kinematic_sim as sim_wf
-from ..workflows import kinematics as wf
+from ..workflows.kinematics import job as wf
+from ..workflows.kinematics import sim as sim_wf
 from ._common import EXIT_INTERRUPTED, EXIT_OK, console, err_console, print_warning, print_warnings
 from ._kinematics_options import (
     BaseLinkOption,
@@ -157,7 +157,7 @@ def identify(
             raise UsageError("--kind tag needs --camera (intrinsics from camera-calibrate) and --target")
         if validate_data is not None:
             raise UsageError("--validate-data applies to points, touch and gauge sessions; images use --validate-fraction")
-        from ..workflows import kinematic_vision as vis_wf
+        from ..workflows.kinematics import vision as vis_wf
 
         img = vis_wf.identify_images(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
@@ -244,7 +244,7 @@ def simulate(
     if validation_poses and kind == "tag":
         raise UsageError("--validation-poses applies to points, touch and gauge; tag images are held out by a share")
     if kind == "tag":
-        from ..workflows import kinematic_vision as vis_wf
+        from ..workflows.kinematics import vision as vis_wf
 
         img = vis_wf.simulate_images(
             robot.strip().lower(), out, poses=poses, seed=seed, camera_on_tool=camera_on_tool, plan=not random_poses,
@@ -297,7 +297,7 @@ def camera_calibrate(
     out: Annotated[Path, typer.Option("--out", help="Camera intrinsics to write (ROS camera_info YAML).")],
 ) -> None:
     """Calibrate a camera's intrinsics from ChArUco board images (OpenCV) for identify --kind tag."""
-    from ..workflows import kinematic_vision as vis_wf
+    from ..workflows.kinematics import vision as vis_wf
 
     result = vis_wf.camera_calibrate(images, board, out)
     K = result.camera.K
@@ -358,12 +358,12 @@ def record(
     ] = None,
 ) -> None:
     """Record a session: move the arm by hand, press Enter per pose, give the measurement; writes the CSV."""
-    from ..workflows import kinematic_record as rec_wf
+    from ..workflows.kinematics import record as rec_wf
 
     if (lerobot_port is None) == (source is None):
         raise UsageError("give either --lerobot-port (with --robot) or --source")
     kind = kind.strip().lower()
-    from ..workflows.kinematic_record_arm import check_session
+    from ..workflows.kinematics.record_arm import check_session
 
     check_session(kind, out)  # before the port opens: a LeRobot arm goes limp then
     reader, chain = rec_wf.open_reader(

@@ -17,7 +17,7 @@ from types import FrameType
 import typer
 
 from ..errors import UsageError
-from ..workflows.sim import (
+from ..workflows.sim.job import (
     ARM_ROBOTS,
     UR_STANDARD_BASE_PORT,
     ServedDevice,

@@ -13,9 +13,9 @@ import typer
 
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD
 from ..errors import UsageError
-from ..workflows.sweep import SweepRequest, run_sweep
-from ..workflows.sweep_output import SweepNotSavedError
-from ..workflows.sweep_session import DEFAULT_DIRECTION_STEP_S
+from ..workflows.sweep.job import SweepRequest, run_sweep
+from ..workflows.sweep.output import SweepNotSavedError
+from ..workflows.sweep.session import DEFAULT_DIRECTION_STEP_S
 from . import _common
 from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic, RobotProfile
 from ._sweep_confirm import StdinLines, make_confirm, stdin_is_terminal, terminal

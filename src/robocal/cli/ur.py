@@ -14,8 +14,8 @@ from rich.table import Table
 from ..core.ur import RPY_CONVENTIONS, UR_MODELS
 from ..errors import UsageError
 from ..viewer.ur_page import parse_q
-from ..workflows import ur as wf
-from ..workflows import ur_verify
+from ..workflows.ur import job as wf
+from ..workflows.ur import verify as ur_verify
 from ._common import console, err_console, exit_code_for, print_warning, print_warnings
 
 app = typer.Typer(

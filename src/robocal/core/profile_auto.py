@@ -1,7 +1,7 @@
 """The ``auto_calibration`` section of a robot profile: how the joints find their own hard stops.
 
 Values only (no I/O); :mod:`robocal.formats.profiles` reads them from the profile YAML (schema version 2, see
-``docs/profiles.md``) and :mod:`robocal.workflows.autocal` runs them. Angles are in the URDF joint frame,
+``docs/profiles.md``) and :mod:`robocal.workflows.autocal.job` runs them. Angles are in the URDF joint frame,
 degrees in the file and rad in the properties; torques in N·m at the output.
 
 Safety rules that no file can lift: the search torque is a fraction of the motor model's rated torque

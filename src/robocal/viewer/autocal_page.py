@@ -2,7 +2,7 @@
 
 ``robocal sweep --auto … --view`` (and ``robocal demo --auto --view``) open a
 :class:`~robocal.viewer.app.ViewerApp` on the robot's URDF and hand an :class:`AutoSweepWebView` to the run as
-its live view (:class:`robocal.workflows.autocal.AutoView`: ``joint_start``, ``sample``, ``joint_done``).
+its live view (:class:`robocal.workflows.autocal.job.AutoView`: ``joint_start``, ``sample``, ``joint_done``).
 It draws, with the arcs and colours of ``sweep --view`` (:mod:`robocal.viewer.sweep_page`):
 
 * the robot posed at the newest reading of each joint (identity frame ``direction·raw``, as ``sweep --view``):
@@ -94,7 +94,7 @@ class AutoJointState:
 
 
 class AutoSweepWebView:
-    """The auto run's live view (:class:`robocal.workflows.autocal.AutoView`) on a web page.
+    """The auto run's live view (:class:`robocal.workflows.autocal.job.AutoView`) on a web page.
 
     Every call is forwarded to ``inner`` (the terminal's lines) too. Thread-safe: the run calls it from its
     thread, the page loop draws from its own.
@@ -208,7 +208,7 @@ class AutoSweepWebView:
         """The run is over: the arcs take the report's codes (``result``) or the failure codes (``auto``).
 
         Args:
-            auto: The :class:`~robocal.workflows.autocal.AutoCalResult`.
+            auto: The :class:`~robocal.workflows.autocal.job.AutoCalResult`.
             result: The sweep result of the joints that passed (None when nothing was computed).
         """
         for o in auto.joints:

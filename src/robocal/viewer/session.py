@@ -106,7 +106,7 @@ def _joints(model: RobotModel, urdf_path: Path, profile_name: str | None, cf: An
     """The shown joints as source joint specs: direction, CAN id, model from the URDF/profile/file."""
     from ..formats.profiles import resolve_profile
     from ..formats.urdf import read_urdf
-    from ..workflows.joint_specs import joints_from_urdf
+    from ..workflows.sweep.joint_specs import joints_from_urdf
 
     urdf = read_urdf(urdf_path)
     profile = resolve_profile(profile_name, urdf)

@@ -350,7 +350,7 @@ class SweepOverlay:
 
 
 class SweepWebView:
-    """The sweep workflow's view (:class:`robocal.workflows.sweep.SweepView`) on a web page.
+    """The sweep workflow's view (:class:`robocal.workflows.sweep.job.SweepView`) on a web page.
 
     Poses the robot at the newest reading, shows the live status codes (rate-limited) and the final result;
     forwards every call to ``inner`` (the terminal's live table) too.

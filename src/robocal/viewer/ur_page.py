@@ -45,8 +45,8 @@ from ..core.ur import (
     nominal_dh,
 )
 from ..errors import UsageError
-from ..workflows import ur as ur_wf
-from ..workflows import ur_verify
+from ..workflows.ur import job as ur_wf
+from ..workflows.ur import verify as ur_verify
 from .scene import ServedPage, _viser, open_server, plain_lights, polyline_segments
 
 __all__ = [
@@ -167,8 +167,8 @@ class UrViewModel:
     ) -> float:
         """``robocal ur verify``'s ``max Δp (m)`` for ``ur correct``'s YAML of this DH against the nominal model.
 
-        Runs the same two workflow functions as the CLI (:func:`robocal.workflows.ur.correct` into a temporary
-        folder, then :func:`robocal.workflows.ur.verify`); nothing is left on disk.
+        Runs the same two workflow functions as the CLI (:func:`robocal.workflows.ur.job.correct` into a temporary
+        folder, then :func:`robocal.workflows.ur.job.verify`); nothing is left on disk.
         """
         with tempfile.TemporaryDirectory(prefix="robocal-ur-view-") as tmp:
             path = Path(tmp) / "calibration.yaml"

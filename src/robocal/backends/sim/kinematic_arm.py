@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -21,7 +23,7 @@ from ...core.kinematic_problem import Measurements
 from ...core.pose_plan import reach_point
 from ...errors import UsageError
 
-__all__ = ["ErrorSigmas", "SimulatedKinematicArm", "hidden_errors"]
+__all__ = ["SIM_ROBOTS", "ErrorSigmas", "SimRobot", "SimulatedKinematicArm", "hidden_errors", "shipped_urdf"]
 
 
 TICKS_PER_TURN = 4096
@@ -179,3 +181,39 @@ class SimulatedKinematicArm:
         return self.touch(
             np.stack([c - half, c + half]), per_socket, rng, kind="gauge", distance_m=distance_m
         )
+
+
+@dataclass(frozen=True)
+class SimRobot:
+    """A shipped robot description for simulations.
+
+    Attributes:
+        urdf: File name under ``robocal/data``.
+        tip_link: Link carrying the marker.
+        marker_off_axis_m: Marker position in the tip link, off the last joint's axis.
+        marker_on_axis_m: The same marker moved onto the last joint's axis.
+        gauge_centre_m: Where the simulated gauge sits, in the base frame.
+    """
+
+    urdf: str
+    tip_link: str
+    marker_off_axis_m: tuple[float, float, float]
+    marker_on_axis_m: tuple[float, float, float]
+    gauge_centre_m: tuple[float, float, float]
+
+
+SIM_ROBOTS: dict[str, SimRobot] = {
+    "so101": SimRobot(
+        "so101_new_calib.urdf", "gripper_link", (0.0121, 0.0, -0.0981), (0.0, 0.0, -0.0981), (0.2, 0.0, 0.05)
+    ),
+    "koch": SimRobot(
+        "koch.urdf", "gripper_static_1", (0.02, 0.0, -0.06), (0.0, 0.0, -0.06), (0.0, 0.15, 0.05)
+    ),
+}
+
+
+def shipped_urdf(robot: str) -> Path:
+    """Path of a shipped robot description (``so101``, ``koch``)."""
+    if robot not in SIM_ROBOTS:
+        raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
+    return Path(str(resources.files("robocal") / "data" / SIM_ROBOTS[robot].urdf))

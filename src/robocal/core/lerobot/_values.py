@@ -7,8 +7,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ...core.arrays import FloatArray, IntArray
 from ...errors import InvalidCalibrationError, ShapeMismatchError
+from ..arrays import FloatArray, IntArray
 
 
 def _check_resolution(resolution: int) -> int:

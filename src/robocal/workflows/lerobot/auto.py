@@ -1,7 +1,7 @@
 """``robocal lerobot calibrate --auto``: a LeRobot arm finds its own hard stops and writes LeRobot's calibration.
 
 The joints of the profile's ``auto_calibration`` section are driven into their stops one after the other by
-:func:`robocal.workflows.autocal.run_autocal` through the servo drivers of :mod:`robocal.workflows.autocal_servo`
+:func:`robocal.workflows.autocal.job.run_autocal` through the servo drivers of :mod:`robocal.workflows.autocal.servo_driver`
 (real registers through the vendor SDK). The result has the manual procedure's conventions
 (:func:`robocal.workflows.lerobot.calibrate` with ``home_after_sweep``): per searched joint the range is the two
 contact surfaces found, ``range_min``/``range_max`` in Present ticks, and the homing offset puts the middle of
@@ -31,9 +31,8 @@ from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
 from ...core.vendors import VENDORS
 from ...errors import UsageError
-from ..autocal import run_autocal, select_joints
-from ..autocal_servo import DynamixelJointDriver, FeetechJointDriver, mid_turn_offset, servo_driver_class
-from ..autocal_types import (
+from ..autocal.job import run_autocal, select_joints
+from ..autocal.model import (
     AutoCalFailedError,
     AutoCalResult,
     AutoView,
@@ -42,7 +41,13 @@ from ..autocal_types import (
     JointCaps,
     JointDriver,
 )
-from ..motion_guard import RestoreReport
+from ..autocal.servo_driver import (
+    DynamixelJointDriver,
+    FeetechJointDriver,
+    mid_turn_offset,
+    servo_driver_class,
+)
+from ..motion.guard import RestoreReport
 from .calibrate import save_calibration
 from .eeprom import EEPROM_FIELDS, _restore_plan, _write_plan
 from .files import check_calibration_writable
@@ -291,7 +296,7 @@ class AutoCalibrationRequest:
             for the gravity torque in its profile search pose before the midpoint (docs/auto_calibration.md).
             The URDF joint must turn the way Present_Position grows (LeRobot's ``so101_new_calib`` does).
         snapshot_port: Keep the register snapshot in robocal's state folder under this port's name until the
-            run ends cleanly (:mod:`robocal.workflows.motion_snapshot`); None: not kept (a simulated arm).
+            run ends cleanly (:mod:`robocal.workflows.motion.snapshot`); None: not kept (a simulated arm).
     """
 
     spec: RobotSpec
@@ -320,7 +325,7 @@ def auto_calibrate(
     Args:
         bus: The arm's bus (real port or a simulator's pseudo-terminal).
         request: The arm, joints, file and search settings (:class:`AutoCalibrationRequest`).
-        clock: Time of the control loop (:class:`~robocal.workflows.autocal.MonotonicClock` on hardware, the
+        clock: Time of the control loop (:class:`~robocal.workflows.autocal.job.MonotonicClock` on hardware, the
             simulator's clock in a simulation).
         confirm_start: Asked before anything moves (the clear-workspace prompt); False ends with nothing moved.
         view: Live view (the observer the Robstride auto sweep uses).

@@ -29,9 +29,9 @@ from ...core.gravity import GravityModel
 from ...core.lerobot import RobotSpec
 from ...core.profile_auto import AutoSection
 from ...errors import UsageError
-from ..autocal import joint_gravity_for
-from ..autocal_sim import SIM_FAULTS, fault_scenario
-from ..autocal_types import Clock, MonotonicClock
+from ..autocal.job import joint_gravity_for
+from ..autocal.model import Clock, MonotonicClock
+from ..autocal.sim import SIM_FAULTS, fault_scenario
 from .arms import open_bus
 
 ARM_OPTIONS = (*SIM_FAULTS, "gravity")
@@ -102,8 +102,8 @@ def sim_gravity_model(spec: RobotSpec) -> GravityModel | None:
 
     None for an arm whose shipped URDF has no masses (the Koch's ``koch.urdf``) or that has none shipped.
     """
+    from ...backends.sim.kinematic_arm import SIM_ROBOTS, shipped_urdf
     from ...formats.urdf_gravity import gravity_model_if_any
-    from ..kinematic_sim import SIM_ROBOTS, shipped_urdf
 
     robot = spec.name.split("_")[0]
     if robot not in SIM_ROBOTS:

@@ -128,7 +128,7 @@ class CalibrateRequest:
         sweep_full_turn: Also sweep the joints LeRobot forces to 0..4095 (#4583).
         max_steps: Stop the sweep after this many readings (None: until the operator finishes).
         snapshot_port: Keep the EEPROM snapshot in robocal's state folder under this port's name until the run
-            ends (:class:`~robocal.workflows.motion_guard.MotionGuard`); None: not kept (a simulated arm).
+            ends (:class:`~robocal.workflows.motion.guard.MotionGuard`); None: not kept (a simulated arm).
     """
 
     spec: RobotSpec

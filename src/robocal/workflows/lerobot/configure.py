@@ -57,7 +57,7 @@ def configure(
     goal the motor has); robocal then skips the trigger. LeRobot's followers re-enable torque afterwards;
     robocal leaves it off.
 
-    Runs under the arm's :class:`~robocal.workflows.motion_guard.MotionGuard`: each register's value is read
+    Runs under the arm's :class:`~robocal.workflows.motion.guard.MotionGuard`: each register's value is read
     before its first write (the snapshot, kept in robocal's state folder under ``snapshot_port``); a signal or a
     fault midway makes every motor limp and writes the snapshot back (the presets are all or nothing).
     ``Torque_Enable`` and ``Goal_Position`` are never restored (a restore leaves the motors limp).

@@ -187,7 +187,7 @@ def restore(
 
     Every value is checked to fit its register before anything is sent; then the registers about to be written
     are read (the snapshot), torque is disabled (EEPROM writes) and the calibration is written. On a device
-    error or a signal midway (under :class:`~robocal.workflows.motion_guard.MotionGuard`; ``snapshot_port``: the
+    error or a signal midway (under :class:`~robocal.workflows.motion.guard.MotionGuard`; ``snapshot_port``: the
     snapshot is kept in robocal's state folder meanwhile) the snapshot is written back to every motor that still answers, so the motors are
     left as they were (torque stays off); the error then says so, or names the motors that could not be
     restored. LeRobot's Dynamixel ``write_calibration`` omits Drive_Mode, so a restored Koch leader stayed

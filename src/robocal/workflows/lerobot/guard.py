@@ -1,6 +1,6 @@
 """The motion guard of a LeRobot arm's bus: limp every motor, write a register snapshot back (issue 26).
 
-:func:`arm_guard` builds the :class:`~robocal.workflows.motion_guard.MotionGuard` every LeRobot command that writes
+:func:`arm_guard` builds the :class:`~robocal.workflows.motion.guard.MotionGuard` every LeRobot command that writes
 to the motors runs under (``calibrate``, ``calibrate --auto``, ``calibrate --use-file``, ``configure``): limp is
 ``Torque_Enable`` 0 in one SYNC_WRITE and then once per motor, read back; restore writes the snapshot back motor
 by motor (:func:`robocal.workflows.lerobot.eeprom._rollback`, which reads it back), after rebooting Dynamixels
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from ...backends.servo_bus import ServoBus
 from ...core.lerobot import RobotSpec
 from ...errors import CalibError
-from ..motion_guard import MotionGuard
-from ..motion_snapshot import LeftChanged, SnapshotStore, find_left_changed
+from ..motion.guard import MotionGuard
+from ..motion.snapshot import LeftChanged, SnapshotStore, find_left_changed
 from .eeprom import RollbackReport, _rollback
 
 __all__ = ["LeftOver", "arm_guard", "find_left_over", "limp_arm", "restore_left_over", "restore_registers"]

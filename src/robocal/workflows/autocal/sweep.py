@@ -1,0 +1,366 @@
+"""``robocal sweep --auto``: the Robstride joints find their own hard stops; same outputs as a hand sweep.
+
+The joints are driven (MIT frames over python-can, :class:`~robocal.workflows.autocal.job.RobstrideJointDriver`) in
+the order of the robot profile's ``auto_calibration`` section; the measured contact surfaces take the place of
+the hand sweep's sampled extremes in :func:`robocal.core.sweep.analyse_sweep` (so the bisection rule, the
+diagnostics and the written file are exactly those of ``robocal sweep``), and the report gains an ``auto``
+part: per joint q_stop−/q_stop+, span, estimated stiffness, detection torque, time and which test fired.
+
+Nothing is written when a joint fails (missing stop, snag, span mismatch, ...) unless ``partial`` is given; an
+interruption or a device fault leaves every motor limp and every file untouched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ...core.profile import RobotProfile
+from ...core.sweep import analyse_sweep
+from ...core.sweep_result import SweepResult
+from ...core.vendors import speaks_live_can_sweep
+from ...errors import UsageError
+from ...fileio import atomic_write_bytes, atomic_write_text, backup_paths
+from ...formats.profiles import resolve_profile
+from ..motion.guard import MotionGuard
+from .job import run_autocal, select_joints
+from .model import (
+    AutoCalAbortedError,
+    AutoCalFailedError,
+    AutoCalResult,
+    AutoView,
+    Clock,
+    ConfirmStart,
+    JointCaps,
+    JointDriver,
+    MonotonicClock,
+    limp_all,
+)
+from .robstride_driver import MAX_LAG_RAD, WATCHDOG_S, RobstrideJointDriver
+
+__all__ = ["AutoSweepOutcome", "SweepAutoRequest", "auto_sweep_result", "run_sweep_auto"]
+
+
+@dataclass(frozen=True)
+class AutoSweepOutcome:
+    """What ``sweep --auto`` did.
+
+    Attributes:
+        auto: The stop searches.
+        result: The sweep result the file was computed from.
+        out: Calibration file written (None when nothing was written).
+        fmt: Its format.
+        report: Report written, or None.
+        exit_code: 0 all joints passed, 1 written with ``partial`` although a joint failed or has a warning.
+    """
+
+    auto: AutoCalResult
+    result: SweepResult
+    out: Path | None
+    fmt: str
+    report: Path | None
+    exit_code: int
+
+
+OpenDrivers = Callable[
+    [Any, Sequence[Any], RobotProfile], tuple[dict[str, JointDriver], Clock, Callable[[], None]]
+]
+"""Opens the drivers for (source spec, joints, profile): returns drivers, clock and a close function."""
+
+
+def auto_sweep_result(
+    auto: AutoCalResult,
+    joints: Sequence[Any],
+    *,
+    prior: Mapping[str, float] | None = None,
+    span_tolerance_rad: float,
+    expected: Mapping[str, tuple[float, float]],
+) -> SweepResult:
+    """The :class:`SweepResult` of an auto run: contact surfaces in place of the sampled extremes.
+
+    A one-sided joint gets the other extreme placed ``upper − lower`` away, which makes the bisection rule give
+    exactly the one-sided offset ``s_stop − stop``. Joints that failed or were not searched have no samples (the
+    prior offset is kept, as for a joint not swept).
+    """
+    names = [j.name for j in joints]
+    n = len(names)
+    smin = np.full(n, np.nan)
+    smax = np.full(n, np.nan)
+    lower = np.array([expected[j.name][0] for j in joints], dtype=float)
+    upper = np.array([expected[j.name][1] for j in joints], dtype=float)
+    for i, name in enumerate(names):
+        try:
+            out = auto[name]
+        except KeyError:
+            continue
+        st = out.stops
+        if not st.ok:
+            continue
+        span = upper[i] - lower[i]
+        lo = st.lower.q_stop_rad if st.lower is not None else None
+        hi = st.upper.q_stop_rad if st.upper is not None else None
+        if lo is None and hi is not None:
+            lo = hi - span
+        if hi is None and lo is not None:
+            hi = lo + span
+        assert lo is not None and hi is not None
+        smin[i], smax[i] = lo, hi
+    return analyse_sweep(
+        names,
+        [j.direction for j in joints],
+        lower,
+        upper,
+        smin,
+        smax,
+        prior=prior,
+        threshold_rad=0.0,
+        span_tolerance_rad=span_tolerance_rad,
+    )
+
+
+@contextlib.contextmanager
+def _all_or_nothing(paths: Sequence[Path]) -> Iterator[None]:
+    """The report and the calibration are written together or not at all.
+
+    Each file (through a symbolic link: its target) and its backups are read first; when anything interrupts
+    the writes (Ctrl-C between the report and the calibration, a full disk on the second file), every one of
+    them is put back as it was (a file that did not exist is removed) before the exception goes on.
+    """
+    saved: dict[Path, bytes | None] = {}
+    for p in paths:
+        target = Path(os.path.realpath(p))
+        for f in (target, *backup_paths(target)):
+            saved[f] = f.read_bytes() if f.is_file() else None
+    try:
+        yield
+    except BaseException:
+        for f, data in saved.items():
+            with contextlib.suppress(OSError):
+                if data is None:
+                    if f.is_file():
+                        f.unlink()
+                elif not f.is_file() or f.read_bytes() != data:
+                    atomic_write_bytes(f, data, backup=False)
+        raise
+
+
+def _open_robstride(
+    spec: Any, joints: Sequence[Any], profile: RobotProfile
+) -> tuple[dict[str, JointDriver], Clock, Callable[[], None]]:
+    from ...backends.sources import open_source
+
+    if spec.kind != "can":
+        raise UsageError(f"--auto needs a live source (can:...) or sim:lite, not {spec.kind}")
+    src = open_source(spec, joints)
+    clock = MonotonicClock()
+    drivers: dict[str, JointDriver] = {}
+    auto = profile.auto
+    assert auto is not None
+    by_name = {j.name: j for j in joints}
+    for bus in getattr(src, "buses", []):
+        for name in bus.motors:
+            aj = auto.joint(name)
+            if aj is None:
+                continue
+            drivers[name] = RobstrideJointDriver(
+                bus, name, by_name[name].direction, aj.torque_cap_nm, MAX_LAG_RAD, clock
+            )
+    return drivers, clock, src.close
+
+
+@dataclass(frozen=True)
+class _SimSpec:
+    kind: str
+    options: dict[str, str]
+    text: str
+
+
+def _parse_auto_source(text: str) -> _SimSpec:
+    """``sim:lite[?seed=N&missing=a,b&...]`` (the options of :mod:`robocal.workflows.autocal.sim`)."""
+    from ...backends.sources.spec import parse_sim_options
+    from .sim import SIM_FAULTS
+
+    robot, _, query = text[len("sim:") :].partition("?")
+    if robot != "lite":
+        raise UsageError(
+            f"--source {text!r}: --auto simulates sim:lite only (LeRobot arms: lerobot calibrate --auto)"
+        )
+    valid = ("seed", *SIM_FAULTS)
+    opts = parse_sim_options(text, query, valid, joined=valid, valid_label="valid with --auto")
+    return _SimSpec("sim", opts, text)
+
+
+@dataclass(frozen=True)
+class SweepAutoRequest:
+    """One ``robocal sweep --auto`` run: the robot, its source, what to write and which joints.
+
+    The CLI builds it from ``robocal sweep``'s options; Python callers build it directly. The outputs, source
+    and profile are checked by :func:`run_sweep_auto` before anything moves.
+
+    Attributes:
+        urdf_path: The robot's URDF (limits: the default expected stop angles).
+        source: ``can:<interface>:<channel>[,...]`` or ``sim:lite[?...]``.
+        out: Calibration file (updated in place when it exists; joints not searched keep their offsets).
+        robot: Profile name or file (default: recognised from the URDF); it needs an ``auto_calibration`` section.
+        joints: Subset to calibrate (``--joints``).
+        report: JSON report to write (the sweep report plus an ``auto`` part).
+        fmt: Output format (default as ``robocal sweep``).
+        partial: Write the joints that passed even when others failed.
+        gravity: Joint → gravity torque model in the driver's frame, for the correction (a simulator's truth).
+            Without it, a URDF with ``<inertial>`` masses gives the correction
+            (:func:`robocal.formats.urdf_gravity.gravity_model_if_any`).
+    """
+
+    urdf_path: str | Path
+    source: str
+    out: str | Path
+    robot: str | os.PathLike[str] | RobotProfile | None = None
+    joints: Sequence[str] | None = None
+    report: str | Path | None = None
+    fmt: str | None = None
+    partial: bool = False
+    gravity: Mapping[str, Callable[[float], float]] | None = None
+
+
+def run_sweep_auto(
+    request: SweepAutoRequest,
+    *,
+    confirm_start: ConfirmStart | None = None,
+    view: AutoView | None = None,
+    open_drivers_fn: OpenDrivers | None = None,
+) -> AutoSweepOutcome:
+    """Auto-calibrate the Robstride joints of a robot and write the calibration like ``robocal sweep``.
+
+    Args:
+        request: The robot, source, outputs and joints (:class:`SweepAutoRequest`).
+        confirm_start: Asked before anything moves; returning False ends the run with nothing moved.
+        view: Live view.
+        open_drivers_fn: Opens the drivers (default: Robstride buses from ``source``; the simulator passes its own).
+
+    Raises:
+        UsageError: Bad options, no auto section, not a Robstride robot, the start not confirmed.
+        AutoCalFailedError: A joint failed and ``partial`` is not given (exit 3; nothing written).
+        AutoCalAbortedError: A device fault (exit 3; every motor limp, nothing written).
+        KeyboardInterrupt: Ctrl-C (every motor limp, nothing written; the CLI exits 130).
+    """
+    r = request
+    urdf_path, source, out, robot, joints = r.urdf_path, r.source, r.out, r.robot, r.joints
+    report, fmt, partial, gravity = r.report, r.fmt, r.partial, r.gravity
+    from ...backends.sources import parse_source
+    from ...formats.urdf import read_urdf
+    from ...formats.urdf_gravity import gravity_model_if_any
+    from ..sweep.job import existing_output, offsets_by_joint, write_sweep_files
+    from ..sweep.joint_specs import joints_from_urdf
+    from ..sweep.output import check_outputs, output_format
+
+    out_path, report_path = check_outputs(out, report, fmt)
+    spec = _parse_auto_source(source) if source.startswith("sim:") else parse_source(source)
+    urdf = read_urdf(urdf_path)
+    gravity_model = gravity_model_if_any(urdf_path) if gravity is None else None
+    profile = resolve_profile(robot, urdf)
+    if profile is None or profile.auto is None:
+        who = "no robot profile is in effect" if profile is None else f"profile {profile.name} has none"
+        raise UsageError(
+            f"--auto needs a robot profile with an auto_calibration section; {who} (pass --robot NAME; "
+            "docs/profiles.md)"
+        )
+    if not speaks_live_can_sweep(profile.actuator):
+        raise UsageError(
+            f"--auto: robot {profile.name} has {profile.actuator} actuators; sweep --auto drives Robstride motors "
+            "(LeRobot arms: robocal lerobot calibrate --auto)"
+        )
+    if fmt is None:
+        fmt = output_format(out_path, profile)
+    existing = existing_output(out_path, fmt, urdf, profile)
+    specs = joints_from_urdf(urdf, profile, existing)
+    order = select_joints(profile.auto, joints, movable_only=True)
+    known = {j.name for j in specs}
+    lacking = [j.name for j in order if j.name not in known]
+    if lacking:
+        raise UsageError(
+            f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
+        )
+    caps = JointCaps(
+        order,
+        f"If robocal is killed or the CAN bus is lost, each moving motor's CAN timeout puts it in reset mode "
+        f"within {WATCHDOG_S:g} s.",
+    )
+    if confirm_start is not None and not confirm_start(tuple(caps), caps):
+        raise UsageError("not confirmed: nothing moved, nothing written")
+    limits = {j.name: (j.lower, j.upper) for j in specs}
+    opener = open_drivers_fn
+    if opener is None:
+        if spec.kind == "sim":
+            from .sim import sim_opener
+
+            opener = sim_opener()
+        else:
+            opener = _open_robstride
+    drivers, clock, close = opener(spec, specs, profile)
+    try:
+        # the one motion guard (motion_guard.py): SIGINT/SIGTERM/SIGHUP/SIGQUIT or a fault → every motor limp
+        # (signals held off until it is done), the line says which motors did not answer the torque-off
+        with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
+            auto = run_autocal(
+                drivers,
+                profile.auto,
+                limits,
+                joints=[j.name for j in order],
+                max_lag_rad=MAX_LAG_RAD,
+                gravity=gravity,
+                gravity_model=gravity_model,
+                view=view,
+                clock=clock,
+            )
+    except BaseException:
+        limp_all(drivers)
+        with contextlib.suppress(Exception):
+            close()
+        raise
+    # the run is over: the joints hold their park angles; nothing is written before this point
+    try:
+        prior = offsets_by_joint(existing) if existing is not None else {}
+        expected: dict[str, tuple[float, float]] = {}
+        for j in specs:
+            aj = profile.auto.joint(j.name)
+            lo, hi = aj.expected_rad(j.lower, j.upper) if aj is not None else (j.lower, j.upper)
+            expected[j.name] = (j.lower if lo is None else lo, j.upper if hi is None else hi)
+        searched = {o.name for o in auto.joints if o.ok}
+        rows = [j for j in specs if j.name in searched]  # the others stay as the existing file has them
+        result = auto_sweep_result(
+            auto,
+            rows,
+            prior=prior,
+            span_tolerance_rad=math.radians(profile.auto.span_tolerance_deg),
+            expected=expected,
+        )
+        if auto.failed and not partial:
+            raise AutoCalFailedError(
+                f"auto-calibration failed for {auto.failure_summary()}; nothing was written (pass --partial to "
+                "write the joints that passed)",
+                auto,
+            )
+        with _all_or_nothing([p for p in (report_path, out_path if rows else None) if p is not None]):
+            if report_path is not None:
+                doc = result.to_report()
+                doc["auto"] = auto.to_report()
+                atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
+            if rows:
+                write_sweep_files(result, urdf, rows, out_path, fmt, None, existing, profile)
+    finally:
+        limp_all(drivers)
+        with contextlib.suppress(Exception):
+            close()
+    code = 0 if result.ok and not auto.failed else 1
+    return AutoSweepOutcome(auto, result, out_path if rows else None, fmt, report_path, code)
+
+
+__all__ += ["AutoCalAbortedError"]

@@ -1,0 +1,1 @@
+"""Calibration files: ``robocal convert`` and ``robocal check`` (entry points in :mod:`job`)."""

@@ -1,0 +1,355 @@
+"""Kinematic identification from camera images: camera calibration, tag sessions, and their simulation.
+
+Set-ups: a camera fixed in the world and the target (AprilTag or ChArUco, :mod:`robocal.backends.vision`) on the
+tool, or a camera on the tool and the target fixed in the world (``camera_on_tool``). ``camera_calibrate`` estimates the intrinsics from ChArUco images (``cv2.calibrateCamera``);
+``identify_images`` detects the target in each image of a session, starts the camera pose and the target's
+mounting from a closed-form hand-eye solution, then estimates both jointly with the kinematic parameters from the
+reprojection errors (:class:`robocal.core.kinematic_images.ImageProblem`). ``simulate_images`` renders such a session from a simulated arm with hidden
+errors, plus calibration images of a ChArUco board, for the tests and ``demo --identify``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ...backends.vision import (
+    CameraIntrinsics,
+    Target,
+    calibrate_camera,
+    detect,
+    normalised,
+    parse_target,
+    read_image,
+    solve_pnp,
+)
+from ...core.arrays import FloatArray
+from ...core.chain import SerialChain
+from ...core.jointmap import RobotCalibration
+from ...core.kinematic_errors import ErrorModel
+from ...core.kinematic_images import INTRINSICS, ImageObservations, ImageProblem, hand_eye
+from ...errors import UsageError
+from ...fileio import check_output_path
+from ...formats.camera_info import read_camera_info, write_camera_info
+from ...formats.kinematic_data import read_image_session
+from ...formats.urdf import UrdfDocument
+from ...formats.urdf_chain import chain_from_urdf
+from . import report as kr
+from .export import check_export_paths, check_ur_chain
+from .fit import FitResult, PriorSigmas, check_seed, fit
+
+__all__ = [
+    "SIM_CAMERA_K",
+    "CameraCalibrationResult",
+    "ImageIdentifyResult",
+    "SimImagesResult",
+    "camera_calibrate",
+    "detect_session",
+    "identify_images",
+    "look_at",
+    "simulate_images",
+]
+
+
+
+@dataclass(frozen=True, eq=False)
+class CameraCalibrationResult:
+    """Intrinsics from ``camera_calibrate``.
+
+    Attributes:
+        camera: The intrinsics (with the RMS reprojection error).
+        out: The camera_info YAML written.
+        used: Images the board was found in.
+        warnings: Skipped images.
+    """
+
+    camera: CameraIntrinsics
+    out: Path
+    used: int
+    warnings: tuple[str, ...]
+
+
+def camera_calibrate(
+    images: Sequence[str | os.PathLike[str]], board: str, out: str | os.PathLike[str]
+) -> CameraCalibrationResult:
+    """Calibrate a camera from ChArUco board images and write its ROS camera_info YAML.
+
+    Raises:
+        UsageError: Not a ChArUco board, fewer than 4 images with the board, images of different sizes.
+        FileFormatError: An unreadable image.
+    """
+    out_path = check_output_path(out, "--out")
+    target = parse_target(board, "--board")
+    if target.kind != "charuco":
+        raise UsageError(
+            "--board must be a ChArUco board (charuco:<cols>x<rows>:<square_mm>:<marker_mm>[:<dict>])"
+        )
+    if not images:
+        raise UsageError("no images given")
+    loaded = [(str(p), read_image(p)) for p in images]
+    camera, warnings = calibrate_camera(loaded, target)
+    written = write_camera_info(out_path, camera)
+    return CameraCalibrationResult(camera, written, len(loaded) - len(warnings), tuple(warnings))
+
+
+def detect_session(
+    q_rad: FloatArray, images: Sequence[str], target: Target, camera: CameraIntrinsics
+) -> tuple[ImageObservations, NDArray[np.int64], list[str]]:
+    """Detect the target in every image of a session.
+
+    Returns:
+        The observations of the images the target was found in, the session rows they come from, and one
+        warning per image without the target (that pose is skipped).
+
+    Raises:
+        FileFormatError: An image that cannot be read, or whose size differs from the camera's.
+    """
+    from ...errors import FileFormatError
+
+    obj = target.object_points()
+    rows: list[int] = []
+    poses: list[NDArray[np.int64]] = []
+    corners: list[FloatArray] = []
+    uvs: list[FloatArray] = []
+    Ts: list[FloatArray] = []
+    warnings: list[str] = []
+    for i, path in enumerate(images):
+        img = read_image(path)
+        if img.shape[:2] != (camera.height, camera.width):
+            raise FileFormatError(
+                f"image {path} is {img.shape[1]}x{img.shape[0]}; the camera was calibrated at "
+                f"{camera.width}x{camera.height}"
+            )
+        det = detect(img, target)
+        if det is None:
+            warnings.append(f"pose {i + 1} ({path}): target {target.text} not found; pose skipped")
+            continue
+        k = len(rows)
+        rows.append(i)
+        poses.append(np.full(det.corner_ids.size, k))
+        corners.append(obj[det.corner_ids])
+        uvs.append(normalised(det.pixels, camera))
+        Ts.append(solve_pnp(obj[det.corner_ids], det.pixels, camera))
+    r = np.asarray(rows, dtype=np.int64)
+    if r.size == 0:
+        return (
+            ImageObservations(
+                q_rad[:0], np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 2)), camera.focal_px
+            ),
+            r,
+            warnings,
+        )
+    return (
+        ImageObservations(
+            q_rad[r],
+            np.concatenate(poses),
+            np.concatenate(corners),
+            np.concatenate(uvs),
+            camera.focal_px,
+            np.asarray(Ts),
+            camera.K,
+        ),
+        r,
+        warnings,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ImageIdentifyResult:
+    """What ``identify_images`` found and wrote.
+
+    Attributes:
+        fit: The fit (its pose errors are RMS reprojection errors per image, pixels).
+        validation: Held-out observations.
+        validation_px: RMS reprojection error per held-out image with the identified model, pixels.
+        start_validation_px: The same with the nominal kinematics and the hand-eye start values.
+        chain: Corrected chain (offsets folded into the origins).
+        T_cam_base: Identified camera → base pose (camera on the tool: the target → base pose).
+        T_tip_target: Identified target pose on the tip link (camera on the tool: the camera's pose on it).
+        model: The error model (camera frame as its world).
+        urdf_out: Corrected URDF written, or None.
+        report_out: JSON report written, or None.
+        report: The report.
+        warnings: Per-pose and other warnings.
+    """
+
+    fit: FitResult
+    validation: ImageObservations
+    validation_px: FloatArray
+    start_validation_px: FloatArray
+    chain: SerialChain
+    T_cam_base: FloatArray
+    T_tip_target: FloatArray
+    model: ErrorModel
+    urdf_out: Path | None
+    report_out: Path | None
+    report: dict[str, Any]
+    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _intrinsics_report(problem: ImageProblem, result: FitResult, K: FloatArray) -> dict[str, Any]:
+    """The camera matrix used (calibrated, or refined with the σ of each refined value)."""
+    if not problem.refine_intrinsics:
+        return {"refined": False, "K": np.asarray(K).tolist()}
+    n = len(problem.free)
+    sig = result.sigma[n:]
+    return {
+        "refined": True,
+        "K_calibrated": np.asarray(K).tolist(),
+        "K": problem.camera_matrix(result.theta).tolist(),
+        "sigma_px": {k.split(".")[1]: float(v) if math.isfinite(v) else None for k, v in zip(INTRINSICS, sig, strict=True)},
+    }
+
+
+def identify_images(
+    urdf: str | os.PathLike[str],
+    data: str | os.PathLike[str],
+    *,
+    camera: str | os.PathLike[str],
+    target: str,
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    validate_fraction: float = 0.25,
+    huber_px: float | None = None,
+    seed: int = 0,
+    out: str | os.PathLike[str] | None = None,
+    report: str | os.PathLike[str] | None = None,
+    joint_map: RobotCalibration | None = None,
+    joint_map_out: str | os.PathLike[str] | None = None,
+    joint_map_ids: Mapping[str, int] | None = None,
+    ur_yaml: str | os.PathLike[str] | None = None,
+    ur_hash: str | None = None,
+    camera_on_tool: bool = False,
+    refine_intrinsics: bool = False,
+    prior: PriorSigmas | None = None,
+) -> ImageIdentifyResult:
+    """Identify a chain, the fixed camera's pose and the target's mounting from images of a target on the tool.
+
+    Args:
+        urdf: Expanded URDF.
+        data: Session CSV: the chain's joints and an ``image`` column.
+        camera: The camera's intrinsics (ROS camera_info YAML, e.g. from ``camera_calibrate``).
+        target: ``apriltag:…`` or ``charuco:…`` (see :func:`robocal.backends.vision.parse_target`).
+        base_link: First link of the chain.
+        tip_link: Link carrying the target.
+        validate_fraction: Share of images held out.
+        huber_px: Huber loss scale in pixels (None: plain least squares).
+        seed: Seed of the validation split.
+        out: Corrected URDF to write.
+        report: JSON report to write.
+        joint_map: The raw → URDF joint map the readings went through (for ``joint_map_out``).
+        joint_map_out: Write ``joint_map`` with the identified zero offsets (the URDF then leaves them out).
+        joint_map_ids: Motor ids written with the joint map.
+        ur_yaml: Write ur_description's kinematics YAML of the corrected chain (UR chains only).
+        ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
+        camera_on_tool: The camera is on the tip link and the target fixed in the world (eye-in-hand); the
+            camera's mounting and the target's place are estimated instead of the camera pose and the target
+            mounting.
+        refine_intrinsics: Estimate the camera's ``fx, fy, cx, cy`` jointly with the rest (the lens distortion
+            stays as calibrated); the refined values and their σ are in the report.
+        prior: A Gaussian prior around the nominal kinematics (not on the camera pose, the mounting or the
+            intrinsics); the noise that weighs it is estimated from the reprojection errors, pixels.
+
+    Raises:
+        CalibError: Unreadable files or images, poses outside the limits, too few images with the target.
+    """
+    if not 0.0 <= validate_fraction < 1.0:
+        raise UsageError(f"--validate-fraction must be in [0, 1), got {validate_fraction}")
+    if huber_px is not None and not (math.isfinite(huber_px) and huber_px > 0):
+        raise UsageError(f"--huber must be a positive number of pixels, got {huber_px}")
+    check_seed(seed)
+    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
+    tgt = parse_target(target)
+    cam = read_camera_info(camera)
+    doc = UrdfDocument.load(urdf)
+    chain = chain_from_urdf(doc.model(), base_link, tip_link)
+    if ur_yaml is not None:
+        check_ur_chain(chain)  # before any image is read: an option that cannot work is the first thing to say
+    q, images = read_image_session(data, chain.joint_names)
+    chain.check_q(q, what=f"{data}: pose")
+    obs, rows, warnings = detect_session(q, images, tgt, cam)
+    if obs.n_poses < 3:
+        raise UsageError(
+            f"the target was found in {obs.n_poses} of {len(images)} images; at least 3 are needed (20 or more "
+            "for a useful result)"
+        )
+    nominal = ErrorModel(chain)
+    assert obs.T_cam_target is not None
+    seen = np.linalg.inv(obs.T_cam_target) if camera_on_tool else obs.T_cam_target
+    X, Y = hand_eye(seen, nominal.tool_poses(obs.q_rad))
+    model = ErrorModel(chain, T_world_base=X, T_tip_tool=Y)
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(obs.n_poses)
+    n_val = round(validate_fraction * obs.n_poses)
+    val_rows, train_rows = np.sort(order[:n_val]), np.sort(order[n_val:])
+    train, val = obs.subset(train_rows), obs.subset(val_rows)
+    problem = ImageProblem(
+        model, train, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=camera_on_tool,
+        refine_intrinsics=refine_intrinsics,
+    )  # fmt: skip
+    result = fit(problem, huber_m=huber_px, prior=prior)
+    if not result.success:
+        warnings.append("the optimiser stopped before converging; check the images and joint readings")
+    val_problem = ImageProblem(
+        model, val, problem.free, np.zeros(model.n_params), camera_on_tool=camera_on_tool,
+        refine_intrinsics=refine_intrinsics,
+    )  # fmt: skip
+    val_px = val_problem.pose_errors(result.theta) if val.n_poses else np.zeros(0)
+    start_px = val_problem.pose_errors(np.zeros(problem.n_theta)) if val.n_poses else np.zeros(0)
+    corrected, T_cam_base, T_tip_target = model.corrected(result.x)
+    warnings += kr.condition_warnings(result, "show the target from more different arm poses")
+    units = [model.parameters[i].unit if i < model.n_params else "px" for i in range(len(problem.names))]
+    rep: dict[str, Any] = {
+        "tool": "robocal kinematics identify --kind tag",
+        "urdf": str(urdf),
+        "data": str(data),
+        "camera": str(camera),
+        "target": tgt.text,
+        "setup": "camera on the tool, target fixed in the world"
+        if camera_on_tool
+        else "camera fixed in the world, target on the tool",
+        "chain": kr.chain_summary(chain),
+        "images": {
+            "total": len(images),
+            "with_target": obs.n_poses,
+            "fit": train.n_poses,
+            "validation": val.n_poses,
+        },
+        **kr.fit_summary(result, problem.n_theta, kr.prior_summary(prior, noise=False)),
+        "reprojection_px": {
+            "fit": {
+                "start": kr.error_stats(result.nominal_train_errors_m),
+                "identified": kr.error_stats(result.train_errors_m),
+            },
+            "validation": {"start": kr.error_stats(start_px), "identified": kr.error_stats(val_px)},
+        },
+        "parameters": kr.parameter_rows(result, problem.names, units),
+        "intrinsics": _intrinsics_report(problem, result, cam.K),
+        **kr.model_summary(result, model, corrected),
+        **(
+            {"T_target_base": T_cam_base.tolist(), "T_tip_camera": T_tip_target.tolist()}
+            if camera_on_tool
+            else {"T_cam_base": T_cam_base.tolist(), "T_tip_target": T_tip_target.tolist()}
+        ),
+        "warnings": warnings,
+    }
+    written_urdf, written_report = kr.write_identify_files(
+        doc, chain, model, result, paths, rep, warnings,
+        joint_map=joint_map, ur_hash=ur_hash, joint_map_ids=joint_map_ids,
+    )  # fmt: skip
+    _ = rows
+    return ImageIdentifyResult(
+        result, val, val_px, start_px, corrected, T_cam_base, T_tip_target, model, written_urdf, written_report,
+        rep, tuple(warnings),
+    )  # fmt: skip
+
+
+# the simulated sessions live in kinematic_vision_sim; re-exported for existing callers
+from .vision_sim import SIM_CAMERA_K, SimImagesResult, look_at, simulate_images  # noqa: E402
