@@ -13,10 +13,11 @@ from typing import Any
 
 import pytest
 
+from robocal.backends.dynamixel.joint_driver import DynamixelJointDriver
+from robocal.backends.feetech.joint_driver import FeetechJointDriver
 from robocal.core.lerobot import MotorCalibration
 from robocal.errors import UsageError
 from robocal.workflows.autocal.job import AutoCalFailedError
-from robocal.workflows.autocal.servo_driver import DynamixelJointDriver, FeetechJointDriver
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import (
     AutoCalibrationRequest,
@@ -222,19 +223,19 @@ def test_ctrl_c_limps_every_motor_and_restores_every_register(tmp_path: Path, at
 def test_driver_types_per_vendor() -> None:
     spec = robot_spec("koch_follower")
     section = auto_section("koch_follower")
-    from robocal.workflows.autocal.servo_driver import servo_driver_class
+    from robocal.workflows.autocal.model import joint_driver_class
 
     with open_auto_arm(spec, "sim", section) as arm:
-        d = servo_driver_class("dynamixel")(arm.bus, "elbow_flex", 3, rated_nm=0.52, cap_nm=0.13, clock=arm.clock)
+        d = joint_driver_class("dynamixel")(arm.bus, "elbow_flex", 3, rated_nm=0.52, cap_nm=0.13, clock=arm.clock)
         assert isinstance(d, DynamixelJointDriver) and d.operating_mode == 5
-        d2 = servo_driver_class("dynamixel")(arm.bus, "shoulder_lift", 2, rated_nm=1.4, cap_nm=0.42, clock=arm.clock)
+        d2 = joint_driver_class("dynamixel")(arm.bus, "shoulder_lift", 2, rated_nm=1.4, cap_nm=0.42, clock=arm.clock)
         assert isinstance(d2, DynamixelJointDriver) and d2.operating_mode == 4
         s = d.read()
         assert s.ok and s.q_rad == pytest.approx(2100 * 2 * math.pi / 4096)
     assert FeetechJointDriver.__mro__[1] is DynamixelJointDriver.__mro__[1]
-    assert servo_driver_class("feetech") is FeetechJointDriver
-    with pytest.raises(UsageError, match="no stop-search driver for vendor 'robstride'; expected feetech or dynamixel"):
-        servo_driver_class("robstride")
+    assert joint_driver_class("feetech") is FeetechJointDriver
+    with pytest.raises(UsageError, match="unknown vendor 'nosuch'"):
+        joint_driver_class("nosuch")
 
 
 @pytest.mark.slow

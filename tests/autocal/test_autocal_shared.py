@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from robocal.backends.feetech.joint_driver import mid_turn_offset
 from robocal.core.lerobot import MotorCalibration
-from robocal.workflows.autocal.servo_driver import mid_turn_offset
 from robocal.workflows.autocal.sim import SIM_FAULTS, fault_scenario
 from robocal.workflows.lerobot.calibrate import CalibrationNotSavedError, save_calibration
 

@@ -18,17 +18,17 @@ from typing import Any
 import pytest
 
 from robocal.backends.robstride.bus import MotorSpec, RobstrideBus
-from robocal.backends.robstride.protocol import Param
-from robocal.backends.sim.physics import JointPlant, PlantParams, SimClock
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
-from robocal.core.stop_search import Command
-from robocal.errors import DeviceError
-from robocal.workflows.autocal.robstride_driver import (
+from robocal.backends.robstride.joint_driver import (
     MAX_LAG_RAD,
     WATCHDOG_S,
     RobstrideJointDriver,
     RobstrideWatchdogError,
 )
+from robocal.backends.robstride.protocol import Param
+from robocal.backends.sim.physics import JointPlant, PlantParams, SimClock
+from robocal.backends.sim.robstride import SimMotor, SimMotorBus
+from robocal.core.stop_search import Command
+from robocal.errors import DeviceError
 
 pytest.importorskip("can")
 pytestmark = pytest.mark.timeout(300)

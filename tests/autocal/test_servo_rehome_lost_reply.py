@@ -7,9 +7,9 @@ from collections.abc import Sequence
 
 import pytest
 
+from robocal.backends.feetech.joint_driver import FeetechJointDriver
 from robocal.backends.sim.physics import SimClock
 from robocal.errors import CalibTimeoutError, DeviceError
-from robocal.workflows.autocal.servo_driver import FeetechJointDriver
 
 from .bench_loader import load_benchmark
 

@@ -17,15 +17,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from robocal.backends.robstride.joint_driver import LIMIT_TORQUE, MAX_LAG_RAD, RobstrideJointDriver
 from robocal.backends.servo_ratings import PWM_FULL, RATINGS
 from robocal.core.motor_models import HARD_MAX_TORQUE_FRACTION, MOTOR_MODELS, find_motor_model
 from robocal.core.profile_auto import AutoSection
 from robocal.core.stop_search import Command
 from robocal.errors import FileFormatError
 from robocal.formats.profiles import load_profile, parse_profile
-from robocal.workflows.autocal.model import JointCaps
-from robocal.workflows.autocal.robstride_driver import LIMIT_TORQUE, MAX_LAG_RAD, RobstrideJointDriver
-from robocal.workflows.autocal.servo_driver import servo_driver_class
+from robocal.workflows.autocal.model import JointCaps, joint_driver_class
 
 PINNED = {  # model: (rated N·m, stall/peak N·m, family)
     "RS00": (5.0, 14.0, "robstride"),
@@ -248,7 +247,7 @@ def _check_driver_writes(motor: str, rated_nm: float, cap_nm: float) -> None:
             assert max(abs(t) for t in bus.mit) <= model.ceiling_nm + 1e-9
         return
     bus2 = _ServoBus(model.bus_model)
-    cls = servo_driver_class(model.family)
+    cls = joint_driver_class(model.family)
     drv2 = cls(bus2, "j", 1, rated_nm=rated_nm, cap_nm=cap_nm, clock=_Clock(), motor=model.name)  # type: ignore[arg-type]
     for asked in ASKS:
         for cmd in _commands(asked):

@@ -15,6 +15,7 @@ import pytest
 from robocal.core.lerobot import RobotSpec, half_turn_homing_offset
 from robocal.core.vendors import VENDORS, VendorSpec, vendor_spec
 from robocal.errors import InvalidCalibrationError, UsageError
+from robocal.workflows.autocal.model import joint_driver_class
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "robocal"
 DECLARATIONS = {"core/vendors.py"}
@@ -117,14 +118,18 @@ def test_every_servo_vendor_has_each_of_its_adapters() -> None:
     """A vendor with a homing rule (a LeRobot servo vendor) is declared with all its adapters, not some."""
     from robocal.backends import BACKENDS
     from robocal.backends.sim.servo_model import SIM_SERVO_KINDS
-    from robocal.workflows.autocal.servo_driver import SERVO_DRIVERS
     from robocal.workflows.lerobot.configure import _PRESETS
 
     servo_vendors = {n for n, v in VENDORS.items() if v.homing is not None}
     assert servo_vendors == {"feetech", "dynamixel"}
-    for registry in (SERVO_DRIVERS, _PRESETS, SIM_SERVO_KINDS):
+    for registry in (_PRESETS, SIM_SERVO_KINDS):
         assert set(registry) == servo_vendors
     assert {v.backend for v in VENDORS.values()} <= set(BACKENDS)
+    drivers = {v.joint_driver for v in VENDORS.values() if v.joint_driver is not None}
+    assert drivers <= set(BACKENDS)
+    for name in servo_vendors:  # a servo vendor's stop search lives in its own home, found through load_backend
+        driver = joint_driver_class(name)
+        assert driver.__module__ == f"robocal.backends.{name}.joint_driver"
 
 
 class _RecordingBus:

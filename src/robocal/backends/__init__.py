@@ -41,6 +41,9 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "dynamixel": ("robocal.backends.dynamixel", "DynamixelBus"),
     "ur_primary": ("robocal.backends.ur_primary", "PrimaryClient"),
     "damiao": ("robocal.backends.damiao.bus", "DamiaoBus"),
+    "robstride.joint_driver": ("robocal.backends.robstride.joint_driver", "RobstrideJointDriver"),
+    "feetech.joint_driver": ("robocal.backends.feetech.joint_driver", "FeetechJointDriver"),
+    "dynamixel.joint_driver": ("robocal.backends.dynamixel.joint_driver", "DynamixelJointDriver"),
 }
 """Backend name → (module, attribute). Extended by the ``robocal.backends`` entry points."""
 

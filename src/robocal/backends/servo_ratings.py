@@ -1,7 +1,7 @@
 """Datasheet numbers of the Feetech and Dynamixel servos: ratings per model, register units, status bits.
 
 Shared by the simulated firmware (:mod:`robocal.backends.sim.servo_firmware`) and the stop-search drivers
-(:mod:`robocal.workflows.autocal.servo_driver`), which convert a torque cap into ``Goal_Current`` and a
+(:mod:`robocal.backends.servo_joint_driver`), which convert a torque cap into ``Goal_Current`` and a
 ``Present_Current`` back into torque with them.
 """
 

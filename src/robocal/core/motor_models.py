@@ -4,7 +4,7 @@ Every torque an automatic calibration asks a motor for is a fraction of a rating
 name the model (``model: rs-05`` on the joint, or ``motor: sts3215-12v`` in its ``auto_calibration`` row) and may
 lower the rating (``rated_nm``), never raise it (:mod:`robocal.formats._profile_auto` refuses that when the profile
 is read). The drivers clamp every torque they send to :func:`ceiling_nm` of the model, whatever they are asked for
-(:mod:`robocal.workflows.autocal.robstride_driver`, :mod:`robocal.workflows.autocal.servo_driver`).
+(:mod:`robocal.backends.robstride.joint_driver`, :mod:`robocal.backends.servo_joint_driver`).
 
 Torques are at the output shaft, N·m. The Robstride manuals give a rated (continuous) and a peak torque. The
 Feetech and ROBOTIS datasheets give only the stall torque at a supply voltage; robocal rates a servo at that stall

@@ -104,6 +104,8 @@ class VendorSpec:
         torque_off_to_calibrate: LeRobot refuses to calibrate while a motor's torque is on (Dynamixel).
         live_can_sweep: The live CAN sweep (``--source can:``) and ``sweep --auto`` speak its protocol
             (Robstride).
+        joint_driver: Name in ``robocal.backends.BACKENDS`` of its stop-search joint driver (in the vendor's home,
+            reached through ``load_backend``), or None where no stop search exists.
     """
 
     name: str
@@ -123,6 +125,7 @@ class VendorSpec:
     legacy_linear_gripper: bool = False
     torque_off_to_calibrate: bool = False
     live_can_sweep: bool = False
+    joint_driver: str | None = None
 
     @property
     def applies_drive_mode_in_software(self) -> bool:
@@ -155,6 +158,7 @@ FEETECH = VendorSpec(
     limp="Torque_Enable 0",
     max_lag_deg=3.0,
     legacy_linear_gripper=True,
+    joint_driver="feetech.joint_driver",
 )
 """Feetech STS/SCS servos (SO-100/SO-101): ``Present = (Actual − Homing_Offset) mod 4096``, offset in
 sign-magnitude (bit 11); drive mode in software; ``Lock`` guards the EEPROM; the P gain reaches the torque cap
@@ -176,6 +180,7 @@ DYNAMIXEL = VendorSpec(
     max_lag_deg=10.0,
     legacy_quarter_turn=True,
     torque_off_to_calibrate=True,
+    joint_driver="dynamixel.joint_driver",
 )
 """Dynamixel X servos (Koch): ``Present = (±Actual) + Homing_Offset`` (``−`` with ``Drive_Mode`` bit 0), two's
 complement; a hardware error latches until REBOOT; the current-based position gain reaches the cap within
@@ -196,6 +201,7 @@ ROBSTRIDE = VendorSpec(
     limp="a zero-torque MIT frame",
     max_lag_deg=None,
     live_can_sweep=True,
+    joint_driver="robstride.joint_driver",
 )
 """Robstride CAN actuators (MIT frames, radians; the zero is set by a command, no homing register)."""
 

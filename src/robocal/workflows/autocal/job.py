@@ -2,7 +2,7 @@
 
 The search itself is :class:`robocal.core.stop_search.StopSearch` (pure, backend-neutral); this module runs it on
 :class:`JointDriver` objects — a Robstride motor over python-can (:class:`RobstrideJointDriver`), a Feetech or
-Dynamixel servo (:mod:`robocal.workflows.autocal.servo_driver`) — in the order and with the torque, speed and poses of a
+Dynamixel servo (:mod:`robocal.backends.servo_joint_driver`) — in the order and with the torque, speed and poses of a
 robot profile's ``auto_calibration`` section (:class:`robocal.core.profile_auto.AutoSection`).
 
 Safety (docs/auto_calibration.md): every search has travel and time bounds; any exception (Ctrl-C included)
@@ -16,6 +16,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from ...backends.robstride.joint_driver import RobstrideJointDriver
 from ...core.gravity import GravityModel, JointGravity, joint_gravity
 from ...core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
 from ...core.stop_zero import JointStops
@@ -34,7 +35,6 @@ from .model import (
     limp_on_error,
 )
 from .model import __all__ as _types_all
-from .robstride_driver import RobstrideJointDriver
 
 __all__ = ["RobstrideJointDriver", "calibrate_joint", "joint_gravity_for", "run_autocal", "select_joints"]
 __all__ += _types_all

@@ -7,16 +7,18 @@ Shared by :mod:`robocal.workflows.autocal.joint` (one joint), :mod:`robocal.work
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from ...backends import load_backend
+from ...backends.clock import Clock, MonotonicClock
 from ...core.named import get_named
 from ...core.profile_auto import NOT_SEARCHED, AutoJoint
 from ...core.stop_search import Command, JointStops, StopSample
-from ...errors import CalibError
+from ...core.vendors import vendor_spec
+from ...errors import CalibError, UsageError
 
 __all__ = [
     "AutoCalAbortedError",
@@ -29,6 +31,7 @@ __all__ = [
     "JointDriver",
     "JointOutcome",
     "MonotonicClock",
+    "joint_driver_class",
     "limp_all",
     "limp_on_error",
 ]
@@ -74,29 +77,6 @@ class AutoCalFailedError(CalibError):
         self.result = result
 
 
-class Clock(Protocol):
-    """Where a driver takes its time from (wall clock on hardware, a simulated clock in a simulator)."""
-
-    def now(self) -> float:
-        """Seconds (monotonic)."""
-        ...
-
-    def sleep(self, dt_s: float) -> Any:
-        """Let ``dt_s`` seconds pass."""
-        ...
-
-
-class MonotonicClock:
-    """The wall clock (``time.monotonic``/``time.sleep``), for real hardware."""
-
-    def now(self) -> float:
-        """Seconds since an arbitrary origin."""
-        return time.monotonic()
-
-    def sleep(self, dt_s: float) -> None:
-        """Sleep ``dt_s`` seconds (no-op for ≤ 0)."""
-        if dt_s > 0:
-            time.sleep(dt_s)
 
 
 class JointDriver(Protocol):
@@ -233,3 +213,17 @@ def limp_on_error(drivers: Mapping[str, JointDriver]) -> Iterator[None]:
     except BaseException:
         limp_all(drivers)
         raise
+
+
+def joint_driver_class(vendor: str) -> Any:
+    """The stop-search joint driver class of ``vendor``, from its home through ``load_backend``.
+
+    E.g. ``joint_driver_class("feetech")(bus, "wrist_roll", 5, rated_nm=1.91, cap_nm=0.48, clock=clock)``.
+
+    Raises:
+        UsageError: Unknown vendor, or a vendor without a stop search.
+    """
+    spec = vendor_spec(vendor)
+    if spec.joint_driver is None:
+        raise UsageError(f"no stop-search driver for vendor {vendor!r}")
+    return load_backend(spec.joint_driver)

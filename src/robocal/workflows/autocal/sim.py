@@ -21,10 +21,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ...backends.robstride.joint_driver import MAX_LAG_RAD, RobstrideJointDriver
 from ...core.profile import RobotProfile
 from ...errors import UsageError
 from .model import JointDriver
-from .robstride_driver import MAX_LAG_RAD, RobstrideJointDriver
 
 if TYPE_CHECKING:
     from ...backends.sim.physics import Scenario

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ...backends.robstride.joint_driver import MAX_LAG_RAD, WATCHDOG_S, RobstrideJointDriver
 from ...core.profile import RobotProfile
 from ...core.sweep import analyse_sweep
 from ...core.sweep_result import SweepResult
@@ -44,7 +45,6 @@ from .model import (
     MonotonicClock,
     limp_all,
 )
-from .robstride_driver import MAX_LAG_RAD, WATCHDOG_S, RobstrideJointDriver
 
 __all__ = ["AutoSweepOutcome", "SweepAutoRequest", "auto_sweep_result", "run_sweep_auto"]
 

@@ -1,7 +1,7 @@
 """``robocal lerobot calibrate --auto``: a LeRobot arm finds its own hard stops and writes LeRobot's calibration.
 
 The joints of the profile's ``auto_calibration`` section are driven into their stops one after the other by
-:func:`robocal.workflows.autocal.job.run_autocal` through the servo drivers of :mod:`robocal.workflows.autocal.servo_driver`
+:func:`robocal.workflows.autocal.job.run_autocal` through the servo drivers of :mod:`robocal.backends.servo_joint_driver`
 (real registers through the vendor SDK). The result has the manual procedure's conventions
 (:func:`robocal.workflows.lerobot.calibrate` with ``home_after_sweep``): per searched joint the range is the two
 contact surfaces found, ``range_min``/``range_max`` in Present ticks, and the homing offset puts the middle of
@@ -40,12 +40,7 @@ from ..autocal.model import (
     ConfirmStart,
     JointCaps,
     JointDriver,
-)
-from ..autocal.servo_driver import (
-    DynamixelJointDriver,
-    FeetechJointDriver,
-    mid_turn_offset,
-    servo_driver_class,
+    joint_driver_class,
 )
 from ..motion.guard import RestoreReport
 from .calibrate import save_calibration
@@ -178,19 +173,8 @@ def prepare_search(
         i = ids[name]
         joint = section.joint(name)
         assert joint is not None
-        res = bus.resolution(i)
-        offset = 0
-        driver = servo_driver_class(spec.vendor)
-        if issubclass(driver, FeetechJointDriver):  # position goals stay inside a turn: the seam half a turn away
-            bus.write("Operating_Mode", i, 0)
-            bus.write("Min_Position_Limit", i, 0)
-            bus.write("Max_Position_Limit", i, res - 1)
-            # the joint reads mid-turn where it is now, so the seam is half a turn away
-            present = bus.read("Present_Position", i)
-            offset = mid_turn_offset((present + bus.read("Homing_Offset", i)) % res, res)
-            bus.write("Homing_Offset", i, offset)
-            bus.write("Goal_Velocity", i, 0)
-            bus.write("Acceleration", i, 0)
+        driver = joint_driver_class(spec.vendor)
+        offset = driver.prepare_registers(bus, i)
         drv = driver(
             bus,
             name,
@@ -202,15 +186,7 @@ def prepare_search(
             homing_offset=offset,
             motor=joint.motor,
         )
-        if isinstance(drv, DynamixelJointDriver):
-            drv.ram = dict(HOLD_GAINS.get(spec.name, {}).get(name, {}))
-            for reg, value in drv.ram.items():
-                bus.write(reg, i, value)
-            bus.write("Operating_Mode", i, drv.operating_mode)
-            bus.write("Drive_Mode", i, 1 if name in spec.inverted else 0)
-            bus.write("Homing_Offset", i, 0)
-            bus.write("Profile_Velocity", i, 0)
-            bus.write("Profile_Acceleration", i, 0)
+        drv.configure(HOLD_GAINS.get(spec.name, {}).get(name, {}), inverted=name in spec.inverted)
         drivers[name] = drv
     return drivers
 

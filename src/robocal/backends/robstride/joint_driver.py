@@ -9,7 +9,7 @@ from typing import Any
 from ...core.motor_models import find_motor_model
 from ...core.stop_search import Command, StopSample
 from ...errors import CalibTimeoutError, DeviceError, UsageError
-from .model import Clock
+from ..clock import Clock
 
 LIMIT_TORQUE = 0x700B
 """Robstride ``limit_torque`` parameter (f32, N·m; RAM until a type-22 save, which robocal never sends)."""
