@@ -12,6 +12,7 @@ import json
 import math
 import os
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -28,12 +29,14 @@ TOL_DEG = STEP_DEG + math.degrees(math.tau / 16384)
 _channels = itertools.count()
 
 
-def run_damiao(python: Path, cwd: Path, action: str, stdin: str = "", **args: object) -> dict:
+def run_damiao(
+    python: Path, cwd: Path, action: str, stdin: str = "", env: dict[str, str] | None = None, **args: object
+) -> dict:
     args.setdefault("channel", f"lerobot-damiao-{os.getpid()}-{next(_channels)}")
     r = subprocess.run(
         [str(python), "-u", str(HARNESS / "damiao_harness.py"), action, json.dumps(args)],
         cwd=cwd,
-        env=dict(os.environ, PYTHONPATH=f"{HARNESS}{os.pathsep}{SRC}", PYTHONNOUSERSITE="1"),
+        env=dict(os.environ, PYTHONPATH=f"{HARNESS}{os.pathsep}{SRC}", PYTHONNOUSERSITE="1", **(env or {})),
         input=stdin,
         capture_output=True,
         text=True,
@@ -104,3 +107,33 @@ def test_openarm_followers_own_calibration_zeros_the_pose_it_is_given(
     assert error["gripper"] == pytest.approx(2.0, abs=0.06)
     saved = json.loads(Path(r["path"]).read_text())
     assert {n: (c["range_min"], c["range_max"]) for n, c in saved.items()} == dict.fromkeys(names, (-90, 90))
+
+
+def test_lerobots_bus_reaches_the_simulator_over_the_socketcand_loopback(
+    lerobot_python: Path, tmp_path: Path
+) -> None:
+    """The transport another process reaches (``robocal sim openarm``'s): LeRobot opens ``socketcand``, and
+    python-can takes the server's address from ``CAN_CONFIG`` (LeRobot passes only channel and bit rate)."""
+    from robocal.backends.damiao.openarm import SimOpenArm
+    from robocal.backends.sim.socketcand import SocketcandServer
+
+    channel = f"lerobot-damiao-remote-{os.getpid()}"
+    arm = SimOpenArm(channel, zeroed=True, seed=5, realtime=True)
+    with arm, SocketcandServer({"can0": channel}) as server:
+        config = json.dumps({"host": server.host, "port": server.port})
+        r = run_damiao(
+            lerobot_python, tmp_path, "remote", env={"CAN_CONFIG": config}, channel="can0", reads=10
+        )
+        deadline = (
+            time.monotonic() + 30.0
+        )  # the server may still be forwarding the last frames (a hang guard)
+        while any(m.enabled for m in arm.motors.values()) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        with arm.bus.lock:
+            truth = {n: math.degrees(m.reading_rad(m.joint_rad())) for n, m in arm.motors.items()}
+            enabled = {n: m.enabled for n, m in arm.motors.items()}
+    assert set(r["read_deg"]) == set(truth)
+    for name, deg in r["read_deg"].items():
+        assert deg == pytest.approx(truth[name], abs=TOL_DEG), name
+    assert enabled == dict.fromkeys(truth, False)  # disconnect() disabled them
+    assert arm.motors["joint_1"].requests["enable"] == 1 and arm.motors["joint_1"].requests["refresh"] >= 1

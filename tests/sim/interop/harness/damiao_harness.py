@@ -94,6 +94,18 @@ def bus_action(a):
     return result
 
 
+def remote_action(a):
+    """DamiaoMotorsBus on python-can's socketcand interface (host and port from ``CAN_CONFIG``): connect, read."""
+    from lerobot.motors.damiao import DamiaoMotorsBus
+
+    bus = DamiaoMotorsBus(port=a["channel"], motors=_motors(), can_interface="socketcand", use_can_fd=True)
+    bus.connect()
+    for _ in range(a.get("reads", READS)):
+        positions = bus.sync_read("Present_Position")
+    bus.disconnect(disable_torque=True)
+    return {"read_deg": {n: float(v) for n, v in positions.items()}}
+
+
 def follower_action(a):
     """OpenArmFollower: connect (calibrating with LeRobot's own procedure when no file is there), observe."""
     from lerobot.robots.openarm_follower import OpenArmFollower, OpenArmFollowerConfig
@@ -127,7 +139,7 @@ def follower_action(a):
 def main():
     action, a = sys.argv[1], json.loads(sys.argv[2])
     sys.setswitchinterval(0.0005)  # LeRobot waits 1 ms for a reply; let the simulator's thread answer in time
-    actions = {"bus": bus_action, "follower": follower_action}
+    actions = {"bus": bus_action, "follower": follower_action, "remote": remote_action}
     if action not in actions:
         raise SystemExit(f"unknown action {action}")
     print("RESULT " + json.dumps(actions[action](a)), flush=True)
