@@ -46,10 +46,11 @@ class ClientEnv:
 CLIENT_ENVS: dict[str, ClientEnv] = {
     "robstride": ClientEnv(("robstride==0.1.0", "python-can==4.6.1"), ("robstride.client", "can")),
     "ur_rtde": ClientEnv(("ur-rtde==1.6.5",), ("rtde_receive", "dashboard_client")),
+    # urx 0.11 with the math3d pip picks (4.0): its getl/get_pose break there; math3d 3.x does not import on 3.10+
     "urx": ClientEnv(("urx==0.11.0",), ("urx",)),
     "dynamixel_sdk": ClientEnv(("dynamixel-sdk==4.1.0",), ("dynamixel_sdk",)),
     "st3215": ClientEnv(("st3215==0.4.2",), ("st3215",)),
-    "feetech_cli": ClientEnv(("feetech-cli==0.1.8",), ("feetech",)),
+    "feetech_cli": ClientEnv(("feetech-cli==0.1.8",), ("feetech_cli",)),
 }
 """Client → its environment (the versions issue 29 names, or the newest the index serves)."""
 

@@ -84,6 +84,8 @@ RTDE_OUTPUT_TYPES: dict[str, str] = {
     "runtime_state": "UINT32",
     "robot_status_bits": "UINT32",
     "safety_status_bits": "UINT32",
+    "payload": "DOUBLE",  # kg (ur_rtde 1.6's default recipe asks for it and payload_cog)
+    "payload_cog": "VECTOR3D",  # m
     **{f"output_int_register_{i}": "INT32" for i in range(48)},
     **{f"output_double_register_{i}": "DOUBLE" for i in range(48)},
 }
