@@ -40,6 +40,9 @@ PINNED = {  # model: (rated N·m, stall/peak N·m, family)
     "XL330-M288": (0.52, 0.52, "dynamixel"),
     "XL430-W250": (1.5, 1.5, "dynamixel"),
     "XM430-W350": (4.1, 4.1, "dynamixel"),
+    "DM4310": (3.0, 7.0, "damiao"),
+    "DM4340": (9.0, 27.0, "damiao"),
+    "DM8009": (20.0, 40.0, "damiao"),
 }
 SHIPPED = sorted(
     p.name.removesuffix(".yaml") for p in resources.files("robocal.data.profiles").iterdir() if p.name.endswith(".yaml")
@@ -69,7 +72,10 @@ def test_lookup_takes_the_names_profiles_and_buses_use() -> None:
 
 
 def test_the_shipped_profiles_with_a_search() -> None:
-    assert SHIPPED_AUTO == ["bhl_arms", "koch_follower", "so101_follower"]
+    assert SHIPPED_AUTO == [
+        "bhl_arms", "koch_follower", "openarm_follower_left", "openarm_follower_right", "openarm_leader_left",
+        "openarm_leader_right", "so101_follower",
+    ]
 
 
 @pytest.mark.parametrize("name", SHIPPED_AUTO)

@@ -71,8 +71,10 @@ def test_unknown_urdf_has_no_profile(tmp_path: Path) -> None:
 
 
 def test_robot_names_a_builtin_or_a_file(tmp_path: Path) -> None:
-    lerobot_arms = tuple(f"{a}_{r}" for a in ("koch", "so100", "so101") for r in ("follower", "leader"))
-    assert builtin_profile_names() == ("bhl_arms", "bhl_biped", *lerobot_arms)
+    koch = ("koch_follower", "koch_leader")
+    openarm = tuple(f"openarm_{r}_{s}" for r in ("follower", "leader") for s in ("left", "right"))
+    so = tuple(f"{a}_{r}" for a in ("so100", "so101") for r in ("follower", "leader"))
+    assert builtin_profile_names() == ("bhl_arms", "bhl_biped", *koch, *openarm, *so)
     with pytest.raises(UsageError, match=r"--robot 'nao': not a built-in robot \(bhl_arms, bhl_biped, koch_"):
         load_profile("nao")
     with pytest.raises(

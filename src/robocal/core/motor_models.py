@@ -38,7 +38,7 @@ class MotorModel:
 
     Attributes:
         name: The model as robocal names it (``RS05``, ``STS3215-12V``, ``XL330-M288``).
-        family: ``robstride``, ``feetech`` or ``dynamixel``.
+        family: ``robstride``, ``feetech``, ``dynamixel`` or ``damiao``.
         rated_nm: The rating torque caps are fractions of (Robstride: rated; servos: stall), N·m at the output.
         stall_nm: Peak (Robstride) or stall torque (servos), N·m at the output.
         source: The document the numbers come from.
@@ -63,6 +63,17 @@ _RS_MANUAL = "Robstride RS0x user manual rev. 260428, ch. 4 model #define block 
 
 def _rs(name: str, rated: float, peak: float) -> MotorModel:
     return MotorModel(name, "robstride", rated, peak, _RS_MANUAL, name.lower()[:2] + "-" + name[2:])
+
+
+_DM_DATASHEET = (
+    "OpenArm docs, hardware/openarm-2.0/motor.mdx (enactic/openarm@1080ae9), Damiao datasheet table: {model} "
+    "rated {rated:g} / peak {peak:g} N·m at 24 V"
+)
+
+
+def _dm(name: str, datasheet_model: str, rated: float, peak: float) -> MotorModel:
+    source = _DM_DATASHEET.format(model=datasheet_model, rated=rated, peak=peak)
+    return MotorModel(name, "damiao", rated, peak, source, name)
 
 
 def _servo(name: str, family: str, stall: float, source: str, bus_model: str | None = None) -> MotorModel:
@@ -101,6 +112,9 @@ MOTOR_MODELS: tuple[MotorModel, ...] = (
     _servo("XC430-W150", "dynamixel", 1.4, "ROBOTIS e-Manual XC430-W150-T: stall 1.4 N·m at 12 V, 1.4 A"),
     _servo("XM430-W350", "dynamixel", 4.1, "ROBOTIS e-Manual XM430-W350: stall 4.1 N·m at 12 V, 2.3 A"),
     _servo("XM540-W270", "dynamixel", 10.6, "ROBOTIS e-Manual XM540-W270: stall 10.6 N·m at 12 V, 4.4 A"),
+    _dm("DM4310", "DM-J4310-2EC V1.1", 3.0, 7.0),
+    _dm("DM4340", "DM4340 series (DM-J4340-2EC, DM-J4340P-2EC)", 9.0, 27.0),
+    _dm("DM8009", "DM-J8009P-2EC", 20.0, 40.0),
 )
 """Every motor model robocal knows (a test pins the numbers)."""
 

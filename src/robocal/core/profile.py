@@ -58,7 +58,9 @@ class ProfileJoint:
         name: Joint name in the robot's URDF (calibration files are keyed by it).
         upstream_name: Name the upstream low-level code uses (equal to ``name`` when the same).
         bus: CAN bus (interface name) the upstream code opens for it, or None.
-        motor_id: CAN id, or None.
+        motor_id: CAN id, or None (a Damiao motor: the id it listens on, ESC_ID).
+        reply_id: The CAN id the motor's replies carry when it differs from ``motor_id`` (a Damiao motor's
+            MST_ID; OpenArm joint n: 0x1n), or None.
         direction: Axis direction ±1 as the upstream code applies it (``q = direction·raw − offset``), or None.
         model: Motor model (e.g. ``rs-02``), or None.
         stop: For the one-sided procedure, the stop the joint is pushed into (``lower``/``upper``), or None.
@@ -75,6 +77,7 @@ class ProfileJoint:
     model: str | None = None
     stop: str | None = None
     stop_deg: float | None = None
+    reply_id: int | None = None
     norm_mode: str | None = None
     legacy_mode: str | None = None
 

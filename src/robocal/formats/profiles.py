@@ -78,7 +78,7 @@ SUPPORTED_VERSIONS = (1, 2)
 _SECTION_VERSIONS: dict[str, int] = {"lerobot": 2, "auto_calibration": 2}
 """Optional top-level sections → the first schema version that has them (a section is a further key here,
 a parser below and a field of :class:`RobotProfile`)."""
-_JOINT_KEY_VERSIONS: dict[str, int] = dict.fromkeys(_LEROBOT_JOINT_KEYS, 2)
+_JOINT_KEY_VERSIONS: dict[str, int] = {**dict.fromkeys(_LEROBOT_JOINT_KEYS, 2), "reply_id": 2}
 
 
 def _opt_str(entry: Mapping[str, Any], key: str, where: str) -> str | None:
@@ -118,6 +118,7 @@ def _joint(entry: Any, i: int, source: str, version: int) -> ProfileJoint:
         upstream_name=_opt_str(entry, "upstream_name", where) or name,
         bus=_opt_str(entry, "bus", where),
         motor_id=None if entry.get("id") is None else parse_motor_id(entry["id"], where),
+        reply_id=None if entry.get("reply_id") is None else parse_motor_id(entry["reply_id"], where, "reply_id"),
         direction=None if entry.get("direction") is None else parse_direction(entry["direction"], where),
         model=_opt_str(entry, "model", where),
         stop=stop,
