@@ -141,7 +141,7 @@ def test_rollback_names_exactly_the_motors_and_registers_not_restored(tmp_path: 
             bus.close()
         assert str(info.value) == (
             "could not write the previous EEPROM back to motor 'shoulder_pan' (id 1): Min_Position_Limit, "
-            "Max_Position_Limit (restored: shoulder_lift, elbow_flex, wrist_flex, wrist_roll, gripper)"
+            "Max_Position_Limit, Operating_Mode, Phase, Lock (restored: shoulder_lift, elbow_flex, wrist_flex, wrist_roll, gripper)"
         )
         sim.silent_ids.clear()
         after = arm.eeprom()

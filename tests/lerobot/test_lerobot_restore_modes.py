@@ -224,7 +224,7 @@ def test_calibrate_rollback_skips_a_dead_motor_and_restores_the_others(tmp_path:
         assert ("Homing_Offset", 1, 2100 - 2047) in bus.writes
         assert str(info.value).endswith(
             "; could not write the previous EEPROM back to motor 'shoulder_lift' (id 2): Homing_Offset, "
-            "Min_Position_Limit, Max_Position_Limit (restored: shoulder_pan, elbow_flex, wrist_flex, wrist_roll, "
+            "Min_Position_Limit, Max_Position_Limit, Operating_Mode, Phase, Lock (restored: shoulder_pan, elbow_flex, wrist_flex, wrist_roll, "
             "gripper); shoulder_lift (id 2) may still hold torque: switch the arm's power off before touching it"
         )
         after = arm.eeprom()

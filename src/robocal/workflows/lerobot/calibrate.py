@@ -7,8 +7,9 @@ EEPROM → range-of-motion sweep → limits in EEPROM → JSON file), with roboc
   it, instead of being clipped to (≈0, ≈4095) (huggingface/lerobot#3586);
 * ``home_after_sweep``: sweep first, then centre the homing on the travel (#3587);
 * a Feetech pose at 4095 no longer overflows the sign-magnitude Homing_Offset;
-* any exception or Ctrl-C restores every motor's previous Homing_Offset, limits and Drive_Mode, and the file
-  is not written;
+* any exception or Ctrl-C restores every register the procedure changed (Homing_Offset, limits, Drive_Mode,
+  Operating_Mode, Phase, Lock) and reads it back, and the file is not written; a finished run puts ``Lock`` back
+  as it was (the new calibration, Operating_Mode and Phase are what LeRobot's procedure means to leave);
 * full-turn joints (SO ``wrist_roll``, Koch ``shoulder_pan``/``wrist_roll``) may be swept (#4583);
 * restoring a file on Dynamixel also writes Drive_Mode.
 """
@@ -47,6 +48,7 @@ __all__ = [
     "RangeView",
     "calibrate",
     "calibrate_legacy",
+    "hand_snapshot",
     "save_calibration",
 ]
 
@@ -139,6 +141,27 @@ class CalibrateRequest:
     snapshot_port: str | None = None
 
 
+def hand_snapshot(bus: ServoBus, spec: RobotSpec) -> dict[str, dict[str, int]]:
+    """Every register the hand procedure changes, per motor, as it is now (restored on a fault; ``Lock`` last).
+
+    The calibration EEPROM (:func:`read_eeprom`), ``Operating_Mode``, ``Phase`` where the procedure clears its
+    multi-turn bit (Feetech STS) and the EEPROM ``Lock``. ``Torque_Enable`` is not kept: a restore leaves every
+    motor limp.
+    """
+    vs = spec.vendor_spec
+    extra = ["Operating_Mode"]
+    if vs.multi_turn_phase_bit:
+        extra.append("Phase")
+    if vs.lock_register is not None:
+        extra.append(vs.lock_register)
+    before = read_eeprom(bus, spec)
+    for m in spec.motors:
+        for reg in extra:
+            if bus.has_register(m.motor_id, reg):
+                before[m.name][reg] = bus.read(reg, m.motor_id)
+    return before
+
+
 def calibrate(
     bus: ServoBus,
     request: CalibrateRequest,
@@ -176,9 +199,9 @@ def calibrate(
     ids = [m.motor_id for m in spec.motors]
     names = [m.name for m in spec.motors]
     res = {m.name: bus.resolution(m.motor_id) for m in spec.motors}
-    before = read_eeprom(bus, spec)
-    notes: list[str] = []
     vs = spec.vendor_spec
+    before = hand_snapshot(bus, spec)
+    notes: list[str] = []
     rule = spec.homing
     guard = arm_guard(bus, spec, command="lerobot calibrate", on_status=on_status, snapshot_port=snapshot_port)
     with guard:  # any signal or fault from here on: limp, the snapshot written back (motion_guard.py)
@@ -270,6 +293,10 @@ def calibrate(
                 cals[m.name] = MotorCalibration(m.motor_id, dm, offsets[m.name], 0, res[m.name] - 1)
         ordered = {n: cals[n] for n in names}
         _write_plan(bus, spec, _restore_plan(bus, spec, ordered))
+        if vs.lock_register is not None:  # _disable_torque unlocked every EEPROM: locked again as it was
+            for m in spec.motors:
+                if vs.lock_register in before[m.name]:
+                    bus.write(vs.lock_register, m.motor_id, before[m.name][vs.lock_register])
         written = save_calibration(path, ordered)
     return CalibrationResult(ordered, written, tuple(notes), naive)
 
