@@ -50,6 +50,9 @@ BENCHMARKS = (
     Benchmark("replay", False, "~8 min", "replay memory and time for 10^4 ... 10^6 rows (180 MB temp file)"),
     Benchmark("view", False, "~2 min", "robocal view in headless Chromium vs bare viser"),
     Benchmark(
+        "health_live", False, "~3 min", "live monitor per tick vs numpy.subtract; 10 h of teleoperation, detection"
+    ),
+    Benchmark(
         "scaling", True, "~65 min", "every file operation for 10^3 ... 10^6 joints (20 s budget per size)"
     ),
     Benchmark(

@@ -89,6 +89,7 @@ LAYERS = [
     "formats",  # calibration files in and out
     "lerobot",  # the public LeRobot facade (normalisation, calibration paths, legacy files)
     "dataset",  # dataset recalibration engine
+    "health",  # the public calibration-health facade (the live monitor; re-exports core.health)
     "workflows",  # one module per job
     "viewer",  # robocal view (viser page, feeds): built on workflows, called by the CLI
     "cli",  # typer commands

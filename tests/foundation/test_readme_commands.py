@@ -58,8 +58,8 @@ def test_benchmark_runner_refuses_unknown_names_before_running_anything() -> Non
     assert (r.returncode, r.stdout) == (2, "")  # not even jointmap ran
     assert r.stderr == (
         "error: unknown benchmarks 'all', 'nosuch'; valid: jointmap, lerobot, ur, sweep, kinematics, dataset, "
-        "replay, view, scaling, kinematics_tag_prior, autocal, autocal_wire, autocal_servo, faults (--list shows "
-        "what each measures and how long it takes)\n"
+        "replay, view, health_live, scaling, kinematics_tag_prior, autocal, autocal_wire, autocal_servo, faults "
+        "(--list shows what each measures and how long it takes)\n"
     )
 
 
@@ -86,7 +86,7 @@ def test_a_run_without_names_is_the_fast_set(monkeypatch: pytest.MonkeyPatch, ca
     ran: list[str] = []
     monkeypatch.setattr(run, "_run", lambda name: ran.append(name))
     assert run.main([]) == 0
-    assert ran == ["jointmap", "lerobot", "ur", "sweep", "kinematics", "dataset", "replay", "view"]
+    assert ran == ["jointmap", "lerobot", "ur", "sweep", "kinematics", "dataset", "replay", "view", "health_live"]
     out = capsys.readouterr().out
     assert "the long runs only by name: scaling (~65 min), kinematics_tag_prior (~15 min), autocal (~5 min)" in out
     ran.clear()

@@ -1,7 +1,8 @@
 """Calibration health, pure numpy (issue 30).
 
 The leader/follower model (``model``) and the dataset check (``offsets``); the live monitor (``monitor``) sits
-beside them.
+beside them. Importable with numpy alone (a control loop imports it); the monitor's public path is
+:mod:`robocal.health`.
 """
 
 from __future__ import annotations
@@ -16,16 +17,23 @@ from .offsets import (
     analyse_joint,
     episode_verdicts,
 )
+from .monitor import Monitor
+from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
 
 __all__ = [
+    "FLAG_KINDS",
     "EndEvidence",
     "HealthConfig",
+    "HealthFlag",
     "JointData",
     "JointHealth",
     "JumpEvent",
+    "Monitor",
+    "MonitorConfig",
     "analyse_joint",
     "episode_verdicts",
     "feetech_kp_nm_rad",
     "model_band",
+    "monitor_config",
     "sag_residual_deg",
 ]

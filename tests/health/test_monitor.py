@@ -1,0 +1,243 @@
+"""robocal.health.Monitor (issue 30 item 3): each flag on hand-made readings, with its joint, tick and value."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocal.errors import UsageError
+from robocal.health import FLAG_KINDS, HealthFlag, Monitor, MonitorConfig, monitor_config
+
+DEG = math.pi / 180
+DT = 0.01
+
+
+def _monitor(speed: float = 3.0, **kw: object) -> Monitor:
+    """Two joints a and b, stops ±1 rad, 3 rad/s, 50 rad/s², noise 0.003 rad."""
+    args: dict[str, object] = {"noise_rad": 0.003}
+    args.update(kw)
+    return Monitor(monitor_config(["a", "b"], [-1.0, -1.0], [1.0, 1.0], speed, **args))  # type: ignore[arg-type]
+
+
+def _feed(m: Monitor, a: list[float], b: float = 0.0, t0: float = 0.0) -> list[list[HealthFlag]]:
+    """Joint a's readings ``a`` (b held at ``b``), one per tick of 10 ms; the flags of each tick."""
+    return [list(m.update(t0 + k * DT, np.array([x, b]))) for k, x in enumerate(a)]
+
+
+def test_facade_reexports_the_core_classes_and_imports_numpy_alone() -> None:
+    from robocal.core.health import Monitor as CoreMonitor
+
+    assert Monitor is CoreMonitor
+    src = Path(__file__).resolve().parents[2] / "src"
+    code = (
+        "import sys, robocal.health, robocal.core.health.monitor\n"
+        "print(sorted(m for m in ('typer', 'rich', 'scipy', 'pyarrow', 'lxml', 'can') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env={"PYTHONPATH": str(src)}
+    )
+    assert out.stdout.strip() == "[]"
+
+
+def test_a_reading_past_a_stop_is_flagged_on_its_first_tick_and_once_per_excursion() -> None:
+    m = _monitor(speed=10.0, max_accel_rad_s2=1e4)  # only the stops here
+    limit = 1.0 + 2 * DEG
+    path = [0.9, 0.95, 1.0, 1.02, 1.03, 1.04, 1.05, 1.04, 1.03, 1.0, 0.98, 1.01, 1.04]
+    flags = _feed(m, path)
+    hits = [(k, f.kind, f.joint) for k, fs in enumerate(flags) for f in fs]
+    assert hits == [(5, "outside_stops", "a"), (12, "outside_stops", "a")]
+    first = flags[5][0]
+    assert first.value_rad == 1.04 and first.limit_rad == pytest.approx(limit)
+    assert first.t_s == pytest.approx(5 * DT)
+    assert first.message == "a: reading +59.59° is past its stop (+59.30° with the margin)"
+    assert m.counts == {"outside_stops": 2, "step": 0, "wrong_branch": 0, "pinned": 0}
+
+
+def test_a_reading_below_the_lower_stop_names_the_lower_bound() -> None:
+    m = _monitor()
+    m.update(0.0, np.array([0.0, -1.2]))
+    (flag,) = m.history
+    assert (flag.joint, flag.kind, flag.value_rad) == ("b", "outside_stops", -1.2)
+    assert flag.limit_rad == pytest.approx(-1.0 - 2 * DEG)
+
+
+def test_a_wrapping_joint_a_whole_turn_off_is_on_the_wrong_branch_not_outside() -> None:
+    m = _monitor(wraps=[True, False])
+    flags = m.update(0.0, np.array([0.5 + 2 * math.pi, 0.0]))
+    assert [(f.joint, f.kind) for f in flags] == [("a", "wrong_branch")]
+    assert flags[0].value_rad == pytest.approx(0.5 + 2 * math.pi)
+    assert flags[0].limit_rad == pytest.approx(0.5)  # where the reading belongs
+    # the same reading on a joint that cannot wrap is outside its stops
+    m2 = _monitor()
+    assert [f.kind for f in m2.update(0.0, np.array([0.5 + 2 * math.pi, 0.0]))] == ["outside_stops"]
+
+
+def test_a_jump_of_one_turn_mid_motion_is_one_wrong_branch_flag() -> None:
+    m = _monitor(wraps=True)
+    path = [0.1 + 0.01 * k for k in range(10)]
+    path += [path[-1] + 0.01 - 2 * math.pi]
+    flags = _feed(m, path)
+    assert [f.kind for f in flags[-1]] == ["wrong_branch"]
+    assert sum(len(f) for f in flags) == 1
+
+
+@pytest.mark.parametrize("jump_deg", [2.0, -2.0, 17.0])
+def test_a_jump_while_moving_is_flagged_on_its_tick_with_its_size(jump_deg: float) -> None:
+    m = _monitor()
+    path = [0.2 + 0.01 * k for k in range(20)]  # 1 rad/s
+    path += [p + jump_deg * DEG for p in [0.2 + 0.01 * k for k in range(20, 30)]]
+    flags = _feed(m, path)
+    hits = [(k, f.kind) for k, fs in enumerate(flags) for f in fs]
+    assert hits == [(20, "step")]
+    assert flags[20][0].value_rad == pytest.approx(jump_deg * DEG, abs=1e-9)
+    # 50 rad/s² · (10.2 ms)² + 3 rad/s · 0.04 · 10 ms + 2 · 0.003 rad
+    assert flags[20][0].limit_rad == pytest.approx(50 * 0.0102**2 + 3 * 0.04 * 0.01 + 0.006)
+
+
+def test_a_jump_back_that_looks_like_a_stop_is_flagged_when_the_motion_goes_on() -> None:
+    m = _monitor(speed=5.0)
+    v = 0.04  # 4 rad/s: 2.3° a tick
+    path = [-0.5 + v * k for k in range(20)]
+    path += [p - 2 * DEG for p in [-0.5 + v * k for k in range(20, 30)]]  # the tick of the jump: +2.3° − 2°
+    flags = _feed(m, path)
+    hits = [(k, f.kind) for k, fs in enumerate(flags) for f in fs]
+    assert hits == [(21, "step")]  # one tick late: 10 ms
+    assert flags[21][0].value_rad == pytest.approx(-2 * DEG, abs=1e-9)
+
+
+def test_a_joint_that_meets_a_stop_and_stays_is_not_flagged() -> None:
+    m = _monitor()
+    v = 0.03
+    path = [0.2 + v * k for k in range(20)]
+    path += [path[-1] + 0.5 * v] + [path[-1] + 0.5 * v] * 20
+    assert sum(len(f) for f in _feed(m, path)) == 0
+
+
+def test_a_start_from_rest_towards_a_far_command_is_explained_without_it_a_step() -> None:
+    path = [0.0] * 10 + [0.03, 0.06, 0.09]
+    cmd = np.array([0.5, 0.0])
+    for with_cmd, expect in [(True, []), (False, [(10, "step")])]:
+        m = _monitor()
+        hits = []
+        for k, x in enumerate(path):
+            fs = m.update(k * DT, np.array([x, 0.0]), cmd if with_cmd else None)
+            hits += [(k, f.kind) for f in fs]
+        assert hits == expect
+
+
+def test_the_hold_off_silences_a_second_step_for_half_a_second() -> None:
+    m = _monitor()
+    path = [0.0] * 10 + [0.05] * 30 + [0.10] * 30 + [0.15] * 10
+    flags = _feed(m, path)
+    hits = [k for k, fs in enumerate(flags) for f in fs]
+    assert hits == [10, 70]  # the step at tick 40 is 0.3 s after the first: held off
+
+
+def test_a_follower_pinned_while_its_leader_goes_on_is_flagged_once_after_the_pin_time() -> None:
+    m = _monitor(leader_paired=[True, False])
+    hits = []
+    for k in range(100):
+        t = k * DT
+        leader = 0.5 + 0.004 * k  # 0.4 rad/s away
+        follower = min(leader, 0.6)  # held at 0.6 rad from tick 25 on
+        fs = m.update(t, np.array([follower, 0.0]), np.array([leader, 0.0]), np.array([leader, 0.0]))
+        hits += [(k, f) for f in fs]
+    assert len(hits) == 1
+    k, flag = hits[0]
+    assert (flag.joint, flag.kind) == ("a", "pinned")
+    # far from the leader (> 5°) from tick 47 on; still since then; 0.3 s later, at the next 50 ms check
+    assert 47 + 30 <= k <= 47 + 30 + 5
+    assert flag.value_rad == pytest.approx(0.5 + 0.004 * k - 0.6)
+    assert flag.message.startswith("a: follower pinned +")
+
+
+def test_an_unpaired_joint_is_never_pinned() -> None:
+    m = _monitor()
+    for k in range(100):
+        lead = np.array([0.5 + 0.004 * k, 0.0])
+        assert m.update(k * DT, np.array([0.5, 0.0]), None, lead) == ()
+
+
+def test_readings_of_nan_raise_nothing_and_the_checks_resume() -> None:
+    m = _monitor()
+    path = [0.1, 0.1, math.nan, 0.1, 0.1, 0.1, 0.5]
+    flags = _feed(m, path)
+    assert [(k, f.kind) for k, fs in enumerate(flags) for f in fs] == [(6, "step")]
+
+
+def test_time_that_does_not_advance_is_refused() -> None:
+    m = _monitor()
+    m.update(1.0, np.zeros(2))
+    with pytest.raises(UsageError, match=r"monitor: time 1.0 s is not after the previous tick's 1.0 s"):
+        m.update(1.0, np.zeros(2))
+
+
+def test_a_change_of_tick_period_does_not_flag_a_steady_motion() -> None:
+    m = _monitor()
+    t, x, hits = 0.0, 0.0, 0
+    for k in range(200):
+        dt = 0.01 if k < 100 else 0.02 if k < 150 else 0.005
+        t += dt
+        x += 2.0 * dt
+        hits += len(m.update(t, np.array([math.sin(x) * 0.9, 0.0])))
+    assert hits == 0
+
+
+def test_reset_forgets_the_last_readings() -> None:
+    m = _monitor()
+    _feed(m, [0.0, 0.0, 0.0])
+    m.reset()
+    assert m.update(5.0, np.array([0.8, 0.0])) == ()
+    assert m.ticks == 4
+
+
+def test_history_keeps_the_newest_flags_up_to_its_size() -> None:
+    cfg = monitor_config(["a"], [-1.0], [1.0], 3.0)
+    m = Monitor(MonitorConfig(**{**cfg.__dict__, "history": 2}))
+    for k in range(3):
+        m.update(2 * k, np.array([2.0]))
+        m.update(2 * k + 1, np.array([0.0]))
+    assert [f.t_s for f in m.history] == [2, 4]
+    assert m.counts["outside_stops"] == 3
+    assert set(m.counts) == set(FLAG_KINDS)
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"joint_names": ["a", "a"]}, "monitor: a joint name is given twice"),
+        ({"lower_rad": [1.0, -1.0]}, "monitor: joint a: lower stop 1.0 rad is not below upper stop 1.0 rad"),
+        ({"upper_rad": [1.0]}, "monitor: upper_rad has 1 values for 2 joints"),
+        ({"max_speed_rad_s": 0.0}, "monitor: max_speed_rad_s must be > 0 for every joint"),
+        ({"noise_rad": [0.0, math.nan]}, "monitor: noise_rad must be finite numbers"),
+        ({"wraps": [True]}, "monitor: wraps has 1 values for 2 joints"),
+        ({"margin_rad": -0.1}, "monitor: margin_rad must be a finite number >= 0, got -0.1"),
+        ({"joint_names": []}, "monitor: lower_rad has 2 values for 0 joints"),
+    ],
+)
+def test_bad_configurations_are_refused_naming_the_field(kw: dict[str, object], message: str) -> None:
+    args: dict[str, object] = {
+        "joint_names": ["a", "b"],
+        "lower_rad": [-1.0, -1.0],
+        "upper_rad": [1.0, 1.0],
+        "max_speed_rad_s": 3.0,
+    }
+    args.update(kw)
+    with pytest.raises(UsageError) as err:
+        monitor_config(**args)  # type: ignore[arg-type]
+    assert str(err.value) == message
+
+
+def test_the_docstring_examples_hold() -> None:
+    import doctest
+
+    import robocal.core.health.monitor as core_monitor
+    import robocal.health as facade
+
+    for module in (facade, core_monitor):
+        assert doctest.testmod(module).failed == 0
