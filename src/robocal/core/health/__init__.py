@@ -8,6 +8,8 @@ beside them. Importable with numpy alone (a control loop imports it); the monito
 from __future__ import annotations
 
 from .model import feetech_kp_nm_rad, model_band, sag_residual_deg
+from .monitor import Monitor
+from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
 from .offsets import (
     EndEvidence,
     HealthConfig,
@@ -17,8 +19,6 @@ from .offsets import (
     analyse_joint,
     episode_verdicts,
 )
-from .monitor import Monitor
-from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
 
 __all__ = [
     "FLAG_KINDS",
