@@ -1,7 +1,9 @@
-"""Run inside a private network namespace: ``robocal sim lite`` on udp_multicast, ``robocal sweep`` against it.
+"""``robocal sim lite`` in one process, ``robocal sweep`` against it from another.
 
-Usage: ``python lite_netns_driver.py WORKDIR SEED``; prints the sweep report's homing offsets as one JSON line.
-The multicast frames stay on the namespace's loopback (the test sets up the namespace and its route).
+Usage: ``python lite_netns_driver.py WORKDIR SEED [INTERFACE]``; prints the sweep report's homing offsets as one JSON
+line. INTERFACE is udp_multicast (default: run it inside a private network namespace, so the multicast frames stay
+on the namespace's loopback; the test sets up the namespace and its route) or socketcand (a socketcand server on
+127.0.0.1, any free port; needs no namespace).
 """
 
 from __future__ import annotations
@@ -21,8 +23,10 @@ from robocal.backends.sim.lite import lite_urdf_text
 
 def main() -> None:
     work, seed = Path(sys.argv[1]), sys.argv[2]
+    interface = sys.argv[3] if len(sys.argv) > 3 else "udp_multicast"
+    port = ["--port", "0"] if interface == "socketcand" else []
     (work / "lite.urdf").write_text(lite_urdf_text())
-    sim = SimProcess(["lite", "--interface", "udp_multicast", "--seed", seed], work)
+    sim = SimProcess(["lite", "--interface", interface, *port, "--seed", seed], work)
     try:
         source = sim.info["source"]
         sweep = Interactive(

@@ -61,6 +61,14 @@ def test_sweep_over_udp_multicast_matches_sim_lite(tmp_path: Path) -> None:
     live = json.loads(r.stdout.strip().splitlines()[-1])
     assert live["source"] == "can:udp_multicast:239.74.163.2,239.74.163.3"
     assert live["code"] in (0, 1), live["output"]
+    expected = sim_lite_offsets(tmp_path, 4)
+    assert list(live["offsets"]) == list(expected)
+    for name, value in expected.items():
+        assert live["offsets"][name] == pytest.approx(value, abs=1e-3), name
+
+
+def sim_lite_offsets(tmp_path: Path, seed: int) -> dict[str, float]:
+    """The homing offsets ``robocal sweep --source sim:lite?seed=N`` finds (the in-process reference)."""
     (tmp_path / "ref").mkdir()
     (tmp_path / "ref/lite.urdf").write_text(lite_urdf_text())
     ref = robocal(
@@ -68,7 +76,7 @@ def test_sweep_over_udp_multicast_matches_sim_lite(tmp_path: Path) -> None:
         "--urdf",
         "lite.urdf",
         "--source",
-        "sim:lite?seed=4",
+        f"sim:lite?seed={seed}",
         "--out",
         "cal.yaml",
         "--report",
@@ -76,13 +84,9 @@ def test_sweep_over_udp_multicast_matches_sim_lite(tmp_path: Path) -> None:
         cwd=tmp_path / "ref",
     )
     assert ref.returncode in (0, 1), ref.stderr
-    expected = {
-        n: j["homing_offset"]
-        for n, j in json.loads((tmp_path / "ref/report.json").read_text())["joints"].items()
+    return {
+        n: j["homing_offset"] for n, j in json.loads((tmp_path / "ref/report.json").read_text())["joints"].items()
     }
-    assert list(live["offsets"]) == list(expected)
-    for name, value in expected.items():
-        assert live["offsets"][name] == pytest.approx(value, abs=1e-3), name
 
 
 def test_socketcan_without_a_vcan_interface_is_a_clear_error(tmp_path: Path) -> None:
@@ -100,7 +104,7 @@ def test_socketcan_without_a_vcan_interface_is_a_clear_error(tmp_path: Path) -> 
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [
         "error: no CAN interface robocalnone0, robocalnone1: create it (ip link add robocalnone0 type vcan && "
-        "ip link set robocalnone0 up) or use --interface udp_multicast"
+        "ip link set robocalnone0 up) or use --interface socketcand"
     ]
 
 

@@ -117,12 +117,17 @@ def lite(
     interface: str | None = typer.Option(
         None,
         "--interface",
-        help="socketcan (a vcan pair) or udp_multicast; default socketcan when vcan0 exists, else udp_multicast.",
+        help="socketcand (a socketcand server on 127.0.0.1, python-can's socketcand interface), socketcan (a vcan "
+        "pair) or udp_multicast; default socketcan when vcan0 exists, else socketcand.",
     ),
     channel: str | None = typer.Option(
         None,
         "--channel",
-        help="The two channels for can0,can1 (default vcan0,vcan1 or 239.74.163.2,239.74.163.3).",
+        help="The two channels for can0,can1 (default can0,can1 for socketcand, vcan0,vcan1, or "
+        "239.74.163.2,239.74.163.3).",
+    ),
+    port: int | None = typer.Option(
+        None, "--port", help="socketcand's TCP port on 127.0.0.1 (default 29536, the daemon's; 0: any free port)."
     ),
     seed: int = typer.Option(
         0, "--seed", help="Seed of the factory zeros, power-on pose and noise (as sim:lite)."
@@ -136,7 +141,7 @@ def lite(
     """Serve the simulated Lite's 14 Robstride motors on a CAN interface other processes share, until Ctrl-C."""
     chans = _common.parse_csv_list(channel or None, "--channel")
     with serve_lite(
-        interface=interface, channels=chans, seed=seed, noise_rad=noise, control=control
+        interface=interface, channels=chans, seed=seed, noise_rad=noise, control=control, port=port
     ) as device:
         _serve(device, view)
 

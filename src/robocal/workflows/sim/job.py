@@ -19,6 +19,7 @@ from ...errors import DeviceError, UsageError
 __all__ = [
     "ARM_ROBOTS",
     "LITE_CHANNELS",
+    "SOCKETCAND_PORT",
     "UR_PORT_OFFSETS",
     "UR_STANDARD_BASE_PORT",
     "ServedDevice",
@@ -30,8 +31,15 @@ __all__ = [
 ARM_ROBOTS: tuple[str, ...] = ("so101_follower", "so101_leader", "koch_follower", "koch_leader")
 """LeRobot arms ``robocal sim`` serves on a pseudo-terminal."""
 
-LITE_CHANNELS = {"socketcan": "vcan0,vcan1", "udp_multicast": "239.74.163.2,239.74.163.3"}
-"""Default channels (can0, can1) per interface."""
+LITE_CHANNELS = {
+    "socketcand": "can0,can1",
+    "socketcan": "vcan0,vcan1",
+    "udp_multicast": "239.74.163.2,239.74.163.3",
+}
+"""Default channels (can0, can1) per interface (socketcand: the bus names its clients open)."""
+
+SOCKETCAND_PORT = 29536
+"""The socketcand daemon's default TCP port, where ``robocal sim lite --interface socketcand`` listens."""
 
 
 @dataclass(frozen=True)
@@ -132,26 +140,37 @@ def serve_lite(
     seed: int = 0,
     noise_rad: float = 3e-4,
     control: str | None = None,
+    port: int | None = None,
 ) -> Iterator[ServedDevice]:
     """Serve the simulated Lite's 14 Robstride motors on CAN interfaces other processes share.
 
     Args:
-        interface: ``socketcan`` (a vcan pair) or ``udp_multicast``; default socketcan when ``vcan0`` exists.
-        channels: The two channels for can0 and can1 (default: :data:`LITE_CHANNELS`).
+        interface: ``socketcand`` (a socketcand server on loopback TCP: needs nothing from the kernel),
+            ``socketcan`` (a vcan pair) or ``udp_multicast``; default socketcan when ``vcan0`` exists, else
+            socketcand.
+        channels: The two channels for can0 and can1 (default: :data:`LITE_CHANNELS`; socketcand: the bus names
+            clients open).
         seed: Seed of the factory zeros, power-on pose and noise (as ``sim:lite``).
         noise_rad: Encoder noise (standard deviation), rad.
         control: Control socket path.
+        port: socketcand's TCP port on 127.0.0.1 (default :data:`SOCKETCAND_PORT`; 0: any free port).
 
     Raises:
-        UsageError: Unknown interface, not two different channels, a missing vcan interface, bad noise.
+        UsageError: Unknown interface, not two different channels, a missing vcan interface, bad noise, a port
+            without socketcand.
+        DeviceError: The socketcand port cannot be listened on (e.g. busy).
     """
     from ...backends.sim.lite import LiteHands, SimLite
     from ...backends.sim.serve import Session
 
     if interface is None:
-        interface = "socketcan" if pathlib.Path("/sys/class/net/vcan0").exists() else "udp_multicast"
+        interface = "socketcan" if pathlib.Path("/sys/class/net/vcan0").exists() else "socketcand"
     if interface not in LITE_CHANNELS:
-        raise UsageError(f"--interface {interface!r}: expected socketcan or udp_multicast")
+        raise UsageError(f"--interface {interface!r}: expected socketcand, socketcan or udp_multicast")
+    if port is not None and interface != "socketcand":
+        raise UsageError(f"--port applies to --interface socketcand, not {interface}")
+    if port is not None and not 0 <= port <= 65535:
+        raise UsageError(f"--port {port}: expected 0 (any free port) or 1..65535")
     chans = list(channels) if channels is not None else LITE_CHANNELS[interface].split(",")
     if len(chans) != 2 or chans[0] == chans[1]:
         raise UsageError(f"--channel {','.join(chans)!r}: expected two different channels, for can0 and can1")
@@ -160,18 +179,40 @@ def serve_lite(
         if missing:
             raise UsageError(
                 f"no CAN interface {', '.join(missing)}: create it (ip link add {missing[0]} type vcan && "
-                f"ip link set {missing[0]} up) or use --interface udp_multicast"
+                f"ip link set {missing[0]} up) or use --interface socketcand"
             )
     if not (noise_rad >= 0 and noise_rad < 1):
         raise UsageError(f"--noise {noise_rad}: expected 0 ≤ noise < 1 rad")
-    robot = SimLite(
-        seed, noise_rad=noise_rad, interface=interface, channels={"can0": chans[0], "can1": chans[1]}
-    )
-    source = f"can:{interface}:{chans[0]},{chans[1]}"
-    with robot, Session(LiteHands(robot), "lite", source, control=control) as session:
+    extra: tuple[str, ...] = ()
+    with contextlib.ExitStack() as stack:
+        if interface == "socketcand":
+            from ...backends.sim.socketcand import SocketcandServer
+
+            robot = SimLite(seed, noise_rad=noise_rad)  # on in-process virtual channels, bridged over TCP
+            server = SocketcandServer(
+                {chans[0]: robot.channels["can0"], chans[1]: robot.channels["can1"]},
+                port=SOCKETCAND_PORT if port is None else port,
+            )
+            stack.callback(server.stop)  # also when the robot fails to start
+            where = f"{server.host}:{server.port}"
+            source = f"can:socketcand:{chans[0]},{chans[1]}?port={server.port}"
+            extra = (
+                f"python-can: can.Bus(interface='socketcand', channel='{chans[0]}', host='{server.host}', "
+                f"port={server.port})",
+            )
+        else:
+            robot = SimLite(
+                seed, noise_rad=noise_rad, interface=interface, channels={"can0": chans[0], "can1": chans[1]}
+            )
+            where, source = "", f"can:{interface}:{chans[0]},{chans[1]}"
+        stack.enter_context(robot)
+        if interface == "socketcand":
+            server.start()
+        session = stack.enter_context(Session(LiteHands(robot), "lite", source, control=control))
         lines = (
             f"source: {source}",
-            f"channels: can0={chans[0]} (ids 11-17), can1={chans[1]} (ids 21-27) on {interface}",
+            f"channels: can0={chans[0]} (ids 11-17), can1={chans[1]} (ids 21-27) on {interface} {where}".rstrip(),
+            *extra,
             f"control: {session.control_path}",
             "simulated Lite (14 Robstride motors); Ctrl-C stops it",
         )
