@@ -353,3 +353,17 @@ def test_the_lite_search_never_pushes_past_the_ceiling_at_the_simulated_motor(tm
         peak = holder[0].motors[name].plant.peak_tau_motor_nm
         # limit_torque is 1.05·cap (within the ceiling): the motor never pushes harder
         assert 0.5 * j.torque_cap_nm < peak <= min(1.05 * j.torque_cap_nm, model.ceiling_nm) + 1e-9, name
+
+
+@pytest.mark.parametrize("rated", [5e-324, 1e-9, 0.0009])
+def test_a_rating_too_small_to_give_a_cap_is_refused(rated: float) -> None:
+    """A denormal ``rated_nm`` made the cap 0.0 N·m (found by hypothesis): the profile is refused instead."""
+    doc = {
+        "format": "robocal-robot-profile",
+        "version": 2,
+        "name": "h",
+        "joints": [{"name": "j0", "model": "sts3215"}],
+        "auto_calibration": {"joints": [{"name": "j0", "stops": "both", "rated_nm": rated}]},
+    }
+    with pytest.raises(FileFormatError, match=r"rated_nm must be a positive number \(N·m\) of at least 0.001"):
+        parse_profile(doc, "h.yaml")

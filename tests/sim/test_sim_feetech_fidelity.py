@@ -17,7 +17,6 @@ import scservo_sdk as scs
 from robocal.backends.feetech import FeetechBus
 from robocal.backends.sim.physics import JointPlant, PlantParams, SimClock
 from robocal.backends.sim.servo import SimServo, SimServoBus
-from robocal.backends.sim.servo_firmware import ServoFirmware
 
 from .conftest import open_sdk
 
@@ -125,7 +124,7 @@ def test_torque_limit_0_gives_no_torque_with_physics() -> None:
     clock, tick = SimClock(), 2 * math.pi / 4096
     servo = SimServo(1, "sts3215", 2048.0)
     plant = JointPlant(PlantParams(stop_lower_rad=-1.0, stop_upper_rad=1.0), q0_rad=0.0)
-    servo.firmware = ServoFirmware(servo, plant, clock, zero_ticks=2048.0)
+    servo.firmware = servo.kind.firmware(servo, plant, clock, zero_ticks=2048.0)
     with SimServoBus([servo], clock=clock) as sim, FeetechBus(sim.port, {1: "sts3215"}, packet_timeout_ms=500.0) as bus:
         bus.write("Torque_Limit", 1, 0)
         bus.write("Torque_Enable", 1, 1)

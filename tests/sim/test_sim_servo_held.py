@@ -15,7 +15,6 @@ import pytest
 from robocal.backends.feetech import FeetechBus
 from robocal.backends.sim.physics import JointPlant, PlantParams, SimClock
 from robocal.backends.sim.servo import SimServo, SimServoBus
-from robocal.backends.sim.servo_firmware import ServoFirmware
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -32,7 +31,7 @@ def test_a_held_joint_is_not_integrated_step_by_step_until_something_changes(
     monkeypatch.setattr(plant, "step", lambda drive: (steps.append(1), real_step(drive))[1])
     clock = SimClock()
     servo = SimServo(1, "sts3215", 2048 + 0.2 / TICK)
-    servo.firmware = ServoFirmware(servo, plant, clock, zero_ticks=2048)
+    servo.firmware = servo.kind.firmware(servo, plant, clock, zero_ticks=2048)
     with (
         SimServoBus([servo], clock=clock, transport="inproc") as sim,
         FeetechBus(sim.port, {1: "sts3215"}) as bus,

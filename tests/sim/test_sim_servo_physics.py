@@ -12,7 +12,7 @@ from robocal.backends.dynamixel import DynamixelBus
 from robocal.backends.feetech import FeetechBus
 from robocal.backends.sim.physics import JointPlant, PlantParams, Scenario, SimClock, make_plant
 from robocal.backends.sim.servo import SimServo, SimServoBus
-from robocal.backends.sim.servo_firmware import RATINGS, ServoFirmware
+from robocal.backends.sim.servo_firmware import RATINGS
 from robocal.errors import CalibTimeoutError, DeviceError
 
 pytestmark = pytest.mark.timeout(120)
@@ -33,7 +33,7 @@ def params(**kw: float) -> PlantParams:
 def rig(model: str, plant: JointPlant, q0_rad: float = 0.0) -> Iterator[tuple[SimServo, SimClock, object]]:
     clock = SimClock()
     servo = SimServo(1, model, ZERO + q0_rad / TICK)
-    servo.firmware = ServoFirmware(servo, plant, clock, zero_ticks=ZERO)
+    servo.firmware = servo.kind.firmware(servo, plant, clock, zero_ticks=ZERO)
     cls = FeetechBus if servo.vendor == "feetech" else DynamixelBus
     with (
         SimServoBus([servo], clock=clock) as sim,

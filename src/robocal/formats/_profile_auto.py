@@ -109,6 +109,8 @@ def _positive(value: float | None, key: str, where: str, upper: float | None = N
 
 
 _LARGEST_RATED_NM = max(m.rated_nm for m in MOTOR_MODELS)
+_SMALLEST_RATED_NM = 0.001
+"""The least ``rated_nm`` a profile may give, N·m (no joint motor is rated below a millinewton-metre)."""
 
 
 def _motor(row: Mapping[str, Any], joint_model: str | None, where: str) -> tuple[str | None, MotorModel | None]:
@@ -134,8 +136,10 @@ def _rating(row: Mapping[str, Any], model: str | None, found: MotorModel | None,
     given = _num(row, "rated_nm", where, None)
     if given is None:
         return None if found is None else found.rated_nm
-    if not given > 0:
-        raise FileFormatError(f"{where}: rated_nm must be a positive number (N·m), got {given!r}")
+    if not given >= _SMALLEST_RATED_NM:  # a cap of a fraction of a denormal rating would be 0 N·m
+        raise FileFormatError(
+            f"{where}: rated_nm must be a positive number (N·m) of at least {_SMALLEST_RATED_NM:g}, got {given!r}"
+        )
     if found is not None and given > found.rated_nm:
         raise FileFormatError(
             f"{where}: rated_nm {given:g} N·m is above the {found.name}'s rated torque {found.rated_nm:g} N·m "

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from ...errors import UsageError
 from .physics import JointPlant, PlantParams, SimClock
 from .scenarios import Scenario, make_plant
-from .servo_firmware import RATINGS, ServoFirmware
+from .servo_firmware import RATINGS
 
 if TYPE_CHECKING:
     from .lerobot_arms import SimArm
@@ -97,7 +97,7 @@ def attach_physics(
             plant = make_plant(
                 scenario, params, search_torque_nm=torque, seed=seed * 1000 + m.motor_id, q0_rad=q0
             )
-            servo.firmware = ServoFirmware(servo, plant, clock, zero_ticks=t.mid_ticks)
+            servo.firmware = servo.kind.firmware(servo, plant, clock, zero_ticks=t.mid_ticks)
             # the firmware's stops are the plant's; the hand's clamp must not cut a scenario's missing stop
             servo.stop_low_ticks, servo.stop_high_ticks = -1e9, 1e9
             plants[m.name] = plant

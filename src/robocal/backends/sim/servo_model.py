@@ -9,7 +9,7 @@ Also the bus constants (broadcast id, baud-rate register values).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -21,11 +21,11 @@ from ...core.lerobot import (
 )
 from ...core.vendors import VendorSpec, vendor_spec
 from ...errors import UsageError
-from .._servo_common import ServoModel
-from ..dynamixel import DYNAMIXEL_MODELS
-from ..feetech import FEETECH_MODELS, SIGN_BITS
+from ..dynamixel.sim import DYNAMIXEL_SIM
+from ..feetech import SIGN_BITS
+from ..feetech.sim import FEETECH_SIM
 from .servo_defaults import FACTORY_DEFAULTS
-from .servo_packets import Instruction, dynamixel_status, feetech_status, parse_dynamixel, parse_feetech
+from .servo_kind import SimServoKind
 
 if TYPE_CHECKING:
     from .servo_firmware import ServoFirmware
@@ -38,139 +38,17 @@ Vendor = str
 BROADCAST_ID = 0xFE
 """Packets to this id reach every servo; only PING is answered (by each servo)."""
 
-BAUD_RATES: dict[str, dict[int, int]] = {
-    "feetech": {
-        0: 1_000_000,
-        1: 500_000,
-        2: 250_000,
-        3: 128_000,
-        4: 115_200,
-        5: 57_600,
-        6: 38_400,
-        7: 19_200,
-    },
-    "dynamixel": {
-        0: 9_600,
-        1: 57_600,
-        2: 115_200,
-        3: 1_000_000,
-        4: 2_000_000,
-        5: 3_000_000,
-        6: 4_000_000,
-        7: 4_500_000,
-    },
-}
-"""``Baud_Rate`` register value → bit/s (Feetech STS/SCS; Dynamixel X series)."""
-
-FACTORY_BAUD: dict[str, int] = {"feetech": 0, "dynamixel": 1}
-"""``Baud_Rate`` as shipped: Feetech 1 Mbit/s, Dynamixel X 57600 bit/s."""
 
 
-@dataclass(frozen=True)
-class SimServoKind:
-    """How the simulated servos of one vendor differ on the wire and in their firmware (the simulator's adapter).
 
-    The homing rule, where ``Drive_Mode`` lives and the lock register come from the vendor's declaration
-    (:mod:`robocal.core.vendors`); this holds what only the simulator needs.
+SIM_SERVO_KINDS: dict[str, SimServoKind] = {kind.vendor: kind for kind in (FEETECH_SIM, DYNAMIXEL_SIM)}
+"""Vendor name → how its simulated servos behave (each declared in the vendor's home, ``backends/<vendor>/sim.py``;
+a new simulated servo vendor is one entry here)."""
+BAUD_RATES: dict[str, Mapping[int, int]] = {v: k.baud_rates for v, k in SIM_SERVO_KINDS.items()}
+"""``Baud_Rate`` register value → bit/s, per vendor."""
+FACTORY_BAUD: dict[str, int] = {v: k.factory_baud for v, k in SIM_SERVO_KINDS.items()}
+"""``Baud_Rate`` as shipped, per vendor (Feetech 1 Mbit/s, Dynamixel X 57600 bit/s)."""
 
-    Attributes:
-        vendor: The vendor's name.
-        models: Model name → the backend's :class:`~robocal.backends.servo_bus.ServoModel`.
-        power_on: ``(register, value)`` a new servo holds, set where its model's table has the register.
-        twos_complement: Registers whose value is signed (two's complement); the others read unsigned. Unused
-            where signed registers are sign-magnitude (their sign bits are the backend's ``SIGN_BITS``).
-        clamps_goal: The firmware clamps ``Goal_Position`` into ``Min/Max_Position_Limit``.
-        single_turn_mode: The ``Operating_Mode`` in which Present wraps to one turn (None: the homing rule says).
-        address_bytes: Width of the address and length fields of READ / WRITE / SYNC packets.
-        parse: Parses one instruction packet (:mod:`.servo_packets`).
-        status: Builds one status packet.
-        ping_reports_model: PING answers with ``Model_Number`` and ``Firmware_Version``.
-        reboot: Knows REBOOT (0x08), which clears a hardware error.
-        unknown_instruction_error: Status error byte for an instruction it does not know.
-        eeprom_locked_by_torque: EEPROM (addresses below ``Torque_Enable``) refuses writes while the torque is on
-            (Access error 7).
-        x_series_law: Runs the Dynamixel X control law (:mod:`.servo_firmware`), else the Feetech STS one.
-        status_level: The register gating replies (None: every instruction is answered).
-        reply_levels: Instruction → the lowest ``status_level`` value at which it is still answered; an
-            instruction not listed needs ``full_reply_level``.
-        full_reply_level: The ``status_level`` value at which every instruction is answered.
-        set_middle: The ``Torque_Enable`` value that makes the present position read half a turn (None: none).
-    """
-
-    vendor: str
-    models: Mapping[str, ServoModel]
-    power_on: tuple[tuple[str, int], ...]
-    twos_complement: tuple[str, ...]
-    clamps_goal: bool
-    single_turn_mode: int | None
-    address_bytes: int
-    parse: Callable[[bytes | bytearray], tuple[int, Instruction | None]]
-    status: Callable[..., bytes]
-    ping_reports_model: bool
-    reboot: bool
-    unknown_instruction_error: int
-    eeprom_locked_by_torque: bool
-    x_series_law: bool
-    status_level: str | None = None
-    reply_levels: Mapping[int, int] = field(default_factory=dict)
-    full_reply_level: int = 0
-    set_middle: int | None = None
-
-
-SIM_SERVO_KINDS: dict[str, SimServoKind] = {
-    "feetech": SimServoKind(
-        vendor="feetech",
-        models=FEETECH_MODELS,
-        power_on=(
-            ("Lock", 1),
-            ("Baud_Rate", FACTORY_BAUD["feetech"]),
-            ("Firmware_Major_Version", 3),
-            ("Firmware_Minor_Version", 10),
-        ),
-        twos_complement=(),
-        clamps_goal=True,
-        single_turn_mode=None,
-        address_bytes=1,
-        parse=parse_feetech,
-        status=feetech_status,
-        ping_reports_model=False,
-        reboot=False,
-        unknown_instruction_error=0,
-        eeprom_locked_by_torque=False,
-        x_series_law=False,
-        status_level="Response_Status_Level",
-        reply_levels={0x01: 0, 0x02: 0, 0x82: 0},  # level 0: PING and READ only; 1: all (Feetech's table)
-        full_reply_level=1,
-        set_middle=128,
-    ),
-    "dynamixel": SimServoKind(
-        vendor="dynamixel",
-        models=DYNAMIXEL_MODELS,
-        power_on=(("Operating_Mode", 3), ("Baud_Rate", 3), ("Firmware_Version", 52)),  # 1 Mbit/s, as LeRobot's setup
-        twos_complement=(
-            "Homing_Offset",
-            "Present_Position",
-            "Goal_Position",
-            "Max_Position_Limit",
-            "Min_Position_Limit",
-            "Bus_Watchdog",
-        ),
-        clamps_goal=False,
-        single_turn_mode=3,
-        address_bytes=2,
-        parse=parse_dynamixel,
-        status=dynamixel_status,
-        ping_reports_model=True,
-        reboot=True,
-        unknown_instruction_error=2,
-        eeprom_locked_by_torque=True,
-        x_series_law=True,
-        status_level="Status_Return_Level",
-        reply_levels={0x01: 0, 0x02: 1},  # 0: PING only; 1: PING and READ; 2: all (the e-Manual)
-        full_reply_level=2,
-    ),
-}
-"""Vendor name → how its simulated servos behave (a new simulated vendor is one entry here)."""
 
 
 def _kind_of_model(model: str) -> SimServoKind:
