@@ -23,12 +23,14 @@ from ..workflows.sim.job import (
     ServedDevice,
     serve_arm,
     serve_lite,
+    serve_openarm,
     serve_ur,
 )
 from . import _common
 
 app = typer.Typer(
-    help="Simulated robots as standalone devices: LeRobot arms (pty), the Lite (CAN), a UR controller (TCP).",
+    help="Simulated robots as standalone devices: LeRobot arms (pty), the Lite and the OpenArm (CAN), a UR "
+    "controller (TCP).",
     no_args_is_help=True,
 )
 
@@ -144,6 +146,23 @@ def lite(
         interface=interface, channels=chans, seed=seed, noise_rad=noise, control=control, port=port
     ) as device:
         _serve(device, view)
+
+
+@app.command("openarm")
+def openarm(
+    side: str = typer.Option("both", "--side", help="both, right or left (right arm: bus can0, left: can1)."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the hidden motor mounts and factory zeros."),
+    zeroed: bool = typer.Option(
+        False, "--zeroed", help="Motors hold the zero a perfect calibration writes (default: factory zeros)."
+    ),
+    port: int | None = typer.Option(
+        None, "--port", min=0, max=65535, help="socketcand TCP port (default 29536; 0: any free port)."
+    ),
+    host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on (loopback by default)."),
+) -> None:
+    """Serve simulated OpenArm v10 arms (8 Damiao motors each, real time) on a loopback socketcand server, until Ctrl-C."""
+    with serve_openarm(side=side, seed=seed, zeroed=zeroed, host=host, port=port) as device:
+        _serve(device, view=False)
 
 
 @app.command("ur")

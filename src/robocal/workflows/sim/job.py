@@ -19,12 +19,14 @@ from ...errors import DeviceError, UsageError
 __all__ = [
     "ARM_ROBOTS",
     "LITE_CHANNELS",
+    "OPENARM_BUSES",
     "SOCKETCAND_PORT",
     "UR_PORT_OFFSETS",
     "UR_STANDARD_BASE_PORT",
     "ServedDevice",
     "serve_arm",
     "serve_lite",
+    "serve_openarm",
     "serve_ur",
 ]
 
@@ -217,6 +219,75 @@ def serve_lite(
             "simulated Lite (14 Robstride motors); Ctrl-C stops it",
         )
         yield ServedDevice(f"Lite on {interface}", lines, session.operator)
+
+
+OPENARM_BUSES = {"right": "can0", "left": "can1"}
+"""The socketcand bus name of each simulated OpenArm arm (openarm_can's defaults: can0 right, can1 left)."""
+
+
+@contextlib.contextmanager
+def serve_openarm(
+    *,
+    side: str = "both",
+    seed: int = 0,
+    zeroed: bool = False,
+    host: str = "127.0.0.1",
+    port: int | None = None,
+) -> Iterator[ServedDevice]:
+    """Serve simulated OpenArm v10 arms (8 Damiao motors each, in real time) behind a loopback socketcand server.
+
+    Args:
+        side: ``"both"``, ``"right"`` or ``"left"``; the right arm is bus ``can0``, the left ``can1``.
+        seed: Seed of the hidden motor mounts and factory zeros (the left arm uses ``seed + 1``).
+        zeroed: The motors hold the zero a perfect calibration writes (default: factory zeros).
+        host: Address to listen on.
+        port: TCP port (None: :data:`SOCKETCAND_PORT`, socketcand's 29536, as ``robocal sim lite``'s; 0: any
+            free port).
+
+    Raises:
+        UsageError: Unknown side, a negative seed.
+        DeviceError: The address cannot be listened on.
+    """
+    from ...backends.damiao.openarm import SimOpenArm
+    from ...backends.sim.socketcand import SocketcandServer
+
+    sides = {"both": ("right", "left"), "right": ("right",), "left": ("left",)}.get(side)
+    if sides is None:
+        raise UsageError(f"--side {side!r}: expected both, right or left")
+    if seed < 0:
+        raise UsageError(f"--seed {seed}: expected a number >= 0")
+    arms = [
+        SimOpenArm(
+            f"robocal-sim-openarm-{os.getpid()}-{s}",
+            side="right" if s == "right" else "left",
+            seed=seed + (s == "left"),
+            zeroed=zeroed,
+            realtime=True,
+        )
+        for s in sides
+    ]
+    buses = {OPENARM_BUSES[a.side]: a.channel for a in arms}
+    server = SocketcandServer(buses, host=host, port=SOCKETCAND_PORT if port is None else port)
+    with contextlib.ExitStack() as stack:
+        for arm in arms:
+            stack.enter_context(arm)
+        stack.enter_context(server)
+        names = ",".join(buses)
+        where = f"host={server.host}&port={server.port}"
+        lines = (
+            f"source: can:socketcand:{names}?{where}",
+            "buses: " + ", ".join(f"{OPENARM_BUSES[a.side]} = {a.side} arm" for a in arms)
+            + " (ids 0x01-0x08, replies 0x11-0x18)",
+            f"python-can: can.Bus(interface='socketcand', channel='{next(iter(buses))}', host='{server.host}', "
+            f"port={server.port})",
+            f"LeRobot: can_interface='socketcand', port='{next(iter(buses))}', with CAN_CONFIG="
+            f"'{{\"host\": \"{server.host}\", \"port\": {server.port}}}' in the environment",
+            f"socketcand: {server.host}:{server.port}",
+            "simulated OpenArm v10 ("
+            + ("factory zeros" if not zeroed else "calibrated zeros")
+            + ", real time); Ctrl-C stops it",
+        )
+        yield ServedDevice(f"OpenArm on socketcand {server.host}:{server.port}", lines)
 
 
 UR_PORT_OFFSETS: tuple[tuple[str, int], ...] = (
