@@ -27,7 +27,7 @@ __all__ = ["KEYS", "run_view"]
 
 KEYS = (
     "↑/↓ select  ←/→ move (−/+ step)  +/- step ×2/÷2  [ ] push to min/max stop  m middle  M all middle  "
-    "s sweep all  S sweep selected  r release  c plug in only selected  a plug in all  q quit"
+    "s sweep all  S sweep selected  r release  c plug in only selected  a plug in all  u USB cable out/in  q quit"
 )
 """The key help line shown under the table."""
 
@@ -106,6 +106,7 @@ def run_view(
     header: str,
     stop: threading.Event,
     attach: Callable[[list[str] | None], object] | None = None,
+    usb: Callable[[], bool] | None = None,
 ) -> None:
     """Show the joints live on the terminal and act on keys until ``q``, Ctrl-C or ``stop``.
 
@@ -115,6 +116,7 @@ def run_view(
         header: Lines shown above the table (port, link, control socket).
         stop: Set by a signal handler to end the view.
         attach: Plug in motors (servo arms): None = all, else these joints only.
+        usb: Unplug / plug back the USB cable (``u``; with a link); returns whether it is plugged in now.
     """
     console = Console(highlight=False)
     names = list(operator.device.joint_names())
@@ -166,6 +168,8 @@ def run_view(
                     elif key in ("c", "a") and attach is not None:
                         attach([name] if key == "c" else None)
                         message = f"plugged in: {name} only" if key == "c" else "plugged in: all motors"
+                    elif key == "u" and usb is not None:
+                        message = "USB cable plugged in" if usb() else "USB cable unplugged (the link is gone)"
                 except CalibError as exc:
                     message = f"refused: {exc}"
             live.update(render())

@@ -79,7 +79,7 @@ def _serve(device: ServedDevice, view: bool | None) -> None:
         if use_view:
             from ._sim_view import run_view
 
-            run_view(device.operator, device.title, "\n".join(device.lines), stop, device.attach)
+            run_view(device.operator, device.title, "\n".join(device.lines), stop, device.attach, device.usb)
         else:
             while not stop.wait(0.2):
                 pass

@@ -324,6 +324,10 @@ class SimControl(ClosesOnExit):
         """Servo arms: plug exactly these motors into the bus."""
         return list(self.request("attach", joints=joints)["attached"])
 
+    def usb(self, plugged: bool) -> bool:
+        """Unplug (False) or plug back (True) the simulated USB cable of a device served with a link."""
+        return bool(self.request("usb", plugged=plugged)["plugged"])
+
     def close(self) -> None:
         """Close the connection."""
         with contextlib.suppress(OSError):

@@ -12,7 +12,7 @@ import os
 import pathlib
 import shutil
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from ...core.lifecycle import ClosesOnExit
@@ -20,7 +20,12 @@ from ...errors import UsageError
 from .control import ControlServer, Handler
 from .operator import HandDevice, HandOperator
 
-__all__ = ["Session", "make_link", "remove_link"]
+__all__ = ["Session", "in_dev", "make_link", "remove_link"]
+
+
+def in_dev(path: str | os.PathLike[str]) -> bool:
+    """True when ``path`` would be in ``/dev`` (its folder, resolved, is ``/dev``)."""
+    return pathlib.Path(os.path.abspath(os.fspath(path))).parent.resolve() == pathlib.Path("/dev").resolve()
 
 
 def make_link(link: str | os.PathLike[str], target: str) -> pathlib.Path:
@@ -57,8 +62,13 @@ class Session(ClosesOnExit):
         name: Device name (shown by ``state``).
         wire: What clients open: the pty path (or a CAN channel / address, shown only).
         link: Symlink to create to ``wire`` (pty only).
-        control: Control socket path; default ``<link>.control`` with a link, else in a new temporary folder.
+        control: Control socket path; default ``<link>.control`` with a link outside ``/dev``, else in a new
+            temporary folder (a socket beside ``/dev/ttyX`` would be listed as a serial port by ``/dev/tty*``
+            scanners such as ``lerobot-find-port``).
         extra: Extra control commands.
+        on_usb: With a link: the ``usb`` control command (``{"cmd": "usb", "plugged": false}``) unplugs the
+            simulated USB cable (the link vanishes, then this is called with False) and plugs it back in (the
+            link returns, then True).
     """
 
     def __init__(
@@ -70,11 +80,16 @@ class Session(ClosesOnExit):
         link: str | os.PathLike[str] | None = None,
         control: str | os.PathLike[str] | None = None,
         extra: Mapping[str, Handler] | None = None,
+        on_usb: Callable[[bool], None] | None = None,
     ) -> None:
         self.wire = wire
         self._tmpdir: str | None = None
+        self.plugged = True
+        self._on_usb = on_usb
+        if link is not None and on_usb is not None:
+            extra = {**dict(extra or {}), "usb": self._usb}
         if control is None:
-            if link is not None:
+            if link is not None and not in_dev(link):
                 control = f"{os.fspath(link)}.control"
             else:
                 self._tmpdir = tempfile.mkdtemp(prefix="robocal-sim-")
@@ -94,6 +109,25 @@ class Session(ClosesOnExit):
             self._cleanup_partial()
             raise
 
+    def _usb(self, req: dict[str, Any]) -> dict[str, Any]:
+        plugged = req.get("plugged")
+        if not isinstance(plugged, bool):
+            raise UsageError("usb: 'plugged' must be true or false")
+        self.set_plugged(plugged)
+        return {"plugged": self.plugged, "link": str(self.link)}
+
+    def set_plugged(self, plugged: bool) -> None:
+        """Unplug (the link vanishes, then ``on_usb(False)``) or plug the simulated USB cable back in."""
+        if self.link is None or plugged == self.plugged:
+            return
+        if plugged:
+            make_link(self.link, self.wire)
+        else:
+            remove_link(self.link, self.wire)
+        self.plugged = plugged
+        if self._on_usb is not None:
+            self._on_usb(plugged)
+
     def _cleanup_partial(self) -> None:
         self.operator.close()
         if self._tmpdir is not None:
@@ -104,6 +138,7 @@ class Session(ClosesOnExit):
         return {
             "wire": self.wire,
             "link": str(self.link) if self.link else None,
+            "plugged": self.plugged,
             "control": self.control_path,
         }
 

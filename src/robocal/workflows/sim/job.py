@@ -62,6 +62,9 @@ class ServedDevice:
     operator: Any = None
     attach: Callable[[list[str] | None], object] | None = None
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    usb: Callable[[], bool] | None = None
+    """Unplugs / plugs back the simulated USB cable (the ``--link`` vanishes and returns); returns whether it is
+    plugged in now. None without a link."""
 
 
 @contextlib.contextmanager
@@ -116,10 +119,26 @@ def serve_arm(
             raise UsageError(f"attach: joints must be 'all' or names among {', '.join(names)}")
         return {"attached": attach(joints)}
 
+    before_unplug: list[int] = []
+
+    def usb(plugged: bool) -> None:
+        """The USB cable: out, no servo answers; back in, the servos plugged in before answer again."""
+        if not plugged:
+            before_unplug[:] = [arm.servo(n).motor_id for n in names if arm.servo(n).attached]
+            arm.bus.attach(())
+        else:
+            arm.bus.attach(list(before_unplug))
+
     with (
         arm,
         Session(
-            ArmHands(arm), robot, arm.port, link=link, control=control, extra={"attach": attach_cmd}
+            ArmHands(arm),
+            robot,
+            arm.port,
+            link=link,
+            control=control,
+            extra={"attach": attach_cmd},
+            on_usb=usb,
         ) as session,
     ):
         lines = [f"port: {arm.port}"]
@@ -131,7 +150,18 @@ def serve_arm(
             + (", factory state: nothing plugged in" if factory else "")
             + "); Ctrl-C stops it"
         )
-        yield ServedDevice(f"{robot} on {arm.port}", tuple(lines), session.operator, attach)
+
+        def toggle_usb() -> bool:
+            session.set_plugged(not session.plugged)
+            return session.plugged
+
+        yield ServedDevice(
+            f"{robot} on {arm.port}",
+            tuple(lines),
+            session.operator,
+            attach,
+            usb=toggle_usb if session.link is not None else None,
+        )
 
 
 @contextlib.contextmanager
