@@ -259,3 +259,21 @@ def test_bad_motor_lists_and_interfaces_are_refused() -> None:
         DamiaoBus("x", SPECS, interface="nope")
     with pytest.raises(DeviceError, match="cannot open CAN socketcan:no-such-can"):
         DamiaoBus("no-such-can", SPECS, interface="socketcan")
+
+
+def test_a_late_register_reply_is_not_taken_for_a_state_frame(
+    rig: tuple[list[SimDamiaoMotor], DamiaoBus, Sniffer], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    motors, bus, _ = rig
+    answer = motors[0].handle
+
+    def echo_first(arbitration_id: int, data: bytes) -> list[tuple[int, bytes]]:
+        # an echo of an earlier register write reaches the host just before the refresh's state frame
+        return [(0x11, bytes.fromhex("0100550914000000")), *answer(arbitration_id, data)]
+
+    monkeypatch.setattr(motors[0], "handle", echo_first)
+    state = bus.read_state("j1")
+    assert state.position_rad == pytest.approx(
+        0.3, abs=4e-4
+    )  # not −12.5 rad (the echo read as a state frame)
+    assert motors[0].requests["refresh"] == 1

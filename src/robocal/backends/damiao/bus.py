@@ -256,10 +256,13 @@ class DamiaoBus(ClosesOnExit):
                 continue
             data = bytes(msg.data)
             expect = accept[name]
+            esc = self.motors[name].esc_id
+            head = bytes([esc & 0xFF, esc >> 8])
             if expect is not None:
-                esc = self.motors[name].esc_id
-                if len(data) != 8 or data[:4] != bytes([esc & 0xFF, esc >> 8, *expect]):
+                if len(data) != 8 or data[:4] != head + bytes(expect):
                     continue  # a state frame (or a reply to something else) from the same motor
+            elif data[:2] == head and data[2:3] in (b"\x33", b"\x55"):
+                continue  # a late register reply (a state frame reads so only at −PMAX, the far end of its range)
             got[name] = data
             if len(got) == len(frames):
                 break
