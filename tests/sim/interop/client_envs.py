@@ -51,6 +51,7 @@ CLIENT_ENVS: dict[str, ClientEnv] = {
     "dynamixel_sdk": ClientEnv(("dynamixel-sdk==4.1.0",), ("dynamixel_sdk",)),
     "st3215": ClientEnv(("st3215==0.4.2",), ("st3215",)),
     "feetech_cli": ClientEnv(("feetech-cli==0.1.8",), ("feetech_cli",)),
+    "damiao_motor": ClientEnv(("damiao-motor==1.0.6", "python-can==4.6.1"), ("damiao_motor", "can")),
 }
 """Client → its environment (the versions issue 29 names, or the newest the index serves)."""
 
