@@ -11,9 +11,11 @@ import pytest
 
 from robocal.backends.damiao.bus import DamiaoBus
 from robocal.backends.damiao.openarm import OPENARM_V10, SimOpenArm, openarm_joints
+from robocal.backends.damiao.faults import DamiaoRotorOverTempError
 from robocal.backends.damiao.protocol import MitCommand
+from robocal.backends.damiao.tables import State
 from robocal.backends.sim.scenarios import Scenario
-from robocal.errors import UsageError
+from robocal.errors import CalibTimeoutError, UsageError
 
 _counter = itertools.count()
 LSB_RAD = 25.0 / 65535 + math.tau / 16384  # one state-frame step plus one 14-bit encoder count
@@ -145,3 +147,18 @@ def test_a_realtime_arm_moves_with_the_wall_clock() -> None:
         assert sim.joint_rad("joint_5") == pytest.approx(0.5, abs=0.01)
         assert sim.clock.now() > 0.05  # moved by the pacer: the ~25 frames sent add 0.2 ms each
         assert bus.read_state("joint_5").position_rad == pytest.approx(sim.joint_rad("joint_5"), abs=LSB_RAD)
+
+
+def test_a_silenced_or_faulted_motor_fails_by_name() -> None:
+    ch = _channel()
+    sim = SimOpenArm(ch, zeroed=True)
+    with sim, DamiaoBus(ch, sim.motor_specs(), interface="virtual", timeout_s=0.3) as bus:
+        sim.silence("joint_3")
+        with pytest.raises(CalibTimeoutError, match=r"no reply within 0.3 s from motor 'joint_3' \(ESC_ID 0x3"):
+            bus.refresh()
+        sim.silence("joint_3", silent=False)
+        sim.inject_fault("gripper", State.ROTOR_OVER_TEMP)
+        with pytest.raises(DamiaoRotorOverTempError, match="'gripper'.*rotor \\(coil\\) over-temperature"):
+            bus.refresh()
+        assert bus.clear_error("gripper").state == State.DISABLED
+    assert sim.motors["gripper"].requests["clear error"] == 1 and sim.motors["joint_3"].requests["refresh"] == 1

@@ -31,6 +31,7 @@ from ..sim.scenarios import Scenario, make_plant
 from .bus import DamiaoMotor
 from .sim import MODEL_HARDWARE, SimDamiaoMotor
 from .sim_bus import SimDamiaoBus
+from .tables import State
 
 __all__ = ["OPENARM_V10", "OpenArmJoint", "SimOpenArm", "openarm_joints"]
 
@@ -254,6 +255,20 @@ class SimOpenArm(StartsOnEnter):
         m = self.motors[self._joint(name).name]
         with self.bus.lock:
             return m.reading_rad(m.joint_rad()) - m.joint_rad()
+
+    def silence(self, name: str, silent: bool = True) -> None:
+        """Make a motor stop answering (its frames are not heard either: power or cable lost), or answer again."""
+        esc = self._joint(name).esc_id
+        with self.bus.lock:
+            if silent:
+                self.bus.silent.add(esc)
+            else:
+                self.bus.silent.discard(esc)
+
+    def inject_fault(self, name: str, code: State) -> None:
+        """Latch an error state in a motor (0x8-0xE): it goes limp and reports ``code`` until cleared (0xFB)."""
+        with self.bus.lock:
+            self.motors[self._joint(name).name].inject_fault(code)
 
     def power_cycle(self) -> None:
         """Switch every motor off and on: RAM from flash, disabled, readings within ±π of the stored zero."""
