@@ -10,8 +10,8 @@ from collections.abc import Iterator
 import pytest
 
 from robocal.backends.damiao.bus import DamiaoBus
-from robocal.backends.damiao.openarm import OPENARM_V10, SimOpenArm, openarm_joints
 from robocal.backends.damiao.faults import DamiaoRotorOverTempError
+from robocal.backends.damiao.openarm import OPENARM_V10, SimOpenArm, openarm_joints
 from robocal.backends.damiao.protocol import MitCommand
 from robocal.backends.damiao.tables import State
 from robocal.backends.sim.scenarios import Scenario
