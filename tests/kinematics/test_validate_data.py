@@ -64,10 +64,10 @@ def test_identify_fits_every_pose_and_validates_on_the_separate_session(
     assert "validation poses (17): nominal mean" in out
     assert f"the marker noise, {noise:.2f} mm per axis as the fit estimates it" in out
     # the validation errors are the corrected model's against the held-out file's own points
-    result = wf.identify(
+    result = wf.identify(wf.IdentifyRequest(
         session / "so101.urdf", session / "points.csv", tip_link="gripper_link", tool_xyz_m=(0.0121, 0, -0.0981),
         validate_data=session / "points_validation.csv",
-    )  # fmt: skip
+    ))  # fmt: skip
     held, _ = parse_measurements((session / "points_validation.csv").read_text(), "points", JOINTS)
     assert held.p_world_m is not None
     expected = np.linalg.norm(
@@ -120,9 +120,9 @@ def test_touch_groups_are_matched_by_label(tmp_path: Path, capsys) -> None:
     rest = [ln for ln in lines[1:] if not ln.endswith(",P3")]
     (tmp_path / "shuffled.csv").write_text("\n".join([lines[0], *p3, *rest]) + "\n")
     kwargs = {"kind": "touch", "tip_link": "gripper_link", "tool_xyz_m": (0.0121, 0, -0.0981)}
-    straight = wf.identify(tmp_path / "so101.urdf", tmp_path / "touch.csv", validate_data=held, **kwargs)
+    straight = wf.identify(wf.IdentifyRequest(tmp_path / "so101.urdf", tmp_path / "touch.csv", validate_data=held, **kwargs))
     shuffled = wf.identify(
-        tmp_path / "so101.urdf", tmp_path / "touch.csv", validate_data=tmp_path / "shuffled.csv", **kwargs
+        wf.IdentifyRequest(tmp_path / "so101.urdf", tmp_path / "touch.csv", validate_data=tmp_path / "shuffled.csv", **kwargs)
     )
     assert straight.validation.n_poses == 12 and straight.fit.train_errors_m.size == 36
     assert (
@@ -135,7 +135,7 @@ def test_touch_groups_are_matched_by_label(tmp_path: Path, capsys) -> None:
     with pytest.raises(UsageError, match=r"other.csv: touches point\(s\) P9 that the fitted session never touched "
                        r"\(it touched P1, P2, P3\)"):  # fmt: skip
         wf.identify(
-            tmp_path / "so101.urdf", tmp_path / "touch.csv", validate_data=tmp_path / "other.csv", **kwargs
+            wf.IdentifyRequest(tmp_path / "so101.urdf", tmp_path / "touch.csv", validate_data=tmp_path / "other.csv", **kwargs)
         )
 
 

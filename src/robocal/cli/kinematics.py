@@ -149,6 +149,7 @@ def identify(
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
     check_kind(kind.strip().lower(), ALL_KINDS)
     jm, ids = wf.identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
+    outputs = wf.IdentifyOutputs(out, report, jm, joint_map_out, ids, ur_yaml, ur_hash)
     for flag, on in (("--camera-on-tool", camera_on_tool), ("--refine-intrinsics", refine_intrinsics)):
         if on and kind.strip().lower() != "tag":
             raise UsageError(f"{flag} applies to --kind tag (camera images)")
@@ -159,41 +160,35 @@ def identify(
             raise UsageError("--validate-data applies to points, touch and gauge sessions; images use --validate-fraction")
         from ..workflows.kinematics import vision as vis_wf
 
-        img = vis_wf.identify_images(
+        img = vis_wf.identify_images(vis_wf.ImageIdentifyRequest(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
             validate_fraction=wf.DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction,
-            huber_px=huber, seed=seed, out=out, report=report,
-            joint_map=jm, joint_map_out=joint_map_out, joint_map_ids=ids, ur_yaml=ur_yaml, ur_hash=ur_hash,
-            camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
-            prior=wf.as_prior(_prior(prior, prior_mm, prior_deg, prior_offset_deg)),
-        )  # fmt: skip
+            huber_px=huber, seed=seed, camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
+            prior=wf.as_prior(_prior(prior, prior_mm, prior_deg, prior_offset_deg)), outputs=outputs,
+        ))  # fmt: skip
         raise typer.Exit(print_images(img))
     result = wf.identify(
-        urdf,
-        data,
-        kind=kind.strip().lower(),
-        base_link=base_link,
-        tip_link=tip_link,
-        tool_xyz_m=parse_xyz(tool_xyz),
-        frame=frame.strip().lower(),
-        validate_fraction=validate_fraction,
-        validate_data=validate_data,
-        huber_m=None if huber is None else huber * 1e-3,
-        prior=_prior(prior, prior_mm, prior_deg, prior_offset_deg),
-        gauge_distance_m=None if gauge_mm is None else gauge_mm * 1e-3,
-        dh=dh,
-        out=out,
-        report=report,
-        seed=seed,
-        joint_map=jm,
-        joint_map_out=joint_map_out,
-        joint_map_ids=ids,
-        ur_yaml=ur_yaml,
-        ur_hash=ur_hash,
-        ticks_per_turn=ticks,
-        noise_m=None if noise_mm is None else noise_mm * 1e-3,
-        max_correction_mm=max_correction_mm,
-        max_correction_deg=max_correction_deg,
+        wf.IdentifyRequest(
+            urdf,
+            data,
+            kind=kind.strip().lower(),
+            base_link=base_link,
+            tip_link=tip_link,
+            tool_xyz_m=parse_xyz(tool_xyz),
+            frame=frame.strip().lower(),
+            validate_fraction=validate_fraction,
+            validate_data=validate_data,
+            huber_m=None if huber is None else huber * 1e-3,
+            prior=_prior(prior, prior_mm, prior_deg, prior_offset_deg),
+            gauge_distance_m=None if gauge_mm is None else gauge_mm * 1e-3,
+            dh=dh,
+            seed=seed,
+            ticks_per_turn=ticks,
+            noise_m=None if noise_mm is None else noise_mm * 1e-3,
+            max_correction_mm=max_correction_mm,
+            max_correction_deg=max_correction_deg,
+            outputs=outputs,
+        )
     )
     raise typer.Exit(print_identification(result))
 

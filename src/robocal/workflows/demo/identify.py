@@ -104,7 +104,8 @@ def simulate_and_identify(
         robot: ``so101`` or ``koch``.
         folder: Folder for the simulated files.
         seed: Seed of the hidden errors, the poses and the noise (0.5 mm per axis, 4096-tick joints).
-        **options: More keyword arguments of :func:`robocal.workflows.kinematics.job.identify` (``dh``, ``out``, …).
+        **options: More fields of :class:`robocal.workflows.kinematics.request.IdentifyRequest` (``dh``,
+            ``outputs``, …).
 
     Returns:
         The simulation, the identification and the identified model's errors (m) against the hidden truth at
@@ -119,10 +120,10 @@ def simulate_and_identify(
         robot, folder, poses=DEMO_POSES, noise_m=0.5e-3, seed=seed, validation_poses=DEMO_HELD_OUT
     )
     assert sim.validation is not None and sim.validation_truth_m is not None
-    result = wf.identify(
+    result = wf.identify(wf.IdentifyRequest(
         sim.urdf, sim.data, tip_link=sim.tip_link, tool_xyz_m=sim.tool_xyz_m, validate_data=sim.validation,
         **options,
-    )  # fmt: skip
+    ))  # fmt: skip
     predicted = result.fit.problem.model.points(result.validation.q_rad, result.fit.x)
     held = np.asarray(np.linalg.norm(predicted - sim.validation_truth_m, axis=1), dtype=np.float64)
     return sim, result, held
@@ -161,9 +162,12 @@ def identify_demo(robot: str, folder: Path, say: Callable[[str], object] = lambd
         f"simulating {DEMO_POSES} planned poses and {DEMO_HELD_OUT} held-out ones, then identifying "
         "(analysis, fit, DH-like fit)"
     )
+    from ..kinematics.request import IdentifyOutputs
+
     sim, result, held = simulate_and_identify(
-        robot, folder, dh=True, out=folder / f"{robot}_identified.urdf", report=folder / "report.json"
-    )
+        robot, folder, dh=True,
+        outputs=IdentifyOutputs(out=folder / f"{robot}_identified.urdf", report=folder / "report.json"),
+    )  # fmt: skip
     steps.start("checking the identified model against the hidden truth on 500 new poses")
     rng = np.random.default_rng(1)
     q = sim.arm.sample_q(500, rng)
@@ -185,6 +189,7 @@ def _images_demo(robot: str, folder: Path, steps: _Steps) -> ImagesDemo:
     import numpy as np
 
     from ..kinematics import vision as vis_wf
+    from ..kinematics.request import IdentifyOutputs
 
     folder.mkdir(exist_ok=True)
     steps.start("images: rendering 20 ChArUco and 40 AprilTag images")
@@ -198,10 +203,10 @@ def _images_demo(robot: str, folder: Path, steps: _Steps) -> ImagesDemo:
     camera_line = (
         f"camera-calibrate: fx {cal.camera.K[0, 0]:.1f} (true 905.0), RMS {cal.camera.rms_px:.3f} px"
     )
-    result = vis_wf.identify_images(
+    result = vis_wf.identify_images(vis_wf.ImageIdentifyRequest(
         sim.urdf, sim.data, camera=folder / "camera.yaml", target=sim.target, tip_link=sim.tip_link,
-        out=folder / f"{robot}_identified.urdf", report=folder / "report.json",
-    )  # fmt: skip
+        outputs=IdentifyOutputs(out=folder / f"{robot}_identified.urdf", report=folder / "report.json"),
+    ))  # fmt: skip
     q = sim.arm.sample_q(500, np.random.default_rng(1))
     truth = sim.arm.true_points(q)
     err = np.linalg.norm(result.model.points(sim.arm.read(q), result.fit.x) - truth, axis=1)

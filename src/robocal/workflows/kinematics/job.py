@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,11 +26,10 @@ from ...core.kinematic_errors import ErrorModel
 from ...core.kinematic_problem import (
     Measurements,
     Problem,
-    check_kind,
     dh_like_constraints,
     free_indices,
 )
-from ...errors import UsageError, check_choice
+from ...errors import UsageError
 from ...formats.kinematic_data import read_measurements
 from ...formats.urdf import UrdfDocument
 from ...formats.urdf_chain import chain_from_urdf
@@ -41,16 +40,18 @@ from .export import check_export_paths, check_ur_chain
 from .fit import (
     FitResult,
     PriorSigmas,
-    check_seed,
     fit,
     predicted_error_m,
     validation_errors,
 )
+from .request import DEFAULT_VALIDATE_FRACTION, POINT_FRAMES, IdentifyOutputs, IdentifyRequest
 
 __all__ = [
     "DEFAULT_VALIDATE_FRACTION",
     "POINT_FRAMES",
     "DhComparison",
+    "IdentifyOutputs",
+    "IdentifyRequest",
     "IdentifyResult",
     "PriorSigmas",
     "as_prior",
@@ -58,13 +59,6 @@ __all__ = [
     "identify_joint_map",
     "tool_frame",
 ]
-
-
-DEFAULT_VALIDATE_FRACTION = 0.25
-"""Share of a session's poses held out for validation when no separate validation session is given."""
-
-POINT_FRAMES: tuple[str, ...] = ("base", "tracker")
-"""``base``: points are given in the chain's base link frame. ``tracker``: in an unknown frame (registered)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -223,105 +217,29 @@ def as_prior(prior: bool | PriorSigmas) -> PriorSigmas | None:
     return prior if isinstance(prior, PriorSigmas) else (PriorSigmas() if prior else None)
 
 
-def identify(
-    urdf: str | os.PathLike[str],
-    data: str | os.PathLike[str],
-    *,
-    kind: str = "points",
-    base_link: str | None = None,
-    tip_link: str | None = None,
-    tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0),
-    frame: str = "base",
-    validate_fraction: float | None = None,
-    validate_data: str | os.PathLike[str] | None = None,
-    huber_m: float | None = None,
-    prior: bool | PriorSigmas = False,
-    gauge_distance_m: float | None = None,
-    dh: bool = False,
-    out: str | os.PathLike[str] | None = None,
-    report: str | os.PathLike[str] | None = None,
-    seed: int = 0,
-    joint_map: RobotCalibration | None = None,
-    joint_map_out: str | os.PathLike[str] | None = None,
-    joint_map_ids: Mapping[str, int] | None = None,
-    ur_yaml: str | os.PathLike[str] | None = None,
-    ur_hash: str | None = None,
-    ticks_per_turn: int = gates.DEFAULT_TICKS_PER_TURN,
-    noise_m: float | None = None,
-    max_correction_mm: float = plaus.MAX_CORRECTION_MM,
-    max_correction_deg: float = plaus.MAX_CORRECTION_DEG,
-) -> IdentifyResult:
+def identify(request: IdentifyRequest) -> IdentifyResult:
     """Identify a URDF chain's geometric errors from a measurement session.
 
     Args:
-        urdf: Expanded URDF.
-        data: Measurement CSV (see :mod:`robocal.formats.kinematic_data`).
-        kind: ``points``, ``touch`` or ``gauge``.
-        base_link: First link of the chain (default: the URDF root).
-        tip_link: Link the tool is attached to (default: the only leaf).
-        tool_xyz_m: Nominal tool point (marker, ball, tip) in the tip link's frame, m.
-        frame: ``base`` or ``tracker`` (points only): the frame the points are measured in.
-        validate_fraction: Share of poses held out for validation (None: 0.25, or 0 with ``validate_data``).
-        validate_data: A separate session of held-out poses (the same columns as ``data``; touch groups matched by
-            label); every pose of ``data`` is then fitted.
-        huber_m: Huber loss scale (m); None for plain least squares.
-        prior: A Gaussian prior around nominal (True: the default tolerance, :class:`PriorSigmas`); every
-            parameter with a prior is then estimated (maximum a posteriori).
-        gauge_distance_m: Socket distance of the gauge (``gauge`` only).
-        dh: Also fit a DH-like model and report its (biased) errors.
-        out: Corrected URDF to write.
-        report: JSON report to write.
-        seed: Seed of the validation split (with ``validate_data`` only 0: nothing is drawn).
-        joint_map: The raw → URDF joint map the readings went through (``lerobot export-urdf``); needed for
-            ``joint_map_out``.
-        joint_map_out: Write ``joint_map`` with the identified zero offsets in it (robocal joint-map YAML, the
-            ``export-urdf`` format); the corrected URDF then leaves the offsets out of its origins.
-        joint_map_ids: Motor ids written with the joint map.
-        ur_yaml: Write ur_description's kinematics YAML of the corrected chain (UR chains only).
-        ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
-        ticks_per_turn: Encoder resolution poses are told apart at (0: exact readings); see
-            :mod:`robocal.workflows.kinematics.gates`.
-        noise_m: The marker noise per axis the user states (m); None: the residual is compared with what the
-            fit estimates (:mod:`robocal.workflows.kinematics.plausibility`).
-        max_correction_mm: Largest length correction a URDF is plausibly off by (mm).
-        max_correction_deg: Largest angle correction (degrees).
+        request: What to identify and what to write (checked when it was built).
 
     Returns:
         The :class:`IdentifyResult`; files are written only after everything succeeded.
 
     Raises:
         CalibError: Unreadable or malformed files, a pose outside the limits, NaN, too few distinct poses, poses
-            that leave parameters unidentifiable that the model can identify, bad options.
+            that leave parameters unidentifiable that the model can identify, implausible corrections.
     """
-    check_kind(kind)
-    check_choice("--frame", frame, POINT_FRAMES)
-    if frame == "tracker" and kind != "points":
-        raise UsageError(
-            "--frame tracker applies to --kind points; touch and gauge data have no outside frame"
-        )
-    if kind == "gauge" and gauge_distance_m is None:
-        raise UsageError("--kind gauge needs the socket distance (--gauge-mm)")
-    if kind != "gauge" and gauge_distance_m is not None:
-        raise UsageError("--gauge-mm applies to --kind gauge (the distance between its sockets)")
-    if huber_m is not None and not (math.isfinite(huber_m) and huber_m > 0):
-        raise UsageError(f"--huber must be a positive distance, got {huber_m}")
-    if validate_data is not None and validate_fraction is not None:
-        raise UsageError("give --validate-fraction or --validate-data, not both")
-    if validate_data is not None and seed != 0:
-        raise UsageError("--seed seeds the random held-out share; with --validate-data nothing is drawn")
-    check_seed(seed)
-    gates.check_ticks(ticks_per_turn)
-    plaus.check_bounds(max_correction_mm, max_correction_deg)
-    if noise_m is not None and not (math.isfinite(noise_m) and 0 < noise_m <= 1.0):
-        raise UsageError(f"--noise-mm must be a positive number of millimetres up to 1000, got {noise_m * 1e3:g}")
-    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
+    r, o = request, request.outputs
+    urdf, data, kind, frame, validate_data = r.urdf, r.data, r.kind, r.frame, r.validate_data
+    paths = check_export_paths(o.out, o.report, o.joint_map_out, o.ur_yaml, o.joint_map, o.ur_hash)
     doc = UrdfDocument.load(urdf)
-    chain = chain_from_urdf(doc.model(), base_link, tip_link)
-    if ur_yaml is not None:
+    chain = chain_from_urdf(doc.model(), r.base_link, r.tip_link)
+    if o.ur_yaml is not None:
         check_ur_chain(chain)  # before the data are judged: an option that cannot work is the first thing to say
-    measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=gauge_distance_m)
+    measurements, labels = read_measurements(data, kind, chain.joint_names, distance_m=r.gauge_distance_m)
     chain.check_q(measurements.q_rad, what=f"{data}: pose")
-    model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
+    model = ErrorModel(chain, T_tip_tool=tool_frame(r.tool_xyz_m))
     warnings: list[str] = []
     if kind == "touch":
         assert measurements.group is not None
@@ -333,7 +251,7 @@ def identify(
         ]
     if frame == "tracker":
         assert measurements.p_world_m is not None
-        distinct = measurements.subset(gates.pose_cells(measurements, chain, ticks_per_turn, source=str(data)).kept)
+        distinct = measurements.subset(gates.pose_cells(measurements, chain, r.ticks_per_turn, source=str(data)).kept)
         assert distinct.p_world_m is not None
         T0 = _kabsch(model.points(distinct.q_rad), distinct.p_world_m)
         model = ErrorModel(chain, T_world_base=T0, T_tip_tool=model.T_tip_tool)
@@ -345,20 +263,20 @@ def identify(
     gated = gates.sessions(
         measurements, problem_of, chain, source=str(data),
         held_out=None if validate_data is None
-        else _validation_session(validate_data, kind, chain, labels, gauge_distance_m),
+        else _validation_session(validate_data, kind, chain, labels, r.gauge_distance_m),
         held_out_source=None if validate_data is None else str(validate_data),
-        fraction=DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction,
-        seed=seed, ticks_per_turn=ticks_per_turn, check=lambda poses: plaus.check_session(model, poses, frame=frame, source=str(data)),
+        fraction=DEFAULT_VALIDATE_FRACTION if r.validate_fraction is None else r.validate_fraction,
+        seed=r.seed, ticks_per_turn=r.ticks_per_turn, check=lambda poses: plaus.check_session(model, poses, frame=frame, source=str(data)),
     )  # fmt: skip
     warnings += gated.warnings
     train, val = gated.train, gated.validation
     problem = problem_of(train)
-    prior_s = as_prior(prior)
-    result = fit(problem, huber_m=huber_m, prior=prior_s)
-    plaus.check_corrections(result, model, max_mm=max_correction_mm, max_deg=max_correction_deg)
+    prior_s = as_prior(r.prior)
+    result = fit(problem, huber_m=r.huber_m, prior=prior_s)
+    plaus.check_corrections(result, model, max_mm=r.max_correction_mm, max_deg=r.max_correction_deg)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the data for gross errors")
-    residual, residual_report = plaus.residual_warnings(result, gated.train_rows, noise_m=noise_m, source=str(data))
+    residual, residual_report = plaus.residual_warnings(result, gated.train_rows, noise_m=r.noise_m, source=str(data))
     warnings += residual
     val_err = validation_errors(result, val) if val.n_poses else np.zeros(0)
     nominal_x = np.zeros(model.n_params)
@@ -368,9 +286,9 @@ def identify(
             validation_errors(result, val, nominal_x) if kind == "points" else np.full(val.n_poses, np.nan)
         )
     dh_cmp = None
-    if dh:
+    if r.dh:
         C, held = dh_like_constraints(problem)
-        dh_fit = fit(problem, huber_m=huber_m, prior=prior_s, constraints=C)
+        dh_fit = fit(problem, huber_m=r.huber_m, prior=prior_s, constraints=C)
         dh_cmp = DhComparison(
             held, dh_fit.train_errors_m, validation_errors(dh_fit, val) if val.n_poses else np.zeros(0)
         )
@@ -428,13 +346,12 @@ def identify(
         "plausibility": {
             **gated.report,
             **residual_report,
-            "max_correction": {"mm": max_correction_mm, "deg": max_correction_deg},
+            "max_correction": {"mm": r.max_correction_mm, "deg": r.max_correction_deg},
         },
         "warnings": warnings,
     }
     written_urdf, written_report = kr.write_identify_files(
-        doc, chain, model, result, paths, rep, warnings,
-        joint_map=joint_map, ur_hash=ur_hash, joint_map_ids=joint_map_ids,
+        doc, chain, model, result, paths, rep, warnings, o
     )  # fmt: skip
     return IdentifyResult(
         fit=result,

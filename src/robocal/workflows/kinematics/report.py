@@ -11,19 +11,19 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from ...core.arrays import FloatArray
 from ...core.chain import SerialChain
-from ...core.jointmap import RobotCalibration
 from ...core.kinematic_errors import ErrorModel
 from ...fileio import atomic_write_bytes, atomic_write_text
 from ...formats.urdf import UrdfDocument
 from ...formats.urdf_chain import corrected_urdf_bytes
 from .export import ExportPaths, prepare_exports, write_exports
 from .fit import FitResult, PriorSigmas
+from .request import IdentifyOutputs
 
 __all__ = [
     "CONDITION_LIMIT",
@@ -169,10 +169,7 @@ def write_identify_files(
     paths: ExportPaths,
     report: dict[str, Any],
     warnings: list[str],
-    *,
-    joint_map: RobotCalibration | None,
-    ur_hash: str | None,
-    joint_map_ids: Mapping[str, int] | None,
+    outputs: IdentifyOutputs,
 ) -> tuple[Path | None, Path | None]:
     """Add the exports to ``report`` and ``warnings``, then write the URDF, the exports and the JSON report.
 
@@ -186,14 +183,12 @@ def write_identify_files(
         paths: Where to write (checked by :func:`robocal.workflows.kinematics.export.check_export_paths`).
         report: The report; updated in place with the exports' keys.
         warnings: The report's warnings list; extended in place with the exports' warnings.
-        joint_map: The raw → URDF joint map the readings went through.
-        ur_hash: ``calib_<uint64>`` for the UR kinematics YAML.
-        joint_map_ids: Motor ids written with the joint map.
+        outputs: The request's outputs: the joint map the readings went through, its motor ids, the UR hash.
 
     Returns:
         The corrected URDF and the report written, each None when not asked for.
     """
-    exports = prepare_exports(model, result.x, paths, joint_map=joint_map, ur_hash=ur_hash)
+    exports = prepare_exports(model, result.x, paths, joint_map=outputs.joint_map, ur_hash=outputs.ur_hash)
     report.update(exports.report)
     warnings += exports.warnings
     urdf_bytes = (
@@ -203,6 +198,6 @@ def write_identify_files(
     )
     report_text = json.dumps(finite(report), indent=2, allow_nan=False) + "\n"
     written_urdf = atomic_write_bytes(paths.out, urdf_bytes) if paths.out and urdf_bytes is not None else None
-    write_exports(exports, paths, joint_map_ids)
+    write_exports(exports, paths, outputs.joint_map_ids)
     written_report = atomic_write_text(paths.report, report_text) if paths.report else None
     return written_urdf, written_report

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,7 +32,6 @@ from ...backends.vision import (
 )
 from ...core.arrays import FloatArray
 from ...core.chain import SerialChain
-from ...core.jointmap import RobotCalibration
 from ...core.kinematic_errors import ErrorModel
 from ...core.kinematic_images import INTRINSICS, ImageObservations, ImageProblem, hand_eye
 from ...errors import UsageError
@@ -43,11 +42,13 @@ from ...formats.urdf import UrdfDocument
 from ...formats.urdf_chain import chain_from_urdf
 from . import report as kr
 from .export import check_export_paths, check_ur_chain
-from .fit import FitResult, PriorSigmas, check_seed, fit
+from .fit import FitResult, fit
+from .request import ImageIdentifyRequest
 
 __all__ = [
     "SIM_CAMERA_K",
     "CameraCalibrationResult",
+    "ImageIdentifyRequest",
     "ImageIdentifyResult",
     "SimImagesResult",
     "camera_calibrate",
@@ -208,69 +209,27 @@ def _intrinsics_report(problem: ImageProblem, result: FitResult, K: FloatArray) 
     }
 
 
-def identify_images(
-    urdf: str | os.PathLike[str],
-    data: str | os.PathLike[str],
-    *,
-    camera: str | os.PathLike[str],
-    target: str,
-    base_link: str | None = None,
-    tip_link: str | None = None,
-    validate_fraction: float = 0.25,
-    huber_px: float | None = None,
-    seed: int = 0,
-    out: str | os.PathLike[str] | None = None,
-    report: str | os.PathLike[str] | None = None,
-    joint_map: RobotCalibration | None = None,
-    joint_map_out: str | os.PathLike[str] | None = None,
-    joint_map_ids: Mapping[str, int] | None = None,
-    ur_yaml: str | os.PathLike[str] | None = None,
-    ur_hash: str | None = None,
-    camera_on_tool: bool = False,
-    refine_intrinsics: bool = False,
-    prior: PriorSigmas | None = None,
-) -> ImageIdentifyResult:
-    """Identify a chain, the fixed camera's pose and the target's mounting from images of a target on the tool.
+def identify_images(request: ImageIdentifyRequest) -> ImageIdentifyResult:
+    """Identify a chain, the camera's pose and the target's mounting from images of a target (``--kind tag``).
 
     Args:
-        urdf: Expanded URDF.
-        data: Session CSV: the chain's joints and an ``image`` column.
-        camera: The camera's intrinsics (ROS camera_info YAML, e.g. from ``camera_calibrate``).
-        target: ``apriltag:…`` or ``charuco:…`` (see :func:`robocal.backends.vision.parse_target`).
-        base_link: First link of the chain.
-        tip_link: Link carrying the target.
-        validate_fraction: Share of images held out.
-        huber_px: Huber loss scale in pixels (None: plain least squares).
-        seed: Seed of the validation split.
-        out: Corrected URDF to write.
-        report: JSON report to write.
-        joint_map: The raw → URDF joint map the readings went through (for ``joint_map_out``).
-        joint_map_out: Write ``joint_map`` with the identified zero offsets (the URDF then leaves them out).
-        joint_map_ids: Motor ids written with the joint map.
-        ur_yaml: Write ur_description's kinematics YAML of the corrected chain (UR chains only).
-        ur_hash: ``calib_<uint64>`` for ``ur_yaml`` (default ``calib_0``, with a warning).
-        camera_on_tool: The camera is on the tip link and the target fixed in the world (eye-in-hand); the
-            camera's mounting and the target's place are estimated instead of the camera pose and the target
-            mounting.
-        refine_intrinsics: Estimate the camera's ``fx, fy, cx, cy`` jointly with the rest (the lens distortion
-            stays as calibrated); the refined values and their σ are in the report.
-        prior: A Gaussian prior around the nominal kinematics (not on the camera pose, the mounting or the
-            intrinsics); the noise that weighs it is estimated from the reprojection errors, pixels.
+        request: What to identify and what to write (checked when it was built).
+
+    Returns:
+        The :class:`ImageIdentifyResult`; files are written only after everything succeeded.
 
     Raises:
         CalibError: Unreadable files or images, poses outside the limits, too few images with the target.
     """
-    if not 0.0 <= validate_fraction < 1.0:
-        raise UsageError(f"--validate-fraction must be in [0, 1), got {validate_fraction}")
-    if huber_px is not None and not (math.isfinite(huber_px) and huber_px > 0):
-        raise UsageError(f"--huber must be a positive number of pixels, got {huber_px}")
-    check_seed(seed)
-    paths = check_export_paths(out, report, joint_map_out, ur_yaml, joint_map, ur_hash)
-    tgt = parse_target(target)
+    r, o = request, request.outputs
+    urdf, data, camera, camera_on_tool = r.urdf, r.data, r.camera, r.camera_on_tool
+    refine_intrinsics = r.refine_intrinsics
+    paths = check_export_paths(o.out, o.report, o.joint_map_out, o.ur_yaml, o.joint_map, o.ur_hash)
+    tgt = parse_target(r.target)
     cam = read_camera_info(camera)
     doc = UrdfDocument.load(urdf)
-    chain = chain_from_urdf(doc.model(), base_link, tip_link)
-    if ur_yaml is not None:
+    chain = chain_from_urdf(doc.model(), r.base_link, r.tip_link)
+    if o.ur_yaml is not None:
         check_ur_chain(chain)  # before any image is read: an option that cannot work is the first thing to say
     q, images = read_image_session(data, chain.joint_names)
     chain.check_q(q, what=f"{data}: pose")
@@ -285,16 +244,16 @@ def identify_images(
     seen = np.linalg.inv(obs.T_cam_target) if camera_on_tool else obs.T_cam_target
     X, Y = hand_eye(seen, nominal.tool_poses(obs.q_rad))
     model = ErrorModel(chain, T_world_base=X, T_tip_tool=Y)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(r.seed)
     order = rng.permutation(obs.n_poses)
-    n_val = round(validate_fraction * obs.n_poses)
+    n_val = round(r.validate_fraction * obs.n_poses)
     val_rows, train_rows = np.sort(order[:n_val]), np.sort(order[n_val:])
     train, val = obs.subset(train_rows), obs.subset(val_rows)
     problem = ImageProblem(
         model, train, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=camera_on_tool,
         refine_intrinsics=refine_intrinsics,
     )  # fmt: skip
-    result = fit(problem, huber_m=huber_px, prior=prior)
+    result = fit(problem, huber_m=r.huber_px, prior=r.prior)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the images and joint readings")
     val_problem = ImageProblem(
@@ -322,7 +281,7 @@ def identify_images(
             "fit": train.n_poses,
             "validation": val.n_poses,
         },
-        **kr.fit_summary(result, problem.n_theta, kr.prior_summary(prior, noise=False)),
+        **kr.fit_summary(result, problem.n_theta, kr.prior_summary(r.prior, noise=False)),
         "reprojection_px": {
             "fit": {
                 "start": kr.error_stats(result.nominal_train_errors_m),
@@ -341,8 +300,7 @@ def identify_images(
         "warnings": warnings,
     }
     written_urdf, written_report = kr.write_identify_files(
-        doc, chain, model, result, paths, rep, warnings,
-        joint_map=joint_map, ur_hash=ur_hash, joint_map_ids=joint_map_ids,
+        doc, chain, model, result, paths, rep, warnings, o
     )  # fmt: skip
     _ = rows
     return ImageIdentifyResult(
