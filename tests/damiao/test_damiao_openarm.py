@@ -158,7 +158,7 @@ def test_a_silenced_or_faulted_motor_fails_by_name() -> None:
             bus.refresh()
         sim.silence("joint_3", silent=False)
         sim.inject_fault("gripper", State.ROTOR_OVER_TEMP)
-        with pytest.raises(DamiaoRotorOverTempError, match="'gripper'.*rotor \\(coil\\) over-temperature"):
+        with pytest.raises(DamiaoRotorOverTempError, match=r"'gripper'.*rotor \(coil\) over-temperature"):
             bus.refresh()
         assert bus.clear_error("gripper").state == State.DISABLED
     assert sim.motors["gripper"].requests["clear error"] == 1 and sim.motors["joint_3"].requests["refresh"] == 1
