@@ -20,6 +20,7 @@ __all__ = [
     "CalibError",
     "CalibTimeoutError",
     "DeviceError",
+    "DeviceGoneError",
     "FileFormatError",
     "FileWriteError",
     "InvalidCalibrationError",
@@ -101,6 +102,10 @@ class ProtocolError(DeviceError):
 
 class CalibTimeoutError(DeviceError, TimeoutError):
     """A device did not answer within the timeout; the message names the device."""
+
+
+class DeviceGoneError(DeviceError):
+    """The port itself failed (an unplugged cable, a reset USB adapter): nothing on that bus can be reached."""
 
 
 class SignalInterrupt(KeyboardInterrupt):

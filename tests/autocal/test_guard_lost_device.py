@@ -77,5 +77,7 @@ def test_cli_auto_with_the_adapter_gone_mid_search_exits_3_not_70(
     lines = [x for x in err.splitlines() if x.startswith("error:")]
     assert len(lines) == 1 and "internal error" not in err
     assert "the device is gone or not answering" in lines[0]
-    assert "may still hold torque: switch the arm's power off before touching it" in lines[0]
+    assert "auto-calibration aborted, the device is gone: " in lines[0]  # never "every motor limp"
+    assert "the device is lost (the port failed: " in lines[0]
+    assert "may still hold torque (switch the arm's power off before touching it)" in lines[0]
     assert not (tmp_path / "robots" / "so_follower" / "g.json").exists()

@@ -47,3 +47,21 @@ def test_readings_within_the_bound_are_not_a_fault() -> None:
     t = _moving(search, 60)
     cmd = search.step(StopSample(t + 0.45, SPEED * (t + 0.45), SPEED, 0.1))
     assert cmd.action != "limp" and not search.done
+
+
+def test_silence_at_the_time_bound_is_no_reply_not_a_missing_stop() -> None:
+    """A device lost just before the time bound: the search names the silence (``no_reply``), never "no stop"."""
+    cfg = SearchConfig(
+        speed_rad_s=SPEED, torque_cap_nm=1.0, max_travel_rad=2.0, max_time_s=1.0, max_lag_rad=0.1,
+        reply_timeout_s=0.5,
+    )  # fmt: skip
+    search = StopSearch(+1, cfg)
+    t = _moving(search, 90)
+    cmd = None
+    while not search.done:
+        t += 0.05
+        cmd = search.step(StopSample(t, math.nan, ok=False))
+    assert cmd is not None and cmd.action == "limp"
+    assert search.result.code == "no_reply"
+    assert "the device is lost or not answering" in search.result.reason
+    assert "no stop" not in search.result.reason

@@ -11,7 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any, NamedTuple
 
 from ..core.lifecycle import ClosesOnExit
-from ..errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
+from ..errors import CalibTimeoutError, DeviceError, DeviceGoneError, ProtocolError, UsageError
 from . import inproc_serial, reply_timeout_floor_s, require
 from .bus_transaction import transaction
 
@@ -243,7 +243,7 @@ class SdkBusBase(ClosesOnExit):
                     self._port_handler.is_using = False  # a packet cut short (other thread) left it set
                     value, result, error = fn()
             except (OSError, _TERMIOS_ERROR) as exc:  # SerialException, EIO, termios.error: the port went away
-                raise DeviceError(
+                raise DeviceGoneError(
                     f"{self.port}: {who}: {what} {register!r} failed: the device is gone or not answering ({exc})"
                 ) from None
             except (IndexError, KeyError, ValueError, TypeError, ZeroDivisionError) as exc:

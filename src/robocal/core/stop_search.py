@@ -165,6 +165,13 @@ class StopSearch:
                 sample,
             )
         if sample.t_s - self._t0 > cfg.max_time_s:
+            if not sample.ok or not math.isfinite(sample.q_rad):  # silent at the bound: the device, not the stop
+                return self._fail(
+                    "no_reply",
+                    f"no reply from the motor at the time bound {cfg.max_time_s:.1f} s (the device is lost or "
+                    "not answering)",
+                    sample,
+                )
             return self._fail(
                 "timeout",
                 f"no stop within the time bound {cfg.max_time_s:.1f} s "

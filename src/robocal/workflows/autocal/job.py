@@ -20,7 +20,7 @@ from ...backends.robstride.joint_driver import RobstrideJointDriver
 from ...core.gravity import GravityModel, JointGravity, joint_gravity
 from ...core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
 from ...core.stop_zero import JointStops
-from ...errors import DeviceError, UsageError
+from ...errors import DeviceError, DeviceGoneError, UsageError
 from .group import run_lockstep
 from .joint import TRANSIT_FACTOR, calibrate_joint, calibrate_joint_steps, drive, move_to
 from .model import *  # noqa: F403  (robocal.workflows.autocal keeps the public names of autocal_types)
@@ -176,6 +176,8 @@ def run_autocal(
         except (DeviceError, AutoCalAbortedError) as exc:
             unsure = limp_all(drivers)
             limp = "every motor limp" if not unsure else f"{', '.join(unsure)} did not answer the torque-off"
+            if isinstance(exc, DeviceGoneError):  # nothing reached the motors: the guard's clause says what now
+                limp = "the device is gone"
             raise AutoCalAbortedError(f"auto-calibration aborted, {limp}: {exc}") from None
     t_end = clock.now() if clock is not None else drivers[moving[-1].name].read().t_s
     rank = {j.name: i for i, j in enumerate(order)}

@@ -404,6 +404,8 @@ def auto_calibrate(
             written = save_calibration(path, cals)
     if failed is not None:
         auto, report = failed
+        if report is not None and getattr(report, "lost", None):  # the cause is the device, not the search
+            raise AutoCalFailedError(f"auto-calibration stopped at {auto.failure_summary()}: {report.summary()}", auto)
         done = report.summary() if report is not None else "nothing to restore"
         raise AutoCalFailedError(
             f"auto-calibration failed for {auto.failure_summary()}; nothing was written, {done} "

@@ -13,7 +13,7 @@ from ...core.lerobot import (
     MotorCalibration,
     RobotSpec,
 )
-from ...errors import CalibError, InvalidCalibrationError
+from ...errors import CalibError, DeviceGoneError, InvalidCalibrationError
 
 __all__ = [
     "EEPROM_FIELDS",
@@ -44,14 +44,31 @@ class RollbackReport:
         not_restored: ``"motor 'name' (id N)"`` → registers that were not written back (or read back
             different), in write order.
         deferred_interrupts: Ctrl-C presses received (and deferred) while restoring.
+        lost: Why the device was given up as lost (its port vanished, or no motor answered a whole round);
+            empty when it was not.
+        next_step: What to run once a lost device is back (``robocal lerobot restore-previous …``).
+        may_hold_torque: ``"name (id N)"`` of the motors whose torque off could not be confirmed (a lost device).
     """
 
     restored: tuple[str, ...]
     not_restored: dict[str, tuple[str, ...]]
     deferred_interrupts: int = 0
+    lost: str = ""
+    next_step: str = ""
+    may_hold_torque: tuple[str, ...] = ()
 
     def summary(self) -> str:
         """One clause: everything restored, or exactly which motors and registers were and were not."""
+        if self.lost:
+            regs = list(dict.fromkeys(r for rs in self.not_restored.values() for r in rs))
+            torque = ", ".join(self.may_hold_torque) or "every motor"
+            text = (
+                f"the device is lost ({self.lost}); not verified: {torque} may still hold torque (switch the arm's "
+                "power off before touching it)"
+            )
+            if regs:
+                text += f", and the previous EEPROM ({', '.join(regs)}) is not restored"
+            return text + (f"; {self.next_step}" if self.next_step else "")
         if not self.not_restored:
             return "previous EEPROM values written back"
         bad = "; ".join(f"{motor}: {', '.join(regs)}" for motor, regs in self.not_restored.items())
@@ -106,6 +123,7 @@ def _rollback(
     label = {m.name: f"motor {m.name!r} (id {m.motor_id})" for m in spec.motors}
     restored: list[str] = []
     not_restored: dict[str, tuple[str, ...]] = {}
+    lost = ""
     with _defer_sigint(
         on_status
     ) as deferred:  # first: a Ctrl-C while the status line is shown is deferred too
@@ -116,6 +134,9 @@ def _rollback(
             regs = [(f, v) for f, v in before.get(m.name, {}).items() if bus.has_register(m.motor_id, f)]
             regs.sort(key=lambda fv: fv[0] == "Lock")  # the EEPROM lock last, after the EEPROM it guards
             done: list[str] = []
+            if lost:  # the port failed: nothing more can arrive
+                not_restored[label[m.name]] = tuple(f for f, _v in regs)
+                continue
             try:
                 for f, v in regs:
                     for attempt in range(3):
@@ -129,9 +150,13 @@ def _rollback(
                     done.append(f)
                 try:
                     now = {f: bus.read(f, m.motor_id) for f, _v in regs}
+                except DeviceGoneError:
+                    raise
                 except CalibError:
                     now = dict(regs)  # acknowledged writes; the read-back itself failed
                 done = [f for f in done if now[f] == dict(regs)[f]]
+            except DeviceGoneError as exc:
+                lost, done = f"the port failed: {exc}", []  # not read back: not verified
             except CalibError:
                 pass
             missing = tuple(f for f, _v in regs if f not in done)
@@ -139,7 +164,7 @@ def _rollback(
                 not_restored[label[m.name]] = missing
             else:
                 restored.append(m.name)
-    return RollbackReport(tuple(restored), not_restored, deferred[0] + interrupts)
+    return RollbackReport(tuple(restored), not_restored, deferred[0] + interrupts, lost)
 
 def _disable_torque(bus: ServoBus, spec: RobotSpec) -> None:
     for m in spec.motors:

@@ -9,39 +9,130 @@ whose protection latched.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from contextlib import suppress
+import weakref
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 
 from ...backends.servo_bus import ServoBus
 from ...core.lerobot import RobotSpec
-from ...errors import CalibError
+from ...errors import CalibError, DeviceGoneError
 from ..motion.guard import MotionGuard
 from ..motion.snapshot import LeftChanged, SnapshotStore, find_left_changed
 from .eeprom import RollbackReport, _rollback
 
-__all__ = ["LeftOver", "arm_guard", "find_left_over", "limp_arm", "restore_left_over", "restore_registers"]
+__all__ = [
+    "LeftOver",
+    "arm_guard",
+    "find_left_over",
+    "limp_arm",
+    "lost_reason",
+    "next_step",
+    "restore_left_over",
+    "restore_registers",
+]
+
+
+_LOST: weakref.WeakKeyDictionary[object, str] = weakref.WeakKeyDictionary()
+"""Buses found lost (bus → why): the rest of a clean-up skips the reads and writes that cannot arrive."""
+
+
+_PORT_FAILED = "the port failed"
+
+
+def lost_reason(bus: object) -> str | None:
+    """Why ``bus`` was given up as lost (its port vanished, or no motor answered a whole round), else None."""
+    return _LOST.get(bus)
+
+
+def _mark_lost(bus: object, why: str) -> None:
+    with suppress(TypeError):  # a bus object that takes no weak reference is simply not remembered
+        _LOST[bus] = why
+
+
+@contextmanager
+def _one_try(bus: object) -> Iterator[None]:
+    """Each packet of the block is sent once (no retries): a round of reads that finds the bus silent ends fast."""
+    retries = getattr(bus, "retries", None)
+    if isinstance(retries, int):
+        bus.retries = 0  # type: ignore[attr-defined]
+    try:
+        yield
+    finally:
+        if isinstance(retries, int):
+            bus.retries = retries  # type: ignore[attr-defined]
+
+
+def _read_each(bus: ServoBus, ids: list[int]) -> dict[int, int]:
+    """``Torque_Enable`` of each motor that answers (a vanished port raises :class:`DeviceGoneError`)."""
+    out: dict[int, int] = {}
+    for i in ids:
+        try:
+            out[i] = bus.read("Torque_Enable", i)
+        except DeviceGoneError:
+            raise
+        except CalibError:
+            pass
+    return out
 
 
 def limp_arm(bus: ServoBus, spec: RobotSpec) -> list[str]:
     """Torque off on every motor in one SYNC_WRITE, then once more per motor, then read back; never raises.
 
+    The read-back is one round with one try per packet; motors silent in it are asked again with the bus's
+    retries, unless the whole round was silent or the port itself failed: then the bus is lost
+    (:func:`lost_reason`) and nothing more is tried (each packet would only wait out its reply time).
+
     Returns:
         ``"name (id N)"`` of the motors whose ``Torque_Enable`` did not read back 0 or could not be read.
     """
-    with suppress(Exception):
-        bus.sync_write("Torque_Enable", {m.motor_id: 0 for m in spec.motors})
-    for m in spec.motors:
-        with suppress(Exception):
-            bus.sync_write("Torque_Enable", {m.motor_id: 0})
+    labels = {m.motor_id: f"{m.name} (id {m.motor_id})" for m in spec.motors}
+    ids = [m.motor_id for m in spec.motors]
+    if (lost_reason(bus) or "").startswith(_PORT_FAILED):  # nothing can be sent any more
+        return list(labels.values())
+    try:
+        bus.sync_write("Torque_Enable", dict.fromkeys(ids, 0))
+        for i in ids:
+            try:
+                bus.sync_write("Torque_Enable", {i: 0})
+            except DeviceGoneError:
+                raise
+            except CalibError:
+                pass
+    except DeviceGoneError as exc:
+        _mark_lost(bus, f"{_PORT_FAILED}: {exc}")
+    except Exception:  # the read-back below tells what the writes achieved
+        pass
+    if lost_reason(bus) is not None:
+        return list(labels.values())
     now: dict[int, int] = {}
-    try:  # one SYNC_READ when every motor answers
-        now = bus.sync_read("Torque_Enable", [m.motor_id for m in spec.motors])
-    except Exception:  # a silent motor, or a bus without SYNC_READ (Feetech SCS): one read per motor
-        for m in spec.motors:
-            with suppress(Exception):
-                now[m.motor_id] = bus.read("Torque_Enable", m.motor_id)
-    return [f"{m.name} (id {m.motor_id})" for m in spec.motors if now.get(m.motor_id, 1) != 0]
+    try:
+        with _one_try(bus):
+            try:  # one SYNC_READ when every motor answers
+                now = bus.sync_read("Torque_Enable", ids)
+            except DeviceGoneError:
+                raise
+            except Exception:  # a silent motor, or a bus without SYNC_READ (Feetech SCS): one read per motor
+                now = _read_each(bus, ids)
+        if not now:
+            _mark_lost(bus, "no motor answered a whole round of reads")
+            return list(labels.values())
+        now.update(_read_each(bus, [i for i in ids if i not in now]))  # an answering bus: retries for the silent
+    except DeviceGoneError as exc:
+        _mark_lost(bus, f"{_PORT_FAILED}: {exc}")
+        return list(labels.values())
+    except Exception:  # never raises: the motors not read are reported below
+        pass
+    return [labels[i] for i in ids if now.get(i, 1) != 0]
+
+
+def _lost_report(
+    spec: RobotSpec, before: Mapping[str, Mapping[str, int]], why: str, next_step: str, on: Sequence[str]
+) -> RollbackReport:
+    not_restored = {
+        f"motor {m.name!r} (id {m.motor_id})": tuple(before[m.name]) for m in spec.motors if before.get(m.name)
+    }
+    return RollbackReport((), not_restored, lost=why, next_step=next_step, may_hold_torque=tuple(on))
 
 
 def restore_registers(
@@ -49,9 +140,17 @@ def restore_registers(
     spec: RobotSpec,
     before: Mapping[str, Mapping[str, int]],
     on_status: Callable[[str], None] | None,
+    next_step: str = "",
 ) -> RollbackReport:
-    """Every motor limp, the watchdogs disarmed, latched Dynamixels rebooted, the snapshot written back (checked)."""
-    limp_arm(bus, spec)
+    """Every motor limp, the watchdogs disarmed, latched Dynamixels rebooted, the snapshot written back (checked).
+
+    A bus found lost (:func:`limp_arm`) is not tried further: the report names every register as not restored,
+    with ``next_step`` (what to run once the device is back).
+    """
+    on = limp_arm(bus, spec)
+    why = lost_reason(bus)
+    if why is not None:
+        return _lost_report(spec, before, why, next_step, on)
     disarm = getattr(bus, "disarm_watchdog", None)  # Dynamixel Bus_Watchdog; Feetech has none
     if disarm is not None:  # first: a tripped Bus_Watchdog refuses the goal registers the snapshot restores
         with suppress(Exception):
@@ -63,7 +162,19 @@ def restore_registers(
             with suppress(Exception):
                 if reboot is not None and bus.sync_read(latched, [m.motor_id])[m.motor_id]:
                     reboot(m.motor_id)
-    return _rollback(bus, spec, before, on_status)
+    report = _rollback(bus, spec, before, on_status)
+    if report.lost:  # the port failed during the rollback
+        _mark_lost(bus, report.lost)
+        return RollbackReport(report.restored, report.not_restored, report.deferred_interrupts, report.lost,
+                              next_step, tuple(f"{m.name} (id {m.motor_id})" for m in spec.motors))  # fmt: skip
+    return report
+
+
+def next_step(spec: RobotSpec, port: str | None) -> str:
+    """What to run once a lost device is back: ``robocal lerobot restore-previous`` (or check the arm by hand)."""
+    if port is None:
+        return "check the arm's registers before using it"
+    return f"reconnect it and run `robocal lerobot restore-previous --robot {spec.name} --port {port}`"
 
 
 def arm_guard(
@@ -83,7 +194,7 @@ def arm_guard(
     """
     return MotionGuard(
         limp=lambda: limp_arm(bus, spec),
-        restore=lambda snap: restore_registers(bus, spec, snap, on_status),
+        restore=lambda snap: restore_registers(bus, spec, snap, on_status, next_step(spec, snapshot_port)),
         on_status=on_status,
         store=SnapshotStore(snapshot_port, command) if snapshot_port is not None else None,
         arm=arm,

@@ -227,6 +227,14 @@ class MotionGuard:
         if report is None and not self.limp_failed:
             return
         parts: list[str] = []
+        lost = str(getattr(report, "lost", "") or "")
+        if report is not None and lost:  # the device is gone: one clause, what is not verified, the next step
+            parts.append(report.summary())
+            if self._store is not None and self._store.exists():
+                parts.append(f"the previous values are kept in {self._store.path}")
+            # a signal keeps its exit code, a device error its type (exit 3); a bug stays a bug
+            reraise_with_note(exc, "; ".join(parts), always=True)
+            return
         if report is not None and report.not_restored and not report.restored:
             regs = sorted({r for rs in report.not_restored.values() for r in rs})
             parts.append(
