@@ -16,8 +16,8 @@ import pytest
 
 pytest.importorskip("can")
 
+from robocal.backends.robstride.sim import SimMotor
 from robocal.backends.sim.lite import lite_urdf_text
-from robocal.backends.sim.robstride import SimMotor
 from robocal.cli.main import main
 from robocal.workflows.autocal.job import AutoCalAbortedError
 from robocal.workflows.autocal.sim import SimAutoLite, open_sim_lite

@@ -25,8 +25,8 @@ from robocal.backends.robstride.joint_driver import (
     RobstrideWatchdogError,
 )
 from robocal.backends.robstride.protocol import Param
+from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 from robocal.backends.sim.physics import JointPlant, PlantParams, SimClock
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
 from robocal.core.stop_search import Command
 from robocal.errors import DeviceError
 

@@ -21,7 +21,7 @@ from robocal.backends.robstride.protocol import (
     model_limits,
     split_id,
 )
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
+from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 from robocal.errors import CalibTimeoutError, UsageError
 
 _counter = itertools.count()

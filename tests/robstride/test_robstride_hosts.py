@@ -17,7 +17,7 @@ import pytest
 
 from robocal.backends.robstride import MotorSpec, RobstrideBus
 from robocal.backends.robstride.protocol import CommType, Param, make_id, split_id
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
+from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 
 pytestmark = pytest.mark.timeout(60)
 

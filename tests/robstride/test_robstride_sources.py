@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 from robocal.backends.sim.lite import LITE_JOINTS, SimLite, lite_urdf_text
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
 from robocal.backends.sources import JointSpec, open_source, parse_source
 from robocal.cli.main import main
 from robocal.errors import CalibTimeoutError, FileFormatError, JointMismatchError, UsageError

@@ -12,8 +12,8 @@ import pytest
 
 from robocal.backends.robstride.bus import MotorSpec, RobstrideBus
 from robocal.backends.robstride.protocol import Feedback, Param
+from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 from robocal.backends.sim.physics import JointPlant, PlantParams, Scenario, SimClock, make_plant
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
 from robocal.errors import CalibTimeoutError
 
 pytest.importorskip("can")

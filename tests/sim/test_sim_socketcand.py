@@ -13,7 +13,7 @@ import can
 import pytest
 
 from robocal.backends.robstride.protocol import CommType, Param, make_id, split_id
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
+from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 from robocal.backends.sim.socketcand import SocketcandServer, format_frame, parse_send
 from robocal.errors import UsageError
 

@@ -104,8 +104,8 @@ def test_sigkill_during_sweep_auto_the_robstride_can_timeout_stops_the_motor(tmp
 def test_without_a_simulated_clock_the_watchdogs_run_on_the_monotonic_clock() -> None:
     """What the ``robocal sim`` processes above rely on: the bus threads fire the watchdogs of a silent host."""
     pytest.importorskip("can")
+    from robocal.backends.robstride.sim import SimMotor, SimMotorBus
     from robocal.backends.sim.lerobot_arms import SimArm
-    from robocal.backends.sim.robstride import SimMotor, SimMotorBus
     from robocal.workflows.lerobot import robot_spec
 
     motor = SimMotor(can_id=5, model="rs-05", can_timeout=400)  # 400 = 20 ms

@@ -14,7 +14,7 @@ import pytest
 
 from robocal.backends.robstride import MotorSpec, RobstrideBus
 from robocal.backends.robstride.protocol import CommType
-from robocal.backends.sim.robstride import SimMotor, SimMotorBus
+from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 from robocal.backends.sim.socketcand import SocketcandServer
 
 from .conftest import client_env_python

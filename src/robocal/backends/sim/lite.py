@@ -24,8 +24,8 @@ import numpy as np
 from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from ..robstride.protocol import CommType
+from ..robstride.sim import SimMotor, SimMotorBus
 from .operator import JointView
-from .robstride import SimMotor, SimMotorBus
 
 __all__ = ["LITE_JOINTS", "LiteHands", "LiteJoint", "SimLite", "SimOperator", "lite_urdf_text"]
 

@@ -34,7 +34,7 @@ Typical use (a stop search in core, tested without any wire)::
     plant.advance(0.01, drive)          # 10 ms of simulated time under this command
     r = plant.read()                    # Reading(t_s, q_rad, v_rad_s, tau_nm, overload, answers)
 
-The simulated Robstride, Feetech and Dynamixel firmwares (``sim.robstride``, ``sim.servo``) turn their wire
+The simulated Robstride, Feetech and Dynamixel firmwares (``robstride.sim``, ``sim.servo`` with ``feetech.sim`` / ``dynamixel.sim``) turn their wire
 commands into a :class:`Drive` and step a plant to the simulated time of each request.
 """
 

@@ -118,9 +118,9 @@ def open_sim_lite(
     from ...backends import load_backend
     from ...backends.robstride import MotorSpec
     from ...backends.robstride.bus import DEFAULT_TIMEOUT_S as HARDWARE_TIMEOUT_S
+    from ...backends.robstride.sim import SimMotor, SimMotorBus
     from ...backends.sim.lite import LITE_JOINTS
     from ...backends.sim.physics import PlantParams, SimClock, make_plant
-    from ...backends.sim.robstride import SimMotor, SimMotorBus
 
     table = {j.name: j for j in LITE_JOINTS}
     names = {j.name for j in joints}

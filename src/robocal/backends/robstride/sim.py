@@ -35,7 +35,8 @@ import numpy as np
 from ...core.lifecycle import StartsOnEnter
 from ...errors import DeviceError
 from .. import require
-from ..robstride.protocol import (
+from ..sim.physics import Drive, JointPlant, SimClock
+from .protocol import (
     FIRMWARE_QUERY,
     CommType,
     Feedback,
@@ -50,7 +51,6 @@ from ..robstride.protocol import (
     split_id,
     unpack_param_value,
 )
-from .physics import Drive, JointPlant, SimClock
 
 __all__ = ["SimMotor", "SimMotorBus"]
 
