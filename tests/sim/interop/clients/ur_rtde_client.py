@@ -24,7 +24,9 @@ def wait_mode(r, mode, limit_s=20.0):
 r = rtde_receive.RTDEReceiveInterface(host)
 samples = []
 for _ in range(3):
-    samples.append({"t": r.getTimestamp(), "q": r.getActualQ(), "target_q": r.getTargetQ(), "tcp": r.getActualTCPPose()})
+    samples.append(
+        {"t": r.getTimestamp(), "q": r.getActualQ(), "target_q": r.getTargetQ(), "tcp": r.getActualTCPPose()}
+    )
     time.sleep(0.05)
 result = {
     "connected": r.isConnected(),
