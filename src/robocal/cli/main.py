@@ -110,7 +110,7 @@ def _wrap_commands(typer_app: typer.Typer) -> None:
 
 
 def _register() -> None:
-    from . import dataset, demo, files, kinematics, lerobot, sim, sweep, ur, view
+    from . import dataset, demo, files, health, kinematics, lerobot, sim, sweep, ur, view
 
     files.register(app)
     sweep.register(app)
@@ -121,6 +121,7 @@ def _register() -> None:
     app.add_typer(dataset.app, name="dataset")
     app.add_typer(kinematics.app, name="kinematics")
     app.add_typer(sim.app, name="sim")
+    app.add_typer(health.app, name="health")
     _wrap_commands(app)
 
 
