@@ -46,7 +46,7 @@ class SimProcess:
     """A ``robocal sim ...`` child process and the lines it printed at start."""
 
     def __init__(self, args: list[str], cwd: Path, until: str = "control") -> None:
-        view = [] if args[:1] in (["ur"], ["openarm"]) else ["--no-view"]  # no live view: no flag
+        view = [] if args[:1] == ["ur"] else ["--no-view"]
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "robocal", "sim", *args, *view],
             cwd=cwd,

@@ -12,6 +12,7 @@ import pytest
 from robocal.backends.damiao.bus import DamiaoBus, DamiaoMotor
 from robocal.backends.damiao.openarm import OPENARM_V10
 from robocal.backends.damiao.protocol import MitCommand
+from robocal.backends.sim.control import SimControl
 from robocal.errors import UsageError
 from robocal.workflows.sim.job import serve_openarm
 
@@ -36,7 +37,7 @@ def _bus(address: str, channel: str, **kw: object) -> DamiaoBus:
 
 
 def test_both_arms_answer_and_move_in_real_time(sim_process: type[SimProcess], tmp_path: Path) -> None:
-    sim = sim_process(["openarm", "--port", "0", "--zeroed", "--seed", "3"], until="socketcand")
+    sim = sim_process(["openarm", "--port", "0", "--zeroed", "--seed", "3"])
     assert sim.info["source"].startswith("can:socketcand:can0,can1?host=127.0.0.1&port=")
     assert sim.info["buses"] == "can0 = right arm, can1 = left arm (ids 0x01-0x08, replies 0x11-0x18)"
     address = sim.info["socketcand"]
@@ -58,6 +59,24 @@ def test_both_arms_answer_and_move_in_real_time(sim_process: type[SimProcess], t
         right.disable(["joint_5"])
     code, err = sim.stop()
     assert (code, err.strip().splitlines()[-1]) == (0, "simulator stopped")
+
+
+def test_the_control_socket_moves_a_joint_by_its_profile_name(sim_process: type[SimProcess]) -> None:
+    sim = sim_process(["openarm", "--port", "0", "--zeroed", "--side", "right"])
+    assert sim.info["buses"] == "can0 = right arm (ids 0x01-0x08, replies 0x11-0x18)"
+    with SimControl(sim.info["control"]) as control:
+        joints = control.state()
+        assert list(joints) == [f"openarm_right_joint{i}" for i in range(1, 8)] + ["openarm_right_gripper_motor"]
+        assert joints["openarm_right_joint4"]["high"] == pytest.approx(math.radians(140))
+        assert (joints["openarm_right_joint3"]["esc_id"], joints["openarm_right_joint3"]["motor"]) == (3, "joint_3")
+        at = control.move("openarm_right_joint3", to=0.5)
+        pushed = control.push("openarm_right_joint5", stop="max")
+    assert at == pytest.approx(0.5, abs=0.01)
+    assert pushed["openarm_right_joint5"] == pytest.approx(math.pi / 2, abs=0.01)
+    with _bus(sim.info["socketcand"], "can0") as bus:  # the motors read the hand's placements (no gravity on J3/J5)
+        states = bus.refresh(["joint_3", "joint_5"])
+    assert states["joint_3"].position_rad == pytest.approx(0.5, abs=0.01)
+    assert states["joint_5"].position_rad == pytest.approx(math.pi / 2, abs=0.01)
 
 
 def test_bad_options_are_one_error_line(tmp_path: Path) -> None:

@@ -159,10 +159,12 @@ def openarm(
         None, "--port", min=0, max=65535, help="socketcand TCP port (default 29536; 0: any free port)."
     ),
     host: str = typer.Option("127.0.0.1", "--host", help="Address to listen on (loopback by default)."),
+    control: str | None = ControlOpt,
+    view: bool | None = ViewOpt,
 ) -> None:
     """Serve simulated OpenArm v10 arms (8 Damiao motors each, real time) on a loopback socketcand server, until Ctrl-C."""
-    with serve_openarm(side=side, seed=seed, zeroed=zeroed, host=host, port=port) as device:
-        _serve(device, view=False)
+    with serve_openarm(side=side, seed=seed, zeroed=zeroed, host=host, port=port, control=control) as device:
+        _serve(device, view)
 
 
 @app.command("ur")

@@ -263,6 +263,7 @@ def serve_openarm(
     zeroed: bool = False,
     host: str = "127.0.0.1",
     port: int | None = None,
+    control: str | None = None,
 ) -> Iterator[ServedDevice]:
     """Serve simulated OpenArm v10 arms (8 Damiao motors each, in real time) behind a loopback socketcand server.
 
@@ -273,12 +274,16 @@ def serve_openarm(
         host: Address to listen on.
         port: TCP port (None: :data:`SOCKETCAND_PORT`, socketcand's 29536, as ``robocal sim lite``'s; 0: any
             free port).
+        control: Control socket path (default: in a new temporary folder); the hands move the joints by the
+            OpenArm profiles' joint names (``openarm_right_joint1`` …).
 
     Raises:
         UsageError: Unknown side, a negative seed.
         DeviceError: The address cannot be listened on.
     """
     from ...backends.damiao.openarm import SimOpenArm
+    from ...backends.damiao.openarm_hands import OpenArmHands
+    from ...backends.sim.serve import Session
     from ...backends.sim.socketcand import SocketcandServer
 
     sides = {"both": ("right", "left"), "right": ("right",), "left": ("left",)}.get(side)
@@ -304,8 +309,10 @@ def serve_openarm(
         stack.enter_context(server)
         names = ",".join(buses)
         where = f"host={server.host}&port={server.port}"
+        source = f"can:socketcand:{names}?{where}"
+        session = stack.enter_context(Session(OpenArmHands(arms), "openarm", source, control=control))
         lines = (
-            f"source: can:socketcand:{names}?{where}",
+            f"source: {source}",
             "buses: " + ", ".join(f"{OPENARM_BUSES[a.side]} = {a.side} arm" for a in arms)
             + " (ids 0x01-0x08, replies 0x11-0x18)",
             f"python-can: can.Bus(interface='socketcand', channel='{next(iter(buses))}', host='{server.host}', "
@@ -313,11 +320,12 @@ def serve_openarm(
             f"LeRobot: can_interface='socketcand', port='{next(iter(buses))}', with CAN_CONFIG="
             f"'{{\"host\": \"{server.host}\", \"port\": {server.port}}}' in the environment",
             f"socketcand: {server.host}:{server.port}",
+            f"control: {session.control_path}",
             "simulated OpenArm v10 ("
             + ("factory zeros" if not zeroed else "calibrated zeros")
             + ", real time); Ctrl-C stops it",
         )
-        yield ServedDevice(f"OpenArm on socketcand {server.host}:{server.port}", lines)
+        yield ServedDevice(f"OpenArm on socketcand {server.host}:{server.port}", lines, session.operator)
 
 
 UR_PORT_OFFSETS: tuple[tuple[str, int], ...] = (

@@ -1,0 +1,103 @@
+"""A person's hands on simulated OpenArm arms (``robocal sim openarm``'s control socket and live view).
+
+:class:`OpenArmHands` is the :class:`~robocal.backends.sim.operator.HandDevice` of one or two
+:class:`~.openarm.SimOpenArm` arms: joints named as the OpenArm profiles and robocal's URDF name them
+(``openarm_right_joint1`` … ``openarm_right_gripper_motor``), positions in rad in the joint frame. Placing a joint
+sets its plant's state (the velocity follows from the previous placement; a joint pushed past a stop is put at
+the stop); the plant then goes on under gravity and its motor's command, as a joint a hand lets go of. A joint whose motor is enabled with a command that
+pushes (any gain or feed-forward torque) is held by the motor, and the hand cannot move it.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterable, Sequence
+
+from ..sim.operator import JointView
+from .openarm import SimOpenArm
+from .openarm_urdf import openarm_urdf_joint
+
+__all__ = ["OpenArmHands"]
+
+_ANSWERED = ("mit", "refresh", "enable", "disable", "set zero", "clear error")
+"""Frames a motor answers with its position (a state frame)."""
+
+
+class OpenArmHands:
+    """The hand-movable view of simulated OpenArm arms (a ``HandDevice``; rad, joint frame)."""
+
+    unit = "rad"
+    step = 0.02
+
+    def __init__(self, arms: Iterable[SimOpenArm]) -> None:
+        self.lock = threading.RLock()
+        self._joints: dict[str, tuple[SimOpenArm, str]] = {}
+        for arm in arms:
+            for j in arm.joints:
+                self._joints[openarm_urdf_joint(arm.side, j.name)] = (arm, j.name)
+        self._last: dict[str, tuple[float, float]] = {}
+
+    def joint_names(self) -> Sequence[str]:
+        """Every joint, arm by arm, J1 … J7 then the gripper."""
+        return list(self._joints)
+
+    def view(self, name: str) -> JointView:
+        """One joint: position, stops, whether its motor holds it, the motor's reading, its last command."""
+        arm, joint = self._joints[name]
+        m, plant = arm.motors[joint], arm.plants[joint]
+        spec = next(j for j in arm.joints if j.name == joint)
+        with arm.bus.lock:
+            cmd = m.last_command
+            held = m.enabled and cmd is not None and any(abs(x) > 0 for x in (cmd.kp, cmd.kd, cmd.torque_nm))
+            last = ""
+            if cmd is not None:
+                last = (
+                    f"MIT q={cmd.position_rad:+.3f} dq={cmd.velocity_rad_s:+.2f} kp={cmd.kp:g} kd={cmd.kd:g} "
+                    f"tau={cmd.torque_nm:+.2f}"
+                )
+            low = plant.params.stop_lower_rad
+            high = plant.params.stop_upper_rad
+            return JointView(
+                name=name,
+                position=plant.link_rad,
+                low=spec.stop_lower_rad if low is None else low,
+                high=spec.stop_upper_rad if high is None else high,
+                mid=0.5 * (spec.stop_lower_rad + spec.stop_upper_rad),
+                torque=held,
+                reading=m.reading_rad(m.joint_rad()),
+                last_write=last,
+                last_write_age_s=None,
+                extra={
+                    "esc_id": m.esc_id,
+                    "mst_id": m.mst_id,
+                    "side": arm.side,
+                    "motor": joint,
+                    "state": int(m.state),
+                    "flash_writes": m.flash_writes,
+                },
+            )
+
+    def reads(self, name: str) -> int:
+        """Frames the motor answered with its position so far (state frames)."""
+        arm, joint = self._joints[name]
+        requests = arm.motors[joint].requests
+        return sum(requests.get(kind, 0) for kind in _ANSWERED)
+
+    def place(self, name: str, position: float) -> None:
+        """Put the joint at ``position``, or at the stop it would pass (a hard stop holds a joint pushed into it)."""
+        arm, joint = self._joints[name]
+        now = time.monotonic()
+        with arm.bus.lock:
+            plant = arm.plants[joint]
+            low, high = plant.params.stop_lower_rad, plant.params.stop_upper_rad
+            if low is not None:
+                position = max(position, low)
+            if high is not None:
+                position = min(position, high)
+            before = plant.link_rad
+            t0, _ = self._last.get(name, (now, before))
+            dt = now - t0
+            velocity = (position - before) / dt if 0 < dt < 0.5 else 0.0
+            arm.motors[joint].set_position(position, velocity)
+        self._last[name] = (now, position)
