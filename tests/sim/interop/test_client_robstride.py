@@ -89,13 +89,17 @@ def test_pypi_robstride_client_over_socketcand() -> None:
         assert motor.mode == 0 and motor.requests[CommType.STOP] == 1
 
 
-def test_pypi_robstride_cli_reads_a_parameter() -> None:
+def test_pypi_robstride_cli_reads_a_parameter_and_changes_the_id() -> None:
     python = client_env_python("robstride")
     channel = f"pypi-robstride-{next(_n)}"
-    with (
-        SimMotorBus(channel, [SimMotor(can_id=12, model="rs-00")]),
-        SocketcandServer({"can0": channel}) as server,
-    ):
+    motor = SimMotor(can_id=12, model="rs-00")
+    with SimMotorBus(channel, [motor]) as sim, SocketcandServer({"can0": channel}) as server:
         r = _cli(python, server, "read", "12", "vbus")
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert r.stdout.strip() == "value: 24.0"
+        assert r.returncode == 0, r.stderr[-3000:]
+        assert r.stdout.strip() == "value: 24.0"
+        # type 7: the new id in bits 23..16; the motor answers with a type-0 frame from its new id
+        r = _cli(python, server, "update_id", "12", "20")
+        assert r.returncode == 0, r.stderr[-3000:]
+        assert motor.can_id == 20 and list(sim.motors) == [20]
+        r = _cli(python, server, "read", "20", "vbus")
+        assert (r.returncode, r.stdout.strip()) == (0, "value: 24.0")

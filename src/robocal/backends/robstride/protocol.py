@@ -75,6 +75,7 @@ class CommType(IntEnum):
     ENABLE = 3
     STOP = 4
     SET_ZERO = 6
+    SET_ID = 7
     PARAM_READ = 17
     PARAM_WRITE = 18
     FAULT = 21

@@ -3,7 +3,7 @@
 A :class:`SimMotor` is the physics and firmware state of one motor: a hidden factory zero, the true wiring
 direction, hard stops, encoder noise and the power-on wrap (``[0, 2π)`` with ``zero_sta`` 0, ``[−π, π)`` with
 ``zero_sta`` 1). A :class:`SimMotorBus` is one CAN channel: a thread that owns a ``virtual`` bus, decodes
-every request addressed to one of its motors and answers it as the firmware would (types 0, 1, 3, 4, 6, 17,
+every request addressed to one of its motors and answers it as the firmware would (types 0, 1, 3, 4, 6, 7, 17,
 18, 22).
 
 Without a plant the joint's true position is set from outside (by a simulated operator or a test), so a
@@ -252,7 +252,9 @@ class SimMotor:
         host = data16 & 0xFF
         if comm != CommType.MIT:
             self.host_id = host
-        if comm == CommType.GET_ID:
+        if comm == CommType.SET_ID and 0 < (data16 >> 8) < 0xFF:
+            self.can_id = data16 >> 8  # new id in bits 23..16; answered with a type-0 frame from the new id
+        if comm in (CommType.GET_ID, CommType.SET_ID):
             uid = struct.pack("<Q", 0x5253000000000000 | self.can_id)
             return [(make_id(CommType.GET_ID, self.can_id, 0xFE), uid)]
         if comm == CommType.MIT:
@@ -448,5 +450,7 @@ class SimMotorBus(StartsOnEnter):
                     replies = motor.handle(msg.arbitration_id, bytes(msg.data))
                 except Exception:  # a malformed request: a real motor ignores it
                     continue
+                if motor.can_id != motor_id:  # type 7 gave it a new CAN id
+                    self.motors[motor.can_id] = self.motors.pop(motor_id)
             for arb, data in replies:
                 bus.send(can.Message(arbitration_id=arb, data=data, is_extended_id=True))
