@@ -14,7 +14,7 @@ from ..workflows.dataset.job import DatasetOptions
 from . import _common
 from ._options import LeRobotArm, LeRobotCompat, LeRobotModes, LeRobotPhysical, LeRobotUseDegrees
 
-app = typer.Typer(help="Re-calibrate and inspect recorded LeRobot v3 datasets.", no_args_is_help=True)
+app = typer.Typer(help="Re-calibrate, inspect and health-check recorded LeRobot v3 datasets.", no_args_is_help=True)
 
 
 def _options(
@@ -156,3 +156,63 @@ def inspect(
             parts.append(f"{j.non_finite} NaN or infinite value(s)")
         _common.print_warning(f"{j.feature} {j.joint}: {'; '.join(parts)} — check the calibration")
     raise typer.Exit(_common.exit_code_for(report.flagged))
+
+
+@app.command()
+def health(
+    root: Annotated[Path, typer.Argument(help="Teleoperation dataset root (LeRobot v3).")],
+    report: Annotated[
+        Path, typer.Option("--report", help="JSON report to write; the picture goes beside it (.png).")
+    ],
+    robot: LeRobotArm = None,
+    urdf: Annotated[
+        Path | None,
+        typer.Option("--urdf", help="URDF with link masses for the sag model (default: the robot's shipped one)."),
+    ] = None,
+    leader_calibration: Annotated[
+        Path | None, typer.Option("--leader-calibration", help="The leader's calibration file (action).")
+    ] = None,
+    follower_calibration: Annotated[
+        Path | None,
+        typer.Option("--follower-calibration", help="The follower's calibration file (observation.state)."),
+    ] = None,
+    use_degrees: LeRobotUseDegrees = None,
+) -> None:
+    """Find the joint whose leader/follower calibrations disagree: per joint offset, interval, verdict (exit 1
+    when a joint is flagged)."""
+    from ..workflows.dataset_health import HealthRequest, run_health
+
+    outcome = run_health(
+        HealthRequest(
+            root=root,
+            report=report,
+            robot=robot,
+            urdf=urdf,
+            leader_calibration=leader_calibration,
+            follower_calibration=follower_calibration,
+            use_degrees=use_degrees,
+        )
+    )
+    res = outcome.result
+    table = Table(title=f"{res.root}: {res.frames} frames, {res.episodes} episodes (offset = follower − leader)")
+    for col in ("joint", "status", "offset", "interval", "units", "range ends", "steps"):
+        table.add_column(col, justify="right" if col in ("offset", "interval") else "left")
+    for name, j in outcome.report["joints"].items():
+        off, ci = (j["offset_deg"], j["ci_deg"]) if j["units"] == "degrees" else (j["offset"], j["ci"])
+        unit = "°" if j["units"] == "degrees" else ""
+        table.add_row(
+            name,
+            j["status"],
+            "-" if off is None else f"{off:+.2f}{unit}",
+            "-" if ci is None else f"[{ci[0]:+.2f}, {ci[1]:+.2f}]{unit}",
+            j["units"],
+            ", ".join(f"{e['end']} {e['kind']}" for e in j["range_ends"]) or "none",
+            ", ".join(f"ep {s['episode']} fr {s['frame']}" for s in j["jumps"]) or "-",
+        )
+    out = _common.console if _common.console.is_terminal else Console(highlight=False, width=160)
+    out.print(table)
+    flagged = [(n, j) for n, j in outcome.report["joints"].items() if j["status"] in ("offset", "suspect")]
+    for name, j in flagged:
+        _common.print_warning(f"{name}: {j['status']}: {'; '.join(j['reasons']) or 'offset past the threshold'}")
+    _common.console.print(f"wrote {outcome.report_path} and {outcome.picture_path}", markup=False)
+    raise typer.Exit(_common.exit_code_for(flagged))

@@ -173,7 +173,7 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
     The follower's motion is fitted per joint as a second-order linear response to the commands,
     ``Δs(t) = c1·(a(t−1) − s(t−1)) + c2·(a(t−2) − s(t−2)) + c3·Δs(t−1)`` (least squares, refitted without the
     outliers); a frame whose prediction error passes ``max(jump_floor, 8·σ)`` (σ from the median absolute
-    error) and moves the reading away from the goal is a step (friction lets a follower stick, then jump
+    error) and 40 % of the commanded speed, and moves the reading away from the goal is a step (friction lets a follower stick, then jump
     *towards* its goal). Frames at the follower's extremes (a stop holds it, the linear response does not apply)
     are left out.
     """
@@ -203,7 +203,9 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
     last = -10
     # a slipped reading jumps away from the goal; a follower breaking free of friction jumps towards it
     grows = np.abs(a[idx - 1] - s[idx]) > np.abs(a[idx - 2] - s[idx - 1]) + 0.5 * thr
-    for k in np.flatnonzero((np.abs(err) > thr) & grows):
+    # the linear response fits fast moves less well: a step must also pass 40 % of the commanded speed
+    speed = np.maximum(np.abs(a[idx - 1] - a[idx - 2]), np.abs(a[idx - 2] - a[idx - 3]))
+    for k in np.flatnonzero((np.abs(err) > np.maximum(thr, 0.4 * speed)) & grows):
         t = int(idx[k])
         if t - last > 3:
             ep = int(d.episode[t])

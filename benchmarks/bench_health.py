@@ -1,0 +1,152 @@
+"""Calibration health of teleoperation datasets (issue 30): recall and false alarms on simulated sessions.
+
+``python benchmarks/run.py health`` (``HEALTH_SEEDS=N`` sessions per robot, default 200; ``HEALTH_ROBOTS=so101``
+for one robot) simulates SO-101 and Koch leader/follower sessions (:mod:`robocal.dataset.teleop_sim`: a human-like
+leader, the follower as a position-controlled servo with LeRobot's gains, gravity, friction, backlash, stops and
+encoder ticks), writes each as a LeRobot v3 root with its truth, checks them all through datatrove
+(:mod:`robocal.workflows.dataset_health_cluster`, 2 tasks) and compares every report with the truth.
+
+Per robot, the sessions cycle through: no fault; a single-joint calibration offset of 0.5, 1, 2, 5 or 17° (random
+sign, on the leader or the follower, on a joint with stops); an encoder slip of 5–15° in one episode; values
+clipped 4–10° short of a stop; a mirrored sign. It prints, per offset and joint, how often the joint is flagged
+``offset`` (named), split by what the data could show: the follower was pressed against a stop (``contact``), the
+leader came within 10° of the range end where the offset would pin the follower (``within 10°``), neither; how
+often the interval holds the truth; how often an offset the data cannot show is reported ``ok`` (it must be
+``unobservable``); the false-alarm rate on fault-free sessions; and slips located to their episode.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults
+from robocal.dataset.teleop_sim import generate_teleop_datasets
+from robocal.workflows.dataset_health_cluster import health_with_datatrove
+
+OFFSETS_DEG = (0.5, 1.0, 2.0, 5.0, 17.0)
+_CYCLE = ("clean", "clean", "clean", "o0.5", "o1", "o2", "o5", "o5", "o17", "o17", "slip", "clip", "flip")
+
+
+def session_faults(robot: str, seed: int) -> TeleopFaults:
+    """The fault of session ``seed`` (cycling through :data:`_CYCLE`; joints, signs and sizes drawn)."""
+    arm = TELEOP_ARMS[robot]
+    rng = np.random.default_rng(10_000 + seed)
+    kind = _CYCLE[seed % len(_CYCLE)]
+    with_stops = [j for j, lo in zip(arm.joints[:5], arm.stop_lo_deg[:5], strict=True) if np.isfinite(lo)]
+    joint = str(rng.choice(with_stops))
+    if kind.startswith("o"):
+        size = float(kind[1:]) * float(rng.choice([-1.0, 1.0]))
+        return TeleopFaults(offset_joint=joint, offset_deg=size, offset_arm=str(rng.choice(["leader", "follower"])))
+    if kind == "slip":
+        return TeleopFaults(slip_joint=joint, slip_episode=int(rng.integers(0, 6)), slip_frame=int(rng.integers(60, 400)),
+                            slip_deg=float(rng.uniform(5, 15) * rng.choice([-1, 1])))
+    if kind == "clip":
+        return TeleopFaults(clip_joint=joint, clip_end=str(rng.choice(["lo", "hi"])), clip_short_deg=float(rng.uniform(4, 10)))
+    if kind == "flip":
+        return TeleopFaults(flip_joint=joint)
+    return TeleopFaults()
+
+
+def _rate(hits: int, n: int) -> str:
+    return f"{hits}/{n} ({100.0 * hits / n:.0f} %)" if n else "-"
+
+
+def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
+    """Simulate, check and score ``seeds`` for ``robot``."""
+    faults = [session_faults(robot, s) for s in seeds]
+    t0 = time.perf_counter()
+    roots = []
+    for chunk in range(0, len(seeds), 50):  # bounded memory: 50 sessions integrated at a time
+        roots += generate_teleop_datasets(folder, robot, seeds[chunk : chunk + 50], faults[chunk : chunk + 50])
+    t_sim = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    reports = health_with_datatrove(roots, folder / "reports", tasks=2, workers=2)
+    t_check = time.perf_counter() - t0
+    print(f"{robot}: {len(seeds)} sessions simulated and written in {t_sim:.0f} s, checked in {t_check:.0f} s")
+    score: dict[str, Any] = {"offset": defaultdict(lambda: defaultdict(int)), "clean": [0, 0], "clean_joint": defaultdict(int),
+                             "slip": [0, 0], "clip": [0, 0], "flip": [0, 0], "errors": 0}
+    for root, rep_path, f in zip(roots, reports, faults, strict=True):
+        rep = json.loads(rep_path.read_text())
+        truth = json.loads(root.with_name(root.name + ".truth.json").read_text())
+        if "error" in rep:
+            score["errors"] += 1
+            continue
+        joints = rep["joints"]
+        flagged = [n for n, j in joints.items() if j["status"] in ("offset", "suspect")]
+        if f.offset_joint is not None:
+            t = truth["joints"][f.offset_joint]
+            o = t["offset_deg"]
+            end_gap = t["approach_lo_deg"] if o > 0 else t["approach_hi_deg"]
+            case = "contact" if t["follower_contact"] else ("within 10°" if end_gap is not None and end_gap <= 10 else "far")
+            key = (abs(o), f.offset_joint, case)
+            j = joints[f.offset_joint]
+            s = score["offset"][key]
+            s["n"] += 1
+            s["named"] += j["status"] == "offset"
+            s["flagged"] += bool(flagged)
+            s["ok_wrongly"] += j["status"] == "ok" and abs(o) >= 2.0
+            s["others"] += any(n != f.offset_joint for n in flagged)
+            ci = j["ci_deg"]
+            s["ci_n"] += ci is not None and j["status"] == "offset"
+            s["ci_hit"] += ci is not None and j["status"] == "offset" and ci[0] - 1e-6 <= o <= ci[1] + 1e-6
+        elif f.slip_joint is not None:
+            score["slip"][1] += 1
+            jumps = joints[f.slip_joint]["jumps"]
+            score["slip"][0] += any(jp["episode"] == f.slip_episode and abs(jp["frame"] - f.slip_frame) <= 2 for jp in jumps)
+        elif f.clip_joint is not None:
+            score["clip"][1] += 1
+            score["clip"][0] += joints[f.clip_joint]["status"] == "suspect"
+        elif f.flip_joint is not None:
+            score["flip"][1] += 1
+            score["flip"][0] += joints[f.flip_joint]["status"] == "suspect"
+        else:
+            score["clean"][1] += 1
+            score["clean"][0] += bool(flagged)
+            for n in flagged:
+                score["clean_joint"][n] += 1
+    return score
+
+
+def print_score(robot: str, score: dict[str, Any]) -> None:
+    """The tables of one robot."""
+    print(f"\n-- {robot}: offsets (flagged 'offset' on the right joint; interval holds the truth) --")
+    print(f"{'offset':>7s} {'joint':14s} {'case':11s} {'named':>14s} {'CI holds':>12s} {'ok (wrong)':>10s} {'other joint':>11s}")
+    by_case: dict[tuple[float, str], list[int]] = defaultdict(lambda: [0, 0])
+    for (size, joint, case), s in sorted(score["offset"].items()):
+        print(f"{size:7.1f} {joint:14s} {case:11s} {_rate(s['named'], s['n']):>14s} "
+              f"{_rate(s['ci_hit'], s['ci_n']):>12s} {s['ok_wrongly']:>10d} {s['others']:>11d}")
+        by_case[(size, case)][0] += s["named"]
+        by_case[(size, case)][1] += s["n"]
+    print(f"\n-- {robot}: offsets, all joints --")
+    for (size, case), (hit, n) in sorted(by_case.items()):
+        print(f"{size:7.1f}° {case:11s} named {_rate(hit, n)}")
+    hit, n = score["clean"]
+    print(f"\nfault-free sessions flagged (false alarms): {_rate(hit, n)}; by joint: {dict(score['clean_joint'])}")
+    print(f"slips located to their episode and frame (±2): {_rate(*score['slip'])}")
+    print(f"clipped values flagged suspect: {_rate(*score['clip'])}")
+    print(f"mirrored signs flagged suspect: {_rate(*score['flip'])}")
+    print(f"datasets refused: {score['errors']}")
+
+
+def main() -> None:
+    n = int(os.environ.get("HEALTH_SEEDS", "200"))
+    robots = [r for r in os.environ.get("HEALTH_ROBOTS", "so101,koch").split(",") if r]
+    folder = Path(tempfile.mkdtemp(prefix="robocal-health-"))
+    try:
+        for robot in robots:
+            print_score(robot, evaluate(robot, list(range(n)), folder / robot))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

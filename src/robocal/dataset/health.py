@@ -1,0 +1,335 @@
+"""Calibration health of a LeRobot v3 teleoperation dataset: read the frames, run the per-joint check, report.
+
+``action`` is the leader's reading, ``observation.state`` the follower's, both in the arm's normalised units
+(degrees for SO arms since LeRobot v0.4.4, ``range_m100_100`` otherwise, the gripper ``range_0_100``). With the
+leader's and the follower's calibration files both values become degrees about each arm's calibrated middle
+(``(actual − middle)·360/4096``) and the follower file's recorded range gives the stops; without them the values
+stay in the dataset's units and the stops are the robot profile's (degrees mode) or the range ends (±100, 0..100).
+The check itself is :func:`robocal.core.health.analyse_joint`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ..core.arrays import FloatArray, IntArray
+from ..core.gravity import GravityModel
+from ..core.health import (
+    HealthConfig,
+    JointData,
+    JointHealth,
+    analyse_joint,
+    episode_verdicts,
+    sag_residual_deg,
+)
+from ..errors import FileFormatError, JointMismatchError, UsageError
+from ._convention import ValueConvention
+from ._layout import read_layout
+
+__all__ = [
+    "DatasetHealth",
+    "HealthSetup",
+    "TeleopFrames",
+    "dataset_health",
+    "health_json",
+    "read_teleop_frames",
+]
+
+TICKS_PER_TURN = 4096
+
+
+@dataclass(frozen=True)
+class HealthSetup:
+    """What the check expects of each joint (built from the robot profile, URDF and calibration files).
+
+    Attributes:
+        units: Joint → the dataset's units (``degrees``, ``range_m100_100``, ``range_0_100``).
+        units_per_deg: Joint → units per degree (NaN: unknown).
+        stop_deg: Joint → ``(lower, upper)`` stop angles of a correct calibration in degrees, or None.
+        kp_nm_rad: Joint → the follower's position gain.
+        gravity: The arm's gravity model (URDF masses), or None (no sag model).
+        leader: The leader's calibration (``action``), or None.
+        follower: The follower's calibration (``observation.state``), or None.
+    """
+
+    units: dict[str, str]
+    units_per_deg: dict[str, float]
+    stop_deg: dict[str, tuple[float, float] | None]
+    kp_nm_rad: dict[str, float]
+    gravity: GravityModel | None = None
+    leader: ValueConvention | None = None
+    follower: ValueConvention | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class TeleopFrames:
+    """A dataset's joint frames.
+
+    Attributes:
+        root: Dataset root.
+        joints: Joint names (column order of both features).
+        action: ``(N, J)`` leader values.
+        state: ``(N, J)`` follower values.
+        episode: ``(N,)`` episode index per frame.
+    """
+
+    root: Path
+    joints: tuple[str, ...]
+    action: FloatArray
+    state: FloatArray
+    episode: IntArray
+
+
+@dataclass(frozen=True, eq=False)
+class DatasetHealth:
+    """Result of :func:`dataset_health`.
+
+    Attributes:
+        root: Dataset root.
+        frames: Frames read.
+        episodes: Episodes read.
+        joints: Per joint: verdict, units, per-episode verdicts, notes.
+        pose: ``(N, J)`` the follower's pose in the check's units (the picture's x axis).
+    """
+
+    root: Path
+    frames: int
+    episodes: int
+    joints: tuple[tuple[JointHealth, str, float, list[dict[str, Any]], list[str]], ...]
+    pose: FloatArray
+
+    @property
+    def flagged(self) -> tuple[str, ...]:
+        """Joints whose verdict is ``offset`` or ``suspect``."""
+        return tuple(h.name for h, *_ in self.joints if h.status in ("offset", "suspect"))
+
+
+def _vector(table: pa.Table, key: str, d: int, rel: str) -> FloatArray:
+    arr = table.column(key).combine_chunks()
+    if not pa.types.is_fixed_size_list(arr.type) or arr.type.list_size != d:
+        raise FileFormatError(
+            f"data file {rel}: column {key!r} is {arr.type}; expected fixed_size_list<float>[{d}]"
+        )
+    with np.errstate(invalid="ignore", over="ignore"):
+        v = np.asarray(arr.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
+    return v.reshape(-1, d)
+
+
+def read_teleop_frames(root: str | Path) -> TeleopFrames:
+    """Read ``action`` and ``observation.state`` of every frame, in episode order.
+
+    Raises:
+        FileFormatError: A malformed dataset, a missing column, NaN or infinite values.
+        JointMismatchError: The two features name different joints.
+        UsageError: Fewer than 2 frames.
+    """
+    layout = read_layout(root)
+    for key in ("action", "observation.state"):
+        if key not in layout.features:
+            raise FileFormatError(
+                f"{layout.root / 'meta/info.json'}: no {key!r} feature; a teleoperation dataset has both "
+                "action (the leader) and observation.state (the follower)"
+            )
+    fa, fs = layout.vector_feature("action"), layout.vector_feature("observation.state")
+    if fa.joint_names != fs.joint_names:
+        raise JointMismatchError(
+            f"{layout.root / 'meta/info.json'}: action names {', '.join(fa.joint_names)} but observation.state "
+            f"names {', '.join(fs.joint_names)}; the check pairs them joint by joint"
+        )
+    actions, states, episodes = [], [], []
+    for rel in layout.data_files:
+        try:
+            pf = pq.ParquetFile(layout.root / rel)
+            names = pf.schema_arrow.names
+            missing = [c for c in ("action", "observation.state", "episode_index") if c not in names]
+            if missing:
+                raise FileFormatError(f"data file {rel}: missing column(s) {', '.join(missing)}")
+            for g in range(pf.metadata.num_row_groups):
+                t = pf.read_row_group(g, columns=["action", "observation.state", "episode_index"])
+                actions.append(_vector(t, "action", fa.size, rel))
+                states.append(_vector(t, "observation.state", fs.size, rel))
+                episodes.append(np.asarray(t.column("episode_index").to_numpy(), dtype=np.int64))
+        except (pa.ArrowException, OSError) as exc:
+            raise FileFormatError(f"data file {rel}: cannot read Parquet ({exc})") from None
+    if not actions or sum(len(a) for a in actions) < 2:
+        raise UsageError(f"dataset {layout.root}: fewer than 2 frames; nothing to check")
+    action, state, episode = np.concatenate(actions), np.concatenate(states), np.concatenate(episodes)
+    for key, v in (("action", action), ("observation.state", state)):
+        bad = ~np.isfinite(v)
+        if bad.any():
+            row, col = (int(x[0]) for x in np.nonzero(bad))
+            raise FileFormatError(
+                f"dataset {layout.root}: {int(bad.sum())} NaN or infinite value(s) in {key} "
+                f"(first: joint {fa.joint_names[col]}, frame {row}); the check needs every frame"
+            )
+    order = np.argsort(episode, kind="stable")
+    return TeleopFrames(layout.root, fa.joint_names, action[order], state[order], episode[order])
+
+
+def _to_degrees(
+    conv: ValueConvention, joints: tuple[str, ...], values: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Values → degrees about the calibration's middle; also the calibrated range ends in those degrees ``(2, J)``."""
+    sel = conv.select(list(joints))
+    rng = sel.value_range()
+    if rng is None:
+        lo_v, hi_v = np.full(len(joints), np.nan), np.full(len(joints), np.nan)
+        mid_v = np.zeros(len(joints))
+    else:
+        lo_v, hi_v = np.asarray(rng[0], dtype=np.float64), np.asarray(rng[1], dtype=np.float64)
+        mid_v = 0.5 * (lo_v + hi_v)
+    mid_t = sel.to_actual(mid_v[None, :])[0]
+    scale = 360.0 / TICKS_PER_TURN
+    deg = (sel.to_actual(values) - mid_t) * scale
+    ends = np.stack([sel.to_actual(lo_v[None, :])[0], sel.to_actual(hi_v[None, :])[0]]) - mid_t
+    return deg, np.sort(ends * scale, axis=0)
+
+
+def _stop_readings(stop_deg: tuple[float, float] | None, units: str, upd: float) -> tuple[float, float]:
+    """The readings a correct calibration gives at the stops, in the check's units (NaN: no stops)."""
+    if stop_deg is None:
+        return math.nan, math.nan
+    if units == "range_0_100":
+        return 0.0, 100.0
+    if units == "range_m100_100":
+        return -100.0, 100.0
+    return stop_deg[0] * upd, stop_deg[1] * upd
+
+
+def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | None = None) -> DatasetHealth:
+    """Check every joint of a teleoperation dataset (see the module docstring).
+
+    Raises:
+        FileFormatError, JointMismatchError, UsageError: A dataset the check cannot read (see
+            :func:`read_teleop_frames`), or no joint moves.
+    """
+    fr = read_teleop_frames(root)
+    joints = fr.joints
+    if float(np.max(np.ptp(fr.action, axis=0))) == 0.0 and float(np.max(np.ptp(fr.state, axis=0))) == 0.0:
+        raise UsageError(f"dataset {fr.root}: no joint moves in any frame; nothing to check")
+    action, state = fr.action, fr.state
+    units = [setup.units.get(j, "units") for j in joints]
+    upd = [setup.units_per_deg.get(j, math.nan) for j in joints]
+    stops: list[tuple[float, float] | None] = [setup.stop_deg.get(j) for j in joints]
+    notes: list[list[str]] = [[] for _ in joints]
+    if setup.leader is not None and setup.follower is not None:
+        action, lead_ends = _to_degrees(setup.leader, joints, action)
+        state, foll_ends = _to_degrees(setup.follower, joints, state)
+        units, upd = ["degrees"] * len(joints), [1.0] * len(joints)
+        for k in range(len(joints)):
+            span_l, span_f = float(np.diff(lead_ends[:, k])[0]), float(np.diff(foll_ends[:, k])[0])
+            if stops[k] is not None and math.isfinite(span_l) and math.isfinite(span_f):
+                stops[k] = (float(foll_ends[0, k]), float(foll_ends[1, k]))
+                if abs(span_l - span_f) > 5.0:
+                    notes[k].append(
+                        f"recorded ranges differ: leader {span_l:.1f}°, follower {span_f:.1f}° (calibration files)"
+                    )
+    pose_deg = np.array(state / np.where(np.isfinite(upd), upd, 1.0), dtype=np.float64)
+    kp = [setup.kp_nm_rad.get(j, math.inf) for j in joints]
+    sag_deg = sag_residual_deg(setup.gravity, joints, pose_deg, kp) if setup.gravity is not None else None
+    out = []
+    for k, j in enumerate(joints):
+        u = upd[k] if math.isfinite(upd[k]) else 1.0
+        lo, hi = _stop_readings(stops[k], units[k], u)
+        sag = np.zeros(len(action)) if sag_deg is None else sag_deg[:, k] * u
+        data = JointData(j, action[:, k], state[:, k], fr.episode, sag, lo, hi, u)
+        h = analyse_joint(data, cfg)
+        if notes[k] and h.status not in ("offset",):
+            h = JointHealth(
+                h.name,
+                "suspect",
+                h.offset,
+                h.ci,
+                (*h.reasons, *notes[k]),
+                h.ends,
+                h.jumps,
+                h.band,
+                h.residual,
+                h.used,
+            )
+        out.append(
+            (
+                h,
+                units[k],
+                u if math.isfinite(upd[k]) else math.nan,
+                episode_verdicts(data, h.band, cfg),
+                notes[k],
+            )
+        )
+    return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state)
+
+
+def _num(x: float | None, scale: float = 1.0) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(x / scale, 4)
+
+
+def health_json(result: DatasetHealth) -> dict[str, Any]:
+    """The report: ``{"joints": {NAME: {"offset_deg", "ci_deg", "status", "episodes", ...}}, ...}``.
+
+    ``offset_deg`` and ``ci_deg`` are degrees (None where the dataset's units have no known degree scale; then
+    ``offset`` and ``ci`` in ``units`` carry the numbers). The offset is the follower's calibration minus the
+    leader's: what the follower reads minus what the leader reads at the same physical angle.
+    """
+    joints: dict[str, Any] = {}
+    for h, units, _upd, eps, _ in result.joints:
+        deg = units == "degrees"
+        scale = 1.0
+
+        def ci(c: tuple[float, float] | None, s: float) -> list[float | None] | None:
+            return None if c is None else [_num(c[0], s), _num(c[1], s)]
+
+        joints[h.name] = {
+            "offset_deg": _num(h.offset, scale) if deg else None,
+            "ci_deg": ci(h.ci, scale) if deg else None,
+            "status": h.status,
+            "episodes": [
+                {
+                    "episode": e["episode"],
+                    "offset_deg": _num(e["offset"], scale) if deg else None,
+                    "ci_deg": ci(e["ci"], scale) if deg else None,
+                    "status": e["status"],
+                    "frames": e["frames"],
+                    "jumps": [
+                        {"frame": jp.frame, "size": round(jp.size, 4)}
+                        for jp in h.jumps
+                        if jp.episode == e["episode"]
+                    ],
+                }
+                for e in eps
+            ],
+            "units": units,
+            "offset": _num(h.offset),
+            "ci": ci(h.ci, 1.0),
+            "reasons": list(h.reasons),
+            "model_band": round(h.band, 4),
+            "range_ends": [
+                {
+                    "end": e.end,
+                    "kind": e.kind,
+                    "follower": round(e.follower, 4),
+                    "leader": round(e.leader, 4),
+                    "frames": e.frames,
+                    "episodes": list(e.episodes),
+                }
+                for e in h.ends
+            ],
+            "jumps": [
+                {"episode": jp.episode, "frame": jp.frame, "size": round(jp.size, 4)} for jp in h.jumps
+            ],
+        }
+    return {
+        "dataset": str(result.root),
+        "frames": result.frames,
+        "episodes": result.episodes,
+        "offset_sign": "follower calibration minus leader calibration (follower reading minus leader reading "
+        "at the same physical angle)",
+        "flagged": list(result.flagged),
+        "joints": joints,
+    }

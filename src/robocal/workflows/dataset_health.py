@@ -1,0 +1,231 @@
+"""Dataset health job (``robocal dataset health``): robot profile, URDF and calibration files → the check → report.
+
+Builds the check's expectations (:class:`robocal.dataset.health.HealthSetup`) from the robot profile (units from
+LeRobot's norm modes, stop angles from its ``auto_calibration`` section, the follower's position gains as LeRobot
+configures them), the URDF's masses (``--urdf``, else the robot's shipped URDF when it has masses) and the two
+calibration files, runs :func:`robocal.dataset.health.dataset_health`, and writes the JSON report and a picture
+beside it (``health.json`` → ``health.png``). Everything is checked before anything is written.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..core.health import feetech_kp_nm_rad
+from ..errors import UsageError
+
+if TYPE_CHECKING:
+    from ..core.gravity import GravityModel
+    from ..dataset.health import DatasetHealth, HealthSetup
+
+__all__ = ["HealthOutcome", "HealthRequest", "evaluate_health", "render_picture", "run_health"]
+
+_DXL_FACTORY_P = {"xl430-w250": 640, "xl330-m288": 400, "xl330-m077": 400, "xc430-w150": 640, "xm430-w350": 800}
+"""Factory ``Position_P_Gain`` of the Dynamixel models LeRobot's Koch uses (its ``configure()`` keeps them)."""
+_DXL_LEROBOT_P = {"elbow_flex": 1500}
+"""Joints whose gain LeRobot's Koch follower sets (``Position_P_Gain`` 1500 on ``elbow_flex``)."""
+_FEETECH_LEROBOT_P = 16
+"""LeRobot's SO follower: ``P_Coefficient`` 16."""
+_SHIPPED_URDF = {"so100": "so101_new_calib.urdf", "so101": "so101_new_calib.urdf", "koch": "koch.urdf"}
+
+
+@dataclass(frozen=True)
+class HealthRequest:
+    """One dataset health check.
+
+    Attributes:
+        root: Dataset root (LeRobot v3, ``action`` = leader, ``observation.state`` = follower).
+        report: JSON report to write; the picture goes beside it with the suffix ``.png``.
+        robot: Robot profile (``so101_follower``, ``koch_follower``, ...); default the dataset's ``robot_type``.
+        urdf: URDF with masses for the sag model; default the robot's shipped URDF (if it has masses).
+        leader_calibration: The leader's calibration file (with ``follower_calibration``: values in degrees).
+        follower_calibration: The follower's calibration file.
+        use_degrees: Whether arm joints were recorded in degrees; ``None``: the robot's LeRobot default.
+    """
+
+    root: Path
+    report: Path
+    robot: str | None = None
+    urdf: Path | None = None
+    leader_calibration: Path | None = None
+    follower_calibration: Path | None = None
+    use_degrees: bool | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class HealthOutcome:
+    """What :func:`run_health` did.
+
+    Attributes:
+        result: The check's result.
+        report: The JSON written (as a dict).
+        report_path: Where it was written.
+        picture_path: The picture beside it.
+    """
+
+    result: DatasetHealth
+    report: dict[str, Any]
+    report_path: Path
+    picture_path: Path
+
+
+def _kp(vendor: str, joint: str, model: str | None) -> float:
+    from ..backends.servo_ratings import RATINGS
+
+    rating = RATINGS.get(model or "")
+    if rating is None:
+        return math.inf
+    if vendor == "feetech" or rating.current_limit == 0 and model == "sts3215":
+        return feetech_kp_nm_rad(_FEETECH_LEROBOT_P, rating.stall_torque_nm)
+    p = _DXL_LEROBOT_P.get(joint, _DXL_FACTORY_P.get(model or "", 0))
+    return p / 128 * rating.current_unit_a * rating.kt_nm_a * 4096 / math.tau
+
+
+def _gravity(request: HealthRequest, robot: str) -> tuple[GravityModel | None, str | None]:
+    from ..formats.urdf_gravity import gravity_model_if_any
+
+    if request.urdf is not None:
+        return gravity_model_if_any(request.urdf), str(request.urdf)
+    stem = next((v for k, v in _SHIPPED_URDF.items() if robot.startswith(k)), None)
+    if stem is None:
+        return None, None
+    path = Path(__file__).resolve().parent.parent / "data" / stem
+    return gravity_model_if_any(path), str(path)
+
+
+def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
+    from ..dataset import read_layout
+    from ..dataset.health import HealthSetup
+    from ..dataset.lerobot import load_convention, motor_family_for_robot, preset_modes
+    from ..formats.profiles import load_profile
+
+    if (request.leader_calibration is None) != (request.follower_calibration is None):
+        raise UsageError("--leader-calibration and --follower-calibration go together (one per arm)")
+    layout = read_layout(request.root)
+    robot = request.robot or layout.robot_type
+    if robot is None:
+        raise UsageError(f"dataset {request.root}: meta/info.json names no robot_type; name the arm with --robot")
+    profile = load_profile(robot)
+    joints = list(layout.vector_feature("observation.state").joint_names)
+    modes = preset_modes(robot, joints, request.use_degrees)
+    auto = {j.name: j for j in profile.auto.joints} if profile.auto is not None else {}
+    vendor = profile.lerobot.vendor if profile.lerobot is not None else profile.actuator
+    models = {j.name: j.model for j in profile.joints}
+    units, upd, stops, kp = {}, {}, {}, {}
+    for j in joints:
+        a = auto.get(j)
+        stop = (a.lower_deg, a.upper_deg) if a is not None and a.stops == "both" else None
+        stops[j] = None if stop is None or stop[0] is None or stop[1] is None else (float(stop[0]), float(stop[1]))
+        mode = modes.get(j, "degrees")
+        units[j] = mode
+        span = None if stops[j] is None else stops[j][1] - stops[j][0]  # type: ignore[index]
+        upd[j] = 1.0 if mode == "degrees" else (math.nan if not span else (100.0 if "0_100" in mode else 200.0) / span)
+        kp[j] = _kp(str(vendor), j, models.get(j))
+    gravity, urdf = _gravity(request, robot)
+    leader = follower = None
+    if request.leader_calibration is not None and request.follower_calibration is not None:
+        family = motor_family_for_robot(robot)
+        leader = load_convention(request.leader_calibration, joint_names=joints, modes=modes, family=family,
+                                 what="--leader-calibration")
+        follower = load_convention(request.follower_calibration, joint_names=joints, modes=modes, family=family,
+                                   what="--follower-calibration")
+    return HealthSetup(units, upd, stops, kp, gravity, leader, follower), robot, urdf
+
+
+def render_picture(result: DatasetHealth) -> bytes:
+    """Per joint: the residual against the follower's pose, the model band and the frames used (PNG bytes)."""
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(result.joints)
+    cols = 3
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.6 * rows), squeeze=False)
+    colours = {"ok": "tab:green", "unobservable": "tab:gray", "suspect": "tab:orange", "offset": "tab:red"}
+    for k, (h, units, _upd, _eps, _notes) in enumerate(result.joints):
+        ax = axes[k // cols][k % cols]
+        pose, res = result.pose[:, k], h.residual
+        fin = np.isfinite(res)
+        ax.scatter(pose[fin], res[fin], s=2, color="0.8", label="all frames", rasterized=True)
+        slow = fin & (h.used == 1.0)
+        ax.scatter(pose[slow], res[slow], s=3, color="tab:blue", label="slow frames (band fit)", rasterized=True)
+        end = fin & (h.used == 2.0)
+        ax.scatter(pose[end], res[end], s=6, color="tab:red", label="range-end frames", rasterized=True)
+        ax.axhspan(-h.band, h.band, color="tab:green", alpha=0.15, label=f"model band ±{h.band:.2f}")
+        unit = "°" if units == "degrees" else f" ({units})"
+        head = f"{h.name}: {h.status}"
+        if h.offset is not None and h.status in ("offset", "ok"):
+            head += f", offset {h.offset:+.2f}{unit}"
+            if h.ci is not None:
+                head += f" [{h.ci[0]:+.2f}, {h.ci[1]:+.2f}]"
+        ax.set_title(head, color=colours.get(h.status, "black"), fontsize=10)
+        ax.set_xlabel(f"follower pose{unit}")
+        ax.set_ylabel(f"action(t−1) − state(t) − sag{unit}")
+        lim = max(3.0 * h.band, float(np.nanpercentile(np.abs(res[fin]), 99.5)) if fin.any() else 1.0)
+        ax.set_ylim(-1.2 * lim, 1.2 * lim)
+        if k == 0:
+            ax.legend(fontsize=7, loc="upper left", markerscale=3)
+    for k in range(n, rows * cols):
+        axes[k // cols][k % cols].axis("off")
+    fig.suptitle(f"{result.root.name}: {result.frames} frames, {result.episodes} episodes "
+                 f"(offset = follower calibration − leader calibration)", fontsize=11)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=80)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def run_health(request: HealthRequest) -> HealthOutcome:
+    """Check a dataset's calibration health and write the report and its picture (see the module docstring).
+
+    Raises:
+        UsageError, FileFormatError, JointMismatchError: Bad input (nothing is written).
+        FileWriteError: The report or picture cannot be written.
+    """
+    from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
+
+    report_path = Path(request.report)
+    if report_path.suffix.lower() != ".json":
+        raise UsageError(f"--report {report_path}: expected a .json file (the picture goes beside it as .png)")
+    picture_path = report_path.with_suffix(".png")
+    check_output_path(report_path, "--report")
+    check_output_path(picture_path, "the report's picture")
+    result, report = evaluate_health(request)
+    picture = render_picture(result)
+    atomic_write_text(report_path, json.dumps(report, indent=2) + "\n")
+    atomic_write_bytes(picture_path, picture)
+    return HealthOutcome(result, report, report_path, picture_path)
+
+
+def evaluate_health(request: HealthRequest) -> tuple[DatasetHealth, dict[str, Any]]:
+    """The check and its JSON report, nothing written (``request.report`` is not used).
+
+    Raises:
+        UsageError, FileFormatError, JointMismatchError: Bad input.
+    """
+    from ..dataset.health import dataset_health, health_json
+
+    setup, robot, urdf = _setup(request)
+    result = dataset_health(request.root, setup)
+    report = health_json(result)
+    report["robot"] = robot
+    report["model"] = {
+        "urdf": urdf if setup.gravity is not None else None,
+        "sag": "gravity torque of the URDF's masses over the follower's position gain"
+        if setup.gravity is not None
+        else "none (no URDF masses): the band absorbs the sag",
+        "kp_nm_rad": {j: (round(v, 4) if math.isfinite(v) else None) for j, v in setup.kp_nm_rad.items()},
+        "calibration_files": setup.leader is not None,
+    }
+    return result, report
