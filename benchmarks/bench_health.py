@@ -4,7 +4,7 @@
 for one robot) simulates SO-101 and Koch leader/follower sessions (:mod:`robocal.dataset.teleop_sim`: a human-like
 leader, the follower as a position-controlled servo with LeRobot's gains, gravity, friction, backlash, stops and
 encoder ticks), writes each as a LeRobot v3 root with its truth, checks them all through datatrove
-(:mod:`robocal.workflows.dataset_health_cluster`, 2 tasks) and compares every report with the truth.
+(:mod:`robocal.workflows.dataset.health_cluster`, 2 tasks) and compares every report with the truth.
 
 Per robot, the sessions cycle through: no fault; a single-joint calibration offset of 0.5, 1, 2, 5 or 17° (random
 sign, on the leader or the follower, on a joint with stops); an encoder slip of 5–15° in one episode; values
@@ -30,7 +30,7 @@ import numpy as np
 
 from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults
 from robocal.dataset.teleop_sim import generate_teleop_datasets
-from robocal.workflows.dataset_health_cluster import health_with_datatrove
+from robocal.workflows.dataset.health_cluster import health_with_datatrove
 
 OFFSETS_DEG = (0.5, 1.0, 2.0, 5.0, 17.0)
 _CYCLE = ("clean", "clean", "clean", "o0.5", "o1", "o2", "o5", "o5", "o17", "o17", "slip", "clip", "flip")
@@ -45,12 +45,20 @@ def session_faults(robot: str, seed: int) -> TeleopFaults:
     joint = str(rng.choice(with_stops))
     if kind.startswith("o"):
         size = float(kind[1:]) * float(rng.choice([-1.0, 1.0]))
-        return TeleopFaults(offset_joint=joint, offset_deg=size, offset_arm=str(rng.choice(["leader", "follower"])))
+        return TeleopFaults(
+            offset_joint=joint, offset_deg=size, offset_arm=str(rng.choice(["leader", "follower"]))
+        )
     if kind == "slip":
-        return TeleopFaults(slip_joint=joint, slip_episode=int(rng.integers(0, 6)), slip_frame=int(rng.integers(60, 400)),
-                            slip_deg=float(rng.uniform(5, 15) * rng.choice([-1, 1])))
+        return TeleopFaults(
+            slip_joint=joint,
+            slip_episode=int(rng.integers(0, 6)),
+            slip_frame=int(rng.integers(60, 400)),
+            slip_deg=float(rng.uniform(5, 15) * rng.choice([-1, 1])),
+        )
     if kind == "clip":
-        return TeleopFaults(clip_joint=joint, clip_end=str(rng.choice(["lo", "hi"])), clip_short_deg=float(rng.uniform(4, 10)))
+        return TeleopFaults(
+            clip_joint=joint, clip_end=str(rng.choice(["lo", "hi"])), clip_short_deg=float(rng.uniform(4, 10))
+        )
     if kind == "flip":
         return TeleopFaults(flip_joint=joint)
     return TeleopFaults()
@@ -66,14 +74,25 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
     t0 = time.perf_counter()
     roots = []
     for chunk in range(0, len(seeds), 50):  # bounded memory: 50 sessions integrated at a time
-        roots += generate_teleop_datasets(folder, robot, seeds[chunk : chunk + 50], faults[chunk : chunk + 50])
+        roots += generate_teleop_datasets(
+            folder, robot, seeds[chunk : chunk + 50], faults[chunk : chunk + 50]
+        )
     t_sim = time.perf_counter() - t0
     t0 = time.perf_counter()
     reports = health_with_datatrove(roots, folder / "reports", tasks=2, workers=2)
     t_check = time.perf_counter() - t0
-    print(f"{robot}: {len(seeds)} sessions simulated and written in {t_sim:.0f} s, checked in {t_check:.0f} s")
-    score: dict[str, Any] = {"offset": defaultdict(lambda: defaultdict(int)), "clean": [0, 0], "clean_joint": defaultdict(int),
-                             "slip": [0, 0], "clip": [0, 0], "flip": [0, 0], "errors": 0}
+    print(
+        f"{robot}: {len(seeds)} sessions simulated and written in {t_sim:.0f} s, checked in {t_check:.0f} s"
+    )
+    score: dict[str, Any] = {
+        "offset": defaultdict(lambda: defaultdict(int)),
+        "clean": [0, 0],
+        "clean_joint": defaultdict(int),
+        "slip": [0, 0],
+        "clip": [0, 0],
+        "flip": [0, 0],
+        "errors": 0,
+    }
     for root, rep_path, f in zip(roots, reports, faults, strict=True):
         rep = json.loads(rep_path.read_text())
         truth = json.loads(root.with_name(root.name + ".truth.json").read_text())
@@ -86,7 +105,11 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
             t = truth["joints"][f.offset_joint]
             o = t["offset_deg"]
             end_gap = t["approach_lo_deg"] if o > 0 else t["approach_hi_deg"]
-            case = "contact" if t["follower_contact"] else ("within 10°" if end_gap is not None and end_gap <= 10 else "far")
+            case = (
+                "contact"
+                if t["follower_contact"]
+                else ("within 10°" if end_gap is not None and end_gap <= 10 else "far")
+            )
             key = (abs(o), f.offset_joint, case)
             j = joints[f.offset_joint]
             s = score["offset"][key]
@@ -101,7 +124,9 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         elif f.slip_joint is not None:
             score["slip"][1] += 1
             jumps = joints[f.slip_joint]["jumps"]
-            score["slip"][0] += any(jp["episode"] == f.slip_episode and abs(jp["frame"] - f.slip_frame) <= 2 for jp in jumps)
+            score["slip"][0] += any(
+                jp["episode"] == f.slip_episode and abs(jp["frame"] - f.slip_frame) <= 2 for jp in jumps
+            )
         elif f.clip_joint is not None:
             score["clip"][1] += 1
             score["clip"][0] += joints[f.clip_joint]["status"] == "suspect"
@@ -119,18 +144,24 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
 def print_score(robot: str, score: dict[str, Any]) -> None:
     """The tables of one robot."""
     print(f"\n-- {robot}: offsets (flagged 'offset' on the right joint; interval holds the truth) --")
-    print(f"{'offset':>7s} {'joint':14s} {'case':11s} {'named':>14s} {'CI holds':>12s} {'ok (wrong)':>10s} {'other joint':>11s}")
+    print(
+        f"{'offset':>7s} {'joint':14s} {'case':11s} {'named':>14s} {'CI holds':>12s} {'ok (wrong)':>10s} {'other joint':>11s}"
+    )
     by_case: dict[tuple[float, str], list[int]] = defaultdict(lambda: [0, 0])
     for (size, joint, case), s in sorted(score["offset"].items()):
-        print(f"{size:7.1f} {joint:14s} {case:11s} {_rate(s['named'], s['n']):>14s} "
-              f"{_rate(s['ci_hit'], s['ci_n']):>12s} {s['ok_wrongly']:>10d} {s['others']:>11d}")
+        print(
+            f"{size:7.1f} {joint:14s} {case:11s} {_rate(s['named'], s['n']):>14s} "
+            f"{_rate(s['ci_hit'], s['ci_n']):>12s} {s['ok_wrongly']:>10d} {s['others']:>11d}"
+        )
         by_case[(size, case)][0] += s["named"]
         by_case[(size, case)][1] += s["n"]
     print(f"\n-- {robot}: offsets, all joints --")
     for (size, case), (hit, n) in sorted(by_case.items()):
         print(f"{size:7.1f}° {case:11s} named {_rate(hit, n)}")
     hit, n = score["clean"]
-    print(f"\nfault-free sessions flagged (false alarms): {_rate(hit, n)}; by joint: {dict(score['clean_joint'])}")
+    print(
+        f"\nfault-free sessions flagged (false alarms): {_rate(hit, n)}; by joint: {dict(score['clean_joint'])}"
+    )
     print(f"slips located to their episode and frame (±2): {_rate(*score['slip'])}")
     print(f"clipped values flagged suspect: {_rate(*score['clip'])}")
     print(f"mirrored signs flagged suspect: {_rate(*score['flip'])}")

@@ -66,6 +66,9 @@ BENCHMARKS = (
         "autocal_servo", True, "~65 min", "auto-calibration on the servo firmware, 100 runs per SO-101 joint"
     ),
     Benchmark(
+        "health", True, "~15 min", "dataset health: recall / false alarms per offset and joint, 200 sessions per arm"
+    ),
+    Benchmark(
         "faults", True, "20-150 s a trial", "fault injection soak (--trials N): counts per fault x phase"
     ),
 )

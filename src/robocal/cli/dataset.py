@@ -178,9 +178,8 @@ def health(
     ] = None,
     use_degrees: LeRobotUseDegrees = None,
 ) -> None:
-    """Find the joint whose leader/follower calibrations disagree: per joint offset, interval, verdict (exit 1
-    when a joint is flagged)."""
-    from ..workflows.dataset_health import HealthRequest, run_health
+    """Find the joint whose leader/follower calibrations disagree (exit 1 when a joint is flagged)."""
+    from ..workflows.dataset.health import HealthRequest, run_health
 
     outcome = run_health(
         HealthRequest(

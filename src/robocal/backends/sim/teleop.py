@@ -192,12 +192,14 @@ class TeleopJointTruth:
         approach_lo_deg: Closest the leader came to the lower stop over the session (0: pushed against it).
         approach_hi_deg: Closest to the upper stop.
         follower_contact: The follower was pressed against a stop by more than 0.5° of goal beyond it.
+        pin_depth_deg: How far beyond a stop the follower's goal went at most (0: never beyond).
     """
 
     offset_deg: float
     approach_lo_deg: float
     approach_hi_deg: float
     follower_contact: bool
+    pin_depth_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -361,6 +363,7 @@ def simulate_sessions(
                 approach_lo_deg=float(np.min(lt[..., j] - lo[j])) if math.isfinite(lo[j]) else _INF,
                 approach_hi_deg=float(np.min(hi[j] - lt[..., j])) if math.isfinite(hi[j]) else _INF,
                 follower_contact=bool(np.any(past > 0.5)),
+                pin_depth_deg=max(0.0, float(np.max(past))),
             )
         sessions.append(TeleopSession(arm, fps, a, st, f, truth, seed))
     return sessions

@@ -243,7 +243,8 @@ def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndar
         held = int(np.sum(av[idx] >= a_ext - 0.25 * upd)) >= 5
         o = -sgn * excess
         # the leader may have stopped short of its stop: widen towards a larger offset by what it had left
-        slack = max(0.0, sgn * stop - a_ext) + (0.0 if held else 1.0 * upd)
+        # (a leader that did not rest at its extreme may have turned back anywhere short of its stop)
+        slack = max(0.0, sgn * stop - a_ext) + (0.0 if held else cfg.window_deg / 3 * upd)
         lo, hi = (o - u - slack, o + u) if sgn > 0 else (o - u, o + u + slack)
         return EndEvidence(name, "pinned", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps)
     gap = max(0.0, sgn * stop - f_ext)

@@ -18,8 +18,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..errors import BackendNotAvailableError, CalibError, UsageError
-from .dataset_health import HealthRequest, evaluate_health
+from ...errors import BackendNotAvailableError, CalibError, UsageError
+from .health import HealthRequest, evaluate_health
 
 try:
     from datatrove.pipeline.base import PipelineStep

@@ -17,16 +17,22 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..core.health import feetech_kp_nm_rad
-from ..errors import UsageError
+from ...core.health import feetech_kp_nm_rad
+from ...errors import UsageError
 
 if TYPE_CHECKING:
-    from ..core.gravity import GravityModel
-    from ..dataset.health import DatasetHealth, HealthSetup
+    from ...core.gravity import GravityModel
+    from ...dataset.health import DatasetHealth, HealthSetup
 
 __all__ = ["HealthOutcome", "HealthRequest", "evaluate_health", "render_picture", "run_health"]
 
-_DXL_FACTORY_P = {"xl430-w250": 640, "xl330-m288": 400, "xl330-m077": 400, "xc430-w150": 640, "xm430-w350": 800}
+_DXL_FACTORY_P = {
+    "xl430-w250": 640,
+    "xl330-m288": 400,
+    "xl330-m077": 400,
+    "xc430-w150": 640,
+    "xm430-w350": 800,
+}
 """Factory ``Position_P_Gain`` of the Dynamixel models LeRobot's Koch uses (its ``configure()`` keeps them)."""
 _DXL_LEROBOT_P = {"elbow_flex": 1500}
 """Joints whose gain LeRobot's Koch follower sets (``Position_P_Gain`` 1500 on ``elbow_flex``)."""
@@ -75,66 +81,90 @@ class HealthOutcome:
     picture_path: Path
 
 
-def _kp(vendor: str, joint: str, model: str | None) -> float:
-    from ..backends.servo_ratings import RATINGS
+def _kp(joint: str, model: str | None) -> float:
+    """The follower's position stiffness as LeRobot configures it, N·m/rad.
+
+    A Dynamixel model of :data:`_DXL_FACTORY_P` at its ``Position_P_Gain`` (LeRobot's where it sets one); any other
+    servo at Feetech's ``P_Coefficient`` 16.
+    """
+    from ...backends.servo_ratings import RATINGS
 
     rating = RATINGS.get(model or "")
     if rating is None:
         return math.inf
-    if vendor == "feetech" or rating.current_limit == 0 and model == "sts3215":
-        return feetech_kp_nm_rad(_FEETECH_LEROBOT_P, rating.stall_torque_nm)
-    p = _DXL_LEROBOT_P.get(joint, _DXL_FACTORY_P.get(model or "", 0))
-    return p / 128 * rating.current_unit_a * rating.kt_nm_a * 4096 / math.tau
+    if model in _DXL_FACTORY_P:
+        p = _DXL_LEROBOT_P.get(joint, _DXL_FACTORY_P[model])
+        return p / 128 * rating.current_unit_a * rating.kt_nm_a * 4096 / math.tau
+    return feetech_kp_nm_rad(_FEETECH_LEROBOT_P, rating.stall_torque_nm)
 
 
 def _gravity(request: HealthRequest, robot: str) -> tuple[GravityModel | None, str | None]:
-    from ..formats.urdf_gravity import gravity_model_if_any
+    from ...formats.urdf_gravity import gravity_model_if_any
 
     if request.urdf is not None:
         return gravity_model_if_any(request.urdf), str(request.urdf)
     stem = next((v for k, v in _SHIPPED_URDF.items() if robot.startswith(k)), None)
     if stem is None:
         return None, None
-    path = Path(__file__).resolve().parent.parent / "data" / stem
+    from importlib import resources
+
+    path = Path(str(resources.files("robocal") / "data" / stem))
     return gravity_model_if_any(path), str(path)
 
 
 def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
-    from ..dataset import read_layout
-    from ..dataset.health import HealthSetup
-    from ..dataset.lerobot import load_convention, motor_family_for_robot, preset_modes
-    from ..formats.profiles import load_profile
+    from ...dataset import read_layout
+    from ...dataset.health import HealthSetup
+    from ...dataset.lerobot import load_convention, motor_family_for_robot, preset_modes
+    from ...formats.profiles import load_profile
 
     if (request.leader_calibration is None) != (request.follower_calibration is None):
         raise UsageError("--leader-calibration and --follower-calibration go together (one per arm)")
     layout = read_layout(request.root)
     robot = request.robot or layout.robot_type
     if robot is None:
-        raise UsageError(f"dataset {request.root}: meta/info.json names no robot_type; name the arm with --robot")
+        raise UsageError(
+            f"dataset {request.root}: meta/info.json names no robot_type; name the arm with --robot"
+        )
     profile = load_profile(robot)
     joints = list(layout.vector_feature("observation.state").joint_names)
     modes = preset_modes(robot, joints, request.use_degrees)
     auto = {j.name: j for j in profile.auto.joints} if profile.auto is not None else {}
-    vendor = profile.lerobot.vendor if profile.lerobot is not None else profile.actuator
     models = {j.name: j.model for j in profile.joints}
     units, upd, stops, kp = {}, {}, {}, {}
     for j in joints:
         a = auto.get(j)
         stop = (a.lower_deg, a.upper_deg) if a is not None and a.stops == "both" else None
-        stops[j] = None if stop is None or stop[0] is None or stop[1] is None else (float(stop[0]), float(stop[1]))
+        stops[j] = (
+            None if stop is None or stop[0] is None or stop[1] is None else (float(stop[0]), float(stop[1]))
+        )
         mode = modes.get(j, "degrees")
         units[j] = mode
         span = None if stops[j] is None else stops[j][1] - stops[j][0]  # type: ignore[index]
-        upd[j] = 1.0 if mode == "degrees" else (math.nan if not span else (100.0 if "0_100" in mode else 200.0) / span)
-        kp[j] = _kp(str(vendor), j, models.get(j))
+        upd[j] = (
+            1.0
+            if mode == "degrees"
+            else (math.nan if not span else (100.0 if mode == "range_0_100" else 200.0) / span)
+        )
+        kp[j] = _kp(j, models.get(j))
     gravity, urdf = _gravity(request, robot)
     leader = follower = None
     if request.leader_calibration is not None and request.follower_calibration is not None:
         family = motor_family_for_robot(robot)
-        leader = load_convention(request.leader_calibration, joint_names=joints, modes=modes, family=family,
-                                 what="--leader-calibration")
-        follower = load_convention(request.follower_calibration, joint_names=joints, modes=modes, family=family,
-                                   what="--follower-calibration")
+        leader = load_convention(
+            request.leader_calibration,
+            joint_names=joints,
+            modes=modes,
+            family=family,
+            what="--leader-calibration",
+        )
+        follower = load_convention(
+            request.follower_calibration,
+            joint_names=joints,
+            modes=modes,
+            family=family,
+            what="--follower-calibration",
+        )
     return HealthSetup(units, upd, stops, kp, gravity, leader, follower), robot, urdf
 
 
@@ -156,11 +186,11 @@ def render_picture(result: DatasetHealth) -> bytes:
         ax = axes[k // cols][k % cols]
         pose, res = result.pose[:, k], h.residual
         fin = np.isfinite(res)
-        ax.scatter(pose[fin], res[fin], s=2, color="0.8", label="all frames", rasterized=True)
+        ax.plot(pose[fin], res[fin], ".", ms=1.5, color="0.8", label="all frames")
         slow = fin & (h.used == 1.0)
-        ax.scatter(pose[slow], res[slow], s=3, color="tab:blue", label="slow frames (band fit)", rasterized=True)
+        ax.plot(pose[slow], res[slow], ".", ms=2, color="tab:blue", label="slow frames (band fit)")
         end = fin & (h.used == 2.0)
-        ax.scatter(pose[end], res[end], s=6, color="tab:red", label="range-end frames", rasterized=True)
+        ax.plot(pose[end], res[end], ".", ms=3, color="tab:red", label="range-end frames")
         ax.axhspan(-h.band, h.band, color="tab:green", alpha=0.15, label=f"model band ±{h.band:.2f}")
         unit = "°" if units == "degrees" else f" ({units})"
         head = f"{h.name}: {h.status}"
@@ -177,8 +207,11 @@ def render_picture(result: DatasetHealth) -> bytes:
             ax.legend(fontsize=7, loc="upper left", markerscale=3)
     for k in range(n, rows * cols):
         axes[k // cols][k % cols].axis("off")
-    fig.suptitle(f"{result.root.name}: {result.frames} frames, {result.episodes} episodes "
-                 f"(offset = follower calibration − leader calibration)", fontsize=11)
+    fig.suptitle(
+        f"{result.root.name}: {result.frames} frames, {result.episodes} episodes "
+        f"(offset = follower calibration − leader calibration)",
+        fontsize=11,
+    )
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=80)
@@ -193,11 +226,13 @@ def run_health(request: HealthRequest) -> HealthOutcome:
         UsageError, FileFormatError, JointMismatchError: Bad input (nothing is written).
         FileWriteError: The report or picture cannot be written.
     """
-    from ..fileio import atomic_write_bytes, atomic_write_text, check_output_path
+    from ...fileio import atomic_write_bytes, atomic_write_text, check_output_path
 
     report_path = Path(request.report)
     if report_path.suffix.lower() != ".json":
-        raise UsageError(f"--report {report_path}: expected a .json file (the picture goes beside it as .png)")
+        raise UsageError(
+            f"--report {report_path}: expected a .json file (the picture goes beside it as .png)"
+        )
     picture_path = report_path.with_suffix(".png")
     check_output_path(report_path, "--report")
     check_output_path(picture_path, "the report's picture")
@@ -214,7 +249,7 @@ def evaluate_health(request: HealthRequest) -> tuple[DatasetHealth, dict[str, An
     Raises:
         UsageError, FileFormatError, JointMismatchError: Bad input.
     """
-    from ..dataset.health import dataset_health, health_json
+    from ...dataset.health import dataset_health, health_json
 
     setup, robot, urdf = _setup(request)
     result = dataset_health(request.root, setup)

@@ -1,0 +1,285 @@
+"""``robocal dataset health`` on simulated LeRobot v3 teleoperation datasets with a known truth (issue 30 item 1).
+
+The refusals run in the fast tier; a whole check with its picture takes seconds on a loaded machine (slow).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults, TeleopSession, simulate_sessions
+from robocal.cli.main import main
+from robocal.dataset.teleop_sim import generate_teleop_datasets, write_teleop_dataset
+from robocal.lerobot import MotorCalibration, write_calibration
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: object) -> tuple[int, str, str]:
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def roots(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("health")
+    so = generate_teleop_datasets(
+        d,
+        "so101",
+        [22, 21, 23],
+        [
+            TeleopFaults(offset_joint="elbow_flex", offset_deg=-17.0),
+            TeleopFaults(),
+            TeleopFaults(slip_joint="wrist_flex", slip_episode=1, slip_frame=100, slip_deg=9.0),
+        ],
+        episodes=3,
+        episode_s=8.0,
+        p_end=1.0,
+    )
+    koch = generate_teleop_datasets(
+        d / "koch",
+        "koch",
+        [25],
+        [TeleopFaults(offset_joint="elbow_flex", offset_deg=17.0)],
+        use_degrees=False,
+        episodes=3,
+        episode_s=8.0,
+        p_end=1.0,
+    )
+    return {"offset": so[0], "clean": so[1], "slip": so[2], "koch": koch[0], "dir": d}
+
+
+def _truth(root: Path) -> dict[str, object]:
+    out: dict[str, object] = json.loads(root.with_name(root.name + ".truth.json").read_text())
+    return out
+
+
+@pytest.mark.slow
+def test_17_degree_offset_flagged_and_named(
+    roots: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    report = tmp_path / "health.json"
+    code, out, err = run(capsys, "dataset", "health", roots["offset"], "--report", report)
+    assert code == 1
+    data = json.loads(report.read_text())
+    joint = data["joints"]["elbow_flex"]
+    assert joint["status"] == "offset"
+    lo, hi = joint["ci_deg"]
+    assert lo - 0.5 <= -17.0 <= hi + 0.5
+    assert data["flagged"] == ["elbow_flex"]
+    assert set(joint) >= {"offset_deg", "ci_deg", "status", "episodes"}
+    assert [e["episode"] for e in joint["episodes"]] == [0, 1, 2]
+    assert "elbow_flex" in out and "offset" in out
+    assert err.count("warning:") == 1 and "elbow_flex: offset" in err
+    png = report.with_suffix(".png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_offset_free_dataset_exits_0(
+    roots: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    report = tmp_path / "h.json"
+    code, _, err = run(capsys, "dataset", "health", roots["clean"], "--report", report)
+    assert code == 0, err
+    statuses = {j["status"] for j in json.loads(report.read_text())["joints"].values()}
+    assert statuses <= {"ok", "unobservable"}
+
+
+@pytest.mark.slow
+def test_slip_located_to_its_episode(
+    roots: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    report = tmp_path / "h.json"
+    code, _, _ = run(capsys, "dataset", "health", roots["slip"], "--report", report)
+    assert code == 1
+    joint = json.loads(report.read_text())["joints"]["wrist_flex"]
+    assert joint["status"] == "suspect"
+    assert [(j["episode"], abs(j["frame"] - 100) <= 2) for j in joint["jumps"]] == [(1, True)]
+    assert [len(e["jumps"]) for e in joint["episodes"]] == [0, 1, 0]
+
+
+def _koch_calibration(path: Path) -> None:
+    arm = TELEOP_ARMS["koch"]
+    cals = {}
+    for i, name in enumerate(arm.joints):
+        lo, hi = arm.stop_lo_deg[i], arm.stop_hi_deg[i]
+        if not math.isfinite(lo):
+            rmin, rmax = 0, 4095
+        else:
+            rmin, rmax = round(2048 + lo * 4096 / 360), round(2048 + hi * 4096 / 360)
+        cals[name] = MotorCalibration(i + 1, 0, 0, rmin, rmax)
+    write_calibration(path, cals)
+
+
+@pytest.mark.slow
+def test_range_units_without_files_and_degrees_with_them(
+    roots: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    plain = tmp_path / "plain.json"
+    code, _, _ = run(capsys, "dataset", "health", roots["koch"], "--report", plain)
+    joint = json.loads(plain.read_text())["joints"]["elbow_flex"]
+    assert code == 1
+    assert (joint["units"], joint["offset_deg"], joint["status"]) == ("range_m100_100", None, "offset")
+    assert joint["offset"] == pytest.approx(17.0 / 96.7 * 100, abs=4.0)
+    _koch_calibration(tmp_path / "cal.json")
+    report = tmp_path / "deg.json"
+    code, _, err = run(
+        capsys,
+        "dataset",
+        "health",
+        roots["koch"],
+        "--report",
+        report,
+        "--leader-calibration",
+        tmp_path / "cal.json",
+        "--follower-calibration",
+        tmp_path / "cal.json",
+    )
+    assert code == 1, err
+    joint = json.loads(report.read_text())["joints"]["elbow_flex"]
+    assert (joint["units"], joint["status"]) == ("degrees", "offset")
+    assert joint["offset_deg"] == pytest.approx(17.0, abs=3.0)
+
+
+def _write(session: TeleopSession, root: Path) -> Path:
+    write_teleop_dataset(session, root)
+    return root
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory: pytest.TempPathFactory) -> TeleopSession:
+    return simulate_sessions(TELEOP_ARMS["so101"], [5], [TeleopFaults()], episodes=1, episode_s=2.0)[0]
+
+
+def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
+    if kind == "constant":
+        flat = np.zeros_like(small.action_deg)
+        _write(TeleopSession(small.arm, small.fps, flat, flat, small.faults), root)
+    elif kind == "one frame":
+        _write(
+            TeleopSession(
+                small.arm, small.fps, small.action_deg[:, :1], small.state_deg[:, :1], small.faults
+            ),
+            root,
+        )
+    elif kind == "nan":
+        state = small.state_deg.copy()
+        state[0, 5, 2] = np.nan
+        _write(TeleopSession(small.arm, small.fps, small.action_deg, state, small.faults), root)
+    elif kind == "missing column":
+        _write(small, root)
+        path = root / "data/chunk-000/file-000.parquet"
+        pq.write_table(pq.read_table(path).drop(["action"]), path)
+    elif kind == "missing feature":
+        _write(small, root)
+        info = json.loads((root / "meta/info.json").read_text())
+        del info["features"]["observation.state"]
+        (root / "meta/info.json").write_text(json.dumps(info))
+    elif kind == "one calibration":
+        _write(small, root)
+
+
+@pytest.mark.parametrize(
+    "kind, needle",
+    [
+        ("constant", "no joint moves"),
+        ("one frame", "fewer than 2 frames"),
+        ("nan", "NaN or infinite"),
+        ("missing column", "missing column(s) action"),
+        ("missing feature", "unknown feature 'observation.state'"),
+        ("one calibration", "go together"),
+    ],
+)
+def test_degenerate_dataset_exits_2_with_one_error_line(
+    kind: str, needle: str, small: TeleopSession, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = tmp_path / "ds"
+    _bad_case(kind, small, root)
+    report = tmp_path / "h.json"
+    extra = ["--leader-calibration", tmp_path / "x.json"] if kind == "one calibration" else []
+    code, _, err = run(capsys, "dataset", "health", root, "--report", report, *extra)
+    assert code == 2
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:") and needle in lines[0], err
+    assert not report.exists() and not report.with_suffix(".png").exists()
+
+
+def test_report_must_be_json(
+    small: TeleopSession, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    root = _write(small, tmp_path / "ds")
+    code, _, err = run(capsys, "dataset", "health", root, "--report", tmp_path / "h.txt")
+    assert code == 2 and "expected a .json file" in err
+
+
+@pytest.mark.slow
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(
+    size=st.sampled_from([5.0, 8.0, 17.0]),
+    sign=st.sampled_from([-1.0, 1.0]),
+    joint=st.sampled_from(["shoulder_lift", "elbow_flex", "wrist_flex"]),
+    arm=st.sampled_from(["leader", "follower"]),
+    seed=st.integers(0, 10_000),
+)
+def test_contact_offsets_are_flagged_with_the_truth_in_the_interval(
+    size: float, sign: float, joint: str, arm: str, seed: int
+) -> None:
+    """Every session whose follower was pressed against a stop: ``offset`` on the right joint, truth inside."""
+    from robocal.core.health import JointData, analyse_joint, sag_residual_deg
+    from robocal.dataset.teleop_sim import arm_gravity
+    from robocal.formats.urdf_gravity import gravity_model_from_urdf
+
+    a = TELEOP_ARMS["so101"]
+    s = simulate_sessions(
+        a,
+        [seed],
+        [TeleopFaults(offset_joint=joint, offset_deg=sign * size, offset_arm=arm)],
+        gravity=arm_gravity(a),
+        episodes=3,
+        episode_s=8.0,
+        p_end=1.0,
+    )[0]
+    truth = s.truth[joint]
+    k = a.joints.index(joint)
+    e, t, n = s.action_deg.shape
+    state = s.state_deg.reshape(-1, n)
+    model = gravity_model_from_urdf(Path(__file__).parents[2] / "src/robocal/data/so101_new_calib.urdf")
+    sag = sag_residual_deg(model, a.joints, state, a.kp_nm_rad)[:, k]
+    d = JointData(
+        joint,
+        s.action_deg.reshape(-1, n)[:, k],
+        state[:, k],
+        np.repeat(np.arange(e), t),
+        sag,
+        a.stop_lo_deg[k],
+        a.stop_hi_deg[k],
+    )
+    h = analyse_joint(d)
+    if truth.pin_depth_deg > 3.0:
+        # pressed well into a stop: flagged with the right sign; a contact measures at most the whole offset
+        assert h.status == "offset"
+        assert h.offset is not None and h.ci is not None
+        assert np.sign(h.offset) == np.sign(truth.offset_deg)
+        assert abs(h.offset) <= abs(truth.offset_deg) + 1.0
+    else:
+        assert h.status != "ok" or abs(truth.offset_deg) <= 3.0
+
+
+@pytest.mark.slow
+def test_arrow_tables_are_read_in_episode_order(roots: dict[str, Path]) -> None:
+    from robocal.dataset.health import read_teleop_frames
+
+    fr = read_teleop_frames(roots["clean"])
+    assert list(np.unique(fr.episode)) == [0, 1, 2]
+    assert fr.action.shape == (3 * 240, 6)
+    table = pq.read_table(roots["clean"] / "data/chunk-000/file-000.parquet")
+    assert table.schema.field("action").type == pa.list_(pa.float32(), 6)
