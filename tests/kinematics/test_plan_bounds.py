@@ -27,7 +27,7 @@ def test_bounds_are_the_limits_shrunk_by_the_margin_and_a_too_wide_margin_names_
 
 def test_touch_plans_draw_their_starts_inside_the_same_bounds(tmp_path) -> None:
     """A touch plan's random starts come from the same bounds: a margin wider than a joint's range is refused."""
-    from robocal.workflows.kinematics.plan import plan
+    from robocal.workflows.kinematics.plan import PlanRequest, plan
 
     chain = chain_from_urdf(read_urdf(str(SO101_URDF)), tip_link="gripper_link")
     lim_lo, lim_up = (np.asarray(v) for v in chain.limits())
@@ -35,8 +35,8 @@ def test_touch_plans_draw_their_starts_inside_the_same_bounds(tmp_path) -> None:
     margin = 0.5 * float(np.min(lim_up - lim_lo)) + 0.01
     out = tmp_path / "plan.csv"
     with pytest.raises(UsageError, match=rf"joint {narrowest}: its range is narrower than twice the"):
-        plan(
+        plan(PlanRequest(
             SO101_URDF, out, kind="touch", tip_link="gripper_link", touch_points_m=[(0.2, 0.0, 0.1)],
             margin_rad=margin, poses=10,
-        )  # fmt: skip
+        ))  # fmt: skip
     assert not out.exists()

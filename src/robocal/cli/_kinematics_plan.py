@@ -143,22 +143,24 @@ def plan(
     from ..workflows.kinematics import plan as plan_wf
 
     result = plan_wf.plan(
-        urdf,
-        out,
-        poses=50 if poses is None else poses,
-        base_link=base_link,
-        tip_link=tip_link,
-        tool_xyz_m=parse_xyz(tool_xyz),
-        kind=kind,
-        frame=frame.strip().lower(),
-        criterion=criterion.strip(),
-        prior=prior,
-        noise_m=noise_mm * 1e-3,
-        candidates=candidates,
-        candidates_file=candidates_file,
-        seed=seed,
-        touch_points_m=[parse_xyz(p, "--touch-points") for p in (touch_points or "").split(";") if p.strip()],
-        validation_poses=validation_poses,
+        plan_wf.PlanRequest(
+            urdf,
+            out,
+            poses=50 if poses is None else poses,
+            base_link=base_link,
+            tip_link=tip_link,
+            tool_xyz_m=parse_xyz(tool_xyz),
+            kind=kind,
+            frame=frame.strip().lower(),
+            criterion=criterion.strip(),
+            prior=prior,
+            noise_m=noise_mm * 1e-3,
+            candidates=candidates,
+            candidates_file=candidates_file,
+            seed=seed,
+            touch_points_m=[parse_xyz(p, "--touch-points") for p in (touch_points or "").split(";") if p.strip()],
+            validation_poses=validation_poses,
+        )
     )
     ident = result.identifiability
     obs = ident.observability
@@ -237,12 +239,12 @@ def _plan_tag(
     T_target = tag_wf.frame_from_pose(
         parse_numbers(target_pose, "--target-pose", "0,0,0,0,0,0"), "--target-pose"
     )
-    result = tag_wf.plan_images(
+    result = tag_wf.plan_images(tag_wf.ImagePlanRequest(
         urdf, out, camera=camera, target=target, T_camera=T_camera, T_target=T_target,
         camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics, poses=poses, base_link=base_link,
         tip_link=tip_link, noise_px=noise_px, candidates=candidates, candidates_file=candidates_file, seed=seed,
         prior=prior,
-    )  # fmt: skip
+    ))  # fmt: skip
     ident = result.identifiability
     obs = ident.observability
     what = "camera's centre in the target frame" if camera_on_tool else "target's centre in the camera frame"

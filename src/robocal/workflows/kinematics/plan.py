@@ -39,7 +39,7 @@ from ...formats.urdf_chain import chain_from_urdf
 from .fit import PriorSigmas, check_seed, prediction_rms_m
 from .job import POINT_FRAMES, as_prior, tool_frame
 
-__all__ = ["PlanResult", "plan"]
+__all__ = ["PlanRequest", "PlanResult", "plan"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,34 +68,15 @@ class PlanResult:
     validation_out: Path | None = None
 
 
-def plan(
-    urdf: str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    *,
-    poses: int = 50,
-    base_link: str | None = None,
-    tip_link: str | None = None,
-    tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0),
-    kind: str = "points",
-    frame: str = "base",
-    criterion: str = "I",
-    prior: bool | PriorSigmas = False,
-    noise_m: float = 0.5e-3,
-    candidates: int = 2000,
-    candidates_file: str | os.PathLike[str] | None = None,
-    margin_rad: float = 0.05,
-    seed: int = 0,
-    touch_points_m: Sequence[Sequence[float]] = (),
-    validation_poses: int = 0,
-) -> PlanResult:
-    """Choose ``poses`` configurations inside the joint limits that best identify the chain, greedily.
+@dataclass(frozen=True)
+class PlanRequest:
+    """Choose ``poses`` configurations inside the joint limits that best identify the chain (``kinematics plan``).
 
     ``I`` (default): each pose lowers most the tool point's prediction variance averaged over the candidates
     (I-optimal); ``D``: each raises most ``det(JᵀJ)`` (O1). With ``prior`` the I-optimal plan is Bayesian: it
-    counts the URDF tolerance as known already. Writes a CSV with a ``pose`` column and one column per joint
-    (radians), ready to be filled with ``x,y,z`` as the poses are measured.
+    counts the URDF tolerance as known already. The options are checked when the request is built.
 
-    Args:
+    Attributes:
         urdf: Expanded URDF.
         out: CSV to write (atomically; nothing is written on an error).
         poses: How many poses.
@@ -104,7 +85,7 @@ def plan(
         tool_xyz_m: Nominal marker position in the tip link, m.
         kind: ``points`` (free poses), ``touch`` or ``gauge`` (poses that put the tool on ``touch_points_m``).
         frame: ``base`` or ``tracker`` (the base pose is then estimated too).
-        criterion: ``I`` or ``D``.
+        criterion: ``I`` or ``D`` (either case).
         prior: Plan for a fit with this prior (True: the default tolerance); ``I`` only.
         noise_m: The tracker's noise per axis, m (weighs the data against the prior; the predicted σ).
         candidates: Random candidates drawn uniformly inside the limits (minus ``margin_rad``).
@@ -120,42 +101,85 @@ def plan(
             separate session for ``identify --validate-data`` so that every planned pose is fitted.
 
     Raises:
-        CalibError: Bad options, too few poses for the identifiable parameters, a candidate outside the limits
-            or not a number.
+        UsageError: An unknown criterion, kind or frame, an option of another kind, a prior with ``D``, a noise,
+            pose count, validation count or seed out of range.
     """
-    crit = criterion.upper()
-    if crit not in PLAN_CRITERIA:
-        raise UsageError(f"--criterion {criterion!r}; valid: {', '.join(c.lower() for c in PLAN_CRITERIA)}")
-    check_kind(kind)
-    if kind == "points" and touch_points_m:
-        raise UsageError("--touch-points applies to --kind touch or gauge")
-    if kind != "points":
-        if crit != "I" or prior or frame != "base" or candidates_file is not None:
-            raise UsageError(
-                f"--kind {kind} plans are I-optimal in the base frame from random starts: --criterion d, "
-                "--prior, --frame tracker and --candidates-file apply to --kind points"
-            )
-        need = "two points (sockets A and B)" if kind == "gauge" else "one or more points"
-        if (kind == "gauge" and len(touch_points_m) != 2) or not touch_points_m:
-            raise UsageError(f"--kind {kind} needs --touch-points with {need}, x,y,z in metres each")
-    check_choice("--frame", frame, POINT_FRAMES)
-    if not (math.isfinite(noise_m) and noise_m > 0):
-        raise UsageError(f"--noise-mm must be a positive number, got {noise_m * 1e3}")
-    prior_s = as_prior(prior)
-    if prior_s is not None and crit != "I":
-        raise UsageError("a prior applies to the I-optimal plan (--criterion i)")
-    if poses < 1:
-        raise UsageError(f"--poses must be at least 1, got {poses}")
-    if validation_poses < 0:
-        raise UsageError(f"--validation-poses must be 0 or more, got {validation_poses}")
-    check_seed(seed)
-    out_path = check_output_path(out, "--out")
+
+    urdf: str | os.PathLike[str]
+    out: str | os.PathLike[str]
+    poses: int = 50
+    base_link: str | None = None
+    tip_link: str | None = None
+    tool_xyz_m: Sequence[float] = (0.0, 0.0, 0.0)
+    kind: str = "points"
+    frame: str = "base"
+    criterion: str = "I"
+    prior: bool | PriorSigmas = False
+    noise_m: float = 0.5e-3
+    candidates: int = 2000
+    candidates_file: str | os.PathLike[str] | None = None
+    margin_rad: float = 0.05
+    seed: int = 0
+    touch_points_m: Sequence[Sequence[float]] = ()
+    validation_poses: int = 0
+
+    def __post_init__(self) -> None:
+        criterion, kind, touch_points_m = self.criterion, self.kind, self.touch_points_m
+        crit = criterion.upper()
+        if crit not in PLAN_CRITERIA:
+            raise UsageError(f"--criterion {criterion!r}; valid: {', '.join(c.lower() for c in PLAN_CRITERIA)}")
+        check_kind(kind)
+        if kind == "points" and touch_points_m:
+            raise UsageError("--touch-points applies to --kind touch or gauge")
+        if kind != "points":
+            if crit != "I" or self.prior or self.frame != "base" or self.candidates_file is not None:
+                raise UsageError(
+                    f"--kind {kind} plans are I-optimal in the base frame from random starts: --criterion d, "
+                    "--prior, --frame tracker and --candidates-file apply to --kind points"
+                )
+            need = "two points (sockets A and B)" if kind == "gauge" else "one or more points"
+            if (kind == "gauge" and len(touch_points_m) != 2) or not touch_points_m:
+                raise UsageError(f"--kind {kind} needs --touch-points with {need}, x,y,z in metres each")
+        check_choice("--frame", self.frame, POINT_FRAMES)
+        if not (math.isfinite(self.noise_m) and self.noise_m > 0):
+            raise UsageError(f"--noise-mm must be a positive number, got {self.noise_m * 1e3}")
+        if as_prior(self.prior) is not None and crit != "I":
+            raise UsageError("a prior applies to the I-optimal plan (--criterion i)")
+        if self.poses < 1:
+            raise UsageError(f"--poses must be at least 1, got {self.poses}")
+        if self.validation_poses < 0:
+            raise UsageError(f"--validation-poses must be 0 or more, got {self.validation_poses}")
+        check_seed(self.seed)
+
+
+def plan(request: PlanRequest) -> PlanResult:
+    """Choose the poses of ``request`` greedily and write them as a CSV.
+
+    The CSV has a ``pose`` column and one column per joint (radians), ready to be filled with ``x,y,z`` as the
+    poses are measured.
+
+    Args:
+        request: What to plan (checked when it was built).
+
+    Returns:
+        The :class:`PlanResult`.
+
+    Raises:
+        CalibError: Too few poses for the identifiable parameters, a candidate outside the limits or not a
+            number, an unreadable URDF or candidates file, an output in a missing folder.
+    """
+    r = request
+    crit, kind, frame, poses, noise_m = r.criterion.upper(), r.kind, r.frame, r.poses, r.noise_m
+    candidates, candidates_file, margin_rad, seed = r.candidates, r.candidates_file, r.margin_rad, r.seed
+    prior_s = as_prior(r.prior)
+    validation_poses = r.validation_poses
+    out_path = check_output_path(r.out, "--out")
     val_path = validation_path(out_path) if validation_poses else None
-    chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
-    model = ErrorModel(chain, T_tip_tool=tool_frame(tool_xyz_m))
+    chain = chain_from_urdf(UrdfDocument.load(r.urdf).model(), r.base_link, r.tip_link)
+    model = ErrorModel(chain, T_tip_tool=tool_frame(r.tool_xyz_m))
     if kind != "points":
         return _plan_contacts(
-            model, out_path, kind, [np.asarray(p, dtype=np.float64) for p in touch_points_m], poses,
+            model, out_path, kind, [np.asarray(p, dtype=np.float64) for p in r.touch_points_m], poses,
             max(candidates, 1), margin_rad, seed, (val_path, validation_poses),
         )  # fmt: skip
     if candidates_file is not None:

@@ -37,7 +37,7 @@ from .fit import PriorSigmas, check_seed
 from .job import as_prior
 from .plan import sampling_bounds
 
-__all__ = ["ImagePlanResult", "frame_from_pose", "plan_images"]
+__all__ = ["ImagePlanRequest", "ImagePlanResult", "frame_from_pose", "plan_images"]
 
 _BATCH = 20_000
 _MAX_DRAWS = 1_000_000
@@ -88,29 +88,13 @@ def frame_from_pose(values: Sequence[float], flag: str, look_at: Sequence[float]
     return np.asarray(homogeneous(matrix_from_rpy_urdf(np.array(v[3:])), v[:3]), dtype=np.float64)
 
 
-def plan_images(
-    urdf: str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    *,
-    camera: str | os.PathLike[str],
-    target: str,
-    T_camera: FloatArray,
-    T_target: FloatArray,
-    camera_on_tool: bool = False,
-    refine_intrinsics: bool = False,
-    poses: int = 40,
-    base_link: str | None = None,
-    tip_link: str | None = None,
-    noise_px: float = 0.3,
-    candidates: int = 2000,
-    candidates_file: str | os.PathLike[str] | None = None,
-    margin_rad: float = 0.05,
-    seed: int = 0,
-    prior: bool | PriorSigmas = False,
-) -> ImagePlanResult:
+@dataclass(frozen=True, eq=False)
+class ImagePlanRequest:
     """Choose ``poses`` configurations where the camera sees the target that identify the set-up best.
 
-    Args:
+    The options are checked when the request is built; files when :func:`plan_images` runs.
+
+    Attributes:
         urdf: Expanded URDF.
         out: CSV to write (atomically; nothing is written on an error).
         camera: Camera intrinsics (ROS camera_info YAML): camera matrix and image size.
@@ -134,21 +118,59 @@ def plan_images(
             weighed against ``noise_px``.
 
     Raises:
-        CalibError: Bad options, a bad camera file or target, no or too few poses where the camera sees the
-            target, too few images for the identifiable unknowns.
+        UsageError: A pose or candidate count below 1, a noise that is not a positive number, a negative seed.
     """
-    if poses < 1:
-        raise UsageError(f"--poses must be at least 1, got {poses}")
-    if candidates < 1:
-        raise UsageError(f"--candidates must be at least 1, got {candidates}")
-    if not (math.isfinite(noise_px) and noise_px > 0.0):
-        raise UsageError(f"--noise-px must be a positive number, got {noise_px}")
-    prior_s = as_prior(prior)
-    check_seed(seed)
-    out_path = check_output_path(out, "--out")
-    tgt = parse_target(target)
-    cam = read_camera_info(camera)
-    chain = chain_from_urdf(UrdfDocument.load(urdf).model(), base_link, tip_link)
+
+    urdf: str | os.PathLike[str]
+    out: str | os.PathLike[str]
+    camera: str | os.PathLike[str]
+    target: str
+    T_camera: FloatArray
+    T_target: FloatArray
+    camera_on_tool: bool = False
+    refine_intrinsics: bool = False
+    poses: int = 40
+    base_link: str | None = None
+    tip_link: str | None = None
+    noise_px: float = 0.3
+    candidates: int = 2000
+    candidates_file: str | os.PathLike[str] | None = None
+    margin_rad: float = 0.05
+    seed: int = 0
+    prior: bool | PriorSigmas = False
+
+    def __post_init__(self) -> None:
+        if self.poses < 1:
+            raise UsageError(f"--poses must be at least 1, got {self.poses}")
+        if self.candidates < 1:
+            raise UsageError(f"--candidates must be at least 1, got {self.candidates}")
+        if not (math.isfinite(self.noise_px) and self.noise_px > 0.0):
+            raise UsageError(f"--noise-px must be a positive number, got {self.noise_px}")
+        check_seed(self.seed)
+
+
+def plan_images(request: ImagePlanRequest) -> ImagePlanResult:
+    """Plan the images of ``request`` greedily (I-optimal for the reprojection model) and write them as a CSV.
+
+    Args:
+        request: What to plan (checked when it was built).
+
+    Returns:
+        The :class:`ImagePlanResult`.
+
+    Raises:
+        CalibError: A bad camera file or target, no or too few poses where the camera sees the target, too few
+            images for the identifiable unknowns.
+    """
+    r = request
+    camera_on_tool, T_camera, T_target, candidates, candidates_file = (
+        r.camera_on_tool, r.T_camera, r.T_target, r.candidates, r.candidates_file,
+    )  # fmt: skip
+    prior_s = as_prior(r.prior)
+    out_path = check_output_path(r.out, "--out")
+    tgt = parse_target(r.target)
+    cam = read_camera_info(r.camera)
+    chain = chain_from_urdf(UrdfDocument.load(r.urdf).model(), r.base_link, r.tip_link)
     if camera_on_tool:
         model = ErrorModel(
             chain, T_world_base=np.asarray(np.linalg.inv(T_target), np.float64), T_tip_tool=T_camera
@@ -173,8 +195,8 @@ def plan_images(
         drawn = int(q_all.shape[0])
         cand = seen(q_all)
     else:
-        lo, up = sampling_bounds(chain, margin_rad)
-        rng = np.random.default_rng(seed)
+        lo, up = sampling_bounds(chain, r.margin_rad)
+        rng = np.random.default_rng(r.seed)
         found: list[FloatArray] = []
         drawn = n_found = 0
         while n_found < candidates and drawn < _MAX_DRAWS:
@@ -190,8 +212,8 @@ def plan_images(
             "the image size in the camera file"
         )
     plan = plan_image_poses(
-        model, cand, corners, cam.K, poses, camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
-        noise_px=noise_px, prior_sigma=None if prior_s is None else prior_s.model_sigmas(model, tool_free=True),
+        model, cand, corners, cam.K, r.poses, camera_on_tool=camera_on_tool, refine_intrinsics=r.refine_intrinsics,
+        noise_px=r.noise_px, prior_sigma=None if prior_s is None else prior_s.model_sigmas(model, tool_free=True),
     )  # fmt: skip
     q = cand[plan.index]
     written = atomic_write_text(out_path, session_csv(q, chain.joint_names, {}))
