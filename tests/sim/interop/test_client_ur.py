@@ -55,6 +55,7 @@ def flange_pose(q: list[float]) -> list[float]:
     return [*map(float, T[:3, 3]), *map(float, rotvec_from_matrix(T[:3, :3]))]
 
 
+@pytest.mark.slow
 def test_ur_rtde_receive_and_dashboard(sim_process) -> None:  # type: ignore[no-untyped-def]
     python = client_env_python("ur_rtde")
     host = own_loopback()
@@ -85,6 +86,7 @@ def test_ur_rtde_receive_and_dashboard(sim_process) -> None:  # type: ignore[no-
     assert got["after_brake_release"] == {"dashboard": "Robotmode: RUNNING", "rtde": 7}
 
 
+@pytest.mark.slow
 def test_urx_reads_joints_mode_and_tcp(sim_process) -> None:  # type: ignore[no-untyped-def]
     python = client_env_python("urx")
     host = own_loopback()
@@ -110,3 +112,83 @@ def test_urx_reads_joints_mode_and_tcp(sim_process) -> None:  # type: ignore[no-
     assert abs(mode["timestamp"] / 1e6 - got["rt_ctrl_time"]) < 30.0  # one clock (µs since start), read apart
     # urx 0.11's getl calls PoseVector.tolist(), which the math3d it installs (4.0) no longer has
     assert got["getl"] == "AttributeError: 'PoseVector' object has no attribute 'tolist'"
+
+
+def rtde_outputs(host: str, names: list[str]) -> tuple[object, ...]:
+    """One data package of ``names`` read over a plain RTDE socket (robocal's side of the protocol)."""
+    import socket
+    import struct
+
+    from robocal.backends.sim.ur_rtde import RTDE_OUTPUT_TYPES, RTDE_TYPE_FORMATS, encode_rtde
+
+    def packet(sock: socket.socket) -> tuple[str, bytes]:
+        head = b""
+        while len(head) < 3:
+            head += sock.recv(3 - len(head))
+        size, kind = struct.unpack(">HB", head)
+        body = b""
+        while len(body) < size - 3:
+            body += sock.recv(size - 3 - len(body))
+        return chr(kind), body
+
+    with socket.create_connection((host, 30004), timeout=20) as sock:
+        sock.sendall(encode_rtde("V", struct.pack(">H", 2)))
+        assert packet(sock) == ("V", b"\x01")
+        sock.sendall(encode_rtde("O", struct.pack(">d", 10.0) + ",".join(names).encode()))
+        kind, body = packet(sock)
+        assert kind == "O" and body[0] == 1, body
+        sock.sendall(encode_rtde("S"))
+        assert packet(sock) == ("S", b"\x01")
+        kind, body = packet(sock)
+        assert kind == "U" and body[0] == 1
+        fmt = ">" + "".join(RTDE_TYPE_FORMATS[RTDE_OUTPUT_TYPES[n]] for n in names)
+        return struct.unpack(fmt, body[1:])
+
+
+@pytest.mark.slow
+def test_ur_rtde_io_sets_outputs_registers_and_slider(sim_process) -> None:  # type: ignore[no-untyped-def]
+    python = client_env_python("ur_rtde")
+    host = own_loopback()
+    sim_process(["ur", "--standard-ports", "--host", host], until="address")
+    got = run_client(python, "ur_rtde_io_client.py", {"host": host})
+    assert got["set"] == [True] * 6
+    assert got["digital_output_bits"] == (1 << 2) | (1 << 17)  # standard DO 2; tool DO 1 is bit 16 + 1
+    assert got["digital_out_2"] is True
+    assert (got["speed_fraction"], got["analog_output_1"]) == (0.5, 0.25)
+    # the input registers stay on the controller for any RTDE client to read
+    assert rtde_outputs(
+        host, ["input_int_register_18", "input_double_register_19", "input_int_register_17"]
+    ) == (
+        42,
+        1.5,
+        0,
+    )
+
+
+def test_rtde_inputs_follow_their_masks() -> None:
+    """In process: an input package changes only what its masks select; registers read back as outputs."""
+    import struct
+
+    from robocal.backends.sim.ur_rtde_inputs import RtdeInputs
+
+    inputs = RtdeInputs()
+    names = (
+        "standard_digital_output_mask",
+        "standard_digital_output",
+        "speed_slider_mask",
+        "speed_slider_fraction",
+    )
+    assert inputs.types([*names, "bogus"]) == ["UINT8", "UINT8", "UINT32", "DOUBLE", "NOT_FOUND"]
+    assert inputs.apply(
+        names, struct.pack(">BBId", 0b0110, 0b1110, 0, 0.3)
+    )  # DO 1, 2 on; DO 3 not in the mask
+    assert inputs.outputs()["actual_digital_output_bits"] == 0b0110
+    assert inputs.outputs()["target_speed_fraction"] == 1.0  # slider mask 0: unchanged
+    assert inputs.apply(names, struct.pack(">BBId", 0b0010, 0, 1, 1.7))  # DO 1 off; slider clipped to 1
+    assert (inputs.outputs()["actual_digital_output_bits"], inputs.outputs()["target_speed_fraction"]) == (
+        0b0100,
+        1.0,
+    )
+    assert inputs.apply(("input_int_register_20",), struct.pack(">i", -7))
+    assert inputs.outputs()["input_int_register_20"] == -7
+    assert not inputs.apply(("input_int_register_20",), b"\x00")  # wrong size: dropped

@@ -1,10 +1,11 @@
-"""Simulated UR RTDE server (TCP 30004), protocol version 2: outputs only.
+"""Simulated UR RTDE server (TCP 30004), protocol version 2: outputs and inputs.
 
 Packets are ``uint16 BE size`` (header included), ``uint8 type``, payload. Served: REQUEST_PROTOCOL_VERSION
 ('V', version 2 accepted), GET_URCONTROL_VERSION ('v'), SETUP_OUTPUTS ('O': frequency, comma-separated names,
 a trailing comma allowed as ur_rtde sends it; the reply is a recipe id and the types, ``NOT_FOUND`` for a name
-not modelled), SETUP_INPUTS ('I': every name ``NOT_FOUND``, inputs are not modelled), START ('S') and PAUSE
-('P'); after START each recipe is sent as a DATA_PACKAGE ('U') at its frequency. Every output of ur_rtde's
+not modelled), SETUP_INPUTS ('I': recipe id and types, see :mod:`.ur_rtde_inputs`), input DATA_PACKAGEs ('U'
+from the client: applied at once), START ('S') and PAUSE ('P'); after START each output recipe is sent as a
+DATA_PACKAGE ('U') at its frequency. Every output of ur_rtde's
 ``RTDEReceiveInterface`` default recipe is served with its exact type. Sources and assumptions: docs/sim.md.
 """
 
@@ -24,6 +25,7 @@ from ...core.se3 import rotvec_from_matrix
 from ._sockets import LoopbackServer
 from .ur_arm_state import RobotModeSample, UrArmState
 from .ur_realtime import joint_path
+from .ur_rtde_inputs import RtdeInputs
 
 __all__ = ["RTDE_OUTPUT_TYPES", "RTDE_TYPE_FORMATS", "SimUrRtde", "encode_rtde"]
 
@@ -86,6 +88,7 @@ RTDE_OUTPUT_TYPES: dict[str, str] = {
     "safety_status_bits": "UINT32",
     "payload": "DOUBLE",  # kg (ur_rtde 1.6's default recipe asks for it and payload_cog)
     "payload_cog": "VECTOR3D",  # m
+    **RtdeInputs.OUTPUT_TYPES,
     **{f"output_int_register_{i}": "INT32" for i in range(48)},
     **{f"output_double_register_{i}": "DOUBLE" for i in range(48)},
 }
@@ -165,6 +168,7 @@ class SimUrRtde(LoopbackServer, StartsOnEnter):
         self.dh = dh
         self.arm = arm
         self.moving = moving
+        self.inputs = RtdeInputs()
         self._t0 = time.monotonic()
 
     def _state(self) -> dict[str, object]:
@@ -173,11 +177,12 @@ class SimUrRtde(LoopbackServer, StartsOnEnter):
         T = fk_dh(self.dh, list(q))
         rv = rotvec_from_matrix(T[:3, :3])
         pose = (float(T[0, 3]), float(T[1, 3]), float(T[2, 3]), float(rv[0]), float(rv[1]), float(rv[2]))
-        return _values(t_s, q, pose, self.arm.sample())
+        return {**_values(t_s, q, pose, self.arm.sample()), **self.inputs.outputs()}
 
     def _serve(self, conn: socket.socket) -> None:
         conn.settimeout(1.0)  # a send waits up to a second for a slow reader
         recipes: list[_Recipe] = []
+        inputs: list[tuple[str, ...]] = []
         due: list[float] = []
         started = False
         buf = b""
@@ -193,7 +198,7 @@ class SimUrRtde(LoopbackServer, StartsOnEnter):
                     if size < 3:
                         return  # not RTDE
                     kind, payload, buf = chr(buf[2]), buf[3:size], buf[size:]
-                    reply, started = self._answer(kind, payload, recipes, started)
+                    reply, started = self._answer(kind, payload, recipes, inputs, started)
                     if kind == "S" and started:
                         due = [time.monotonic()] * len(recipes)
                     if reply:
@@ -208,15 +213,26 @@ class SimUrRtde(LoopbackServer, StartsOnEnter):
                         conn.sendall(encode_rtde("U", struct.pack(">B", i + 1) + body))
                         due[i] = max(due[i] + r.period_s, now)  # late: no burst to catch up
 
-    def _answer(self, kind: str, payload: bytes, recipes: list[_Recipe], started: bool) -> tuple[bytes, bool]:
+    def _answer(
+        self, kind: str, payload: bytes, recipes: list[_Recipe], inputs: list[tuple[str, ...]], started: bool
+    ) -> tuple[bytes, bool]:
         """The reply to one client packet and whether data flows afterwards."""
         answers: dict[str, Callable[[], bytes]] = {
             "V": lambda: encode_rtde("V", bytes([len(payload) == 2 and payload == b"\x00\x02"])),
             "v": lambda: encode_rtde("v", struct.pack(">4I", *_VERSION)),
-            "I": lambda: encode_rtde("I", b"\x00" + ",".join(["NOT_FOUND"] * len(_names(payload))).encode()),
         }
         if kind in answers:
             return answers[kind](), started
+        if kind == "I":
+            names = _names(payload)
+            types = self.inputs.types(names)
+            ok = bool(names) and "NOT_FOUND" not in types
+            if ok:
+                inputs.append(tuple(names))
+            return encode_rtde("I", bytes([len(inputs) if ok else 0]) + ",".join(types).encode()), started
+        if kind == "U" and payload and 1 <= payload[0] <= len(inputs):
+            self.inputs.apply(inputs[payload[0] - 1], payload[1:])  # a package of the wrong size is dropped
+            return b"", started
         if kind == "O" and len(payload) >= 8 and not started:
             (hz,) = struct.unpack_from(">d", payload)
             names = _names(payload[8:])
@@ -225,7 +241,7 @@ class SimUrRtde(LoopbackServer, StartsOnEnter):
             recipes.append(_Recipe(tuple(names), 1.0 / min(hz, _MAX_HZ) if ok else 1.0, ok))
             return encode_rtde("O", bytes([len(recipes) if ok else 0]) + ",".join(types).encode()), started
         if kind == "S":
-            ok = bool(recipes) and all(r.valid for r in recipes)
+            ok = bool(recipes or inputs) and all(r.valid for r in recipes)
             return encode_rtde("S", bytes([ok])), ok
         if kind == "P":
             return encode_rtde("P", b"\x01"), False
