@@ -8,10 +8,13 @@ on :func:`robocal.workflows.lerobot.auto_sim.open_auto_arm` (a real port or ``si
 
 from __future__ import annotations
 
+import math
 import pathlib
+from dataclasses import replace
 from typing import Any
 
 import typer
+from rich.table import Table
 
 from ..core.lerobot import RobotSpec
 from ..errors import UsageError
@@ -20,7 +23,7 @@ from ._autocal import AutoLiveView, auto_table, auto_web_view, make_confirm_star
 from ._left_changed import offer_restore
 from ._lerobot_render import print_calibration, status
 
-__all__ = ["calibrate_auto", "check_auto_options"]
+__all__ = ["calibrate_auto", "check_auto_options", "verify_auto"]
 
 
 def check_auto_options(
@@ -33,6 +36,7 @@ def check_auto_options(
     home_after_sweep: bool,
     web_view: bool,
     urdf: pathlib.Path | None = None,
+    verify: bool = False,
 ) -> None:
     """Refuse option combinations that mean nothing (before any file or port is touched).
 
@@ -48,6 +52,7 @@ def check_auto_options(
                 ("--partial", partial),
                 ("--yes", yes),
                 ("--urdf", urdf is not None),
+                ("--verify", verify),
             )
             if on
         ]
@@ -62,6 +67,9 @@ def check_auto_options(
         )
         if on
     ]
+    if verify and (partial or web_view):
+        both = ", ".join(f for f, on in (("--partial", partial), ("--view", web_view)) if on)
+        raise UsageError(f"--verify writes nothing: {both} cannot be combined with it")
     if clash:
         why = {
             "--use-file": "--use-file writes an existing file, --auto finds the stops",
@@ -109,7 +117,10 @@ def calibrate_auto(
         return open_lerobot_auto_page(robot, spec.motor_names, inner=inner, port=page_port)
 
     live_view = view if view is not None else AutoLiveView()
-    with auto_web_view(view_port, None, live_view, "", page=page) as live, open_auto_arm(spec, port, section) as arm:
+    with (
+        auto_web_view(view_port, None, live_view, "", page=page) as live,
+        open_auto_arm(spec, port, section) as arm,
+    ):
         offer_restore(arm.bus, spec, port, arm.sim)
         try:
             result = auto_calibrate(
@@ -146,4 +157,80 @@ def calibrate_auto(
     if result.auto.failed:
         _common.print_warning(f"written with --partial although {result.auto.failure_summary()}")
     _common.console.print(f"calibration saved to {result.path} and written to the motors", markup=False)
+    raise typer.Exit(result.exit_code)
+
+
+def verify_auto(
+    robot: str,
+    spec: RobotSpec,
+    port: str,
+    path: pathlib.Path,
+    *,
+    joints: str | None,
+    yes: bool,
+    tolerance_deg: float,
+    urdf: pathlib.Path | None = None,
+) -> None:
+    """``--auto --verify``: search the stops again, print each joint's drift, exit 0 / 1 (past the tolerance).
+
+    Nothing is written: every register the search changes is written back, no file. Ctrl-C: every motor limp,
+    every register restored (exit 130); a failed search or a fault: exit 3.
+    """
+    from ..workflows.lerobot.auto import auto_section
+    from ..workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm, parse_sim_port
+    from ..workflows.lerobot.verify import VerifyRequest, check_stored, verify_calibration
+    from ._lerobot_render import interrupted
+
+    section = auto_section(robot)
+    names = _common.parse_csv_list(joints, "--joints") if joints is not None else None
+    if joints is not None and not names:
+        raise UsageError("--joints: give at least one joint name")
+    request = VerifyRequest(spec, section, path, joints=names, tolerance_deg=tolerance_deg)  # the tolerance
+    check_stored(request)  # the file, before the port opens
+    parse_sim_port(port, spec)
+    gravity_model = auto_gravity_model(spec, port, section, urdf)
+    confirm = make_confirm_start(yes, what=spec.name)
+    with open_auto_arm(spec, port, section) as arm:
+        offer_restore(arm.bus, spec, port, arm.sim)
+        try:
+            result = verify_calibration(
+                arm.bus,
+                replace(
+                    request, gravity_model=gravity_model, snapshot_port=port if arm.sim is None else None
+                ),
+                clock=arm.clock,
+                confirm_start=confirm,
+                view=AutoLiveView(),
+                on_status=status,
+            )
+        except KeyboardInterrupt as exc:
+            raise interrupted(
+                exc,
+                "every motor is limp, every register the search changed was written back; nothing was written",
+            ) from None
+    table = Table(title=f"{spec.name}: drift of {path} (tolerance {tolerance_deg:g}°)")
+    for col in ("joint", "drift °", "± °", "lower stop °", "upper stop °", ""):
+        table.add_column(col, justify="left" if col in ("joint", "") else "right")
+    for j in result.joints:
+        verdict = "DRIFTED" if j.flagged else "ok"
+        table.add_row(
+            j.name,
+            f"{j.drift_deg:+.2f}",
+            f"{j.uncertainty_deg:.2f}",
+            "—" if math.isnan(j.lower_deg) else f"{j.lower_deg:+.2f}",
+            "—" if math.isnan(j.upper_deg) else f"{j.upper_deg:+.2f}",
+            verdict,
+        )
+    _common.console.print(table)
+    flagged = [j.name for j in result.joints if j.flagged]
+    if flagged:
+        _common.print_warning(
+            f"{', '.join(flagged)} drifted more than {tolerance_deg:g}° from {path}: recalibrate "
+            "(robocal lerobot calibrate --auto)"
+        )
+    _common.console.print(
+        f"searched in {result.search_s:.1f} s; nothing was written (every register the search changed is back, "
+        "no file)",
+        markup=False,
+    )
     raise typer.Exit(result.exit_code)

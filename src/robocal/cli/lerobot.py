@@ -140,9 +140,18 @@ def calibrate(
         help="--auto: the arm's URDF with <inertial> masses; its gravity model corrects the stops "
         "(default with --port sim: the simulated arm's shipped URDF).",
     ),
+    verify: bool = typer.Option(
+        False,
+        "--verify",
+        help="--auto: touch the stops again and report per joint how far the stored calibration (--id) has "
+        "drifted, degrees ± uncertainty; nothing is written; exit 1 past --tolerance-deg.",
+    ),
+    tolerance_deg: float = typer.Option(
+        2.0, "--tolerance-deg", help="--verify: drift above which a joint is flagged, degrees."
+    ),
 ) -> None:
     """Calibrate a LeRobot arm (mid pose, then sweep every joint, or --auto) and write LeRobot's JSON."""
-    from ._lerobot_auto import calibrate_auto, check_auto_options
+    from ._lerobot_auto import calibrate_auto, check_auto_options, verify_auto
 
     check_auto_options(
         auto=auto,
@@ -153,6 +162,7 @@ def calibrate(
         home_after_sweep=home_after_sweep,
         web_view=web_view,
         urdf=urdf,
+        verify=verify,
     )
     from ..workflows.lerobot import (
         CalibrateRequest,
@@ -167,7 +177,9 @@ def calibrate(
     from ..workflows.lerobot import calibrate as run
 
     spec = _spec(robot)
-    path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file)
+    path = _cal_file(spec, robot_id, calibration_dir, None, reading=use_file or verify)
+    if verify:
+        verify_auto(robot, spec, port, path, joints=joints, yes=yes, tolerance_deg=tolerance_deg, urdf=urdf)
     if use_file:
         cals = read_calibration_file(path)
         beyond = print_range_warnings(spec, cals)
@@ -285,7 +297,9 @@ def configure(
                 snapshot_port=port if arm is None else None,
             )
         except KeyboardInterrupt as exc:
-            raise interrupted(exc, "every motor is limp and every register written so far was written back") from None
+            raise interrupted(
+                exc, "every motor is limp and every register written so far was written back"
+            ) from None
     t = Table(title=f"{spec.name}: registers written")
     t.add_column("motor")
     t.add_column("registers")
@@ -432,7 +446,9 @@ def export_urdf(
 
     compat_mode = parse_compat(compat)
     signs = _common.parse_typed_assignments(sign, "--sign", int, "expected -1 or 1")
-    offsets = _common.parse_typed_assignments(offset_deg, "--offset-deg", float, "expected a number of degrees")
+    offsets = _common.parse_typed_assignments(
+        offset_deg, "--offset-deg", float, "expected a number of degrees"
+    )
     spec, modes, cals = _scaled(robot, use_degrees, modes_opt, robot_id, calibration_dir, file)
     beyond = print_range_warnings(spec, cals)
     rc, skipped = export_joint_map(

@@ -1,0 +1,280 @@
+"""``robocal lerobot calibrate --auto --verify``: touch the stops again and say how far the stored calibration drifted.
+
+The same stop search as ``--auto`` (:func:`robocal.workflows.lerobot.auto.auto_calibrate`: the profile's joints
+driven into their stops at its low torque caps, under the motion guard), then every register the search changed
+is written back from the snapshot (the EEPROM ends as it began) and no file is written. Per joint, the stops found
+are compared with where the stored calibration (LeRobot's JSON) has them: its ``range_min``/``range_max`` at its
+``Homing_Offset``, in the motor's actual ticks. The drift is the shift of the middle of the range (LeRobot's
+DEGREES zero): ``((found_lo − stored_lo) + (found_hi − stored_hi)) / 2``; its uncertainty combines half the
+disagreement of the two ends (a span that changed is not an offset) with one encoder count (a full-turn range,
+LeRobot's ``wrist_roll``, is not its stops: only its middle is compared, ± one count). A joint whose ``|drift|``
+exceeds the tolerance is flagged.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from ...backends.servo_bus import ServoBus
+from ...core.gravity import GravityModel
+from ...core.lerobot import MotorCalibration, RobotSpec
+from ...core.profile_auto import AutoJoint, AutoSection
+from ...errors import UsageError
+from ..autocal.job import run_autocal, select_joints
+from ..autocal.model import AutoCalFailedError, AutoCalResult, AutoView, Clock, ConfirmStart, JointCaps
+from .auto import HOST_LOSS, MAX_LAG_DEG, WATCHDOG_S, _stop_pair, prepare_search, snapshot_registers
+from .files import read_calibration_file
+from .guard import arm_guard, limp_arm
+
+__all__ = [
+    "DEFAULT_TOLERANCE_DEG",
+    "JointDrift",
+    "VerifyRequest",
+    "VerifyResult",
+    "check_stored",
+    "joint_drift",
+    "stored_stops_ticks",
+    "verify_calibration",
+]
+
+DEFAULT_TOLERANCE_DEG = 2.0
+"""``--tolerance-deg``: above the stop search's reproducibility (a few counts, 0.1-0.3° on the simulated SO-101)
+and a hand calibration's scatter of its range's middle, below where a zero error shows at the gripper (2° on a
+shoulder joint of a 30 cm arm moves the gripper ~1 cm)."""
+
+
+@dataclass(frozen=True)
+class JointDrift:
+    """How far one joint's stored calibration has drifted from its stops.
+
+    Attributes:
+        name: Joint (motor) name.
+        drift_deg: Where the middle of the stops is now minus where the stored calibration has it, in the motor's
+            actual ticks as degrees (positive: with the stored calibration, the joint now reads more at the same
+            physical place than when it was calibrated).
+        uncertainty_deg: The measurement's uncertainty (±), degrees.
+        lower_deg: The lower stop's shift, degrees (NaN for a full-turn range: its ends are not stops).
+        upper_deg: The upper stop's shift, degrees (NaN likewise).
+        flagged: ``|drift_deg|`` is above the tolerance.
+    """
+
+    name: str
+    drift_deg: float
+    uncertainty_deg: float
+    lower_deg: float
+    upper_deg: float
+    flagged: bool
+
+
+@dataclass(frozen=True)
+class VerifyRequest:
+    """One ``--auto --verify`` run.
+
+    Attributes:
+        spec: The arm.
+        section: Its profile's ``auto_calibration`` section.
+        path: The stored calibration (LeRobot's JSON) to verify.
+        joints: Subset to search (``--joints``).
+        tolerance_deg: Drift above which a joint is flagged, degrees.
+        period_s: Control period.
+        max_lag_deg: The most the goal leads the joint (default: the vendor's).
+        gravity_model: The arm's gravity model (as for ``--auto``; the stored stops were corrected with it).
+        snapshot_port: Keep the register snapshot under this port's name until the run ends (None: a simulator).
+    """
+
+    spec: RobotSpec
+    section: AutoSection
+    path: str | os.PathLike[str]
+    joints: Sequence[str] | None = None
+    tolerance_deg: float = DEFAULT_TOLERANCE_DEG
+    period_s: float = 0.01
+    max_lag_deg: float | None = None
+    gravity_model: GravityModel | None = None
+    snapshot_port: str | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.tolerance_deg) and self.tolerance_deg > 0):
+            raise UsageError(
+                f"--tolerance-deg: expected a positive number of degrees, got {self.tolerance_deg!r}"
+            )
+
+
+@dataclass(frozen=True)
+class VerifyResult:
+    """What ``--verify`` measured.
+
+    Attributes:
+        joints: Per searched joint, its drift (in the profile's search order).
+        auto: The stop searches.
+        tolerance_deg: The tolerance used.
+        search_s: Time the searches took on the run's clock, s.
+        wall_s: Wall time of the whole run, s.
+    """
+
+    joints: tuple[JointDrift, ...]
+    auto: AutoCalResult
+    tolerance_deg: float
+    search_s: float
+    wall_s: float
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every joint is within the tolerance, else 1."""
+        return 1 if any(j.flagged for j in self.joints) else 0
+
+
+def stored_stops_ticks(spec: RobotSpec, cal: MotorCalibration, resolution: int) -> tuple[float, float]:
+    """Where a stored calibration has a motor's two range ends, in its actual ticks (modulo a turn)."""
+    rule = spec.homing
+    sign = -1 if (spec.vendor_spec.drive_mode_in_hardware and cal.drive_mode) else 1
+    a = sign * (cal.range_min - rule.offset_sign * cal.homing_offset)
+    b = sign * (cal.range_max - rule.offset_sign * cal.homing_offset)
+    return float(min(a, b)), float(max(a, b))
+
+
+def _wrapped(delta_ticks: float, resolution: int) -> float:
+    half = resolution / 2
+    return (delta_ticks + half) % resolution - half
+
+
+def joint_drift(
+    name: str,
+    found_rad: tuple[float, float],
+    stored_ticks: tuple[float, float],
+    resolution: int,
+    tolerance_deg: float,
+) -> JointDrift:
+    """The drift of one joint from its found stops (driver frame, rad) and its stored ends (actual ticks)."""
+    per_deg = resolution / 360.0
+    lo_t, hi_t = (q * resolution / (2 * math.pi) for q in found_rad)
+    d_lo = _wrapped(lo_t - stored_ticks[0], resolution) / per_deg
+    d_hi = _wrapped(hi_t - stored_ticks[1], resolution) / per_deg
+    drift = 0.5 * (d_lo + d_hi)
+    count = 360.0 / resolution
+    full_turn = stored_ticks[1] - stored_ticks[0] >= resolution - 1
+    # a full-turn range (LeRobot's wrist_roll) is not the stops: only its middle is (the homing centred on them)
+    if full_turn:
+        return JointDrift(name, drift, count, math.nan, math.nan, abs(drift) > tolerance_deg)
+    uncertainty = math.hypot(0.5 * (d_hi - d_lo), count)
+    return JointDrift(name, drift, uncertainty, d_lo, d_hi, abs(drift) > tolerance_deg)
+
+
+def check_stored(request: VerifyRequest) -> tuple[dict[str, MotorCalibration], list[AutoJoint], list[str]]:
+    """The stored calibration, the joints in order and the searched ones (checked before anything opens).
+
+    Raises:
+        UsageError: No file, a joint it lacks, no joint with stops.
+        FileFormatError: A file that is not LeRobot's calibration JSON.
+    """
+    r = request
+    if not os.path.isfile(r.path):
+        raise UsageError(f"no stored calibration at {os.fspath(r.path)} to verify (calibrate first)")
+    stored = read_calibration_file(Path(r.path))
+    order = list(select_joints(r.section, r.joints, movable_only=True))
+    searched = [j.name for j in order if j.searched]
+    if not searched:
+        raise UsageError("no joint to verify: the chosen joints have no hard stops in the profile")
+    lacking = [n for n in searched if n not in stored]
+    if lacking:
+        raise UsageError(f"calibration {os.fspath(r.path)} has no entry for motor(s) {', '.join(lacking)}")
+    return stored, order, searched
+
+
+def verify_calibration(
+    bus: ServoBus,
+    request: VerifyRequest,
+    *,
+    clock: Clock,
+    confirm_start: ConfirmStart | None = None,
+    view: AutoView | None = None,
+    on_status: Callable[[str], None] | None = None,
+) -> VerifyResult:
+    """Search the stops again, write every changed register back, and measure each joint's drift.
+
+    Args:
+        bus: The arm's bus.
+        request: The arm, the stored calibration, the joints and the tolerance.
+        clock: The control loop's clock.
+        confirm_start: Asked before anything moves.
+        view: Live view of the searches.
+        on_status: One-line status while the snapshot is written back.
+
+    Returns:
+        Per joint the drift and its uncertainty, the searches.
+
+    Raises:
+        UsageError: No stored calibration, a joint it lacks, not confirmed (nothing moved).
+        AutoCalFailedError: A joint's search failed (registers written back; exit 3).
+        AutoCalAbortedError: A device fault (every motor limp, registers written back; exit 3).
+        KeyboardInterrupt: Ctrl-C, after every motor went limp and the registers were written back.
+    """
+    wall0 = time.monotonic()
+    r = request
+    spec, section = r.spec, r.section
+    stored, order, searched = check_stored(r)
+    caps = JointCaps(order, HOST_LOSS.get(spec.vendor, ""))
+    if confirm_start is not None and not confirm_start(tuple(searched), caps):
+        raise UsageError("not confirmed: nothing moved, nothing written")
+    lag = math.radians(r.max_lag_deg if r.max_lag_deg is not None else MAX_LAG_DEG[spec.vendor])
+    ids = {m.name: m.motor_id for m in spec.motors}
+    before = snapshot_registers(bus, spec, searched)
+    t0 = clock.now()
+    guard = arm_guard(
+        bus,
+        spec,
+        command="lerobot calibrate --auto --verify",
+        on_status=on_status,
+        snapshot_port=r.snapshot_port,
+    )
+    with guard:  # limp + restore on any signal or fault; at the end the snapshot is written back in any case
+        guard.snapshot(before, robot=spec.name, ids=ids)
+        drivers = prepare_search(bus, spec, section, searched, clock, r.period_s)
+        arm = getattr(bus, "arm_watchdog", None)
+        if arm is not None:
+            arm([ids[n] for n in searched], WATCHDOG_S)
+        auto = run_autocal(
+            drivers,
+            section,
+            {},
+            joints=[j.name for j in order],
+            max_lag_rad=lag,
+            view=view,
+            clock=clock,
+            gravity_model=r.gravity_model,
+        )
+        limp_arm(bus, spec)
+        report = guard.restore_now()
+    search_s = clock.now() - t0
+    if auto.failed:
+        done = report.summary() if report is not None else "nothing to restore"
+        raise AutoCalFailedError(
+            f"verification failed for {auto.failure_summary()}; nothing was written, {done}", auto
+        )
+    drifts = _drifts(bus, spec, section, auto, stored, r.tolerance_deg)
+    return VerifyResult(drifts, auto, r.tolerance_deg, search_s, time.monotonic() - wall0)
+
+
+def _drifts(
+    bus: ServoBus,
+    spec: RobotSpec,
+    section: AutoSection,
+    auto: AutoCalResult,
+    stored: Mapping[str, MotorCalibration],
+    tolerance_deg: float,
+) -> tuple[JointDrift, ...]:
+    ids = {m.name: m.motor_id for m in spec.motors}
+    out = []
+    for o in auto.joints:
+        if not o.ok or o.name not in stored:
+            continue
+        res = bus.resolution(ids[o.name])
+        found = _stop_pair(section, o.stops)
+        out.append(
+            joint_drift(o.name, found, stored_stops_ticks(spec, stored[o.name], res), res, tolerance_deg)
+        )
+    return tuple(out)
