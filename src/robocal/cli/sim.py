@@ -137,14 +137,21 @@ def lite(
     noise: float = typer.Option(
         3e-4, "--noise", help="Encoder noise (standard deviation), rad (as sim:lite)."
     ),
+    physics: bool = typer.Option(
+        True,
+        "--physics/--no-physics",
+        help="Joint physics in real time (MIT commands move the joints into their hard stops: sweep --auto finds "
+        "them), as sim:lite's; --no-physics: the joints move only by hand (control socket).",
+    ),
     control: str | None = ControlOpt,
     view: bool | None = ViewOpt,
 ) -> None:
     """Serve the simulated Lite's 14 Robstride motors on a CAN interface other processes share, until Ctrl-C."""
     chans = _common.parse_csv_list(channel or None, "--channel")
     with serve_lite(
-        interface=interface, channels=chans, seed=seed, noise_rad=noise, control=control, port=port
-    ) as device:
+        interface=interface, channels=chans, seed=seed, noise_rad=noise, control=control, port=port,
+        physics=physics,
+    ) as device:  # fmt: skip
         _serve(device, view)
 
 

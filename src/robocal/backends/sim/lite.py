@@ -11,13 +11,15 @@ sweep runs as fast as the CAN round trips allow.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import os
 import threading
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +27,10 @@ from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from ..robstride.protocol import CommType
 from ..robstride.sim import SimMotor, SimMotorBus
+from .lite_physics import RealtimePacer, lite_plant_params
 from .operator import JointView
+from .physics import SimClock
+from .scenarios import Scenario, make_plant
 
 __all__ = ["LITE_JOINTS", "LiteHands", "LiteJoint", "SimLite", "SimOperator", "lite_urdf_text"]
 
@@ -166,6 +171,10 @@ class SimLite(StartsOnEnter):
         interface: python-can interface of the two buses (``virtual`` by default; ``socketcan`` or
             ``udp_multicast`` to serve other processes, see ``robocal sim lite``).
         channels: The channel of ``can0`` and ``can1`` (required with any interface but ``virtual``).
+        physics_cap_nm: Give every joint the physics of ``sim:lite``'s ``--auto`` (a
+            :class:`~.physics.JointPlant` its MIT commands move, :mod:`.lite_physics`), in real time: joint → the
+            search torque the plant's friction is scaled to (joints not named: 1 N·m). None: no plant, the joints
+            move only by hand (the operator-driven Lite of the hand sweep).
     """
 
     def __init__(
@@ -185,6 +194,7 @@ class SimLite(StartsOnEnter):
         short_rad: Mapping[str, float] | None = None,
         interface: str = "virtual",
         channels: Mapping[str, str] | None = None,
+        physics_cap_nm: Mapping[str, float] | None = None,
     ) -> None:
         self.seed = seed
         self.dt_s = dt_s
@@ -201,6 +211,8 @@ class SimLite(StartsOnEnter):
         shifts = dict(stop_shift_rad or {})
         zeros = dict(factory_zero_rad or {})
         self.joints = LITE_JOINTS
+        # real time: the clock starts at the monotonic clock, so its times (last_rx_s, watchdog trips) compare with it
+        self.clock: SimClock | None = SimClock(time.monotonic()) if physics_cap_nm is not None else None
         self.motors: dict[str, SimMotor] = {}
         self.hand_rad: dict[str, float] = {}
         for j in LITE_JOINTS:
@@ -208,6 +220,16 @@ class SimLite(StartsOnEnter):
             margin = min(0.6, 0.25 * (j.upper - j.lower))
             q0 = float(rng.uniform(j.lower + margin, j.upper - margin))
             dlo, dup = shifts.get(j.name, (0.0, 0.0))
+            physics: dict[str, Any] = {}
+            if physics_cap_nm is not None:  # the plant holds the joint at its stops; the encoder noise is its own
+                cap = physics_cap_nm.get(j.name, 1.0)
+                nominal = lite_plant_params(j.model, j.lower + dlo, j.upper + dup, cap)
+                physics = {
+                    "plant": make_plant(Scenario(), nominal, search_torque_nm=cap, seed=seed * 1000 + j.can_id,
+                                        q0_rad=q0),
+                    "clock": self.clock,
+                    "latency_s": 0.0,  # the pacer moves the clock with the wall clock
+                }  # fmt: skip
             self.motors[j.name] = SimMotor(
                 can_id=j.can_id,
                 model=j.model,
@@ -215,11 +237,12 @@ class SimLite(StartsOnEnter):
                 factory_zero_rad=zeros.get(j.name, fz),
                 stop_lower_rad=j.lower + dlo,
                 stop_upper_rad=j.upper + dup,
-                noise_rad=noise_rad,
+                noise_rad=0.0 if physics else noise_rad,
                 zero_sta=zero_sta,
                 single_turn=single_turn,
                 q_rad=q0,
                 seed=seed * 1000 + j.can_id,
+                **physics,
             )
         silent_ids = {self.motors[n].can_id for n in silent}
         self.buses = {
@@ -232,9 +255,17 @@ class SimLite(StartsOnEnter):
             for bus, ch in self.channels.items()
         }
         self.operator = SimOperator(self, skip=skip, short_rad=short_rad)
+        self.pacer: RealtimePacer | None = None
+        if self.clock is not None:
+            self.pacer = RealtimePacer(self.clock, self.motors.values(), self._both_locks)
+
+    @contextlib.contextmanager
+    def _both_locks(self) -> Iterator[None]:
+        with self.buses["can0"].lock, self.buses["can1"].lock:
+            yield
 
     def start(self) -> SimLite:
-        """Start answering on both channels (both or neither: a failure closes the first)."""
+        """Start answering on both channels (both or neither: a failure closes the first); with physics, pace."""
         started: list[SimMotorBus] = []
         try:
             for b in self.buses.values():
@@ -244,10 +275,14 @@ class SimLite(StartsOnEnter):
             for b in started:
                 b.stop()
             raise
+        if self.pacer is not None:
+            self.pacer.start()
         return self
 
     def stop(self) -> None:
-        """Stop both channels."""
+        """Stop pacing and both channels."""
+        if self.pacer is not None:
+            self.pacer.stop()
         for b in self.buses.values():
             b.stop()
 

@@ -13,7 +13,6 @@ with a ``missing`` upper stop, a mid-travel ``obstacle``, a cable ``snag``, ``so
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,9 +59,6 @@ def fault_scenario(joint: str, faults: Mapping[str, Collection[str]]) -> Scenari
         silent_at_stop=joint in faults["silent"],
         stiction_ratio=0.8 if joint in faults["stiction"] else 0.0,
     )
-
-
-_INERTIA = {"rs-02": 0.05, "rs-00": 0.03, "rs-05": 0.005}
 
 
 @dataclass
@@ -120,7 +116,8 @@ def open_sim_lite(
     from ...backends.robstride.bus import DEFAULT_TIMEOUT_S as HARDWARE_TIMEOUT_S
     from ...backends.robstride.sim import SimMotor, SimMotorBus
     from ...backends.sim.lite import LITE_JOINTS
-    from ...backends.sim.physics import PlantParams, SimClock, make_plant
+    from ...backends.sim.lite_physics import lite_plant_params
+    from ...backends.sim.physics import SimClock, make_plant
 
     table = {j.name: j for j in LITE_JOINTS}
     names = {j.name for j in joints}
@@ -150,18 +147,7 @@ def open_sim_lite(
         fz = float(rng.uniform(-1.0, 1.0))
         margin = min(0.6, 0.25 * (j.upper - j.lower))
         q0 = float(rng.uniform(j.lower + margin, j.upper - margin))
-        nominal = PlantParams(
-            inertia_kgm2=_INERTIA.get(j.model, 0.02),
-            coulomb_nm=0.03 * cap,
-            stiction_nm=0.05 * cap,
-            viscous_nms_rad=0.02 * cap,
-            stop_lower_rad=j.lower,
-            stop_upper_rad=j.upper,
-            stiffness_lower=600.0,
-            stiffness_upper=600.0,
-            counts_per_rev=16384,
-            noise_rad=math.radians(0.01),
-        )
+        nominal = lite_plant_params(j.model, j.lower, j.upper, cap)  # as the standalone Lite's
         scen = fault_scenario(j.name, faults)
         plant = make_plant(scen, nominal, search_torque_nm=cap, seed=seed * 1000 + j.can_id, q0_rad=q0)
         motors[j.name] = SimMotor(

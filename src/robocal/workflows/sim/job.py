@@ -164,6 +164,16 @@ def serve_arm(
         )
 
 
+def lite_search_caps_nm() -> dict[str, float]:
+    """Joint → the search torque of the shipped ``bhl_arms`` profile (the standalone Lite's friction scale)."""
+    from ...formats.profiles import load_profile
+
+    auto = load_profile("bhl_arms").auto
+    if auto is None:  # pragma: no cover - the shipped profile has its auto section
+        return {}
+    return {j.name: j.torque_cap_nm for j in auto.joints}
+
+
 @contextlib.contextmanager
 def serve_lite(
     *,
@@ -173,8 +183,13 @@ def serve_lite(
     noise_rad: float = 3e-4,
     control: str | None = None,
     port: int | None = None,
+    physics: bool = True,
 ) -> Iterator[ServedDevice]:
     """Serve the simulated Lite's 14 Robstride motors on CAN interfaces other processes share.
+
+    With ``physics`` (the default) every joint has the plant of ``sim:lite``'s ``--auto``, in real time: MIT
+    commands move it into its hard stops, so ``robocal sweep --auto`` against it finds them; the friction is scaled
+    to the shipped ``bhl_arms`` profile's search torques. Without, the joints move only by hand (control socket).
 
     Args:
         interface: ``socketcand`` (a socketcand server on loopback TCP: needs nothing from the kernel),
@@ -186,6 +201,7 @@ def serve_lite(
         noise_rad: Encoder noise (standard deviation), rad.
         control: Control socket path.
         port: socketcand's TCP port on 127.0.0.1 (default :data:`SOCKETCAND_PORT`; 0: any free port).
+        physics: Joint physics in real time (see above).
 
     Raises:
         UsageError: Unknown interface, not two different channels, a missing vcan interface, bad noise, a port
@@ -216,11 +232,12 @@ def serve_lite(
     if not (noise_rad >= 0 and noise_rad < 1):
         raise UsageError(f"--noise {noise_rad}: expected 0 ≤ noise < 1 rad")
     extra: tuple[str, ...] = ()
+    caps = lite_search_caps_nm() if physics else None
     with contextlib.ExitStack() as stack:
         if interface == "socketcand":
             from ...backends.sim.socketcand import SocketcandServer
 
-            robot = SimLite(seed, noise_rad=noise_rad)  # on in-process virtual channels, bridged over TCP
+            robot = SimLite(seed, noise_rad=noise_rad, physics_cap_nm=caps)  # in-process channels, bridged over TCP
             server = SocketcandServer(
                 {chans[0]: robot.channels["can0"], chans[1]: robot.channels["can1"]},
                 port=SOCKETCAND_PORT if port is None else port,
@@ -234,8 +251,9 @@ def serve_lite(
             )
         else:
             robot = SimLite(
-                seed, noise_rad=noise_rad, interface=interface, channels={"can0": chans[0], "can1": chans[1]}
-            )
+                seed, noise_rad=noise_rad, interface=interface, channels={"can0": chans[0], "can1": chans[1]},
+                physics_cap_nm=caps,
+            )  # fmt: skip
             where, source = "", f"can:{interface}:{chans[0]},{chans[1]}"
         stack.enter_context(robot)
         if interface == "socketcand":
@@ -246,7 +264,9 @@ def serve_lite(
             f"channels: can0={chans[0]} (ids 11-17), can1={chans[1]} (ids 21-27) on {interface} {where}".rstrip(),
             *extra,
             f"control: {session.control_path}",
-            "simulated Lite (14 Robstride motors); Ctrl-C stops it",
+            "simulated Lite (14 Robstride motors"
+            + ("; joint physics in real time: sweep --auto finds its stops" if physics else "; joints move by hand")
+            + "); Ctrl-C stops it",
         )
         yield ServedDevice(f"Lite on {interface}", lines, session.operator)
 
