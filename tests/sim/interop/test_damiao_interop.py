@@ -17,7 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import HARNESS
+from robocal.backends.sim.control import SimControl
+
+from .conftest import HARNESS, SimProcess
 
 pytestmark = [pytest.mark.interop, pytest.mark.timeout(300)]
 
@@ -137,3 +139,40 @@ def test_lerobots_bus_reaches_the_simulator_over_the_socketcand_loopback(
         assert deg == pytest.approx(truth[name], abs=TOL_DEG), name
     assert enabled == dict.fromkeys(truth, False)  # disconnect() disabled them
     assert arm.motors["joint_1"].requests["enable"] == 1 and arm.motors["joint_1"].requests["refresh"] >= 1
+
+
+@pytest.mark.slow
+def test_openarm_follower_reads_robocal_sim_openarm_in_another_process(
+    lerobot_python: Path, tmp_path: Path, sim_process: type[SimProcess]
+) -> None:
+    """``robocal sim openarm`` as the device, LeRobot's ``OpenArmFollower`` (with a calibration file) as the client
+    over socketcand, the truth from the simulator's control socket: the path a calibration written by another
+    process (robocal's) is checked on, since the motors' zeros live as long as the simulator."""
+    sim = sim_process(["openarm", "--port", "0", "--zeroed", "--side", "left", "--seed", "2"])
+    host, port = sim.info["socketcand"].rsplit(":", 1)
+    cal_dir = tmp_path / "cal"
+    cal_dir.mkdir()
+    names = ["joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6", "joint_7", "gripper"]
+    entries = {
+        n: {"id": i, "drive_mode": 0, "homing_offset": 0, "range_min": -90, "range_max": 90}
+        for i, n in enumerate(names, start=1)
+    }
+    (cal_dir / "left.json").write_text(json.dumps(entries, indent=4))
+    with SimControl(sim.info["control"]) as control:
+        control.move("openarm_left_joint3", to=math.radians(30.0))
+        truth = {state["motor"]: math.degrees(state["position"]) for state in control.state().values()}
+    r = run_damiao(
+        lerobot_python,
+        tmp_path,
+        "remote_follower",
+        env={"CAN_CONFIG": json.dumps({"host": host, "port": int(port)})},
+        channel="can1",
+        cal_dir=str(cal_dir),
+        id="left",
+        side="left",
+        reads=10,
+    )
+    assert set(r["obs_deg"]) == set(names)
+    assert truth["joint_3"] == pytest.approx(30.0, abs=0.6)  # the hand let go; J3 carries no gravity
+    for name in names:
+        assert r["obs_deg"][name] == pytest.approx(truth[name], abs=TOL_DEG + 0.01), name

@@ -106,6 +106,26 @@ def remote_action(a):
     return {"read_deg": {n: float(v) for n, v in positions.items()}}
 
 
+def remote_follower_action(a):
+    """OpenArmFollower on python-can's socketcand interface (``robocal sim openarm``; address from ``CAN_CONFIG``):
+    connect with the calibration file in ``cal_dir`` (or LeRobot's own procedure without one), observe, disconnect."""
+    from lerobot.robots.openarm_follower import OpenArmFollower, OpenArmFollowerConfig
+
+    config = OpenArmFollowerConfig(
+        port=a["channel"],
+        id=a["id"],
+        calibration_dir=pathlib.Path(a["cal_dir"]),
+        can_interface="socketcand",
+        side=a.get("side"),
+    )
+    robot = OpenArmFollower(config)
+    robot.connect()
+    for _ in range(a.get("reads", READS)):
+        obs = robot.get_observation()
+    robot.disconnect()
+    return {"obs_deg": {k[: -len(".pos")]: float(v) for k, v in obs.items() if k.endswith(".pos")}}
+
+
 def follower_action(a):
     """OpenArmFollower: connect (calibrating with LeRobot's own procedure when no file is there), observe."""
     from lerobot.robots.openarm_follower import OpenArmFollower, OpenArmFollowerConfig
@@ -139,7 +159,12 @@ def follower_action(a):
 def main():
     action, a = sys.argv[1], json.loads(sys.argv[2])
     sys.setswitchinterval(0.0005)  # LeRobot waits 1 ms for a reply; let the simulator's thread answer in time
-    actions = {"bus": bus_action, "follower": follower_action, "remote": remote_action}
+    actions = {
+        "bus": bus_action,
+        "follower": follower_action,
+        "remote": remote_action,
+        "remote_follower": remote_follower_action,
+    }
     if action not in actions:
         raise SystemExit(f"unknown action {action}")
     print("RESULT " + json.dumps(actions[action](a)), flush=True)
