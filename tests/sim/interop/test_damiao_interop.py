@@ -55,6 +55,14 @@ def test_lerobots_bus_enables_reads_zeros_moves_and_disables_the_simulated_arm(
     r = run_damiao(lerobot_python, tmp_path, "bus", zeroed=True, seed=2)
     names = ["joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6", "joint_7", "gripper"]
     assert r["enabled_after_connect"] == dict.fromkeys(names, True)  # its handshake is the enable frame
+    # LeRobot's handshake decodes the frame it sent (FF…FC), not the reply: until the first read every motor
+    # "is" at +PMAX (716.2°), +VMAX, +TMAX, 255/252 °C (docs/damiao.md; the reference's known bug 3)
+    gripper = r["cache_after_connect"]["gripper"]
+    assert gripper == pytest.approx(
+        {"position": math.degrees(12.5), "velocity": math.degrees(30.0), "torque": 10.0, "temp_mos": 255.0,
+         "temp_rotor": 252.0}
+    )  # fmt: skip
+    assert r["cache_after_connect"]["joint_1"]["velocity"] == pytest.approx(math.degrees(45.0))
     for name in names:
         assert r["read_deg"][name] == pytest.approx(r["motor_deg"][name], abs=TOL_DEG), name
         assert r["motor_deg"][name] == pytest.approx(r["joint_deg"][name], abs=1e-9), name  # a zeroed arm

@@ -58,6 +58,7 @@ def bus_action(a):
     with _arm(a) as arm:
         bus = DamiaoMotorsBus(port=a["channel"], motors=_motors(), can_interface="virtual", use_can_fd=True)
         bus.connect()
+        result["cache_after_connect"] = {n: dict(v) for n, v in bus._last_known_states.items()}
         arm.bus.settle()
         result["enabled_after_connect"] = {n: m.enabled for n, m in arm.motors.items()}
         for _ in range(READS):
