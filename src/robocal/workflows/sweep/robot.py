@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ...backends.robstride.joint_driver import WATCHDOG_S, RobstrideWatchdogError
 from ...backends.robstride.protocol import model_limits
 from ...backends.sources import RobstrideSource, open_source, parse_source
 from ...core.arrays import FloatArray
@@ -80,6 +81,7 @@ class CalibratedRobot(ClosesOnExit):
         self._index = {name: i for i, name in enumerate(self.joint_names)}
         self._held: list[dict[str, tuple[float, float, float, float, float]]] | None = None  # per bus
         self._enabled = False
+        self._watchdog_before: dict[tuple[int, str], float] = {}  # (bus, motor) → canTimeout before enable, s
         # per-tick constants, computed once: which array slot each bus's motor fills, and the gain limits
         self._bus_slots = [[(name, self._index[name]) for name in bus.motors] for bus in source.buses]
         limits = {
@@ -145,7 +147,10 @@ class CalibratedRobot(ClosesOnExit):
         pos, vel, eff = [math.nan] * n, [math.nan] * n, [math.nan] * n  # lists: cheaper to fill than arrays
         index = self._index
         for bus, cmds in zip(self.source.buses, commands, strict=True):
-            for name, fb in bus.mit_many(cmds).items():
+            feedback = bus.mit_many(cmds)
+            if self._enabled:
+                self._check_run_mode(feedback)
+            for name, fb in feedback.items():
                 i = index[name]
                 pos[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
         return self._state_to_joint(np.array((pos, vel, eff)))
@@ -229,22 +234,55 @@ class CalibratedRobot(ClosesOnExit):
         self._held = commands
         return self._send(self._held)
 
-    def enable(self) -> JointState:
-        """Enable every motor (type 3) so that :meth:`write` targets act; returns the replies' state.
+    def enable(self, watchdog_s: float = WATCHDOG_S) -> JointState:
+        """Arm every motor's host-loss watchdog, then enable it (type 3) so that :meth:`write` targets act.
 
         Read once first (the branch selection needs it); the motors then hold the targets of the next
-        :meth:`write` — until then they are sent the passive zero-torque frame.
+        :meth:`write` — until then they are sent the passive zero-torque frame. Each motor's ``canTimeout`` is set
+        to ``watchdog_s`` first (as ``sweep --auto`` does; 0: left as it is): a motor that hears no frame for that
+        long (the program stopped calling :meth:`read`/:meth:`write`, was killed, the cable went) enters reset
+        mode on its own. :meth:`disable` (and :meth:`close`) put the previous ``canTimeout`` back.
+
+        Returns:
+            The replies' state.
         """
+        if watchdog_s > 0:
+            for bus in self.source.buses:
+                for name in bus.motors:
+                    if (id(bus), name) not in self._watchdog_before:
+                        self._watchdog_before[(id(bus), name)] = bus.arm_watchdog(name, watchdog_s)
         state = self._each_motor(lambda bus, name: bus.enable(name))
         self._enabled = True
         return state
 
     def disable(self) -> JointState:
-        """Stop every motor (type 4, reset mode): torque off. Called by :meth:`close` after :meth:`enable`."""
+        """Stop every motor (type 4, reset mode): torque off; the watchdogs back as they were before :meth:`enable`.
+
+        Called by :meth:`close` after :meth:`enable`.
+        """
         self._held = None
-        state = self._each_motor(lambda bus, name: bus.stop(name))
-        self._enabled = False
+        try:
+            state = self._each_motor(lambda bus, name: bus.stop(name))
+            self._enabled = False
+        finally:
+            for bus in self.source.buses:
+                for name in bus.motors:
+                    before = self._watchdog_before.pop((id(bus), name), None)
+                    if before is not None:
+                        with contextlib.suppress(CalibError):  # every motor gets its chance
+                            bus.disarm_watchdog(name, before)
         return state
+
+    def _check_run_mode(self, feedback: dict[str, Any]) -> None:
+        """While enabled, a motor whose reply says it left run mode was stopped by its watchdog (or reset)."""
+        left = sorted(name for name, fb in feedback.items() if getattr(fb, "mode", 2) != 2)
+        if left:
+            self._held = None
+            raise RobstrideWatchdogError(
+                f"robot: {', '.join(left)} left run mode on its own: the CAN timeout stopped them because no "
+                "frame reached them in time (the program paused between reads/writes longer than the watchdog "
+                "time, or the bus dropped frames); enable again to go on"
+            )
 
     def _each_motor(self, call: Callable[[Any, str], Any]) -> JointState:
         n = len(self.joint_names)
@@ -257,9 +295,9 @@ class CalibratedRobot(ClosesOnExit):
         return self._to_state(raw, vel, eff)
 
     def close(self) -> None:
-        """Stop the motors if this object enabled them, then close the buses."""
+        """Stop the motors if this object enabled them (their watchdogs put back), then close the buses."""
         try:
-            if self._enabled:
+            if self._enabled or self._watchdog_before:
                 with contextlib.suppress(CalibError):
                     self.disable()
         finally:
