@@ -101,6 +101,14 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
             continue
         joints = rep["joints"]
         flagged = [n for n, j in joints.items() if j["status"] in ("offset", "suspect")]
+        for name, j in joints.items():
+            if j.get("sag_follower_ci_deg") is None:
+                continue
+            own = f.offset_deg if f.offset_joint == name and f.offset_arm == "follower" else 0.0
+            lo, hi = j["sag_follower_ci_deg"]
+            sag_key = f"{name}, follower offset {abs(own):g}°"
+            score["sag"][sag_key][1] += 1
+            score["sag"][sag_key][0] += lo <= own <= hi
         if f.offset_joint is not None:
             t = truth["joints"][f.offset_joint]
             o = t["offset_deg"]
@@ -128,8 +136,11 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
                 jp["episode"] == f.slip_episode and abs(jp["frame"] - f.slip_frame) <= 2 for jp in jumps
             )
         elif f.clip_joint is not None:
-            score["clip"][1] += 1
-            score["clip"][0] += joints[f.clip_joint]["status"] == "suspect"
+            t = truth["joints"][f.clip_joint]
+            gap = t["approach_hi_deg"] if f.clip_end == "hi" else t["approach_lo_deg"]
+            key = "clip" if gap is not None and gap < f.clip_short_deg - 1.0 else "clip_unseen"
+            score[key][1] += 1
+            score[key][0] += joints[f.clip_joint]["status"] == "suspect"
         elif f.flip_joint is not None:
             score["flip"][1] += 1
             score["flip"][0] += joints[f.flip_joint]["status"] == "suspect"
@@ -163,7 +174,10 @@ def print_score(robot: str, score: dict[str, Any]) -> None:
         f"\nfault-free sessions flagged (false alarms): {_rate(hit, n)}; by joint: {dict(score['clean_joint'])}"
     )
     print(f"slips located to their episode and frame (±2): {_rate(*score['slip'])}")
-    print(f"clipped values flagged suspect: {_rate(*score['clip'])}")
+    print(f"clipped values flagged suspect, the leader past the clipped value: {_rate(*score['clip'])}; "
+          f"never past it: {_rate(*score['clip_unseen'])}")
+    for key, (hit, n) in sorted(score["sag"].items()):
+        print(f"sag-pattern fit (informational), {key}: interval holds the follower's own offset {_rate(hit, n)}")
     print(f"mirrored signs flagged suspect: {_rate(*score['flip'])}")
     print(f"datasets refused: {score['errors']}")
 

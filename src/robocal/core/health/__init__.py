@@ -7,7 +7,7 @@ beside them. Importable with numpy alone (a control loop imports it); the monito
 
 from __future__ import annotations
 
-from .model import feetech_kp_nm_rad, model_band, sag_residual_deg
+from .model import feetech_kp_nm_rad, model_band, sag_offset_fit, sag_residual_deg
 from .monitor import Monitor
 from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
 from .offsets import (
@@ -17,6 +17,7 @@ from .offsets import (
     JointHealth,
     JumpEvent,
     analyse_joint,
+    drift_reason,
     episode_verdicts,
 )
 
@@ -31,9 +32,11 @@ __all__ = [
     "Monitor",
     "MonitorConfig",
     "analyse_joint",
+    "drift_reason",
     "episode_verdicts",
     "feetech_kp_nm_rad",
     "model_band",
     "monitor_config",
+    "sag_offset_fit",
     "sag_residual_deg",
 ]

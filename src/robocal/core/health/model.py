@@ -22,10 +22,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..arrays import FloatArray
+from ..arrays import BoolArray, FloatArray, IntArray
 from ..gravity import GravityModel, gravity_torques
 
-__all__ = ["feetech_kp_nm_rad", "model_band", "sag_residual_deg"]
+__all__ = ["feetech_kp_nm_rad", "model_band", "sag_offset_fit", "sag_residual_deg"]
 
 
 def feetech_kp_nm_rad(p_coefficient: int, stall_torque_nm: float, ticks_per_turn: int = 4096) -> float:
@@ -73,3 +73,53 @@ def model_band(residual: FloatArray, floor: float) -> float:
     med = float(np.median(residual))
     mad = float(np.median(np.abs(residual - med)))
     return max(floor, 4.0 * 1.4826 * mad)
+
+
+def sag_offset_fit(
+    residual: FloatArray, slope: FloatArray, episode: IntArray, mask: BoolArray
+) -> tuple[FloatArray, FloatArray] | None:
+    """The follower's own offsets against the gravity model's zero, from how its sag varies with pose (weak).
+
+    Sag follows the follower's *true* angles ``s − e_F``; the model evaluates it at the readings ``s``, so the
+    residual of joint ``j`` left after the model is ``Σ_k −∂sag_j/∂s_k · e_F,k``: every loaded joint's offset
+    moves every joint's sag (the shoulder's angle changes the elbow's load). A joint least-squares fit over the
+    slow frames of all the joints, with a jackknife interval over episodes (frames of one episode are not
+    independent).
+
+    Args:
+        residual: ``(N, G)`` residual after the sag model of the G loaded joints (NaN where not used), degrees.
+        slope: ``(N, G, G)`` ``∂ sag_j / ∂ angle_k`` (degrees per degree).
+        episode: ``(N,)`` episode index.
+        mask: ``(N, G)`` frames to use per joint.
+
+    Returns:
+        ``(estimates (G,), half-widths (G,) of ~95 % intervals)`` in degrees, or None (fewer than 3 episodes, or a
+        singular fit).
+    """
+    use = np.asarray(mask, dtype=bool) & np.isfinite(residual)
+    eps = np.unique(episode[use.any(axis=1)])
+    if eps.size < 3:
+        return None
+
+    def fit(rows: np.ndarray) -> FloatArray | None:
+        sel = use & rows[:, None]
+        a = -slope[sel]  # (M, G): frames × joints selected, each a row of the Jacobian
+        b = residual[sel]
+        if a.shape[0] < 10 * a.shape[1]:
+            return None
+        ata = a.T @ a
+        if np.linalg.cond(ata) > 1e8:
+            return None
+        out: FloatArray = np.linalg.solve(ata, a.T @ b)
+        return out
+
+    est = fit(np.ones(len(episode), dtype=bool))
+    if est is None:
+        return None
+    jack = [v for v in (fit(episode != e) for e in eps) if v is not None]
+    if len(jack) < 2:
+        return None
+    vals = np.stack(jack)
+    n = len(jack)
+    se = np.sqrt((n - 1) / n * np.sum((vals - vals.mean(axis=0)) ** 2, axis=0))
+    return est, 2.0 * se

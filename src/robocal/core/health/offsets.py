@@ -30,7 +30,16 @@ import numpy as np
 from ..arrays import FloatArray, IntArray
 from .model import model_band
 
-__all__ = ["EndEvidence", "HealthConfig", "JointData", "JointHealth", "JumpEvent", "analyse_joint"]
+__all__ = [
+    "EndEvidence",
+    "HealthConfig",
+    "JointData",
+    "JointHealth",
+    "JumpEvent",
+    "analyse_joint",
+    "drift_reason",
+    "episode_verdicts",
+]
 
 
 @dataclass(frozen=True)
@@ -242,9 +251,11 @@ def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndar
             return EndEvidence(name, "clipped", sgn * f_ext, sgn * a_ext, -math.inf, math.inf, len(idx), eps)
         held = int(np.sum(av[idx] >= a_ext - 0.25 * upd)) >= 5
         o = -sgn * excess
-        # the leader may have stopped short of its stop: widen towards a larger offset by what it had left
-        # (a leader that did not rest at its extreme may have turned back anywhere short of its stop)
-        slack = max(0.0, sgn * stop - a_ext) + (0.0 if held else cfg.window_deg / 3 * upd)
+        # the leader may have stopped short of its stop: unless it rested right at the stop's expected reading,
+        # widen towards a larger offset by what it had left plus a third of the window (an operator stopping
+        # short, or a leader whose own offset moves its reading)
+        at_stop = held and abs(a_ext - sgn * stop) <= 1.5 * upd
+        slack = 0.0 if at_stop else max(0.0, sgn * stop - a_ext) + cfg.window_deg / 3 * upd
         lo, hi = (o - u - slack, o + u) if sgn > 0 else (o - u, o + u + slack)
         return EndEvidence(name, "pinned", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps)
     gap = max(0.0, sgn * stop - f_ext)
@@ -356,3 +367,26 @@ def episode_verdicts(d: JointData, band: float, cfg: HealthConfig | None = None)
         status, est, ci, _ = _verdict(ends, thr, cfg.ok_limit_deg * d.units_per_deg)
         out.append({"episode": int(ep), "offset": est, "ci": ci, "status": status, "frames": int(mask.sum())})
     return out
+
+
+def drift_reason(episodes: list[dict[str, object]], band: float, cfg: HealthConfig, units_per_deg: float) -> str | None:
+    """A sentence when the episodes' own measured offsets disagree by more than twice the threshold, else None.
+
+    Only episodes that measured an offset at a range end (``offset`` or ``ok`` with a number) take part: a
+    calibration that moved during the session (a slip, a drift) shows as two episodes with different offsets.
+    """
+    thr = max(cfg.threshold_deg * units_per_deg, band + 0.5 * units_per_deg)
+    measured = [
+        (int(e["episode"]), float(e["offset"]))  # type: ignore[call-overload, arg-type]
+        for e in episodes
+        if e["status"] in ("offset", "ok") and e["offset"] is not None
+    ]
+    if len(measured) < 2:
+        return None
+    lo = min(measured, key=lambda m: m[1])
+    hi = max(measured, key=lambda m: m[1])
+    if hi[1] - lo[1] <= 2 * thr:
+        return None
+    return (
+        f"the offset changes between episodes: {lo[1]:+.2f} in episode {lo[0]}, {hi[1]:+.2f} in episode {hi[0]}"
+    )
