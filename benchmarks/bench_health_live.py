@@ -9,7 +9,9 @@ Prints:
   follows it through a position controller with sag and lag, 4096-count encoders; :func:`session`), every tick
   through one monitor on the follower (with its leader) and one on the leader: the flags raised (0 expected);
 * detection: a 2° / 5° / 17° jump in one reading, and an offset that takes the reading past its stop, at random
-  moments over seeded sessions: how often and how soon each is flagged (within 0.1 s expected).
+  moments over seeded sessions: how often and how soon each is flagged (within 0.1 s expected);
+* the smallest calibration offset the follower's load reading against the gravity model reveals
+  (``_load_floor.py``; docs/health.md).
 
 ``tests/health/test_monitor_hours.py`` runs the same session model (the 10 hours screened vectorised, the
 candidate ticks per tick).
@@ -251,6 +253,11 @@ def main(argv: list[str] | None = None) -> None:
         found, worst = detection(range(100), jump)
         missed += 100 - found
         print(f"  {jump:+5.1f}°: flagged within 0.1 s in {found}/100, slowest {worst * 1000:.0f} ms")
+    print("\nthe smallest offset the follower's load against the gravity model reveals (_load_floor.py):")
+    from _load_floor import floor_table
+
+    for line in floor_table(seeds=100, offsets_deg=(0.5, 1, 2, 5, 10, 17)):
+        print(line)
     if flags or missed:
         raise SystemExit(f"health_live: {flags} false alarms, {missed} jumps not flagged within 0.1 s")
 

@@ -14,15 +14,11 @@ from pathlib import Path
 import pytest
 
 from robocal.cli.main import main
+from robocal.core.health.drift import offset_drift, range_drift
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import auto_section, calibration_from_stops
 from robocal.workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm
-from robocal.workflows.lerobot.verify import (
-    DEFAULT_TOLERANCE_DEG,
-    VerifyRequest,
-    joint_drift,
-    verify_calibration,
-)
+from robocal.workflows.lerobot.verify import DEFAULT_TOLERANCE_DEG, VerifyRequest, verify_calibration
 
 COUNT_DEG = 360 / 4096
 
@@ -34,21 +30,21 @@ def test_drift_is_the_shift_of_the_middle_with_half_the_ends_disagreement_as_unc
     def rad(ticks: float) -> float:
         return ticks * 2 * math.pi / res
 
-    d = joint_drift("j", (rad(1023), rad(3023)), stored, res, 2.0)
+    d = range_drift("j", (rad(1023), rad(3023)), stored, res, 2.0)
     assert d.drift_deg == pytest.approx(23 * COUNT_DEG)
     assert (d.lower_deg, d.upper_deg) == (pytest.approx(23 * COUNT_DEG), pytest.approx(23 * COUNT_DEG))
     assert d.uncertainty_deg == pytest.approx(COUNT_DEG)
     assert d.flagged  # 2.02° > 2°
-    d = joint_drift("j", (rad(990), rad(3030)), stored, res, 2.0)  # the span grew by 40 counts: not an offset
+    d = range_drift("j", (rad(990), rad(3030)), stored, res, 2.0)  # the span grew by 40 counts: not an offset
     assert d.drift_deg == pytest.approx(10 * COUNT_DEG)
     assert d.uncertainty_deg == pytest.approx(math.hypot(20 * COUNT_DEG, COUNT_DEG))
     assert not d.flagged
     # a turn away (the driver's unwrapped frame): the same drift
-    assert joint_drift("j", (rad(1023 + res), rad(3023 + res)), stored, res, 2.0).drift_deg == pytest.approx(
+    assert range_drift("j", (rad(1023 + res), rad(3023 + res)), stored, res, 2.0).drift_deg == pytest.approx(
         23 * COUNT_DEG
     )
     # a full-turn range is not its stops: only its middle
-    full = joint_drift("j", (rad(113), rad(3981)), (0.0, 4095.0), res, 2.0)
+    full = range_drift("j", (rad(113), rad(3981)), (0.0, 4095.0), res, 2.0)
     assert full.drift_deg == pytest.approx(-0.5 * COUNT_DEG)
     assert full.uncertainty_deg == pytest.approx(COUNT_DEG) and math.isnan(full.lower_deg)
 
@@ -190,3 +186,49 @@ def test_cli_verify_prints_the_drift_table_and_exits_1_past_the_tolerance(
     assert "nothing was written" in out
     assert "warning: elbow_flex drifted more than 2° from" in err
     assert path.read_bytes() == before
+
+
+def test_offset_drift_is_the_direction_times_the_offset_change_modulo_a_turn() -> None:
+    d = offset_drift("j", -1, 0.50 + 2 * math.pi, 0.465, 0.0, 1e-4, 2.0)
+    assert d.drift_deg == pytest.approx(-math.degrees(0.035))
+    assert d.uncertainty_deg == pytest.approx(math.degrees(1e-4))
+    assert d.flagged and math.isnan(d.lower_deg)  # 2.005° > 2°
+    d = offset_drift("j", 1, 0.50, 0.40, 0.02, 1e-4, 2.0)  # the span is 0.02 rad off: ± half of it
+    assert d.drift_deg == pytest.approx(math.degrees(0.1)) and d.flagged
+    assert d.uncertainty_deg == pytest.approx(math.degrees(math.hypot(0.01, 1e-4)))
+
+
+@pytest.mark.slow
+def test_sweep_auto_verify_finds_a_drifted_offset_on_the_simulated_lite_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.backends.sim.lite import lite_urdf_text
+
+    urdf = tmp_path / "lite.urdf"
+    urdf.write_text(lite_urdf_text())
+    out = tmp_path / "calibration.yaml"
+    joints = "left_elbow_pitch,right_shoulder_pitch"
+    base = ["sweep", "--auto", "--urdf", str(urdf), "--source", "sim:lite?seed=3", "--out", str(out), "--yes"]
+    assert main([*base, "--joints", joints]) in (0, 1)  # 1: the wrap-in-travel warnings of the simulated Lite
+    text = out.read_text()
+    key = "right_shoulder_pitch:\n  id: 21\n  direction: 1\n  homing_offset: "
+    start = text.index(key) + len(key)
+    end = text.index("\n", start)
+    stored = float(text[start:end])
+    out.write_text(text[:start] + repr(stored + 0.035) + text[end:])  # stored 2.005° off: reads 2.005° less
+    before = out.read_bytes()
+    capsys.readouterr()
+    rc = main([*base, "--joints", joints, "--verify"])
+    printed, err = capsys.readouterr()
+    assert rc == 1
+    rows = {
+        line.split()[1]: line.split()
+        for line in printed.splitlines()
+        if line.startswith("│ ") and "_" in line
+    }
+    assert float(rows["right_shoulder_pitch"][3]) == pytest.approx(-2.005, abs=0.3)
+    assert "DRIFTED" in rows["right_shoulder_pitch"]
+    assert abs(float(rows["left_elbow_pitch"][3])) < 0.3 and "ok" in rows["left_elbow_pitch"]
+    assert "warning: right_shoulder_pitch drifted more than 2° from" in err
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["calibration.yaml", "lite.urdf"]

@@ -195,6 +195,39 @@ def auto_table(result: AutoCalResult, title: str = "automatic hard-stop calibrat
     return t
 
 
+def drift_table(drifts: Sequence[Any], title: str) -> Table:
+    """``--verify``: per joint the drift, its uncertainty, each stop's shift and the verdict."""
+    table = Table(title=title)
+    for col in ("joint", "drift °", "± °", "lower stop °", "upper stop °", ""):
+        table.add_column(col, justify="left" if col in ("joint", "") else "right")
+    for j in drifts:
+        table.add_row(
+            j.name,
+            f"{j.drift_deg:+.2f}",
+            f"{j.uncertainty_deg:.2f}",
+            "—" if math.isnan(j.lower_deg) else f"{j.lower_deg:+.2f}",
+            "—" if math.isnan(j.upper_deg) else f"{j.upper_deg:+.2f}",
+            "DRIFTED" if j.flagged else "ok",
+        )
+    return table
+
+
+def print_drifts(
+    drifts: Sequence[Any], title: str, stored: object, tolerance_deg: float, search_s: float
+) -> None:
+    """The drift table, a warning naming the joints past the tolerance, the line that nothing was written."""
+    _common.console.print(drift_table(drifts, title))
+    flagged = [j.name for j in drifts if j.flagged]
+    if flagged:
+        _common.print_warning(
+            f"{', '.join(flagged)} drifted more than {tolerance_deg:g}° from {stored}: recalibrate (--auto)"
+        )
+    _common.console.print(
+        f"searched in {search_s:.1f} s; nothing was written (every register the search changed is back, no file)",
+        markup=False,
+    )
+
+
 def sweep_auto(
     urdf: Path,
     source: str,
@@ -207,6 +240,8 @@ def sweep_auto(
     partial: bool,
     yes: bool,
     view_port: int | None = None,
+    verify: bool = False,
+    tolerance_deg: float = 2.0,
 ) -> None:
     """``robocal sweep --auto``: run, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C).
 
@@ -229,6 +264,8 @@ def sweep_auto(
                     report=report,
                     fmt=fmt,
                     partial=partial,
+                    verify=verify,
+                    tolerance_deg=tolerance_deg,
                 ),
                 confirm_start=confirm,
                 view=live,
@@ -239,6 +276,10 @@ def sweep_auto(
         if view_port is not None:
             live.finish(outcome.auto, outcome.result)
     _common.console.print(auto_table(outcome.auto))
+    if verify:
+        title = f"drift of {out} (tolerance {tolerance_deg:g}°)"
+        print_drifts(outcome.drifts, title, out, tolerance_deg, outcome.auto.total_time_s)
+        raise typer.Exit(outcome.exit_code)
     _common.console.print(result_table(outcome.result))
     print_sweep_warnings(outcome.result)
     if outcome.auto.failed:

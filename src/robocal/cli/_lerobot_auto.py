@@ -8,18 +8,16 @@ on :func:`robocal.workflows.lerobot.auto_sim.open_auto_arm` (a real port or ``si
 
 from __future__ import annotations
 
-import math
 import pathlib
 from dataclasses import replace
 from typing import Any
 
 import typer
-from rich.table import Table
 
 from ..core.lerobot import RobotSpec
 from ..errors import UsageError
 from . import _common
-from ._autocal import AutoLiveView, auto_table, auto_web_view, make_confirm_start
+from ._autocal import AutoLiveView, auto_table, auto_web_view, make_confirm_start, print_drifts
 from ._left_changed import offer_restore
 from ._lerobot_render import print_calibration, status
 
@@ -208,29 +206,6 @@ def verify_auto(
                 exc,
                 "every motor is limp, every register the search changed was written back; nothing was written",
             ) from None
-    table = Table(title=f"{spec.name}: drift of {path} (tolerance {tolerance_deg:g}°)")
-    for col in ("joint", "drift °", "± °", "lower stop °", "upper stop °", ""):
-        table.add_column(col, justify="left" if col in ("joint", "") else "right")
-    for j in result.joints:
-        verdict = "DRIFTED" if j.flagged else "ok"
-        table.add_row(
-            j.name,
-            f"{j.drift_deg:+.2f}",
-            f"{j.uncertainty_deg:.2f}",
-            "—" if math.isnan(j.lower_deg) else f"{j.lower_deg:+.2f}",
-            "—" if math.isnan(j.upper_deg) else f"{j.upper_deg:+.2f}",
-            verdict,
-        )
-    _common.console.print(table)
-    flagged = [j.name for j in result.joints if j.flagged]
-    if flagged:
-        _common.print_warning(
-            f"{', '.join(flagged)} drifted more than {tolerance_deg:g}° from {path}: recalibrate "
-            "(robocal lerobot calibrate --auto)"
-        )
-    _common.console.print(
-        f"searched in {result.search_s:.1f} s; nothing was written (every register the search changed is back, "
-        "no file)",
-        markup=False,
-    )
+    title = f"{spec.name}: drift of {path} (tolerance {tolerance_deg:g}°)"
+    print_drifts(result.joints, title, path, tolerance_deg, result.search_s)
     raise typer.Exit(result.exit_code)

@@ -32,7 +32,9 @@ def _web_view(
         return
     from ..viewer.sweep_page import open_sweep_page
 
-    web = open_sweep_page(urdf, inner=inner, port=port, threshold_rad=threshold, span_tolerance_rad=span_tolerance)
+    web = open_sweep_page(
+        urdf, inner=inner, port=port, threshold_rad=threshold, span_tolerance_rad=span_tolerance
+    )
     _common.err_console.print(f"sweep view: {web.app.url}", markup=False)
     try:
         yield web
@@ -136,7 +138,21 @@ def sweep(
     web_view: Annotated[
         bool, typer.Option("--view", help="Also draw the sweep on the robot in the browser (robocal[view]).")
     ] = False,
-    view_port: Annotated[int, typer.Option("--view-port", help="TCP port of the --view page (0: any).")] = 8080,
+    view_port: Annotated[
+        int, typer.Option("--view-port", help="TCP port of the --view page (0: any).")
+    ] = 8080,
+    verify: Annotated[
+        bool,
+        typer.Option(
+            "--verify",
+            help="--auto: touch the stops again and report per joint how far --out's offsets have drifted, degrees "
+            "± uncertainty; nothing is written; exit 1 past --tolerance-deg.",
+        ),
+    ] = False,
+    tolerance_deg: Annotated[
+        float,
+        typer.Option("--tolerance-deg", help="--verify: drift above which a joint is flagged, degrees."),
+    ] = 2.0,
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     if auto:
@@ -158,10 +174,12 @@ def sweep(
             partial=partial,
             yes=yes,
             view_port=view_port if web_view else None,
+            verify=verify,
+            tolerance_deg=tolerance_deg,
         )
         return
-    if joints is not None or partial:
-        raise UsageError("--joints and --partial go with --auto")
+    if joints is not None or partial or verify:
+        raise UsageError("--joints, --partial and --verify go with --auto")
     stop = threading.Event()
     lines = StdinLines(stop) if stdin_is_terminal() else None  # Enter finishes the sweep
     confirm = make_confirm(lines) if lines is not None and terminal() and not yes else None

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ...backends.robstride.joint_driver import MAX_LAG_RAD, WATCHDOG_S, RobstrideJointDriver
+from ...core.health.drift import JointDrift, offset_drift
 from ...core.profile import RobotProfile
 from ...core.sweep import analyse_sweep
 from ...core.sweep_result import SweepResult
@@ -59,7 +60,9 @@ class AutoSweepOutcome:
         out: Calibration file written (None when nothing was written).
         fmt: Its format.
         report: Report written, or None.
-        exit_code: 0 all joints passed, 1 written with ``partial`` although a joint failed or has a warning.
+        exit_code: 0 all joints passed, 1 written with ``partial`` although a joint failed or has a warning
+            (``verify``: 1 when a joint drifted past the tolerance).
+        drifts: ``verify``: per searched joint, how far the stored offset has drifted (nothing written).
     """
 
     auto: AutoCalResult
@@ -68,6 +71,7 @@ class AutoSweepOutcome:
     fmt: str
     report: Path | None
     exit_code: int
+    drifts: tuple[JointDrift, ...] = ()
 
 
 OpenDrivers = Callable[
@@ -217,6 +221,9 @@ class SweepAutoRequest:
         gravity: Joint → gravity torque model in the driver's frame, for the correction (a simulator's truth).
             Without it, a URDF with ``<inertial>`` masses gives the correction
             (:func:`robocal.formats.urdf_gravity.gravity_model_if_any`).
+        verify: Touch the stops again and compare the offsets they give with ``out``'s (which must exist);
+            nothing is written (``report`` and ``partial`` are refused).
+        tolerance_deg: ``verify``: drift above which a joint is flagged, degrees.
     """
 
     urdf_path: str | Path
@@ -228,6 +235,19 @@ class SweepAutoRequest:
     fmt: str | None = None
     partial: bool = False
     gravity: Mapping[str, Callable[[float], float]] | None = None
+    verify: bool = False
+    tolerance_deg: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.tolerance_deg) and self.tolerance_deg > 0):
+            raise UsageError(
+                f"--tolerance-deg: expected a positive number of degrees, got {self.tolerance_deg!r}"
+            )
+        if self.verify and (self.report is not None or self.partial):
+            both = ", ".join(
+                f for f, on in (("--report", self.report is not None), ("--partial", self.partial)) if on
+            )
+            raise UsageError(f"--verify writes nothing: {both} cannot be combined with it")
 
 
 def run_sweep_auto(
@@ -280,6 +300,8 @@ def run_sweep_auto(
     if fmt is None:
         fmt = output_format(out_path, profile)
     existing = existing_output(out_path, fmt, urdf, profile)
+    if r.verify and existing is None:
+        raise UsageError(f"--verify: no stored calibration at {out_path} to verify (calibrate first)")
     specs = joints_from_urdf(urdf, profile, existing)
     order = select_joints(profile.auto, joints, movable_only=True)
     known = {j.name for j in specs}
@@ -342,6 +364,14 @@ def run_sweep_auto(
             span_tolerance_rad=math.radians(profile.auto.span_tolerance_deg),
             expected=expected,
         )
+        if r.verify:
+            if auto.failed:
+                raise AutoCalFailedError(
+                    f"verification failed for {auto.failure_summary()}; nothing was written", auto
+                )
+            drifts = _drifts(result, rows, prior, expected, r.tolerance_deg)
+            code = 1 if any(d.flagged for d in drifts) else 0
+            return AutoSweepOutcome(auto, result, None, fmt, None, code, drifts)
         if auto.failed and not partial:
             raise AutoCalFailedError(
                 f"auto-calibration failed for {auto.failure_summary()}; nothing was written (pass --partial to "
@@ -361,6 +391,39 @@ def run_sweep_auto(
             close()
     code = 0 if result.ok and not auto.failed else 1
     return AutoSweepOutcome(auto, result, out_path if rows else None, fmt, report_path, code)
+
+
+ROBSTRIDE_COUNT_RAD = 8 * math.pi / 65536
+"""One count of a Robstride position reading (16 bits over ±4π)."""
+
+
+def _drifts(
+    result: SweepResult,
+    rows: Sequence[Any],
+    prior: Mapping[str, float],
+    expected: Mapping[str, tuple[float, float]],
+    tolerance_deg: float,
+) -> tuple[JointDrift, ...]:
+    """Per searched joint with a stored offset: the offset its stops give now against the stored one."""
+    out = []
+    for j in rows:
+        if j.name not in prior:
+            continue
+        js = result[j.name]
+        lo, hi = expected[j.name]
+        span_error = js.sweep - (hi - lo) if js.method == "two-sided" else 0.0
+        out.append(
+            offset_drift(
+                j.name,
+                j.direction,
+                js.homing_offset,
+                prior[j.name],
+                span_error if math.isfinite(span_error) else 0.0,
+                ROBSTRIDE_COUNT_RAD,
+                tolerance_deg,
+            )
+        )
+    return tuple(out)
 
 
 __all__ += ["AutoCalAbortedError"]

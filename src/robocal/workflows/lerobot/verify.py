@@ -22,6 +22,7 @@ from pathlib import Path
 
 from ...backends.servo_bus import ServoBus
 from ...core.gravity import GravityModel
+from ...core.health.drift import JointDrift, range_drift
 from ...core.lerobot import MotorCalibration, RobotSpec
 from ...core.profile_auto import AutoJoint, AutoSection
 from ...errors import UsageError
@@ -37,7 +38,6 @@ __all__ = [
     "VerifyRequest",
     "VerifyResult",
     "check_stored",
-    "joint_drift",
     "stored_stops_ticks",
     "verify_calibration",
 ]
@@ -46,29 +46,6 @@ DEFAULT_TOLERANCE_DEG = 2.0
 """``--tolerance-deg``: above the stop search's reproducibility (a few counts, 0.1-0.3° on the simulated SO-101)
 and a hand calibration's scatter of its range's middle, below where a zero error shows at the gripper (2° on a
 shoulder joint of a 30 cm arm moves the gripper ~1 cm)."""
-
-
-@dataclass(frozen=True)
-class JointDrift:
-    """How far one joint's stored calibration has drifted from its stops.
-
-    Attributes:
-        name: Joint (motor) name.
-        drift_deg: Where the middle of the stops is now minus where the stored calibration has it, in the motor's
-            actual ticks as degrees (positive: with the stored calibration, the joint now reads more at the same
-            physical place than when it was calibrated).
-        uncertainty_deg: The measurement's uncertainty (±), degrees.
-        lower_deg: The lower stop's shift, degrees (NaN for a full-turn range: its ends are not stops).
-        upper_deg: The upper stop's shift, degrees (NaN likewise).
-        flagged: ``|drift_deg|`` is above the tolerance.
-    """
-
-    name: str
-    drift_deg: float
-    uncertainty_deg: float
-    lower_deg: float
-    upper_deg: float
-    flagged: bool
 
 
 @dataclass(frozen=True)
@@ -135,33 +112,6 @@ def stored_stops_ticks(spec: RobotSpec, cal: MotorCalibration, resolution: int) 
     a = sign * (cal.range_min - rule.offset_sign * cal.homing_offset)
     b = sign * (cal.range_max - rule.offset_sign * cal.homing_offset)
     return float(min(a, b)), float(max(a, b))
-
-
-def _wrapped(delta_ticks: float, resolution: int) -> float:
-    half = resolution / 2
-    return (delta_ticks + half) % resolution - half
-
-
-def joint_drift(
-    name: str,
-    found_rad: tuple[float, float],
-    stored_ticks: tuple[float, float],
-    resolution: int,
-    tolerance_deg: float,
-) -> JointDrift:
-    """The drift of one joint from its found stops (driver frame, rad) and its stored ends (actual ticks)."""
-    per_deg = resolution / 360.0
-    lo_t, hi_t = (q * resolution / (2 * math.pi) for q in found_rad)
-    d_lo = _wrapped(lo_t - stored_ticks[0], resolution) / per_deg
-    d_hi = _wrapped(hi_t - stored_ticks[1], resolution) / per_deg
-    drift = 0.5 * (d_lo + d_hi)
-    count = 360.0 / resolution
-    full_turn = stored_ticks[1] - stored_ticks[0] >= resolution - 1
-    # a full-turn range (LeRobot's wrist_roll) is not the stops: only its middle is (the homing centred on them)
-    if full_turn:
-        return JointDrift(name, drift, count, math.nan, math.nan, abs(drift) > tolerance_deg)
-    uncertainty = math.hypot(0.5 * (d_hi - d_lo), count)
-    return JointDrift(name, drift, uncertainty, d_lo, d_hi, abs(drift) > tolerance_deg)
 
 
 def check_stored(request: VerifyRequest) -> tuple[dict[str, MotorCalibration], list[AutoJoint], list[str]]:
@@ -275,6 +225,6 @@ def _drifts(
         res = bus.resolution(ids[o.name])
         found = _stop_pair(section, o.stops)
         out.append(
-            joint_drift(o.name, found, stored_stops_ticks(spec, stored[o.name], res), res, tolerance_deg)
+            range_drift(o.name, found, stored_stops_ticks(spec, stored[o.name], res), res, tolerance_deg)
         )
     return tuple(out)
