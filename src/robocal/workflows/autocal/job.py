@@ -1,7 +1,7 @@
 """Automatic hard-stop calibration: drive each joint into its stops, safely, and compute the zeros.
 
 The search itself is :class:`robocal.core.stop_search.StopSearch` (pure, backend-neutral); this module runs it on
-:class:`JointDriver` objects — a Robstride motor over python-can (:class:`RobstrideJointDriver`), a Feetech or
+:class:`JointDriver` objects — a Robstride motor over python-can (:class:`~robocal.backends.robstride.joint_driver.RobstrideJointDriver`), a Feetech or
 Dynamixel servo (:mod:`robocal.backends.servo_joint_driver`) — in the order and with the torque, speed and poses of a
 robot profile's ``auto_calibration`` section (:class:`robocal.core.profile_auto.AutoSection`).
 
@@ -16,7 +16,6 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from ...backends.robstride.joint_driver import RobstrideJointDriver
 from ...core.gravity import GravityModel, JointGravity, joint_gravity
 from ...core.profile_auto import NOT_SEARCHED, AutoJoint, AutoSection
 from ...core.stop_zero import JointStops
@@ -36,7 +35,7 @@ from .model import (
 )
 from .model import __all__ as _types_all
 
-__all__ = ["RobstrideJointDriver", "calibrate_joint", "joint_gravity_for", "run_autocal", "select_joints"]
+__all__ = ["calibrate_joint", "joint_gravity_for", "run_autocal", "select_joints"]
 __all__ += _types_all
 
 

@@ -2,7 +2,7 @@
 
 :func:`open_sim_lite` builds the 14 Lite arm joints as simulated Robstride motors (``robocal.backends.sim``)
 whose MIT commands move a :class:`~robocal.backends.sim.physics.JointPlant` each, on one simulated clock, on two
-python-can ``virtual`` channels; the drivers are the same :class:`~robocal.workflows.autocal.job.RobstrideJointDriver`
+python-can ``virtual`` channels; the drivers are the same :class:`~robocal.backends.robstride.joint_driver.RobstrideJointDriver`
 that drives real motors through :class:`~robocal.backends.robstride.RobstrideBus`. Used by
 ``robocal sweep --auto --source sim:lite?...``, ``robocal demo --auto`` and the tests.
 
@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ...backends.robstride.joint_driver import MAX_LAG_RAD, RobstrideJointDriver
+from ...backends.robstride.joint_driver import MAX_LAG_RAD
 from ...core.profile import RobotProfile
 from ...errors import UsageError
-from .model import JointDriver
+from .model import JointDriver, joint_driver_class
 
 if TYPE_CHECKING:
     from ...backends.sim.physics import Scenario
@@ -187,7 +187,7 @@ def open_sim_lite(
             for j in on_bus:
                 aj = auto.joint(j.name)
                 cap = aj.torque_cap_nm if aj is not None else 1.0
-                drivers[j.name] = RobstrideJointDriver(
+                drivers[j.name] = joint_driver_class("robstride")(
                     bus,
                     j.name,
                     by_spec[j.name].direction,

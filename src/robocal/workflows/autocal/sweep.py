@@ -1,6 +1,6 @@
 """``robocal sweep --auto``: the Robstride joints find their own hard stops; same outputs as a hand sweep.
 
-The joints are driven (MIT frames over python-can, :class:`~robocal.workflows.autocal.job.RobstrideJointDriver`) in
+The joints are driven (MIT frames over python-can, :class:`~robocal.backends.robstride.joint_driver.RobstrideJointDriver`) in
 the order of the robot profile's ``auto_calibration`` section; the measured contact surfaces take the place of
 the hand sweep's sampled extremes in :func:`robocal.core.sweep.analyse_sweep` (so the bisection rule, the
 diagnostics and the written file are exactly those of ``robocal sweep``), and the report gains an ``auto``
@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ...backends.robstride.joint_driver import MAX_LAG_RAD, WATCHDOG_S, RobstrideJointDriver
+from ...backends.robstride.joint_driver import MAX_LAG_RAD, WATCHDOG_S
 from ...core.health.drift import JointDrift, offset_drift
 from ...core.profile import RobotProfile
 from ...core.sweep import analyse_sweep
@@ -44,6 +44,7 @@ from .model import (
     JointCaps,
     JointDriver,
     MonotonicClock,
+    joint_driver_class,
     limp_all,
 )
 
@@ -174,7 +175,7 @@ def _open_robstride(
             aj = auto.joint(name)
             if aj is None:
                 continue
-            drivers[name] = RobstrideJointDriver(
+            drivers[name] = joint_driver_class("robstride")(
                 bus, name, by_name[name].direction, aj.torque_cap_nm, MAX_LAG_RAD, clock
             )
     return drivers, clock, src.close
