@@ -232,3 +232,55 @@ def test_sweep_auto_verify_finds_a_drifted_offset_on_the_simulated_lite_and_writ
     assert "warning: right_shoulder_pitch drifted more than 2° from" in err
     assert out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["calibration.yaml", "lite.urdf"]
+
+
+def test_a_leader_is_verified_by_hand_read_only_and_its_drifted_joint_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from robocal.backends.sim.lerobot_arms import DEFAULT_TRUTH
+
+    spec = robot_spec("so101_leader")
+    truth = DEFAULT_TRUTH["so101_leader"]
+    cals = {
+        m.name: {
+            "id": m.motor_id,
+            "drive_mode": 0,
+            "homing_offset": 0,
+            "range_min": int(truth[m.name].stop_low_ticks),
+            "range_max": int(truth[m.name].stop_high_ticks),
+        }
+        for m in spec.motors
+    }
+    cals["elbow_flex"]["homing_offset"] += 30  # the stored calibration reads 30 counts (2.64°) less
+    path = tmp_path / "teleoperators" / "so_leader" / "l.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(cals, indent=4))
+    before = path.read_bytes()
+    base = [
+        "lerobot",
+        "calibrate",
+        "--auto",
+        "--verify",
+        "--robot",
+        "so101_leader",
+        "--port",
+        "sim",
+        "--id",
+        "l",
+    ]
+    rc = main([*base, "--calibration-dir", str(tmp_path)])
+    out, err = capsys.readouterr()
+    assert rc == 1
+    rows = {line.split()[1]: line.split() for line in out.splitlines() if line.startswith("│ ")}
+    assert set(rows) == {
+        "shoulder_pan",
+        "shoulder_lift",
+        "elbow_flex",
+        "wrist_flex",
+        "gripper",
+    }  # not wrist_roll
+    assert float(rows["elbow_flex"][3]) == pytest.approx(-30 * COUNT_DEG, abs=0.01)
+    assert "DRIFTED" in rows["elbow_flex"] and sum("DRIFTED" in r for r in rows.values()) == 1
+    assert "nothing was written (the arm was only read)" in out
+    assert "warning: elbow_flex drifted more than 2° from" in err
+    assert path.read_bytes() == before

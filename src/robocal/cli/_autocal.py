@@ -213,19 +213,21 @@ def drift_table(drifts: Sequence[Any], title: str) -> Table:
 
 
 def print_drifts(
-    drifts: Sequence[Any], title: str, stored: object, tolerance_deg: float, search_s: float
+    drifts: Sequence[Any], title: str, stored: object, tolerance_deg: float, footer: str
 ) -> None:
-    """The drift table, a warning naming the joints past the tolerance, the line that nothing was written."""
+    """The drift table, a warning naming the joints past the tolerance, the footer (what was written: nothing)."""
     _common.console.print(drift_table(drifts, title))
     flagged = [j.name for j in drifts if j.flagged]
     if flagged:
         _common.print_warning(
             f"{', '.join(flagged)} drifted more than {tolerance_deg:g}° from {stored}: recalibrate (--auto)"
         )
-    _common.console.print(
-        f"searched in {search_s:.1f} s; nothing was written (every register the search changed is back, no file)",
-        markup=False,
-    )
+    _common.console.print(footer, markup=False)
+
+
+def searched_footer(search_s: float) -> str:
+    """The last line of an ``--auto --verify``."""
+    return f"searched in {search_s:.1f} s; nothing was written (every register the search changed is back, no file)"
 
 
 def sweep_auto(
@@ -278,7 +280,7 @@ def sweep_auto(
     _common.console.print(auto_table(outcome.auto))
     if verify:
         title = f"drift of {out} (tolerance {tolerance_deg:g}°)"
-        print_drifts(outcome.drifts, title, out, tolerance_deg, outcome.auto.total_time_s)
+        print_drifts(outcome.drifts, title, out, tolerance_deg, searched_footer(outcome.auto.total_time_s))
         raise typer.Exit(outcome.exit_code)
     _common.console.print(result_table(outcome.result))
     print_sweep_warnings(outcome.result)

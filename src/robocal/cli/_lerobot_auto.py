@@ -17,7 +17,14 @@ import typer
 from ..core.lerobot import RobotSpec
 from ..errors import UsageError
 from . import _common
-from ._autocal import AutoLiveView, auto_table, auto_web_view, make_confirm_start, print_drifts
+from ._autocal import (
+    AutoLiveView,
+    auto_table,
+    auto_web_view,
+    make_confirm_start,
+    print_drifts,
+    searched_footer,
+)
 from ._left_changed import offer_restore
 from ._lerobot_render import print_calibration, status
 
@@ -179,7 +186,15 @@ def verify_auto(
     from ..workflows.lerobot.verify import VerifyRequest, check_stored, verify_calibration
     from ._lerobot_render import interrupted
 
-    section = auto_section(robot)
+    try:
+        section = auto_section(robot)
+    except UsageError:  # no auto_calibration section: an arm that cannot drive itself (a leader): by hand
+        if joints is not None:
+            raise UsageError(
+                "--joints: a by-hand --verify (an arm without auto_calibration) checks every joint"
+            ) from None
+        _verify_by_hand(spec, port, path, tolerance_deg)
+        return
     names = _common.parse_csv_list(joints, "--joints") if joints is not None else None
     if joints is not None and not names:
         raise UsageError("--joints: give at least one joint name")
@@ -207,5 +222,28 @@ def verify_auto(
                 "every motor is limp, every register the search changed was written back; nothing was written",
             ) from None
     title = f"{spec.name}: drift of {path} (tolerance {tolerance_deg:g}°)"
-    print_drifts(result.joints, title, path, tolerance_deg, result.search_s)
+    print_drifts(result.joints, title, path, tolerance_deg, searched_footer(result.search_s))
+    raise typer.Exit(result.exit_code)
+
+
+def _verify_by_hand(spec: RobotSpec, port: str, path: pathlib.Path, tolerance_deg: float) -> None:
+    """``--auto --verify`` on an arm that cannot drive itself: the operator pushes the joints into their stops."""
+    from ..workflows.lerobot import open_arm, sim_operator
+    from ..workflows.lerobot.verify import check_hand, verify_by_hand
+    from ._lerobot_render import ConsoleOperator, interrupted, sweep_renderer
+
+    check_hand(spec, path, tolerance_deg)  # before the port opens
+    update, close = sweep_renderer()
+    with open_arm(spec, port) as (bus, arm):
+        operator: Any = sim_operator(arm) if arm is not None else ConsoleOperator()
+        try:
+            result = verify_by_hand(bus, spec, path, operator, tolerance_deg=tolerance_deg, on_sweep=update)
+        except KeyboardInterrupt as exc:
+            close()
+            raise interrupted(exc, "nothing was written (the arm was only read)") from None
+        finally:
+            close()
+    title = f"{spec.name}: drift of {path} by hand (tolerance {tolerance_deg:g}°)"
+    footer = f"{result.readings} readings; nothing was written (the arm was only read)"
+    print_drifts(result.joints, title, path, tolerance_deg, footer)
     raise typer.Exit(result.exit_code)

@@ -17,7 +17,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ...backends.servo_bus import ServoBus
@@ -25,20 +25,33 @@ from ...core.gravity import GravityModel
 from ...core.health.drift import JointDrift, range_drift
 from ...core.lerobot import MotorCalibration, RobotSpec
 from ...core.profile_auto import AutoJoint, AutoSection
+from ...core.wrap_range import RangeTracker
 from ...errors import UsageError
 from ..autocal.job import run_autocal, select_joints
 from ..autocal.model import AutoCalFailedError, AutoCalResult, AutoView, Clock, ConfirmStart, JointCaps
-from .auto import HOST_LOSS, MAX_LAG_DEG, WATCHDOG_S, _stop_pair, prepare_search, snapshot_registers
+from .auto import (
+    HOST_LOSS,
+    MAX_LAG_DEG,
+    WATCHDOG_S,
+    _eeprom_calibration,
+    _stop_pair,
+    prepare_search,
+    snapshot_registers,
+)
+from .calibrate import Operator, RangeView
 from .files import read_calibration_file
 from .guard import arm_guard, limp_arm
 
 __all__ = [
     "DEFAULT_TOLERANCE_DEG",
+    "HandVerifyResult",
     "JointDrift",
     "VerifyRequest",
     "VerifyResult",
+    "check_hand",
     "check_stored",
     "stored_stops_ticks",
+    "verify_by_hand",
     "verify_calibration",
 ]
 
@@ -228,3 +241,113 @@ def _drifts(
             range_drift(o.name, found, stored_stops_ticks(spec, stored[o.name], res), res, tolerance_deg)
         )
     return tuple(out)
+
+
+@dataclass(frozen=True)
+class HandVerifyResult:
+    """What a by-hand ``--verify`` measured (an arm that cannot drive itself: a leader).
+
+    Attributes:
+        joints: Per motor with stops (LeRobot's full-turn motors left out), its drift.
+        tolerance_deg: The tolerance used.
+        readings: Readings taken while the operator moved the arm.
+    """
+
+    joints: tuple[JointDrift, ...]
+    tolerance_deg: float
+    readings: int
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every joint is within the tolerance, else 1."""
+        return 1 if any(j.flagged for j in self.joints) else 0
+
+
+def check_hand(
+    spec: RobotSpec, path: str | os.PathLike[str], tolerance_deg: float
+) -> dict[str, MotorCalibration]:
+    """The stored calibration of a by-hand verify, checked (before the port opens).
+
+    Raises:
+        UsageError: No file, a motor it lacks, a bad tolerance.
+        FileFormatError: A file that is not LeRobot's calibration JSON.
+    """
+    if not (math.isfinite(tolerance_deg) and tolerance_deg > 0):
+        raise UsageError(f"--tolerance-deg: expected a positive number of degrees, got {tolerance_deg!r}")
+    if not os.path.isfile(path):
+        raise UsageError(f"no stored calibration at {os.fspath(path)} to verify (calibrate first)")
+    stored = read_calibration_file(Path(path))
+    lacking = [n for n in spec.motor_names if n not in stored]
+    if lacking:
+        raise UsageError(f"calibration {os.fspath(path)} has no entry for motor(s) {', '.join(lacking)}")
+    return stored
+
+
+def verify_by_hand(
+    bus: ServoBus,
+    spec: RobotSpec,
+    path: str | os.PathLike[str],
+    operator: Operator,
+    *,
+    tolerance_deg: float = DEFAULT_TOLERANCE_DEG,
+    on_sweep: Callable[[RangeView], None] | None = None,
+) -> HandVerifyResult:
+    """Read-only: the operator pushes every joint into both its stops; each one's drift from the stored range.
+
+    Only ``Present_Position`` and ``Homing_Offset`` (and ``Drive_Mode``) are read; nothing is written to the arm
+    or to a file. The extremes reached (unwrapped across the encoder seam) are taken as the stops: a joint not
+    pushed into a stop shows as ends that moved differently, a large uncertainty, not as a drift.
+
+    Raises:
+        UsageError: No stored calibration, a motor it lacks, a bad tolerance.
+    """
+    stored = check_hand(spec, path, tolerance_deg)
+    motors = [m for m in spec.motors if m.name not in spec.full_turn]
+    ids = [m.motor_id for m in motors]
+    res = bus.resolution(ids[0])
+    in_eeprom = {
+        m.name: _eeprom_calibration(
+            spec,
+            m.name,
+            {
+                f: bus.read(f, m.motor_id)
+                for f in ("Homing_Offset", "Drive_Mode")
+                if bus.has_register(m.motor_id, f)
+            },
+        )
+        for m in motors
+    }
+    operator.prompt(
+        "sweep", "Push every joint into both of its hard stops, then press ENTER (nothing is written)"
+    )
+    first = bus.sync_read("Present_Position", ids)
+    tracker = RangeTracker(len(ids), period=res, units="ticks")
+    tracker.update([first[i] for i in ids])
+    readings = 1
+    done = False
+    while not done:
+        done = operator.sweep_step()
+        now = bus.sync_read("Present_Position", ids)
+        tracker.update([now[i] for i in ids])
+        readings += 1
+        if on_sweep is not None:
+            on_sweep(
+                RangeView(
+                    tuple(m.name for m in motors),
+                    tuple(int(now[i]) for i in ids),
+                    tuple(int(v) for v in tracker.minimum),
+                    tuple(int(v) for v in tracker.maximum),
+                    readings,
+                )
+            )
+    out = []
+    for k, m in enumerate(motors):
+        reached = replace(
+            in_eeprom[m.name], range_min=int(tracker.minimum[k]), range_max=int(tracker.maximum[k])
+        )
+        lo, hi = stored_stops_ticks(spec, reached, res)
+        found = (lo * 2 * math.pi / res, hi * 2 * math.pi / res)
+        out.append(
+            range_drift(m.name, found, stored_stops_ticks(spec, stored[m.name], res), res, tolerance_deg)
+        )
+    return HandVerifyResult(tuple(out), tolerance_deg, readings)
