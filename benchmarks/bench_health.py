@@ -90,8 +90,10 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         "clean_joint": defaultdict(int),
         "slip": [0, 0],
         "clip": [0, 0],
+        "clip_unseen": [0, 0],
         "flip": [0, 0],
         "errors": 0,
+        "sag": defaultdict(lambda: [0, 0]),
     }
     for root, rep_path, f in zip(roots, reports, faults, strict=True):
         rep = json.loads(rep_path.read_text())

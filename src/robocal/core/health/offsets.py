@@ -340,6 +340,11 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
         used[sgn * d.state >= sgn * e.follower - cfg.near_deg * upd] = 2.0
     status, est, ci, reasons = _verdict(ends, thr, cfg.ok_limit_deg * upd)
     for e in ends:
+        if e.kind == "pinned" and status == "offset":
+            reasons.append(
+                f"follower pinned at the {'upper' if e.end == 'hi' else 'lower'} end ({e.follower:.2f}) while "
+                f"the leader went on to {e.leader:.2f}"
+            )
         if e.kind == "clipped":
             reasons.append(
                 f"values clipped at {e.follower:.2f} ({e.frames} identical frames) while the leader "

@@ -195,7 +195,7 @@ def render_picture(result: DatasetHealth) -> bytes:
         unit = "°" if units == "degrees" else f" ({units})"
         head = f"{h.name}: {h.status}"
         if h.offset is not None and h.status in ("offset", "ok"):
-            head += f", offset {h.offset:+.2f}{unit}"
+            head += f" {h.offset:+.2f}{unit}" if h.status == "offset" else f", offset {h.offset:+.2f}{unit}"
             if h.ci is not None:
                 head += f" [{h.ci[0]:+.2f}, {h.ci[1]:+.2f}]"
         ax.set_title(head, color=colours.get(h.status, "black"), fontsize=10)
