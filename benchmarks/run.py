@@ -69,6 +69,9 @@ BENCHMARKS = (
         "health", True, "~15 min", "dataset health: recall / false alarms per offset and joint, 200 sessions per arm"
     ),
     Benchmark(
+        "openarm", True, "~8 min", "zero-touch calibration of the simulated OpenArm v10: 20 seeded whole-arm runs"
+    ),
+    Benchmark(
         "faults", True, "20-150 s a trial", "fault injection soak (--trials N): counts per fault x phase"
     ),
 )

@@ -27,7 +27,7 @@ def urdf(tmp_path: Path) -> Path:
         ({"source": "sim:lite?bogus=1"}, "unknown option 'bogus'"),
         ({"source": "sim:lite?missing=nope"}, "unknown joint(s) nope"),
         ({"source": "sim:lite?seed=x"}, "seed must be a non-negative integer"),
-        ({"source": "sim:so101"}, "simulates sim:lite only"),
+        ({"source": "sim:so101"}, "simulates sim:lite and sim:openarm only"),
         ({"fmt": "urdf"}, "--format 'urdf'"),
     ],
 )

@@ -38,7 +38,7 @@ def test_damiao_ratings_are_the_openarm_datasheet_numbers() -> None:
 def test_profile_ids_models_order_and_directions(name: str) -> None:
     p = load_profile(name)
     side = "right" if name.endswith("right") else "left"
-    assert p.actuator == "damiao" and p.position_wraps is False and p.method == "two-sided"
+    assert p.actuator == "damiao" and p.position_wraps is True and p.method == "two-sided"
     assert [j.upstream_name for j in p.joints] == LEROBOT
     assert [j.name for j in p.joints] == [openarm_urdf_joint(side, n) for n in LEROBOT]  # type: ignore[arg-type]
     assert [(j.motor_id, j.reply_id) for j in p.joints] == [(n, 0x10 + n) for n in range(1, 9)]

@@ -59,7 +59,7 @@ def test_benchmark_runner_refuses_unknown_names_before_running_anything() -> Non
     assert r.stderr == (
         "error: unknown benchmarks 'all', 'nosuch'; valid: jointmap, lerobot, ur, sweep, kinematics, dataset, "
         "replay, view, health_live, scaling, kinematics_tag_prior, autocal, autocal_wire, autocal_servo, health, "
-        "faults (--list shows what each measures and how long it takes)\n"
+        "openarm, faults (--list shows what each measures and how long it takes)\n"
     )
 
 
@@ -68,7 +68,9 @@ def test_every_benchmark_file_is_listed_with_its_set_and_duration() -> None:
     files = {p.stem.removeprefix("bench_") for p in (ROOT / "benchmarks").glob("bench_*.py")}
     assert set(run.BY_NAME) == files
     long = {b.name for b in run.BENCHMARKS if b.long}
-    assert long == {"scaling", "kinematics_tag_prior", "autocal", "autocal_wire", "autocal_servo", "health", "faults"}
+    assert long == {
+        "scaling", "kinematics_tag_prior", "autocal", "autocal_wire", "autocal_servo", "health", "openarm", "faults"
+    }
     r = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "run.py"), "--list"],
         capture_output=True,

@@ -44,6 +44,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "robstride.joint_driver": ("robocal.backends.robstride.joint_driver", "RobstrideJointDriver"),
     "feetech.joint_driver": ("robocal.backends.feetech.joint_driver", "FeetechJointDriver"),
     "dynamixel.joint_driver": ("robocal.backends.dynamixel.joint_driver", "DynamixelJointDriver"),
+    "damiao.joint_driver": ("robocal.backends.damiao.joint_driver", "DamiaoJointDriver"),
 }
 """Backend name → (module, attribute). Extended by the ``robocal.backends`` entry points."""
 

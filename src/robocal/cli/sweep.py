@@ -73,7 +73,7 @@ def sweep(
     source: Annotated[
         str,
         typer.Option(
-            "--source", help="sim:lite[?seed=N], can:<interface>:<channel>[,<channel>...] or replay:<file>."
+            "--source", help="sim:lite[?seed=N] (--auto: or sim:openarm), can:<interface>:<channel>[,<channel>...] or replay:<file>."
         ),
     ],
     out: Annotated[
@@ -125,7 +125,7 @@ def sweep(
         bool,
         typer.Option(
             "--auto",
-            help="The joints find their own hard stops (Robstride; the profile's auto_calibration section): "
+            help="The joints find their own hard stops (Robstride, Damiao; the profile's auto_calibration section): "
             "asks to clear the workspace first (--yes skips), Ctrl-C makes every motor limp (docs/auto_calibration.md).",
         ),
     ] = False,

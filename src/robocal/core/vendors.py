@@ -23,6 +23,7 @@ __all__ = [
     "VENDORS",
     "HomingRule",
     "VendorSpec",
+    "drives_sweep_auto",
     "expected_homing_vendors",
     "homing_vendor",
     "homing_vendors",
@@ -106,6 +107,15 @@ class VendorSpec:
             (Robstride).
         joint_driver: Name in ``robocal.backends.BACKENDS`` of its stop-search joint driver (in the vendor's home,
             reached through ``load_backend``), or None where no stop search exists.
+        sweep_auto: ``robocal sweep --auto`` drives its motors over CAN (Robstride, Damiao); the servo vendors are
+            auto-calibrated by ``robocal lerobot calibrate --auto``.
+        host_loss: What stops a moving motor when robocal is killed or the bus is lost (the clear-workspace
+            prompt says it), or "" where :attr:`sweep_auto` is False.
+        sim_auto_robot: The simulated robot ``sweep --auto --source sim:NAME`` offers for its motors (``lite``,
+            ``openarm``), or None.
+        power_on_half_turn: After a power cycle the reading restarts within ±π of the stored zero (Damiao: the
+            multi-turn count is in RAM), so a joint whose travel crosses zero ± π reads a turn off (the sweep's
+            ``wrap_in_travel`` with ``zero_sta`` 1).
     """
 
     name: str
@@ -126,6 +136,10 @@ class VendorSpec:
     torque_off_to_calibrate: bool = False
     live_can_sweep: bool = False
     joint_driver: str | None = None
+    sweep_auto: bool = False
+    host_loss: str = ""
+    power_on_half_turn: bool = False
+    sim_auto_robot: str | None = None
 
     @property
     def applies_drive_mode_in_software(self) -> bool:
@@ -202,6 +216,10 @@ ROBSTRIDE = VendorSpec(
     max_lag_deg=None,
     live_can_sweep=True,
     joint_driver="robstride.joint_driver",
+    sweep_auto=True,
+    sim_auto_robot="lite",
+    host_loss="If robocal is killed or the CAN bus is lost, each moving motor's CAN timeout puts it in reset mode "
+    "within 0.5 s.",
 )
 """Robstride CAN actuators (MIT frames, radians; the zero is set by a command, no homing register)."""
 
@@ -219,12 +237,19 @@ DAMIAO = VendorSpec(
     multi_turn_phase_bit=False,
     limp="disable (0xFD), or the zero-torque MIT frame",
     max_lag_deg=None,
+    joint_driver="damiao.joint_driver",
+    sweep_auto=True,
+    host_loss="If robocal is killed or the CAN bus is lost, each moving motor's TIMEOUT (register 9) makes it limp "
+    "(state 0xD) within 0.5 s.",
+    power_on_half_turn=True,
+    sim_auto_robot="openarm",
 )
 """Damiao CAN motors (the OpenArm's DM4310 / DM4340 / DM8009): MIT frames in radians scaled by the motor's PMAX /
 VMAX / TMAX registers; the zero is set by a command (0xFE) into the motor's flash, no homing register; register
 CTRL_MODE (10) selects MIT / position-velocity / velocity / position-force; an error state latches until the
-clear-error command (0xFB), not a reboot; torque is capped per command (no cap register). The live CAN sweep
-speaks Robstride's protocol, not this one."""
+clear-error command (0xFB), not a reboot; torque is capped per command (no cap register). The live hand sweep
+(``--source can:``) speaks Robstride's protocol, not this one; ``sweep --auto`` drives Damiao motors through
+``damiao.joint_driver`` (issue 31)."""
 
 VENDORS: dict[str, VendorSpec] = {v.name: v for v in (FEETECH, DYNAMIXEL, ROBSTRIDE, DAMIAO)}
 """Vendor name → its declaration: the one registry (a new vendor is one line here)."""
@@ -251,6 +276,12 @@ def speaks_live_can_sweep(actuator: str | None) -> bool:
     """Whether a profile's ``actuator`` (None: not stated) is driven by the live CAN sweep."""
     spec = VENDORS.get(actuator) if actuator is not None else None
     return actuator is None or (spec is not None and spec.live_can_sweep)
+
+
+def drives_sweep_auto(actuator: str | None) -> VendorSpec | None:
+    """The declaration of a profile's ``actuator`` when ``sweep --auto`` drives it (None: not stated → Robstride)."""
+    spec = VENDORS.get(actuator if actuator is not None else "robstride")
+    return spec if spec is not None and spec.sweep_auto else None
 
 
 def homing_vendor(name: str) -> VendorSpec | None:

@@ -90,6 +90,7 @@ def run_autocal(
     max_lag_rad: Mapping[str, float] | float = math.radians(3.0),
     gravity: Mapping[str, Callable[[float], float]] | None = None,
     gravity_model: GravityModel | None = None,
+    joint_gravity: Mapping[str, JointGravity] | None = None,
     view: AutoView | None = None,
     clock: Clock | None = None,
 ) -> AutoCalResult:
@@ -115,6 +116,8 @@ def run_autocal(
             each joint's stops are corrected with its gravity torque in the joint frame, the joints its profile
             ``pose`` names at those angles and every other joint at 0 (:func:`joint_gravity_for`). Joints that
             ``gravity`` covers are left to it.
+        joint_gravity: Joint → gravity torque in the joint frame in its search pose, instead of ``gravity_model``
+            (a simulator's truth: the simulated OpenArm's joints, whose weights are not in a URDF).
         view: Live view.
         clock: Clock for the total time (default: the first driver's readings).
 
@@ -159,7 +162,7 @@ def run_autocal(
                         gravity=None if gravity is None else gravity.get(joint.name),
                         gravity_joint=None
                         if gravity is not None and joint.name in gravity
-                        else joint_gravity_for(gravity_model, joint),
+                        else (joint_gravity or {}).get(joint.name) or joint_gravity_for(gravity_model, joint),
                         view=view,
                     )
                 if len(steps) == 1:

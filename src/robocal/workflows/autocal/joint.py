@@ -31,6 +31,7 @@ from .model import (
 )
 
 __all__ = [
+    "PRESS_NET_FRACTION",
     "TRANSIT_FACTOR",
     "TRANSIT_MAX_RAD_S",
     "JointSteps",
@@ -40,6 +41,7 @@ __all__ = [
     "drive",
     "move_steps",
     "move_to",
+    "press_fraction",
     "run_search",
     "search_steps",
 ]
@@ -68,9 +70,11 @@ def _config(
     max_travel_rad: float,
     max_lag_rad: float,
     gravity: Callable[[float], float] | None,
+    press_fraction: float = 0.5,
 ) -> SearchConfig:
     speed = joint.speed_rad_s
     return SearchConfig(
+        press_fraction=press_fraction,
         speed_rad_s=speed,
         torque_cap_nm=joint.torque_cap_nm,
         max_travel_rad=max_travel_rad,
@@ -88,6 +92,27 @@ def _config(
         # may take longer ($ROBOCAL_REPLY_TIMEOUT_MS, a simulator in another process) gets twice that
         reply_timeout_s=max(0.5, 2.0 * reply_timeout_floor_s()),
     )
+
+
+PRESS_NET_FRACTION = 0.1
+"""The second press level leaves at least this fraction of the cap pushing into the stop against gravity."""
+
+
+def press_fraction(
+    cap_nm: float, gravity_joint: Callable[[float], float] | None, stop_rad: float | None, direction: int
+) -> float:
+    """The second press level (fraction of the cap) for a stop where gravity may pull the joint off it.
+
+    The stiffness estimate needs the joint on the stop at both press levels. Where the joint-frame gravity model
+    says gravity pulls the joint away from the stop (at its expected angle) by more than half the cap minus
+    :data:`PRESS_NET_FRACTION` of it, the second level is raised so that this much still pushes (at most 0.9 of
+    the cap); otherwise it is the usual half. E.g. the OpenArm's J1 at its −80° stop: 7.9 N·m of gravity pull,
+    a 10 N·m cap → 0.89.
+    """
+    if gravity_joint is None or stop_rad is None or not cap_nm > 0:
+        return 0.5
+    away_nm = -direction * gravity_joint(stop_rad)
+    return min(0.9, max(0.5, (away_nm + PRESS_NET_FRACTION * cap_nm) / cap_nm))
 
 
 def drive(driver: JointDriver, steps: JointSteps[_T]) -> _T:
@@ -304,7 +329,12 @@ def calibrate_joint_steps(
     lower: StopResult | None = None
     upper: StopResult | None = None
     first_dir = -1 if joint.stops in ("both", "lower") else 1
-    cfg = _config(joint, section, max_travel_rad=span + tol, max_lag_rad=max_lag_rad, gravity=gravity)
+    first_press = press_fraction(
+        cap, gravity_joint, expected_lower_rad if first_dir < 0 else expected_upper_rad, first_dir
+    )
+    cfg = _config(
+        joint, section, max_travel_rad=span + tol, max_lag_rad=max_lag_rad, gravity=gravity, press_fraction=first_press
+    )
     first = yield from search_steps(
         driver, StopSearch(first_dir, cfg), view, "lower" if first_dir < 0 else "upper"
     )
@@ -340,7 +370,14 @@ def calibrate_joint_steps(
             else:
                 travel = first.q_stop_rad + span + tol - s.q_rad
         if upper is None:
-            cfg2 = _config(joint, section, max_travel_rad=travel, max_lag_rad=max_lag_rad, gravity=gravity)
+            cfg2 = _config(
+                joint,
+                section,
+                max_travel_rad=travel,
+                max_lag_rad=max_lag_rad,
+                gravity=gravity,
+                press_fraction=press_fraction(cap, gravity_joint, expected_upper_rad, 1),
+            )
             upper = yield from search_steps(driver, StopSearch(1, cfg2), view, "upper")
             # blocked right after the transit: an early stop (obstacle, cable), judged by the span check
             upper = _blocked_as_contact(upper)

@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from ...backends.robstride.joint_driver import MAX_LAG_RAD, WATCHDOG_S
+from ...backends.robstride.joint_driver import MAX_LAG_RAD
 from ...core.health.drift import JointDrift, offset_drift
 from ...core.profile import RobotProfile
 from ...core.sweep import analyse_sweep
 from ...core.sweep_result import SweepResult
-from ...core.vendors import speaks_live_can_sweep
+from ...core.vendors import drives_sweep_auto
 from ...errors import UsageError
 from ...fileio import atomic_write_bytes, atomic_write_text, backup_paths
 from ...formats.profiles import resolve_profile
@@ -88,12 +88,15 @@ def auto_sweep_result(
     prior: Mapping[str, float] | None = None,
     span_tolerance_rad: float,
     expected: Mapping[str, tuple[float, float]],
+    wraps: bool = True,
+    zero_sta: int = 0,
 ) -> SweepResult:
     """The :class:`SweepResult` of an auto run: contact surfaces in place of the sampled extremes.
 
     A one-sided joint gets the other extreme placed ``upper − lower`` away, which makes the bisection rule give
     exactly the one-sided offset ``s_stop − stop``. Joints that failed or were not searched have no samples (the
-    prior offset is kept, as for a joint not swept).
+    prior offset is kept, as for a joint not swept). ``wraps`` and ``zero_sta`` are the profile's
+    ``position_wraps`` and the motors' power-on range (:func:`robocal.core.sweep.analyse_sweep`).
     """
     names = [j.name for j in joints]
     n = len(names)
@@ -128,6 +131,8 @@ def auto_sweep_result(
         prior=prior,
         threshold_rad=0.0,
         span_tolerance_rad=span_tolerance_rad,
+        wraps=wraps,
+        zero_sta=zero_sta,
     )
 
 
@@ -181,26 +186,40 @@ def _open_robstride(
     return drivers, clock, src.close
 
 
+def _open_damiao(
+    spec: Any, joints: Sequence[Any], profile: RobotProfile
+) -> tuple[dict[str, JointDriver], Clock, Callable[[], None]]:
+    from .damiao import open_damiao
+
+    return open_damiao(spec, joints, profile)
+
+
+_LIVE_OPENERS: dict[str, OpenDrivers] = {"robstride": _open_robstride, "damiao": _open_damiao}
+"""Vendor (with ``sweep_auto``) → the opener of its live ``can:`` buses and joint drivers."""
+
+
 @dataclass(frozen=True)
 class _SimSpec:
     kind: str
     options: dict[str, str]
     text: str
+    robot: str = "lite"
 
 
 def _parse_auto_source(text: str) -> _SimSpec:
-    """``sim:lite[?seed=N&missing=a,b&...]`` (the options of :mod:`robocal.workflows.autocal.sim`)."""
+    """``sim:lite[?seed=N&missing=a,b&...]`` or ``sim:openarm[?...]`` (the options of :mod:`.sim`)."""
     from ...backends.sources.spec import parse_sim_options
     from .sim import SIM_FAULTS
 
     robot, _, query = text[len("sim:") :].partition("?")
-    if robot != "lite":
+    if robot not in ("lite", "openarm"):
         raise UsageError(
-            f"--source {text!r}: --auto simulates sim:lite only (LeRobot arms: lerobot calibrate --auto)"
+            f"--source {text!r}: --auto simulates sim:lite and sim:openarm only (LeRobot arms: lerobot calibrate "
+            "--auto)"
         )
     valid = ("seed", *SIM_FAULTS)
     opts = parse_sim_options(text, query, valid, joined=valid, valid_label="valid with --auto")
-    return _SimSpec("sim", opts, text)
+    return _SimSpec("sim", opts, text, robot)
 
 
 @dataclass(frozen=True)
@@ -293,10 +312,17 @@ def run_sweep_auto(
             f"--auto needs a robot profile with an auto_calibration section; {who} (pass --robot NAME; "
             "docs/profiles.md)"
         )
-    if not speaks_live_can_sweep(profile.actuator):
+    vendor = drives_sweep_auto(profile.actuator)
+    if vendor is None:
         raise UsageError(
-            f"--auto: robot {profile.name} has {profile.actuator} actuators; sweep --auto drives Robstride motors "
-            "(LeRobot arms: robocal lerobot calibrate --auto)"
+            f"--auto: robot {profile.name} has {profile.actuator} actuators; sweep --auto drives Robstride and "
+            "Damiao motors (LeRobot arms: robocal lerobot calibrate --auto)"
+        )
+    sim_robot = getattr(spec, "robot", None) if spec.kind == "sim" else None
+    if sim_robot is not None and sim_robot != vendor.sim_auto_robot:
+        raise UsageError(
+            f"--source {source!r}: robot {profile.name} has {vendor.name} actuators; simulate it with "
+            f"sim:{vendor.sim_auto_robot}"
         )
     if fmt is None:
         fmt = output_format(out_path, profile)
@@ -311,22 +337,27 @@ def run_sweep_auto(
         raise UsageError(
             f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
         )
-    caps = JointCaps(
-        order,
-        f"If robocal is killed or the CAN bus is lost, each moving motor's CAN timeout puts it in reset mode "
-        f"within {WATCHDOG_S:g} s.",
-    )
+    caps = JointCaps(order, vendor.host_loss)
     if confirm_start is not None and not confirm_start(tuple(caps), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
     limits = {j.name: (j.lower, j.upper) for j in specs}
     opener = open_drivers_fn
+    joint_gravity = None
+    if sim_robot == "openarm" and gravity is None:
+        from .damiao import openarm_gravity
+
+        joint_gravity = openarm_gravity(profile)  # the simulator's truth stands in for the URDF's masses
     if opener is None:
-        if spec.kind == "sim":
+        if spec.kind == "sim" and sim_robot == "openarm":
+            from .damiao import sim_openarm_opener
+
+            opener = sim_openarm_opener()
+        elif spec.kind == "sim":
             from .sim import sim_opener
 
             opener = sim_opener()
         else:
-            opener = _open_robstride
+            opener = _LIVE_OPENERS[vendor.name]
     drivers, clock, close = opener(spec, specs, profile)
     try:
         # the one motion guard (motion_guard.py): SIGINT/SIGTERM/SIGHUP/SIGQUIT or a fault → every motor limp
@@ -340,6 +371,7 @@ def run_sweep_auto(
                 max_lag_rad=MAX_LAG_RAD,
                 gravity=gravity,
                 gravity_model=gravity_model,
+                joint_gravity=joint_gravity,
                 view=view,
                 clock=clock,
             )
@@ -364,6 +396,8 @@ def run_sweep_auto(
             prior=prior,
             span_tolerance_rad=math.radians(profile.auto.span_tolerance_deg),
             expected=expected,
+            wraps=profile.position_wraps,
+            zero_sta=1 if vendor.power_on_half_turn else 0,
         )
         if r.verify:
             if auto.failed:

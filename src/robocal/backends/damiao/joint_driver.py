@@ -1,0 +1,240 @@
+"""A Damiao motor as a joint driver of the automatic hard-stop calibration (MIT frames through ``DamiaoBus``).
+
+The search's commands (``drive``, ``push``, ``reread``, ``hold``, ``limp``) as MIT frames with a torque cap, the
+way :class:`~robocal.backends.robstride.joint_driver.RobstrideJointDriver` drives a Robstride motor. The bus must be
+opened with ``allow_motion=True`` (the guarded path: ``robocal sweep --auto`` enters the motion guard first).
+Nothing is written to a motor's flash: the host-loss watchdog (TIMEOUT, register 9) is a RAM write put back by
+:meth:`DamiaoJointDriver.limp`, and the motor must already be in MIT mode (CTRL_MODE 1, which LeRobot and
+openarm_can also assume; robocal reads it and refuses otherwise, it never changes it).
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import suppress
+from typing import Any
+
+from ...core.motor_models import find_motor_model
+from ...core.stop_search import Command, StopSample
+from ...errors import CalibTimeoutError, DeviceError, UsageError
+from ..clock import Clock
+from .faults import DamiaoLostCommError, DamiaoOverloadError
+from .protocol import MitCommand, MotorState
+from .tables import ControlMode, Register
+
+__all__ = ["KEEPALIVE_S", "MAX_LAG_RAD", "WATCHDOG_S", "DamiaoJointDriver", "DamiaoWatchdogError"]
+
+MAX_LAG_RAD = math.radians(3.0)
+"""The position target leads the joint by at most this: ``kp = cap / 3°``."""
+WATCHDOG_S = 0.5
+"""TIMEOUT armed on every motor that moves: a motor that hears no frame for this long goes to state 0xD and limp."""
+KEEPALIVE_S = 0.1
+"""An enabled motor not being searched (holding a pose or parked) is sent its last command again this often."""
+_ENABLED: dict[int, list[DamiaoJointDriver]] = {}
+"""Enabled drivers per clock (the joints of one run): each frame a driver sends refreshes the quiet others."""
+
+
+class DamiaoWatchdogError(DeviceError):
+    """A motor reported communication lost (0xD) while robocal drove it: its TIMEOUT tripped (the host was silent)."""
+
+
+class DamiaoJointDriver:
+    """A Damiao motor driven with MIT frames through :class:`~robocal.backends.damiao.bus.DamiaoBus`.
+
+    ``drive``/``hold``: position target with ``kp = cap / max_lag`` (scaled down for a lower limit), ``kd`` and the
+    feed-forward velocity, no feed-forward torque, so ``|τ| ≤ kp·max_lag + kd·|v_ref − v|`` (the cap plus a little
+    damping). ``push``: ``kp = 0``, ``τ_ff = ±limit``, damping ``kd``. ``limp``: the zero-torque MIT frame, then
+    disable (0xFD), TIMEOUT put back. ``reread``: clear error (0xFB), enable (0xFC), the last command again.
+    Angles are in the joint's frame ``s = direction·reading`` (the reading is relative to the motor's stored zero).
+    An overload state (0xE) is suspect evidence (the search re-reads); every other error state ends the run.
+    Whatever the caller asks, the cap and every feed-forward torque stay within the hard ceiling of the motor
+    model's rating (:attr:`ceiling_nm`).
+
+    Args:
+        bus: The bus the motor is on (opened with ``allow_motion=True``).
+        name: Motor name on that bus.
+        direction: Axis direction ±1.
+        cap_nm: Torque cap the gains are computed for.
+        max_lag_rad: The largest lead of the target (``kp = cap/max_lag``).
+        clock: Time source; :meth:`execute` lets ``period_s`` pass per command.
+        period_s: Control period.
+        kd: Damping gain, N·m·s/rad (default ``0.05·cap`` per rad/s).
+        lost_reply_s: How long a lost reply takes on the hardware (moves a simulated clock on by it).
+    """
+
+    def __init__(
+        self,
+        bus: Any,
+        name: str,
+        direction: int,
+        cap_nm: float,
+        max_lag_rad: float,
+        clock: Clock,
+        *,
+        period_s: float = 0.01,
+        kd: float | None = None,
+        lost_reply_s: float | None = None,
+    ) -> None:
+        self.bus = bus
+        self.name = name
+        self.direction = int(direction)
+        spec = getattr(bus, "motors", {}).get(name)
+        model = find_motor_model(getattr(spec, "model", None))
+        if model is None:
+            raise UsageError(
+                f"joint {name}: motor model {getattr(spec, 'model', None)!r} has no rating in robocal's model table"
+            )
+        self.ceiling_nm = model.ceiling_nm
+        """No torque asked of the motor is above this (the hard ceiling of its model's rated torque)."""
+        self.cap_nm = min(float(cap_nm), self.ceiling_nm)
+        self.kp = self.cap_nm / max_lag_rad
+        self.kd = 0.05 * self.cap_nm if kd is None else kd
+        self.clock = clock
+        self.period_s = period_s
+        self.lost_reply_s = lost_reply_s
+        self.enabled = False
+        self._last = MitCommand(0.0, 0.0, 0.0, self.kd, 0.0)
+        self._q = math.nan
+        self._saved_watchdog_s: float | None = None
+        self._mode_checked = False
+        self._last_tx_s = -math.inf
+
+    # ------------------------------------------------------------------------------------------ frames
+    def _sample(self, st: MotorState, overload: bool = False) -> StopSample:
+        d = self.direction
+        s = StopSample(
+            self.clock.now(), d * st.position_rad, d * st.velocity_rad_s, d * st.torque_nm, True, overload
+        )
+        self._q = s.q_rad
+        return s
+
+    def _send(self, cmd: MitCommand) -> MotorState:
+        """The MIT frame in the motor's frame (torque clamped to the ceiling)."""
+        d = self.direction
+        t = max(-self.ceiling_nm, min(self.ceiling_nm, cmd.torque_nm))
+        return self.bus.mit(  # type: ignore[no-any-return]
+            self.name, MitCommand(d * cmd.position_rad, d * cmd.velocity_rad_s, cmd.kp, cmd.kd, d * t)
+        )
+
+    def _mit(self, cmd: MitCommand) -> StopSample:
+        t_send = self.clock.now()
+        self._last_tx_s = t_send
+        try:
+            s = self._sample(self._send(cmd))
+        except CalibTimeoutError:
+            return self._lost(t_send)
+        except DamiaoOverloadError:
+            s = StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q), overload=True)
+        except DamiaoLostCommError as exc:
+            self.enabled = False
+            raise DamiaoWatchdogError(
+                f"joint {self.name}: the motor reported communication lost (0xD): its TIMEOUT ({WATCHDOG_S:g} s) "
+                f"tripped because no frame reached it in time (robocal was held up or the bus dropped frames): {exc}"
+            ) from None
+        self._keep_others_alive(t_send)
+        self.clock.sleep(self.period_s - (self.clock.now() - t_send))
+        return s
+
+    def _keep_others_alive(self, now_s: float) -> None:
+        """Send the quiet enabled motors of this run their last command again (their watchdogs stay armed)."""
+        for other in _ENABLED.get(id(self.clock), []):
+            if other is not self and other.enabled and now_s - other._last_tx_s >= KEEPALIVE_S:
+                other._last_tx_s = now_s
+                with suppress(CalibTimeoutError, DamiaoOverloadError):
+                    other._sample(other._send(other._last))
+
+    def _lost(self, t_send: float) -> StopSample:
+        """A reply that did not come: the exchange lasted the bus's reply timeout (a simulated clock moves on)."""
+        timeout_s = (
+            self.lost_reply_s if self.lost_reply_s is not None else float(getattr(self.bus, "timeout_s", 0.0))
+        )
+        self.clock.sleep(max(self.period_s, timeout_s) - (self.clock.now() - t_send))
+        return StopSample(self.clock.now(), math.nan, ok=False)
+
+    def _enable(self) -> StopSample:
+        t_send = self.clock.now()
+        try:
+            if not self._mode_checked:
+                mode = int(self.bus.read_register(self.name, Register.CTRL_MODE))
+                if mode != ControlMode.MIT:
+                    raise DeviceError(
+                        f"joint {self.name}: the motor is in control mode {mode} (CTRL_MODE, register 10), not MIT "
+                        "(1); robocal does not change it: set it with openarm-can-cli or the Damiao tool"
+                    )
+                self._mode_checked = True
+            self.arm_watchdog()
+            st = self.bus.enable([self.name])[self.name]
+        except CalibTimeoutError:
+            return self._lost(t_send)
+        self.enabled = True
+        self._last = MitCommand(0.0, 0.0, 0.0, self.kd, 0.0)  # damping only until the first command
+        return self._sample(st)
+
+    # ------------------------------------------------------------------------------------------ JointDriver
+    def read(self) -> StopSample:
+        """Read the joint, repeating the last command (enable first, with damping only, if needed)."""
+        if not self.enabled:
+            s = self._enable()
+            if not s.ok:
+                return s
+        return self._mit(self._last)
+
+    def execute(self, cmd: Command) -> StopSample:
+        """One MIT frame for ``cmd``; its state reply is the reading."""
+        if cmd.action == "limp":
+            self.limp()
+            return StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q))
+        if not self.enabled:
+            s = self._enable()
+            if not s.ok:
+                return s
+        if cmd.action == "reread":
+            t_send = self.clock.now()
+            try:
+                self.bus.clear_error(self.name)
+            except CalibTimeoutError:
+                return self._lost(t_send)
+            except DamiaoOverloadError:
+                pass  # still latched: the enable below is ignored and the next reading says so again
+            self.enabled = False
+            s = self._enable()
+            if not s.ok:
+                return s
+            return self._mit(self._last)
+        if cmd.action == "push":
+            sign = 1.0 if not math.isfinite(self._q) or cmd.q_target_rad >= self._q else -1.0
+            self._last = MitCommand(0.0, 0.0, 0.0, self.kd, sign * min(cmd.torque_limit_nm, self.cap_nm))
+        else:
+            kp = self.kp * min(1.0, cmd.torque_limit_nm / self.cap_nm)
+            self._last = MitCommand(cmd.q_target_rad, cmd.v_target_rad_s, kp, self.kd, 0.0)
+        return self._mit(self._last)
+
+    def arm_watchdog(self) -> None:
+        """Arm the motor's host-loss watchdog (TIMEOUT = :data:`WATCHDOG_S`, RAM) before it moves (once)."""
+        if self._saved_watchdog_s is None:
+            self._saved_watchdog_s = float(self.bus.arm_watchdog(self.name, WATCHDOG_S))
+        peers = _ENABLED.setdefault(id(self.clock), [])
+        if self not in peers:
+            peers.append(self)
+
+    def disarm_watchdog(self) -> None:
+        """Put TIMEOUT back as it was before :meth:`arm_watchdog`; never raises."""
+        peers = _ENABLED.get(id(self.clock), [])
+        if self in peers:
+            peers.remove(self)
+        if not peers:
+            _ENABLED.pop(id(self.clock), None)
+        if self._saved_watchdog_s is not None:
+            with suppress(Exception):
+                self.bus.disarm_watchdog(self.name, self._saved_watchdog_s)
+                self._saved_watchdog_s = None
+
+    def limp(self) -> None:
+        """The zero-torque MIT frame, disable (0xFD), the watchdog disarmed; never raises."""
+        self._last = MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)
+        with suppress(Exception):
+            self.bus.limp([self.name])
+        with suppress(Exception):
+            self.bus.disable([self.name])
+        self.disarm_watchdog()
+        self.enabled = False
