@@ -54,8 +54,10 @@ def _motors(profile: RobotProfile, names: Sequence[str]) -> dict[str | None, lis
 def _drivers(
     buses: Sequence[Any], joints: Sequence[Any], profile: RobotProfile, clock: Any, lost_reply_s: float | None
 ) -> dict[str, JointDriver]:
-    from ...backends.damiao.joint_driver import MAX_LAG_RAD, DamiaoJointDriver
+    from ...backends.damiao.joint_driver import MAX_LAG_RAD
+    from .model import joint_driver_class
 
+    driver_cls = joint_driver_class("damiao")
     auto = profile.auto
     assert auto is not None
     by_name = {j.name: j for j in joints}
@@ -65,7 +67,7 @@ def _drivers(
             aj = auto.joint(name)
             if aj is None or not aj.searched:
                 continue
-            drivers[name] = DamiaoJointDriver(
+            drivers[name] = driver_cls(
                 bus, name, by_name[name].direction, aj.torque_cap_nm, MAX_LAG_RAD, clock, lost_reply_s=lost_reply_s
             )
     return drivers
