@@ -19,16 +19,26 @@ from tests.faults.harness import ROBOTS, soak, table
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run the soak; ``argv``: ``--trials N`` (default 8), ``--seed S``, ``--robots a,b``, ``--joints J``."""
+    """Run the soak; ``argv``: ``--trials N`` (default 8), ``--seed S``, ``--robots a,b``, ``--joints J``,
+    ``--jobs K`` (trials at once), ``--minutes M`` (start no new trial after M minutes)."""
     parser = argparse.ArgumentParser(prog="bench_faults")
     parser.add_argument("--trials", type=int, default=8)
     parser.add_argument("--seed", type=int, default=26)
     parser.add_argument("--robots", default=",".join(ROBOTS))
     parser.add_argument("--joints", default=None, help="search only these joints (shorter trials)")
+    parser.add_argument("--jobs", type=int, default=1, help="trials at once (each its own simulator process)")
+    parser.add_argument("--minutes", type=float, default=None, help="start no new trial after this long")
     args = parser.parse_args(argv or [])
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill: the trial's processes are cleaned up
     t0 = time.monotonic()
-    results = soak(args.trials, args.seed, tuple(args.robots.split(",")), args.joints)
+    results = soak(
+        args.trials,
+        args.seed,
+        tuple(args.robots.split(",")),
+        args.joints,
+        jobs=args.jobs,
+        stop_after_s=None if args.minutes is None else 60.0 * args.minutes,
+    )
     print(
         f"\n{len(results)} trials in {time.monotonic() - t0:.0f} s (seed {args.seed}); pass/fail/not-reached:"
     )

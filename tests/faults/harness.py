@@ -341,11 +341,13 @@ def _judge(
     err = "".join(run.lines)
     if code == 70 or "Traceback" in err or "internal error" in err:
         failures.append(f"exit {code} / traceback or internal error: {err.strip().splitlines()[-1:]}")
-    if fault in EXPECTED_EXIT and code not in (EXPECTED_EXIT[fault], 0):
+    if fault in EXPECTED_EXIT and code not in (EXPECTED_EXIT[fault], 0) and not (robot == "lite" and code == 1):
         failures.append(f"exit {code}, expected {EXPECTED_EXIT[fault]}")
     # exit 0 after a signal: robocal finished (its last writes hold Ctrl-C off, or the signal came as it exited);
     # judged like a finished run below (file whole, the new calibration in place); counted by finished_despite()
-    if fault == "cpu-stall" and code not in (0, 3):
+    # sweep --auto (the Lite) exits 1 when it wrote the calibration with a warning: a finished run too
+    finished = code == 0 or (robot == "lite" and code == 1)
+    if fault == "cpu-stall" and not finished and code != 3:
         failures.append(f"exit {code} after a CPU stall, expected 0 or 3")
     if fault == "lost-device":
         with _suppress():
@@ -353,11 +355,24 @@ def _judge(
 
             with SimControl(sim.info["control"], timeout_s=60) as ctl:
                 ctl.request("attach", joints="all")
-    state = sim.state()
     host_lost = fault in HOST_LOST
-    on = _torque_on(state)
-    if host_lost:  # only a watchdog can act: a motor whose watchdog stopped it within its time is not a failure
-        on = [n for n in on if not _stopped_by_watchdog(next(j for j in state if j["name"] == n))]
+
+    def left_on(state: list[dict[str, Any]]) -> list[str]:
+        on = _torque_on(state)
+        if host_lost:  # only a watchdog can act: a motor whose watchdog stopped it within its time is not a failure
+            on = [n for n in on if not _stopped_by_watchdog(next(j for j in state if j["name"] == n))]
+        return on
+
+    state = sim.state()
+    on = left_on(state)
+    if on and host_lost and robot not in NO_WATCHDOG:
+        # a simulator resumed after a freeze first works through what it missed (the bytes robocal sent meanwhile,
+        # the watchdog's due time on its own clock): judged once it has caught up (bounded poll)
+        deadline = time.monotonic() + 10.0
+        while on and time.monotonic() < deadline:
+            time.sleep(0.1)
+            state = sim.state()
+            on = left_on(state)
     if on and not (host_lost and robot in NO_WATCHDOG):
         failures.append(f"torque on after the run: {', '.join(on)}")
     after = _registers(state)
@@ -368,9 +383,15 @@ def _judge(
         except ValueError:
             failures.append(f"calibration file {f.name} not whole JSON")
     leftovers = [p.name for p in (folder / "cal").rglob(".rc-*")] if (folder / "cal").exists() else []
-    if code == 0:
+    if code == 0 or (robot == "lite" and code == 1):
         if not files:
-            failures.append("exit 0 without a calibration file")
+            failures.append(f"exit {code} without a calibration file")
+    elif files and code in (130, 143, 129, 131) and f"interrupted after writing {files[-1]}" in err:
+        # the signal came after the file was written whole: robocal says so (item 6); nothing else may be left
+        if leftovers:
+            failures.append(f"temporary files left: {leftovers}")
+        if "nothing was written" in err:
+            failures.append("says 'nothing was written' although it wrote the calibration")
     else:
         changed = sorted(n for n in before if after.get(n) != before[n])
         if changed and not host_lost:
@@ -383,20 +404,54 @@ def _judge(
 
 
 def soak(
-    trials: int, seed: int, robots: tuple[str, ...] = ROBOTS, joints: str | None = None
+    trials: int,
+    seed: int,
+    robots: tuple[str, ...] = ROBOTS,
+    joints: str | None = None,
+    jobs: int = 1,
+    stop_after_s: float | None = None,
 ) -> list[TrialResult]:
-    """Run ``trials`` random (robot, fault, phase) trials, seeded; prints one line per trial."""
+    """Run ``trials`` random (robot, fault, phase) trials, seeded; prints one line per trial as it ends.
+
+    The draws are made up front from ``seed`` (each trial gets its own seeded generator for its instants), so a
+    trial is the same whether it runs alone or beside others. ``jobs`` trials run at once (each with its own
+    simulator process and folder: more load on the machine, which the trials must survive). ``stop_after_s``:
+    start no new trial after that many seconds (the ones running finish).
+    """
+    from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+
     rng = random.Random(seed)
-    results = []
-    for i in range(trials):
+    plan = []
+    for _ in range(trials):
         robot = rng.choice(robots)
         fault, phase = rng.choice(LITE_FAULTS if robot == "lite" else FAULTS), rng.choice(PHASES)
+        plan.append((robot, fault, phase, rng.randrange(2**32)))
+    results: list[TrialResult] = []
+    t_start = time.monotonic()
+
+    def one(i: int) -> TrialResult:
+        robot, fault, phase, trial_seed = plan[i]
         t0 = time.monotonic()
-        r = run_trial(robot, fault, phase, rng, None if robot == "lite" else joints)
-        results.append(r)
+        r = run_trial(robot, fault, phase, random.Random(trial_seed), None if robot == "lite" else joints)
         print(f"[{i + 1}/{trials}] {robot} {fault} @ {phase}: {r.verdict} (exit {r.exit_code}, "
               f"{time.monotonic() - t0:.0f} s) {'; '.join(r.failures)}"
               + (f" [robocal: {r.stderr_tail}]" if r.failures else ""), flush=True)  # fmt: skip
+        return r
+
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        running: set[Future[TrialResult]] = set()
+        next_i = 0
+        while next_i < trials or running:
+            while next_i < trials and len(running) < max(1, jobs):
+                if stop_after_s is not None and time.monotonic() - t_start > stop_after_s:
+                    next_i = trials  # no new trial
+                    break
+                running.add(pool.submit(one, next_i))
+                next_i += 1
+            if not running:
+                break
+            done, running = wait(running, return_when=FIRST_COMPLETED)
+            results.extend(f.result() for f in done)
     return results
 
 

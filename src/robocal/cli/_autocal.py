@@ -21,6 +21,7 @@ from rich.table import Table
 from ..core.stop_search import StopSample
 from ..errors import UsageError
 from ..workflows.autocal.model import AutoCalResult, JointOutcome
+from ..workflows.written import files_written
 from . import _common
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "auto_table",
     "auto_web_view",
     "cap_text",
+    "interrupted_limp_text",
     "make_confirm_start",
     "sweep_auto",
 ]
@@ -110,6 +112,13 @@ class AutoLiveView:
             _common.err_console.print(f"{outcome.name}: FAILED {st.code}: {st.reason}", markup=False)
 
 
+def interrupted_limp_text(files_before: int) -> str:
+    """The line of an interrupted auto run: "nothing was written" only when no file was (the CLI names those)."""
+    if files_written()[files_before:]:
+        return "interrupted: every motor is limp"  # main's line says what was written (complete)
+    return "interrupted: every motor is limp; nothing was written"
+
+
 @contextlib.contextmanager
 def auto_web_view(
     port: int | None,
@@ -137,6 +146,7 @@ def auto_web_view(
         assert urdf is not None
         web = open_auto_sweep_page(urdf, inner=inner, port=port, title=title)
     _common.err_console.print(f"auto-calibration view: {web.app.url}", markup=False)
+    before = len(files_written())
     try:
         yield web
     except AutoCalFailedError as exc:
@@ -146,7 +156,7 @@ def auto_web_view(
         web.failed(str(exc))
         raise
     except KeyboardInterrupt:
-        web.failed("interrupted: every motor is limp; nothing was written")
+        web.failed(interrupted_limp_text(before))
         raise
     finally:
         web.app.stop()
@@ -254,6 +264,7 @@ def sweep_auto(
 
     names = _common.parse_csv_list(joints, "--joints")  # "" or "a,,b": one error line, nothing moves
     confirm = make_confirm_start(yes)
+    before = len(files_written())
     with auto_web_view(view_port, urdf, AutoLiveView(), "sweep --auto") as live:
         try:
             outcome = run_sweep_auto(
@@ -273,7 +284,7 @@ def sweep_auto(
                 view=live,
             )
         except KeyboardInterrupt:
-            _common.err_console.print("interrupted: every motor is limp; nothing was written", markup=False)
+            _common.err_console.print(interrupted_limp_text(before), markup=False)
             raise
         if view_port is not None:
             live.finish(outcome.auto, outcome.result)
