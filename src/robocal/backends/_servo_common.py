@@ -7,6 +7,7 @@ Port opening, register access, sync transfers, retries and error mapping. :class
 from __future__ import annotations
 
 import contextlib
+import select
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, NamedTuple
 
@@ -23,6 +24,13 @@ except ImportError:  # pragma: no cover - Windows
 __all__ = ["SdkBusBase", "ServoModel"]
 
 COMM_SUCCESS = 0
+
+IDLE_WAIT_S = 0.001
+"""How long a read that finds no reply byte waiting blocks on the port (``select``) before the SDK looks again.
+
+The SDKs open the port with ``timeout=0`` and spin on ``read`` until the reply or their packet timeout: a core at
+100 % per waiting bus, and in one process (a simulator's thread answering a pseudo-terminal) the spinning thread
+holds the interpreter lock the answering one needs. The wait ends at the first byte, so no reply is later."""
 
 
 class ServoModel(NamedTuple):
@@ -101,6 +109,8 @@ class SdkBusBase(ClosesOnExit):
             raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
         self._install_timeout(packet_timeout_ms)
         self._install_drain()
+        if not port.startswith(inproc_serial.PREFIX):  # an in-process port never waits: its time is its own
+            self._install_idle_wait()
 
     def _install_in_process(self, port: str) -> None:
         """Open an in-process port (:mod:`.inproc_serial`) where the SDK would open ``serial.Serial(port)``.
@@ -151,6 +161,24 @@ class SdkBusBase(ClosesOnExit):
             original()
 
         handler.clearPort = clear_port
+
+    def _install_idle_wait(self) -> None:
+        """Before each SDK read, block up to :data:`IDLE_WAIT_S` on the port while no byte is waiting.
+
+        On this port object only. The bytes read, and the SDK's timeouts (measured on its clock after each read),
+        are the same.
+        """
+        handler = self._port_handler
+        original = handler.readPort
+
+        def read_port(length: int) -> Any:
+            ser = getattr(handler, "ser", None)
+            with contextlib.suppress(Exception):  # a port that cannot be waited on is read as before
+                if ser is not None and not ser.in_waiting:
+                    select.select([ser.fileno()], [], [], IDLE_WAIT_S)
+            return original(length)
+
+        handler.readPort = read_port
 
     def _protocol(self, motors: Mapping[int, str]) -> float:
         """The SDK's PacketHandler protocol version for these motors."""
