@@ -72,6 +72,9 @@ BENCHMARKS = (
         "openarm", True, "~8 min", "zero-touch calibration of the simulated OpenArm v10: 20 seeded whole-arm runs"
     ),
     Benchmark(
+        "health_verify", True, "~5 min", "lerobot calibrate --auto --verify: 20 seeded injected drifts vs --auto"
+    ),
+    Benchmark(
         "faults", True, "20-150 s a trial", "fault injection soak (--trials N): counts per fault x phase"
     ),
 )

@@ -59,7 +59,7 @@ def test_benchmark_runner_refuses_unknown_names_before_running_anything() -> Non
     assert r.stderr == (
         "error: unknown benchmarks 'all', 'nosuch'; valid: jointmap, lerobot, ur, sweep, kinematics, dataset, "
         "replay, view, health_live, scaling, kinematics_tag_prior, autocal, autocal_wire, autocal_servo, health, "
-        "openarm, faults (--list shows what each measures and how long it takes)\n"
+        "openarm, health_verify, faults (--list shows what each measures and how long it takes)\n"
     )
 
 
@@ -69,7 +69,15 @@ def test_every_benchmark_file_is_listed_with_its_set_and_duration() -> None:
     assert set(run.BY_NAME) == files
     long = {b.name for b in run.BENCHMARKS if b.long}
     assert long == {
-        "scaling", "kinematics_tag_prior", "autocal", "autocal_wire", "autocal_servo", "health", "openarm", "faults"
+        "scaling",
+        "kinematics_tag_prior",
+        "autocal",
+        "autocal_wire",
+        "autocal_servo",
+        "health",
+        "openarm",
+        "health_verify",
+        "faults",
     }
     r = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "run.py"), "--list"],
