@@ -18,7 +18,10 @@ from robocal.errors import FileFormatError, UsageError
 from .conftest import check_jacobian, so101_model
 
 cv2 = pytest.importorskip("cv2")
-pytestmark = pytest.mark.timeout(900)  # 60 rendered images, detected several times, on a loaded machine
+pytestmark = [
+    pytest.mark.timeout(900),  # 60 rendered images on a loaded machine
+    pytest.mark.usefixtures("detect_each_image_once"),  # the tests identify the same session
+]
 
 from robocal.backends.vision import CameraIntrinsics, detect, parse_target, read_image, render  # noqa: E402
 from robocal.formats.camera_info import read_camera_info, write_camera_info  # noqa: E402

@@ -100,6 +100,7 @@ def _identify(session: Path, tmp: Path, *extra: str) -> int:
 
 @pytest.mark.slow
 @pytest.mark.timeout(900)
+@pytest.mark.usefixtures("detect_each_image_once")  # the two tests identify the same session
 def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
     session: Path, tmp_path: Path, capsys
 ) -> None:
@@ -141,6 +142,7 @@ def test_camera_on_the_tool_identifies_the_arm_below_a_millimetre(
 
 @pytest.mark.slow
 @pytest.mark.timeout(900)
+@pytest.mark.usefixtures("detect_each_image_once")  # the two tests identify the same session
 def test_refine_intrinsics_from_the_cli_reports_the_camera_matrix(
     session: Path, tmp_path: Path, capsys
 ) -> None:
