@@ -79,7 +79,8 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         )
     t_sim = time.perf_counter() - t0
     t0 = time.perf_counter()
-    reports = health_with_datatrove(roots, folder / "reports", tasks=2, workers=2)
+    # the datasets are in degrees (LeRobot's use_degrees; Koch's default is range_m100_100)
+    reports = health_with_datatrove(roots, folder / "reports", use_degrees=True, tasks=2, workers=2)
     t_check = time.perf_counter() - t0
     print(
         f"{robot}: {len(seeds)} sessions simulated and written in {t_sim:.0f} s, checked in {t_check:.0f} s"
@@ -93,7 +94,6 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         "clip_unseen": [0, 0],
         "flip": [0, 0],
         "errors": 0,
-        "sag": defaultdict(lambda: [0, 0]),
     }
     for root, rep_path, f in zip(roots, reports, faults, strict=True):
         rep = json.loads(rep_path.read_text())
@@ -103,14 +103,6 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
             continue
         joints = rep["joints"]
         flagged = [n for n, j in joints.items() if j["status"] in ("offset", "suspect")]
-        for name, j in joints.items():
-            if j.get("sag_follower_ci_deg") is None:
-                continue
-            own = f.offset_deg if f.offset_joint == name and f.offset_arm == "follower" else 0.0
-            lo, hi = j["sag_follower_ci_deg"]
-            sag_key = f"{name}, follower offset {abs(own):g}°"
-            score["sag"][sag_key][1] += 1
-            score["sag"][sag_key][0] += lo <= own <= hi
         if f.offset_joint is not None:
             t = truth["joints"][f.offset_joint]
             o = t["offset_deg"]
@@ -178,8 +170,6 @@ def print_score(robot: str, score: dict[str, Any]) -> None:
     print(f"slips located to their episode and frame (±2): {_rate(*score['slip'])}")
     print(f"clipped values flagged suspect, the leader past the clipped value: {_rate(*score['clip'])}; "
           f"never past it: {_rate(*score['clip_unseen'])}")
-    for key, (hit, n) in sorted(score["sag"].items()):
-        print(f"sag-pattern fit (informational), {key}: interval holds the follower's own offset {_rate(hit, n)}")
     print(f"mirrored signs flagged suspect: {_rate(*score['flip'])}")
     print(f"datasets refused: {score['errors']}")
 

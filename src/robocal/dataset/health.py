@@ -11,7 +11,7 @@ The check itself is :func:`robocal.core.health.analyse_joint`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,6 @@ from ..core.health import (
     analyse_joint,
     drift_reason,
     episode_verdicts,
-    sag_offset_fit,
     sag_residual_deg,
 )
 from ..errors import FileFormatError, JointMismatchError, UsageError
@@ -99,8 +98,6 @@ class DatasetHealth:
         episodes: Episodes read.
         joints: Per joint: verdict, units, per-episode verdicts, notes.
         pose: ``(N, J)`` the follower's pose in the check's units (the picture's x axis).
-        sag_fit: Joint → the follower's own offset against the URDF's zero from its sag pattern (weak; degrees
-            joints with a sag model only): ``(estimate, half-width)``.
     """
 
     root: Path
@@ -108,7 +105,6 @@ class DatasetHealth:
     episodes: int
     joints: tuple[tuple[JointHealth, str, float, list[dict[str, Any]], list[str]], ...]
     pose: FloatArray
-    sag_fit: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -253,25 +249,7 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
             status = h.status if h.status == "offset" else "suspect"
             h = replace(h, status=status, reasons=(*h.reasons, *extra))
         out.append((h, units[k], u if math.isfinite(upd[k]) else math.nan, episodes, extra))
-    fits: dict[str, tuple[float, float]] = {}
-    loaded = [] if sag_deg is None else [
-        k for k in range(len(joints)) if units[k] == "degrees" and float(np.max(np.abs(sag_deg[:, k]))) >= 0.5
-    ]
-    if sag_deg is not None and setup.gravity is not None and loaded:
-        slope = np.empty((len(pose_deg), len(loaded), len(loaded)))
-        for c, k in enumerate(loaded):
-            shifted = pose_deg.copy()
-            shifted[:, k] += 1.0
-            slope[:, :, c] = (sag_residual_deg(setup.gravity, joints, shifted, kp) - sag_deg)[:, loaded]
-        res = np.stack([out[k][0].residual for k in loaded], axis=1)
-        # slow frames inside twice the band: a frame pinned at a stop or breaking free is not sag
-        used = np.stack(
-            [(out[k][0].used == 1.0) & (np.abs(out[k][0].residual) < 2 * out[k][0].band) for k in loaded], axis=1
-        )
-        fit = sag_offset_fit(res, slope, fr.episode, used)
-        if fit is not None:
-            fits = {joints[k]: (float(fit[0][c]), float(fit[1][c])) for c, k in enumerate(loaded)}
-    return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state, fits)
+    return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state)
 
 
 def _num(x: float | None, scale: float = 1.0) -> float | None:
@@ -281,8 +259,6 @@ def _num(x: float | None, scale: float = 1.0) -> float | None:
 def health_json(result: DatasetHealth) -> dict[str, Any]:
     """The report: ``{"joints": {NAME: {"offset_deg", "ci_deg", "status", "episodes", ...}}, ...}``.
 
-    ``sag_follower_offset_deg`` / ``sag_follower_ci_deg``: the follower's own offset against the URDF's zero read
-    from how its gravity sag varies with pose (a weak signal, informational; no verdict uses it).
     ``offset_deg`` and ``ci_deg`` are degrees (None where the dataset's units have no known degree scale; then
     ``offset`` and ``ci`` in ``units`` carry the numbers). The offset is the follower's calibration minus the
     leader's: what the follower reads minus what the leader reads at the same physical angle.
@@ -333,13 +309,7 @@ def health_json(result: DatasetHealth) -> dict[str, Any]:
             "jumps": [
                 {"episode": jp.episode, "frame": jp.frame, "size": round(jp.size, 4)} for jp in h.jumps
             ],
-            "sag_follower_offset_deg": None,
-            "sag_follower_ci_deg": None,
         }
-        if h.name in result.sag_fit:
-            est, half = result.sag_fit[h.name]
-            joints[h.name]["sag_follower_offset_deg"] = _num(est)
-            joints[h.name]["sag_follower_ci_deg"] = [_num(est - half), _num(est + half)]
     return {
         "dataset": str(result.root),
         "frames": result.frames,
