@@ -69,7 +69,7 @@ BENCHMARKS = (
         "health", True, "~15 min", "dataset health: recall / false alarms per offset and joint, 200 sessions per arm"
     ),
     Benchmark(
-        "openarm", True, "~8 min", "zero-touch calibration of the simulated OpenArm v10: 20 seeded whole-arm runs"
+        "openarm", True, "~3 min", "zero-touch calibration of the simulated OpenArm v10: 20 seeded whole-arm runs"
     ),
     Benchmark(
         "health_verify", True, "~5 min", "lerobot calibrate --auto --verify: 20 seeded injected drifts vs --auto"

@@ -59,8 +59,8 @@ def test_profile_without_auto_section(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--joints", "left_wrist_roll"], "--joints, --partial and --verify go with --auto"),
-        (["--partial"], "--joints, --partial and --verify go with --auto"),
+        (["--joints", "left_wrist_roll"], "--joints, --partial, --verify and --write-zero go with --auto"),
+        (["--partial"], "--joints, --partial, --verify and --write-zero go with --auto"),
         (["--auto", "--prior", "x.yaml", "--yes"], "--prior, --threshold, --method"),
     ],
 )

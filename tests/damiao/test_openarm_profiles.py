@@ -85,10 +85,10 @@ def test_shipped_urdf_is_the_generator_and_the_simulated_arm(side: str) -> None:
                                                                                     abs=1e-4)
 
 
-def test_openarm_urdf_is_not_guessed_between_follower_and_leader() -> None:
+def test_openarm_urdf_is_recognised_follower_and_leader_having_the_same_joints() -> None:
     urdf = read_urdf(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
-    with pytest.raises(UsageError, match="pass --robot"):
-        resolve_profile(None, urdf)
+    assert resolve_profile(None, urdf).name == "openarm_follower_right"  # type: ignore[union-attr]
+    assert load_profile("openarm_leader_right").joints == load_profile("openarm_follower_right").joints
     with pytest.raises(UsageError, match="no motor 'joint_9'"):
         openarm_urdf_joint("right", "joint_9")
 

@@ -25,6 +25,7 @@ def test_formats_in_help_order_each_from_its_own_module() -> None:
         "ros2-transmission",
         "lerobot-legacy",
         "robocal",
+        "openarm-lerobot",
     ]
     modules = {name: spec.reader.__module__.rsplit(".", 1)[1] for name, spec in FORMATS.items()}
     assert modules == {
@@ -34,6 +35,7 @@ def test_formats_in_help_order_each_from_its_own_module() -> None:
         "ros2-transmission": "transmission",
         "lerobot-legacy": "lerobot_legacy",
         "robocal": "canonical",
+        "openarm-lerobot": "openarm_lerobot",
     }
     assert [n for n, s in FORMATS.items() if s.writer is None] == ["lerobot-legacy"]
 
@@ -75,6 +77,7 @@ def test_most_specific_sniffer_wins(tmp_path: Path) -> None:
         "ros2-transmission": 1,
         "lerobot-legacy": 1,
         "robocal": 0,
+        "openarm-lerobot": 1,
     }
 
 

@@ -254,6 +254,7 @@ def sweep_auto(
     view_port: int | None = None,
     verify: bool = False,
     tolerance_deg: float = 2.0,
+    write_zero: bool = False,
 ) -> None:
     """``robocal sweep --auto``: run, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C).
 
@@ -279,6 +280,7 @@ def sweep_auto(
                     partial=partial,
                     verify=verify,
                     tolerance_deg=tolerance_deg,
+                    write_zero=write_zero,
                 ),
                 confirm_start=confirm,
                 view=live,

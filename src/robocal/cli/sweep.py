@@ -135,6 +135,14 @@ def sweep(
     partial: Annotated[
         bool, typer.Option("--partial", help="--auto: write the joints that passed even if others failed.")
     ] = False,
+    write_zero: Annotated[
+        bool,
+        typer.Option(
+            "--write-zero",
+            help="--auto: then move each joint to its 0 and store that as its motor's zero (Damiao 0xFE: one "
+            "flash write per motor; what LeRobot, openarm_can and ROS 2 read).",
+        ),
+    ] = False,
     web_view: Annotated[
         bool, typer.Option("--view", help="Also draw the sweep on the robot in the browser (robocal[view]).")
     ] = False,
@@ -176,10 +184,11 @@ def sweep(
             view_port=view_port if web_view else None,
             verify=verify,
             tolerance_deg=tolerance_deg,
+            write_zero=write_zero,
         )
         return
-    if joints is not None or partial or verify:
-        raise UsageError("--joints, --partial and --verify go with --auto")
+    if joints is not None or partial or verify or write_zero:
+        raise UsageError("--joints, --partial, --verify and --write-zero go with --auto")
     stop = threading.Event()
     lines = StdinLines(stop) if stdin_is_terminal() else None  # Enter finishes the sweep
     confirm = make_confirm(lines) if lines is not None and terminal() and not yes else None

@@ -331,7 +331,8 @@ def recognise_profile(urdf: UrdfModel) -> RobotProfile | None:
     """The built-in profile whose joints are all in ``urdf`` (the one with most joints), or None.
 
     LeRobot arm profiles are not recognised (their six motor names are shared by every LeRobot arm); pass
-    ``--robot`` for those.
+    ``--robot`` for those. Profiles with the very same joints (an OpenArm follower and leader: names, ids,
+    directions) are one match: the first by name is taken.
 
     Raises:
         UsageError: Two profiles with the same number of joints both match (pass ``--robot``).
@@ -340,8 +341,8 @@ def recognise_profile(urdf: UrdfModel) -> RobotProfile | None:
     found = [p for p in builtin_profiles() if p.lerobot is None and p.matches(names)]
     if not found:
         return None
-    found.sort(key=lambda p: len(p.joints), reverse=True)
-    if len(found) > 1 and len(found[0].joints) == len(found[1].joints):
+    found.sort(key=lambda p: (-len(p.joints), p.name))
+    if len(found) > 1 and len(found[0].joints) == len(found[1].joints) and found[0].joints != found[1].joints:
         raise UsageError(
             f"URDF {urdf.source} matches robots {found[0].name} and {found[1].name}; pass --robot NAME"
         )

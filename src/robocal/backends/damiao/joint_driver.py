@@ -229,6 +229,30 @@ class DamiaoJointDriver:
                 self.bus.disarm_watchdog(self.name, self._saved_watchdog_s)
                 self._saved_watchdog_s = None
 
+    def settle_at(self, target_rad: float, duration_s: float, *, max_lag_rad: float = math.radians(0.5)) -> float:
+        """Hold the joint at ``target_rad`` with a stiffer spring; the mean position over the second half.
+
+        The spring is ``kp = cap / max_lag`` (the torque still at most the cap while the joint is within
+        ``max_lag``), held for ``duration_s``. For storing a zero: the drive's own spring (``cap / 3°``) leaves friction a dead band of a few tenths of a
+        degree; this one a sixth of it. The target must already be within ``max_lag`` (the joint was moved there).
+        """
+        kp = min(500.0, self.cap_nm / max_lag_rad)
+        self._last = MitCommand(target_rad, 0.0, kp, max(self.kd, 0.02 * kp * 0.05), 0.0)
+        qs = [self._mit(self._last).q_rad for _ in range(max(2, round(duration_s / self.period_s)))]
+        half = [q for q in qs[len(qs) // 2 :] if math.isfinite(q)]
+        return sum(half) / len(half) if half else math.nan
+
+    def store_zero(self) -> float:
+        """Make the joint's present position the motor's zero (one flash write).
+
+        Limp, then openarm_can's sequence (disable, 0xFE, disable) through :meth:`~.bus.DamiaoBus.set_zero`.
+        Returns the reading after it (joint frame, rad; ≈ 0 unless the joint moved once unpowered).
+        """
+        self.limp()
+        st = self.bus.set_zero(self.name, confirm=True)
+        self._q = self.direction * st.position_rad
+        return self._q
+
     def limp(self) -> None:
         """The zero-torque MIT frame, disable (0xFD), the watchdog disarmed; never raises."""
         self._last = MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)

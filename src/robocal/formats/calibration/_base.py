@@ -34,6 +34,8 @@ class CalibrationFile:
         fmt: Format name the data was read from (or is meant for).
         source: Path or description of the origin.
         notes: Human-readable remarks made while reading (e.g. values taken from the URDF).
+        ranges_rad: Joint → measured (lower, upper) range in the joint frame, rad, where it is known (a sweep's
+            stops); formats that store a range (``openarm-lerobot``) write it, the others ignore it.
     """
 
     calibration: RobotCalibration
@@ -41,6 +43,7 @@ class CalibrationFile:
     fmt: str = "robocal"
     source: str = "<memory>"
     notes: tuple[str, ...] = ()
+    ranges_rad: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

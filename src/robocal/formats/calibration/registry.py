@@ -23,7 +23,7 @@ from .._json import is_valid_unicode, json_int, load_json
 from .._yaml import load_yaml
 from ..profiles import resolve_profile
 from ..urdf import UrdfModel
-from . import berkeley, canonical, lerobot_legacy, lite_json, lite_yaml, transmission
+from . import berkeley, canonical, lerobot_legacy, lite_json, lite_yaml, openarm_lerobot, transmission
 from ._base import CalibrationFile, Content, FormatSpec, first_value
 
 FORMATS: dict[str, FormatSpec] = {
@@ -35,6 +35,7 @@ FORMATS: dict[str, FormatSpec] = {
         transmission.SPEC,
         lerobot_legacy.SPEC,
         canonical.SPEC,
+        openarm_lerobot.SPEC,
     )
 }
 """Every joint-map format by name."""

@@ -238,6 +238,9 @@ class SweepAutoRequest:
         report: JSON report to write (the sweep report plus an ``auto`` part).
         fmt: Output format (default as ``robocal sweep``).
         partial: Write the joints that passed even when others failed.
+        write_zero: Once the stops are found, move each joint that passed to its 0 and store that position as
+            its motor's zero (Damiao 0xFE, one flash write per motor; :mod:`.zero`); the file written then holds
+            the offsets against the new zeros (≈ 0).
         gravity: Joint → gravity torque model in the driver's frame, for the correction (a simulator's truth).
             Without it, a URDF with ``<inertial>`` masses gives the correction
             (:func:`robocal.formats.urdf_gravity.gravity_model_if_any`).
@@ -254,6 +257,7 @@ class SweepAutoRequest:
     report: str | Path | None = None
     fmt: str | None = None
     partial: bool = False
+    write_zero: bool = False
     gravity: Mapping[str, Callable[[float], float]] | None = None
     verify: bool = False
     tolerance_deg: float = 2.0
@@ -327,6 +331,8 @@ def run_sweep_auto(
     if fmt is None:
         fmt = output_format(out_path, profile)
     existing = existing_output(out_path, fmt, urdf, profile)
+    if r.verify and r.write_zero:
+        raise UsageError("--verify writes nothing: it does not go with --write-zero")
     if r.verify and existing is None:
         raise UsageError(f"--verify: no stored calibration at {out_path} to verify (calibrate first)")
     specs = joints_from_urdf(urdf, profile, existing)
@@ -360,6 +366,10 @@ def run_sweep_auto(
             opener = _LIVE_OPENERS[vendor.name]
     drivers, clock, close = opener(spec, specs, profile)
     try:
+        if r.write_zero:
+            from .zero import can_store_zero
+
+            can_store_zero(drivers, [j.name for j in order if j.searched])
         # the one motion guard (motion_guard.py): SIGINT/SIGTERM/SIGHUP/SIGQUIT or a fault → every motor limp
         # (signals held off until it is done), the line says which motors did not answer the torque-off
         with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
@@ -413,10 +423,21 @@ def run_sweep_auto(
                 "write the joints that passed)",
                 auto,
             )
+        zeros: dict[str, float] = {}
+        if r.write_zero and searched:
+            from .zero import rezeroed_result, store_zeros
+
+            with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
+                zeros = store_zeros(
+                    drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=MAX_LAG_RAD
+                )
+            result = rezeroed_result(result, zeros)
         with _all_or_nothing([p for p in (report_path, out_path if rows else None) if p is not None]):
             if report_path is not None:
                 doc = result.to_report()
                 doc["auto"] = auto.to_report()
+                if zeros:
+                    doc["zero_stored_at_deg"] = {n: round(math.degrees(q), 4) for n, q in zeros.items()}
                 atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
             if rows:
                 write_sweep_files(result, urdf, rows, out_path, fmt, None, existing, profile)

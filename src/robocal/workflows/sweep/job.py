@@ -443,7 +443,12 @@ def write_sweep_files(
         if report is not None:  # without the report that describes it
             atomic_write_text(report, text)
             written.append(report)
-        write_calibration(out, CalibrationFile(cal, ids, fmt), fmt, urdf=urdf, robot=profile)
+        ranges = {
+            j.name: (j.sampled_min - j.direction * j.homing_offset, j.sampled_max - j.direction * j.homing_offset)
+            for j in result.joints
+            if math.isfinite(j.sampled_min) and math.isfinite(j.sampled_max) and math.isfinite(j.homing_offset)
+        }
+        write_calibration(out, CalibrationFile(cal, ids, fmt, ranges_rad=ranges), fmt, urdf=urdf, robot=profile)
     except (CalibError, OSError) as exc:
         if isinstance(exc, OSError):
             reason = f"cannot write {exc.filename or out}: {exc.strerror or exc}"

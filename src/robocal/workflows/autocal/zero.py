@@ -1,0 +1,108 @@
+"""Store each calibrated joint's zero in its motor (``sweep --auto --write-zero``; Damiao: 0xFE into flash).
+
+Where a stack reads a motor's angle against the zero kept in the motor (LeRobot's ``DamiaoMotorsBus``,
+openarm_can, openarm_ros2), the calibration is that zero: every joint is moved to its 0 (``s = offset``, from its
+stops), held and refined until the reading agrees within :data:`ZERO_TOL_RAD`, and then the driver stores its
+present position as the motor's zero (:meth:`DamiaoJointDriver.store_zero`: limp, disable, 0xFE, disable). The
+joints are all moved first (each holds while the next moves), then zeroed one by one in the profile's order; a
+zeroed motor is limp, and at the joints' 0 (the arm hanging, elbow and gripper on their stops) gravity pulls no
+joint away. Runs inside the caller's motion guard.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from ...core.profile_auto import AutoSection
+from ...core.stop_search import Command
+from ...core.sweep_result import SweepResult
+from ...errors import UsageError
+from .joint import TRANSIT_FACTOR, move_to
+from .model import JointDriver
+
+__all__ = ["HOLD_S", "ZERO_TOL_RAD", "can_store_zero", "rezeroed_result", "store_zeros"]
+
+ZERO_TOL_RAD = math.radians(0.02)
+"""The held joint's angle must be within this of 0 before its zero is stored (up to 8 refinements)."""
+HOLD_S = 0.3
+"""How long a joint is held (and read) at each refinement."""
+
+
+def can_store_zero(drivers: Mapping[str, JointDriver], names: Sequence[str]) -> None:
+    """Refuse, before anything moves, joints whose driver cannot store a zero in its motor.
+
+    Raises:
+        UsageError: Naming them.
+    """
+    lacking = [n for n in names if not hasattr(drivers.get(n), "store_zero")]
+    if lacking:
+        raise UsageError(
+            f"--write-zero: the motors of {', '.join(lacking)} keep no zero robocal can store (a Damiao motor does)"
+        )
+
+
+def _hold(driver: JointDriver, target: float, cap: float, periods: int) -> float:
+    settle = getattr(driver, "settle_at", None)
+    if settle is not None:
+        return float(settle(target, periods * 0.01))
+    qs = [driver.execute(Command("drive", target, 0.0, cap)).q_rad for _ in range(periods)]
+    half = [q for q in qs[len(qs) // 2 :] if math.isfinite(q)]
+    return float(np.mean(half)) if half else math.nan
+
+
+def store_zeros(
+    drivers: Mapping[str, JointDriver],
+    offsets_rad: Mapping[str, float],
+    section: AutoSection,
+    *,
+    max_lag_rad: float,
+    period_s: float = 0.01,
+) -> dict[str, float]:
+    """Move every joint of ``offsets_rad`` to its 0, then store each one's zero in its motor.
+
+    Returns:
+        Joint → its angle (from its stops) where the zero was stored, rad: the new zero's error.
+    """
+    at: dict[str, float] = {}
+    for name, offset in offsets_rad.items():
+        aj = section.joint(name)
+        assert aj is not None
+        d = drivers[name]
+        move_to(d, offset, aj.speed_rad_s * TRANSIT_FACTOR, aj.torque_cap_nm, max_lag_rad)
+        target = offset
+        q = _hold(d, target, aj.torque_cap_nm, round(HOLD_S / period_s))
+        for _ in range(8):
+            if abs(q - offset) <= ZERO_TOL_RAD:
+                break
+            target -= q - offset
+            q = _hold(d, target, aj.torque_cap_nm, round(HOLD_S / period_s))
+        at[name] = q - offset
+    for name in section.joint_names:
+        if name in at:
+            drivers[name].store_zero()  # type: ignore[attr-defined]
+    return at
+
+
+def rezeroed_result(result: SweepResult, q_at_zero: Mapping[str, float]) -> SweepResult:
+    """The sweep result in the motors' new frame: each stored joint's offset is ``−direction·q_at_zero``."""
+    joints = []
+    for j in result.joints:
+        if j.name not in q_at_zero:
+            joints.append(j)
+            continue
+        h_new = -j.direction * q_at_zero[j.name]
+        shift = j.direction * (j.homing_offset - h_new)  # identity-frame readings move by this
+        joints.append(
+            replace(
+                j,
+                sampled_min=j.sampled_min - shift,
+                sampled_max=j.sampled_max - shift,
+                homing_offset=h_new,
+                bisection_offset=h_new,
+            )
+        )
+    return replace(result, joints=tuple(joints))

@@ -1,0 +1,121 @@
+"""The OpenArm's files from one session: LeRobot's openarm_follower JSON (bytes pinned), the zero stored in the
+motors (judged by the simulator's truth), convert / check through the format registry."""
+
+from __future__ import annotations
+
+import json
+import math
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocal.cli.main import main
+from robocal.core.jointmap import RobotCalibration
+from robocal.errors import FileFormatError, InvalidCalibrationError
+from robocal.formats import detect_format, read_calibration, write_calibration
+from robocal.formats.calibration._base import CalibrationFile
+from robocal.formats.urdf import read_urdf
+
+URDF = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
+RIGHT = [f"openarm_right_joint{i}" for i in range(1, 8)] + ["openarm_right_gripper_motor"]
+
+# LeRobot 0.6.1 writes draccus.dump(..., indent=4): this is the text of a right arm with its design ranges
+# (robocal's URDF limits, whole degrees) and J4 measured 0.1..139.9° (rounded inward: 1..139)
+PINNED_HEAD = (
+    '{\n    "joint_1": {\n        "id": 1,\n        "drive_mode": 0,\n        "homing_offset": 0,\n'
+    '        "range_min": -80,\n        "range_max": 200\n    },\n    "joint_2": {\n        "id": 2,\n'
+)
+PINNED_J4 = (
+    '    "joint_4": {\n        "id": 4,\n        "drive_mode": 0,\n        "homing_offset": 0,\n'
+    '        "range_min": 1,\n        "range_max": 139\n    },\n'
+)
+PINNED_TAIL = (
+    '    "gripper": {\n        "id": 8,\n        "drive_mode": 0,\n        "homing_offset": 0,\n'
+    '        "range_min": -60,\n        "range_max": 0\n    }\n}'
+)
+
+
+def _cal(offsets_deg: float = 0.0) -> CalibrationFile:
+    cal = RobotCalibration(RIGHT, np.ones(8), np.full(8, math.radians(offsets_deg)))
+    return CalibrationFile(cal, {}, "robocal", ranges_rad={RIGHT[3]: (math.radians(0.1), math.radians(139.9))})
+
+
+def test_lerobot_json_bytes_sniffed_and_read_back(tmp_path: Path) -> None:
+    out = tmp_path / "openarm.json"
+    write_calibration(out, _cal(), "openarm-lerobot", urdf=read_urdf(URDF), robot="openarm_follower_right")
+    text = out.read_text()
+    assert text.startswith(PINNED_HEAD) and PINNED_J4 in text and text.endswith(PINNED_TAIL)
+    assert list(json.loads(text)) == ["joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6", "joint_7",
+                                      "gripper"]
+    assert detect_format(out) == "openarm-lerobot"
+    cf = read_calibration(out, urdf=read_urdf(URDF))
+    assert cf.calibration.joint_names == tuple(RIGHT)
+    assert list(cf.calibration.homing_offset) == [0.0] * 8 and dict(cf.ids) == {n: i + 1 for i, n in enumerate(RIGHT)}
+    assert cf.ranges_rad[RIGHT[3]] == (math.radians(1), math.radians(139))
+
+
+def test_lerobot_json_refuses_offsets_it_cannot_hold(tmp_path: Path) -> None:
+    out = tmp_path / "openarm.json"
+    with pytest.raises(InvalidCalibrationError, match=r"openarm_right_joint1 \(\+0\.100°\).*--write-zero"):
+        write_calibration(out, _cal(0.1), "openarm-lerobot", urdf=read_urdf(URDF), robot="openarm_follower_right")
+    assert not out.exists()
+    doc = {m: {"id": i, "drive_mode": 0, "homing_offset": 0, "range_min": -90, "range_max": 90}
+           for i, m in enumerate(["joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6", "joint_7",
+                                  "gripper"], start=1)}
+    doc["joint_3"]["homing_offset"] = 5
+    p = tmp_path / "lr.json"
+    p.write_text(json.dumps(doc, indent=4))
+    with pytest.raises(FileFormatError, match=r"motor joint_3: drive_mode 0, homing_offset 5"):
+        read_calibration(p, urdf=read_urdf(URDF))
+
+
+def test_convert_and_check_between_robocal_and_lerobot(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    lr = tmp_path / "openarm.json"
+    write_calibration(lr, _cal(), "openarm-lerobot", urdf=read_urdf(URDF), robot="openarm_follower_right")
+    rc = tmp_path / "cal.yaml"
+    assert main(["convert", str(lr), str(rc), "--to", "robocal", "--urdf", str(URDF)]) == 0
+    back = tmp_path / "back.json"
+    assert main(["convert", str(rc), str(back), "--to", "openarm-lerobot", "--urdf", str(URDF)]) == 0
+    # the robocal format keeps no ranges: the way back writes the URDF's (J4 0..140 instead of the measured 1..139)
+    assert json.loads(back.read_text())["joint_4"]["range_min"] == 0
+    assert json.loads(back.read_text())["joint_1"] == json.loads(lr.read_text())["joint_1"]
+    assert main(["check", "--calibration", str(lr), "--urdf", str(URDF)]) == 0
+    out = capsys.readouterr().out
+    assert "8/8 joints matched (openarm-lerobot)" in out and "robot profile: openarm_follower_right" in out
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_one_session_stores_the_zeros_and_writes_lerobots_file(tmp_path: Path) -> None:
+    from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
+    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+
+    holder: list[SimAutoOpenArm] = []
+    out, rep = tmp_path / "openarm_follower.json", tmp_path / "rep.json"
+    try:
+        outcome = run_sweep_auto(
+            SweepAutoRequest(URDF, "sim:openarm?seed=6", out, robot="openarm_follower_right", report=rep,
+                             fmt="openarm-lerobot", write_zero=True),
+            open_drivers_fn=sim_openarm_opener(holder),
+        )
+        arm = holder[0].arm
+        # judged by the simulator: each motor's stored zero is the joint's 0, one flash write each, all limp
+        for name, motor in arm.motors.items():
+            assert abs(math.degrees(arm.zero_error_rad(name))) < 0.1, name
+            assert motor.flash_writes == 1 and not motor.enabled, name
+        arm.power_cycle()  # the zero is in flash: after a power cycle the motors still read the joint angles
+        for name in arm.motors:
+            assert abs(math.degrees(arm.zero_error_rad(name))) < 0.1, name
+    finally:
+        for sim in holder:
+            sim.close()
+    assert outcome.out == out and outcome.fmt == "openarm-lerobot"
+    doc = json.loads(out.read_text())
+    design = {"joint_1": (-80, 200), "joint_2": (-10, 190), "joint_3": (-90, 90), "joint_4": (0, 140),
+              "joint_5": (-90, 90), "joint_6": (-45, 45), "joint_7": (-90, 90), "gripper": (-60, 0)}
+    for motor, (lo, hi) in design.items():  # the measured range, rounded inward: never LeRobot's ±90
+        assert lo <= doc[motor]["range_min"] <= lo + 1 and hi - 1 <= doc[motor]["range_max"] <= hi, motor
+    stored = json.loads(rep.read_text())["zero_stored_at_deg"]
+    assert set(stored) == set(RIGHT) and max(abs(v) for v in stored.values()) <= 0.05
