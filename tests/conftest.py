@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import os
 import signal
+import tempfile
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 settings.register_profile(
@@ -24,6 +26,12 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 # the home folder of whoever runs it. One folder for the whole session (subprocesses inherit it); a test that
 # checks the snapshots sets its own.
 if "ROBOCAL_TESTS_KEEP_XDG_STATE" not in os.environ:
-    import tempfile
-
     os.environ["XDG_STATE_HOME"] = tempfile.mkdtemp(prefix="robocal-tests-state-")
+
+
+@pytest.fixture(autouse=True)
+def _fresh_state_folder(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each test its own ``$XDG_STATE_HOME``: a snapshot a killed robocal left for a pty name is not found by a
+    later test that gets the same pty name (a test that checks the snapshots sets its own folder on top)."""
+    if "ROBOCAL_TESTS_KEEP_XDG_STATE" not in os.environ:
+        monkeypatch.setenv("XDG_STATE_HOME", tempfile.mkdtemp(prefix="robocal-tests-state-"))
