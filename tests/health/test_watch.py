@@ -192,3 +192,81 @@ def test_watch_a_simulated_lite_flags_the_joint_whose_zero_is_off(
     rc = main(["health", "watch", "--source", "sim:lite?seed=3&noise=0", *args])
     out, _ = capsys.readouterr()
     assert rc == 0 and out.rstrip().endswith(": 0 flag(s)")
+
+
+@pytest.mark.slow
+def test_watch_flags_a_robstride_reading_a_whole_turn_off_as_the_wrong_branch(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    urdf, cal = _lite_calibration(tmp_path, 3, {"right_wrist_yaw": 2 * math.pi})
+    args = ["--urdf", str(urdf), "--calibration", str(cal), "--seconds", "0.2", "--max-accel-deg-s2", "1e6"]
+    rc = main(["health", "watch", "--source", "sim:lite?seed=3&noise=0", *args])
+    out, _ = capsys.readouterr()
+    assert rc == 1
+    lines = out.splitlines()
+    assert lines[0].startswith("     0.000 s  right_wrist_yaw: reading ")
+    assert lines[0].endswith("is on the wrong 2π branch (a whole turn off)")
+    assert lines[-1].endswith(": 1 flag(s)")
+
+
+def _leader_calibration(path: Path) -> Path:
+    """The simulated leader's calibration: homing offset 0, ranges at its truth's stops (wrist_roll a full turn)."""
+    truth = DEFAULT_TRUTH["so101_leader"]
+    cals = {
+        name: {
+            "id": i + 1,
+            "drive_mode": 0,
+            "homing_offset": 0,
+            "range_min": 0 if name == "wrist_roll" else int(t.stop_low_ticks),
+            "range_max": 4095 if name == "wrist_roll" else int(t.stop_high_ticks),
+        }
+        for i, (name, t) in enumerate(truth.items())
+    }
+    path.write_text(json.dumps(cals, indent=4))
+    return path
+
+
+def test_a_follower_held_while_its_leader_goes_on_is_flagged_pinned(arm: SimArm, tmp_path: Path) -> None:
+    cal = _calibration(tmp_path / "follower.json")
+    lcal = _leader_calibration(tmp_path / "leader.json")
+    with SimArm(robot_spec("so101_leader"), transport="inproc") as leader:
+        mid = DEFAULT_TRUTH["so101_leader"]["elbow_flex"].mid_ticks
+        flags: list[tuple[int, HealthFlag]] = []
+        tick = [0]
+        eeprom = leader.eeprom()
+
+        def on_tick(k: int) -> None:
+            tick[0] = k
+            if (
+                10 <= k < 50
+            ):  # the leader's elbow goes on, 5 counts a tick, 200 in all (17.6°); the follower stays
+                leader.move({"elbow_flex": mid + 5 * (k - 9)})
+            if k == 120:
+                raise KeyboardInterrupt
+
+        clock = FakeClock()
+        request = WatchRequest(
+            lerobot_port=arm.port,
+            robot="so101_follower",
+            calibration_file=cal,
+            leader_port=leader.port,
+            leader_robot="so101_leader",
+            leader_file=lcal,
+        )
+        with pytest.raises(KeyboardInterrupt):
+            watch(
+                request, lambda f: flags.append((tick[0], f)), on_tick=on_tick, clock=clock, sleep=clock.sleep
+            )
+        assert leader.eeprom() == eeprom
+    assert [(f.joint, f.kind) for _, f in flags] == [("elbow_flex", "pinned")]
+    k, flag = flags[0]
+    # both read +25 counts at rest: more than 5° (57 counts) apart from tick 21 on; 0.3 s later, at a 50 ms check
+    assert 21 + 30 <= k <= 21 + 30 + 6
+    assert math.degrees(flag.value_rad) > 5.0
+
+
+def test_leader_options_without_a_leader_port_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["health", "watch", "--lerobot-port", "sim", "--robot", "so101_follower", "--leader-id", "x"])
+    _, err = capsys.readouterr()
+    assert rc == 2
+    assert err == "error: --leader-robot, --leader-id and --leader-file go with --leader-port\n"

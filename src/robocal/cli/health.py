@@ -75,10 +75,32 @@ def watch(
         float | None, typer.Option("--seconds", help="Stop after this long (default: until Ctrl-C).")
     ] = None,
     rate_hz: Annotated[float, typer.Option("--rate-hz", help="Readings per second of an arm's bus.")] = 60.0,
+    leader_port: Annotated[
+        str | None,
+        typer.Option(
+            "--leader-port",
+            help="Teleoperation: the leader arm's port; its readings are watched too and a follower joint pinned "
+            "while its leader goes on is flagged (not the gripper).",
+        ),
+    ] = None,
+    leader_robot: Annotated[
+        str | None,
+        typer.Option("--leader-robot", help="--leader-port: the leader's profile (so101_leader, ...)."),
+    ] = None,
+    leader_id: Annotated[
+        str | None,
+        typer.Option("--leader-id", help="--leader-port: the leader's calibration id (<id>.json)."),
+    ] = None,
+    leader_file: Annotated[
+        pathlib.Path | None,
+        typer.Option(
+            "--leader-file", help="--leader-port: the leader's calibration JSON (instead of --leader-id)."
+        ),
+    ] = None,
 ) -> None:
     """Watch a robot's joint readings live, read-only, and print each calibration fault as it happens.
 
-    A reading past its stops (+ margin), a step its speed cannot explain (an encoder zero lost, a horn that jumped a tooth), a reading a whole turn off (Robstride). Exit 0 nothing flagged, 1 flagged, 2 bad input, 3 device failure; Ctrl-C ends it (130). docs/health.md.
+    A reading past its stops (+ margin), a step its speed cannot explain (an encoder zero lost, a horn that jumped a tooth), a reading a whole turn off (Robstride), a follower pinned while its leader goes on (--leader-port). Exit 0 nothing flagged, 1 flagged, 2 bad input, 3 device failure; Ctrl-C ends it (130). docs/health.md.
     """
     from ..workflows.health import WatchRequest
     from ..workflows.health import watch as run
@@ -96,6 +118,10 @@ def watch(
         max_accel_deg_s2=max_accel_deg_s2,
         seconds=seconds,
         rate_hz=rate_hz,
+        leader_port=leader_port,
+        leader_robot=leader_robot,
+        leader_id=leader_id,
+        leader_file=leader_file,
     )
     flags: list[HealthFlag] = []
 

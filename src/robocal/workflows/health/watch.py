@@ -24,9 +24,6 @@ from ...errors import FileFormatError, UsageError
 
 __all__ = ["WatchRequest", "WatchResult", "watch"]
 
-UNLIMITED_RAD = 1e6
-"""The "stop" of a joint that turns without one (a full-turn LeRobot joint, unwrapped)."""
-
 
 @dataclass(frozen=True)
 class WatchRequest:
@@ -47,6 +44,11 @@ class WatchRequest:
         max_accel_deg_s2: Acceleration limit of every joint's reading, °/s².
         seconds: Stop after this long (the samples' clock); None: until interrupted or the source ends.
         rate_hz: Readings per second at most (an arm's bus).
+        leader_port: The leader arm's port (teleoperation): its readings are watched too (joints named
+            ``leader <motor>``) and each follower joint it shares but the gripper is checked for being pinned.
+        leader_robot: The leader's robot profile.
+        leader_id: The leader's calibration id (in ``calibration_dir``).
+        leader_file: The leader's calibration JSON (instead of ``leader_id``).
     """
 
     lerobot_port: str | None = None
@@ -61,8 +63,22 @@ class WatchRequest:
     max_accel_deg_s2: float = math.degrees(50.0)
     seconds: float | None = None
     rate_hz: float = 60.0
+    leader_port: str | None = None
+    leader_robot: str | None = None
+    leader_id: str | None = None
+    leader_file: Path | None = None
 
     def __post_init__(self) -> None:
+        if self.leader_port is not None and (self.lerobot_port is None or self.leader_robot is None):
+            raise UsageError(
+                "--leader-port goes with --lerobot-port and needs --leader-robot (so101_leader, ...)"
+            )
+        if self.leader_port is None and (self.leader_robot, self.leader_id, self.leader_file) != (
+            None,
+            None,
+            None,
+        ):
+            raise UsageError("--leader-robot, --leader-id and --leader-file go with --leader-port")
         if (self.lerobot_port is None) == (self.source is None):
             raise UsageError("give --lerobot-port PORT --robot ROBOT, or --source SOURCE (one of the two)")
         if self.lerobot_port is not None and self.robot is None:
@@ -107,8 +123,9 @@ class _Stream:
     lower_rad: tuple[float, ...]
     upper_rad: tuple[float, ...]
     wraps: tuple[bool, ...]
-    readings: Iterator[tuple[float, FloatArray]]
+    readings: Iterator[tuple[float, FloatArray, FloatArray | None]]
     where: str
+    paired: tuple[bool, ...] = ()
 
 
 def _config(req: WatchRequest, s: _Stream) -> MonitorConfig:
@@ -119,6 +136,7 @@ def _config(req: WatchRequest, s: _Stream) -> MonitorConfig:
         math.radians(req.max_speed_deg_s),
         max_accel_rad_s2=math.radians(req.max_accel_deg_s2),
         wraps=list(s.wraps),
+        leader_paired=list(s.paired) or False,
         margin_rad=math.radians(req.margin_deg),
     )
 
@@ -160,7 +178,7 @@ def watch(
         monitor = Monitor(_config(request, stream))
         if on_start is not None:
             on_start(stream.names, stream.where)
-        for t_s, q in stream.readings:
+        for t_s, q, q_leader in stream.readings:
             if math.isnan(t0):
                 t0 = t_s
             if request.seconds is not None and t_s - t0 > request.seconds:
@@ -168,7 +186,8 @@ def watch(
             if t_s <= t_last:
                 continue  # a repeated time stamp (a recording's duplicate row): nothing new
             t_last = t_s
-            for flag in monitor.update(t_s - t0, q):  # flags carry seconds since the first reading
+            # flags carry seconds since the first reading; a follower is commanded to its leader's number
+            for flag in monitor.update(t_s - t0, q, q_leader, q_leader):
                 on_flag(flag)
             ticks += 1
             if on_tick is not None:
@@ -181,61 +200,45 @@ def watch(
 def _lerobot_stream(
     req: WatchRequest, clock: Callable[[], float], sleep: Callable[[float], None]
 ) -> Iterator[_Stream]:
-    """A LeRobot arm read by SYNC_READ, in physical degrees about its calibrated mid-range, as radians."""
-    from ...core.lerobot import normalize
-    from ..lerobot import (
-        calibration_file,
-        open_arm,
-        read_calibration_file,
-        require_motors,
-        restore,
-        robot_spec,
-    )
+    """A LeRobot arm (and its leader, when given) read by SYNC_READ, as radians about the recorded ranges."""
+    from .arm_reader import open_reader
 
     assert req.lerobot_port is not None and req.robot is not None
-    spec = robot_spec(req.robot)
-    path, _note = calibration_file(spec, req.robot_id, req.calibration_dir, req.calibration_file)
-    cals = read_calibration_file(path)
-    require_motors(spec, cals)
-    names = spec.motor_names
-    order = [cals[n] for n in names]
-    ids = [m.motor_id for m in spec.motors]
-    drive = spec.vendor_spec.applies_drive_mode_in_software
+    with contextlib.ExitStack() as stack:
+        arm = stack.enter_context(
+            open_reader(req.robot, req.lerobot_port, req.robot_id, req.calibration_dir, req.calibration_file)
+        )
+        lead = None
+        if req.leader_port is not None and req.leader_robot is not None:
+            lead = stack.enter_context(
+                open_reader(
+                    req.leader_robot, req.leader_port, req.leader_id, req.calibration_dir, req.leader_file
+                )
+            )
+        names, lower, upper = list(arm.names), list(arm.lower_rad), list(arm.upper_rad)
+        pairs: list[int] = []  # per follower joint: its leader joint's index, or -1
+        if lead is not None:
+            pairs = [lead.names.index(n) if n in lead.names and n != "gripper" else -1 for n in arm.names]
+            names += [f"leader {n}" for n in lead.names]
+            lower += list(lead.lower_rad)
+            upper += list(lead.upper_rad)
+        n_arm = len(arm.names)
+        period = 1.0 / req.rate_hz
 
-    def degrees(raw: FloatArray) -> FloatArray:
-        out: FloatArray = normalize(raw, order, "degrees", apply_drive_mode=drive, convention="physical")
-        return out
-
-    ends = degrees(np.array([[c.range_min for c in order], [c.range_max for c in order]], dtype=np.float64))
-    turning = [n in spec.full_turn for n in names]
-    lower = tuple(
-        -UNLIMITED_RAD if t else math.radians(min(a, b)) for t, a, b in zip(turning, *ends, strict=True)
-    )
-    upper = tuple(
-        UNLIMITED_RAD if t else math.radians(max(a, b)) for t, a, b in zip(turning, *ends, strict=True)
-    )
-    period = 1.0 / req.rate_hz
-    with open_arm(spec, req.lerobot_port) as (bus, arm):
-        if (
-            arm is not None
-        ):  # the simulated arm starts uncalibrated: give it this calibration (simulator only)
-            restore(bus, spec, cals)
-
-        def readings() -> Iterator[tuple[float, FloatArray]]:
-            turn_rad = np.zeros(len(names))
-            last = np.full(len(names), np.nan)
-            full = np.array(turning)
+        def readings() -> Iterator[tuple[float, FloatArray, FloatArray | None]]:
+            lead_q = np.full(len(names), np.nan)
+            take = np.array([k for k in pairs if k >= 0], dtype=np.int64)
+            put = np.array([i for i, k in enumerate(pairs) if k >= 0], dtype=np.int64)
             next_t = clock()
             while True:
-                raw = bus.sync_read("Present_Position", ids)
+                q = arm.read()
                 t = clock()
-                q = np.radians(degrees(np.array([raw[i] for i in ids], dtype=np.float64)))
-                if full.any():  # a full-turn joint crosses its wrap: follow it across (it has no stops)
-                    jump = np.where(full & np.isfinite(last), q - last, 0.0)
-                    turn_rad -= 2 * math.pi * np.round(jump / (2 * math.pi))
-                    last = q.copy()
-                    q = q + turn_rad
-                yield t, q
+                if lead is None:
+                    yield t, q, None
+                else:
+                    ql = lead.read()
+                    lead_q[put] = ql[take]
+                    yield t, np.concatenate([q, ql]), lead_q
                 next_t += period
                 pause = next_t - clock()
                 if pause > 0:
@@ -243,8 +246,12 @@ def _lerobot_stream(
                 else:
                     next_t = clock()
 
+        where = f"{req.robot} on {req.lerobot_port}"
+        if lead is not None:
+            where += f" with its leader {req.leader_robot} on {req.leader_port}"
+        paired = tuple(i < n_arm and pairs[i] >= 0 for i in range(len(names))) if lead is not None else ()
         yield _Stream(
-            names, lower, upper, (False,) * len(names), readings(), f"{req.robot} on {req.lerobot_port}"
+            tuple(names), tuple(lower), tuple(upper), (False,) * len(names), readings(), where, paired
         )
 
 
@@ -271,7 +278,7 @@ def _source_stream(req: WatchRequest) -> Iterator[_Stream]:
     try:
         wraps = src.frame == "motor"  # raw multi-turn motor positions (Robstride): a whole turn can be off
 
-        def readings() -> Iterator[tuple[float, FloatArray]]:
+        def readings() -> Iterator[tuple[float, FloatArray, FloatArray | None]]:
             src.begin_sweep()
             while True:
                 sample = src.read()
@@ -281,7 +288,7 @@ def _source_stream(req: WatchRequest) -> Iterator[_Stream]:
                     continue
                 pos = sample.position_rad[keep]
                 raw = pos if src.frame == "motor" else d * pos
-                yield sample.t_s, cal.to_joint(raw)
+                yield sample.t_s, cal.to_joint(raw), None
 
         if not joints:
             raise FileFormatError(f"source {req.source}: no joints")
