@@ -107,7 +107,7 @@ def test_slip_located_to_its_episode(
     assert [len(e["jumps"]) for e in joint["episodes"]] == [0, 1, 0]
 
 
-def _koch_calibration(path: Path) -> None:
+def _koch_calibration(path: Path, widen_deg: float = 0.0) -> None:
     arm = TELEOP_ARMS["koch"]
     cals = {}
     for i, name in enumerate(arm.joints):
@@ -115,6 +115,7 @@ def _koch_calibration(path: Path) -> None:
         if not math.isfinite(lo):
             rmin, rmax = 0, 4095
         else:
+            lo, hi = lo - widen_deg / 2, hi + widen_deg / 2
             rmin, rmax = round(2048 + lo * 4096 / 360), round(2048 + hi * 4096 / 360)
         cals[name] = MotorCalibration(i + 1, 0, 0, rmin, rmax)
     write_calibration(path, cals)
@@ -148,6 +149,14 @@ def test_range_units_without_files_and_degrees_with_them(
     joint = json.loads(report.read_text())["joints"]["elbow_flex"]
     assert (joint["units"], joint["status"]) == ("degrees", "offset")
     assert joint["offset_deg"] == pytest.approx(17.0, abs=3.0)
+    # a leader file whose recorded ranges are 12° wider than the follower's: every joint with stops is suspect
+    _koch_calibration(tmp_path / "wide.json", widen_deg=12.0)
+    code, _, _ = run(capsys, "dataset", "health", roots["koch"], "--report", report,
+                     "--leader-calibration", tmp_path / "wide.json", "--follower-calibration", tmp_path / "cal.json")
+    joints = json.loads(report.read_text())["joints"]
+    assert code == 1
+    assert joints["wrist_flex"]["status"] == "suspect"
+    assert "recorded ranges differ: leader 206.7°, follower 194.8° (calibration files)" in joints["wrist_flex"]["reasons"]
 
 
 def _write(session: TeleopSession, root: Path) -> Path:
