@@ -111,12 +111,12 @@ def test_cli_demo_identify_refuses_a_robot_without_it(capsys: pytest.CaptureFixt
 
 
 def test_demo_auto_is_a_job_for_the_lite_and_refuses_other_robots_in_its_own_words(tmp_path: Path) -> None:
-    assert MODE_ROBOTS["auto"] == ("lite", "so101", "koch") and set(MODE_ROBOTS) <= set(JOBS)  # modes are jobs
+    assert MODE_ROBOTS["auto"] == ("lite", "so101", "koch", "openarm") and set(MODE_ROBOTS) <= set(JOBS)
     assert prepare_demo("LITE", None, "auto") == "lite"
     with pytest.raises(
         UsageError,
-        match=r"^demo --auto simulates the lite \(14 Robstride joints\), so101 or koch \(LeRobot followers\); "
-        r"'ur10e' is not available$",
+        match=r"^demo --auto simulates the lite \(14 Robstride joints\), so101 or koch \(LeRobot followers\) or "
+        r"openarm \(8 Damiao motors\); 'ur10e' is not available$",
     ):
         run_demo("ur10e", tmp_path, mode="auto")
     assert list(tmp_path.iterdir()) == []  # refused before anything ran

@@ -82,7 +82,7 @@ def demo(
     ),
     port: int = typer.Option(8080, "--port", help="With --view: TCP port of the page (0: any free one)."),
     auto: bool = typer.Option(
-        False, "--auto", help="The simulated joints find their own hard stops (lite, so101, koch; docs/auto_calibration.md)."
+        False, "--auto", help="The simulated joints find their own hard stops (lite, so101, koch, openarm; docs/auto_calibration.md)."
     ),
 ) -> None:
     """Calibrate a simulated robot end to end (default: the Lite humanoid's 14 Robstride joints)."""
@@ -93,6 +93,8 @@ def demo(
             raise UsageError("--auto is its own demo; it does not go with --identify")
         from ._autocal import AutoLiveView, auto_demo_view
 
+        if view and robot == "openarm":
+            raise UsageError("--view does not draw the OpenArm yet; run demo --robot openarm --auto without it")
         if view:
 
             def run_auto(live: object) -> DemoResult:

@@ -36,7 +36,8 @@ def auto_demo(
     """Auto-calibrate the simulated ``robot`` (``lite``) in ``folder``; compare with the simulator's zeros.
 
     Args:
-        robot: ``lite``, or ``so101`` / ``koch`` (:func:`robocal.workflows.demo.auto_arm.auto_arm_demo`).
+        robot: ``lite``, ``so101`` / ``koch`` (:func:`robocal.workflows.demo.auto_arm.auto_arm_demo`) or
+            ``openarm`` (:func:`robocal.workflows.demo.auto_openarm.openarm_demo`).
         folder: Folder for the URDF, the calibration and the report (it exists).
         say: Prints progress lines.
         temporary: ``folder`` is removed when the demo returns.
@@ -49,6 +50,11 @@ def auto_demo(
         :class:`~robocal.workflows.autocal.sweep.AutoSweepOutcome`); exit code 0 when every joint passed and
         every recovered zero is within :data:`AUTO_TOLERANCE_RAD` of the truth, else 1.
     """
+    if robot == "openarm":  # the simulated OpenArm: sweep --auto --write-zero and LeRobot's file
+        from .auto_openarm import openarm_demo
+
+        openarm: DemoResult = openarm_demo(folder, say, temporary, view=view)
+        return openarm
     if robot != "lite":  # so101, koch: the LeRobot follower behind the vendor SDK (workflows.demo.auto_arm)
         from .auto_arm import auto_arm_demo
 

@@ -67,20 +67,22 @@ DEMO_ROBOTS: dict[str, str] = {
     "ur16e": "ur",
     "ur20": "ur",
     "ur30": "ur",
+    "openarm": "auto",
 }
 """Demo robot → the job ``robocal demo --robot ROBOT`` runs."""
 
 IDENTIFY_ROBOTS: tuple[str, ...] = ("so101", "koch")
 """Robots ``demo --identify`` simulates."""
 
-AUTO_ROBOTS: tuple[str, ...] = ("lite", "so101", "koch")
+AUTO_ROBOTS: tuple[str, ...] = ("lite", "so101", "koch", "openarm")
 """Robots ``demo --auto`` simulates."""
 
 MODE_ROBOTS: dict[str, tuple[str, ...]] = {"identify": IDENTIFY_ROBOTS, "auto": AUTO_ROBOTS}
 """Demo mode (a flag of ``robocal demo``) → the robots it works with; the mode is also the job it runs."""
 
 MODE_REFUSALS: dict[str, str] = {
-    "auto": "demo --auto simulates the lite (14 Robstride joints), so101 or koch (LeRobot followers); "
+    "auto": "demo --auto simulates the lite (14 Robstride joints), so101 or koch (LeRobot followers) or openarm "
+    "(8 Damiao motors); "
     "{robot!r} is not available",
 }
 """Demo mode → its own message for a robot it does not work with (``{robot!r}``); default
