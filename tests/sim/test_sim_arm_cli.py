@@ -64,7 +64,7 @@ def test_calibrate_then_check_in_two_processes_and_ctrl_c_cleans_up(sim_process,
     with SimControl(sim.info["control"]) as ctl:
         state = ctl.state()
     assert state["gripper"]["Homing_Offset"] == 253
-    assert state["gripper"]["last_write"] == "Max_Position_Limit=3147"
+    assert state["gripper"]["last_write"] == "Lock=1"  # a finished calibration locks the EEPROM again, as it was
     check = robocal(
         "lerobot",
         "check",
