@@ -46,7 +46,7 @@ FAULTS = (
     "lost-device",
 )
 PHASES = ("start-up", "search", "contact", "restore", "file-write")
-ROBOTS = ("so101_follower", "koch_follower", "lite")
+ROBOTS = ("so101_follower", "koch_follower", "lite", "openarm")  # openarm: damiao_harness.py
 LITE_JOINT = "left_wrist_roll"  # the Lite's trials search this joint (the arms': the gripper)
 NETNS_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 239.0.0.0/8 dev lo"
 EXPECTED_EXIT = {"sigint": 130, "double-sigint": 130, "sigterm": 143, "sighup": 129, "frozen-device": 3,
@@ -111,10 +111,10 @@ class TrialResult:
 class _Sim:
     """``robocal sim ROBOT`` in its own process; ``state()`` asks its control socket."""
 
-    def __init__(self, robot: str, folder: Path) -> None:
+    def __init__(self, robot: str, folder: Path, argv: tuple[str, ...] = ("--no-view",)) -> None:
         env = dict(os.environ, PYTHONPATH=str(SRC))
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "robocal", "sim", robot, "--no-view"],
+            [sys.executable, "-m", "robocal", "sim", robot, *argv],
             cwd=folder, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
             text=True, preexec_fn=_default_signals,
         )  # fmt: skip
@@ -220,6 +220,10 @@ def run_trial(
     The Lite's CAN is python-can's ``udp_multicast`` shared by the simulator and robocal: the trial runs in a
     private network namespace (``unshare --net``, as ``tests/sim/test_sim_lite_cli.py``), in a child process.
     """
+    if robot == "openarm":  # sweep --auto over socketcand (tests/faults/damiao_harness.py)
+        from .damiao_harness import run_openarm_trial
+
+        return run_openarm_trial(fault, phase, rng, joints)
     if robot == "lite" and os.environ.get("ROBOCAL_FAULT_NETNS") != "1":
         return _lite_in_netns(fault, phase, rng.randrange(2**32), joints)
     with tempfile.TemporaryDirectory(prefix="robocal-fault-") as tmp:
@@ -424,7 +428,8 @@ def soak(
     plan = []
     for _ in range(trials):
         robot = rng.choice(robots)
-        fault, phase = rng.choice(LITE_FAULTS if robot == "lite" else FAULTS), rng.choice(PHASES)
+        faults = {"lite": LITE_FAULTS, "openarm": (*FAULTS, "lost-bus")}.get(robot, FAULTS)
+        fault, phase = rng.choice(faults), rng.choice(PHASES)
         plan.append((robot, fault, phase, rng.randrange(2**32)))
     results: list[TrialResult] = []
     t_start = time.monotonic()
@@ -432,7 +437,8 @@ def soak(
     def one(i: int) -> TrialResult:
         robot, fault, phase, trial_seed = plan[i]
         t0 = time.monotonic()
-        r = run_trial(robot, fault, phase, random.Random(trial_seed), None if robot == "lite" else joints)
+        oa_or_lite = robot in ("lite", "openarm")
+        r = run_trial(robot, fault, phase, random.Random(trial_seed), None if oa_or_lite else joints)
         print(f"[{i + 1}/{trials}] {robot} {fault} @ {phase}: {r.verdict} (exit {r.exit_code}, "
               f"{time.monotonic() - t0:.0f} s) {'; '.join(r.failures)}"
               + (f" [robocal: {r.stderr_tail}]" if r.failures else ""), flush=True)  # fmt: skip
@@ -482,7 +488,7 @@ def table(results: list[TrialResult]) -> str:
     counts: Counter[tuple[str, str, str]] = Counter((r.fault, r.phase, r.verdict) for r in results)
     head = f"{'fault':15s}" + "".join(f"{p:>16s}" for p in PHASES)
     rows = [head]
-    for f in FAULTS:
+    for f in (*FAULTS, *sorted({r.fault for r in results} - set(FAULTS))):  # openarm: lost-bus too
         cells = [
             f"{counts[(f, p, 'pass')]}/{counts[(f, p, 'fail')]}/{counts[(f, p, 'not-reached')]}"
             for p in PHASES

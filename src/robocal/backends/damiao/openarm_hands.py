@@ -6,6 +6,12 @@
 sets its plant's state (the velocity follows from the previous placement; a joint pushed past a stop is put at
 the stop); the plant then goes on under gravity and its motor's command, as a joint a hand lets go of. A joint whose motor is enabled with a command that
 pushes (any gain or feed-forward torque) is held by the motor, and the hand cannot move it.
+
+For fault injection each joint's view also carries the motor's state as a test judges it (``extra``): ``enabled``
+(state 0x1, torque on), ``ram`` and ``flash`` (every register by name), ``zero_abs_rad`` (the zero in flash),
+``flash_writes``, ``lost_comm_at_s`` (when its TIMEOUT tripped, simulated time) and ``last_rx_s``;
+:meth:`OpenArmHands.attach` is the control socket's ``attach`` command (the motors not named stop hearing and
+answering: power or cable lost).
 """
 
 from __future__ import annotations
@@ -13,7 +19,9 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterable, Sequence
+from typing import Any
 
+from ...errors import UsageError
 from ..sim.operator import JointView
 from .openarm import SimOpenArm
 from .openarm_urdf import openarm_urdf_joint
@@ -74,7 +82,13 @@ class OpenArmHands:
                     "side": arm.side,
                     "motor": joint,
                     "state": int(m.state),
+                    "enabled": m.enabled,
                     "flash_writes": m.flash_writes,
+                    "zero_abs_rad": m.zero_abs_rad,
+                    "ram": {r.name: v for r, v in m.ram.items()},
+                    "flash": {r.name: v for r, v in m.flash.items()},
+                    "lost_comm_at_s": list(m.lost_comm_at_s),
+                    "last_rx_s": m.last_rx_s,
                 },
             )
 
@@ -101,3 +115,21 @@ class OpenArmHands:
             velocity = (position - before) / dt if 0 < dt < 0.5 else 0.0
             arm.motors[joint].set_position(position, velocity)
         self._last[name] = (now, position)
+
+    def attach(self, req: dict[str, Any]) -> dict[str, Any]:
+        """The control socket's ``attach``: only the named joints' motors hear and answer (``"all"``: every one).
+
+        A motor left out neither hears nor answers (:meth:`SimOpenArm.silence`): its power or cable lost, while
+        its state and registers stay as they were (an enabled motor's TIMEOUT, if armed, then makes it limp).
+
+        Raises:
+            UsageError: ``joints`` is neither ``"all"`` nor a list of this device's joint names.
+        """
+        joints = req.get("joints", "all")
+        if isinstance(joints, str):
+            joints = list(self._joints) if joints == "all" else [joints]
+        if not isinstance(joints, list) or any(j not in self._joints for j in joints):
+            raise UsageError(f"attach: joints must be 'all' or names among {', '.join(self._joints)}")
+        for name, (arm, joint) in self._joints.items():
+            arm.silence(joint, name not in joints)
+        return {"attached": [n for n in self._joints if n in joints]}

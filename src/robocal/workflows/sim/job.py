@@ -330,7 +330,10 @@ def serve_openarm(
         names = ",".join(buses)
         where = f"host={server.host}&port={server.port}"
         source = f"can:socketcand:{names}?{where}"
-        session = stack.enter_context(Session(OpenArmHands(arms), "openarm", source, control=control))
+        hands = OpenArmHands(arms)
+        session = stack.enter_context(
+            Session(hands, "openarm", source, control=control, extra={"attach": hands.attach})
+        )
         lines = (
             f"source: {source}",
             "buses: " + ", ".join(f"{OPENARM_BUSES[a.side]} = {a.side} arm" for a in arms)
