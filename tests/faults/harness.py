@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -277,8 +278,18 @@ def _trial(
     if fault == "frozen-device":
         os.kill(sim.proc.pid, signal.SIGCONT)
     failures = tuple(_judge(sim, folder, robot, fault, code, before, run))
+    if failures and _before_robocal(fault, code, run) and all("exit" in f for f in failures):
+        # the signal came while the interpreter itself was starting, before robocal's first line (its handlers):
+        # Python's default ended it and nothing was touched (the other checks passed): robocal was not reached
+        return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
     tail = " | ".join(ln.strip() for ln in run.lines[-3:])
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
+
+
+def _before_robocal(fault: str, code: int, run: _Run) -> bool:
+    """Killed by the signal's default action (SIGTERM, SIGHUP) without a line: robocal's handlers were not in yet."""
+    signums = {"sigterm": signal.SIGTERM, "sighup": signal.SIGHUP}
+    return fault in signums and code == -signums[fault] and not "".join(run.lines).strip()
 
 
 def _wait_for_phase(run: _Run, sim: _Sim, phase: str, n_joints: int, rng: random.Random) -> bool:
@@ -390,7 +401,9 @@ def _judge(
     if code == 0 or (robot == "lite" and code == 1):
         if not files:
             failures.append(f"exit {code} without a calibration file")
-    elif files and code in (130, 143, 129, 131) and f"interrupted after writing {files[-1]}" in err:
+    elif files and code in (130, 143, 129, 131) and re.search(
+        rf"interrupted(?: by SIG[A-Z]+)? after writing {re.escape(str(files[-1]))} \(complete\)", err
+    ):
         # the signal came after the file was written whole: robocal says so (item 6); nothing else may be left
         if leftovers:
             failures.append(f"temporary files left: {leftovers}")
@@ -441,7 +454,8 @@ def soak(
         r = run_trial(robot, fault, phase, random.Random(trial_seed), None if oa_or_lite else joints)
         print(f"[{i + 1}/{trials}] {robot} {fault} @ {phase}: {r.verdict} (exit {r.exit_code}, "
               f"{time.monotonic() - t0:.0f} s) {'; '.join(r.failures)}"
-              + (f" [robocal: {r.stderr_tail}]" if r.failures else ""), flush=True)  # fmt: skip
+              + (f" [robocal: {r.stderr_tail}]" if r.failures else "")
+              + (f"({r.stderr_tail})" if not r.injected and r.stderr_tail else ""), flush=True)  # fmt: skip
         return r
 
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
@@ -484,15 +498,17 @@ def results_from_log(text: str) -> list[TrialResult]:
 
 
 def table(results: list[TrialResult]) -> str:
-    """Counts per fault × phase: ``pass/fail/not-reached``."""
+    """Counts per fault × phase and per fault over all phases: ``pass/fail/not-reached``; then per robot."""
     counts: Counter[tuple[str, str, str]] = Counter((r.fault, r.phase, r.verdict) for r in results)
-    head = f"{'fault':15s}" + "".join(f"{p:>16s}" for p in PHASES)
+    head = f"{'fault':15s}" + "".join(f"{p:>16s}" for p in (*PHASES, "all phases"))
     rows = [head]
     for f in (*FAULTS, *sorted({r.fault for r in results} - set(FAULTS))):  # openarm: lost-bus too
         cells = [
             f"{counts[(f, p, 'pass')]}/{counts[(f, p, 'fail')]}/{counts[(f, p, 'not-reached')]}"
             for p in PHASES
         ]
+        total = [sum(counts[(f, p, v)] for p in PHASES) for v in ("pass", "fail", "not-reached")]
+        cells.append("/".join(map(str, total)))
         rows.append(f"{f:15s}" + "".join(f"{c:>16s}" for c in cells))
     per_robot = Counter((r.robot, r.verdict) for r in results)
     for robot in sorted({r.robot for r in results}):
