@@ -51,3 +51,18 @@ def test_sweep_auto_finds_the_stops_of_the_standalone_lite(tmp_path: Path) -> No
     assert after["can_timeout"] == 0  # the CAN timeout disarmed again
     assert after["watchdog_trips"] == []
     assert (tmp_path / "cal.yaml").exists()
+
+
+@pytest.mark.parametrize("upper_rad", [0.5, 1.2])
+def test_a_lite_joint_pressed_at_its_search_torque_rests_on_its_stop(upper_rad: float) -> None:
+    """The plant both Lites share: the search torque moves the joint and the 600 N·m/rad stop holds it there."""
+    from robocal.backends.sim.lite_physics import lite_plant_params
+    from robocal.backends.sim.physics import Drive, JointPlant
+
+    cap_nm = 2.0
+    params = lite_plant_params("rs-05", -0.5, upper_rad, cap_nm)
+    assert (params.inertia_kgm2, params.stiction_nm, params.counts_per_rev) == (0.005, 0.1, 16384)
+    plant = JointPlant(params, q0_rad=0.0)
+    plant.run_until(3.0, Drive(tau_ff_nm=cap_nm, tau_max_nm=cap_nm))
+    # the stop spring balances the push less friction: q = upper + (cap − coulomb)/600 at rest
+    assert plant.read().q_rad == pytest.approx(upper_rad + (cap_nm - params.coulomb_nm) / 600.0, abs=2e-3)
