@@ -292,3 +292,18 @@ def test_arrow_tables_are_read_in_episode_order(roots: dict[str, Path]) -> None:
     assert fr.action.shape == (3 * 240, 6)
     table = pq.read_table(roots["clean"] / "data/chunk-000/file-000.parquet")
     assert table.schema.field("action").type == pa.list_(pa.float32(), 6)
+
+
+@pytest.mark.slow
+def test_many_datasets_through_datatrove(small: TeleopSession, tmp_path: Path) -> None:
+    """One report per root; a root the check refuses gets its error line instead of stopping the others."""
+    from robocal.workflows.dataset.health_cluster import health_with_datatrove
+
+    good = _write(small, tmp_path / "good")
+    bad = tmp_path / "bad"
+    _bad_case("nan", small, bad)
+    paths = health_with_datatrove([good, bad], tmp_path / "out", tasks=2, workers=1)
+    reports = [json.loads(p.read_text()) for p in paths]
+    assert [p.name for p in paths] == ["good.health.json", "bad.health.json"]
+    assert set(reports[0]["joints"]) == set(TELEOP_ARMS["so101"].joints)
+    assert "NaN or infinite" in reports[1]["error"]
