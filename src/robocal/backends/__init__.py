@@ -5,7 +5,7 @@ extended by the ``robocal.backends`` entry-point group, so an optional dependenc
 clear :class:`~robocal.errors.BackendNotAvailableError` naming the extra to install instead of an ImportError at
 start-up. :func:`load_backend` is the one way robocal picks a bus or client class: the ``--source`` sources
 (Robstride, live and simulated), the LeRobot workflow (Feetech or Dynamixel by the robot's vendor) and the UR
-workflows (primary interface) all go through it.
+workflows (primary interface, RTDE) all go through it.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from .feetech import FeetechBus
     from .robstride import RobstrideBus
     from .ur_primary import PrimaryClient
+    from .ur_rtde_client import RtdeReceiveClient
 
 from ..errors import BackendNotAvailableError, UsageError
 
@@ -40,6 +41,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "feetech": ("robocal.backends.feetech", "FeetechBus"),
     "dynamixel": ("robocal.backends.dynamixel", "DynamixelBus"),
     "ur_primary": ("robocal.backends.ur_primary", "PrimaryClient"),
+    "ur_rtde": ("robocal.backends.ur_rtde_client", "RtdeReceiveClient"),
     "damiao": ("robocal.backends.damiao.bus", "DamiaoBus"),
     "robstride.joint_driver": ("robocal.backends.robstride.joint_driver", "RobstrideJointDriver"),
     "feetech.joint_driver": ("robocal.backends.feetech.joint_driver", "FeetechJointDriver"),
@@ -127,6 +129,8 @@ def load_backend(name: Literal["feetech"]) -> type[FeetechBus]: ...
 def load_backend(name: Literal["dynamixel"]) -> type[DynamixelBus]: ...
 @overload
 def load_backend(name: Literal["ur_primary"]) -> type[PrimaryClient]: ...
+@overload
+def load_backend(name: Literal["ur_rtde"]) -> type[RtdeReceiveClient]: ...
 @overload
 def load_backend(name: Literal["damiao"]) -> type[DamiaoBus]: ...
 @overload

@@ -136,6 +136,29 @@ def print_reports(reports: list[ur_verify.VerifyReport], input_warnings: list[st
     return print_warnings(warnings)
 
 
+def _host_port(text: str, flag: str, default_port: int) -> tuple[str, int]:
+    """``HOST``, ``HOST:PORT`` or ``[IPv6]:PORT`` → ``(host, port)``.
+
+    Raises:
+        UsageError: An empty host or a port that is not a number in 1..65535.
+    """
+    host, port_text = text, ""
+    if text.startswith("["):
+        host, _, rest = text[1:].partition("]")
+        port_text = rest.removeprefix(":")
+    elif text.count(":") == 1:
+        host, _, port_text = text.partition(":")
+    if not port_text:
+        port = default_port
+    elif port_text.isdigit() and 1 <= int(port_text) <= 65535:
+        port = int(port_text)
+    else:
+        raise UsageError(f"{flag} {text!r}: expected HOST[:PORT] with a port in 1..65535")
+    if not host.strip():
+        raise UsageError(f"{flag} {text!r}: expected HOST[:PORT] with a controller address")
+    return host, port
+
+
 @app.command("verify")
 def verify(
     file: Annotated[Path | None, typer.Argument(help="Kinematics YAML to check.")] = None,
@@ -155,11 +178,20 @@ def verify(
         str | None,
         typer.Option("--q", help="Compare at these joint positions (rad, 'q1,…,q6') instead of --samples random ones."),
     ] = None,
+    rtde: Annotated[
+        str | None,
+        typer.Option(
+            "--rtde",
+            metavar="HOST[:PORT]",
+            help="Also compare with this controller's actual_TCP_pose over RTDE (port 30004 unless given).",
+        ),
+    ] = None,
 ) -> None:
     """Compare the FK of the YAML (built like ur_description does) and/or a URDF with the DH FK.
 
     With --host, also compare the YAML's FK with the controller's own base→flange pose for live joint states
-    (the DH then defaults to the controller's).
+    (the DH then defaults to the controller's). With --rtde HOST[:PORT], compare the YAML's, the URDF's and the
+    DH's FK (whichever are given) with the actual_TCP_pose the controller streams over RTDE at its actual_q.
     """
     reports: list[ur_verify.VerifyReport] = []
     input_warnings: list[str] = []
@@ -169,10 +201,24 @@ def verify(
         reports.append(
             ur_verify.verify_controller(file, host, port=port, timeout_s=timeout, samples=controller_samples)
         )
-    if dh is not None or model is not None or deltas is not None or host is None:
-        params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
+    dh_given = dh is not None or model is not None or deltas is not None
+    params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings) if dh_given or host is rtde is None else None
+    if params is not None and (rtde is None or file is not None or urdf is not None):
         q_rad = None if q is None else np.array([parse_q(q)])
         reports.extend(ur_verify.verify(file, params, urdf_path=urdf, samples=samples, seed=seed, q_rad=q_rad))
+    if rtde is not None:
+        rtde_host, rtde_port = _host_port(rtde, "--rtde", 30004)
+        reports.extend(
+            ur_verify.verify_rtde(
+                rtde_host,
+                port=rtde_port,
+                kinematics_path=file,
+                dh=params,
+                urdf_path=urdf,
+                timeout_s=timeout,
+                samples=controller_samples,
+            )
+        )
     raise typer.Exit(print_reports(reports, input_warnings))
 
 

@@ -59,6 +59,7 @@ _V6 = [
     "target_TCP_speed",
     "joint_temperatures",
     "actual_joint_voltage",
+    "tcp_offset",
 ]
 _D = [
     "timestamp",

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...backends import load_backend
+from ...backends.ur_primary import PoseSample
 from ...core.arrays import FloatArray
 from ...core.chain import ChainJoint, fk_chain
 from ...core.dh import DHParameters, fk_dh
@@ -36,6 +37,7 @@ __all__ = [
     "urdf_fk",
     "verify",
     "verify_controller",
+    "verify_rtde",
 ]
 
 DEFAULT_TOLERANCE_M = 1e-9
@@ -44,8 +46,6 @@ DEFAULT_TOLERANCE_RAD = 1e-9
 """verify: largest rotation error accepted without a warning (radians)."""
 MAX_VERIFY_SAMPLES = 1_000_000
 """verify: most random joint vectors (bounds memory to a few hundred MB)."""
-
-
 
 @dataclass(frozen=True)
 class VerifyReport:
@@ -214,6 +214,25 @@ def verify(
     return reports
 
 
+def _controller_poses(got: list[PoseSample], where: str) -> tuple[FloatArray, FloatArray]:
+    """``(N, 6)`` joint positions and ``(N, 4, 4)`` base → TCP poses of controller samples (TCP offset zero).
+
+    Raises:
+        UsageError: The active TCP offset is not zero (then the TCP is not the flange, ``tool0``).
+    """
+    from ...core.se3 import matrix_from_rotvec
+
+    if any(any(v != 0.0 for v in s.tcp_offset) for s in got):
+        raise UsageError(
+            f"UR controller {where}: the active TCP offset is not zero; set an empty TCP to verify the flange"
+        )
+    q = np.array([s.q_rad for s in got], dtype=np.float64)
+    T = homogeneous(
+        matrix_from_rotvec(np.array([s.tcp_rotvec_rad for s in got])), np.array([s.tcp_xyz_m for s in got])
+    )
+    return q, T
+
+
 def verify_controller(
     kinematics_path: str | os.PathLike[str],
     host: str,
@@ -247,20 +266,11 @@ def verify_controller(
     check_connection_args(host, port, timeout_s)
     _check_samples(samples, "--controller-samples", 10_000)
     kin = read_kinematics(kinematics_path)
-    from ...core.se3 import matrix_from_rotvec
-
     with load_backend("ur_primary")(host, port, timeout_s) as client:
         info = client.read_kinematics()
         got = client.read_pose_samples(samples)
         warnings = list(client.warnings)
-    if any(any(v != 0.0 for v in s.tcp_offset) for s in got):
-        raise UsageError(
-            f"UR controller {host}:{port}: the active TCP offset is not zero; set an empty TCP to verify the flange"
-        )
-    q = np.array([s.q_rad for s in got])
-    T_base_tool0_ctrl = homogeneous(
-        matrix_from_rotvec(np.array([s.tcp_rotvec_rad for s in got])), np.array([s.tcp_xyz_m for s in got])
-    )
+    q, T_base_tool0_ctrl = _controller_poses(got, f"{host}:{port}")
     report = _report(
         f"controller {host}:{port} vs {kinematics_path}",
         fk_origins(kin.xyz_array(), kin.rpy_array(), q),
@@ -270,3 +280,76 @@ def verify_controller(
         (tolerance_m, tolerance_rad),
     )
     return replace(report, warnings=tuple(warnings) + report.warnings)
+
+
+def verify_rtde(
+    host: str,
+    *,
+    port: int = 30004,
+    kinematics_path: str | os.PathLike[str] | None = None,
+    dh: DHParameters | None = None,
+    urdf_path: str | os.PathLike[str] | None = None,
+    timeout_s: float = 10.0,
+    samples: int = 20,
+    tolerance_m: float = 1e-6,
+    tolerance_rad: float = 1e-6,
+) -> list[VerifyReport]:
+    """Compare the FK of a kinematics YAML, a URDF and/or a DH with the controller's ``actual_TCP_pose`` (RTDE).
+
+    Each data package carries ``actual_q`` and ``actual_TCP_pose`` of the same controller cycle, so the arm
+    may move while the samples are read. The TCP offset (``tcp_offset``) must be zero (TCP = flange =
+    ``tool0``). The default tolerance (1 µm / 1 µrad) allows for the controller's own rounding.
+
+    Args:
+        host: Controller address.
+        port: RTDE port.
+        kinematics_path: ur_description kinematics YAML (its hash is checked against ``dh`` when both are given).
+        dh: A DH model (``--dh``/``--model``/``--deltas``) whose FK is compared too.
+        urdf_path: An expanded URDF whose FK is compared too.
+        timeout_s: Deadline for connecting and the setup, and again for each data package.
+        samples: Number of data packages to compare.
+        tolerance_m: Position tolerance for the warning.
+        tolerance_rad: Rotation tolerance for the warning.
+
+    Returns:
+        One report per source, in the order YAML, URDF, DH.
+
+    Raises:
+        UsageError: Nothing to compare, bad connection arguments or a non-zero TCP offset (exit 2).
+        DeviceError: The controller cannot be reached or stops answering (exit 3).
+    """
+    from ...backends.ur_primary import check_connection_args
+
+    if kinematics_path is None and urdf_path is None and dh is None:
+        raise UsageError("--rtde needs a kinematics FILE, --urdf or a DH (--dh/--model) to compare")
+    check_connection_args(host, port, timeout_s)
+    _check_samples(samples, "--controller-samples", 10_000)
+    kin = read_kinematics(kinematics_path) if kinematics_path is not None else None
+    with load_backend("ur_rtde")(host, port, timeout_s) as client:
+        got = client.read_pose_samples(samples)
+    where = f"{host}:{port}"
+    q, T_base_tool0_ctrl = _controller_poses(got, f"{where} (RTDE)")
+    tol = (tolerance_m, tolerance_rad)
+    reports: list[VerifyReport] = []
+
+    def add(source: str, T_base_tool0: FloatArray, file_hash: str | None) -> None:
+        zeros = (0.0,) * 6
+        report = _report(
+            f"RTDE {where} vs {source}",
+            T_base_tool0,
+            T_base_tool0_ctrl,
+            file_hash if dh is not None else None,
+            dh or DHParameters(zeros, zeros, zeros, zeros),
+            tol,
+        )
+        if dh is None:  # no DH given: no hash to check the file's against
+            report = replace(report, dh_hash="")
+        reports.append(report)
+
+    if kin is not None:
+        add(str(kinematics_path), fk_origins(kin.xyz_array(), kin.rpy_array(), q), kin.hash)
+    if urdf_path is not None:
+        add(str(urdf_path), urdf_fk(urdf_path, q), None)
+    if dh is not None:
+        add("DH", fk_dh(dh, q), None)
+    return reports
