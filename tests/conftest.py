@@ -16,11 +16,14 @@ settings.register_profile("thorough", max_examples=1000, deadline=None)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 # A shell started in the background without job control (``cmd &`` in a script, nohup, some CI runners) starts
-# its children with SIGINT ignored, and Python then installs no KeyboardInterrupt handler: every Ctrl-C test
-# (a real SIGINT to this process or to a robocal subprocess) would fail for a reason outside robocal. Put the
-# interactive default back; subprocesses inherit it (an ignored signal is inherited across exec, a handler is not).
+# its children with SIGINT and SIGQUIT ignored, and Python then installs no KeyboardInterrupt handler: every
+# Ctrl-C test (a real SIGINT to this process or to a robocal subprocess) and every SIGQUIT test would fail (hang
+# until its timeout) for a reason outside robocal. Put the interactive defaults back; subprocesses inherit them
+# (an ignored signal is inherited across exec, a handler is not). An ignored SIGHUP (nohup) is left alone.
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+if hasattr(signal, "SIGQUIT") and signal.getsignal(signal.SIGQUIT) is signal.SIG_IGN:
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 # robocal keeps register snapshots (and crash logs) in $XDG_STATE_HOME/robocal: a test run must not leave them in
 # the home folder of whoever runs it. One folder for the whole session (subprocesses inherit it); a test that

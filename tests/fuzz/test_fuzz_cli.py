@@ -249,6 +249,7 @@ def test_cli_on_mutated_inputs_exits_cleanly(name: str, data: st.DataObject) -> 
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(600)  # 12 commands, two processes at a time: 130 s at load 14 (over the default 120 s)
 def test_cli_seed_inputs_succeed() -> None:
     """The unmutated inputs are valid: every command finishes (0, or 1 with warnings) and writes its output."""
     with tempfile.TemporaryDirectory(prefix="robocal-fuzz-cli-") as tmp:
