@@ -22,9 +22,15 @@ READS = 5
 def _arm(a):
     from robocal.backends.damiao.openarm import SimOpenArm
 
-    return SimOpenArm(
+    arm = SimOpenArm(
         a["channel"], side=a.get("side", "right"), seed=a.get("seed", 0), zeroed=a.get("zeroed", False)
     )
+    # "zeros": the zeros another session stored in the motors' flash (motor name -> absolute angle, rad): the same
+    # seed is the same arm, so these are that arm's motors after a power cycle
+    for name, zero_abs_rad in a.get("zeros", {}).items():
+        arm.motors[name].zero_abs_rad = zero_abs_rad % math.tau
+        arm.motors[name].power_on()
+    return arm
 
 
 def _truth(arm):
