@@ -277,7 +277,7 @@ def run_one(robot: Sequence[BenchJoint], spec: ScenarioSpec, seed: int) -> RunRe
     plant = make_plant(scen, nominal, search_torque_nm=cap, seed=seed, q0_rad=q0)
     driver = PlantDriver(j.name, plant, cap)
     gravity: Callable[[float], float] | None = plant.gravity_nm if plant.params.gravity_nm else None
-    out = calibrate_joint(driver, aj, section, j.lower, j.upper, max_lag_rad=MAX_LAG_RAD, gravity=gravity)
+    out = calibrate_joint(driver, aj, section, (j.lower, j.upper), max_lag_rad=MAX_LAG_RAD, gravity=gravity)
     p = plant.params
     res = RunResult.from_outcome(
         out, limp_at_end=driver.limped, peak_tau_nm=plant.peak_tau_motor_nm, cap_nm=cap, speed_rad_s=aj.speed_rad_s,

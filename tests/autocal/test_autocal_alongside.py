@@ -16,7 +16,7 @@ from robocal.core.profile_auto import AutoJoint, AutoSection
 from robocal.errors import FileFormatError
 from robocal.formats.profiles import parse_profile
 from robocal.workflows.autocal.group import run_lockstep
-from robocal.workflows.autocal.job import run_autocal
+from robocal.workflows.autocal.job import AutoCalRequest, run_autocal
 from robocal.workflows.autocal.joint import calibrate_joint, calibrate_joint_steps
 from robocal.workflows.lerobot import robot_spec
 from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
@@ -104,14 +104,14 @@ def test_lockstep_gives_each_joint_what_it_gets_alone() -> None:
     section = AutoSection(joints=(_joint("a"), _joint("b")))
     alone = {
         n: calibrate_joint(
-            PlantDriver(n, p), section.joints[i], section, -1.0, 1.0, max_lag_rad=math.radians(3)
+            PlantDriver(n, p), section.joints[i], section, (-1.0, 1.0), max_lag_rad=math.radians(3)
         )
         for i, (n, p) in enumerate(_plants().items())
     }
     plants = _plants()
     drivers = {n: PlantDriver(n, p) for n, p in plants.items()}
     steps = {
-        j.name: calibrate_joint_steps(drivers[j.name], j, section, -1.0, 1.0, max_lag_rad=math.radians(3))
+        j.name: calibrate_joint_steps(drivers[j.name], j, section, (-1.0, 1.0), max_lag_rad=math.radians(3))
         for j in section.joints
     }
     together = run_lockstep(drivers, steps, None)
@@ -127,7 +127,7 @@ def test_ctrl_c_in_one_joint_of_a_group_leaves_every_motor_limp() -> None:
     plants = _plants()
     drivers = {"a": PlantDriver("a", plants["a"]), "b": PlantDriver("b", plants["b"], interrupt_after=50)}
     with pytest.raises(KeyboardInterrupt):
-        run_autocal(drivers, section, {})
+        run_autocal(drivers, AutoCalRequest(section))
     assert drivers["a"].is_limp and drivers["b"].is_limp
     assert 0 < drivers["a"].steps <= 51  # a stopped with b: it was not run to its end first
 

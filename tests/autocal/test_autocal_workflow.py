@@ -8,7 +8,7 @@ import pytest
 
 from robocal.core.profile_auto import AutoJoint, AutoSection
 from robocal.errors import UsageError
-from robocal.workflows.autocal.job import AutoCalAbortedError, run_autocal, select_joints
+from robocal.workflows.autocal.job import AutoCalAbortedError, AutoCalRequest, run_autocal, select_joints
 
 from .plant import Plant, PlantDriver
 
@@ -49,7 +49,7 @@ def default_plants(**over: Plant) -> dict[str, Plant]:
 
 def test_zeros_found_in_order_and_poses_held() -> None:
     d = drivers(**default_plants())
-    res = run_autocal(d, SECTION, LIMITS)
+    res = run_autocal(d, AutoCalRequest(SECTION, LIMITS))
     assert [j.name for j in res.joints] == ["a", "b", "c"]
     off = res.offsets_rad
     assert off["a"] == pytest.approx(0.1, abs=math.radians(0.3))
@@ -68,7 +68,7 @@ def test_zeros_found_in_order_and_poses_held() -> None:
 
 def test_missing_stop_fails_that_joint_only_and_leaves_it_limp() -> None:
     d = drivers(**default_plants(b=Plant(q_lo=-0.7, missing_hi=True, kp=1.5 / math.radians(3), seed=2)))
-    res = run_autocal(d, SECTION, LIMITS)
+    res = run_autocal(d, AutoCalRequest(SECTION, LIMITS))
     assert [j.ok for j in res.joints] == [True, False, True]
     assert res["b"].stops.code == "missing_stop"
     assert "b: missing_stop (upper stop: no stop within the travel bound" in res.failure_summary()
@@ -80,7 +80,7 @@ def test_snag_is_a_span_mismatch() -> None:
     d = drivers(
         **default_plants(a=Plant(q_lo=-0.9, q_hi=1.1, obstacle=0.4, kp=1.5 / math.radians(3), seed=1))
     )
-    res = run_autocal(d, SECTION, LIMITS, joints=["a"])
+    res = run_autocal(d, AutoCalRequest(SECTION, LIMITS, joints=["a"]))
     assert res["a"].stops.code == "span_mismatch"
     assert d["a"].is_limp
 
@@ -89,7 +89,7 @@ def test_ctrl_c_makes_every_motor_limp() -> None:
     d = drivers(**default_plants())
     d["b"].interrupt_after = 50
     with pytest.raises(KeyboardInterrupt):
-        run_autocal(d, SECTION, LIMITS)
+        run_autocal(d, AutoCalRequest(SECTION, LIMITS))
     assert all(x.limp_count >= 1 for x in d.values())
 
 
@@ -101,7 +101,7 @@ def test_blocked_pose_move_aborts_limp() -> None:
     plants["a"].obstacle = None
     # the pose asks for 80° + offset: beyond the upper stop (1.1 rad = 63°) → cannot reach it
     with pytest.raises(AutoCalAbortedError, match="joint a: could not reach"):
-        run_autocal(d, sec, LIMITS)
+        run_autocal(d, AutoCalRequest(sec, LIMITS))
     assert all(x.is_limp for x in d.values())
 
 
@@ -110,7 +110,7 @@ def test_select_joints() -> None:
     with pytest.raises(UsageError, match="no auto-calibration entry for zz"):
         select_joints(SECTION, ["zz"])
     with pytest.raises(UsageError, match="no motor for joint"):
-        run_autocal({}, SECTION, LIMITS)
+        run_autocal({}, AutoCalRequest(SECTION, LIMITS))
 
 
 def test_joint_without_stops_is_reported_not_searched_and_never_moves() -> None:
@@ -122,7 +122,7 @@ def test_joint_without_stops_is_reported_not_searched_and_never_moves() -> None:
     )
     plants = default_plants()
     d = drivers(**plants)  # no driver for "pan": it needs none
-    res = run_autocal(d, section, LIMITS)
+    res = run_autocal(d, AutoCalRequest(section, LIMITS))
     assert [j.name for j in res.joints] == ["pan", "a", "b", "c"]
     pan = res["pan"]
     assert pan.stops.code == "not_searched" and pan.stops.reason == "full-turn motor: no hard stop"
@@ -131,7 +131,7 @@ def test_joint_without_stops_is_reported_not_searched_and_never_moves() -> None:
     assert res.to_report()["joints"]["pan"]["code"] == "not_searched"
     assert res.failure_summary() == ""
     # a run of only such joints moves nothing and takes no time
-    alone = run_autocal({}, section, LIMITS, joints=["pan"])
+    alone = run_autocal({}, AutoCalRequest(section, LIMITS, joints=["pan"]))
     assert [o.stops.code for o in alone.joints] == ["not_searched"] and alone.total_time_s == 0.0
 
 
@@ -141,7 +141,7 @@ def test_first_search_blocked_at_the_start_is_judged_by_the_span() -> None:
     plants = default_plants(
         a=Plant(q_lo=-0.9, q_hi=1.1, kp=1.5 / math.radians(3), q=-0.9 + math.radians(1), seed=1)
     )
-    res = run_autocal(drivers(**plants), SECTION, LIMITS, joints=["a"])
+    res = run_autocal(drivers(**plants), AutoCalRequest(SECTION, LIMITS, joints=["a"]))
     a = res["a"]
     assert a.ok and a.stops.lower is not None and a.stops.lower.test == "blocked"
     assert a.stops.offset_rad == pytest.approx(0.1, abs=math.radians(1.0))
@@ -150,5 +150,5 @@ def test_first_search_blocked_at_the_start_is_judged_by_the_span() -> None:
         q_lo=-0.9, q_hi=1.1, obstacle=0.4, kp=1.5 / math.radians(3), q=0.4 - math.radians(1), seed=1
     )
     section = AutoSection(joints=(joint("a", stops="both"),))
-    res = run_autocal(drivers(a=blocked), section, {"a": (-1.0, 1.0)})
+    res = run_autocal(drivers(a=blocked), AutoCalRequest(section, {"a": (-1.0, 1.0)}))
     assert res["a"].stops.code == "span_mismatch"

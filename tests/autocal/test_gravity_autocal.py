@@ -13,7 +13,7 @@ from robocal.backends.sim.physics import PlantParams, Scenario, make_plant
 from robocal.core.gravity import GravityModel
 from robocal.formats.profiles import load_profile
 from robocal.formats.urdf_gravity import gravity_model_from_urdf
-from robocal.workflows.autocal.job import joint_gravity_for, run_autocal
+from robocal.workflows.autocal.job import AutoCalRequest, joint_gravity_for, run_autocal
 
 from .test_acceptance import bench
 
@@ -51,10 +51,9 @@ def _run(model: GravityModel, joint: str, z: float, *, correct: bool) -> tuple[f
     driver = bench.PlantDriver(joint, plant, cap)
     result = run_autocal(
         {joint: driver},
-        section,
-        {joint: (lo, hi)},
-        max_lag_rad=bench.MAX_LAG_RAD,
-        gravity_model=model if correct else None,
+        AutoCalRequest(
+            section, {joint: (lo, hi)}, max_lag_rad=bench.MAX_LAG_RAD, gravity_model=model if correct else None
+        ),
     )
     out = result[joint]
     assert out.ok, out.stops.reason

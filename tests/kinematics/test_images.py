@@ -25,14 +25,14 @@ pytestmark = [
 
 from robocal.backends.vision import CameraIntrinsics, detect, parse_target, read_image, render  # noqa: E402
 from robocal.formats.camera_info import read_camera_info, write_camera_info  # noqa: E402
-from robocal.workflows.kinematics.vision import SIM_CAMERA_K, simulate_images  # noqa: E402
+from robocal.workflows.kinematics.vision import SIM_CAMERA_K, SimImagesRequest, simulate_images  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """40 rendered tag images and 20 board images of a simulated SO-101 with hidden errors; camera calibrated."""
     folder = tmp_path_factory.mktemp("tag")
-    simulate_images("so101", folder, poses=40, seed=0)
+    simulate_images(SimImagesRequest("so101", folder, poses=40, seed=0))
     images = sorted(str(p) for p in (folder / "calibration").glob("*.png"))
     code = main(
         ["kinematics", "camera-calibrate", *images, "--board", "charuco:7x5:30:22:4x4_50",

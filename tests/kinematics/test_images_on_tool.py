@@ -82,10 +82,12 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
     pytest.importorskip("cv2")
     from robocal.backends.vision import CameraIntrinsics
     from robocal.formats.camera_info import write_camera_info
-    from robocal.workflows.kinematics.vision import SIM_CAMERA_K, simulate_images
+    from robocal.workflows.kinematics.vision import SIM_CAMERA_K, SimImagesRequest, simulate_images
 
     folder = tmp_path_factory.mktemp("eye_in_hand")
-    simulate_images("so101", folder, poses=30, seed=2, camera_on_tool=True, calibration_images=0)
+    simulate_images(
+        SimImagesRequest("so101", folder, poses=30, seed=2, camera_on_tool=True, calibration_images=0)
+    )
     write_camera_info(folder / "camera.yaml", CameraIntrinsics(1280, 960, SIM_CAMERA_K, np.zeros(5)))
     return folder
 

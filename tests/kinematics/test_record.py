@@ -17,7 +17,8 @@ from robocal.core.lerobot import MotorCalibration
 from robocal.errors import JointMismatchError, UsageError
 from robocal.formats.kinematic_data import read_measurements
 from robocal.lerobot import write_calibration
-from robocal.workflows.kinematics.record import open_reader, record
+from robocal.workflows.kinematics.record import RecordRequest, record
+from robocal.workflows.kinematics.record_arm import ArmSource, open_reader
 from robocal.workflows.kinematics.sim import shipped_urdf
 from robocal.workflows.lerobot import robot_spec
 
@@ -80,7 +81,7 @@ def arm(tmp_path: Path):
 
 def test_points_session_reads_the_joints_through_the_lerobot_calibration(arm, tmp_path: Path) -> None:
     sim, cals, cal_path = arm
-    reader, chain = open_reader(lerobot_port=sim.port, robot=ROBOT, calibration_file=cal_path)
+    reader, chain = open_reader(ArmSource(lerobot_port=sim.port, robot=ROBOT, calibration_file=cal_path))
     assert chain.joint_names == CHAIN and chain.tip_link == "gripper_link"
     # the recorder switched every motor's torque off so the arm can be moved by hand
     assert all(sim.servo(m.name).get_reg("Torque_Enable") == 0 for m in SPEC.motors)
@@ -99,7 +100,7 @@ def test_points_session_reads_the_joints_through_the_lerobot_calibration(arm, tm
         return f"{100 + n} {-20.5 * n} 3.25"
 
     try:
-        result = record(reader, chain, tmp_path / "s.csv", kind="points", ask=ask, say=said.append)
+        result = record(reader, chain, RecordRequest(tmp_path / "s.csv", kind="points"), ask=ask, say=said.append)
     finally:
         reader.close()
     assert result.measurements.n_poses == 3 and not result.skipped
@@ -113,7 +114,7 @@ def test_points_session_reads_the_joints_through_the_lerobot_calibration(arm, tm
 
 def test_pose_outside_the_urdf_limits_is_not_recorded_and_q_finishes(arm, tmp_path: Path) -> None:
     sim, cals, cal_path = arm
-    reader, chain = open_reader(lerobot_port=sim.port, robot=ROBOT, calibration_file=cal_path)
+    reader, chain = open_reader(ArmSource(lerobot_port=sim.port, robot=ROBOT, calibration_file=cal_path))
     poses = [TARGETS[0], np.array([0.0, 0.0, 0.0, 0.0, -2.9]), TARGETS[1]]  # wrist_roll limit −2.74385
     said: list[str] = []
     moves = iter(poses)
@@ -128,7 +129,7 @@ def test_pose_outside_the_urdf_limits_is_not_recorded_and_q_finishes(arm, tmp_pa
         return "P7" if "label" in prompt else ""
 
     try:
-        result = record(reader, chain, tmp_path / "t.csv", kind="touch", ask=ask, say=said.append)
+        result = record(reader, chain, RecordRequest(tmp_path / "t.csv", kind="touch"), ask=ask, say=said.append)
     finally:
         reader.close()
     assert result.measurements.n_poses == 2
@@ -143,14 +144,14 @@ def test_pose_outside_the_urdf_limits_is_not_recorded_and_q_finishes(arm, tmp_pa
 
 def test_no_pose_writes_nothing(arm, tmp_path: Path) -> None:
     sim, _, cal_path = arm
-    reader, chain = open_reader(lerobot_port=sim.port, robot=ROBOT, calibration_file=cal_path)
+    reader, chain = open_reader(ArmSource(lerobot_port=sim.port, robot=ROBOT, calibration_file=cal_path))
 
     def ask(prompt: str) -> str:
         raise EOFError
 
     try:
         with pytest.raises(UsageError, match="no pose was recorded; nothing written"):
-            record(reader, chain, tmp_path / "none.csv", ask=ask, say=print)
+            record(reader, chain, RecordRequest(tmp_path / "none.csv"), ask=ask, say=print)
     finally:
         reader.close()
     assert not (tmp_path / "none.csv").exists()
@@ -162,7 +163,7 @@ def test_joint_map_without_a_chain_joint_is_refused(tmp_path: Path) -> None:
         "scale: 0.0015343306}\n"
     )
     with pytest.raises(JointMismatchError, match=r"has no joint\(s\) shoulder_lift, elbow_flex"):
-        open_reader(lerobot_port="/dev/null", robot=ROBOT, joint_map=tmp_path / "map.yaml")
+        open_reader(ArmSource(lerobot_port="/dev/null", robot=ROBOT, joint_map=tmp_path / "map.yaml"))
 
 
 def test_replay_source(tmp_path: Path) -> None:
@@ -174,9 +175,7 @@ def test_replay_source(tmp_path: Path) -> None:
         + "".join(f"{i * 0.1}," + ",".join(map(str, r)) + "\n" for i, r in enumerate(rows))
     )
     reader, chain = open_reader(
-        urdf=shipped_urdf("so101"),
-        tip_link="gripper_link",
-        source=f"replay:{tmp_path / 'rec.csv'}",
+        ArmSource(urdf=shipped_urdf("so101"), tip_link="gripper_link", source=f"replay:{tmp_path / 'rec.csv'}")
     )
     groups = iter("AABB")
 
@@ -184,7 +183,7 @@ def test_replay_source(tmp_path: Path) -> None:
         return next(groups) if "socket" in prompt else ""
 
     try:
-        result = record(reader, chain, tmp_path / "g.csv", kind="gauge", ask=ask, say=lambda m: None, poses=2)
+        result = record(reader, chain, RecordRequest(tmp_path / "g.csv", kind="gauge", poses=2), ask=ask, say=lambda m: None)
     finally:
         reader.close()
     assert result.measurements.q_rad.tolist() == rows[:2].tolist()

@@ -241,10 +241,10 @@ def simulate(
     if kind == "tag":
         from ..workflows.kinematics import vision as vis_wf
 
-        img = vis_wf.simulate_images(
+        img = vis_wf.simulate_images(vis_wf.SimImagesRequest(
             robot.strip().lower(), out, poses=poses, seed=seed, camera_on_tool=camera_on_tool, plan=not random_poses,
             ticks_per_turn=ticks,
-        )  # fmt: skip
+        ))  # fmt: skip
         console.print(
             f"wrote {img.urdf}, {img.data} ({poses} images of {img.target}), {len(img.calibration_images)} "
             f"calibration images of {img.board} in {out / 'calibration'}, {img.truth}"
@@ -260,17 +260,19 @@ def simulate(
         )
         raise typer.Exit(EXIT_OK)
     sim = sim_wf.simulate(
-        robot.strip().lower(),
-        out,
-        kind=kind,
-        poses=poses,
-        noise_m=noise_mm * 1e-3,
-        seed=seed,
-        on_axis=on_axis,
-        plan=not random_poses,
-        gauge_distance_m=gauge_mm * 1e-3,
-        validation_poses=validation_poses,
-        ticks_per_turn=ticks,
+        sim_wf.SimulationRequest(
+            robot.strip().lower(),
+            out,
+            kind=kind,
+            poses=poses,
+            noise_m=noise_mm * 1e-3,
+            seed=seed,
+            on_axis=on_axis,
+            plan=not random_poses,
+            gauge_distance_m=gauge_mm * 1e-3,
+            validation_poses=validation_poses,
+            ticks_per_turn=ticks,
+        )
     )
     held = ""
     if sim.validation is not None and sim.validation_measurements is not None:
@@ -358,20 +360,22 @@ def record(
     if (lerobot_port is None) == (source is None):
         raise UsageError("give either --lerobot-port (with --robot) or --source")
     kind = kind.strip().lower()
-    from ..workflows.kinematics.record_arm import check_session
+    from ..workflows.kinematics.record_arm import ArmSource, check_session, open_reader
 
     check_session(kind, out)  # before the port opens: a LeRobot arm goes limp then
-    reader, chain = rec_wf.open_reader(
-        urdf=urdf,
-        base_link=base_link,
-        tip_link=tip_link,
-        lerobot_port=lerobot_port,
-        robot=robot,
-        robot_id=robot_id,
-        calibration_dir=calibration_dir,
-        calibration_file=file,
-        source=source,
-        joint_map=joint_map,
+    reader, chain = open_reader(
+        ArmSource(
+            urdf=urdf,
+            base_link=base_link,
+            tip_link=tip_link,
+            lerobot_port=lerobot_port,
+            robot=robot,
+            robot_id=robot_id,
+            calibration_dir=calibration_dir,
+            calibration_file=file,
+            source=source,
+            joint_map=joint_map,
+        )
     )
     try:
         targets: FloatArray | None = None
@@ -381,17 +385,11 @@ def record(
         err_console.print(
             f"recording {kind} poses of {', '.join(chain.joint_names)} (chain {chain.base_link} → {chain.tip_link})"
         )
+        session = rec_wf.RecordRequest(
+            out, kind=kind, poses=poses, image_pattern=image_pattern, targets=targets, target_labels=labels
+        )
         result = rec_wf.record(
-            reader,
-            chain,
-            out,
-            kind=kind,
-            ask=_stdin_ask,
-            say=lambda m: err_console.print(m, markup=False),
-            poses=poses,
-            image_pattern=image_pattern,
-            targets=targets,
-            target_labels=labels,
+            reader, chain, session, ask=_stdin_ask, say=lambda m: err_console.print(m, markup=False)
         )
     finally:
         reader.close()

@@ -35,7 +35,13 @@ from .model import (
 )
 from .model import __all__ as _types_all
 
-__all__ = ["calibrate_joint", "joint_gravity_for", "run_autocal", "select_joints"]
+__all__ = [
+    "AutoCalRequest",
+    "calibrate_joint",
+    "joint_gravity_for",
+    "run_autocal",
+    "select_joints",
+]
 __all__ += _types_all
 
 
@@ -81,20 +87,42 @@ class _Run:
     offsets: dict[str, float] = field(default_factory=dict)
 
 
+@dataclass(frozen=True, eq=False)
+class AutoCalRequest:
+    """Which joints of a profile's auto-calibration section :func:`run_autocal` searches, and how.
+
+    Attributes:
+        section: The profile's auto-calibration section.
+        limits: Joint → URDF (lower, upper) limits (rad), the default expected stop angles.
+        joints: Subset to calibrate (``--joints``), in the profile's order (None: every joint).
+        max_lag_rad: Per joint or for all: the most the position target may lead the joint (the drive's
+            ``cap/kp``).
+        gravity: Joint → gravity torque model ``τ_g(s)`` in the driver's frame, for the correction.
+        gravity_model: The URDF's gravity model (:func:`robocal.formats.urdf_gravity.gravity_model_from_urdf`):
+            each joint's stops are corrected with its gravity torque in the joint frame, the joints its profile
+            ``pose`` names at those angles and every other joint at 0 (:func:`joint_gravity_for`). Joints that
+            ``gravity`` covers are left to it.
+        joint_gravity: Joint → gravity torque in the joint frame in its search pose, instead of ``gravity_model``
+            (a simulator's truth: the simulated OpenArm's joints, whose weights are not in a URDF).
+    """
+
+    section: AutoSection
+    limits: Mapping[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    joints: Sequence[str] | None = None
+    max_lag_rad: Mapping[str, float] | float = math.radians(3.0)
+    gravity: Mapping[str, Callable[[float], float]] | None = None
+    gravity_model: GravityModel | None = None
+    joint_gravity: Mapping[str, JointGravity] | None = None
+
+
 def run_autocal(
     drivers: Mapping[str, JointDriver],
-    section: AutoSection,
-    limits: Mapping[str, tuple[float | None, float | None]],
+    request: AutoCalRequest,
     *,
-    joints: Sequence[str] | None = None,
-    max_lag_rad: Mapping[str, float] | float = math.radians(3.0),
-    gravity: Mapping[str, Callable[[float], float]] | None = None,
-    gravity_model: GravityModel | None = None,
-    joint_gravity: Mapping[str, JointGravity] | None = None,
     view: AutoView | None = None,
     clock: Clock | None = None,
 ) -> AutoCalResult:
-    """Auto-calibrate the joints of ``section`` (or the ``joints`` subset) in order.
+    """Auto-calibrate the joints of ``request.section`` (or its ``joints`` subset) in order.
 
     Before each joint, the joints already calibrated that its ``pose`` names move to those angles (their zero
     is known by then). Joints the profile puts ``alongside`` an earlier one are searched at the same time as it
@@ -106,26 +134,17 @@ def run_autocal(
 
     Args:
         drivers: Joint name → driver (every selected joint needs one).
-        section: The profile's auto-calibration section.
-        limits: Joint → URDF (lower, upper) limits (rad), the default expected stop angles.
-        joints: Subset to calibrate (``--joints``), in the profile's order.
-        max_lag_rad: Per joint or for all: the most the position target may lead the joint (the drive's
-            ``cap/kp``).
-        gravity: Joint → gravity torque model ``τ_g(s)`` in the driver's frame, for the correction.
-        gravity_model: The URDF's gravity model (:func:`robocal.formats.urdf_gravity.gravity_model_from_urdf`):
-            each joint's stops are corrected with its gravity torque in the joint frame, the joints its profile
-            ``pose`` names at those angles and every other joint at 0 (:func:`joint_gravity_for`). Joints that
-            ``gravity`` covers are left to it.
-        joint_gravity: Joint → gravity torque in the joint frame in its search pose, instead of ``gravity_model``
-            (a simulator's truth: the simulated OpenArm's joints, whose weights are not in a URDF).
+        request: The section, the joints, the lag and the gravity models.
         view: Live view.
         clock: Clock for the total time (default: the first driver's readings).
 
     Raises:
-        UsageError: A selected joint has no driver.
+        UsageError: ``joints`` names a joint the section lacks, or a selected joint has no driver.
         AutoCalAbortedError: A device fault (every motor is limp).
     """
-    order = select_joints(section, joints)
+    section, limits, max_lag_rad, gravity = request.section, request.limits, request.max_lag_rad, request.gravity
+    gravity_model, joint_gravity = request.gravity_model, request.joint_gravity
+    order = select_joints(section, request.joints)
     lacking = [j.name for j in order if j.searched and j.name not in drivers]
     if lacking:
         raise UsageError(f"no motor for joint(s) {', '.join(lacking)}")
@@ -151,13 +170,11 @@ def run_autocal(
                             )
                 steps = {}
                 for joint in searched:
-                    lo, hi = joint.expected_rad(*limits.get(joint.name, (None, None)))
                     steps[joint.name] = calibrate_joint_steps(
                         drivers[joint.name],
                         joint,
                         section,
-                        lo,
-                        hi,
+                        joint.expected_rad(*limits.get(joint.name, (None, None))),
                         max_lag_rad=_lag(max_lag_rad, joint.name),
                         gravity=None if gravity is None else gravity.get(joint.name),
                         gravity_joint=None

@@ -295,8 +295,7 @@ def calibrate_joint_steps(
     driver: JointDriver,
     joint: AutoJoint,
     section: AutoSection,
-    expected_lower_rad: float | None,
-    expected_upper_rad: float | None,
+    expected_rad: tuple[float | None, float | None],
     *,
     max_lag_rad: float,
     gravity: Callable[[float], float] | None = None,
@@ -314,8 +313,10 @@ def calibrate_joint_steps(
     press; ``gravity_joint`` one in the joint (URDF) frame (:func:`robocal.core.gravity.joint_gravity`), used by
     :func:`~robocal.core.stop_zero.joint_zero` once both stops are known. Give at most one.
 
+    ``expected_rad`` is the (lower, upper) stop angle expected in the driver's frame, each None when unknown.
     A failed search leaves the joint limp; the outcome carries its code and reason.
     """
+    expected_lower_rad, expected_upper_rad = expected_rad
     t0 = driver.read().t_s
     cap = joint.torque_cap_nm
     tol = math.radians(joint.tolerance_deg)

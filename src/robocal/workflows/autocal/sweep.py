@@ -33,7 +33,7 @@ from ...errors import UsageError
 from ...fileio import atomic_write_bytes, atomic_write_text, backup_paths
 from ...formats.profiles import resolve_profile
 from ..motion.guard import MotionGuard
-from .job import run_autocal, select_joints
+from .job import AutoCalRequest, run_autocal, select_joints
 from .model import (
     AutoCalAbortedError,
     AutoCalFailedError,
@@ -375,13 +375,15 @@ def run_sweep_auto(
         with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
             auto = run_autocal(
                 drivers,
-                profile.auto,
-                limits,
-                joints=[j.name for j in order],
-                max_lag_rad=MAX_LAG_RAD,
-                gravity=gravity,
-                gravity_model=gravity_model,
-                joint_gravity=joint_gravity,
+                AutoCalRequest(
+                    profile.auto,
+                    limits,
+                    joints=[j.name for j in order],
+                    max_lag_rad=MAX_LAG_RAD,
+                    gravity=gravity,
+                    gravity_model=gravity_model,
+                    joint_gravity=joint_gravity,
+                ),
                 view=view,
                 clock=clock,
             )

@@ -117,7 +117,9 @@ def simulate_and_identify(
     from ..kinematics import sim as sim_wf
 
     sim = sim_wf.simulate(
-        robot, folder, poses=DEMO_POSES, noise_m=0.5e-3, seed=seed, validation_poses=DEMO_HELD_OUT
+        sim_wf.SimulationRequest(
+            robot, folder, poses=DEMO_POSES, noise_m=0.5e-3, seed=seed, validation_poses=DEMO_HELD_OUT
+        )
     )
     assert sim.validation is not None and sim.validation_truth_m is not None
     result = wf.identify(wf.IdentifyRequest(
@@ -194,7 +196,7 @@ def _images_demo(robot: str, folder: Path, steps: _Steps) -> ImagesDemo:
     folder.mkdir(exist_ok=True)
     steps.start("images: rendering 20 ChArUco and 40 AprilTag images")
     try:
-        sim = vis_wf.simulate_images(robot, folder, poses=40, seed=0)
+        sim = vis_wf.simulate_images(vis_wf.SimImagesRequest(robot, folder, poses=40, seed=0))
     except BackendNotAvailableError as exc:  # pragma: no cover - OpenCV missing
         return ImagesDemo(f"skipping the image demo: {exc}")
     steps.start("images: calibrating the camera from the ChArUco images")

@@ -30,6 +30,7 @@ __all__ = [
     "DEFAULT_TICKS_PER_TURN",
     "MAX_DISTINCT_ROWS",
     "PRISMATIC_RESOLUTION_M",
+    "HeldOut",
     "PoseCells",
     "Sessions",
     "check_distinct_poses",
@@ -246,16 +247,30 @@ class Sessions:
     warnings: tuple[str, ...]
 
 
+@dataclass(frozen=True, eq=False)
+class HeldOut:
+    """Which poses are held out for validation: a separate session, or a seeded random share of the distinct ones.
+
+    Attributes:
+        fraction: Share of the distinct poses held out when ``session`` is None.
+        seed: Seed of that split.
+        session: A separate held-out session (``--validate-data``), or None to hold ``fraction`` out.
+        source: Its file, for messages.
+    """
+
+    fraction: float
+    seed: int = 0
+    session: Measurements | None = None
+    source: str | None = None
+
+
 def sessions(
     data: Measurements,
     problem_of: Callable[[Measurements], Problem],
     chain: SerialChain,
     *,
     source: str,
-    held_out: Measurements | None,
-    held_out_source: str | None,
-    fraction: float,
-    seed: int,
+    held_out: HeldOut,
     ticks_per_turn: int,
     check: Callable[[Measurements], None] = lambda _: None,
 ) -> Sessions:
@@ -266,10 +281,7 @@ def sessions(
         problem_of: The identification problem of a set of poses (model, free parameters, nominal values).
         chain: The chain (its joint types set the resolution).
         source: The session file, for messages.
-        held_out: A separate held-out session (``--validate-data``), or None to hold ``fraction`` out.
-        held_out_source: Its file, for messages.
-        fraction: Share of the distinct poses held out when ``held_out`` is None.
-        seed: Seed of that split.
+        held_out: The separate held-out session, or the share of the distinct poses to hold out.
         ticks_per_turn: Encoder resolution (0: exact readings).
         check: Judges the session once exact copies are merged (units, reach; see
             :mod:`robocal.workflows.kinematics.plausibility`), before anything else is computed from it.
@@ -288,18 +300,18 @@ def sessions(
     check(data)
     structural = structural_analysis(problem_of(data))
     check_distinct_poses(cells, structural.rank, rows=cells.copies + cells.kept.size, source=source)
-    if held_out is None:
+    if held_out.session is None:
         # the distinct poses are split (each row its own when none repeats): rows of one pose stay on one side
-        train_p, _ = split_validation(data.subset(cells.first), fraction, seed)
+        train_p, _ = split_validation(data.subset(cells.first), held_out.fraction, held_out.seed)
         in_train = np.isin(cells.pose, train_p)
         train, val = data.subset(np.flatnonzero(in_train)), data.subset(np.flatnonzero(~in_train))
         train_rows = cells.kept[in_train]
     else:
-        train, val, train_rows = data, held_out, cells.kept
+        train, val, train_rows = data, held_out.session, cells.kept
     train_cells = pose_cells(train, chain, ticks_per_turn, source=source)
     val_distinct = 0
     if val.n_poses:
-        val_cells = pose_cells(val, chain, ticks_per_turn, source=held_out_source or source)
+        val_cells = pose_cells(val, chain, ticks_per_turn, source=held_out.source or source)
         repeats = held_out_repeats(train_cells, val_cells)
         keep = np.setdiff1d(np.arange(val_cells.kept.size), repeats)
         val_distinct = val_cells.n_poses - len({int(val_cells.pose[k]) for k in repeats})

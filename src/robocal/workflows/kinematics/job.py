@@ -260,13 +260,16 @@ def identify(request: IdentifyRequest) -> IdentifyResult:
     def problem_of(poses: Measurements) -> Problem:
         return Problem(model, poses, free, np.zeros(model.n_params))
 
-    gated = gates.sessions(
-        measurements, problem_of, chain, source=str(data),
-        held_out=None if validate_data is None
+    held_out = gates.HeldOut(
+        DEFAULT_VALIDATE_FRACTION if r.validate_fraction is None else r.validate_fraction,
+        r.seed,
+        None if validate_data is None
         else _validation_session(validate_data, kind, chain, labels, r.gauge_distance_m),
-        held_out_source=None if validate_data is None else str(validate_data),
-        fraction=DEFAULT_VALIDATE_FRACTION if r.validate_fraction is None else r.validate_fraction,
-        seed=r.seed, ticks_per_turn=r.ticks_per_turn, check=lambda poses: plaus.check_session(model, poses, frame=frame, source=str(data)),
+        None if validate_data is None else str(validate_data),
+    )  # fmt: skip
+    gated = gates.sessions(
+        measurements, problem_of, chain, source=str(data), held_out=held_out, ticks_per_turn=r.ticks_per_turn,
+        check=lambda poses: plaus.check_session(model, poses, frame=frame, source=str(data)),
     )  # fmt: skip
     warnings += gated.warnings
     train, val = gated.train, gated.validation

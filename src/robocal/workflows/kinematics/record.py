@@ -31,11 +31,11 @@ from ...formats.kinematic_data import session_csv
 __all__ = [
     "JointReader",
     "LeRobotReader",
+    "RecordRequest",
     "RecordResult",
     "SourceReader",
     "calibration_for_chain",
     "lerobot_joint_map",
-    "open_reader",
     "plan_targets",
     "record",
 ]
@@ -191,19 +191,38 @@ def _target_text(chain: SerialChain, q: FloatArray) -> str:
     return ", ".join(f"{name} {_joint_text(chain, k, float(q[k]))}" for k, name in enumerate(chain.joint_names))
 
 
-def record(
-    reader: JointReader,
-    chain: SerialChain,
-    out: str | os.PathLike[str],
-    *,
-    kind: str = "points",
-    ask: Ask,
-    say: Say,
-    poses: int | None = None,
-    image_pattern: str = "pose_{pose:03d}.png",
-    targets: FloatArray | None = None,
-    target_labels: Sequence[str] = (),
-) -> RecordResult:
+@dataclass(frozen=True, eq=False)
+class RecordRequest:
+    """A recording session of ``kinematics record``: what to write and what to ask per pose (checked when built).
+
+    Attributes:
+        out: CSV to write (atomically, at the end; also after Ctrl-C when poses were recorded).
+        kind: ``points``, ``touch``, ``gauge`` or ``tag``.
+        poses: Stop after this many poses (None: until the user finishes).
+        image_pattern: Default image path per pose (``{pose}`` is the pose number), relative to the CSV.
+        targets: ``(N, n_q)`` planned poses (``kinematics plan``): pose ``n``'s prompt shows target ``n``, and
+            its reading is compared with it; ``poses`` defaults to ``N``.
+        target_labels: The point each planned pose touches (``touch``: its label, ``gauge``: ``A``/``B``):
+            named in the prompt and taken when the answer is empty.
+
+    Raises:
+        UsageError: An unknown kind, ``poses`` below 1.
+    """
+
+    out: str | os.PathLike[str]
+    kind: str = "points"
+    poses: int | None = None
+    image_pattern: str = "pose_{pose:03d}.png"
+    targets: FloatArray | None = None
+    target_labels: Sequence[str] = ()
+
+    def __post_init__(self) -> None:
+        check_kind(self.kind, ALL_KINDS)
+        if self.poses is not None and self.poses < 1:
+            raise UsageError(f"--poses must be at least 1, got {self.poses}")
+
+
+def record(reader: JointReader, chain: SerialChain, request: RecordRequest, *, ask: Ask, say: Say) -> RecordResult:
     """Run a recording session and write the measurement CSV.
 
     Each pose: ``ask`` waits for Enter (an answer ``q``/``done``, or end of input, finishes), the joints are
@@ -214,31 +233,24 @@ def record(
     Args:
         reader: Where the joint readings come from (chain order).
         chain: The URDF chain (joint names, limits).
-        out: CSV to write (atomically, at the end; also after Ctrl-C when poses were recorded).
-        kind: ``points``, ``touch``, ``gauge`` or ``tag``.
+        request: The session (checked when it was built).
         ask: Shows a prompt and returns the user's line (raises ``EOFError`` at the end of input).
         say: Shows a message.
-        poses: Stop after this many poses (None: until the user finishes).
-        image_pattern: Default image path per pose (``{pose}`` is the pose number), relative to the CSV.
-        targets: ``(N, n_q)`` planned poses (``kinematics plan``): pose ``n``'s prompt shows target ``n``, and
-            its reading is compared with it; ``poses`` defaults to ``N``.
-        target_labels: The point each planned pose touches (``touch``: its label, ``gauge``: ``A``/``B``):
-            named in the prompt and taken when the answer is empty.
 
     Returns:
         The :class:`RecordResult`.
 
     Raises:
-        UsageError: Bad options, or no pose recorded (nothing is written).
+        JointMismatchError: The reader's joints are not the chain's, or the plan's shape does not fit.
+        UsageError: An output in a missing folder, or no pose recorded (nothing is written).
     """
-    check_kind(kind, ALL_KINDS)
-    if poses is not None and poses < 1:
-        raise UsageError(f"--poses must be at least 1, got {poses}")
+    kind, poses, image_pattern, targets = request.kind, request.poses, request.image_pattern, request.targets
+    target_labels = request.target_labels
     if tuple(reader.joint_names) != chain.joint_names:
         raise JointMismatchError(
             f"the reader gives {', '.join(reader.joint_names)}; the chain needs {', '.join(chain.joint_names)}"
         )
-    out_path = check_output_path(out, "--out")
+    out_path = check_output_path(request.out, "--out")
     if targets is not None:
         targets = np.atleast_2d(np.asarray(targets, dtype=np.float64))
         if targets.shape[1:] != (chain.n_q,) or targets.shape[0] == 0:
@@ -355,23 +367,6 @@ def record(
     return RecordResult(written, data, tuple(images), tuple(skipped), interrupted)
 
 
-def _chain(
-    urdf: str | os.PathLike[str] | None, base_link: str | None, tip_link: str | None, robot: str | None
-) -> tuple[SerialChain, Any]:
-    from ...formats.urdf import UrdfDocument
-    from ...formats.urdf_chain import chain_from_urdf
-    from .sim import SIM_ROBOTS, shipped_urdf
-
-    if urdf is None:
-        family = (robot or "").split("_")[0]
-        if family not in SIM_ROBOTS:
-            raise UsageError("give --urdf (robocal ships URDFs only for so101_* and koch_* arms)")
-        urdf = shipped_urdf(family)
-        tip_link = tip_link or SIM_ROBOTS[family].tip_link
-    model = UrdfDocument.load(urdf).model()
-    return chain_from_urdf(model, base_link, tip_link), model
-
-
 def lerobot_joint_map(
     spec: Any,
     robot_id: str | None,
@@ -407,84 +402,3 @@ def plan_targets(plan: str | os.PathLike[str], chain: SerialChain) -> tuple[Floa
 
     targets, labels = read_pose_plan(plan, chain.joint_names)
     return chain.check_q(targets, what=f"{plan}: pose"), labels
-
-
-def open_reader(
-    *,
-    urdf: str | os.PathLike[str] | None = None,
-    base_link: str | None = None,
-    tip_link: str | None = None,
-    lerobot_port: str | None = None,
-    robot: str | None = None,
-    robot_id: str | None = None,
-    calibration_dir: str | os.PathLike[str] | None = None,
-    calibration_file: str | os.PathLike[str] | None = None,
-    source: str | None = None,
-    joint_map: str | os.PathLike[str] | None = None,
-) -> tuple[JointReader, SerialChain]:
-    """Open the joint reader of ``kinematics record`` and the URDF chain it reads.
-
-    LeRobot (``lerobot_port`` + ``robot``): the map is ``joint_map`` (a ``lerobot export-urdf`` file) or, without
-    it, the export-urdf map with sign +1 and offset 0 of the LeRobot calibration (``robot_id`` or
-    ``calibration_file``); every motor's torque is switched off. ``source``: any robocal source over the chain's
-    joints, through ``joint_map`` when given.
-
-    Raises:
-        UsageError: Options missing or contradictory.
-        JointMismatchError: A chain joint the arm, the source or the joint map does not have.
-    """
-    from ...formats import read_calibration
-
-    if (lerobot_port is None) == (source is None):
-        raise UsageError("give either --lerobot-port (with --robot) or --source")
-    chain, urdf_model = _chain(urdf, base_link, tip_link, robot)
-    file_map = None
-    if joint_map is not None:
-        file_map = calibration_for_chain(
-            read_calibration(joint_map).calibration, chain, f"--joint-map {joint_map}"
-        )
-    if lerobot_port is not None:
-        from ..lerobot import robot_spec
-        from .record_arm import lerobot_calibration_path, open_record_bus
-
-        if robot is None:
-            raise UsageError("--lerobot-port needs --robot (so101_follower, koch_leader, ...)")
-        spec = robot_spec(robot)
-        ids = {m.name: m.motor_id for m in spec.motors}
-        missing = [n for n in chain.joint_names if n not in ids]
-        if missing:
-            raise JointMismatchError(
-                f"{robot} has no motor(s) {', '.join(missing)}; its motors are {', '.join(ids)}: a LeRobot arm is "
-                "read by motor name, so the URDF's chain joints must carry those names (give --urdf with them)"
-            )
-        jm = file_map or calibration_for_chain(
-            lerobot_joint_map(spec, robot_id, calibration_dir, calibration_file), chain, f"{robot} calibration"
-        )
-        motor_ids = [ids[n] for n in chain.joint_names]
-        cal_path = lerobot_calibration_path(spec, robot_id, calibration_dir, calibration_file)
-        bus, close, hand = open_record_bus(spec, lerobot_port, cal_path, motor_ids, jm)
-        try:
-            for m in spec.motors:  # limp: the user moves the arm by hand
-                bus.write("Torque_Enable", m.motor_id, 0)
-        except BaseException:
-            close()
-            raise
-        return LeRobotReader(bus, motor_ids, jm, close=close, hand=hand), chain
-    from ...backends.sources import JointSpec, open_source
-
-    assert source is not None
-    specs = []
-    lows, ups = chain.limits()
-    for j, lo, up in zip(chain.movable, lows, ups, strict=True):
-        specs.append(
-            JointSpec(
-                j.name,
-                urdf_model.motor_id(j.name) or 0,
-                urdf_model.param(j.name, "model") or "rs-00",
-                urdf_model.direction(j.name) or 1,
-                float(lo) if math.isfinite(lo) else -math.pi,
-                float(up) if math.isfinite(up) else math.pi,
-            )
-        )
-    src = open_source(source, specs)
-    return SourceReader(src, file_map), chain

@@ -1,4 +1,6 @@
-"""The LeRobot arm ``kinematics record`` reads: a serial port, or ``sim`` / ``sim?…`` for a simulated arm.
+"""The arm ``kinematics record`` reads: a LeRobot arm on a serial port (``sim`` / ``sim?…``: simulated), or a source.
+
+:func:`open_reader` opens the one an :class:`ArmSource` names, with the URDF chain it reads.
 
 The simulated arm is the one ``robocal lerobot … --port sim`` runs (the vendor SDK against simulated servos on a
 pseudo-terminal, or with ``transport=inproc`` an in-process port); the LeRobot calibration the readings go
@@ -9,18 +11,29 @@ before the prompt, as a person would; without one nobody moves it and every pose
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ...core.arrays import FloatArray
+from ...core.chain import SerialChain
 from ...core.jointmap import RobotCalibration
-from ...errors import UsageError
+from ...errors import JointMismatchError, UsageError
+from .record import JointReader, LeRobotReader, SourceReader, calibration_for_chain, lerobot_joint_map
 
-__all__ = ["SIM_PORT_OPTIONS", "check_session", "lerobot_calibration_path", "open_record_bus"]
+__all__ = [
+    "SIM_PORT_OPTIONS",
+    "ArmSource",
+    "check_session",
+    "lerobot_calibration_path",
+    "open_reader",
+    "open_record_bus",
+]
 
 SIM_PORT_OPTIONS = ("seed", "transport")
 """What ``--lerobot-port sim?…`` takes: the read-noise seed and ``transport=pty|inproc``."""
@@ -133,3 +146,123 @@ def open_record_bus(
         arm.bus.move({i: reach(arm.bus.servos[i], int(p)) for i, p in zip(motor_ids, present, strict=True)})
 
     return bus, close, hand
+
+
+@dataclass(frozen=True)
+class ArmSource:
+    """Where ``kinematics record`` reads the joints from, and the URDF chain it reads.
+
+    Attributes:
+        urdf: Expanded URDF (default for ``robot`` ``so101_*`` / ``koch_*``: the shipped one).
+        base_link: First link of the chain (default: the URDF root).
+        tip_link: Last link of the chain (default: the only leaf, or the shipped arm's).
+        lerobot_port: Serial port of a LeRobot arm (``sim`` for a simulated one); or give ``source``.
+        robot: The LeRobot arm type (``so101_follower``, ``koch_leader``, ...).
+        robot_id: LeRobot id of its calibration.
+        calibration_dir: LeRobot calibration root (default: LeRobot's).
+        calibration_file: The LeRobot calibration JSON (instead of ``robot_id``).
+        source: Any robocal source (``sim:lite``, ``can:<if>:<ch>``, ``replay:<file>``); or give ``lerobot_port``.
+        joint_map: Raw → URDF joint map (``lerobot export-urdf`` output, or any calibration file for ``source``).
+
+    Raises:
+        UsageError: Neither or both of ``lerobot_port`` and ``source``.
+    """
+
+    urdf: str | os.PathLike[str] | None = None
+    base_link: str | None = None
+    tip_link: str | None = None
+    lerobot_port: str | None = None
+    robot: str | None = None
+    robot_id: str | None = None
+    calibration_dir: str | os.PathLike[str] | None = None
+    calibration_file: str | os.PathLike[str] | None = None
+    source: str | None = None
+    joint_map: str | os.PathLike[str] | None = None
+
+    def __post_init__(self) -> None:
+        if (self.lerobot_port is None) == (self.source is None):
+            raise UsageError("give either --lerobot-port (with --robot) or --source")
+
+
+def _chain(
+    urdf: str | os.PathLike[str] | None, base_link: str | None, tip_link: str | None, robot: str | None
+) -> tuple[SerialChain, Any]:
+    from ...formats.urdf import UrdfDocument
+    from ...formats.urdf_chain import chain_from_urdf
+    from .sim import SIM_ROBOTS, shipped_urdf
+
+    if urdf is None:
+        family = (robot or "").split("_")[0]
+        if family not in SIM_ROBOTS:
+            raise UsageError("give --urdf (robocal ships URDFs only for so101_* and koch_* arms)")
+        urdf = shipped_urdf(family)
+        tip_link = tip_link or SIM_ROBOTS[family].tip_link
+    model = UrdfDocument.load(urdf).model()
+    return chain_from_urdf(model, base_link, tip_link), model
+
+
+def open_reader(arm: ArmSource) -> tuple[JointReader, SerialChain]:
+    """Open the joint reader of ``kinematics record`` and the URDF chain it reads.
+
+    LeRobot (``lerobot_port`` + ``robot``): the map is ``joint_map`` (a ``lerobot export-urdf`` file) or, without
+    it, the export-urdf map with sign +1 and offset 0 of the LeRobot calibration (``robot_id`` or
+    ``calibration_file``); every motor's torque is switched off. ``source``: any robocal source over the chain's
+    joints, through ``joint_map`` when given.
+
+    Raises:
+        UsageError: Options missing or contradictory.
+        JointMismatchError: A chain joint the arm, the source or the joint map does not have.
+    """
+    from ...formats import read_calibration
+
+    lerobot_port, robot, source, joint_map = arm.lerobot_port, arm.robot, arm.source, arm.joint_map
+    chain, urdf_model = _chain(arm.urdf, arm.base_link, arm.tip_link, robot)
+    file_map = None
+    if joint_map is not None:
+        file_map = calibration_for_chain(
+            read_calibration(joint_map).calibration, chain, f"--joint-map {joint_map}"
+        )
+    if lerobot_port is not None:
+        from ..lerobot import robot_spec
+
+        if robot is None:
+            raise UsageError("--lerobot-port needs --robot (so101_follower, koch_leader, ...)")
+        spec = robot_spec(robot)
+        ids = {m.name: m.motor_id for m in spec.motors}
+        missing = [n for n in chain.joint_names if n not in ids]
+        if missing:
+            raise JointMismatchError(
+                f"{robot} has no motor(s) {', '.join(missing)}; its motors are {', '.join(ids)}: a LeRobot arm is "
+                "read by motor name, so the URDF's chain joints must carry those names (give --urdf with them)"
+            )
+        jm = file_map or calibration_for_chain(
+            lerobot_joint_map(spec, arm.robot_id, arm.calibration_dir, arm.calibration_file), chain, f"{robot} calibration"
+        )
+        motor_ids = [ids[n] for n in chain.joint_names]
+        cal_path = lerobot_calibration_path(spec, arm.robot_id, arm.calibration_dir, arm.calibration_file)
+        bus, close, hand = open_record_bus(spec, lerobot_port, cal_path, motor_ids, jm)
+        try:
+            for m in spec.motors:  # limp: the user moves the arm by hand
+                bus.write("Torque_Enable", m.motor_id, 0)
+        except BaseException:
+            close()
+            raise
+        return LeRobotReader(bus, motor_ids, jm, close=close, hand=hand), chain
+    from ...backends.sources import JointSpec, open_source
+
+    assert source is not None
+    specs = []
+    lows, ups = chain.limits()
+    for j, lo, up in zip(chain.movable, lows, ups, strict=True):
+        specs.append(
+            JointSpec(
+                j.name,
+                urdf_model.motor_id(j.name) or 0,
+                urdf_model.param(j.name, "model") or "rs-00",
+                urdf_model.direction(j.name) or 1,
+                float(lo) if math.isfinite(lo) else -math.pi,
+                float(up) if math.isfinite(up) else math.pi,
+            )
+        )
+    src = open_source(source, specs)
+    return SourceReader(src, file_map), chain

@@ -35,6 +35,7 @@ from .job import tool_frame
 __all__ = [
     "SIM_ROBOTS",
     "SimRobot",
+    "SimulationRequest",
     "SimulationResult",
     "check_ticks",
     "shipped_urdf",
@@ -93,25 +94,11 @@ class SimulationResult:
     validation_truth_m: FloatArray | None = None
 
 
-def simulate(
-    robot: str,
-    out_dir: str | os.PathLike[str],
-    *,
-    kind: str = "points",
-    poses: int = 50,
-    noise_m: float = 0.5e-3,
-    seed: int = 0,
-    on_axis: bool = False,
-    plan: bool = True,
-    gauge_distance_m: float = 0.05,
-    validation_poses: int = 0,
-    ticks_per_turn: int = 4096,
-) -> SimulationResult:
-    """Simulate a session on a shipped robot with hidden errors.
+@dataclass(frozen=True)
+class SimulationRequest:
+    """A session to simulate on a shipped robot with hidden errors (``kinematics simulate``); checked when built.
 
-    Writes ``<robot>.urdf`` (the nominal description), ``<kind>.csv`` and ``truth.json`` into ``out_dir``.
-
-    Args:
+    Attributes:
         robot: ``so101`` or ``koch``.
         out_dir: Folder (created if its parent exists).
         kind: ``points``, ``touch`` or ``gauge``.
@@ -126,32 +113,69 @@ def simulate(
             session is the same with or without them.
         ticks_per_turn: Encoder ticks per turn the joint readings are rounded to (0: exact readings, the
             noise-free case).
+
+    Raises:
+        UsageError: An unknown kind, a pose, tick or validation count, noise or seed out of range.
     """
-    check_kind(kind)
-    if poses < 1:
-        raise UsageError(f"--poses must be at least 1, got {poses}")
-    check_ticks(ticks_per_turn)
-    if validation_poses < 0:
-        raise UsageError(f"--validation-poses must be 0 or more, got {validation_poses}")
-    if not (math.isfinite(noise_m) and noise_m >= 0):
-        raise UsageError(f"--noise-mm must be a non-negative number, got {noise_m * 1e3}")
-    check_seed(seed)
-    folder = sim_out_folder(out_dir)
+
+    robot: str
+    out_dir: str | os.PathLike[str]
+    kind: str = "points"
+    poses: int = 50
+    noise_m: float = 0.5e-3
+    seed: int = 0
+    on_axis: bool = False
+    plan: bool = True
+    gauge_distance_m: float = 0.05
+    validation_poses: int = 0
+    ticks_per_turn: int = 4096
+
+    def __post_init__(self) -> None:
+        check_kind(self.kind)
+        if self.poses < 1:
+            raise UsageError(f"--poses must be at least 1, got {self.poses}")
+        check_ticks(self.ticks_per_turn)
+        if self.validation_poses < 0:
+            raise UsageError(f"--validation-poses must be 0 or more, got {self.validation_poses}")
+        if not (math.isfinite(self.noise_m) and self.noise_m >= 0):
+            raise UsageError(f"--noise-mm must be a non-negative number, got {self.noise_m * 1e3}")
+        check_seed(self.seed)
+
+
+def simulate(request: SimulationRequest) -> SimulationResult:
+    """Simulate a session on a shipped robot with hidden errors.
+
+    Writes ``<robot>.urdf`` (the nominal description), ``<kind>.csv`` and ``truth.json`` (and
+    ``<kind>_validation.csv`` when asked) into the request's folder.
+
+    Args:
+        request: What to simulate (checked when it was built).
+
+    Returns:
+        The :class:`SimulationResult`.
+
+    Raises:
+        UsageError: An unknown robot, ``out_dir`` a file or in a missing folder.
+    """
+    r = request
+    robot, kind, poses, noise_m, seed = r.robot, r.kind, r.poses, r.noise_m, r.seed
+    gauge_distance_m, validation_poses = r.gauge_distance_m, r.validation_poses
+    folder = sim_out_folder(r.out_dir)
     spec = SIM_ROBOTS.get(robot)
     src = shipped_urdf(robot)
     assert spec is not None
     urdf_bytes = src.read_bytes()
     doc = UrdfDocument.from_bytes(urdf_bytes, str(src))
     chain = chain_from_urdf(doc.model(), tip_link=spec.tip_link)
-    marker = spec.marker_on_axis_m if on_axis else spec.marker_off_axis_m
+    marker = spec.marker_on_axis_m if r.on_axis else spec.marker_off_axis_m
     model = ErrorModel(chain, T_tip_tool=tool_frame(marker))
     rng = np.random.default_rng(seed)
-    arm = SimulatedKinematicArm(model, hidden_errors(model, rng), ticks_per_turn=ticks_per_turn)
+    arm = SimulatedKinematicArm(model, hidden_errors(model, rng), ticks_per_turn=r.ticks_per_turn)
     labels: tuple[str, ...] = ()
     c = np.asarray(spec.gauge_centre_m)
     targets = np.stack([c, c + np.array([0.0, 0.06, 0.0]), c + np.array([-0.05, 0.0, 0.04])])
     if kind == "points":
-        if plan:
+        if r.plan:
             cand = arm.sample_q(2000, rng)
             q = cand[plan_poses(model, cand, poses, criterion="I")] if poses <= 2000 else arm.sample_q(poses, rng)
         else:

@@ -50,6 +50,7 @@ __all__ = [
     "CameraCalibrationResult",
     "ImageIdentifyRequest",
     "ImageIdentifyResult",
+    "SimImagesRequest",
     "SimImagesResult",
     "camera_calibrate",
     "detect_session",
@@ -310,4 +311,4 @@ def identify_images(request: ImageIdentifyRequest) -> ImageIdentifyResult:
 
 
 # the simulated sessions live in kinematic_vision_sim; re-exported for existing callers
-from .vision_sim import SIM_CAMERA_K, SimImagesResult, look_at, simulate_images  # noqa: E402
+from .vision_sim import SIM_CAMERA_K, SimImagesRequest, SimImagesResult, look_at, simulate_images  # noqa: E402

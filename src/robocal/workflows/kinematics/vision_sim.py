@@ -37,7 +37,7 @@ from ...formats.kinematic_data import session_csv
 from ...formats.urdf import UrdfDocument
 from ...formats.urdf_chain import chain_from_urdf
 
-__all__ = ["SIM_CAMERA_K", "SimImagesResult", "look_at", "simulate_images"]
+__all__ = ["SIM_CAMERA_K", "SimImagesRequest", "SimImagesResult", "look_at", "simulate_images"]
 
 
 
@@ -104,44 +104,86 @@ def _visible(
     return target_visible(T_cam_target, target.object_points(), target.front_normal(), K, size)
 
 
-def simulate_images(
-    robot: str,
-    out_dir: str | os.PathLike[str],
-    *,
-    poses: int = 50,
-    seed: int = 0,
-    target: str = "apriltag:36h11:0:60",
-    board: str = "charuco:7x5:30:22:4x4_50",
-    calibration_images: int = 20,
-    noise_grey: float = 2.0,
-    camera_on_tool: bool = False,
-    plan: bool = True,
-    ticks_per_turn: int = 4096,
-) -> SimImagesResult:
-    """Render a tag session of a simulated arm with hidden errors, seen by a fixed simulated camera.
+@dataclass(frozen=True)
+class SimImagesRequest:
+    """A tag session to render of a simulated arm with hidden errors (``kinematics simulate --kind tag``).
+
+    Checked when built. Joint readings are quantised to ``ticks_per_turn`` ticks (0: exact); images have
+    Gaussian pixel noise; poses are chosen among random ones where the camera sees the whole target: greedy
+    I-optimal for the reprojection model (``kinematics plan --kind tag``,
+    :func:`robocal.core.pose_plan.plan_image_poses`; with the camera on the tool greedy O1 of the tool point, as
+    the tag plan measured no better there), or at random with ``plan=False``.
+
+    Attributes:
+        robot: ``so101`` or ``koch``.
+        out_dir: Folder (created if its parent exists).
+        poses: Images of the session (at least 3).
+        seed: Seed of the hidden errors, the poses, the calibration boards and the pixel noise.
+        target: The target on the tool (or fixed, ``camera_on_tool``): ``apriltag:…`` or ``charuco:…``.
+        board: The ChArUco board of the calibration images.
+        calibration_images: How many calibration images of ``board``.
+        noise_grey: Gaussian pixel noise, grey levels.
+        camera_on_tool: The camera is on the tip link and the tag stands fixed in front of the arm
+            (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
+        plan: Plan the poses (else random ones the camera sees).
+        ticks_per_turn: Encoder ticks per turn the joint readings are rounded to (0: exact).
+
+    Raises:
+        UsageError: An unknown robot or one without this set-up, fewer than 3 poses, a negative seed or tick
+            count.
+    """
+
+    robot: str
+    out_dir: str | os.PathLike[str]
+    poses: int = 50
+    seed: int = 0
+    target: str = "apriltag:36h11:0:60"
+    board: str = "charuco:7x5:30:22:4x4_50"
+    calibration_images: int = 20
+    noise_grey: float = 2.0
+    camera_on_tool: bool = False
+    plan: bool = True
+    ticks_per_turn: int = 4096
+
+    def __post_init__(self) -> None:
+        from .fit import check_seed
+        from .sim import SIM_ROBOTS, check_ticks
+
+        robot, camera_on_tool = self.robot, self.camera_on_tool
+        if robot not in SIM_ROBOTS:
+            raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
+        if robot not in (SIM_TARGET_PLACE if camera_on_tool else SIM_VIEW):
+            where = SIM_TARGET_PLACE if camera_on_tool else SIM_VIEW
+            setup = "with the camera on the tool " if camera_on_tool else ""
+            raise UsageError(f"tag images {setup}are simulated for {', '.join(where)} only, not {robot!r}")
+        if self.poses < 3:
+            raise UsageError(f"--poses must be at least 3 for images, got {self.poses}")
+        check_seed(self.seed)
+        check_ticks(self.ticks_per_turn)
+
+
+def simulate_images(request: SimImagesRequest) -> SimImagesResult:
+    """Render the tag session of ``request``, seen by a simulated camera, and the camera's calibration images.
 
     Writes ``<robot>.urdf``, ``images/pose_NNN.png`` and ``tag.csv`` (joints + image), ``calibration/
-    board_NN.png`` (a ChArUco board in front of the camera) and ``truth.json`` into ``out_dir``. Joint readings
-    are quantised to ``ticks_per_turn`` ticks (0: exact); images have Gaussian pixel noise; poses are chosen among random ones where the
-    camera sees the whole target: greedy I-optimal for the reprojection model (``kinematics plan --kind tag``,
-    :func:`robocal.core.pose_plan.plan_image_poses`; with the camera on the tool greedy O1 of the tool point, as
-    the tag plan measured no better there), or at random with ``plan=False``. ``camera_on_tool``: the camera is on the tip link and the tag
-    stands fixed in front of the arm (:data:`SIM_CAMERA_MOUNT`, :data:`SIM_TARGET_PLACE`).
-    """
-    from .fit import check_seed
-    from .sim import SIM_ROBOTS, check_ticks, shipped_urdf, sim_out_folder
+    board_NN.png`` (a ChArUco board in front of the camera) and ``truth.json`` into the request's folder.
 
-    if robot not in SIM_ROBOTS:
-        raise UsageError(f"unknown simulated robot {robot!r}; valid: {', '.join(SIM_ROBOTS)}")
-    if robot not in (SIM_TARGET_PLACE if camera_on_tool else SIM_VIEW):
-        where = SIM_TARGET_PLACE if camera_on_tool else SIM_VIEW
-        setup = "with the camera on the tool " if camera_on_tool else ""
-        raise UsageError(f"tag images {setup}are simulated for {', '.join(where)} only, not {robot!r}")
-    if poses < 3:
-        raise UsageError(f"--poses must be at least 3 for images, got {poses}")
-    check_seed(seed)
-    check_ticks(ticks_per_turn)
-    folder = sim_out_folder(out_dir)
+    Args:
+        request: What to render (checked when it was built).
+
+    Returns:
+        The :class:`SimImagesResult`.
+
+    Raises:
+        CalibError: ``out_dir`` a file or in a missing folder, a bad target or board, too few poses the camera
+            sees.
+    """
+    from .sim import SIM_ROBOTS, shipped_urdf, sim_out_folder
+
+    r = request
+    robot, poses, seed, target, board = r.robot, r.poses, r.seed, r.target, r.board
+    camera_on_tool, noise_grey = r.camera_on_tool, r.noise_grey
+    folder = sim_out_folder(r.out_dir)
     tgt = parse_target(target)
     brd = parse_target(board, "--board")
     spec = SIM_ROBOTS[robot]
@@ -162,7 +204,7 @@ def simulate_images(
         mount[:3, 3] = SIM_MOUNT[robot]
         n_candidates = 4000
     model = ErrorModel(chain, T_world_base=T_world_base, T_tip_tool=mount)
-    arm = SimulatedKinematicArm(model, hidden_errors(model, rng), ticks_per_turn=ticks_per_turn)
+    arm = SimulatedKinematicArm(model, hidden_errors(model, rng), ticks_per_turn=r.ticks_per_turn)
 
     def cam_target(T_world_tool: FloatArray) -> FloatArray:
         return np.asarray(np.linalg.inv(T_world_tool), dtype=np.float64) if camera_on_tool else T_world_tool
@@ -171,10 +213,10 @@ def simulate_images(
     seen = cand[_visible(cam_target(model.tool_poses(cand, arm.x_true)), tgt, SIM_CAMERA_K, SIM_CAMERA_SIZE)]
     if seen.shape[0] < poses:
         raise UsageError(f"the simulated camera sees the target in only {seen.shape[0]} candidate poses")
-    if plan and not camera_on_tool:
+    if r.plan and not camera_on_tool:
         nominal = ErrorModel(chain, T_world_base=T_world_base, T_tip_tool=mount)
         q = seen[plan_image_poses(nominal, seen, tgt.object_points(), SIM_CAMERA_K, poses).index]
-    elif plan:  # a wrist camera: the tag plan gains nothing measurable here (docs/kinematics.md); greedy O1
+    elif r.plan:  # a wrist camera: the tag plan gains nothing measurable here (docs/kinematics.md); greedy O1
         q = seen[plan_poses(ErrorModel(chain, T_tip_tool=mount), seen, poses)]
     else:
         q = seen[rng.permutation(seen.shape[0])[:poses]]
@@ -194,7 +236,7 @@ def simulate_images(
     from ...core.se3 import matrix_from_rotvec
 
     board_centre = np.array([brd.cols * brd.size_m / 2, brd.rows * brd.size_m / 2, 0.0])
-    for k in range(calibration_images):  # tilted up to 40°, 0.3-0.5 m away, spread over the image
+    for k in range(r.calibration_images):  # tilted up to 40°, 0.3-0.5 m away, spread over the image
         R = matrix_from_rotvec([rng.uniform(-0.7, 0.7), rng.uniform(-0.7, 0.7), rng.uniform(-0.3, 0.3)])
         pixel = [rng.uniform(250, SIM_CAMERA_SIZE[0] - 250), rng.uniform(200, SIM_CAMERA_SIZE[1] - 200), 1.0]
         T = np.eye(4)

@@ -31,7 +31,7 @@ from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
 from ...core.vendors import VENDORS
 from ...errors import UsageError
-from ..autocal.job import run_autocal, select_joints
+from ..autocal.job import AutoCalRequest, run_autocal, select_joints
 from ..autocal.model import (
     AutoCalFailedError,
     AutoCalResult,
@@ -354,13 +354,9 @@ def auto_calibrate(
             arm([ids[n] for n in searched], WATCHDOG_S)
         auto = run_autocal(  # the stops: none joints too: reported not_searched, never driven
             drivers,
-            section,
-            {},
-            joints=[j.name for j in order],
-            max_lag_rad=lag,
+            AutoCalRequest(section, joints=[j.name for j in order], max_lag_rad=lag, gravity_model=gravity_model),
             view=view,
             clock=clock,
-            gravity_model=gravity_model,
         )
         limp_arm(bus, spec)
         if auto.failed and not partial:

@@ -27,7 +27,7 @@ from ...core.lerobot import MotorCalibration, RobotSpec
 from ...core.profile_auto import AutoJoint, AutoSection
 from ...core.wrap_range import RangeTracker
 from ...errors import UsageError
-from ..autocal.job import run_autocal, select_joints
+from ..autocal.job import AutoCalRequest, run_autocal, select_joints
 from ..autocal.model import AutoCalFailedError, AutoCalResult, AutoView, Clock, ConfirmStart, JointCaps
 from .auto import (
     HOST_LOSS,
@@ -202,13 +202,9 @@ def verify_calibration(
             arm([ids[n] for n in searched], WATCHDOG_S)
         auto = run_autocal(
             drivers,
-            section,
-            {},
-            joints=[j.name for j in order],
-            max_lag_rad=lag,
+            AutoCalRequest(section, joints=[j.name for j in order], max_lag_rad=lag, gravity_model=r.gravity_model),
             view=view,
             clock=clock,
-            gravity_model=r.gravity_model,
         )
         limp_arm(bus, spec)
         report = guard.restore_now()
