@@ -19,7 +19,7 @@ from robocal.core.se3 import rotvec_from_matrix
 from robocal.core.ur import correct_kinematics, nominal_dh
 from robocal.errors import DeviceError
 from robocal.formats.ur_kinematics import write_kinematics
-from robocal.workflows.ur.verify import verify_rtde
+from robocal.workflows.ur.verify import RtdeVerifyRequest, verify_rtde
 
 from .conftest import calibrated_dh
 
@@ -61,7 +61,7 @@ def test_right_calibration_passes(tmp_path: Path, still_arm: tuple[DHParameters,
     dh, (host, port) = still_arm
     cal = tmp_path / "cal.yaml"
     write_kinematics(cal, correct_kinematics(dh, "urdf"))
-    (report,) = verify_rtde(host, port=port, kinematics_path=cal, samples=3)
+    (report,) = verify_rtde(RtdeVerifyRequest(host, port=port, kinematics_path=cal, samples=3))
     assert report.samples == 3
     assert report.max_position_error_m < 1e-9
     assert report.warnings == ()
@@ -75,7 +75,7 @@ def test_wrong_calibration_shows_the_error_in_mm(
     nominal = nominal_dh("ur10e")
     expected_mm = 1000.0 * float(np.linalg.norm(fk_dh(dh, [0.0] * 6)[:3, 3] - fk_dh(nominal, [0.0] * 6)[:3, 3]))
     assert expected_mm > 1.0  # the delta set moves the flange by millimetres at q = 0
-    (report,) = verify_rtde(host, port=port, dh=nominal, samples=2)
+    (report,) = verify_rtde(RtdeVerifyRequest(host, port=port, dh=nominal, samples=2))
     assert report.max_position_error_m * 1000.0 == pytest.approx(expected_mm, abs=1e-9)
     assert "FK differs" in report.warnings[0]
     assert main(["ur", "verify", "--model", "ur10e", "--rtde", f"{host}:{port}", "--controller-samples", "2"]) == 1
@@ -86,7 +86,7 @@ def test_wrong_calibration_shows_the_error_in_mm(
 def test_unreachable_host_is_one_error_line_exit_3(capsys: pytest.CaptureFixture[str]) -> None:
     port = free_port()
     with pytest.raises(DeviceError, match="cannot connect"):
-        verify_rtde("127.0.0.1", port=port, dh=nominal_dh("ur5e"), timeout_s=2.0)
+        verify_rtde(RtdeVerifyRequest("127.0.0.1", port=port, dh=nominal_dh("ur5e"), timeout_s=2.0))
     capsys.readouterr()
     assert main(["ur", "verify", "--model", "ur5e", "--rtde", f"127.0.0.1:{port}", "--timeout", "2"]) == 3
     err = capsys.readouterr().err

@@ -210,13 +210,15 @@ def verify(
         rtde_host, rtde_port = _host_port(rtde, "--rtde", 30004)
         reports.extend(
             ur_verify.verify_rtde(
-                rtde_host,
-                port=rtde_port,
-                kinematics_path=file,
-                dh=params,
-                urdf_path=urdf,
-                timeout_s=timeout,
-                samples=controller_samples,
+                ur_verify.RtdeVerifyRequest(
+                    rtde_host,
+                    port=rtde_port,
+                    kinematics_path=file,
+                    dh=params,
+                    urdf_path=urdf,
+                    timeout_s=timeout,
+                    samples=controller_samples,
+                )
             )
         )
     raise typer.Exit(print_reports(reports, input_warnings))

@@ -33,6 +33,7 @@ __all__ = [
     "DEFAULT_TOLERANCE_RAD",
     "FLANGE_LINK",
     "MAX_VERIFY_SAMPLES",
+    "RtdeVerifyRequest",
     "VerifyReport",
     "urdf_fk",
     "verify",
@@ -282,25 +283,11 @@ def verify_controller(
     return replace(report, warnings=tuple(warnings) + report.warnings)
 
 
-def verify_rtde(
-    host: str,
-    *,
-    port: int = 30004,
-    kinematics_path: str | os.PathLike[str] | None = None,
-    dh: DHParameters | None = None,
-    urdf_path: str | os.PathLike[str] | None = None,
-    timeout_s: float = 10.0,
-    samples: int = 20,
-    tolerance_m: float = 1e-6,
-    tolerance_rad: float = 1e-6,
-) -> list[VerifyReport]:
-    """Compare the FK of a kinematics YAML, a URDF and/or a DH with the controller's ``actual_TCP_pose`` (RTDE).
+@dataclass(frozen=True)
+class RtdeVerifyRequest:
+    """What ``ur verify --rtde`` compares with the controller's ``actual_TCP_pose``; checked when built.
 
-    Each data package carries ``actual_q`` and ``actual_TCP_pose`` of the same controller cycle, so the arm
-    may move while the samples are read. The TCP offset (``tcp_offset``) must be zero (TCP = flange =
-    ``tool0``). The default tolerance (1 µm / 1 µrad) allows for the controller's own rounding.
-
-    Args:
+    Attributes:
         host: Controller address.
         port: RTDE port.
         kinematics_path: ur_description kinematics YAML (its hash is checked against ``dh`` when both are given).
@@ -311,19 +298,49 @@ def verify_rtde(
         tolerance_m: Position tolerance for the warning.
         tolerance_rad: Rotation tolerance for the warning.
 
+    Raises:
+        UsageError: Nothing to compare, bad connection arguments or sample count (exit 2).
+    """
+
+    host: str
+    port: int = 30004
+    kinematics_path: str | os.PathLike[str] | None = None
+    dh: DHParameters | None = None
+    urdf_path: str | os.PathLike[str] | None = None
+    timeout_s: float = 10.0
+    samples: int = 20
+    tolerance_m: float = 1e-6
+    tolerance_rad: float = 1e-6
+
+    def __post_init__(self) -> None:
+        from ...backends.ur_primary import check_connection_args
+
+        if self.kinematics_path is None and self.urdf_path is None and self.dh is None:
+            raise UsageError("--rtde needs a kinematics FILE, --urdf or a DH (--dh/--model) to compare")
+        check_connection_args(self.host, self.port, self.timeout_s)
+        _check_samples(self.samples, "--controller-samples", 10_000)
+
+
+def verify_rtde(request: RtdeVerifyRequest) -> list[VerifyReport]:
+    """Compare the FK of a kinematics YAML, a URDF and/or a DH with the controller's ``actual_TCP_pose`` (RTDE).
+
+    Each data package carries ``actual_q`` and ``actual_TCP_pose`` of the same controller cycle, so the arm
+    may move while the samples are read. The TCP offset (``tcp_offset``) must be zero (TCP = flange =
+    ``tool0``). The default tolerance (1 µm / 1 µrad) allows for the controller's own rounding.
+
+    Args:
+        request: What to compare, where the controller is (checked when it was built).
+
     Returns:
         One report per source, in the order YAML, URDF, DH.
 
     Raises:
-        UsageError: Nothing to compare, bad connection arguments or a non-zero TCP offset (exit 2).
+        UsageError: A non-zero TCP offset (exit 2).
         DeviceError: The controller cannot be reached or stops answering (exit 3).
     """
-    from ...backends.ur_primary import check_connection_args
-
-    if kinematics_path is None and urdf_path is None and dh is None:
-        raise UsageError("--rtde needs a kinematics FILE, --urdf or a DH (--dh/--model) to compare")
-    check_connection_args(host, port, timeout_s)
-    _check_samples(samples, "--controller-samples", 10_000)
+    r = request
+    host, port, kinematics_path, dh, urdf_path = r.host, r.port, r.kinematics_path, r.dh, r.urdf_path
+    timeout_s, samples, tolerance_m, tolerance_rad = r.timeout_s, r.samples, r.tolerance_m, r.tolerance_rad
     kin = read_kinematics(kinematics_path) if kinematics_path is not None else None
     with load_backend("ur_rtde")(host, port, timeout_s) as client:
         got = client.read_pose_samples(samples)
