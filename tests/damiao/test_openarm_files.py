@@ -112,6 +112,11 @@ def test_one_session_stores_the_zeros_and_writes_lerobots_file(tmp_path: Path) -
         for sim in holder:
             sim.close()
     assert outcome.out == out and outcome.fmt == "openarm-lerobot"
+    # the diagnostics are those of the new zeros: only J1 and J2, whose ranges cross +180° from the zero, warn
+    # that a power cycle brings a reading beyond it back a turn off (exit 1)
+    assert {j.name: j.warnings for j in outcome.result.joints if j.warnings} == {
+        "openarm_right_joint1": ("wrap_in_travel",), "openarm_right_joint2": ("wrap_in_travel",)}
+    assert outcome.exit_code == 1
     doc = json.loads(out.read_text())
     design = {"joint_1": (-80, 200), "joint_2": (-10, 190), "joint_3": (-90, 90), "joint_4": (0, 140),
               "joint_5": (-90, 90), "joint_6": (-45, 45), "joint_7": (-90, 90), "gripper": (-60, 0)}

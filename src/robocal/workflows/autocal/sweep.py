@@ -433,7 +433,9 @@ def run_sweep_auto(
                 zeros = store_zeros(
                     drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=MAX_LAG_RAD
                 )
-            result = rezeroed_result(result, zeros)
+            result = rezeroed_result(
+                result, zeros, wraps=profile.position_wraps, zero_sta=1 if vendor.power_on_half_turn else 0
+            )
         with _all_or_nothing([p for p in (report_path, out_path if rows else None) if p is not None]):
             if report_path is not None:
                 doc = result.to_report()

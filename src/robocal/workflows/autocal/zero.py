@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 
 import numpy as np
 
 from ...core.profile_auto import AutoSection
 from ...core.stop_search import Command
+from ...core.sweep import analyse_sweep
 from ...core.sweep_result import SweepResult
 from ...errors import UsageError
 from .joint import TRANSIT_FACTOR, move_to
@@ -87,22 +87,33 @@ def store_zeros(
     return at
 
 
-def rezeroed_result(result: SweepResult, q_at_zero: Mapping[str, float]) -> SweepResult:
-    """The sweep result in the motors' new frame: each stored joint's offset is ``−direction·q_at_zero``."""
-    joints = []
+def rezeroed_result(
+    result: SweepResult, q_at_zero: Mapping[str, float], *, wraps: bool = True, zero_sta: int = 0
+) -> SweepResult:
+    """The sweep result in the motors' new frame: each stored joint's offset is ``−direction·q_at_zero``.
+
+    The extremes move with the zero and every diagnostic is computed again for the new offsets (a hint about a
+    large factory offset, or a power-on wrap inside the old travel, no longer applies).
+    """
+    smin, smax = [], []
     for j in result.joints:
-        if j.name not in q_at_zero:
-            joints.append(j)
-            continue
-        h_new = -j.direction * q_at_zero[j.name]
-        shift = j.direction * (j.homing_offset - h_new)  # identity-frame readings move by this
-        joints.append(
-            replace(
-                j,
-                sampled_min=j.sampled_min - shift,
-                sampled_max=j.sampled_max - shift,
-                homing_offset=h_new,
-                bisection_offset=h_new,
-            )
-        )
-    return replace(result, joints=tuple(joints))
+        shift = 0.0
+        if j.name in q_at_zero:
+            h_new = -j.direction * q_at_zero[j.name]
+            shift = j.direction * (j.homing_offset - h_new)  # identity-frame readings move by this
+        smin.append(j.sampled_min - shift)
+        smax.append(j.sampled_max - shift)
+    prior = {j.name: j.previous_homing_offset for j in result.joints if j.previous_homing_offset is not None}
+    return analyse_sweep(
+        [j.name for j in result.joints],
+        [j.direction for j in result.joints],
+        [j.lower for j in result.joints],
+        [j.upper for j in result.joints],
+        smin,
+        smax,
+        prior=prior,
+        threshold_rad=0.0,
+        span_tolerance_rad=result.span_tolerance_rad,
+        wraps=wraps,
+        zero_sta=zero_sta,
+    )
