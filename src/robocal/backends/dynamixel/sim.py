@@ -7,7 +7,9 @@ at ``τ_stall·min(PWM_Limit, |Goal_PWM|)/885`` (``Goal_PWM`` also limits mode 5
 (``Goal_Current``), mode 16 PWM. ``Present_Current`` in the model's current unit, ``Present_Velocity`` in
 0.229 rev/min, ``Moving`` above ``Moving_Threshold``. Overload: ≥ 95 % of the mode's maximum output for 1 s sets
 ``Hardware_Error_Status`` bit 5, switches the torque off and keeps it off (the alert bit 0x80 in every status
-packet) until a REBOOT. The shared part (frames, ramp, integration) is
+packet) until a REBOOT. ``Present_Temperature`` (°C) rises with the current and ``Present_Input_Voltage``
+(0.1 V) sags with it (:class:`~robocal.backends.sim.servo_thermal.ServoThermal`, assumed; from 25 °C and the
+model's assumed supply in :mod:`~robocal.backends.sim.servo_defaults`, 12 V where it has none). The shared part (frames, ramp, integration) is
 :class:`~robocal.backends.sim.servo_firmware.ServoFirmware`.
 """
 
@@ -21,6 +23,7 @@ from ..sim.physics import Drive, OverloadLatch
 from ..sim.servo_firmware import ServoFirmware
 from ..sim.servo_kind import SimServoKind
 from ..sim.servo_packets import dynamixel_status, parse_dynamixel
+from ..sim.servo_thermal import ServoThermal
 from .tables import DYNAMIXEL_MODELS
 
 __all__ = ["DYNAMIXEL_SIM", "DynamixelFirmware"]
@@ -30,9 +33,17 @@ class DynamixelFirmware(ServoFirmware):
     """The Dynamixel X firmware (see the module docstring)."""
 
     LATCH_SWITCHES_TORQUE_OFF = True
+    thermal: ServoThermal
+    """Temperature and voltage under load (started from the power-on registers)."""
 
     def _power_on_registers(self) -> None:
         s = self.servo
+        self.thermal = ServoThermal(
+            ambient_c=float(self._reg("Present_Temperature") or 25),
+            supply_v=(self._reg("Present_Input_Voltage") or 120) / 10,
+            stall_current_a=self.rating.stall_current_a,
+            t_s=self.clock.now(),
+        )
         s.set_reg("Current_Limit", self.rating.current_limit)
         s.set_reg("Goal_Current", self.rating.current_limit)
         s.set_reg("PWM_Limit", PWM_FULL)
@@ -119,6 +130,9 @@ class DynamixelFirmware(ServoFirmware):
         cur = round(tau_nm / r.kt_nm_a / r.current_unit_a)
         self._raw("Present_Current", encode_twos_complement(max(-32768, min(32767, cur)), 2))
         self._raw("Present_Velocity", encode_twos_complement(v_units, 4))
+        temp_c, volt_v = self.thermal.update(self.clock.now(), tau_nm / r.kt_nm_a)
+        self._raw("Present_Temperature", min(255, round(temp_c)))
+        self._raw("Present_Input_Voltage", round(volt_v * 10))
         return abs(v_units) > self._reg("Moving_Threshold") or self.ramp_ticks_s != 0.0
 
 

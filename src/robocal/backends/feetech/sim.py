@@ -7,6 +7,8 @@ the signed ``Goal_Velocity`` (ticks/s), same torque cap. Overload protection: ``
 for ``Protection_Time``·10 ms sets ``Status`` bit 5 and limits the torque to ``Protective_Torque %`` until the
 torque is switched off. ``Present_Load`` is τ/τ_stall in 0.1 % (sign bit 10), ``Present_Current`` in 6.5 mA,
 ``Present_Velocity`` in ticks/s, ``Moving`` while |ω| > 20 ticks/s or the setpoint is travelling.
+``Present_Temperature`` (°C) rises with the current and ``Present_Voltage`` (0.1 V) sags with it
+(:class:`~robocal.backends.sim.servo_thermal.ServoThermal`, assumed; from the factory 25 °C and 7.4 V).
 The shared part (frames, ramp, integration) is :class:`~robocal.backends.sim.servo_firmware.ServoFirmware`.
 """
 
@@ -20,6 +22,7 @@ from ..sim.physics import OverloadLatch
 from ..sim.servo_firmware import ServoFirmware
 from ..sim.servo_kind import SimServoKind
 from ..sim.servo_packets import feetech_status, parse_feetech
+from ..sim.servo_thermal import ServoThermal
 from .tables import FEETECH_MODELS
 
 __all__ = ["FEETECH_SIM", "FeetechFirmware"]
@@ -29,9 +32,17 @@ class FeetechFirmware(ServoFirmware):
     """The Feetech STS/SCS firmware (see the module docstring)."""
 
     TORQUE_OFF_CLEARS_LATCH = True
+    thermal: ServoThermal
+    """Temperature and voltage under load (started from the power-on registers)."""
 
     def _power_on_registers(self) -> None:
         s = self.servo
+        self.thermal = ServoThermal(
+            ambient_c=float(self._reg("Present_Temperature") or 25),
+            supply_v=(self._reg("Present_Voltage") or 74) / 10,
+            stall_current_a=self.rating.stall_current_a,
+            t_s=self.clock.now(),
+        )
         if "Torque_Limit" in s.table:
             for name, value in (
                 ("Max_Torque_Limit", 1000),
@@ -84,6 +95,10 @@ class FeetechFirmware(ServoFirmware):
             self._raw("Present_Load", encode_sign_magnitude(load, 10) if not s.big_endian else abs(load))
         if "Present_Current" in s.table:
             self._raw("Present_Current", min(0x7FFF, round(abs(tau_nm) / r.kt_nm_a / r.current_unit_a)))
+        temp_c, volt_v = self.thermal.update(self.clock.now(), tau_nm / r.kt_nm_a)
+        if "Present_Temperature" in s.table:
+            self._raw("Present_Temperature", min(255, round(temp_c)))
+            self._raw("Present_Voltage", min(255, round(volt_v * 10)))
         name = "Present_Velocity" if "Present_Velocity" in s.table else "Present_Speed"
         v = max(-32767, min(32767, round(v_ticks_s)))
         self._raw(name, encode_sign_magnitude(v, 15) if not s.big_endian else v & 0xFFFF)

@@ -64,6 +64,7 @@ STS3215_DEFAULTS: dict[int, tuple[int, int]] = {
 def x_series_defaults(
     temperature_c: int, voltage_0v1: tuple[int, int], current_limit: int | None, velocity_limit: int,
     shutdown: int, gains: tuple[int, int, int, int, int], *, xl330: bool = False, startup: bool = True,
+    supply_0v1: int = 120,
 ) -> dict[int, tuple[int, int]]:
     """A Dynamixel X model's factory table (what its e-Manual page lists).
 
@@ -76,6 +77,8 @@ def x_series_defaults(
         gains: Velocity I, Velocity P, Position D, Position I, Position P (76, 78, 80, 82, 84).
         xl330: The XL330 items (PWM_Slope (62) 140).
         startup: The model has Startup_Configuration (60).
+        supply_0v1: Present_Input_Voltage (144) of an idle servo, 0.1 V (assumed: the model's recommended
+            supply). Present_Temperature (146) reads 25 °C (assumed: room temperature).
     """
     table: dict[int, tuple[int, int]] = {
         9: (1, 250),  # Return_Delay_Time, 2 µs
@@ -94,6 +97,8 @@ def x_series_defaults(
         52: (4, 0),  # Min_Position_Limit
         63: (1, shutdown),
         68: (1, 2),  # Status_Return_Level: every instruction answered
+        144: (2, supply_0v1),  # Present_Input_Voltage [assumed supply]
+        146: (1, 25),  # Present_Temperature, °C [assumed: room temperature]
     }
     if current_limit is not None:
         table[38] = (2, current_limit)
@@ -110,9 +115,9 @@ FACTORY_DEFAULTS: Mapping[str, Mapping[int, tuple[int, int]]] = {
     "sts3215": STS3215_DEFAULTS,
     "sts3250": STS3215_DEFAULTS,
     "sm8512bl": STS3215_DEFAULTS,
-    "xl330-m288": x_series_defaults(70, (70, 35), 1750, 445, 53, (1600, 180, 0, 0, 400), xl330=True),
-    "xl330-m077": x_series_defaults(70, (70, 35), 1750, 1620, 53, (400, 40, 0, 400, 400), xl330=True),
-    "xl430-w250": x_series_defaults(72, (140, 60), None, 265, 52, (1000, 100, 4000, 0, 640)),
+    "xl330-m288": x_series_defaults(70, (70, 35), 1750, 445, 53, (1600, 180, 0, 0, 400), xl330=True, supply_0v1=50),
+    "xl330-m077": x_series_defaults(70, (70, 35), 1750, 1620, 53, (400, 40, 0, 400, 400), xl330=True, supply_0v1=50),
+    "xl430-w250": x_series_defaults(72, (140, 60), None, 265, 52, (1000, 100, 4000, 0, 640), supply_0v1=111),
     "xm430-w350": x_series_defaults(80, (160, 95), 1193, 200, 52, (1920, 100, 0, 0, 800), startup=False),
 }
 """Model → its factory control table (models not listed start all 0 but for what the simulator sets)."""
