@@ -31,7 +31,10 @@ def interrupted(exc: KeyboardInterrupt, restored: str, not_restored: str = "") -
     The workflows re-raise Ctrl-C with the motors they could not restore as its argument; then that is shown.
     """
     from .entry import interrupted_text
+    from .main import written_this_command
 
+    if written_this_command():  # the run had finished: its file is whole, the motors
+        raise exc  # hold what it says; main's line names the file ("interrupted … after writing FILE (complete)")
     what = f"{exc}{not_restored}" if exc.args else restored
     code = _common.interrupt_exit_code(exc)
     _common.print_error(f"{interrupted_text(code - 128)}: {what}")

@@ -70,6 +70,11 @@ class UserInterruptError(CalibError):
 _written_before_main = 0
 
 
+def written_this_command() -> tuple[Path, ...]:
+    """The files the running command has written so far (atomically: each is whole)."""
+    return files_written()[_written_before_main:]
+
+
 def _interrupt_error(exc: KeyboardInterrupt) -> UserInterruptError:
     """The one line an interruption ends with, and its exit code (130, or 143 / 129 for SIGTERM / SIGHUP).
 

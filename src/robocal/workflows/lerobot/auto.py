@@ -397,7 +397,7 @@ def auto_calibrate(
             for m in spec.motors:  # _write_plan unlocked every Feetech EEPROM
                 if "Lock" in before[m.name]:
                     bus.write("Lock", m.motor_id, before[m.name]["Lock"])
-            written = save_calibration(path, cals)
+            written = guard.finish_with(lambda: save_calibration(path, cals))  # signals held: file = motors
     if failed is not None:
         auto, report = failed
         if report is not None and getattr(report, "lost", None):  # the cause is the device, not the search

@@ -297,7 +297,7 @@ def calibrate(
             for m in spec.motors:
                 if vs.lock_register in before[m.name]:
                     bus.write(vs.lock_register, m.motor_id, before[m.name][vs.lock_register])
-        written = save_calibration(path, ordered)
+        written = guard.finish_with(lambda: save_calibration(path, ordered))  # signals held: file = motors
     return CalibrationResult(ordered, written, tuple(notes), naive)
 
 def calibrate_legacy(

@@ -25,7 +25,7 @@ import signal
 import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from types import FrameType, TracebackType
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 from ...backends.bus_transaction import raise_now_or_after
 from ...errors import CalibError, SignalInterrupt
@@ -38,6 +38,8 @@ __all__ = [
     "reraise_with_note",
     "signal_name",
 ]
+
+T = TypeVar("T")
 
 GUARDED_SIGNALS: tuple[signal.Signals, ...] = tuple(
     getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT") if hasattr(signal, n)
@@ -123,6 +125,7 @@ class MotionGuard:
         self._store, self._arm, self._disarm, self._what = store, arm, disarm, what
         self._snapshot: dict[str, dict[str, int]] | None = None
         self._restoring = False
+        self._doing = ""
         self._previous: dict[int, object] = {}
         self.deferred: list[int] = []
         """Signals that came while the motors were being restored (they did not cut it short)."""
@@ -135,10 +138,9 @@ class MotionGuard:
         if self._restoring:
             self.deferred.append(signum)
             if self._on_status is not None:
+                doing = self._doing or f"restoring the previous {self._what}"
                 with contextlib.suppress(Exception):  # never let the message break the restore
-                    self._on_status(
-                        f"still restoring the previous {self._what}; {signal_name(signum)} is ignored until it is done"
-                    )
+                    self._on_status(f"still {doing}; {signal_name(signum)} is ignored until it is done")
             return
         raise_now_or_after(SignalInterrupt(signum))
 
@@ -156,13 +158,32 @@ class MotionGuard:
         self._previous.clear()
 
     @contextlib.contextmanager
-    def deferring(self) -> Iterator[list[int]]:
-        """Hold every guarded signal off while the block runs (counted in :attr:`deferred`, shown)."""
+    def deferring(self, doing: str = "") -> Iterator[list[int]]:
+        """Hold every guarded signal off while the block runs (counted in :attr:`deferred`, shown).
+
+        ``doing``: what the status line says is going on ("writing the calibration file"; default: restoring).
+        """
         was, self._restoring = self._restoring, True
+        was_doing, self._doing = self._doing, doing
         try:
             yield self.deferred
         finally:
-            self._restoring = was
+            self._restoring, self._doing = was, was_doing
+
+    def finish_with(self, write: Callable[[], T]) -> T:
+        """The run's last step (e.g. the calibration file) with signals held off, then :meth:`resolved`.
+
+        The motors hold what the run meant them to; a signal during ``write`` no longer undoes them: once the
+        write is done it is raised (``SignalInterrupt``), so the command ends by that signal and says what was
+        written, with the motors and the file agreeing. A write that fails (a full disk) still restores.
+        """
+        seen = len(self.deferred)
+        with self.deferring("writing the result"):
+            out = write()
+        self.resolved()
+        if len(self.deferred) > seen:
+            raise SignalInterrupt(self.deferred[seen])
+        return out
 
     # ---------------------------------------------------------------------------------------- life cycle
     def __enter__(self) -> MotionGuard:
