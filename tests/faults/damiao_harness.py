@@ -52,6 +52,11 @@ OPENARM_ROBOT = "openarm"
 OPENARM_FAULTS = (*FAULTS, "lost-bus")
 """Every fault of the other robots, and the socketcand connection cut (the daemon or the network gone)."""
 OPENARM_JOINT = "openarm_right_gripper_motor"  # the shortest search (60°): a trial takes 20-40 s
+ZERO_JOINTS = (
+    "openarm_right_gripper_motor,openarm_right_joint6"  # --write-zero: two zeros, one after the other
+)
+ZERO_PHASE = "zero-write"
+"""``--write-zero`` trials (robot ``openarm-zero``): right after the first of the zeros is stored in flash."""
 HOST_LOST = ("sigkill", "lost-device", "lost-bus", "frozen-device")
 WATCHDOG_S = 0.5  # the TIMEOUT robocal arms (backends/damiao/joint_driver.py WATCHDOG_S)
 TIMEOUT_UNIT_S = 50e-6
@@ -113,8 +118,14 @@ def _control(sim: _Sim, cmd: str, **fields: Any) -> dict[str, Any]:
         return ctl.request(cmd, **fields)
 
 
-def run_openarm_trial(fault: str, phase: str, rng: random.Random, joints: str | None = None) -> TrialResult:
-    """Run one trial in a fresh folder with a fresh simulated OpenArm (seeded from ``rng``)."""
+def run_openarm_trial(
+    fault: str, phase: str, rng: random.Random, joints: str | None = None, *, write_zero: bool = False
+) -> TrialResult:
+    """Run one trial in a fresh folder with a fresh simulated OpenArm (seeded from ``rng``).
+
+    ``write_zero``: ``sweep --auto --write-zero`` (each joint's zero stored in its motor's flash once the stops
+    are found); the phase ``zero-write`` is then the instant right after the first flash write.
+    """
     with tempfile.TemporaryDirectory(prefix="robocal-fault-oa-") as tmp:
         folder = Path(tmp)
         seed = rng.randrange(1000)
@@ -122,7 +133,8 @@ def run_openarm_trial(fault: str, phase: str, rng: random.Random, joints: str | 
         relay = None
         try:
             relay = _Relay("127.0.0.1", int(sim.info["socketcand"].rsplit(":", 1)[1]))
-            return _trial(sim, relay, folder, fault, phase, rng, joints or OPENARM_JOINT)
+            default = ZERO_JOINTS if write_zero else OPENARM_JOINT
+            return _trial(sim, relay, folder, fault, phase, rng, joints or default, write_zero)
         finally:
             if relay is not None:
                 relay.cut()
@@ -130,7 +142,14 @@ def run_openarm_trial(fault: str, phase: str, rng: random.Random, joints: str | 
 
 
 def _trial(
-    sim: _Sim, relay: _Relay, folder: Path, fault: str, phase: str, rng: random.Random, joints: str
+    sim: _Sim,
+    relay: _Relay,
+    folder: Path,
+    fault: str,
+    phase: str,
+    rng: random.Random,
+    joints: str,
+    write_zero: bool,
 ) -> TrialResult:
     import importlib.resources
 
@@ -140,14 +159,22 @@ def _trial(
     source = f"can:socketcand:can0?host=127.0.0.1&port={relay.port}"
     args = ["sweep", "--auto", "--urdf", str(urdf), "--robot", "openarm_follower_right", "--source", source,
             "--out", str(folder / "cal" / "calibration.json"), "--joints", joints, "--yes"]  # fmt: skip
+    if write_zero:
+        args.append("--write-zero")
+    # robocal as shipped (reply timeout 0.1 s): a longer floor lets one reply wait starve the other enabled motors'
+    # 0.5 s TIMEOUT (measured with ROBOCAL_REPLY_TIMEOUT_MS=500: their watchdogs tripped)
     env = dict(os.environ, PYTHONPATH=str(SRC), COLUMNS="200")
     run = _Run(subprocess.Popen(
         [sys.executable, "-m", "robocal", *args], cwd=folder, env=env, stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals,
     ))  # fmt: skip
     run.start_reader()
+    robot = "openarm-zero" if write_zero else OPENARM_ROBOT
     try:
-        injected = _wait_for_phase(run, sim, phase, len(joints.split(",")), rng)
+        if phase == ZERO_PHASE:
+            injected = _wait_for_flash_write(run, sim, before, rng)
+        else:
+            injected = _wait_for_phase(run, sim, phase, len(joints.split(",")), rng)
         if injected:
             if fault == "lost-device":
                 _control(sim, "attach", joints=[])
@@ -167,12 +194,27 @@ def _trial(
                 os.kill(run.proc.pid, signal.SIGCONT)
             run.proc.kill()
             run.proc.wait()
-    time.sleep(0.2)  # the readers drain the last lines (their content is not judged by timing)
+    run.drained()  # robocal's last lines are read before they are judged
     if fault == "frozen-device":
         os.kill(sim.proc.pid, signal.SIGCONT)
-    failures = tuple(_judge(sim, folder, fault, code, before, run))
+    failures = tuple(_judge(sim, folder, fault, code, before, run, write_zero))
     tail = " | ".join(ln.strip() for ln in run.lines[-3:])
-    return TrialResult(OPENARM_ROBOT, fault, phase, injected, code, failures, tail)
+    return TrialResult(robot, fault, phase, injected, code, failures, tail)
+
+
+def _wait_for_flash_write(
+    run: _Run, sim: _Sim, before: dict[str, dict[str, Any]], rng: random.Random
+) -> bool:
+    """Wait until a motor's flash write count rose (the first zero stored), then 0-20 ms; False if robocal ended."""
+    deadline = time.monotonic() + HANG_GUARD_S
+    while run.proc.poll() is None and time.monotonic() < deadline:
+        with _suppress():
+            now = _motors(sim.state())
+            if any(now[n]["flash_writes"] > before[n]["flash_writes"] for n in now):
+                time.sleep(rng.uniform(0.0, 0.02))
+                return run.proc.poll() is None
+        time.sleep(0.005)
+    return False
 
 
 def _settled(sim: _Sim, host_lost: bool) -> dict[str, dict[str, Any]]:
@@ -186,7 +228,13 @@ def _settled(sim: _Sim, host_lost: bool) -> dict[str, dict[str, Any]]:
 
 
 def _judge(
-    sim: _Sim, folder: Path, fault: str, code: int, before: dict[str, dict[str, Any]], run: _Run
+    sim: _Sim,
+    folder: Path,
+    fault: str,
+    code: int,
+    before: dict[str, dict[str, Any]],
+    run: _Run,
+    write_zero: bool = False,
 ) -> list[str]:
     failures: list[str] = []
     err = "".join(run.lines)
@@ -223,6 +271,8 @@ def _judge(
         if ram:
             failures.append(f"{name}: RAM register(s) changed: {', '.join(ram)}")
         flash = sorted(r for r in m["flash"] if m["flash"][r] != b["flash"][r])
+        if write_zero and finished and m["flash_writes"] == b["flash_writes"] + 1 and not flash:
+            continue  # --write-zero finished: this joint's new zero (one write); its accuracy is test_openarm_files'
         if flash or m["zero_abs_rad"] != b["zero_abs_rad"] or m["flash_writes"] != b["flash_writes"]:
             failures.append(
                 f"{name}: flash changed: {', '.join(flash) or 'zero'} ({m['flash_writes']} writes)"

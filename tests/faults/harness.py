@@ -47,7 +47,7 @@ FAULTS = (
     "lost-device",
 )
 PHASES = ("start-up", "search", "contact", "restore", "file-write")
-ROBOTS = ("so101_follower", "koch_follower", "lite", "openarm")  # openarm: damiao_harness.py
+ROBOTS = ("so101_follower", "koch_follower", "lite", "openarm", "openarm-zero")  # openarm*: damiao_harness.py
 LITE_JOINT = "left_wrist_roll"  # the Lite's trials search this joint (the arms': the gripper)
 NETNS_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 239.0.0.0/8 dev lo"
 EXPECTED_EXIT = {"sigint": 130, "double-sigint": 130, "sigterm": 143, "sighup": 129, "frozen-device": 3,
@@ -200,14 +200,22 @@ class _Run:
     proc: subprocess.Popen[str]
     lines: list[str] = field(default_factory=list)
     out: list[str] = field(default_factory=list)
+    readers: list[threading.Thread] = field(default_factory=list)
 
     def start_reader(self) -> None:
         def read(stream: Any, into: list[str]) -> None:
             for line in iter(stream.readline, ""):
                 into.append(line)
 
-        threading.Thread(target=read, args=(self.proc.stderr, self.lines), daemon=True).start()
-        threading.Thread(target=read, args=(self.proc.stdout, self.out), daemon=True).start()
+        self.readers[:] = [threading.Thread(target=read, args=(self.proc.stderr, self.lines), daemon=True),
+                        threading.Thread(target=read, args=(self.proc.stdout, self.out), daemon=True)]  # fmt: skip
+        for t in self.readers:
+            t.start()
+
+    def drained(self, timeout_s: float = 30.0) -> None:
+        """Wait until robocal's output has been read to its end (the process has exited; bounded)."""
+        for t in self.readers:
+            t.join(timeout_s)
 
     def count(self, text: str) -> int:
         return sum(text in ln for ln in list(self.lines))
@@ -221,10 +229,10 @@ def run_trial(
     The Lite's CAN is python-can's ``udp_multicast`` shared by the simulator and robocal: the trial runs in a
     private network namespace (``unshare --net``, as ``tests/sim/test_sim_lite_cli.py``), in a child process.
     """
-    if robot == "openarm":  # sweep --auto over socketcand (tests/faults/damiao_harness.py)
+    if robot in ("openarm", "openarm-zero"):  # sweep --auto [--write-zero] over socketcand (damiao_harness.py)
         from .damiao_harness import run_openarm_trial
 
-        return run_openarm_trial(fault, phase, rng, joints)
+        return run_openarm_trial(fault, phase, rng, joints, write_zero=robot == "openarm-zero")
     if robot == "lite" and os.environ.get("ROBOCAL_FAULT_NETNS") != "1":
         return _lite_in_netns(fault, phase, rng.randrange(2**32), joints)
     with tempfile.TemporaryDirectory(prefix="robocal-fault-") as tmp:
@@ -441,8 +449,9 @@ def soak(
     plan = []
     for _ in range(trials):
         robot = rng.choice(robots)
-        faults = {"lite": LITE_FAULTS, "openarm": (*FAULTS, "lost-bus")}.get(robot, FAULTS)
-        fault, phase = rng.choice(faults), rng.choice(PHASES)
+        faults = LITE_FAULTS if robot == "lite" else (*FAULTS, "lost-bus") if "openarm" in robot else FAULTS
+        phases = (*PHASES, "zero-write") if robot == "openarm-zero" else PHASES
+        fault, phase = rng.choice(faults), rng.choice(phases)
         plan.append((robot, fault, phase, rng.randrange(2**32)))
     results: list[TrialResult] = []
     t_start = time.monotonic()
@@ -450,7 +459,7 @@ def soak(
     def one(i: int) -> TrialResult:
         robot, fault, phase, trial_seed = plan[i]
         t0 = time.monotonic()
-        oa_or_lite = robot in ("lite", "openarm")
+        oa_or_lite = robot in ("lite", "openarm", "openarm-zero")
         r = run_trial(robot, fault, phase, random.Random(trial_seed), None if oa_or_lite else joints)
         print(f"[{i + 1}/{trials}] {robot} {fault} @ {phase}: {r.verdict} (exit {r.exit_code}, "
               f"{time.monotonic() - t0:.0f} s) {'; '.join(r.failures)}"
@@ -500,14 +509,15 @@ def results_from_log(text: str) -> list[TrialResult]:
 def table(results: list[TrialResult]) -> str:
     """Counts per fault × phase and per fault over all phases: ``pass/fail/not-reached``; then per robot."""
     counts: Counter[tuple[str, str, str]] = Counter((r.fault, r.phase, r.verdict) for r in results)
-    head = f"{'fault':15s}" + "".join(f"{p:>16s}" for p in (*PHASES, "all phases"))
+    phases = (*PHASES, *sorted({r.phase for r in results} - set(PHASES)))  # openarm-zero: zero-write too
+    head = f"{'fault':15s}" + "".join(f"{p:>16s}" for p in (*phases, "all phases"))
     rows = [head]
     for f in (*FAULTS, *sorted({r.fault for r in results} - set(FAULTS))):  # openarm: lost-bus too
         cells = [
             f"{counts[(f, p, 'pass')]}/{counts[(f, p, 'fail')]}/{counts[(f, p, 'not-reached')]}"
-            for p in PHASES
+            for p in phases
         ]
-        total = [sum(counts[(f, p, v)] for p in PHASES) for v in ("pass", "fail", "not-reached")]
+        total = [sum(counts[(f, p, v)] for p in phases) for v in ("pass", "fail", "not-reached")]
         cells.append("/".join(map(str, total)))
         rows.append(f"{f:15s}" + "".join(f"{c:>16s}" for c in cells))
     per_robot = Counter((r.robot, r.verdict) for r in results)

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ...backends.bus_transaction import transaction
 from ...backends.robstride.joint_driver import MAX_LAG_RAD
 from ...core.health.drift import JointDrift, offset_drift
 from ...core.profile import RobotProfile
@@ -426,25 +427,31 @@ def run_sweep_auto(
                 auto,
             )
         zeros: dict[str, float] = {}
-        if r.write_zero and searched:
-            from .zero import rezeroed_result, store_zeros
+        # from the first zero stored in flash (irreversible) to the file written, a signal waits (bus_transaction
+        # holds it) and comes out after the file: "interrupted after writing ..." (issue 26 item 6, issue 31)
+        with contextlib.ExitStack() as held:  # closed on any exception too: nothing stays held
+            if r.write_zero and searched:
+                from .zero import rezeroed_result, store_zeros
 
-            with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
+                held.enter_context(
+                    MotionGuard(limp=lambda: limp_all(drivers), what="motor state")
+                )  # to the file
                 zeros = store_zeros(
-                    drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=MAX_LAG_RAD
+                    drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=MAX_LAG_RAD,
+                    before_store=lambda: held.enter_context(transaction()),
+                )  # fmt: skip
+                result = rezeroed_result(
+                    result, zeros, wraps=profile.position_wraps, zero_sta=1 if vendor.power_on_half_turn else 0
                 )
-            result = rezeroed_result(
-                result, zeros, wraps=profile.position_wraps, zero_sta=1 if vendor.power_on_half_turn else 0
-            )
-        with _all_or_nothing([p for p in (report_path, out_path if rows else None) if p is not None]):
-            if report_path is not None:
-                doc = result.to_report()
-                doc["auto"] = auto.to_report()
-                if zeros:
-                    doc["zero_stored_at_deg"] = {n: round(math.degrees(q), 4) for n, q in zeros.items()}
-                atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
-            if rows:
-                write_sweep_files(result, urdf, rows, out_path, fmt, None, existing, profile)
+            with _all_or_nothing([p for p in (report_path, out_path if rows else None) if p is not None]):
+                if report_path is not None:
+                    doc = result.to_report()
+                    doc["auto"] = auto.to_report()
+                    if zeros:
+                        doc["zero_stored_at_deg"] = {n: round(math.degrees(q), 4) for n, q in zeros.items()}
+                    atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
+                if rows:
+                    write_sweep_files(result, urdf, rows, out_path, fmt, None, existing, profile)
     finally:
         limp_all(drivers)
         with contextlib.suppress(Exception):

@@ -12,7 +12,7 @@ joint away. Runs inside the caller's motion guard.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -61,8 +61,12 @@ def store_zeros(
     *,
     max_lag_rad: float,
     period_s: float = 0.01,
+    before_store: Callable[[], object] | None = None,
 ) -> dict[str, float]:
     """Move every joint of ``offsets_rad`` to its 0, then store each one's zero in its motor.
+
+    ``before_store`` is called once, after the moves and before the first zero is stored (the caller holds
+    signals back from there until its file is written: a flash write cannot be taken back).
 
     Returns:
         Joint → its angle (from its stops) where the zero was stored, rad: the new zero's error.
@@ -81,6 +85,8 @@ def store_zeros(
             target -= q - offset
             q = _hold(d, target, aj.torque_cap_nm, round(HOLD_S / period_s))
         at[name] = q - offset
+    if before_store is not None:
+        before_store()
     for name in section.joint_names:
         if name in at:
             drivers[name].store_zero()  # type: ignore[attr-defined]
