@@ -15,7 +15,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.faults.harness import ROBOTS, soak, table
+from tests.faults.harness import ROBOTS
+from tests.faults.soak import soak, table
 
 
 def main(argv: list[str] | None = None) -> None:

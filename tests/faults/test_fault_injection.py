@@ -88,7 +88,7 @@ def test_fault_leaves_the_arm_limp_and_restored(robot: str, fault: str, phase: s
 def test_a_soak_log_becomes_the_table() -> None:
     """``results_from_log`` reads the soak's lines (a soak stopped early keeps its counts); a restore-phase trial
     whose search had failed on its own is 'not reached'."""
-    from .harness import results_from_log, table
+    from .soak import results_from_log, table
 
     log = "\n".join(
         [
