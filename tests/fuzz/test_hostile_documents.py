@@ -296,6 +296,7 @@ NOT_FILE_READERS = {
     "formats.calibration.transmission:_append_transmission": "an XML snippet robocal builds itself",
     "viewer.shapes:add_simple_shapes": "a URDF text parse_urdf has already accepted",
     "workflows.demo.job:_lerobot_demo": "the calibration JSON the demo has just written",
+    "workflows.demo.auto_openarm:openarm_demo": "the LeRobot JSON the OpenArm demo has just written",
     "workflows.motion.snapshot:find_left_changed": "robocal's own register snapshot in its state folder (a "
     "file it cannot read is ignored, never an error)",
 }
