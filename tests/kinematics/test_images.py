@@ -71,6 +71,14 @@ def test_tag_images_identify_the_arm_below_a_millimetre(session: Path, tmp_path:
     assert rep["reprojection_px"]["fit"]["identified"]["mean"] < 0.5
     assert rep["reprojection_px"]["validation"]["identified"]["mean"] < 1.0
     assert rep["reprojection_px"]["validation"]["start"]["mean"] > 3.0
+    # the gates the point path has (issue 27): 40 distinct poses, the model's rank, the corner noise
+    plaus = rep["plausibility"]
+    assert {k: plaus[k] for k in ("images", "distinct_poses", "ticks_per_turn", "model_rank", "far_images")} == {
+        "images": 40, "distinct_poses": {"fit": 30, "validation": 10}, "ticks_per_turn": 4096, "model_rank": 26,
+        "far_images": 0,
+    }  # fmt: skip
+    assert plaus["noise_per_axis_px"] == pytest.approx(0.229, abs=0.01)  # measured 0.2295
+    assert plaus["validation_rms_px"] == pytest.approx(0.419, abs=0.01)  # measured 0.4186
     # against the hidden truth, in the camera frame (the frame the images see): target centre on new poses
     truth = json.loads((session / "truth.json").read_text())
     model = so101_model((0.0, 0.0, 0.0))
@@ -280,3 +288,24 @@ def test_tag_joint_map_out_without_a_map_is_refused_before_any_image_is_read(
         "error: --joint-map-out needs the joint map the readings went through (--joint-map or --robot)"
     )
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_detection_says_its_progress_and_gives_each_image_s_corners(session: Path) -> None:
+    from robocal.backends.vision import detect, normalised, parse_target, read_image
+    from robocal.formats.camera_info import read_camera_info as read_cam
+    from robocal.formats.kinematic_data import read_image_session
+    from robocal.workflows.kinematics.vision import detect_session
+
+    q, images = read_image_session(session / "tag.csv", ("shoulder_pan", "shoulder_lift", "elbow_flex",
+                                                        "wrist_flex", "wrist_roll"))  # fmt: skip
+    images = list(images[:12])
+    target = parse_target("apriltag:36h11:0:60")
+    lines: list[str] = []
+    obs, rows, warnings = detect_session(q[:12], images, target, read_cam(session / "camera.yaml"), lines.append)
+    assert lines == ["detecting the target: 10 of 12 images", "detecting the target: 12 of 12 images"]
+    assert rows.tolist() == list(range(12)) and warnings == []
+    one_by_one = [detect(read_image(p), target) for p in images]
+    expected = np.concatenate([d.pixels for d in one_by_one if d is not None])
+    assert obs.uv.shape == (48, 2) and expected.shape == (48, 2)
+    np.testing.assert_array_equal(obs.uv, normalised(expected, read_cam(session / "camera.yaml")))

@@ -164,7 +164,8 @@ def identify(
             urdf, data, camera=camera, target=target, base_link=base_link, tip_link=tip_link,
             validate_fraction=wf.DEFAULT_VALIDATE_FRACTION if validate_fraction is None else validate_fraction,
             huber_px=huber, seed=seed, camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics,
-            prior=wf.as_prior(_prior(prior, prior_mm, prior_deg, prior_offset_deg)), outputs=outputs,
+            prior=wf.as_prior(_prior(prior, prior_mm, prior_deg, prior_offset_deg)), ticks_per_turn=ticks,
+            outputs=outputs,
         ))  # fmt: skip
         raise typer.Exit(print_images(img))
     result = wf.identify(

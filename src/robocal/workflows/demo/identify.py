@@ -145,6 +145,10 @@ class _Steps:
         elapsed_s = time.monotonic() - self._t0
         self._say(f"step {self._done}/{self._total}: {what} ({elapsed_s:.0f} s)")
 
+    def detail(self, what: str) -> None:
+        """A line inside the current step: ``  what (t s)``."""
+        self._say(f"  {what} ({time.monotonic() - self._t0:.0f} s)")
+
 
 def identify_demo(robot: str, folder: Path, say: Callable[[str], object] = lambda _line: None) -> IdentifyDemo:
     """Simulate, identify and check ``robot`` (``so101``: then the image part in ``folder/tag``).
@@ -208,7 +212,7 @@ def _images_demo(robot: str, folder: Path, steps: _Steps) -> ImagesDemo:
     result = vis_wf.identify_images(vis_wf.ImageIdentifyRequest(
         sim.urdf, sim.data, camera=folder / "camera.yaml", target=sim.target, tip_link=sim.tip_link,
         outputs=IdentifyOutputs(out=folder / f"{robot}_identified.urdf", report=folder / "report.json"),
-    ))  # fmt: skip
+    ), progress=steps.detail)  # fmt: skip
     q = sim.arm.sample_q(500, np.random.default_rng(1))
     truth = sim.arm.true_points(q)
     err = np.linalg.norm(result.model.points(sim.arm.read(q), result.fit.x) - truth, axis=1)

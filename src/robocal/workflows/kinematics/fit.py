@@ -34,6 +34,7 @@ __all__ = [
     "predicted_error_m",
     "prediction_rms_m",
     "split_validation",
+    "structural_image_analysis",
     "validation_errors",
 ]
 
@@ -160,8 +161,8 @@ def _structural_rank(problem: Problem) -> int:
     return analyse(Problem(problem.model, data, problem.free, problem.x_fixed)).rank
 
 
-def _structural_image_rank(problem: ImageProblem) -> int:
-    """Rank of an image problem's unknowns with its target seen from 60 spread configurations."""
+def structural_image_analysis(problem: ImageProblem) -> Identifiability:
+    """What an image problem's unknowns can reach: its target seen from 60 spread configurations (seeded)."""
     from ...core.pose_plan import image_plan_problem
 
     lo, up = problem.model.chain.limits()
@@ -176,7 +177,7 @@ def _structural_image_rank(problem: ImageProblem) -> int:
         problem.model, seen, problem.free, problem.x_fixed, camera_on_tool=problem.camera_on_tool,
         refine_intrinsics=problem.refine_intrinsics,
     )  # fmt: skip
-    return spread.analyse().rank
+    return spread.analyse()
 
 
 def _pose_errors(problem: Problem | ImageProblem, theta: FloatArray) -> FloatArray:
@@ -194,6 +195,7 @@ def fit(
     tolerance: float = 1e-8,
     restrict: Sequence[int] | None = None,
     constraints: ArrayLike | None = None,
+    structural: Identifiability | None = None,
 ) -> FitResult:
     """Estimate the identifiable unknowns of ``problem``.
 
@@ -206,6 +208,7 @@ def fit(
         restrict: Only these ``θ`` indices may be estimated; the base set is then chosen among them.
         constraints: ``(c, n_theta)`` rows ``C`` held at ``C θ = 0`` by stiff penalty rows (e.g. the DH-like
             restriction of :func:`robocal.core.kinematic_problem.dh_like_constraints`).
+        structural: An image problem's :func:`structural_image_analysis`, when the caller has it already.
 
     Returns:
         The :class:`FitResult`.
@@ -227,7 +230,7 @@ def fit(
         base = [i for i in base if i in allowed]
     n_res = problem.residuals(theta0).size
     if isinstance(problem, ImageProblem) and restrict is None:
-        full = _structural_image_rank(problem)
+        full = (structural or structural_image_analysis(problem)).rank
         if 6 * problem.data.n_poses <= full:
             raise UsageError(
                 f"too few images: {problem.data.n_poses} fitted images show {6 * problem.data.n_poses} numbers "
@@ -260,7 +263,10 @@ def fit(
         est = sorted(set(base) | {i for i in range(problem.n_theta) if np.isfinite(sig[i]) and i in allowed_p})
         noise = prior.noise_m
         if noise is None:
-            plain = fit(problem, huber_m=huber_m, tolerance=tolerance, restrict=restrict, constraints=constraints)
+            plain = fit(
+                problem, huber_m=huber_m, tolerance=tolerance, restrict=restrict, constraints=constraints,
+                structural=structural,
+            )  # fmt: skip
             r0 = problem.residuals(plain.theta)
             noise = max(math.sqrt(float(r0 @ r0) / max(r0.size - len(base), 1)), 1e-12)
             theta0 = plain.theta.copy()

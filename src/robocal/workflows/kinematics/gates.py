@@ -36,6 +36,7 @@ __all__ = [
     "check_distinct_poses",
     "check_rank",
     "check_ticks",
+    "distinct_poses",
     "held_out_repeats",
     "pose_cells",
     "sessions",
@@ -112,6 +113,18 @@ def _first_order(values: FloatArray) -> tuple[IntArray, IntArray]:
     renumber = np.empty_like(order)
     renumber[order] = np.arange(order.size)
     return first[order], renumber[inverse]
+
+
+def distinct_poses(q_rad: FloatArray, chain: SerialChain, ticks_per_turn: int) -> tuple[IntArray, IntArray]:
+    """The distinct poses of joint readings at the encoder resolution, numbered by first appearance.
+
+    Returns:
+        ``(P,)`` the first row of each distinct pose and ``(N,)`` the distinct pose of each row.
+    """
+    if not q_rad.shape[0]:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    first, pose = _first_order(_cells(q_rad, _resolution(chain, ticks_per_turn)))
+    return first.astype(np.int64), pose.astype(np.int64)
 
 
 def pose_cells(data: Measurements, chain: SerialChain, ticks_per_turn: int, *, source: str) -> PoseCells:

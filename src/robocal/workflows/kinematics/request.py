@@ -166,11 +166,13 @@ class ImageIdentifyRequest:
             stays as calibrated); the refined values and their σ are in the report.
         prior: A Gaussian prior around the nominal kinematics (not on the camera pose, the mounting or the
             intrinsics); the noise that weighs it is estimated from the reprojection errors, pixels.
+        ticks_per_turn: Encoder resolution images are told apart at (0: exact readings): images at the same
+            readings are one pose (:mod:`robocal.workflows.kinematics.image_gates`).
         outputs: The files to write.
 
     Raises:
         UsageError: ``validate_fraction`` outside [0, 1), a Huber scale that is not a positive number, a negative
-            seed.
+            seed or tick count.
     """
 
     urdf: PathLike
@@ -185,6 +187,7 @@ class ImageIdentifyRequest:
     camera_on_tool: bool = False
     refine_intrinsics: bool = False
     prior: PriorSigmas | None = None
+    ticks_per_turn: int = gates.DEFAULT_TICKS_PER_TURN
     outputs: IdentifyOutputs = field(default_factory=IdentifyOutputs)
 
     def __post_init__(self) -> None:
@@ -194,4 +197,5 @@ class ImageIdentifyRequest:
         if huber is not None and not (math.isfinite(huber) and huber > 0):
             raise UsageError(f"--huber must be a positive number of pixels, got {huber}")
         check_seed(self.seed)
+        gates.check_ticks(self.ticks_per_turn)
 

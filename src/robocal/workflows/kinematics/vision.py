@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ...backends.vision import (
     CameraIntrinsics,
+    Detection,
     Target,
     calibrate_camera,
     detect,
@@ -40,9 +41,11 @@ from ...formats.camera_info import read_camera_info, write_camera_info
 from ...formats.kinematic_data import read_image_session
 from ...formats.urdf import UrdfDocument
 from ...formats.urdf_chain import chain_from_urdf
+from . import image_gates as ig
 from . import report as kr
 from .export import check_export_paths, check_ur_chain
-from .fit import FitResult, fit
+from .fit import FitResult, fit, structural_image_analysis
+from .gates import check_rank, distinct_poses
 from .request import ImageIdentifyRequest
 
 __all__ = [
@@ -101,10 +104,25 @@ def camera_calibrate(
     return CameraCalibrationResult(camera, written, len(loaded) - len(warnings), tuple(warnings))
 
 
+PROGRESS_EVERY = 10
+"""``detect_session`` reports its progress after every this many images (and after the last)."""
+
+
 def detect_session(
-    q_rad: FloatArray, images: Sequence[str], target: Target, camera: CameraIntrinsics
+    q_rad: FloatArray,
+    images: Sequence[str],
+    target: Target,
+    camera: CameraIntrinsics,
+    progress: Callable[[str], object] | None = None,
 ) -> tuple[ImageObservations, NDArray[np.int64], list[str]]:
     """Detect the target in every image of a session.
+
+    Args:
+        q_rad: ``(N, n_q)`` joint readings, one row per image.
+        images: The image files, in session order.
+        target: What to look for.
+        camera: The intrinsics (the images must have its size).
+        progress: Called with ``detecting the target: i of N images`` every :data:`PROGRESS_EVERY` images.
 
     Returns:
         The observations of the images the target was found in, the session rows they come from, and one
@@ -115,6 +133,15 @@ def detect_session(
     """
     from ...errors import FileFormatError
 
+    def found(path: str) -> Detection | None:
+        img = read_image(path)
+        if img.shape[:2] != (camera.height, camera.width):
+            raise FileFormatError(
+                f"image {path} is {img.shape[1]}x{img.shape[0]}; the camera was calibrated at "
+                f"{camera.width}x{camera.height}"
+            )
+        return detect(img, target)
+
     obj = target.object_points()
     rows: list[int] = []
     poses: list[NDArray[np.int64]] = []
@@ -122,23 +149,21 @@ def detect_session(
     uvs: list[FloatArray] = []
     Ts: list[FloatArray] = []
     warnings: list[str] = []
-    for i, path in enumerate(images):
-        img = read_image(path)
-        if img.shape[:2] != (camera.height, camera.width):
-            raise FileFormatError(
-                f"image {path} is {img.shape[1]}x{img.shape[0]}; the camera was calibrated at "
-                f"{camera.width}x{camera.height}"
-            )
-        det = detect(img, target)
+    def _add_detection(i: int, path: str, det: Detection | None) -> None:
         if det is None:
             warnings.append(f"pose {i + 1} ({path}): target {target.text} not found; pose skipped")
-            continue
+            return
         k = len(rows)
         rows.append(i)
         poses.append(np.full(det.corner_ids.size, k))
         corners.append(obj[det.corner_ids])
         uvs.append(normalised(det.pixels, camera))
         Ts.append(solve_pnp(obj[det.corner_ids], det.pixels, camera))
+
+    for i, path in enumerate(images):
+        _add_detection(i, path, found(path))
+        if progress is not None and ((i + 1) % PROGRESS_EVERY == 0 or i + 1 == len(images)):
+            progress(f"detecting the target: {i + 1} of {len(images)} images")
     r = np.asarray(rows, dtype=np.int64)
     if r.size == 0:
         return (
@@ -210,11 +235,20 @@ def _intrinsics_report(problem: ImageProblem, result: FitResult, K: FloatArray) 
     }
 
 
-def identify_images(request: ImageIdentifyRequest) -> ImageIdentifyResult:
+def _image_names(rows: NDArray[np.int64], images: Sequence[str]) -> list[str]:
+    """``image N (file)`` per session row (N 1-based, as the CSV's rows)."""
+    return [f"image {int(i) + 1} ({images[int(i)]})" for i in rows]
+
+
+def identify_images(
+    request: ImageIdentifyRequest, *, progress: Callable[[str], object] | None = None
+) -> ImageIdentifyResult:
     """Identify a chain, the camera's pose and the target's mounting from images of a target (``--kind tag``).
 
     Args:
         request: What to identify and what to write (checked when it was built).
+        progress: Called with a line as each stage starts (detection every :data:`PROGRESS_EVERY` images, the
+            fit, the writing): a session of 40 images takes half a minute of CPU, most of it detecting.
 
     Returns:
         The :class:`ImageIdentifyResult`; files are written only after everything succeeded.
@@ -234,27 +268,46 @@ def identify_images(request: ImageIdentifyRequest) -> ImageIdentifyResult:
         check_ur_chain(chain)  # before any image is read: an option that cannot work is the first thing to say
     q, images = read_image_session(data, chain.joint_names)
     chain.check_q(q, what=f"{data}: pose")
-    obs, rows, warnings = detect_session(q, images, tgt, cam)
+    obs, rows, warnings = detect_session(q, images, tgt, cam, progress)
     if obs.n_poses < 3:
         raise UsageError(
             f"the target was found in {obs.n_poses} of {len(images)} images; at least 3 are needed (20 or more "
             "for a useful result)"
+        )
+    first, _ = distinct_poses(obs.q_rad, chain, r.ticks_per_turn)
+    if first.size < 3:  # the hand-eye start needs three different poses
+        raise UsageError(
+            f"the target was found in {obs.n_poses} images at {first.size} distinct "
+            f"{'pose' if first.size == 1 else 'poses'} (the same encoder readings); at least 3 different poses "
+            "are needed (20 or more for a useful result)"
         )
     nominal = ErrorModel(chain)
     assert obs.T_cam_target is not None
     seen = np.linalg.inv(obs.T_cam_target) if camera_on_tool else obs.T_cam_target
     X, Y = hand_eye(seen, nominal.tool_poses(obs.q_rad))
     model = ErrorModel(chain, T_world_base=X, T_tip_tool=Y)
-    rng = np.random.default_rng(r.seed)
-    order = rng.permutation(obs.n_poses)
-    n_val = round(r.validate_fraction * obs.n_poses)
-    val_rows, train_rows = np.sort(order[:n_val]), np.sort(order[n_val:])
+    free, x0 = tuple(range(model.n_params)), np.zeros(model.n_params)
+    structural = structural_image_analysis(ImageProblem(
+        model, obs, free, x0, camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics
+    ))  # fmt: skip
+    split = ig.split_images(
+        obs.q_rad, chain, structural.rank, fraction=r.validate_fraction, seed=r.seed,
+        ticks_per_turn=r.ticks_per_turn, source=str(data),
+    )  # fmt: skip
+    warnings += split.warnings
+    train_rows, val_rows = split.train_rows, split.validation_rows
     train, val = obs.subset(train_rows), obs.subset(val_rows)
     problem = ImageProblem(
         model, train, tuple(range(model.n_params)), np.zeros(model.n_params), camera_on_tool=camera_on_tool,
         refine_intrinsics=refine_intrinsics,
     )  # fmt: skip
-    result = fit(problem, huber_m=r.huber_px, prior=r.prior)
+    if progress is not None:
+        progress(
+            f"fitting {train.n_poses} images: the kinematics, the {'camera mounting' if camera_on_tool else 'camera pose'} "
+            f"and the {'target place' if camera_on_tool else 'target mounting'}"
+        )
+    result = fit(problem, huber_m=r.huber_px, prior=r.prior, structural=structural)
+    check_rank(result.identifiability, structural)
     if not result.success:
         warnings.append("the optimiser stopped before converging; check the images and joint readings")
     val_problem = ImageProblem(
@@ -263,6 +316,11 @@ def identify_images(request: ImageIdentifyRequest) -> ImageIdentifyResult:
     )  # fmt: skip
     val_px = val_problem.pose_errors(result.theta) if val.n_poses else np.zeros(0)
     start_px = val_problem.pose_errors(np.zeros(problem.n_theta)) if val.n_poses else np.zeros(0)
+    residual, residual_report = ig.residual_warnings(
+        result.train_errors_m, val_px, _image_names(rows[train_rows], images),
+        _image_names(rows[val_rows], images),
+    )  # fmt: skip
+    warnings += residual
     corrected, T_cam_base, T_tip_target = model.corrected(result.x)
     warnings += kr.condition_warnings(result, "show the target from more different arm poses")
     units = [model.parameters[i].unit if i < model.n_params else "px" for i in range(len(problem.names))]
@@ -298,12 +356,12 @@ def identify_images(request: ImageIdentifyRequest) -> ImageIdentifyResult:
             if camera_on_tool
             else {"T_cam_base": T_cam_base.tolist(), "T_tip_target": T_tip_target.tolist()}
         ),
+        "plausibility": {**split.report, **residual_report},
         "warnings": warnings,
     }
     written_urdf, written_report = kr.write_identify_files(
         doc, chain, model, result, paths, rep, warnings, o
     )  # fmt: skip
-    _ = rows
     return ImageIdentifyResult(
         result, val, val_px, start_px, corrected, T_cam_base, T_tip_target, model, written_urdf, written_report,
         rep, tuple(warnings),
