@@ -58,3 +58,31 @@ def test_sigterm_while_the_file_is_written_keeps_file_and_motors_agreeing(
         assert servos[motor]["Homing_Offset"] == cal["homing_offset"], motor
         assert servos[motor]["Min_Position_Limit"] == cal["range_min"], motor
         assert servos[motor]["Max_Position_Limit"] == cal["range_max"], motor
+
+
+def test_finish_with_holds_a_signal_until_the_write_is_done_then_raises_it_without_restoring() -> None:
+    """``MotionGuard.finish_with``: a SIGTERM during the last write is held, the write completes, nothing is
+    restored (the motors keep what the file says) and the signal then ends the run (exit 143)."""
+    from robocal.errors import SignalInterrupt
+    from robocal.workflows.motion.guard import MotionGuard
+
+    calls: list[str] = []
+
+    def limp() -> list[str]:
+        calls.append("limp")
+        return []
+
+    def restore(snapshot: Any) -> Any:
+        calls.append("restore")
+        raise AssertionError("a finished write must not be undone")
+
+    def write() -> str:
+        os.kill(os.getpid(), signal.SIGTERM)  # arrives inside the write
+        calls.append("written")
+        return "file"
+
+    with pytest.raises(SignalInterrupt) as caught, MotionGuard(limp=limp, restore=restore) as guard:
+        guard.snapshot({"gripper": {"Homing_Offset": 5}})
+        guard.finish_with(write)
+    assert caught.value.exit_code == 143
+    assert calls[0] == "written" and "restore" not in calls
