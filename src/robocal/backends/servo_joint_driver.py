@@ -46,7 +46,7 @@ from collections.abc import Mapping
 from contextlib import suppress
 from typing import Any
 
-from ..core.motor_models import MotorModel, find_motor_model, motor_key
+from ..core.motor_models import MotorModel, motor_key, rated_motor_model
 from ..core.stop_search import Command, StopSample
 from ..errors import CalibTimeoutError, UsageError
 from .clock import Clock
@@ -60,9 +60,7 @@ def _motor_model(joint: str, bus_model: str, motor: str | None) -> MotorModel:
     Raises:
         UsageError: The model is unknown, or ``motor`` is not a variant of the bus model.
     """
-    found = find_motor_model(motor or bus_model)
-    if found is None:
-        raise UsageError(f"joint {joint}: motor model {motor or bus_model!r} has no rating in robocal's model table")
+    found = rated_motor_model(joint, motor or bus_model)
     if motor_key(found.bus_model) != motor_key(bus_model):
         raise UsageError(f"joint {joint}: motor {found.name} answers as {found.bus_model!r}, the bus has {bus_model!r}")
     return found

@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..errors import UsageError
+
 __all__ = [
     "HARD_MAX_TORQUE_FRACTION",
     "MOTOR_MODELS",
@@ -24,6 +26,7 @@ __all__ = [
     "ceiling_nm",
     "find_motor_model",
     "motor_key",
+    "rated_motor_model",
 ]
 
 HARD_MAX_TORQUE_FRACTION = 0.5
@@ -133,6 +136,18 @@ def find_motor_model(name: str | None) -> MotorModel | None:
     if name is None:
         return None
     return _BY_KEY.get(motor_key(name))
+
+
+def rated_motor_model(joint: str, name: str | None) -> MotorModel:
+    """The model table entry a joint's motor must have before anything pushes it.
+
+    Raises:
+        UsageError: ``name`` is not in the table (no rating, so no torque ceiling).
+    """
+    found = find_motor_model(name)
+    if found is None:
+        raise UsageError(f"joint {joint}: motor model {name!r} has no rating in robocal's model table")
+    return found
 
 
 def ceiling_nm(name: str | None) -> float:

@@ -6,9 +6,9 @@ import math
 from contextlib import suppress
 from typing import Any
 
-from ...core.motor_models import find_motor_model
+from ...core.motor_models import rated_motor_model
 from ...core.stop_search import Command, StopSample
-from ...errors import CalibTimeoutError, DeviceError, UsageError
+from ...errors import CalibTimeoutError, DeviceError
 from ..clock import Clock
 
 LIMIT_TORQUE = 0x700B
@@ -89,11 +89,7 @@ class RobstrideJointDriver:
         self.name = name
         self.direction = int(direction)
         spec = getattr(bus, "motors", {}).get(name)
-        model = find_motor_model(getattr(spec, "model", None))
-        if model is None:
-            raise UsageError(
-                f"joint {name}: motor model {getattr(spec, 'model', None)!r} has no rating in robocal's model table"
-            )
+        model = rated_motor_model(name, getattr(spec, "model", None))
         self.ceiling_nm = model.ceiling_nm
         """No torque asked of the motor is above this (the hard ceiling of its model's rated torque)."""
         cap_nm = min(float(cap_nm), self.ceiling_nm)
