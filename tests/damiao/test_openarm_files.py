@@ -78,9 +78,9 @@ def test_convert_and_check_between_robocal_and_lerobot(tmp_path: Path, capsys: p
     assert main(["convert", str(lr), str(rc), "--to", "robocal", "--urdf", str(URDF)]) == 0
     back = tmp_path / "back.json"
     assert main(["convert", str(rc), str(back), "--to", "openarm-lerobot", "--urdf", str(URDF)]) == 0
-    # the robocal format keeps no ranges: the way back writes the URDF's (J4 0..140 instead of the measured 1..139)
-    assert json.loads(back.read_text())["joint_4"]["range_min"] == 0
-    assert json.loads(back.read_text())["joint_1"] == json.loads(lr.read_text())["joint_1"]
+    # the robocal format keeps the measured ranges (J4 1..139, not the URDF's 0..140): the way back is byte-exact
+    assert "    range: [0.017453292519943295, 2.426007660272118]" in rc.read_text()
+    assert back.read_bytes() == lr.read_bytes()
     assert main(["check", "--calibration", str(lr), "--urdf", str(URDF)]) == 0
     out = capsys.readouterr().out
     assert "8/8 joints matched (openarm-lerobot)" in out and "robot profile: openarm_follower_right" in out

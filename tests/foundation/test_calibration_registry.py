@@ -26,6 +26,7 @@ def test_formats_in_help_order_each_from_its_own_module() -> None:
         "lerobot-legacy",
         "robocal",
         "openarm-lerobot",
+        "openarm-ros2",
     ]
     modules = {name: spec.reader.__module__.rsplit(".", 1)[1] for name, spec in FORMATS.items()}
     assert modules == {
@@ -36,6 +37,7 @@ def test_formats_in_help_order_each_from_its_own_module() -> None:
         "lerobot-legacy": "lerobot_legacy",
         "robocal": "canonical",
         "openarm-lerobot": "openarm_lerobot",
+        "openarm-ros2": "openarm_ros2",
     }
     assert [n for n, s in FORMATS.items() if s.writer is None] == ["lerobot-legacy"]
 
@@ -78,6 +80,7 @@ def test_most_specific_sniffer_wins(tmp_path: Path) -> None:
         "lerobot-legacy": 1,
         "robocal": 0,
         "openarm-lerobot": 1,
+        "openarm-ros2": 1,
     }
 
 

@@ -161,7 +161,7 @@ def test_the_output_checks_and_default_format_shared_by_sweep_and_sweep_auto(tmp
     out = tmp_path / "cal.yaml"
     assert check_outputs(str(out), None, None) == (out, None)
     assert check_outputs(out, tmp_path / "r.json", "lite-json") == (out, tmp_path / "r.json")
-    with pytest.raises(UsageError, match=r"^--format 'yaml': expected one of lite-yaml, lite-json, berkeley-offsets, openarm-lerobot$"):
+    with pytest.raises(UsageError, match=r"^--format 'yaml': expected one of lite-yaml, lite-json, berkeley-offsets, openarm-lerobot, openarm-ros2$"):
         check_outputs(out, None, "yaml")
     with pytest.raises(UsageError, match=r"--report .*cal\.yaml: is the same file as --out$"):
         check_outputs(out, tmp_path / "." / "cal.yaml", None)

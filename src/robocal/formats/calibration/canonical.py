@@ -1,9 +1,14 @@
-"""``robocal``: robocal's canonical joint map YAML (direction, homing_offset, scale and optional id per joint)."""
+"""``robocal``: robocal's canonical joint map YAML (direction, homing_offset, scale, optional id and range per joint).
+
+``range: [lower, upper]`` is the travel measured between a joint's stops, in the joint frame (rad, or m for a
+prismatic joint), where a sweep measured it; it is carried through ``robocal convert`` to the formats that store
+a range (``openarm-lerobot``, ``openarm-ros2``). Files without it read as before.
+"""
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -34,11 +39,12 @@ def read(path: Path, parsed_yaml: Any = None, **_: Any) -> CalibrationFile:
         raise FileFormatError(f"{source}: 'joints' must be a non-empty mapping")
     names, dirs, offs, scales = [], [], [], []
     ids: dict[str, int] = {}
+    ranges: dict[str, tuple[float, float]] = {}
     for name, entry in joints.items():
         where = f"{source}: joint {name!r}"
         if not isinstance(entry, Mapping):
             raise FileFormatError(f"{where}: expected a mapping")
-        allowed = {"id", "direction", "homing_offset", "scale", "raw_unit", "joint_unit"}
+        allowed = {"id", "direction", "homing_offset", "scale", "raw_unit", "joint_unit", "range"}
         extra = [str(k) for k in entry if k not in allowed]
         if extra:
             raise FileFormatError(
@@ -56,10 +62,23 @@ def read(path: Path, parsed_yaml: Any = None, **_: Any) -> CalibrationFile:
             raise FileFormatError(f"{where}: scale {scale} must be > 0")
         scales.append(scale)
         names.append(str(name))
+        if "range" in entry:
+            ranges[str(name)] = _range(entry["range"], where)
     check_unique_ids(ids, source)
     return CalibrationFile(
-        RobotCalibration(names, dirs, offs, scales), MappingProxyType(ids), "robocal", source
+        RobotCalibration(names, dirs, offs, scales), MappingProxyType(ids), "robocal", source, (), ranges
     )
+
+
+def _range(value: Any, where: str) -> tuple[float, float]:
+    """A ``range: [lower, upper]`` entry (finite, lower below upper)."""
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2:
+        raise FileFormatError(f"{where}: range must be a list [lower, upper]")
+    lo = parse_finite(value[0], where, "range lower")
+    hi = parse_finite(value[1], where, "range upper")
+    if not lo < hi:
+        raise FileFormatError(f"{where}: range lower {lo} is not below upper {hi}")
+    return lo, hi
 
 
 def write(
@@ -71,6 +90,7 @@ def write(
     lines = [
         "# robocal joint map: q_joint = direction * scale * (raw - homing_offset)",
         "# homing_offset is in the motor's raw unit; scale converts raw units to joint units (rad or m).",
+        *(["# range: the travel measured between the joint's stops, joint units."] if cf.ranges_rad else []),
         f"format: {ROBOCAL_FORMAT_TAG}",
         "version: 1",
         "joints:",
@@ -82,6 +102,9 @@ def write(
         lines.append(f"    direction: {int(d)}")
         lines.append(f"    homing_offset: {yaml_float(h)}")
         lines.append(f"    scale: {yaml_float(s)}")
+        if n in cf.ranges_rad:
+            lo, hi = cf.ranges_rad[n]
+            lines.append(f"    range: [{yaml_float(lo)}, {yaml_float(hi)}]")
     atomic_write_text(path, "\n".join(lines) + "\n")
 
 

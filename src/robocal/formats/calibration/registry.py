@@ -23,7 +23,16 @@ from .._json import is_valid_unicode, json_int, load_json
 from .._yaml import load_yaml
 from ..profiles import resolve_profile
 from ..urdf import UrdfModel
-from . import berkeley, canonical, lerobot_legacy, lite_json, lite_yaml, openarm_lerobot, transmission
+from . import (
+    berkeley,
+    canonical,
+    lerobot_legacy,
+    lite_json,
+    lite_yaml,
+    openarm_lerobot,
+    openarm_ros2,
+    transmission,
+)
 from ._base import CalibrationFile, Content, FormatSpec, first_value
 
 FORMATS: dict[str, FormatSpec] = {
@@ -36,6 +45,7 @@ FORMATS: dict[str, FormatSpec] = {
         lerobot_legacy.SPEC,
         canonical.SPEC,
         openarm_lerobot.SPEC,
+        openarm_ros2.SPEC,
     )
 }
 """Every joint-map format by name."""
@@ -234,7 +244,7 @@ def write_calibration(
     p = Path(path)
     cf = data if isinstance(data, CalibrationFile) else CalibrationFile(data)
     if ids:
-        cf = CalibrationFile(cf.calibration, {**cf.ids, **ids}, cf.fmt, cf.source, cf.notes)
+        cf = CalibrationFile(cf.calibration, {**cf.ids, **ids}, cf.fmt, cf.source, cf.notes, cf.ranges_rad)
     name = fmt if fmt is not None else _format_for_output(p)
     spec = _check_fmt(name)
     if spec.writer is None:

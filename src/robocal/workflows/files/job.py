@@ -73,7 +73,8 @@ def convert_file(
     cal = cf.calibration
     if joints is not None and tuple(joints) != cal.joint_names:
         cal = cal.select(joints)
-    out = CalibrationFile(cal, {k: v for k, v in cf.ids.items() if k in cal}, cf.fmt, cf.source)
+    ranges = {k: v for k, v in cf.ranges_rad.items() if k in cal}  # measured ranges go on to formats that keep them
+    out = CalibrationFile(cal, {k: v for k, v in cf.ids.items() if k in cal}, cf.fmt, cf.source, (), ranges)
     if Path(src).resolve() == Path(dst).resolve() and (dst_format or cf.fmt) == cf.fmt:
         raise UsageError(f"source and destination are the same file ({src}) in the same format")
     written = write_calibration(dst, out, dst_format, urdf=urdf, joint_order=joints, robot=profile)

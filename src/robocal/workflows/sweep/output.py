@@ -30,7 +30,7 @@ __all__ = [
     "output_format",
 ]
 
-OUTPUT_FORMATS = ("lite-yaml", "lite-json", "berkeley-offsets", "openarm-lerobot")
+OUTPUT_FORMATS = ("lite-yaml", "lite-json", "berkeley-offsets", "openarm-lerobot", "openarm-ros2")
 """Formats a sweep writes (``--format``)."""
 
 
