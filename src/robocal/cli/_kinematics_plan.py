@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -21,6 +21,9 @@ from ._kinematics_options import (
     parse_numbers,
     parse_xyz,
 )
+
+if TYPE_CHECKING:
+    from ..workflows.kinematics.plan_images import ImagePlanRequest
 
 __all__ = ["plan"]
 
@@ -123,13 +126,37 @@ def plan(
     if kind == "tag":
         if validation_poses:
             raise UsageError("--validation-poses applies to points, touch and gauge; images use --validate-fraction")
-        raise typer.Exit(
-            _plan_tag(
-                urdf, out, 40 if poses is None else poses, base_link, tip_link, camera, target, camera_pose,
-                look_at, target_pose, camera_on_tool, refine_intrinsics, noise_px, candidates, candidates_file,
-                seed, tool_xyz, touch_points, frame, criterion, prior,
+        not_tag = {
+            "--tool-xyz (the target's place is --target-pose)": tool_xyz != "0,0,0",
+            "--touch-points": touch_points is not None,
+            "--frame": frame.strip().lower() != "base",
+            "--criterion d": criterion.strip().lower() != "i",
+        }
+        wrong = [f for f, on in not_tag.items() if on]
+        if wrong:
+            raise UsageError(f"{', '.join(wrong)}: not for --kind tag")
+        if camera is None or target is None or camera_pose is None:
+            raise UsageError("--kind tag needs --camera (intrinsics), --target and --camera-pose")
+        if look_at is not None and camera_on_tool:
+            raise UsageError(
+                "--look-at places a fixed camera; with --camera-on-tool give --camera-pose with six numbers"
             )
-        )  # fmt: skip
+        from ..workflows.kinematics import plan_images as tag_wf
+
+        T_camera = tag_wf.frame_from_pose(
+            parse_numbers(camera_pose, "--camera-pose", "0.1,0,0.5,3.1416,0,0"),
+            "--camera-pose",
+            None if look_at is None else parse_xyz(look_at, "--look-at"),
+        )
+        T_target = tag_wf.frame_from_pose(
+            parse_numbers(target_pose, "--target-pose", "0,0,0,0,0,0"), "--target-pose"
+        )
+        raise typer.Exit(_plan_tag(tag_wf.ImagePlanRequest(
+            urdf, out, camera=camera, target=target, T_camera=T_camera, T_target=T_target,
+            camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics, poses=40 if poses is None else poses,
+            base_link=base_link, tip_link=tip_link, noise_px=noise_px, candidates=candidates,
+            candidates_file=candidates_file, seed=seed, prior=prior,
+        )))  # fmt: skip
     given = {
         "--camera": camera is not None, "--target": target is not None, "--camera-pose": camera_pose is not None,
         "--look-at": look_at is not None, "--target-pose": target_pose != "0,0,0,0,0,0",
@@ -190,74 +217,24 @@ def plan(
     raise typer.Exit(print_warnings(warnings))
 
 
-def _plan_tag(
-    urdf: Path,
-    out: Path,
-    poses: int,
-    base_link: str | None,
-    tip_link: str | None,
-    camera: Path | None,
-    target: str | None,
-    camera_pose: str | None,
-    look_at: str | None,
-    target_pose: str,
-    camera_on_tool: bool,
-    refine_intrinsics: bool,
-    noise_px: float,
-    candidates: int,
-    candidates_file: Path | None,
-    seed: int,
-    tool_xyz: str,
-    touch_points: str | None,
-    frame: str,
-    criterion: str,
-    prior: bool,
-) -> int:
-    """``plan --kind tag``: print and return the exit code."""
-    not_tag = {
-        "--tool-xyz (the target's place is --target-pose)": tool_xyz != "0,0,0",
-        "--touch-points": touch_points is not None,
-        "--frame": frame.strip().lower() != "base",
-        "--criterion d": criterion.strip().lower() != "i",
-    }
-    wrong = [f for f, on in not_tag.items() if on]
-    if wrong:
-        raise UsageError(f"{', '.join(wrong)}: not for --kind tag")
-    if camera is None or target is None or camera_pose is None:
-        raise UsageError("--kind tag needs --camera (intrinsics), --target and --camera-pose")
-    if look_at is not None and camera_on_tool:
-        raise UsageError(
-            "--look-at places a fixed camera; with --camera-on-tool give --camera-pose with six numbers"
-        )
+def _plan_tag(request: ImagePlanRequest) -> int:
+    """``plan --kind tag``: run the request, print and return the exit code."""
     from ..workflows.kinematics import plan_images as tag_wf
 
-    T_camera = tag_wf.frame_from_pose(
-        parse_numbers(camera_pose, "--camera-pose", "0.1,0,0.5,3.1416,0,0"),
-        "--camera-pose",
-        None if look_at is None else parse_xyz(look_at, "--look-at"),
-    )
-    T_target = tag_wf.frame_from_pose(
-        parse_numbers(target_pose, "--target-pose", "0,0,0,0,0,0"), "--target-pose"
-    )
-    result = tag_wf.plan_images(tag_wf.ImagePlanRequest(
-        urdf, out, camera=camera, target=target, T_camera=T_camera, T_target=T_target,
-        camera_on_tool=camera_on_tool, refine_intrinsics=refine_intrinsics, poses=poses, base_link=base_link,
-        tip_link=tip_link, noise_px=noise_px, candidates=candidates, candidates_file=candidates_file, seed=seed,
-        prior=prior,
-    ))  # fmt: skip
+    result = tag_wf.plan_images(request)
     ident = result.identifiability
     obs = ident.observability
-    what = "camera's centre in the target frame" if camera_on_tool else "target's centre in the camera frame"
+    what = "camera's centre in the target frame" if request.camera_on_tool else "target's centre in the camera frame"
     console.print(
-        f"{len(result.q_rad)} images ({'Bayesian ' if prior else ''}I-optimal of {result.candidates} poses where the camera sees the target, "
+        f"{len(result.q_rad)} images ({'Bayesian ' if request.prior else ''}I-optimal of {result.candidates} poses where the camera sees the target, "
         f"from {result.drawn} tried) for {', '.join(result.joint_names)}: rank {ident.rank} of "
         f"{len(ident.names)} unknowns, condition number {obs.condition:.1f}, O1 {obs.O1:.3g}, O3 {obs.O3:.3g}"
     )
     if math.isfinite(result.prediction_sigma_m):
         console.print(
             f"predicted σ of the {what} after identification {result.prediction_sigma_m * 1e3:.3f} mm "
-            f"(RMS over the candidates, {noise_px:g} px corner noise"
-            + (", with the tolerance prior)" if prior else ")")
+            f"(RMS over the candidates, {request.noise_px:g} px corner noise"
+            + (", with the tolerance prior)" if request.prior else ")")
         )
     console.print(
         f"wrote {result.out}; move the arm to each pose and take the picture "
