@@ -6,13 +6,13 @@ seeded joint's homing offset (file and EEPROM alike), then ``verify_calibration`
 estimated drift, the error, the uncertainty, the search time on the arm's clock and the wall time; then the worst
 error (target ≤ 0.3°), the other joints' largest |drift| (target ≤ 0.3°), whether the EEPROM and the file stayed
 as they were, the longest search (target < 60 s). The baseline measured in the same run: ``lerobot calibrate
---auto`` itself (one full calibration of seed 0), whose time the verify must not exceed by much.
+--auto`` itself (one full calibration of seed 0), whose time the verify must not exceed by much. The run is
+:func:`robocal.workflows.lerobot.verify_sim.verify_drift_run`, the one ``tests/health/test_verify.py`` calls;
+``--robot koch_follower`` runs the Koch (Dynamixel) instead.
 """
 
 from __future__ import annotations
 
-import json
-import math
 import sys
 import tempfile
 import time
@@ -22,87 +22,37 @@ from typing import Any
 import numpy as np
 
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import (
-    AutoCalibrationRequest,
-    auto_calibrate,
-    auto_section,
-    calibration_from_stops,
-)
-from robocal.workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm
-from robocal.workflows.lerobot.verify import VerifyRequest, verify_calibration
+from robocal.workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
+from robocal.workflows.lerobot.auto_sim import open_auto_arm
+from robocal.workflows.lerobot.verify_sim import verify_drift_run
 
 ROBOT = "so101_follower"
-COUNT_DEG = 360 / 4096
 
 
-def true_calibration(spec: Any, truth: Any) -> dict[str, dict[str, int]]:
-    """The arm's true calibration (its stops from the simulator's truth), LeRobot's JSON fields."""
-    out = {}
-    for m in spec.motors:
-        t = truth[m.name]
-        cal = calibration_from_stops(
-            spec,
-            m.name,
-            4096,
-            t.stop_low_ticks * 2 * math.pi / 4096,
-            t.stop_high_ticks * 2 * math.pi / 4096,
-            full_range=m.name in spec.full_turn,
-        )
-        out[m.name] = {
-            "id": cal.id,
-            "drive_mode": cal.drive_mode,
-            "homing_offset": cal.homing_offset,
-            "range_min": cal.range_min,
-            "range_max": cal.range_max,
-        }
-    return out
-
-
-def one_run(seed: int) -> dict[str, Any]:
-    """One seeded verify with an injected drift: what was injected and measured, and what was written."""
-    spec, section = robot_spec(ROBOT), auto_section(ROBOT)
+def one_run(seed: int, robot: str = ROBOT) -> dict[str, Any]:
+    """One seeded verify with an injected drift (:func:`verify_drift_run`, the run the tests call)."""
+    section = auto_section(robot)
     rng = np.random.default_rng(seed)
     searched = [j.name for j in section.searched_joints]
     joint = searched[int(rng.integers(0, len(searched)))]
     counts = int(rng.integers(10, 201)) * (1 if rng.random() < 0.5 else -1)
-    port = f"sim?seed={seed}&transport=inproc"
-    with tempfile.TemporaryDirectory() as folder, open_auto_arm(spec, port, section) as arm:
-        cals = true_calibration(spec, arm.sim.truth)
-        h = cals[joint]["homing_offset"] + counts
-        cals[joint]["homing_offset"] = (h + 2047) % 4096 - 2047  # the same offset within the register's ±2047
-        path = Path(folder) / "follower.json"
-        path.write_text(json.dumps(cals, indent=4))
-        for name, c in cals.items():
-            servo = arm.sim.servo(name)
-            servo.set_reg("Homing_Offset", c["homing_offset"])
-            servo.set_reg("Min_Position_Limit", c["range_min"])
-            servo.set_reg("Max_Position_Limit", c["range_max"])
-        eeprom, before = arm.sim.eeprom(), path.read_bytes()
-        request = VerifyRequest(
-            spec, section, path, gravity_model=auto_gravity_model(spec, port, section, None)
-        )
-        result = verify_calibration(arm.bus, request, clock=arm.clock)
-        unchanged = arm.sim.eeprom() == eeprom and path.read_bytes() == before
-        files = sorted(p.name for p in Path(folder).iterdir())
-    drift = {j.name: j for j in result.joints}
-    injected = -counts * COUNT_DEG
-    others = max(abs(j.drift_deg) for j in result.joints if j.name != joint)
+    run = verify_drift_run(robot, seed, joint, counts)
     return {
         "seed": seed,
         "joint": joint,
-        "injected": injected,
-        "estimate": drift[joint].drift_deg,
-        "uncertainty": drift[joint].uncertainty_deg,
-        "others": others,
-        "search_s": result.search_s,
-        "wall_s": result.wall_s,
-        "unchanged": unchanged and files == ["follower.json"],
+        "injected": run.injected_deg,
+        "estimate": run.estimate_deg,
+        "uncertainty": next(j.uncertainty_deg for j in run.result.joints if j.name == joint),
+        "others": run.others_deg,
+        "search_s": run.result.search_s,
+        "wall_s": run.result.wall_s,
+        "unchanged": run.unchanged,
     }
 
 
-def baseline_s() -> tuple[float, float]:
+def baseline_s(robot: str = ROBOT) -> tuple[float, float]:
     """One full ``lerobot calibrate --auto`` of seed 0: (arm clock s, wall s)."""
-    spec, section = robot_spec(ROBOT), auto_section(ROBOT)
+    spec, section = robot_spec(robot), auto_section(robot)
     port = "sim?seed=0&transport=inproc"
     with tempfile.TemporaryDirectory() as folder, open_auto_arm(spec, port, section) as arm:
         t0, c0 = time.monotonic(), arm.clock.now()
@@ -114,9 +64,10 @@ def baseline_s() -> tuple[float, float]:
 def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else argv
     n = int(args[args.index("--seeds") + 1]) if "--seeds" in args else 20
-    base_clock, base_wall = baseline_s()
+    robot = args[args.index("--robot") + 1] if "--robot" in args else ROBOT
+    base_clock, base_wall = baseline_s(robot)
     print(
-        f"baseline: lerobot calibrate --auto, seed 0: {base_clock:.1f} s on the arm's clock, {base_wall:.1f} s wall"
+        f"{robot} baseline: lerobot calibrate --auto, seed 0: {base_clock:.1f} s on the arm's clock, {base_wall:.1f} s wall"
     )
     print(
         f"{'seed':>4}  {'joint':13s} {'injected °':>10} {'estimate °':>10} {'error °':>8} {'± °':>6}"
@@ -124,7 +75,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     runs = []
     for seed in range(n):
-        r = one_run(seed)
+        r = one_run(seed, robot)
         runs.append(r)
         err = r["estimate"] - r["injected"]
         print(

@@ -16,9 +16,9 @@ import pytest
 from robocal.cli.main import main
 from robocal.core.health.drift import offset_drift, range_drift
 from robocal.workflows.lerobot import robot_spec
-from robocal.workflows.lerobot.auto import auto_section, calibration_from_stops
-from robocal.workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm
-from robocal.workflows.lerobot.verify import DEFAULT_TOLERANCE_DEG, VerifyRequest, verify_calibration
+from robocal.workflows.lerobot.auto import auto_section
+from robocal.workflows.lerobot.verify import DEFAULT_TOLERANCE_DEG, VerifyRequest
+from robocal.workflows.lerobot.verify_sim import verify_drift_run
 
 COUNT_DEG = 360 / 4096
 
@@ -82,75 +82,35 @@ def test_verify_refusals_are_one_line_and_exit_2_before_the_port_opens(
     assert list(tmp_path.iterdir()) == []
 
 
-def _true_calibration(spec, truth) -> dict[str, dict[str, int]]:  # type: ignore[no-untyped-def]
-    """The arm's true calibration (its stops from the simulator's truth), LeRobot's JSON fields."""
-    out = {}
-    for m in spec.motors:
-        t = truth[m.name]
-        cal = calibration_from_stops(
-            spec,
-            m.name,
-            4096,
-            t.stop_low_ticks * 2 * math.pi / 4096,
-            t.stop_high_ticks * 2 * math.pi / 4096,
-            full_range=m.name in spec.full_turn,
-        )
-        out[m.name] = {
-            "id": cal.id,
-            "drive_mode": cal.drive_mode,
-            "homing_offset": cal.homing_offset,
-            "range_min": cal.range_min,
-            "range_max": cal.range_max,
-        }
-    return out
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("seed", "joint", "drift_counts"),
-    [(1, "elbow_flex", 23), (2, "shoulder_lift", -40), (4, "wrist_flex", 12), (5, "shoulder_pan", -200)],
+    ("robot", "seed", "joint", "drift_counts"),
+    [
+        ("so101_follower", 1, "elbow_flex", 23),
+        ("so101_follower", 2, "shoulder_lift", -40),
+        ("so101_follower", 4, "wrist_flex", 12),
+        ("so101_follower", 5, "shoulder_pan", -200),
+        ("koch_follower", 1, "elbow_flex", 23),
+        ("koch_follower", 2, "shoulder_lift", -40),
+        ("koch_follower", 3, "wrist_flex", 150),
+    ],
 )
 def test_verify_finds_an_injected_drift_within_0_3_degrees_and_writes_nothing(
-    seed: int, joint: str, drift_counts: int, tmp_path: Path
+    robot: str, seed: int, joint: str, drift_counts: int
 ) -> None:
-    spec, section = robot_spec("so101_follower"), auto_section("so101_follower")
-    port = f"sim?seed={seed}&transport=inproc"
-    with open_auto_arm(spec, port, section) as arm:
-        cals = _true_calibration(spec, arm.sim.truth)
-        cals[joint]["homing_offset"] += (
-            drift_counts  # the stored calibration drifted: reads drift_counts less
-        )
-        path = tmp_path / "follower.json"
-        path.write_text(json.dumps(cals, indent=4))
-        for name, c in cals.items():  # the arm holds that stored calibration in its EEPROM
-            servo = arm.sim.servo(name)
-            servo.set_reg("Homing_Offset", c["homing_offset"])
-            servo.set_reg("Min_Position_Limit", c["range_min"])
-            servo.set_reg("Max_Position_Limit", c["range_max"])
-        eeprom, file_bytes = arm.sim.eeprom(), path.read_bytes()
-        request = VerifyRequest(
-            spec, section, path, gravity_model=auto_gravity_model(spec, port, section, None)
-        )
-        result = verify_calibration(arm.bus, request, clock=arm.clock)
-        assert arm.sim.eeprom() == eeprom
-        assert {n: arm.sim.servo(n).get_reg("Torque_Enable") for n in cals} == dict.fromkeys(cals, 0)
-    assert path.read_bytes() == file_bytes
-    assert [p.name for p in tmp_path.iterdir()] == ["follower.json"]
-    drift = {j.name: j for j in result.joints}
-    assert set(drift) == {
-        "shoulder_lift",
-        "elbow_flex",
-        "wrist_flex",
-        "wrist_roll",
-        "gripper",
-        "shoulder_pan",
-    }
-    injected = -drift_counts * COUNT_DEG
-    assert drift[joint].drift_deg == pytest.approx(injected, abs=0.3)
-    assert all(abs(j.drift_deg) < 0.3 for j in result.joints if j.name != joint)
-    assert [j.name for j in result.joints if j.flagged] == ([joint] if abs(injected) > 2.0 else [])
-    assert result.exit_code == (1 if abs(injected) > 2.0 else 0)
-    assert result.search_s < 60.0  # the simulated arm's clock: under a minute for every joint
+    """SO-101 (Feetech: the offset lowers the reading) and Koch (Dynamixel: it raises it), the benchmark's run."""
+    run = verify_drift_run(robot, seed, joint, drift_counts)
+    assert run.unchanged  # EEPROM, file bytes, folder as they were; every torque off
+    searched = {j.name for j in auto_section(robot).searched_joints}
+    assert {j.name for j in run.result.joints} == searched
+    sign = -1 if robot.startswith("so101") else 1  # Present = Actual ∓ Homing_Offset
+    assert run.injected_deg == pytest.approx(sign * drift_counts * COUNT_DEG)
+    assert run.estimate_deg == pytest.approx(run.injected_deg, abs=0.3)
+    assert run.others_deg < 0.3
+    flagged = abs(run.injected_deg) > 2.0
+    assert [j.name for j in run.result.joints if j.flagged] == ([joint] if flagged else [])
+    assert run.result.exit_code == (1 if flagged else 0)
+    assert run.result.search_s < 60.0  # the simulated arm's clock: under a minute for every joint
 
 
 @pytest.mark.slow
