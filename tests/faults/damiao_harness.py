@@ -58,9 +58,17 @@ ZERO_JOINTS = (
 ZERO_PHASE = "zero-write"
 """``--write-zero`` trials (robot ``openarm-zero``): right after the first of the zeros is stored in flash."""
 HOST_LOST = ("sigkill", "lost-device", "lost-bus", "frozen-device")
+HELD_PHASE = "held"
+"""Two joints searched: the second's search, while the first holds its park angle (an idle enabled motor)."""
+STARVE_S = 0.15
+"""``starve``: robocal is stopped this long, then runs this long, until it exits."""
 WATCHDOG_S = 0.5  # the TIMEOUT robocal arms (backends/damiao/joint_driver.py WATCHDOG_S)
 TIMEOUT_UNIT_S = 50e-6
 LIMP_WAIT_S = 30.0  # hang guard for the watchdogs to act once the host is gone (0.5 s of real time)
+LIMP_BOUND_S = 0.1
+"""Issue 26: a signal robocal can act on leaves no motor able to push for longer than this."""
+LIMP_TIMED = ("sigint", "double-sigint", "sigterm", "sighup")
+"""The faults robocal can act on, whose limp is timed (a killed, frozen or cut-off host leaves it to the TIMEOUT)."""
 
 
 class _Relay:
@@ -119,12 +127,19 @@ def _control(sim: _Sim, cmd: str, **fields: Any) -> dict[str, Any]:
 
 
 def run_openarm_trial(
-    fault: str, phase: str, rng: random.Random, joints: str | None = None, *, write_zero: bool = False
+    fault: str,
+    phase: str,
+    rng: random.Random,
+    joints: str | None = None,
+    *,
+    write_zero: bool = False,
+    reply_ms: int | None = None,
 ) -> TrialResult:
     """Run one trial in a fresh folder with a fresh simulated OpenArm (seeded from ``rng``).
 
     ``write_zero``: ``sweep --auto --write-zero`` (each joint's zero stored in its motor's flash once the stops
-    are found); the phase ``zero-write`` is then the instant right after the first flash write.
+    are found); the phase ``zero-write`` is then the instant right after the first flash write. ``reply_ms``:
+    robocal runs with ``ROBOCAL_REPLY_TIMEOUT_MS`` set to it (its watchdog then ``watchdog_for`` that wait).
     """
     with tempfile.TemporaryDirectory(prefix="robocal-fault-oa-") as tmp:
         folder = Path(tmp)
@@ -134,7 +149,7 @@ def run_openarm_trial(
         try:
             relay = _Relay("127.0.0.1", int(sim.info["socketcand"].rsplit(":", 1)[1]))
             default = ZERO_JOINTS if write_zero else OPENARM_JOINT
-            return _trial(sim, relay, folder, fault, phase, rng, joints or default, write_zero)
+            return _trial(sim, relay, folder, fault, phase, rng, joints or default, write_zero, reply_ms)
         finally:
             if relay is not None:
                 relay.cut()
@@ -150,8 +165,11 @@ def _trial(
     rng: random.Random,
     joints: str,
     write_zero: bool,
+    reply_ms: int | None = None,
 ) -> TrialResult:
     import importlib.resources
+
+    from robocal.backends.mit_keepalive import watchdog_for
 
     before = _motors(sim.state())
     urdf = Path(str(importlib.resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
@@ -164,6 +182,9 @@ def _trial(
     # robocal as shipped (reply timeout 0.1 s): a longer floor lets one reply wait starve the other enabled motors'
     # 0.5 s TIMEOUT (measured with ROBOCAL_REPLY_TIMEOUT_MS=500: their watchdogs tripped)
     env = dict(os.environ, PYTHONPATH=str(SRC), COLUMNS="200")
+    if reply_ms is not None:
+        env["ROBOCAL_REPLY_TIMEOUT_MS"] = str(reply_ms)
+    watchdog_s = watchdog_for(max(0.1, (reply_ms or 0) / 1000.0))
     run = _Run(subprocess.Popen(
         [sys.executable, "-m", "robocal", *args], cwd=folder, env=env, stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals,
@@ -173,13 +194,20 @@ def _trial(
     try:
         if phase == ZERO_PHASE:
             injected = _wait_for_flash_write(run, sim, before, rng)
+        elif phase == HELD_PHASE:
+            injected = _wait_for_held(run, rng)
         else:
             injected = _wait_for_phase(run, sim, phase, len(joints.split(",")), rng)
+        signalled_at = None
         if injected:
+            if fault in LIMP_TIMED:
+                signalled_at = time.monotonic()  # the host's monotonic clock: the simulator stamps with the same
             if fault == "lost-device":
                 _control(sim, "attach", joints=[])
             elif fault == "lost-bus":
                 relay.cut()
+            elif fault == "starve":
+                threading.Thread(target=_starve, args=(run.proc,), daemon=True).start()
             else:
                 _inject(run.proc, sim, fault, rng)
         try:
@@ -197,9 +225,31 @@ def _trial(
     run.drained()  # robocal's last lines are read before they are judged
     if fault == "frozen-device":
         os.kill(sim.proc.pid, signal.SIGCONT)
-    failures = tuple(_judge(sim, folder, fault, code, before, run, write_zero))
+    failures = tuple(
+        _judge(sim, folder, fault, code, before, run, write_zero, signalled_at=signalled_at, watchdog_s=watchdog_s)
+    )
     tail = " | ".join(ln.strip() for ln in run.lines[-3:])
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
+
+
+def _wait_for_held(run: _Run, rng: random.Random) -> bool:
+    """Wait until the second joint's search began (the first holds its park angle), then 0-1 s."""
+    deadline = time.monotonic() + HANG_GUARD_S
+    while run.proc.poll() is None and time.monotonic() < deadline and run.count("searching its stops") < 2:
+        time.sleep(0.02)
+    time.sleep(rng.uniform(0.0, 1.0))
+    return run.proc.poll() is None
+
+
+def _starve(proc: subprocess.Popen[str]) -> None:
+    """Hold robocal up half of the time (stopped 0.15 s, running 0.15 s) until it exits: a starved host."""
+    while proc.poll() is None:
+        with _suppress():
+            os.kill(proc.pid, signal.SIGSTOP)
+        time.sleep(STARVE_S)
+        with _suppress():
+            os.kill(proc.pid, signal.SIGCONT)
+        time.sleep(STARVE_S)
 
 
 def _wait_for_flash_write(
@@ -227,6 +277,30 @@ def _settled(sim: _Sim, host_lost: bool) -> dict[str, dict[str, Any]]:
         time.sleep(0.05)
 
 
+def limp_latency(before: dict[str, dict[str, Any]], after: dict[str, dict[str, Any]], signalled_at: float
+                 ) -> dict[str, float]:
+    """Per motor that was made limp after the signal: how long after it (s, the host's monotonic clock) the first
+    frame or event took its torque away (the simulator's ``torque_off_at``)."""
+    out: dict[str, float] = {}
+    for name, m in after.items():
+        new = m["torque_off_at"][len(before[name]["torque_off_at"]):]
+        later = [wall for _sim, wall in new if wall >= signalled_at]
+        if later:
+            out[name] = min(later) - signalled_at
+    return out
+
+
+def limp_latency_failures(
+    before: dict[str, dict[str, Any]], after: dict[str, dict[str, Any]], signalled_at: float
+) -> list[str]:
+    """A motor whose torque went off later than :data:`LIMP_BOUND_S` after the signal."""
+    return [
+        f"{name}: limp {dt * 1000:.0f} ms after the signal (bound {LIMP_BOUND_S * 1000:.0f} ms)"
+        for name, dt in limp_latency(before, after, signalled_at).items()
+        if dt > LIMP_BOUND_S
+    ]
+
+
 def _judge(
     sim: _Sim,
     folder: Path,
@@ -235,6 +309,9 @@ def _judge(
     before: dict[str, dict[str, Any]],
     run: _Run,
     write_zero: bool = False,
+    *,
+    signalled_at: float | None = None,
+    watchdog_s: float = WATCHDOG_S,
 ) -> list[str]:
     failures: list[str] = []
     err = "".join(run.lines)
@@ -253,6 +330,8 @@ def _judge(
         failures.append(f"exit {code}, expected {expected[fault]}")
     if fault == "cpu-stall" and code != 3 and not finished:
         failures.append(f"exit {code} after a CPU stall, expected 0 or 3")
+    if fault == "starve" and code != 3 and not finished:
+        failures.append(f"exit {code} while starved, expected 0, 1 or 3")
     if fault == "lost-device":
         _control(sim, "attach", joints="all")
     host_lost = fault in HOST_LOST
@@ -260,13 +339,17 @@ def _judge(
     on = [n for n, m in after.items() if m["enabled"]]
     if on:
         failures.append(f"enabled after the run: {', '.join(on)}")
+    if signalled_at is not None:
+        failures += limp_latency_failures(before, after, signalled_at)
     for name, m in after.items():
         b = before[name]
         tripped = len(m["lost_comm_at_s"]) > len(b["lost_comm_at_s"])
-        if tripped and m["ram"]["TIMEOUT"] * TIMEOUT_UNIT_S > WATCHDOG_S + 1e-9:
+        if tripped and m["ram"]["TIMEOUT"] * TIMEOUT_UNIT_S > watchdog_s + 1e-9:
             failures.append(
-                f"{name}: TIMEOUT tripped after {m['ram']['TIMEOUT'] * TIMEOUT_UNIT_S:g} s, over 0.5 s"
+                f"{name}: TIMEOUT tripped after {m['ram']['TIMEOUT'] * TIMEOUT_UNIT_S:g} s, over {watchdog_s:g} s"
             )
+        if tripped and fault == "starve":
+            failures.append(f"{name}: TIMEOUT tripped although robocal was only starved, never silent")
         ram = sorted(r for r in m["ram"] if m["ram"][r] != b["ram"][r] and not (host_lost and r == "TIMEOUT"))
         if ram:
             failures.append(f"{name}: RAM register(s) changed: {', '.join(ram)}")

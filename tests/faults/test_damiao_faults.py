@@ -19,7 +19,7 @@ import pytest
 
 pytest.importorskip("can")
 
-from .damiao_harness import ZERO_PHASE, _judge, _motors, run_openarm_trial
+from .damiao_harness import HELD_PHASE, ZERO_PHASE, _judge, _motors, limp_latency, run_openarm_trial
 from .harness import TrialResult, _Sim
 
 pytestmark = pytest.mark.timeout(900)
@@ -61,6 +61,45 @@ def test_the_oracle_sees_a_motor_left_enabled_and_a_register_left_changed(tmp_pa
             "openarm_right_gripper_motor: RAM register(s) changed: KP_ASR",
         ]
         assert _motors(sim.state())["openarm_right_gripper_motor"]["ram"]["KP_ASR"] == 0.125
+    finally:
+        sim.stop()
+
+
+@pytest.mark.slow
+def test_the_oracle_times_the_limp_against_the_signal(tmp_path: Path) -> None:
+    """The simulator stamps the frame that took a motor's torque away; a limp 150 ms after the signal fails."""
+    import time
+
+    from robocal.backends.damiao.bus import DamiaoBus, DamiaoMotor
+    from robocal.backends.damiao.protocol import MitCommand
+
+    sim = _Sim("openarm", tmp_path, argv=("--side", "right", "--port", "0"))
+    try:
+        before = _motors(sim.state())
+        host, port = sim.info["socketcand"].rsplit(":", 1)
+        grip = DamiaoMotor("openarm_right_gripper_motor", 0x08, 0x18, "DM4310")
+        j7 = DamiaoMotor("openarm_right_joint7", 0x07, 0x17, "DM4310")
+        bus = DamiaoBus("can0", [grip, j7], interface="socketcand", allow_motion=True,
+                        bus_kwargs={"host": host, "port": int(port)})  # fmt: skip
+        try:
+            bus.enable([grip.name, j7.name])
+            bus.mit_many({grip.name: MitCommand(0.0, 0.0, 0.0, 0.01, 0.2), j7.name: MitCommand(0.0, 0.0, 0.0, 0.01, 0.0)})
+            signalled_at = time.monotonic()
+            bus.disable([j7.name])  # at once
+            time.sleep(0.15)
+            bus.disable([grip.name])  # too late
+        finally:
+            bus.close()
+        after = _motors(sim.state())
+        latency = limp_latency(before, after, signalled_at)
+        assert sorted(latency) == ["openarm_right_gripper_motor", "openarm_right_joint7"]
+        assert latency["openarm_right_joint7"] < latency["openarm_right_gripper_motor"]
+        assert latency["openarm_right_gripper_motor"] >= 0.15
+        (tmp_path / "cal").mkdir()
+        failures = _judge(sim, tmp_path, "sigint", 130, before, _Ended(), signalled_at=signalled_at)  # type: ignore[arg-type]
+        grip_ms = latency["openarm_right_gripper_motor"] * 1000
+        assert f"openarm_right_gripper_motor: limp {grip_ms:.0f} ms after the signal (bound 100 ms)" in failures
+        assert any("openarm_right_joint7: limp" in f for f in failures) == (latency["openarm_right_joint7"] > 0.1)
     finally:
         sim.stop()
 
@@ -128,3 +167,26 @@ def test_a_signal_while_zeros_go_to_flash_ends_after_the_file_is_written(fault: 
     )
     assert result.exit_code == {"sigint": 130, "sigterm": 143, "sighup": 129}[fault]
     assert "after writing" in result.stderr_tail and "(complete)" in result.stderr_tail
+
+
+HELD_JOINTS = "openarm_right_gripper_motor,openarm_right_joint7"  # the gripper parks and holds while J7 is searched
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["starve", "sigkill"])
+def test_held_motors_outlast_a_long_reply_wait_and_a_starved_host_yet_stop_when_it_is_gone(fault: str) -> None:
+    """``ROBOCAL_REPLY_TIMEOUT_MS=500`` (TIMEOUT armed 1.1 s). ``starve``: robocal stopped 0.15 s of every 0.3 s
+    from the second joint's search on; no motor trips (on the code before, which armed 0.5 s whatever the reply
+    wait, the gripper's TIMEOUT tripped during its own search, exit 3, in the run measured). ``sigkill``: every
+    enabled motor stops by its TIMEOUT (at most 1.1 s)."""
+    for attempt in range(3):
+        result = run_openarm_trial(
+            fault, HELD_PHASE, random.Random(31 + 1000 * attempt), HELD_JOINTS, reply_ms=500
+        )
+        if result.injected:
+            break
+    else:
+        pytest.skip(f"three runs ended on their own before the second joint's search (last: {result.failures})")
+    assert result.failures == (), f"exit {result.exit_code}: {'; '.join(result.failures)} [{result.stderr_tail}]"
+    if fault == "sigkill":
+        assert result.exit_code == -9

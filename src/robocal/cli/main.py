@@ -150,11 +150,12 @@ class _PageWarningHandler(logging.Handler):
 
 
 def _install_note_handler() -> None:
-    logger = logging.getLogger("robocal.fileio")
-    if not any(isinstance(h, _NoteHandler) for h in logger.handlers):
-        logger.addHandler(_NoteHandler(logging.INFO))
-    logger.setLevel(logging.INFO)
-    logger.propagate = False
+    for name in ("robocal.fileio", "robocal.notes"):  # robocal.notes: what a previous run left (workflows)
+        logger = logging.getLogger(name)
+        if not any(isinstance(h, _NoteHandler) for h in logger.handlers):
+            logger.addHandler(_NoteHandler(logging.INFO))
+        logger.setLevel(logging.INFO)
+        logger.propagate = False
     pages = logging.getLogger("robocal.viewer")
     if not any(isinstance(h, _PageWarningHandler) for h in pages.handlers):
         pages.addHandler(_PageWarningHandler(logging.WARNING))

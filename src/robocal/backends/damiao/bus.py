@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -149,6 +150,7 @@ class DamiaoBus(ClosesOnExit):
         )
         self._owns_bus = bus is None
         self._bus = bus
+        self._send_lock = threading.Lock()  # the keep-alive thread sends too (send_mit)
         if bus is None:
             valid = sorted(getattr(self._can, "VALID_INTERFACES", ()))
             if valid and interface not in valid:
@@ -212,7 +214,8 @@ class DamiaoBus(ClosesOnExit):
         arb, data = frame
         msg = self._can.Message(arbitration_id=arb, data=data, is_extended_id=False, is_fd=fd)
         try:
-            self._bus.send(msg, timeout=self.timeout_s)
+            with self._send_lock:
+                self._bus.send(msg, timeout=self.timeout_s)
         except Exception as exc:
             raise DeviceError(f"CAN {self.interface}:{self.channel}: send failed ({exc})") from None
 
@@ -379,6 +382,16 @@ class DamiaoBus(ClosesOnExit):
                 self._gate("an MIT command that pushes", spec)
             frames[spec.name] = encode_mit_command(spec.esc_id, cmd, self.limits[spec.name])
         return self._states(frames, check=True)
+
+    def send_mit(self, motor: str, command: MitCommand) -> None:
+        """One MIT command, its state reply not awaited (needs ``allow_motion`` unless :data:`LIMP`).
+
+        The keep-alive thread's frame; the next exchange drops the reply.
+        """
+        spec = self._spec(motor)
+        if command != LIMP:
+            self._gate("an MIT command that pushes", spec)
+        self._send(encode_mit_command(spec.esc_id, command, self.limits[spec.name]), fd=self.fd)
 
     def write_register(self, motor: str, rid: int, value: float) -> float:
         """Write a register in RAM (op 0x55; lost at power-off unless saved); returns the value echoed.

@@ -11,13 +11,16 @@ openarm_can also assume; robocal reads it and refuses otherwise, it never change
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Callable
 from contextlib import suppress
 from typing import Any
 
 from ...core.motor_models import rated_motor_model
 from ...core.stop_search import Command, StopSample
 from ...errors import CalibTimeoutError, DeviceError
-from ..clock import Clock
+from ..clock import Clock, MonotonicClock
+from ..mit_keepalive import KEEPALIVE_S, WATCHDOG_MIN_S, forget, peers_of, watchdog_for
 from .faults import DamiaoLostCommError, DamiaoOverloadError
 from .protocol import MitCommand, MotorState
 from .tables import ControlMode, Register
@@ -26,12 +29,12 @@ __all__ = ["KEEPALIVE_S", "MAX_LAG_RAD", "WATCHDOG_S", "DamiaoJointDriver", "Dam
 
 MAX_LAG_RAD = math.radians(3.0)
 """The position target leads the joint by at most this: ``kp = cap / 3°``."""
-WATCHDOG_S = 0.5
-"""TIMEOUT armed on every motor that moves: a motor that hears no frame for this long goes to state 0xD and limp."""
-KEEPALIVE_S = 0.1
-"""An enabled motor not being searched (holding a pose or parked) is sent its last command again this often."""
-_ENABLED: dict[int, list[DamiaoJointDriver]] = {}
-"""Enabled drivers per clock (the joints of one run): each frame a driver sends refreshes the quiet others."""
+TIMEOUT_UNIT_S = 50e-6
+"""One unit of TIMEOUT (register 9): 50 µs."""
+WATCHDOG_S = WATCHDOG_MIN_S
+"""TIMEOUT armed on every motor that moves when replies are quick (0.5 s): a motor that hears no frame for this
+long goes to state 0xD and limp. A longer reply wait arms ``watchdog_for(reply wait)`` (over twice the wait; a
+wait needing more than 2 s is refused: :func:`robocal.backends.mit_keepalive.watchdog_for`)."""
 
 
 class DamiaoWatchdogError(DeviceError):
@@ -60,6 +63,9 @@ class DamiaoJointDriver:
         period_s: Control period.
         kd: Damping gain, N·m·s/rad (default ``0.05·cap`` per rad/s).
         lost_reply_s: How long a lost reply takes on the hardware (moves a simulated clock on by it).
+
+    Raises:
+        UsageError: The reply wait needs a watchdog longer than robocal arms (before anything is sent).
     """
 
     def __init__(
@@ -93,7 +99,30 @@ class DamiaoJointDriver:
         self._q = math.nan
         self._saved_watchdog_s: float | None = None
         self._mode_checked = False
-        self._last_tx_s = -math.inf
+        self.last_tx_s = -math.inf
+        """When this driver last sent its motor a frame (clock seconds)."""
+        self.last_keepalive_s = -math.inf
+        """When the independent keep-alive last did (``time.monotonic``)."""
+        self.lock = threading.RLock()
+        """Held by every exchange of this driver; the independent keep-alive skips the motor meanwhile."""
+        self.watchdog_s = watchdog_for(self.reply_wait_s())
+        """TIMEOUT armed on the motor, s: over twice the longest reply wait."""
+        self.on_watchdog: Callable[[str, float | None], None] | None = None
+        """Told before TIMEOUT is armed (the value it had, s) and after it is put back (None): the state folder's
+        record of what a killed run leaves armed (:mod:`robocal.workflows.autocal.damiao_watchdog`)."""
+
+    def reply_wait_s(self) -> float:
+        """The longest one exchange may wait for its reply, on this driver's clock, s.
+
+        ``lost_reply_s`` when given; otherwise the bus's reply timeout on the wall clock, and 0 on a simulated
+        clock (an exchange there takes no simulated time).
+        """
+        if self.lost_reply_s is not None:
+            return float(self.lost_reply_s)
+        return float(getattr(self.bus, "timeout_s", 0.0)) if isinstance(self.clock, MonotonicClock) else 0.0
+
+    def _peers(self) -> Any:
+        return peers_of(self.clock)
 
     # ------------------------------------------------------------------------------------------ frames
     def _sample(self, st: MotorState, overload: bool = False) -> StopSample:
@@ -114,7 +143,8 @@ class DamiaoJointDriver:
 
     def _mit(self, cmd: MitCommand) -> StopSample:
         t_send = self.clock.now()
-        self._last_tx_s = t_send
+        self.last_tx_s = t_send
+        self._peers().beat()
         try:
             s = self._sample(self._send(cmd))
         except CalibTimeoutError:
@@ -124,7 +154,7 @@ class DamiaoJointDriver:
         except DamiaoLostCommError as exc:
             self.enabled = False
             raise DamiaoWatchdogError(
-                f"joint {self.name}: the motor reported communication lost (0xD): its TIMEOUT ({WATCHDOG_S:g} s) "
+                f"joint {self.name}: the motor reported communication lost (0xD): its TIMEOUT ({self.watchdog_s:g} s) "
                 f"tripped because no frame reached it in time (robocal was held up or the bus dropped frames): {exc}"
             ) from None
         self._keep_others_alive(t_send)
@@ -133,11 +163,21 @@ class DamiaoJointDriver:
 
     def _keep_others_alive(self, now_s: float) -> None:
         """Send the quiet enabled motors of this run their last command again (their watchdogs stay armed)."""
-        for other in _ENABLED.get(id(self.clock), []):
-            if other is not self and other.enabled and now_s - other._last_tx_s >= KEEPALIVE_S:
-                other._last_tx_s = now_s
-                with suppress(CalibTimeoutError, DamiaoOverloadError):
-                    other._sample(other._send(other._last))
+        for other in list(self._peers().members):
+            if other is not self and other.enabled and now_s - other.last_tx_s >= KEEPALIVE_S:
+                with other.lock:
+                    other.last_tx_s = now_s
+                    with suppress(CalibTimeoutError, DamiaoOverloadError):
+                        other._sample(other._send(other._last))
+
+    def resend_nowait(self) -> None:
+        """The last command again, its reply not awaited (the independent keep-alive's frame)."""
+        d = self.direction
+        cmd = self._last
+        t = max(-self.ceiling_nm, min(self.ceiling_nm, cmd.torque_nm))
+        self.bus.send_mit(
+            self.name, MitCommand(d * cmd.position_rad, d * cmd.velocity_rad_s, cmd.kp, cmd.kd, d * t)
+        )
 
     def _lost(self, t_send: float) -> StopSample:
         """A reply that did not come: the exchange lasted the bus's reply timeout (a simulated clock moves on)."""
@@ -149,6 +189,7 @@ class DamiaoJointDriver:
 
     def _enable(self) -> StopSample:
         t_send = self.clock.now()
+        self._peers().beat()
         try:
             if not self._mode_checked:
                 mode = int(self.bus.read_register(self.name, Register.CTRL_MODE))
@@ -169,6 +210,10 @@ class DamiaoJointDriver:
     # ------------------------------------------------------------------------------------------ JointDriver
     def read(self) -> StopSample:
         """Read the joint, repeating the last command (enable first, with damping only, if needed)."""
+        with self.lock:
+            return self._read()
+
+    def _read(self) -> StopSample:
         if not self.enabled:
             s = self._enable()
             if not s.ok:
@@ -177,6 +222,10 @@ class DamiaoJointDriver:
 
     def execute(self, cmd: Command) -> StopSample:
         """One MIT frame for ``cmd``; its state reply is the reading."""
+        with self.lock:
+            return self._execute(cmd)
+
+    def _execute(self, cmd: Command) -> StopSample:
         if cmd.action == "limp":
             self.limp()
             return StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q))
@@ -186,6 +235,7 @@ class DamiaoJointDriver:
                 return s
         if cmd.action == "reread":
             t_send = self.clock.now()
+            self._peers().beat()
             try:
                 self.bus.clear_error(self.name)
             except CalibTimeoutError:
@@ -206,24 +256,32 @@ class DamiaoJointDriver:
         return self._mit(self._last)
 
     def arm_watchdog(self) -> None:
-        """Arm the motor's host-loss watchdog (TIMEOUT = :data:`WATCHDOG_S`, RAM) before it moves (once)."""
+        """Arm the motor's host-loss watchdog (TIMEOUT = :attr:`watchdog_s`, RAM) before it moves (once).
+
+        The motor joins its run's keep-alive (on the wall clock, the independent thread starts with the first).
+        """
         if self._saved_watchdog_s is None:
-            self._saved_watchdog_s = float(self.bus.arm_watchdog(self.name, WATCHDOG_S))
-        peers = _ENABLED.setdefault(id(self.clock), [])
-        if self not in peers:
-            peers.append(self)
+            before_s = float(self.bus.read_register(self.name, Register.TIMEOUT)) * TIMEOUT_UNIT_S
+            if self.on_watchdog is not None:
+                self.on_watchdog(self.name, before_s)  # recorded before the write: a kill after it leaves the record
+            self.bus.write_register(self.name, Register.TIMEOUT, self.bus.watchdog_units(self.watchdog_s))
+            self._saved_watchdog_s = before_s
+        wait = self.reply_wait_s()
+        self._peers().add(
+            self, wall_clock=isinstance(self.clock, MonotonicClock), stall_s=max(2.0 * wait, wait + 0.25)
+        )
 
     def disarm_watchdog(self) -> None:
         """Put TIMEOUT back as it was before :meth:`arm_watchdog`; never raises."""
-        peers = _ENABLED.get(id(self.clock), [])
-        if self in peers:
-            peers.remove(self)
-        if not peers:
-            _ENABLED.pop(id(self.clock), None)
+        run = peers_of(self.clock, create=False)
+        if run is not None and run.remove(self):
+            forget(self.clock)
         if self._saved_watchdog_s is not None:
             with suppress(Exception):
                 self.bus.disarm_watchdog(self.name, self._saved_watchdog_s)
                 self._saved_watchdog_s = None
+                if self.on_watchdog is not None:
+                    self.on_watchdog(self.name, None)
 
     def settle_at(self, target_rad: float, duration_s: float, *, max_lag_rad: float = math.radians(0.5)) -> float:
         """Hold the joint at ``target_rad`` with a stiffer spring; the mean position over the second half.
@@ -233,8 +291,9 @@ class DamiaoJointDriver:
         degree; this one a sixth of it. The target must already be within ``max_lag`` (the joint was moved there).
         """
         kp = min(500.0, self.cap_nm / max_lag_rad)
-        self._last = MitCommand(target_rad, 0.0, kp, max(self.kd, 0.02 * kp * 0.05), 0.0)
-        qs = [self._mit(self._last).q_rad for _ in range(max(2, round(duration_s / self.period_s)))]
+        with self.lock:
+            self._last = MitCommand(target_rad, 0.0, kp, max(self.kd, 0.02 * kp * 0.05), 0.0)
+            qs = [self._mit(self._last).q_rad for _ in range(max(2, round(duration_s / self.period_s)))]
         half = [q for q in qs[len(qs) // 2 :] if math.isfinite(q)]
         return sum(half) / len(half) if half else math.nan
 
@@ -244,17 +303,19 @@ class DamiaoJointDriver:
         Limp, then openarm_can's sequence (disable, 0xFE, disable) through :meth:`~.bus.DamiaoBus.set_zero`.
         Returns the reading after it (joint frame, rad; ≈ 0 unless the joint moved once unpowered).
         """
-        self.limp()
-        st = self.bus.set_zero(self.name, confirm=True)
-        self._q = self.direction * st.position_rad
-        return self._q
+        with self.lock:
+            self.limp()
+            st = self.bus.set_zero(self.name, confirm=True)
+            self._q = self.direction * st.position_rad
+            return self._q
 
     def limp(self) -> None:
         """The zero-torque MIT frame, disable (0xFD), the watchdog disarmed; never raises."""
-        self._last = MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)
-        with suppress(Exception):
-            self.bus.limp([self.name])
-        with suppress(Exception):
-            self.bus.disable([self.name])
-        self.disarm_watchdog()
-        self.enabled = False
+        with self.lock:
+            self._last = MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)
+            with suppress(Exception):
+                self.bus.limp([self.name])
+            with suppress(Exception):
+                self.bus.disable([self.name])
+            self.disarm_watchdog()
+            self.enabled = False

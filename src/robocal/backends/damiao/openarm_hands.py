@@ -9,7 +9,9 @@ pushes (any gain or feed-forward torque) is held by the motor, and the hand cann
 
 For fault injection each joint's view also carries the motor's state as a test judges it (``extra``): ``enabled``
 (state 0x1, torque on), ``ram`` and ``flash`` (every register by name), ``zero_abs_rad`` (the zero in flash),
-``flash_writes``, ``lost_comm_at_s`` (when its TIMEOUT tripped, simulated time) and ``last_rx_s``;
+``flash_writes``, ``lost_comm_at_s`` (when its TIMEOUT tripped, simulated time), ``last_rx_s`` and
+``torque_off_at`` (``[motor time, host monotonic time]`` of each frame or event that took its torque away, to time
+a limp against the signal that asked for it);
 :meth:`OpenArmHands.attach` is the control socket's ``attach`` command (the motors not named stop hearing and
 answering: power or cable lost).
 """
@@ -89,6 +91,7 @@ class OpenArmHands:
                     "flash": {r.name: v for r, v in m.flash.items()},
                     "lost_comm_at_s": list(m.lost_comm_at_s),
                     "last_rx_s": m.last_rx_s,
+                    "torque_off_at": [list(t) for t in m.torque_off_at],
                 },
             )
 

@@ -171,6 +171,11 @@ class SimDamiaoMotor:
     last_rx_s: float | None = None
     lost_comm_at_s: list[float] = field(default_factory=list)
     """Simulated (or monotonic) times at which TIMEOUT expired."""
+    torque_off_at: list[tuple[float, float]] = field(default_factory=list)
+    """Each time the motor stopped being able to push: ``(motor time, time.monotonic())`` of the frame that did it
+    (disable 0xFD, the zero-torque MIT frame, clear error) or of its TIMEOUT expiring (the motor's time is the
+    simulated clock with a plant, else the monotonic clock; the second is the host machine's, comparable across
+    processes, to time a limp against the signal that asked for it)."""
 
     def __post_init__(self) -> None:
         if self.direction not in (1, -1):
@@ -263,8 +268,11 @@ class SimDamiaoMotor:
             return False
         if self.plant is not None:
             self.plant.run_until(due, self.drive())
+        was = self.pushing()
         self.state = State.LOST_COMM
         self.lost_comm_at_s.append(due)
+        if was:
+            self.torque_off_at.append((due, time.monotonic()))
         return True
 
     def sync(self) -> None:
@@ -275,7 +283,14 @@ class SimDamiaoMotor:
         self.plant.run_until(self.clock.now(), self.drive())
         self.q_rad, self.v_rad_s = self.plant.q_rad, self.plant.v_rad_s
         if self.plant.latched and self.enabled:
+            if self.pushing():
+                self.torque_off_at.append((self.clock.now(), time.monotonic()))
             self.state = State.OVERLOAD
+
+    def pushing(self) -> bool:
+        """Enabled with a command that can make torque (any of ``kp``, ``kd``, ``τ_ff`` non-zero)."""
+        cmd = self.last_command
+        return self.enabled and cmd is not None and any(x != 0.0 for x in (cmd.kp, cmd.kd, cmd.torque_nm))
 
     def inject_fault(self, code: State) -> None:
         """Latch an error state (0x8-0xE): the motor goes limp until 0xFB."""
@@ -317,9 +332,11 @@ class SimDamiaoMotor:
         else:
             self.check_timeout()
         self.last_rx_s = self.now_s()
-        if arbitration_id == self.esc_id:
-            return self._command(bytes(data))
-        return self._config(bytes(data))
+        was = self.pushing()
+        out = self._command(bytes(data)) if arbitration_id == self.esc_id else self._config(bytes(data))
+        if was and not self.pushing():
+            self.torque_off_at.append((self.last_rx_s, time.monotonic()))
+        return out
 
     def _count(self, kind: str) -> None:
         self.requests[kind] = self.requests.get(kind, 0) + 1

@@ -109,7 +109,28 @@ def open_damiao(
         for b in buses:
             b.close()
 
-    return _drivers(buses, joints, profile, clock, None), clock, close
+    try:
+        drivers = _drivers(buses, joints, profile, clock, None)
+        _keep_watchdog_records(buses, drivers, spec.interface, options)
+    except BaseException:
+        close()
+        raise
+    return drivers, clock, close
+
+
+def _keep_watchdog_records(
+    buses: Sequence[Any], drivers: Mapping[str, Any], interface: str, options: Mapping[str, Any]
+) -> None:
+    """Per bus: put back what a killed run left armed (a note says so), then record what this run arms."""
+    from .damiao_watchdog import WatchdogRecord, bus_key, restore_left_armed
+
+    for bus in buses:
+        key = bus_key(interface, bus.channel, options)
+        restore_left_armed(bus, key)
+        record = WatchdogRecord(key)
+        for name in bus.motors:
+            if name in drivers:
+                drivers[name].on_watchdog = record.changed
 
 
 def openarm_gravity(profile: RobotProfile) -> dict[str, JointGravity]:

@@ -194,10 +194,14 @@ class AutoCalResult:
 
 # ------------------------------------------------------------------------------------------------ limp
 def limp_all(drivers: Mapping[str, JointDriver] | Sequence[JointDriver]) -> list[str]:
-    """Torque off every driver (errors ignored: each motor gets its chance); returns the joints whose limp failed."""
+    """Torque off every driver (errors ignored: each motor gets its chance); returns the joints whose limp failed.
+
+    The enabled ones first (a driver without ``enabled`` counts as enabled), so a motor that can push is not kept
+    waiting behind the others' limp exchanges (issue 26: every motor limp within 100 ms).
+    """
     items = drivers.values() if isinstance(drivers, Mapping) else drivers
     failed: list[str] = []
-    for d in items:
+    for d in sorted(items, key=lambda d: not getattr(d, "enabled", True)):
         try:  # a limp must reach every motor
             d.limp()
         except Exception:
