@@ -1,6 +1,7 @@
-"""The manual sweep of an OpenArm: a person moves each joint into both stops while robocal's read-only Damiao bus
-records the motors' readings (LeRobot's motor names as columns), then ``robocal sweep --source replay:`` computes
-the zeros from the recording. Judged by the simulator's truth."""
+"""The manual sweep of an OpenArm: a person moves each joint into both stops while robocal reads the motors
+read-only, live (``--source can:``, :class:`DamiaoSource`) or from a recording (``replay:``, LeRobot's motor names
+as columns). Judged by the simulator's truth and state (the live sweep over socketcand against ``robocal sim
+openarm`` in another process: tests/sim/test_sim_openarm_hand_sweep.py)."""
 
 from __future__ import annotations
 
@@ -13,11 +14,19 @@ import pytest
 pytest.importorskip("can")
 
 from robocal.backends.damiao.bus import DamiaoBus
+from robocal.backends.damiao.faults import DamiaoFaultError
 from robocal.backends.damiao.openarm import SimOpenArm
+from robocal.backends.damiao.tables import State
+from robocal.backends.sources import JointSpec, parse_source
+from robocal.backends.sources.damiao import DamiaoSource
 from robocal.cli.main import main
+from robocal.errors import CalibTimeoutError
 from robocal.formats import read_calibration
+from robocal.formats.profiles import resolve_profile
 
 URDF = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
+RIGHT = [f"openarm_right_joint{i}" for i in range(1, 8)] + ["openarm_right_gripper_motor"]
+MOTORS = [f"joint_{i}" for i in range(1, 8)] + ["gripper"]
 
 
 def _steps(a: float, b: float) -> list[float]:
@@ -43,13 +52,51 @@ def _record(arm: SimOpenArm, path: Path) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
-def test_live_hand_sweep_on_a_damiao_bus_is_refused_with_the_way_that_works(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    code = main(["sweep", "--robot", "openarm_follower_right", "--urdf", str(URDF), "--source", "can:virtual:x",
-                 "--out", str(tmp_path / "c.yaml")])
+def _source(arm: SimOpenArm) -> DamiaoSource:
+    profile = resolve_profile("openarm_follower_right", None)
+    assert profile is not None
+    joints = [JointSpec(n) for n in RIGHT]
+    return DamiaoSource.open(parse_source(f"can:virtual:{arm.channel}"), joints, profile, timeout_s=1.0)
+
+
+def test_live_hand_sweep_source_reads_and_switches_nothing_on() -> None:
+    arm = SimOpenArm(f"oa-live-{id(RIGHT)}", seed=4).start()
+    try:
+        with DamiaoBus(arm.channel, arm.motor_specs(), interface="virtual", timeout_s=1.0, allow_motion=True) as b:
+            b.enable(["joint_5"])  # left on by another program: the hand sweep switches it off first
+        ram = {n: dict(m.ram) for n, m in arm.motors.items()}
+        src = _source(arm)
+        try:
+            assert not any(m.enabled for m in arm.motors.values())
+            arm.set_joint("joint_3", 0.5)
+            sample = src.read()
+            truth = [arm.joint_rad(m) + arm.zero_error_rad(m) for m in MOTORS]  # each motor's own reading
+            assert sample.position_rad == pytest.approx(truth, abs=1e-3)
+            assert src.zero_sta() == dict.fromkeys(RIGHT, 1)  # read within ±π of the zero after power-on
+            arm.silence("joint_3")  # one refresh unanswered: that sample has no positions, the sweep goes on
+            assert all(math.isnan(x) for x in src.read().position_rad)
+            src.silent_limit_s = 0.0  # silent longer than the limit: the sweep ends naming the motor
+            with pytest.raises(CalibTimeoutError, match="openarm_right_joint3"):
+                src.read()
+            arm.silence("joint_3", False)
+            arm.inject_fault("joint_6", State.MOS_OVER_TEMP)
+            with pytest.raises(DamiaoFaultError, match="openarm_right_joint6"):
+                src.read()
+        finally:
+            src.close()
+        # judged by the simulator: nothing on, no register or flash changed
+        assert not any(m.enabled for m in arm.motors.values())
+        assert {n: dict(m.ram) for n, m in arm.motors.items()} == ram
+        assert all(m.flash_writes == 0 for m in arm.motors.values())
+    finally:
+        arm.stop()
+
+
+def test_live_hand_sweep_without_motors_is_a_device_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["sweep", "--robot", "openarm_follower_right", "--urdf", str(URDF), "--source",
+                 f"can:virtual:nobody-{id(tmp_path)}", "--out", str(tmp_path / "c.yaml")])
     err = capsys.readouterr().err
-    assert code == 2 and err.count("error:") == 1 and "use replay:FILE" in err
+    assert code == 3 and err.count("error:") == 1 and "openarm_right_joint1" in err, err
     assert not (tmp_path / "c.yaml").exists()
 
 

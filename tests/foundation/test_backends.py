@@ -17,7 +17,7 @@ def test_registry_loads_every_builtin_backend() -> None:
 
 
 def test_unknown_backend_lists_valid_names() -> None:
-    with pytest.raises(UsageError, match=r"unknown backend 'nope'; valid: damiao, damiao\.joint_driver, dynamixel, dynamixel\.joint_driver, feetech"):
+    with pytest.raises(UsageError, match=r"unknown backend 'nope'; valid: damiao, damiao\.joint_driver, damiao\.source, dynamixel, dynamixel\.joint_driver, feetech"):
         load_backend("nope")
 
 

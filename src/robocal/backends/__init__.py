@@ -47,6 +47,7 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "feetech.joint_driver": ("robocal.backends.feetech.joint_driver", "FeetechJointDriver"),
     "dynamixel.joint_driver": ("robocal.backends.dynamixel.joint_driver", "DynamixelJointDriver"),
     "damiao.joint_driver": ("robocal.backends.damiao.joint_driver", "DamiaoJointDriver"),
+    "damiao.source": ("robocal.backends.sources.damiao", "DamiaoSource"),
 }
 """Backend name → (module, attribute). Extended by the ``robocal.backends`` entry points."""
 

@@ -25,6 +25,7 @@ __all__ = [
     "VendorSpec",
     "drives_sweep_auto",
     "expected_homing_vendors",
+    "hand_sweep_source",
     "homing_vendor",
     "homing_vendors",
     "speaks_live_can_sweep",
@@ -105,6 +106,9 @@ class VendorSpec:
         torque_off_to_calibrate: LeRobot refuses to calibrate while a motor's torque is on (Dynamixel).
         live_can_sweep: The live CAN sweep (``--source can:``) and ``sweep --auto`` speak its protocol
             (Robstride).
+        hand_sweep_source: Name in ``robocal.backends.BACKENDS`` of the source class a live hand sweep
+            (``--source can:`` without ``--auto``) reads its motors with, where that is not Robstride's
+            (``damiao.source``: ``open(spec, joints, profile)``), or None.
         joint_driver: Name in ``robocal.backends.BACKENDS`` of its stop-search joint driver (in the vendor's home,
             reached through ``load_backend``), or None where no stop search exists.
         sweep_auto: ``robocal sweep --auto`` drives its motors over CAN (Robstride, Damiao); the servo vendors are
@@ -135,6 +139,7 @@ class VendorSpec:
     legacy_linear_gripper: bool = False
     torque_off_to_calibrate: bool = False
     live_can_sweep: bool = False
+    hand_sweep_source: str | None = None
     joint_driver: str | None = None
     sweep_auto: bool = False
     host_loss: str = ""
@@ -237,6 +242,7 @@ DAMIAO = VendorSpec(
     multi_turn_phase_bit=False,
     limp="disable (0xFD), or the zero-torque MIT frame",
     max_lag_deg=None,
+    hand_sweep_source="damiao.source",
     joint_driver="damiao.joint_driver",
     sweep_auto=True,
     host_loss="If robocal is killed or the CAN bus is lost, each moving motor's TIMEOUT (register 9) makes it limp "
@@ -248,8 +254,8 @@ DAMIAO = VendorSpec(
 VMAX / TMAX registers; the zero is set by a command (0xFE) into the motor's flash, no homing register; register
 CTRL_MODE (10) selects MIT / position-velocity / velocity / position-force; an error state latches until the
 clear-error command (0xFB), not a reboot; torque is capped per command (no cap register). The live hand sweep
-(``--source can:``) speaks Robstride's protocol, not this one; ``sweep --auto`` drives Damiao motors through
-``damiao.joint_driver`` (issue 31)."""
+(``--source can:``) reads them through ``damiao.source`` (every motor off, refresh frames only); ``sweep --auto``
+drives them through ``damiao.joint_driver`` (issue 31)."""
 
 VENDORS: dict[str, VendorSpec] = {v.name: v for v in (FEETECH, DYNAMIXEL, ROBSTRIDE, DAMIAO)}
 """Vendor name → its declaration: the one registry (a new vendor is one line here)."""
@@ -275,7 +281,13 @@ def homing_vendors() -> tuple[str, ...]:
 def speaks_live_can_sweep(actuator: str | None) -> bool:
     """Whether a profile's ``actuator`` (None: not stated) is driven by the live CAN sweep."""
     spec = VENDORS.get(actuator) if actuator is not None else None
-    return actuator is None or (spec is not None and spec.live_can_sweep)
+    return actuator is None or (spec is not None and (spec.live_can_sweep or spec.hand_sweep_source is not None))
+
+
+def hand_sweep_source(actuator: str | None) -> str | None:
+    """The backend name of the live hand-sweep source of a profile's ``actuator`` (None: Robstride's ``can:``)."""
+    spec = VENDORS.get(actuator) if actuator is not None else None
+    return spec.hand_sweep_source if spec is not None else None
 
 
 def drives_sweep_auto(actuator: str | None) -> VendorSpec | None:

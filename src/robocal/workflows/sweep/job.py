@@ -17,12 +17,13 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from ...backends import load_backend
 from ...backends.sources import DEFAULT_TOPIC, JointSpec, Source, SourceSpec, open_source
 from ...core.jointmap import RobotCalibration
 from ...core.profile import METHODS, RobotProfile
 from ...core.sweep import DEFAULT_ONE_SIDED_THRESHOLD_RAD
 from ...core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD, DEFAULT_THRESHOLD_RAD, SweepResult
-from ...core.vendors import speaks_live_can_sweep
+from ...core.vendors import hand_sweep_source, speaks_live_can_sweep
 from ...errors import CalibError, FileFormatError, JointMismatchError, SignalInterrupt, UsageError
 from ...fileio import atomic_write_text
 from ...formats import CalibrationFile, read_calibration, write_calibration
@@ -282,7 +283,12 @@ def run_sweep(
         prior_offsets = offsets_by_joint(existing)
 
     # ---- sample
-    src = _open_with_upstream_names(open_source_fn or open_source, spec, joints, profile, topic, frame)
+    vendor_source = hand_sweep_source(profile.actuator) if spec.kind == "can" and profile is not None else None
+    if vendor_source is not None and open_source_fn is None:  # not Robstride's protocol: the vendor's own source
+        assert profile is not None
+        src: Source = load_backend(vendor_source).open(spec, joints, profile)
+    else:
+        src = _open_with_upstream_names(open_source_fn or open_source, spec, joints, profile, topic, frame)
     session = SweepSession(src, joints, method=method, stops=stops, wraps=wraps)
     interrupted = ctrl_c_sampling = False
     checks: dict[str, int] | None = None

@@ -1,0 +1,145 @@
+"""Damiao CAN source for the hand sweep: live motors (an OpenArm) read-only, the person moves the joints.
+
+:class:`DamiaoSource` opens one :class:`~robocal.backends.damiao.bus.DamiaoBus` per channel through the backend
+registry with motion not allowed (the bus refuses enable, pushing MIT frames, register writes and zeroing). It
+switches every motor off once (0xFD, allowed read-only: an arm a person moves must be limp), then each
+:meth:`~DamiaoSource.read` asks every motor for a state frame (0x7FF refresh), which changes nothing in the motor.
+A motor reporting an error state ends the sweep with its named fault (exit 3).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ...core.profile import RobotProfile
+from ...errors import CalibTimeoutError, UsageError
+from .. import load_backend
+from .spec import JointSpec, Sample, SourceSpec, can_bus_options
+
+__all__ = ["SILENT_LIMIT_S", "DamiaoSource"]
+
+SILENT_LIMIT_S = 2.0
+"""A bus with no complete refresh answered for this long, s, ends the sweep (a cable or power lost)."""
+
+
+class DamiaoSource:
+    """Live joint positions from Damiao buses, read passively (refresh frames; every motor off).
+
+    Args:
+        joints: The joints, in the sweep's order.
+        buses: One open :class:`~robocal.backends.damiao.bus.DamiaoBus` per channel, its motors named as the joints.
+    """
+
+    frame = "motor"
+
+    def __init__(self, joints: Sequence[JointSpec], buses: Sequence[Any]) -> None:
+        self.joints = tuple(joints)
+        self.joint_names = tuple(j.name for j in self.joints)
+        self.buses = list(buses)
+        self._index = {n: i for i, n in enumerate(self.joint_names)}
+        self._t0 = time.monotonic()
+        self._answered: dict[int, float] = {}
+        self.silent_limit_s = SILENT_LIMIT_S
+        """A bus that has answered no refresh for this long ends the sweep (:meth:`read`)."""
+
+    @classmethod
+    def open(
+        cls,
+        spec: SourceSpec,
+        joints: Sequence[JointSpec],
+        profile: RobotProfile,
+        *,
+        timeout_s: float | None = None,
+    ) -> DamiaoSource:
+        """Open ``spec``'s channels (one per bus of the profile, in its order), read-only, and switch every motor off.
+
+        Args:
+            spec: A ``can:<interface>:<channel>[,...]`` source.
+            joints: The joints to read (each in the profile, with its ``id``, ``reply_id`` and ``model``).
+            profile: The robot profile (ids, reply ids, models and buses of the joints).
+            timeout_s: Reply timeout per request (default: the bus's).
+
+        Raises:
+            UsageError: A joint lacks an id, reply id or model, or the channels and the buses differ in number.
+            DeviceError, CalibTimeoutError: A channel cannot be opened or a motor does not answer.
+        """
+        from ..damiao.bus import DamiaoMotor
+
+        names = {j.name for j in joints}
+        by_bus: dict[str | None, list[DamiaoMotor]] = {}
+        for pj in profile.joints:
+            if pj.name not in names:
+                continue
+            if pj.motor_id is None or pj.reply_id is None or pj.model is None:
+                raise UsageError(f"profile {profile.name}: joint {pj.name} needs id, reply_id and model for a Damiao bus")
+            by_bus.setdefault(pj.bus, []).append(DamiaoMotor(pj.name, pj.motor_id, pj.reply_id, pj.model.upper()))
+        motors_by_bus = list(by_bus.values())
+        if len(spec.channels) != len(motors_by_bus):
+            raise UsageError(
+                f"--source {spec.text!r}: the robot has {len(motors_by_bus)} CAN bus(es); give one channel each"
+            )
+        bus_cls = load_backend("damiao")
+        kw: dict[str, Any] = {} if timeout_s is None else {"timeout_s": timeout_s}
+        opts = can_bus_options(spec)
+        buses: list[Any] = []
+        try:
+            for channel, motors in zip(spec.channels, motors_by_bus, strict=True):
+                buses.append(bus_cls(channel, list(motors), interface=spec.interface, bus_kwargs=opts or None, **kw))
+            for bus in buses:
+                bus.disable()
+        except BaseException:
+            for b in buses:
+                b.close()
+            raise
+        return cls(joints, buses)
+
+    @property
+    def exhausted(self) -> bool:
+        """A live robot never runs out."""
+        return False
+
+    def read(self) -> Sample:
+        """Refresh every motor once; raw positions, velocities and torques (motor frame).
+
+        A bus whose replies do not all come in time gives NaN for its joints in this sample (a reply late on a
+        loaded machine or network); only a bus silent for :attr:`silent_limit_s` ends the sweep.
+
+        Raises:
+            CalibTimeoutError: A bus has not answered for :attr:`silent_limit_s`.
+            DamiaoFaultError: A motor reports an error state (its subclass names the code).
+        """
+        n = len(self.joint_names)
+        pos, vel, eff = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        now = time.monotonic()
+        for k, bus in enumerate(self.buses):
+            try:
+                states: Mapping[str, Any] = bus.refresh()
+            except CalibTimeoutError:
+                if now - self._answered.get(k, self._t0) > self.silent_limit_s:
+                    raise
+                continue
+            self._answered[k] = now
+            for name, st in states.items():
+                i = self._index[name]
+                pos[i], vel[i], eff[i] = st.position_rad, st.velocity_rad_s, st.torque_nm
+        return Sample(time.monotonic() - self._t0, pos, vel, eff)
+
+    def zero_sta(self) -> dict[str, int]:
+        """1 for every joint: after a power cycle a Damiao motor reads within ±π of its stored zero."""
+        return dict.fromkeys(self.joint_names, 1)
+
+    def begin_sweep(self) -> None:
+        """Nothing to do on a live robot (the operator is a person)."""
+
+    def prompt_positive(self, joint: str) -> None:
+        """Nothing to do on a live robot (the CLI shows the instruction)."""
+
+    def close(self) -> None:
+        """Close every bus (the motors stay off)."""
+        for bus in self.buses:
+            bus.close()
+        self.buses = []
