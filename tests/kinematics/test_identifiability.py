@@ -42,6 +42,28 @@ def test_rank_23_off_axis_with_offsets_in_the_base_set() -> None:
         "a rotation about shoulder_pan's own axis is the same as its zero offset (shoulder_pan.offset)"
     )
     assert ident.observability.condition < 1e4
+    listed = [u.name for u in ident.unidentifiable]  # in the model's parameter order, not the pivot order
+    assert listed == sorted(listed, key=ident.names.index)
+    assert listed[:4] == ["shoulder_pan.rz", "shoulder_lift.z", "shoulder_lift.rx", "shoulder_lift.rz"]
+
+
+def test_unidentifiable_list_does_not_follow_rounding_noise() -> None:
+    # Six independent columns (preferred for the base set) and six that repeat them (scaled, or a sum of two): the
+    # pivoted QR's tail order is decided by remainders of ~1e-16, so a change in the last bits must not reorder
+    # the list.
+    rng = np.random.default_rng(3)
+    free = rng.normal(size=(40, 6))
+    J = np.column_stack([free, 2.0 * free[:, 0], free[:, 1] + free[:, 2], -free[:, 3], 0.5 * free[:, 4],
+                         free[:, 5] - free[:, 0], 3.0 * free[:, 2]])  # fmt: skip
+    names = [f"p{i}" for i in range(12)]
+    lists = set()
+    for seed in range(8):
+        noise = np.random.default_rng(seed).normal(size=J.shape) * 1e-15
+        ident = analyse_columns(J + noise, names, priority=[0] * 6 + [1] * 6)
+        assert ident.rank == 6
+        lists.add(tuple(u.name for u in ident.unidentifiable))
+    assert len(lists) == 1
+    assert lists == {("p6", "p7", "p8", "p9", "p10", "p11")}
 
 
 def test_marker_on_wrist_roll_axis_is_named() -> None:

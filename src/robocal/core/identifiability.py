@@ -87,7 +87,8 @@ class Identifiability:
         names: Parameter names, one per Jacobian column.
         rank: Numerical rank of the scaled Jacobian.
         base: Indices of the identifiable base set, in pivot order.
-        unidentifiable: One entry per other parameter.
+        unidentifiable: One entry per other parameter, in the order of ``names`` (not the pivot order, whose
+            tail is decided by rounding noise once the remaining columns are all but zero).
         singular_values: All singular values of the scaled Jacobian, descending.
         observability: Indices on the base-set columns.
         column_norms: Norms of the unscaled columns (the scaling).
@@ -209,7 +210,7 @@ def analyse_columns(
     base = tuple(int(i) for i in order[:rank])
     B = scaled[:, list(base)]
     sv_base = np.linalg.svd(B, compute_uv=False) if rank else np.zeros(0)
-    dependent = [int(c) for c in order[rank:]]
+    dependent = sorted(int(c) for c in order[rank:])  # in the order of names: the same list every run
     coefs = np.zeros((rank, len(dependent)))
     if rank and dependent:
         coefs = np.linalg.lstsq(B, scaled[:, dependent], rcond=None)[0]
