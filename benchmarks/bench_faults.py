@@ -21,7 +21,9 @@ from tests.faults.soak import soak, table
 
 def main(argv: list[str] | None = None) -> None:
     """Run the soak; ``argv``: ``--trials N`` (default 8), ``--seed S``, ``--robots a,b``, ``--joints J``,
-    ``--jobs K`` (trials at once), ``--minutes M`` (start no new trial after M minutes)."""
+    ``--jobs K`` (trials at once), ``--minutes M`` (start no new trial after M minutes); or, with ``--early N``,
+    N signals at random instants (up to ``--max-delay-ms``) of ``robocal check --help``'s start-up, counted per
+    50 ms: what ended it (Python's own start-up, robocal's one line, the finished command, anything wrong)."""
     parser = argparse.ArgumentParser(prog="bench_faults")
     parser.add_argument("--trials", type=int, default=8)
     parser.add_argument("--seed", type=int, default=26)
@@ -29,7 +31,19 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--joints", default=None, help="search only these joints (shorter trials)")
     parser.add_argument("--jobs", type=int, default=1, help="trials at once (each its own simulator process)")
     parser.add_argument("--minutes", type=float, default=None, help="start no new trial after this long")
+    parser.add_argument(
+        "--early", type=int, default=0, help="instead: N signals at random instants of a robocal's start-up"
+    )
+    parser.add_argument("--max-delay-ms", type=float, default=600.0, help="--early: instants up to this")
     args = parser.parse_args(argv or [])
+    if args.early:
+        import tempfile
+
+        from tests.faults.early import measure
+
+        with tempfile.TemporaryDirectory(prefix="robocal-early-") as tmp:
+            print(measure(args.early, args.seed, args.max_delay_ms / 1000.0, Path(tmp)))
+        return
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill: the trial's processes are cleaned up
     t0 = time.monotonic()
     results = soak(

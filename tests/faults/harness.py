@@ -261,7 +261,8 @@ def _trial(
     if joints:
         args += ["--joints", joints]
     n_joints = len(joints.split(",")) if joints else len(before) - (1 if robot == "so101_follower" else 0)
-    env = dict(os.environ, PYTHONPATH=str(SRC), ROBOCAL_REPLY_TIMEOUT_MS="2000", COLUMNS="200")
+    env = dict(os.environ, PYTHONPATH=str(SRC), ROBOCAL_REPLY_TIMEOUT_MS="2000", COLUMNS="200",
+               XDG_STATE_HOME=str(folder / "state"))  # fmt: skip  # this trial's snapshots only
     run = _Run(subprocess.Popen(
         [sys.executable, "-m", "robocal", *args], cwd=folder, env=env, stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals,
@@ -285,6 +286,10 @@ def _trial(
     if fault == "frozen-device":
         os.kill(sim.proc.pid, signal.SIGCONT)
     failures = tuple(_judge(sim, folder, robot, fault, code, before, run))
+    if robot != "lite" and fault in HOST_LOST and code != 0 and injected and not _files(folder):
+        from .next_run import next_run_restores  # the next run reports what was left changed and restores it
+
+        failures += tuple(next_run_restores(sim, folder, robot, before, env))
     if failures and _before_robocal(fault, code, run) and all("exit" in f for f in failures):
         # the signal came while the interpreter itself was starting, before robocal's first line (its handlers):
         # Python's default ended it and nothing was touched (the other checks passed): robocal was not reached
@@ -398,7 +403,7 @@ def _judge(
     if on and not (host_lost and robot in NO_WATCHDOG):
         failures.append(f"torque on after the run: {', '.join(on)}")
     after = _registers(state)
-    files = sorted((folder / "cal").rglob("*.json")) if (folder / "cal").exists() else []
+    files = _files(folder)
     for f in files:
         try:
             json.loads(f.read_text())
@@ -425,6 +430,10 @@ def _judge(
         if leftovers and fault != "sigkill":
             failures.append(f"temporary files left: {leftovers}")
     return failures
+
+
+def _files(folder: Path) -> list[Path]:
+    return sorted((folder / "cal").rglob("*.json")) if (folder / "cal").exists() else []
 
 
 def _lite_in_netns(fault: str, phase: str, seed: int, joints: str | None) -> TrialResult:

@@ -41,6 +41,40 @@ def test_signal_while_importing_prints_one_line(
     assert (proc.returncode, err, out) == (code, line + "\n", "")
 
 
+@pytest.mark.parametrize("program", ["-m", "script"])
+def test_signal_at_robocal_s_first_import_prints_one_line(tmp_path: Path, program: str) -> None:
+    """The first import robocal's own code makes (``robocal.errors``): its handlers are in place before it.
+
+    On main before, they came after ``robocal.errors``, ``robocal.cli`` and ``collections`` were imported: a
+    Ctrl-C there printed a ``KeyboardInterrupt`` traceback through robocal's files, a SIGTERM ended it silently.
+    """
+    script = tmp_path / "robocal"  # what pip generates for the console script
+    script.write_text("import re\nimport sys\nfrom robocal.cli.entry import run\nsys.exit(run())\n")
+    argv = None if program == "-m" else [sys.executable, str(script)]
+    for signum, code, line in (SIGNALS[0], SIGNALS[1]):
+        proc, _ = paused_child(["check", "--help"], tmp_path, "robocal.errors", program=argv)
+        proc.send_signal(signum)
+        out, err = proc.communicate(timeout=120)
+        assert (proc.returncode, err, out) == (code, line + "\n", ""), signum
+
+
+def test_importing_robocal_installs_no_handler() -> None:
+    """Only the ``robocal`` program installs handlers at import: a program that imports robocal keeps its own."""
+    import subprocess
+
+    from .conftest import SRC
+
+    code = "import signal, robocal; print(signal.getsignal(signal.SIGINT) is signal.default_int_handler, signal.getsignal(signal.SIGTERM) == signal.SIG_DFL)"
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PYTHONPATH": str(SRC)},
+    )
+    assert r.stdout == "True True\n", r.stderr
+
+
 @SLOW
 def test_old_console_script_is_covered_too(tmp_path: Path) -> None:
     """A ``robocal`` script generated before the new entry point (``from robocal.cli.main import run``)."""
@@ -87,3 +121,25 @@ def test_ignored_sighup_stays_ignored(tmp_path: Path) -> None:
         env={"PYTHONPATH": str(SRC)},
     )
     assert r.stdout == "True True\n", r.stderr
+
+
+@SLOW
+def test_signals_at_random_instants_from_the_start(tmp_path: Path) -> None:
+    """A signal at a random instant from the process's start: robocal's line, a finished run, or Python's own.
+
+    The window before robocal's first line (the interpreter, its ``site`` and ``runpy`` imports) is Python's:
+    there SIGINT gives Python's ``KeyboardInterrupt`` (or the default action, before Python installs its handler)
+    and SIGTERM/SIGHUP/SIGQUIT the default action. Once robocal's package starts importing, every signal ends with
+    its one line and ``128 + signum``; no traceback ever shows a frame of robocal's code. More instants, with the
+    outcome per 50 ms: ``python benchmarks/run.py faults --early 300``.
+    """
+    import random
+
+    from .early import FINISHED, LINES, PYTHON, ROBOCAL, outcome, programs
+
+    rng = random.Random(2611)
+    progs = programs(tmp_path)
+    seen = [
+        outcome(tmp_path, rng.choice(progs), rng.choice(list(LINES)), rng.uniform(0, 1.5)) for _ in range(10)
+    ]
+    assert [s for cls, s in seen if cls not in (ROBOCAL, FINISHED, PYTHON)] == []

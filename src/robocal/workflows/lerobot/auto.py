@@ -30,7 +30,7 @@ from ...core.lerobot import MotorCalibration, RobotSpec, centre_homing, offset_i
 from ...core.profile_auto import AutoSection
 from ...core.stop_search import JointStops
 from ...core.vendors import VENDORS
-from ...errors import UsageError
+from ...errors import DeviceError, DeviceGoneError, UsageError
 from ..autocal.job import AutoCalRequest, run_autocal, select_joints
 from ..autocal.model import (
     AutoCalFailedError,
@@ -46,7 +46,7 @@ from ..motion.guard import RestoreReport
 from .calibrate import save_calibration
 from .eeprom import EEPROM_FIELDS, _restore_plan, _write_plan
 from .files import check_calibration_writable
-from .guard import arm_guard, limp_arm, restore_registers
+from .guard import LOST_TEXT, arm_guard, limp_arm, restore_registers, silent_round
 
 __all__ = [
     "HOLD_GAINS",
@@ -141,11 +141,25 @@ def search_registers(bus: ServoBus, spec: RobotSpec, motor_id: int) -> tuple[str
 
 
 def snapshot_registers(bus: ServoBus, spec: RobotSpec, searched: Sequence[str]) -> dict[str, dict[str, int]]:
-    """Per motor the registers the search changes (searched motors) or the calibration ones (the others)."""
+    """Per motor the registers the search changes (searched motors) or the calibration ones (the others).
+
+    Raises:
+        DeviceGoneError: A read failed and no motor answered (that one's retries, then one round, one try each):
+            the device is lost; nothing was moved or written.
+        DeviceError: A read failed while other motors answer.
+    """
     out: dict[str, dict[str, int]] = {}
-    for m in spec.motors:
+    answered = False
+    for k, m in enumerate(spec.motors):
         names = search_registers(bus, spec, m.motor_id) if m.name in searched else (*EEPROM_FIELDS, "Lock")
-        out[m.name] = {f: bus.read(f, m.motor_id) for f in names if bus.has_register(m.motor_id, f)}
+        try:
+            out[m.name] = {f: bus.read(f, m.motor_id) for f in names if bus.has_register(m.motor_id, f)}
+        except DeviceError as exc:
+            rest = [o.motor_id for o in spec.motors[k + 1 :]]
+            if isinstance(exc, DeviceGoneError) or (not answered and (not rest or silent_round(bus, rest))):
+                raise DeviceGoneError(f"{exc}; {LOST_TEXT} before anything was moved or written") from exc
+            raise
+        answered = True
     return out
 
 

@@ -30,6 +30,7 @@ __all__ = [
     "next_step",
     "restore_left_over",
     "restore_registers",
+    "silent_round",
 ]
 
 
@@ -74,6 +75,29 @@ def _read_each(bus: ServoBus, ids: list[int]) -> dict[int, int]:
         except CalibError:
             pass
     return out
+
+
+LOST_TEXT = "the device is lost (no motor answered a whole round of reads)"
+
+
+def silent_round(bus: ServoBus, ids: Sequence[int]) -> bool:
+    """True when none of ``ids`` answers one round of reads, one try per packet; the bus is then marked lost.
+
+    One SYNC_READ of ``Torque_Enable`` (one reply time), then, where that fails, one read per motor. A port that
+    itself failed raises :class:`DeviceGoneError`. Asked after a read failed with all its retries: a bus where
+    nothing answers at all is given up at once instead of paying every further read's retries.
+    """
+    with _one_try(bus):
+        try:
+            answered = bus.sync_read("Torque_Enable", list(ids))
+        except DeviceGoneError:
+            raise
+        except Exception:  # a silent motor, or a bus without SYNC_READ (Feetech SCS): one read per motor
+            answered = _read_each(bus, list(ids))
+    if answered:
+        return False
+    _mark_lost(bus, "no motor answered a whole round of reads")
+    return True
 
 
 def limp_arm(bus: ServoBus, spec: RobotSpec) -> list[str]:
@@ -247,16 +271,27 @@ def find_left_over(bus: ServoBus, spec: RobotSpec, port: str) -> LeftOver | None
     differing: list[tuple[str, str, int, int]] = []
     torque: list[str] = []
     unreadable: list[str] = []
-    for m in spec.motors:
+    answered = False
+    for k, m in enumerate(spec.motors):
         regs = {r: v for r, v in kept.registers.get(m.name, {}).items() if bus.has_register(m.motor_id, r)}
         try:
             for reg, value in regs.items():
                 now = bus.read(reg, m.motor_id)
+                answered = True
                 if now != value:
                     differing.append((m.name, reg, now, value))
             if bus.read("Torque_Enable", m.motor_id) != 0:
                 torque.append(m.name)
-        except CalibError:
+            answered = True
+        except CalibError as exc:
+            rest = [o.motor_id for o in spec.motors[k + 1 :]]
+            if isinstance(exc, DeviceGoneError) or (not answered and (not rest or silent_round(bus, rest))):
+                # nothing answers: every further read would only wait out its retries (a Koch: ~100 s)
+                raise DeviceGoneError(
+                    f"{exc}; {LOST_TEXT} before anything was moved or written; a previous run "
+                    f"({kept.command}) left registers changed on {port}: reconnect it and run "
+                    f"`robocal lerobot restore-previous --robot {spec.name} --port {port}`"
+                ) from exc
             unreadable.append(m.name)
     if not differing and not unreadable:
         SnapshotStore(port, kept.command).remove()
