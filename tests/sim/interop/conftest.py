@@ -19,6 +19,7 @@ from .make_env import env_python
 __all__ = ["Interactive", "SimProcess", "robocal", "sim_process"]
 
 HARNESS = Path(__file__).with_name("harness")
+CLIENTS = Path(__file__).with_name("clients")
 
 
 @pytest.fixture(scope="session")
@@ -48,13 +49,30 @@ def run_harness(python: Path, action: str, cwd: Path, **args: object) -> dict:
         timeout=180,
     )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-    line = next(x for x in reversed(r.stdout.splitlines()) if x.startswith("RESULT "))
-    return json.loads(line[len("RESULT ") :])
+    return result_of(r.stdout)
 
 
 def result_of(output: str) -> dict:
+    """The object of the last ``RESULT {json}`` line a harness or client script printed."""
     line = next(x for x in reversed(output.splitlines()) if x.startswith("RESULT "))
     return json.loads(line[len("RESULT ") :])
+
+
+def run_client(python: Path, script: str, args: dict[str, object], env: dict[str, str] | None = None) -> dict:
+    """Run ``clients/<script>`` with ``args`` (one JSON argument) in a third-party client's own environment.
+
+    Neither robocal nor the user's site packages are on its path; ``env`` is added to this process's environment.
+    Fails the test with the script's output when it exits non-zero; returns its ``RESULT`` object.
+    """
+    r = subprocess.run(
+        [str(python), "-u", str(CLIENTS / script), json.dumps(args)],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        env=dict(os.environ, PYTHONNOUSERSITE="1", PYTHONPATH="", **(env or {})),
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    return result_of(r.stdout)
 
 
 def client_env_python(name: str) -> Path:

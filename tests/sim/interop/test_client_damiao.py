@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-from pathlib import Path
 
 import pytest
 
@@ -14,11 +12,9 @@ from robocal.backends.damiao.openarm import SimOpenArm
 from robocal.backends.damiao.tables import State
 from robocal.backends.sim.socketcand import SocketcandServer
 
-from .conftest import client_env_python
+from .conftest import client_env_python, run_client
 
 pytestmark = [pytest.mark.interop, pytest.mark.timeout(300)]
-
-CLIENTS = Path(__file__).with_name("clients")
 
 
 def test_pypi_damiao_motor_client_over_socketcand() -> None:
@@ -26,21 +22,12 @@ def test_pypi_damiao_motor_client_over_socketcand() -> None:
     channel = f"pypi-damiao-{os.getpid()}"
     arm = SimOpenArm(channel, zeroed=True, seed=6, realtime=True)
     with arm, SocketcandServer({"can0": channel}) as server:
-        r = subprocess.run(
-            [str(python), "-u", str(CLIENTS / "damiao_motor_client.py"),
-             json.dumps({"channel": "can0", "esc": 5, "mst": 0x15, "model": "4310", "target": 0.4})],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            env=dict(
-                os.environ,
-                CAN_CONFIG=json.dumps({"host": server.host, "port": server.port}),
-                PYTHONNOUSERSITE="1",
-                PYTHONPATH="",
-            ),
-        )  # fmt: skip
-        assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-        got = json.loads(next(x for x in reversed(r.stdout.splitlines()) if x.startswith("RESULT "))[7:])
+        got = run_client(
+            python,
+            "damiao_motor_client.py",
+            {"channel": "can0", "esc": 5, "mst": 0x15, "model": "4310", "target": 0.4},
+            {"CAN_CONFIG": json.dumps({"host": server.host, "port": server.port})},
+        )
         motor = arm.motors["joint_5"]
         with arm.bus.lock:
             truth_rad, state, requests = motor.joint_rad(), motor.state, dict(motor.requests)

@@ -17,25 +17,12 @@ from robocal.backends.robstride.protocol import CommType
 from robocal.backends.robstride.sim import SimMotor, SimMotorBus
 from robocal.backends.sim.socketcand import SocketcandServer
 
-from .conftest import client_env_python
+from .conftest import client_env_python, run_client
 
 pytestmark = [pytest.mark.interop, pytest.mark.timeout(300)]
 
-CLIENTS = Path(__file__).with_name("clients")
 _n = itertools.count()
 
-
-def _run(python: Path, script: str, args: dict[str, object], env: dict[str, str] | None = None) -> dict:
-    r = subprocess.run(
-        [str(python), "-u", str(CLIENTS / script), json.dumps(args)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env=dict(os.environ, PYTHONNOUSERSITE="1", PYTHONPATH="", **(env or {})),
-    )
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-    line = next(x for x in reversed(r.stdout.splitlines()) if x.startswith("RESULT "))
-    return json.loads(line[len("RESULT ") :])
 
 
 def _cli(python: Path, server: SocketcandServer, *args: str) -> subprocess.CompletedProcess[str]:
@@ -58,7 +45,7 @@ def test_pypi_robstride_client_over_socketcand() -> None:
     channel = f"pypi-robstride-{next(_n)}"
     motor = SimMotor(can_id=11, model="rs-02", factory_zero_rad=0.75)
     with SimMotorBus(channel, [motor]), SocketcandServer({"can0": channel}) as server:
-        got = _run(python, "robstride_client.py", {**server.client_kwargs("can0"), "motor": 11})
+        got = run_client(python, "robstride_client.py", {**server.client_kwargs("can0"), "motor": 11})
         assert got["enabled"]["servo_id"] == 11
         # the client decodes the mode from bit 22 alone; run mode (2) is bit 23, so it says Reset for a running
         # motor (it would on hardware too); the simulator's state shows the enable

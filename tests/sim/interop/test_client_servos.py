@@ -5,36 +5,21 @@ compares what the client got with the simulator's own state."""
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
-from pathlib import Path
 
 import pytest
 
 from robocal.backends.sim.control import SimControl
 
 from .client_envs import CLIENT_ENVS
-from .conftest import client_env_python
+from .conftest import client_env_python, run_client
 
 pytestmark = [pytest.mark.interop, pytest.mark.timeout(300)]
 
-CLIENTS = Path(__file__).with_name("clients")
 XL430_W250, XL330_M288 = 1060, 1200
 """Model numbers (ROBOTIS e-Manual)."""
 
-
-def run_client(python: Path, script: str, args: dict[str, object]) -> dict:
-    r = subprocess.run(
-        [str(python), "-u", str(CLIENTS / script), json.dumps(args)],
-        capture_output=True,
-        text=True,
-        timeout=180,
-        env=dict(os.environ, PYTHONNOUSERSITE="1", PYTHONPATH=""),
-    )
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-    line = next(x for x in reversed(r.stdout.splitlines()) if x.startswith("RESULT "))
-    return json.loads(line[len("RESULT ") :])
 
 
 def readings(control: str) -> dict[int, dict]:

@@ -7,11 +7,8 @@ own in 127.0.0.0/8, where nothing else on the machine listens on those ports.
 
 from __future__ import annotations
 
-import json
 import os
 import random
-import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,11 +18,10 @@ from robocal.core.dh import fk_dh
 from robocal.core.se3 import rotvec_from_matrix
 from robocal.core.ur import TEST_SET_3_DELTAS, nominal_dh
 
-from .conftest import client_env_python
+from .conftest import client_env_python, run_client
 
 pytestmark = [pytest.mark.interop, pytest.mark.timeout(300)]
 
-CLIENTS = Path(__file__).with_name("clients")
 DH = nominal_dh("ur10e") + TEST_SET_3_DELTAS
 """The DH of the default simulated controller (a UR10e with the UR demo's factory calibration)."""
 
@@ -35,18 +31,6 @@ def own_loopback() -> str:
     rng = random.Random(os.getpid() ^ random.getrandbits(32))
     return f"127.{rng.randint(20, 250)}.{rng.randint(1, 250)}.{rng.randint(1, 250)}"
 
-
-def run_client(python: Path, script: str, args: dict[str, object]) -> dict:
-    r = subprocess.run(
-        [str(python), "-u", str(CLIENTS / script), json.dumps(args)],
-        capture_output=True,
-        text=True,
-        timeout=180,
-        env=dict(os.environ, PYTHONNOUSERSITE="1", PYTHONPATH=""),
-    )
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-    line = next(x for x in reversed(r.stdout.splitlines()) if x.startswith("RESULT "))
-    return json.loads(line[len("RESULT ") :])
 
 
 def flange_pose(q: list[float]) -> list[float]:

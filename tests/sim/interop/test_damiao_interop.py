@@ -19,7 +19,7 @@ import pytest
 
 from robocal.backends.sim.control import SimControl
 
-from .conftest import HARNESS, SimProcess
+from .conftest import HARNESS, SimProcess, result_of
 
 pytestmark = [pytest.mark.interop, pytest.mark.timeout(300)]
 
@@ -45,8 +45,7 @@ def run_damiao(
         timeout=180,
     )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-    line = next(x for x in reversed(r.stdout.splitlines()) if x.startswith("RESULT "))
-    return dict(json.loads(line[len("RESULT ") :]), stdout=r.stdout)
+    return dict(result_of(r.stdout), stdout=r.stdout)
 
 
 def test_lerobots_bus_enables_reads_zeros_moves_and_disables_the_simulated_arm(
