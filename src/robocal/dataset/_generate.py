@@ -12,7 +12,7 @@ video file that must be carried over untouched.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -92,6 +92,116 @@ def data_schema(d: int) -> pa.Schema:
         metadata={b"huggingface": _hf_metadata(d)},
     )
 
+
+
+def episode_table(
+    schema: pa.Schema, state: NDArray[np.float32], action: NDArray[np.float32], ts: NDArray[np.float32],
+    episode: int, first_index: int,
+) -> pa.Table:  # fmt: skip
+    """One episode's rows of a data file: ``(n, D)`` state and action, ``(n,)`` timestamps (s), task 0.
+
+    ``first_index`` is the dataset-wide ``index`` of its first frame.
+    """
+    n, d = state.shape
+    return pa.table(
+        {
+            "observation.state": pa.FixedSizeListArray.from_arrays(pa.array(state.ravel()), d),
+            "action": pa.FixedSizeListArray.from_arrays(pa.array(action.ravel()), d),
+            "timestamp": pa.array(ts),
+            "frame_index": pa.array(np.arange(n, dtype=np.int64)),
+            "episode_index": pa.array(np.full(n, episode, dtype=np.int64)),
+            "index": pa.array(np.arange(first_index, first_index + n, dtype=np.int64)),
+            "task_index": pa.array(np.zeros(n, dtype=np.int64)),
+        }
+    ).cast(schema)
+
+
+def episode_row(
+    episode: int, task: str, length: int, file_index: int, first_index: int, video_key: str | None = None
+) -> dict[str, Any]:
+    """An episode's row of ``meta/episodes`` (chunk 0; a video's chunk and file 0); statistics: :func:`add_stats`."""
+    row: dict[str, Any] = {
+        "episode_index": episode,
+        "tasks": [task],
+        "length": length,
+        "data/chunk_index": 0,
+        "data/file_index": file_index,
+        "dataset_from_index": first_index,
+        "dataset_to_index": first_index + length,
+    }
+    if video_key is not None:
+        row[f"videos/{video_key}/chunk_index"] = 0
+        row[f"videos/{video_key}/file_index"] = 0
+    row["meta/episodes/chunk_index"] = 0
+    row["meta/episodes/file_index"] = 0
+    return row
+
+
+def add_stats(row: dict[str, Any], acc: Mapping[str, StatAccumulator]) -> None:
+    """Add one episode's ``stats/<feature>/<stat>`` columns to its row, feature by feature."""
+    for key, a in acc.items():
+        for stat in _STAT_NAMES:
+            row[f"stats/{key}/{stat}"] = a.get(stat)
+
+
+def merged_stats(accs: Sequence[Mapping[str, StatAccumulator]], keys: Sequence[str]) -> dict[str, Any]:
+    """``meta/stats.json``'s document: the episodes' statistics merged, per feature of ``keys``."""
+    stats: dict[str, Any] = {}
+    for key in keys:
+        total = merge_all(a[key] for a in accs)
+        assert total is not None
+        stats[key] = {stat: total.get(stat) for stat in _STAT_NAMES}
+    return stats
+
+
+def info_document(
+    names: Sequence[str], vector_keys: Sequence[str], robot_type: str, episodes: int, frames: int, fps: int,
+    video_key: str | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """``meta/info.json``'s document: the vector features (``"<motor>.pos"``) in ``vector_keys`` order, a video."""
+    d = len(names)
+    features: dict[str, Any] = {
+        key: {"dtype": "float32", "shape": [d], "names": [f"{n}.pos" for n in names]} for key in vector_keys
+    }
+    if video_key is not None:
+        features[video_key] = {
+            "dtype": "video",
+            "shape": [48, 64, 3],
+            "names": ["height", "width", "channels"],
+            "info": {"video.fps": fps, "video.codec": "av1"},
+        }
+    for key, dt in (
+        ("timestamp", "float32"),
+        ("frame_index", "int64"),
+        ("episode_index", "int64"),
+        ("index", "int64"),
+        ("task_index", "int64"),
+    ):
+        features[key] = {"dtype": dt, "shape": [1], "names": None}
+    return {
+        "codebase_version": "v3.0",
+        "robot_type": robot_type,
+        "total_episodes": episodes,
+        "total_frames": frames,
+        "total_tasks": 1,
+        "chunks_size": 1000,
+        "data_files_size_in_mb": 100,
+        "video_files_size_in_mb": 500,
+        "fps": fps,
+        "splits": {"train": f"0:{episodes}"},
+        "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
+        "video_path": None
+        if video_key is None
+        else "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
+        "features": features,
+    }
+
+
+def write_tasks(root: Path, task: str) -> None:
+    """``meta/tasks.parquet`` with the one task."""
+    pq.write_table(
+        pa.table({"task_index": pa.array([0], pa.int64()), "task": pa.array([task])}), root / "meta" / "tasks.parquet"
+    )
 
 def _trajectory(
     rng: np.random.Generator, n: int, lo: NDArray[np.float64], hi: NDArray[np.float64]
@@ -190,94 +300,29 @@ def generate_dataset(
         state32 = state.astype(np.float32)
         action32 = action.astype(np.float32)
         ts = (np.arange(n) / fps).astype(np.float32)
-        table = pa.table(
-            {
-                "observation.state": pa.FixedSizeListArray.from_arrays(pa.array(state32.ravel()), d),
-                "action": pa.FixedSizeListArray.from_arrays(pa.array(action32.ravel()), d),
-                "timestamp": pa.array(ts),
-                "frame_index": pa.array(np.arange(n, dtype=np.int64)),
-                "episode_index": pa.array(np.full(n, ep, dtype=np.int64)),
-                "index": pa.array(np.arange(index, index + n, dtype=np.int64)),
-                "task_index": pa.array(np.zeros(n, dtype=np.int64)),
-            }
-        ).cast(schema)
-        writer.write_table(table, row_group_size=n)
+        writer.write_table(episode_table(schema, state32, action32, ts, ep, index), row_group_size=n)
         acc = {
             "observation.state": StatAccumulator.of(state32.astype(np.float64)),
             "action": StatAccumulator.of(action32.astype(np.float64)),
             "timestamp": StatAccumulator.of(ts.astype(np.float64)[:, None]),
         }
         ep_acc.append(acc)
-        row: dict[str, Any] = {
-            "episode_index": ep,
-            "tasks": ["pick the cube"],
-            "length": n,
-            "data/chunk_index": 0,
-            "data/file_index": file_index,
-            "dataset_from_index": index,
-            "dataset_to_index": index + n,
-            f"videos/{VIDEO_KEY}/chunk_index": 0,
-            f"videos/{VIDEO_KEY}/file_index": 0,
-            "meta/episodes/chunk_index": 0,
-            "meta/episodes/file_index": 0,
-        }
+        row = episode_row(ep, "pick the cube", n, file_index, index, VIDEO_KEY)
         if with_stats:
-            for key in stats_keys:
-                for stat in _STAT_NAMES:
-                    row[f"stats/{key}/{stat}"] = acc[key].get(stat)
+            add_stats(row, acc)
         ep_rows.append(row)
         index += n
     if writer is not None:
         writer.close()
 
-    features: dict[str, Any] = {
-        key: {"dtype": "float32", "shape": [d], "names": [f"{n}.pos" for n in names]}
-        for key in _VECTOR_FEATURES
-    }
-    features[VIDEO_KEY] = {
-        "dtype": "video",
-        "shape": [48, 64, 3],
-        "names": ["height", "width", "channels"],
-        "info": {"video.fps": fps, "video.codec": "av1"},
-    }
-    for key, dt in (
-        ("timestamp", "float32"),
-        ("frame_index", "int64"),
-        ("episode_index", "int64"),
-        ("index", "int64"),
-        ("task_index", "int64"),
-    ):
-        features[key] = {"dtype": dt, "shape": [1], "names": None}
-    info = {
-        "codebase_version": "v3.0",
-        "robot_type": robot_type,
-        "total_episodes": n_episodes,
-        "total_frames": index,
-        "total_tasks": 1,
-        "chunks_size": 1000,
-        "data_files_size_in_mb": 100,
-        "video_files_size_in_mb": 500,
-        "fps": fps,
-        "splits": {"train": f"0:{n_episodes}"},
-        "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
-        "video_path": "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4",
-        "features": features,
-    }
+    info = info_document(names, _VECTOR_FEATURES, robot_type, n_episodes, index, fps, VIDEO_KEY)
     (r / "meta" / "info.json").write_text(json.dumps(info, indent=4))
-    pq.write_table(
-        pa.table({"task_index": pa.array([0], pa.int64()), "task": pa.array(["pick the cube"])}),
-        r / "meta" / "tasks.parquet",
-    )
+    write_tasks(r, "pick the cube")
     ep_dir = r / "meta" / "episodes" / "chunk-000"
     ep_dir.mkdir(parents=True)
     pq.write_table(pa.Table.from_pylist(ep_rows), ep_dir / "file-000.parquet")
     if with_stats:
-        stats: dict[str, Any] = {}
-        for key in stats_keys:
-            total = merge_all(a[key] for a in ep_acc)
-            assert total is not None
-            stats[key] = {stat: total.get(stat) for stat in _STAT_NAMES}
-        (r / "meta" / "stats.json").write_text(json.dumps(stats, indent=4))
+        (r / "meta" / "stats.json").write_text(json.dumps(merged_stats(ep_acc, stats_keys), indent=4))
     video = r / "videos" / VIDEO_KEY / "chunk-000" / "file-000.mp4"
     video.parent.mkdir(parents=True)
     video.write_bytes(bytes(rng.integers(0, 256, size=4096, dtype=np.uint8)))

@@ -22,9 +22,8 @@ import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-from ..errors import BackendNotAvailableError, FileFormatError, UsageError
+from ..errors import BackendNotAvailableError, FileFormatError
 from ._convention import Conventions
 from ._driver import DatasetReport, check_job, finish_root
 from ._engine import FeaturePlan
@@ -33,11 +32,13 @@ from ._layout import read_layout
 from ._root import make_temp_root, prepare_root, publish_root
 
 try:
-    from datatrove.pipeline.base import PipelineStep
+    import datatrove  # noqa: F401
 except ImportError:  # pragma: no cover - exercised only without the extra
     raise BackendNotAvailableError(
         "the datatrove cluster adapter needs the Python package 'datatrove': pip install 'robocal[cluster]'"
     ) from None
+
+from .cluster_step import ShareStep, check_parallelism, run_locally, write_whole
 
 __all__ = ["ClusterJob", "RecalibrateFiles", "finish", "prepare", "recalibrate_with_datatrove"]
 
@@ -92,29 +93,21 @@ def _result_path(job: ClusterJob, rel: str) -> Path:
     return job.work / (rel.replace("/", "__") + ".result.pkl")
 
 
-class RecalibrateFiles(PipelineStep):  # type: ignore[misc]
+class RecalibrateFiles(ShareStep):
     """datatrove step: re-calibrate this rank's share of the data files of a :class:`ClusterJob`."""
 
     name = "robocal recalibrate"
-    type = "🤖 - CALIBRATION"
+    counter = "files"
 
     def __init__(self, job: ClusterJob) -> None:
-        super().__init__()
+        super().__init__(job.data_files)
         self.job = job
 
-    def run(self, data: Any = None, rank: int = 0, world_size: int = 1) -> Any:
-        """Process ``data_files[rank::world_size]``; yields nothing (results go to ``job.work``)."""
-        job = self.job
-        for rel in job.data_files[rank::world_size]:
-            res = recalibrate_file(job.src / rel, job.tmp / rel, job.plans, rel)
-            out = _result_path(job, rel)
-            part = out.with_suffix(".part")
-            part.write_bytes(pickle.dumps(res))
-            part.replace(out)
-            self.stat_update("files")
-            self.stat_update("frames", value=res.frames)
-        if data:
-            yield from data
+    def process(self, item: str) -> None:
+        """Re-calibrate one data file; its result goes to ``job.work``."""
+        res = recalibrate_file(self.job.src / item, self.job.tmp / item, self.job.plans, item)
+        write_whole(_result_path(self.job, item), pickle.dumps(res))
+        self.stat_update("frames", value=res.frames)
 
 
 def finish(job: ClusterJob) -> DatasetReport:
@@ -182,20 +175,10 @@ def recalibrate_with_datatrove(
     Returns:
         The same report as :func:`robocal.dataset.recalibrate_dataset`.
     """
-    from datatrove.executor import LocalPipelineExecutor
-
-    if tasks < 1 or workers < 1:
-        raise UsageError(f"tasks {tasks}, workers {workers}: expected positive numbers")
+    check_parallelism(tasks, workers)
     job = prepare(src, dst, old, new, features=features, overwrite=overwrite)
     try:
-        executor = LocalPipelineExecutor(
-            pipeline=[RecalibrateFiles(job)],
-            tasks=tasks,
-            workers=workers,
-            logging_dir=str(job.work / "logs"),
-            skip_completed=False,
-        )
-        executor.run()
+        run_locally(RecalibrateFiles(job), tasks=tasks, workers=workers, logging_dir=job.work / "logs")
     except BaseException:
         abort(job)
         raise

@@ -29,12 +29,18 @@ from ..backends.sim.teleop import TELEOP_ARMS, TeleopArm, TeleopFaults, TeleopSe
 from ..backends.sim.teleop_plant import GravityFn
 from ..core.arrays import FloatArray
 from ..errors import UsageError
-from ._generate import data_schema
-from ._stats import StatAccumulator, merge_all
+from ._generate import (
+    add_stats,
+    data_schema,
+    episode_row,
+    episode_table,
+    info_document,
+    merged_stats,
+    write_tasks,
+)
+from ._stats import StatAccumulator
 
 __all__ = ["arm_gravity", "generate_teleop_datasets", "to_values", "write_teleop_dataset"]
-
-_STATS = ("min", "max", "mean", "std", "count", "q01", "q10", "q50", "q90", "q99")
 
 
 def arm_gravity(arm: TeleopArm) -> GravityFn | None:
@@ -98,77 +104,23 @@ def write_teleop_dataset(session: TeleopSession, root: str | Path, *, use_degree
     with pq.ParquetWriter(r / "data/chunk-000/file-000.parquet", schema=schema, compression="snappy") as w:
         for e in range(episodes):
             ts = (np.arange(frames) / session.fps).astype(np.float32)
-            table = pa.table(
-                {
-                    "observation.state": pa.FixedSizeListArray.from_arrays(pa.array(state[e].ravel()), d),
-                    "action": pa.FixedSizeListArray.from_arrays(pa.array(action[e].ravel()), d),
-                    "timestamp": pa.array(ts),
-                    "frame_index": pa.array(np.arange(frames, dtype=np.int64)),
-                    "episode_index": pa.array(np.full(frames, e, dtype=np.int64)),
-                    "index": pa.array(np.arange(index, index + frames, dtype=np.int64)),
-                    "task_index": pa.array(np.zeros(frames, dtype=np.int64)),
-                }
-            ).cast(schema)
-            w.write_table(table, row_group_size=frames)
+            w.write_table(episode_table(schema, state[e], action[e], ts, e, index), row_group_size=frames)
             acc = {
                 "observation.state": StatAccumulator.of(state[e].astype(np.float64)),
                 "action": StatAccumulator.of(action[e].astype(np.float64)),
             }
             accs.append(acc)
-            row: dict[str, Any] = {
-                "episode_index": e,
-                "tasks": ["teleoperate"],
-                "length": frames,
-                "data/chunk_index": 0,
-                "data/file_index": 0,
-                "dataset_from_index": index,
-                "dataset_to_index": index + frames,
-                "meta/episodes/chunk_index": 0,
-                "meta/episodes/file_index": 0,
-            }
-            for key, a in acc.items():
-                for stat in _STATS:
-                    row[f"stats/{key}/{stat}"] = a.get(stat)
+            row = episode_row(e, "teleoperate", frames, 0, index)
+            add_stats(row, acc)
             rows.append(row)
             index += frames
     pq.write_table(pa.Table.from_pylist(rows), r / "meta/episodes/chunk-000/file-000.parquet")
-    pq.write_table(
-        pa.table({"task_index": pa.array([0], pa.int64()), "task": pa.array(["teleoperate"])}),
-        r / "meta" / "tasks.parquet",
-    )
-    stats = {}
-    for key in ("observation.state", "action"):
-        total = merge_all(a[key] for a in accs)
-        assert total is not None
-        stats[key] = {stat: total.get(stat) for stat in _STATS}
+    write_tasks(r, "teleoperate")
+    stats = merged_stats(accs, ("observation.state", "action"))
     (r / "meta" / "stats.json").write_text(json.dumps(stats, indent=2))
-    features: dict[str, Any] = {
-        key: {"dtype": "float32", "shape": [d], "names": [f"{n}.pos" for n in arm.joints]}
-        for key in ("action", "observation.state")
-    }
-    for key, dt in (
-        ("timestamp", "float32"),
-        ("frame_index", "int64"),
-        ("episode_index", "int64"),
-        ("index", "int64"),
-        ("task_index", "int64"),
-    ):
-        features[key] = {"dtype": dt, "shape": [1], "names": None}
-    info = {
-        "codebase_version": "v3.0",
-        "robot_type": arm.robot_type,
-        "total_episodes": episodes,
-        "total_frames": index,
-        "total_tasks": 1,
-        "chunks_size": 1000,
-        "data_files_size_in_mb": 100,
-        "video_files_size_in_mb": 500,
-        "fps": int(session.fps),
-        "splits": {"train": f"0:{episodes}"},
-        "data_path": "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet",
-        "video_path": None,
-        "features": features,
-    }
+    info = info_document(
+        arm.joints, ("action", "observation.state"), arm.robot_type, episodes, index, int(session.fps)
+    )
     (r / "meta" / "info.json").write_text(json.dumps(info, indent=2))
     truth = {
         "robot": arm.name,

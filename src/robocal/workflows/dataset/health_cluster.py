@@ -16,17 +16,18 @@ import json
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
-from ...errors import BackendNotAvailableError, CalibError, UsageError
+from ...errors import BackendNotAvailableError, CalibError
 from .health import HealthRequest, evaluate_health
 
 try:
-    from datatrove.pipeline.base import PipelineStep
+    import datatrove  # noqa: F401
 except ImportError:  # pragma: no cover - exercised only without the extra
     raise BackendNotAvailableError(
         "checking many datasets with datatrove needs the Python package 'datatrove': pip install 'robocal[cluster]'"
     ) from None
+
+from ...dataset.cluster_step import ShareStep, check_parallelism, run_locally, write_whole
 
 __all__ = ["HealthDatasets", "health_with_datatrove", "report_path_for"]
 
@@ -36,32 +37,24 @@ def report_path_for(out: Path, root: Path) -> Path:
     return out / f"{root.name}.health.json"
 
 
-class HealthDatasets(PipelineStep):  # type: ignore[misc]
+class HealthDatasets(ShareStep):
     """datatrove step: the calibration health of this rank's share of the dataset roots."""
 
     name = "robocal dataset health"
-    type = "🤖 - CALIBRATION"
+    counter = "datasets"
 
     def __init__(self, roots: Sequence[Path], out: Path, template: HealthRequest) -> None:
-        super().__init__()
-        self.roots = tuple(Path(r) for r in roots)
+        super().__init__(tuple(Path(r) for r in roots))
         self.out = Path(out)
         self.template = template
 
-    def run(self, data: Any = None, rank: int = 0, world_size: int = 1) -> Any:
-        """Check ``roots[rank::world_size]``; yields nothing (reports go to ``out``)."""
-        for root in self.roots[rank::world_size]:
-            try:
-                _, report = evaluate_health(replace(self.template, root=root))
-            except CalibError as exc:
-                report = {"dataset": str(root), "error": str(exc)}
-            path = report_path_for(self.out, root)
-            part = path.with_suffix(".part")
-            part.write_text(json.dumps(report, indent=2) + "\n")
-            part.replace(path)
-            self.stat_update("datasets")
-        if data:
-            yield from data
+    def process(self, item: Path) -> None:
+        """Check one root; its report (or the refusal) goes to ``out``."""
+        try:
+            _, report = evaluate_health(replace(self.template, root=item))
+        except CalibError as exc:
+            report = {"dataset": str(item), "error": str(exc)}
+        write_whole(report_path_for(self.out, item), (json.dumps(report, indent=2) + "\n").encode())
 
 
 def health_with_datatrove(
@@ -78,18 +71,9 @@ def health_with_datatrove(
     Raises:
         UsageError: ``tasks`` or ``workers`` below 1, or ``out`` is not a folder that can be made.
     """
-    from datatrove.executor import LocalPipelineExecutor
-
-    if tasks < 1 or workers < 1:
-        raise UsageError(f"tasks {tasks}, workers {workers}: expected positive numbers")
+    check_parallelism(tasks, workers)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     template = HealthRequest(root=Path("."), report=out / "unused.json", robot=robot, use_degrees=use_degrees)
-    LocalPipelineExecutor(
-        pipeline=[HealthDatasets(roots, out, template)],
-        tasks=tasks,
-        workers=workers,
-        logging_dir=str(out / "logs"),
-        skip_completed=False,
-    ).run()
+    run_locally(HealthDatasets(roots, out, template), tasks=tasks, workers=workers, logging_dir=out / "logs")
     return [report_path_for(out, Path(r)) for r in roots]
