@@ -100,7 +100,9 @@ def test_current_lerobot_file_is_recognised_but_not_a_joint_map(tmp_path: Path) 
 
 def test_spec_flags_drive_the_existing_output_rule(tmp_path: Path) -> None:
     # self-contained formats are read back before being overwritten; the positional one only recognised
-    assert {n for n, s in FORMATS.items() if s.self_contained} == {"lite-json", "lite-yaml", "robocal"}
+    assert {n for n, s in FORMATS.items() if s.self_contained} == {
+        "lite-json", "lite-yaml", "robocal", "openarm-lerobot", "openarm-ros2"
+    }
     p = tmp_path / "c.yaml"
     write_calibration(p, CAL, "robocal")
     got = read_existing_output(p, "robocal")

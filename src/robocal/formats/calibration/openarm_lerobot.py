@@ -134,4 +134,6 @@ def sniff(content: Content) -> bool:
     )
 
 
-SPEC = FormatSpec("openarm-lerobot", read, write, sniff, sniff_rank=1, suffixes=(), traits=Traits.IDS)
+SPEC = FormatSpec(
+    "openarm-lerobot", read, write, sniff, sniff_rank=1, suffixes=(), traits=Traits.IDS | Traits.SELF_CONTAINED
+)

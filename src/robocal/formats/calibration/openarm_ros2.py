@@ -30,7 +30,7 @@ from ...errors import FileFormatError, InvalidCalibrationError
 from ...fileio import atomic_write_text
 from .._numbers import parse_finite
 from ..urdf import UrdfModel
-from ._base import CalibrationFile, Content, FormatSpec, yaml_data
+from ._base import CalibrationFile, Content, FormatSpec, Traits, yaml_data
 from .openarm_lerobot import ZERO_TOL_RAD
 
 __all__ = ["FINGER_OPEN_M", "GRIPPER_OPEN_RAD", "SPEC", "finger_m", "gripper_rad"]
@@ -192,4 +192,4 @@ def sniff(content: Content) -> bool:
     return table is not None and any(isinstance(v, Mapping) and "min_position" in v for v in table.values())
 
 
-SPEC = FormatSpec("openarm-ros2", read, write, sniff, sniff_rank=1, suffixes=())
+SPEC = FormatSpec("openarm-ros2", read, write, sniff, sniff_rank=1, suffixes=(), traits=Traits.SELF_CONTAINED)

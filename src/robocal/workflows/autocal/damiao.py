@@ -8,10 +8,13 @@ frame that moves), its motors named by the profile's URDF joint names with their
 ``sim:openarm?seed=N&missing=...&snag=...`` builds :class:`~robocal.backends.damiao.openarm.SimOpenArm` (the side
 from the profile) with the scenario options of ``sim:lite`` (joint names as the URDF names them), on python-can's
 ``virtual`` interface and a simulated clock, and drives it through the same bus and drivers as a real arm.
+``zeroed=1``: the motors hold the joints' zeros (as after ``--write-zero``); ``zero_drift=joint:deg,...``: those
+motors' stored zeros moved since, each reading ``deg`` more than its joint (what ``--verify`` is for).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -192,9 +195,15 @@ def open_sim_openarm(
     from ...backends.sim.physics import SimClock
 
     side = openarm_side(profile)
-    unknown = sorted(set(options) - {"seed", *SIM_FAULTS})
+    unknown = sorted(set(options) - {"seed", "zeroed", "zero_drift", *SIM_FAULTS})
     if unknown:
-        raise UsageError(f"sim:openarm: unknown option(s) {', '.join(unknown)}; expected seed, {', '.join(SIM_FAULTS)}")
+        raise UsageError(
+            f"sim:openarm: unknown option(s) {', '.join(unknown)}; expected seed, zeroed, zero_drift, "
+            f"{', '.join(SIM_FAULTS)}"
+        )
+    if options.get("zeroed", "0") not in ("0", "1"):
+        raise UsageError(f"sim:openarm zeroed={options['zeroed']!r}: expected 0 or 1")
+    zeroed = zeroed or options.get("zeroed") == "1"
     try:
         seed = int(options.get("seed", "0"))
     except ValueError:
@@ -211,6 +220,7 @@ def open_sim_openarm(
     assert auto is not None
     caps = {upstream[j.name]: j.torque_cap_nm for j in auto.searched_joints if j.name in upstream}
     scenarios = {name: fault_scenario(name, faults) for name in upstream.values()}
+    drifts = _zero_drifts(options.get("zero_drift", ""), upstream)
     clock = SimClock()
     arm = SimOpenArm(
         f"robocal-autocal-openarm-{id(clock)}",
@@ -220,7 +230,12 @@ def open_sim_openarm(
         scenarios=scenarios,
         search_torque_nm=caps,
         clock=clock,
-    ).start()
+    )
+    for motor, drift_rad in drifts.items():  # the stored zero moved: the motor reads drift_rad more than the joint
+        m = arm.motors[motor]
+        m.zero_abs_rad = (m.zero_abs_rad - drift_rad) % math.tau
+        m.power_on()
+    arm.start()
     sim = SimAutoOpenArm(arm, None, {}, dict(upstream))
     try:
         from ...backends import load_backend
@@ -233,6 +248,21 @@ def open_sim_openarm(
         sim.close()
         raise
     return sim
+
+
+def _zero_drifts(text: str, upstream: Mapping[str, str]) -> dict[str, float]:
+    """``zero_drift=joint:deg,...``: the simulator's motor name → how far its stored zero moved, rad."""
+    out: dict[str, float] = {}
+    for item in [x for x in text.split(",") if x]:
+        joint, _, amount = item.partition(":")
+        try:
+            value = float(amount)
+        except ValueError:
+            value = math.nan
+        if joint not in upstream or not math.isfinite(value):
+            raise UsageError(f"sim:openarm zero_drift: expected joint:degrees with a joint of the profile, got {item!r}")
+        out[upstream[joint]] = math.radians(value)
+    return out
 
 
 def sim_openarm_opener(holder: list[SimAutoOpenArm] | None = None) -> Callable[..., Any]:

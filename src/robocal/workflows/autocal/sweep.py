@@ -218,7 +218,7 @@ def _parse_auto_source(text: str) -> _SimSpec:
             f"--source {text!r}: --auto simulates sim:lite and sim:openarm only (LeRobot arms: lerobot calibrate "
             "--auto)"
         )
-    valid = ("seed", *SIM_FAULTS)
+    valid = ("seed", *SIM_FAULTS, *(("zeroed", "zero_drift") if robot == "openarm" else ()))  # autocal/damiao.py
     opts = parse_sim_options(text, query, valid, joined=valid, valid_label="valid with --auto")
     return _SimSpec("sim", opts, text, robot)
 
