@@ -23,7 +23,9 @@ def main(argv: list[str] | None = None) -> None:
     """Run the soak; ``argv``: ``--trials N`` (default 8), ``--seed S``, ``--robots a,b``, ``--joints J``,
     ``--jobs K`` (trials at once), ``--minutes M`` (start no new trial after M minutes); or, with ``--early N``,
     N signals at random instants (up to ``--max-delay-ms``) of ``robocal check --help``'s start-up, counted per
-    50 ms: what ended it (Python's own start-up, robocal's one line, the finished command, anything wrong)."""
+    50 ms: what ended it (Python's own start-up, robocal's one line, the finished command, anything wrong); or,
+    with ``--sweep-ctrl-c N``, N hand sweeps (``robocal sweep`` on ``sim:lite``) with one Ctrl-C each at a random
+    instant, judged as ``tests/faults/test_sweep_interrupts.py`` does."""
     parser = argparse.ArgumentParser(prog="bench_faults")
     parser.add_argument("--trials", type=int, default=8)
     parser.add_argument("--seed", type=int, default=26)
@@ -35,7 +37,19 @@ def main(argv: list[str] | None = None) -> None:
         "--early", type=int, default=0, help="instead: N signals at random instants of a robocal's start-up"
     )
     parser.add_argument("--max-delay-ms", type=float, default=600.0, help="--early: instants up to this")
+    parser.add_argument(
+        "--sweep-ctrl-c", type=int, default=0, help="instead: N hand sweeps, one Ctrl-C each at a random instant"
+    )
     args = parser.parse_args(argv or [])
+    if args.sweep_ctrl_c:
+        import tempfile
+
+        from tests.faults.test_sweep_interrupts import random_ctrl_c
+
+        with tempfile.TemporaryDirectory(prefix="robocal-ctrl-c-") as tmp:
+            failures = random_ctrl_c(Path(tmp), args.sweep_ctrl_c, args.seed, keep_going=True)
+        print(f"{args.sweep_ctrl_c} sweeps, one Ctrl-C each: {len(failures)} failed", *failures, sep="\n")
+        return
     if args.early:
         import tempfile
 

@@ -20,18 +20,16 @@ from .harness import run_trial
 
 pytestmark = pytest.mark.timeout(900)
 
-def _case(robot: str, fault: str, phase: str, kind: str = "more", xfail: str | None = None) -> object:
+def _case(robot: str, fault: str, phase: str, kind: str = "more") -> object:
     # 20-150 s a trial on a loaded machine: every one is over the fast tier's 2 s
     marks = [pytest.mark.slow]
-    if xfail:
-        marks.append(pytest.mark.xfail(reason=xfail, strict=False))
     return pytest.param(robot, fault, phase, marks=marks, id=f"{kind}-{robot}-{fault}-{phase}")
 
 
-_NOT_REACHED = (
-    "at load ~27 (2026-11-29, twice in a row) the SO-101 gripper search itself aborted before the restore phase "
-    "('could not reach 270.8° within 3.9 s: blocked?', exit 3), so the fault was never injected; not a guard failure"
-)
+ATTEMPTS = 3
+"""A run whose phase never came is run again (same seed), up to this many times: under heavy load (~27) the SO-101
+gripper's search sometimes fails on its own before the restore phase ('could not reach 270.8° within 3.9 s:
+blocked?', exit 3): nothing to inject there, and not the guard's doing; the next attempt gets there."""
 
 QUICK = [  # pytest tests/faults -k quick
     # failed on main before the motion guard: one Ctrl-C while searching left no register written back and the
@@ -42,10 +40,10 @@ QUICK = [  # pytest tests/faults -k quick
 ]
 MORE = (
     [
-        _case("so101_follower", fault, phase, xfail=_NOT_REACHED if phase == "restore" else None)
+        _case("so101_follower", fault, phase)
         for fault, phase in [
             ("double-sigint", "contact"),  # before the guard: the second Ctrl-C stopped the EEPROM restore
-            ("sigterm", "restore"),  # before the guard: registers left changed (see _NOT_REACHED)
+            ("sigterm", "restore"),  # before the guard: registers left changed (see ATTEMPTS)
             ("sighup", "contact"),
             ("cpu-stall", "contact"),
             ("frozen-device", "search"),
@@ -78,10 +76,15 @@ SEEDED = QUICK + MORE if os.environ.get("ROBOCAL_FAULT_TRIALS") == "more" else Q
 @pytest.mark.parametrize(("robot", "fault", "phase"), SEEDED)
 def test_fault_leaves_the_arm_limp_and_restored(robot: str, fault: str, phase: str) -> None:
     seed = sum(map(ord, f"{robot}/{fault}/{phase}"))
-    result = run_trial(
-        robot, fault, phase, random.Random(seed), joints=None if robot == "lite" else "gripper"
-    )
-    assert result.injected, f"the run ended before the {phase} phase (exit {result.exit_code})"
+    tails = []
+    for _attempt in range(ATTEMPTS):
+        result = run_trial(
+            robot, fault, phase, random.Random(seed), joints=None if robot == "lite" else "gripper"
+        )
+        if result.injected:
+            break
+        tails.append(f"exit {result.exit_code}: {result.stderr_tail}")
+    assert result.injected, f"the run ended before the {phase} phase {ATTEMPTS} times: {tails}"
     assert result.failures == (), f"exit {result.exit_code}: {'; '.join(result.failures)}"
 
 
