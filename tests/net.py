@@ -1,4 +1,5 @@
-"""Local TCP ports for the tests of servers and clients: one taken by a listener, one nobody listens on."""
+"""Local TCP ports for the tests of servers and clients (one taken by a listener, one nobody listens on), and an
+exact read from a socket."""
 
 from __future__ import annotations
 
@@ -21,3 +22,14 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def recv_exact(sock: socket.socket, n: int) -> bytes:
+    """Exactly ``n`` bytes from ``sock`` (its own timeout bounds each read); ConnectionError if it closes first."""
+    data = b""
+    while len(data) < n:
+        chunk = sock.recv(n - len(data))
+        if not chunk:
+            raise ConnectionError(f"closed after {len(data)} of {n} bytes")
+        data += chunk
+    return data

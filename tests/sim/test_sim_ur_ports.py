@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.net import recv_exact
 
 from robocal.backends.sim.ur_arm_state import UrArmState, parse_robot_mode_data
 from robocal.backends.sim.ur_realtime import (
@@ -36,21 +37,11 @@ HANG_GUARD_S = 10.0
 URX_RT_5_9 = ">i139d"  # python-urx rtstruct5_9: size, then 139 doubles
 
 
-def _recv_exact(sock: socket.socket, n: int) -> bytes:
-    data = b""
-    while len(data) < n:
-        chunk = sock.recv(n - len(data))
-        if not chunk:
-            raise ConnectionError(f"closed after {len(data)} of {n} bytes")
-        data += chunk
-    return data
-
-
 def _realtime(sock: socket.socket) -> tuple[float, ...]:
-    header = _recv_exact(sock, 4)
+    header = recv_exact(sock, 4)
     (size,) = struct.unpack(">i", header)
     assert size == REALTIME_MESSAGE_SIZE == 1116
-    return struct.unpack(URX_RT_5_9, header + _recv_exact(sock, size - 4))[1:]
+    return struct.unpack(URX_RT_5_9, header + recv_exact(sock, size - 4))[1:]
 
 
 def test_realtime_message_fields_where_python_urx_reads_them() -> None:

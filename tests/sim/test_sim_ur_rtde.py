@@ -11,6 +11,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from tests.net import recv_exact
 
 from robocal.backends.sim.ur_arm_state import UrArmState
 from robocal.backends.sim.ur_realtime import joint_path
@@ -71,19 +72,9 @@ EXPECTED_TYPES = {
 }  # fmt: skip
 
 
-def _recv_exact(sock: socket.socket, n: int) -> bytes:
-    data = b""
-    while len(data) < n:
-        chunk = sock.recv(n - len(data))
-        if not chunk:
-            raise ConnectionError(f"closed after {len(data)} of {n} bytes")
-        data += chunk
-    return data
-
-
 def _packet(sock: socket.socket) -> tuple[int, bytes]:
-    size, kind = struct.unpack(">HB", _recv_exact(sock, 3))
-    return kind, _recv_exact(sock, size - 3)
+    size, kind = struct.unpack(">HB", recv_exact(sock, 3))
+    return kind, recv_exact(sock, size - 3)
 
 
 @pytest.fixture
@@ -98,17 +89,17 @@ def rtde() -> Iterator[tuple[UrArmState, socket.socket]]:
 def test_version_exchanges_match_the_protocol_bytes(rtde) -> None:
     _, sock = rtde
     sock.sendall(bytes.fromhex("0005560002"))
-    assert _recv_exact(sock, 4) == bytes.fromhex("00045601")
+    assert recv_exact(sock, 4) == bytes.fromhex("00045601")
     sock.sendall(bytes.fromhex("000376"))
-    assert _recv_exact(sock, 19) == bytes.fromhex("001376") + struct.pack(">4I", 5, 8, 0, 0)  # 5.8.0.0
+    assert recv_exact(sock, 19) == bytes.fromhex("001376") + struct.pack(">4I", 5, 8, 0, 0)  # 5.8.0.0
     sock.sendall(bytes.fromhex("0005560009"))  # a version it does not speak
-    assert _recv_exact(sock, 4) == bytes.fromhex("00045600")
+    assert recv_exact(sock, 4) == bytes.fromhex("00045600")
 
 
 def test_setup_outputs_with_ur_rtdes_trailing_comma(rtde) -> None:
     _, sock = rtde
     sock.sendall(bytes.fromhex("001E4F407F40000000000074696D657374616D702C61637475616C5F712C"))
-    assert _recv_exact(sock, 19) == bytes.fromhex("00134F01444F55424C452C564543544F523644")
+    assert recv_exact(sock, 19) == bytes.fromhex("00134F01444F55424C452C564543544F523644")
 
 
 def test_ur_rtde_receive_sequence_streams_the_arm(rtde) -> None:

@@ -41,6 +41,7 @@ __all__ = [
     "PoseSample",
     "PrimaryClient",
     "check_connection_args",
+    "connect_tcp",
     "encode_cartesian_info",
     "encode_joint_data",
     "encode_kinematics_info",
@@ -130,6 +131,36 @@ def resolve_host(host: str, port: int, timeout_s: float) -> list[_AddrInfo]:
         raise DeviceError(f"{where}: cannot resolve host name {host!r} (no address)")
     return found
 
+
+
+def connect_tcp(host: str, port: int, timeout_s: float, where: str, remaining: Callable[[str], float]) -> socket.socket:
+    """A TCP connection to the first of ``host``'s addresses that answers (``where`` names it in the messages).
+
+    ``remaining(what)`` gives the seconds left of the caller's deadline of ``timeout_s`` (or raises the timeout).
+
+    Raises:
+        DeviceError: No address accepts the connection (exit code 3).
+        CalibTimeoutError: Connecting timed out (exit code 3).
+    """
+    last: OSError | None = None
+    for family, sock_type, proto, _, address in resolve_host(host, port, timeout_s):
+        sock = socket.socket(family, sock_type, proto)
+        try:
+            sock.settimeout(remaining("connecting"))
+            sock.connect(address)
+        except TimeoutError:
+            sock.close()
+            raise CalibTimeoutError(f"{where}: connection timed out after {timeout_s:g} s") from None
+        except OSError as exc:
+            sock.close()
+            last = exc
+            continue
+        except BaseException:
+            sock.close()
+            raise
+        return sock
+    reason = (last.strerror or str(last)) if last is not None else "no address"
+    raise DeviceError(f"{where}: cannot connect ({reason})")
 
 @dataclass(frozen=True)
 class PoseSample:
@@ -318,29 +349,7 @@ class PrimaryClient(ClosesOnExit):
             return
         check_connection_args(self.host, self.port, self.timeout_s)  # getaddrinfo would wrap port 70000
         self._deadline = time.monotonic() + self.timeout_s
-        addresses = resolve_host(self.host, self.port, self.timeout_s)
-        last: OSError | None = None
-        for family, sock_type, proto, _, address in addresses:
-            sock = socket.socket(family, sock_type, proto)
-            try:
-                sock.settimeout(self._remaining("connecting"))
-                sock.connect(address)
-            except TimeoutError:
-                sock.close()
-                raise CalibTimeoutError(
-                    f"{self._where}: connection timed out after {self.timeout_s:g} s"
-                ) from None
-            except OSError as exc:
-                sock.close()
-                last = exc
-                continue
-            except BaseException:
-                sock.close()
-                raise
-            self._sock = sock
-            return
-        reason = (last.strerror or str(last)) if last is not None else "no address"
-        raise DeviceError(f"{self._where}: cannot connect ({reason})")
+        self._sock = connect_tcp(self.host, self.port, self.timeout_s, self._where, self._remaining)
 
     def close(self) -> None:
         """Close the connection (idempotent)."""

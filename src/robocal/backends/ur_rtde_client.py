@@ -18,7 +18,7 @@ import time
 
 from ..core.lifecycle import ClosesOnExit
 from ..errors import CalibTimeoutError, DeviceError, ProtocolError
-from .ur_primary import PoseSample, check_connection_args, resolve_host
+from .ur_primary import PoseSample, check_connection_args, connect_tcp
 
 __all__ = ["DEFAULT_RTDE_PORT", "RTDE_RECIPE", "RtdeReceiveClient"]
 
@@ -65,23 +65,7 @@ class RtdeReceiveClient(ClosesOnExit):
             return
         check_connection_args(self.host, self.port, self.timeout_s)
         self._deadline = time.monotonic() + self.timeout_s
-        last: OSError | None = None
-        for family, sock_type, proto, _, address in resolve_host(self.host, self.port, self.timeout_s):
-            sock = socket.socket(family, sock_type, proto)
-            try:
-                sock.settimeout(self._remaining("connecting"))
-                sock.connect(address)
-            except OSError as exc:
-                sock.close()
-                if isinstance(exc, TimeoutError):
-                    raise CalibTimeoutError(f"{self._where}: connection timed out after {self.timeout_s:g} s") from None
-                last = exc
-                continue
-            self._sock = sock
-            break
-        if self._sock is None:
-            reason = (last.strerror or str(last)) if last is not None else "no address"
-            raise DeviceError(f"{self._where}: cannot connect ({reason})")
+        self._sock = connect_tcp(self.host, self.port, self.timeout_s, self._where, self._remaining)
         try:
             self._setup()
         except BaseException:
