@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -19,9 +20,15 @@ from tests.faults.harness import ROBOTS
 from tests.faults.soak import soak, table
 
 
+def _busy_sibling() -> subprocess.Popen[bytes]:
+    """A process that spins on a CPU at the soak's own priority: every trial's processes compete with it."""
+    return subprocess.Popen([sys.executable, "-c", "while True: pass"], stdin=subprocess.DEVNULL)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Run the soak; ``argv``: ``--trials N`` (default 8), ``--seed S``, ``--robots a,b``, ``--joints J``,
-    ``--jobs K`` (trials at once), ``--minutes M`` (start no new trial after M minutes); or, with ``--early N``,
+    ``--jobs K`` (trials at once), ``--minutes M`` (start no new trial after M minutes), ``--busy N`` (N busy
+    siblings spinning on the CPU meanwhile: the "with CPU load" half of the soak); or, with ``--early N``,
     N signals at random instants (up to ``--max-delay-ms``) of ``robocal check --help``'s start-up, counted per
     50 ms: what ended it (Python's own start-up, robocal's one line, the finished command, anything wrong); or,
     with ``--sweep-ctrl-c N``, N hand sweeps (``robocal sweep`` on ``sim:lite``) with one Ctrl-C each at a random
@@ -39,6 +46,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--max-delay-ms", type=float, default=600.0, help="--early: instants up to this")
     parser.add_argument(
         "--sweep-ctrl-c", type=int, default=0, help="instead: N hand sweeps, one Ctrl-C each at a random instant"
+    )
+    parser.add_argument(
+        "--busy", type=int, default=0, help="N busy siblings (a process spinning on a CPU) while the soak runs"
     )
     args = parser.parse_args(argv or [])
     if args.sweep_ctrl_c:
@@ -60,16 +70,23 @@ def main(argv: list[str] | None = None) -> None:
         return
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # kill: the trial's processes are cleaned up
     t0 = time.monotonic()
-    results = soak(
-        args.trials,
-        args.seed,
-        tuple(args.robots.split(",")),
-        args.joints,
-        jobs=args.jobs,
-        stop_after_s=None if args.minutes is None else 60.0 * args.minutes,
-    )
+    busy = [_busy_sibling() for _ in range(args.busy)]
+    try:
+        results = soak(
+            args.trials,
+            args.seed,
+            tuple(args.robots.split(",")),
+            args.joints,
+            jobs=args.jobs,
+            stop_after_s=None if args.minutes is None else 60.0 * args.minutes,
+        )
+    finally:
+        for proc in busy:
+            proc.kill()
+            proc.wait()
     print(
-        f"\n{len(results)} trials in {time.monotonic() - t0:.0f} s (seed {args.seed}); pass/fail/not-reached:"
+        f"\n{len(results)} trials in {time.monotonic() - t0:.0f} s (seed {args.seed}, {args.busy} busy "
+        f"siblings); pass/fail/not-reached:"
     )
     print(table(results))
     failed = [r for r in results if r.verdict == "fail"]
