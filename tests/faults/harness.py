@@ -299,9 +299,20 @@ def _trial(
 
 
 def _before_robocal(fault: str, code: int, run: _Run) -> bool:
-    """Killed by the signal's default action (SIGTERM, SIGHUP) without a line: robocal's handlers were not in yet."""
-    signums = {"sigterm": signal.SIGTERM, "sighup": signal.SIGHUP}
-    return fault in signums and code == -signums[fault] and not "".join(run.lines).strip()
+    """The signal met Python's own start-up, before robocal's first line (its handlers were not in yet).
+
+    SIGTERM/SIGHUP: killed by the default action without a line. SIGINT: the same before Python installs its own
+    handler, afterwards Python's ``KeyboardInterrupt`` (a traceback through ``runpy``/``site``/``<frozen …>``, never
+    through robocal's files). Measured with ``benchmarks/run.py faults --early N``.
+    """
+    signums = {"sigterm": signal.SIGTERM, "sighup": signal.SIGHUP, "sigint": signal.SIGINT,
+               "double-sigint": signal.SIGINT}  # fmt: skip
+    err = "".join(run.lines)
+    if fault not in signums or str(SRC) in err:
+        return False
+    if code == -signums[fault] and not err.strip():
+        return True
+    return signums[fault] == signal.SIGINT and code in (-2, 1) and err.rstrip().endswith("KeyboardInterrupt")
 
 
 def _wait_for_phase(run: _Run, sim: _Sim, phase: str, n_joints: int, rng: random.Random) -> bool:

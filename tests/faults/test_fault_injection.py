@@ -119,3 +119,25 @@ def test_a_soak_log_becomes_the_table() -> None:
         "lite: 0 pass, 0 fail, 2 not reached",
         "so101_follower: 1 pass, 0 fail, 0 not reached",
     ]
+
+
+def test_a_signal_in_python_s_own_start_up_is_not_reached() -> None:
+    """Before robocal's first line the signal meets Python's start-up: not robocal's doing (not reached), unless
+    the traceback runs through robocal's own files (then robocal's handlers came too late: a failure)."""
+    from typing import Any
+
+    from .harness import SRC, _before_robocal, _Run
+
+    def run(err: str) -> Any:
+        r = _Run(proc=None)  # type: ignore[arg-type]
+        r.lines[:] = err.splitlines(keepends=True)
+        return r
+
+    python_s = 'Traceback (most recent call last):\n  File "<frozen runpy>", line 14, in <module>\nKeyboardInterrupt\n'
+    assert _before_robocal("sigint", -2, run(python_s))
+    assert _before_robocal("double-sigint", -2, run(""))
+    assert _before_robocal("sigterm", -15, run(""))
+    ours = f'Traceback (most recent call last):\n  File "{SRC}/robocal/cli/__init__.py", line 3\nKeyboardInterrupt\n'
+    assert not _before_robocal("double-sigint", -2, run(ours))
+    assert not _before_robocal("sigint", 130, run("error: interrupted\n"))
+    assert not _before_robocal("sigkill", -9, run(""))
