@@ -66,10 +66,12 @@ def test_ctrl_c_after_the_files_were_written_says_what_was_written(
     urdf: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Ctrl-C while the result table prints: exit 130 and a line naming the written files, not ``error:``."""
-    from robocal.cli import sweep as cli_sweep
+    from robocal.cli import (
+        _sweep_view as cli_sweep_view,  # robocal.cli.sweep imports it when the command runs
+    )
 
     monkeypatch.setattr(wf, "open_source", _opener(SimLite(52, noise_rad=0.0)))
-    monkeypatch.setattr(cli_sweep, "print_sweep_warnings", lambda *a: signal.raise_signal(signal.SIGINT))
+    monkeypatch.setattr(cli_sweep_view, "print_sweep_warnings", lambda *a: signal.raise_signal(signal.SIGINT))
     out, rep = tmp_path / "cal.yaml", tmp_path / "r.json"
     rc = main(["sweep", "--urdf", str(urdf), "--source", "sim:lite", "--out", str(out), "--report", str(rep)])
     err = capsys.readouterr().err

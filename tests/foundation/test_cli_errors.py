@@ -23,7 +23,7 @@ def _run(
 ) -> subprocess.CompletedProcess[str]:
     code = (
         "import sys\n"
-        "import robocal.cli.files as files\n"
+        "import robocal.workflows.files.job as files\n"  # robocal.cli.files imports it when convert runs
         "def boom(*args, **kwargs):\n"
         f"    {raise_stmt}\n"
         "files.convert_file = boom\n"

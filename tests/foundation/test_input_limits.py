@@ -128,7 +128,7 @@ def test_out_of_memory_is_one_error_line_exit_2(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A MemoryError anywhere in a command (an input no limit covers) is a clean error, not a crash log (70)."""
-    import robocal.cli.files as files
+    import robocal.workflows.files.job as files  # robocal.cli.files imports convert_file when the command runs
 
     def exhausted(*_: object, **__: object) -> None:
         raise MemoryError

@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from ..core.kinematic_problem import ALL_KINDS, check_kind
 from ..errors import UsageError
 from ._common import EXIT_OK, console, print_warnings
 from ._kinematics_options import (
@@ -122,6 +121,8 @@ def plan(
     ] = 0,
 ) -> None:
     """Choose poses inside the joint limits that identify the arm best (greedy I- or D-optimal)."""
+    from ..core.kinematic_problem import ALL_KINDS, check_kind
+
     kind = check_kind(kind.strip().lower(), ALL_KINDS)
     if kind == "tag":
         if validation_poses:

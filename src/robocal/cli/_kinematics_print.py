@@ -5,12 +5,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.table import Table
 
-from ..workflows.kinematics import job as wf
 from ._common import console, print_warnings
+
+if TYPE_CHECKING:
+    from ..workflows.kinematics import job as wf
 
 __all__ = ["print_identification", "print_images"]
 
@@ -68,6 +70,8 @@ def _print_files(
 
 def print_identification(result: wf.IdentifyResult) -> int:
     """Print the identified parameters, validation and warnings; return the exit code (0 ok, 1 warnings)."""
+    from ..workflows.kinematics import job as wf
+
     rep = result.report
     _print_parameters(rep)
     obs = rep["observability"]

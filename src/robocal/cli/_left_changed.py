@@ -10,13 +10,15 @@ name, value now and before); on a terminal it asks whether to write them back, o
 from __future__ import annotations
 
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 
-from ..core.lerobot import RobotSpec
 from . import _common
 from ._lerobot_render import status
+
+if TYPE_CHECKING:
+    from ..core.lerobot import RobotSpec
 
 __all__ = ["offer_restore", "restore_previous"]
 

@@ -7,13 +7,16 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import typer
 from rich.live import Live
 from rich.table import Table
 
-from ..core.lerobot import MotorCalibration, RobotSpec
 from . import _common
+
+if TYPE_CHECKING:
+    from ..core.lerobot import MotorCalibration, RobotSpec
 
 __all__ = [
     "ConsoleOperator",

@@ -10,8 +10,7 @@ from typing import Annotated
 
 import typer
 
-from ..workflows.files.job import robot_profile_names
-from ..workflows.sweep.job import DEFAULT_TOPIC
+from ._catalog import DEFAULT_TOPIC, robot_profile_names
 
 __all__ = [
     "DEFAULT_TOPIC",

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from ..workflows.dataset.job import DatasetOptions
 from . import _common
 from ._options import LeRobotArm, LeRobotCompat, LeRobotModes, LeRobotPhysical, LeRobotUseDegrees
+
+if TYPE_CHECKING:
+    from ..workflows.dataset.job import DatasetOptions
 
 app = typer.Typer(help="Re-calibrate, inspect and health-check recorded LeRobot v3 datasets.", no_args_is_help=True)
 
@@ -26,6 +28,8 @@ def _options(
     compat: str,
     physical: bool = False,
 ) -> DatasetOptions:
+    from ..workflows.dataset.job import DatasetOptions
+
     return DatasetOptions(
         robot=robot,
         motor_family=motor_family,

@@ -8,7 +8,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..workflows.files.job import check_file, convert_file, format_names
+from ._catalog import FORMAT_NAMES
 from ._common import (
     EXIT_OK,
     EXIT_WARNINGS,
@@ -21,7 +21,7 @@ from ._common import (
 )
 from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic, RobotProfile
 
-FORMAT_HELP = "Format: " + ", ".join(format_names()) + "."
+FORMAT_HELP = "Format: " + ", ".join(FORMAT_NAMES) + "."
 
 
 def convert(
@@ -42,6 +42,8 @@ def convert(
     robot: RobotProfile = None,
 ) -> None:
     """Convert a calibration file between formats, exactly."""
+    from ..workflows.files.job import convert_file
+
     result = convert_file(
         src,
         dst,
@@ -77,6 +79,8 @@ def check(
         from ..workflows.sweep.power_on_check import check_source_options
 
         check_source_options(source, frame)
+    from ..workflows.files.job import check_file
+
     checked = check_file(calibration, urdf, fmt, robot)
     report, profile = checked.report, checked.profile
     for note in checked.notes:

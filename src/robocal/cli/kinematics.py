@@ -4,15 +4,11 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from ..core.arrays import FloatArray
-from ..core.kinematic_problem import ALL_KINDS, check_kind
 from ..errors import UsageError
-from ..workflows.kinematics import job as wf
-from ..workflows.kinematics import sim as sim_wf
 from ._common import EXIT_INTERRUPTED, EXIT_OK, console, err_console, print_warning, print_warnings
 from ._kinematics_options import (
     BaseLinkOption,
@@ -28,6 +24,11 @@ from ._kinematics_plan import plan
 from ._kinematics_print import print_identification, print_images
 from ._options import LeRobotCalibrationDir, LeRobotId
 
+if TYPE_CHECKING:
+    from ..core.arrays import FloatArray
+    from ..workflows.kinematics import job as wf
+    from ..workflows.kinematics import sim as sim_wf
+
 app = typer.Typer(
     help="Kinematic identification: measure an arm, identify its URDF errors, export a corrected URDF.",
     no_args_is_help=True,
@@ -36,6 +37,8 @@ app = typer.Typer(
 
 def _prior(on: bool, mm: float | None, deg: float | None, offset_deg: float | None) -> bool | wf.PriorSigmas:
     """``--prior`` and its σ options (any σ option switches the prior on)."""
+    from ..workflows.kinematics import job as wf
+
     if mm is None and deg is None and offset_deg is None:
         return on
     d = wf.PriorSigmas()
@@ -147,6 +150,9 @@ def identify(
     ] = False,
 ) -> None:
     """Identify the arm's geometric errors from measurements; write a corrected URDF and a report."""
+    from ..core.kinematic_problem import ALL_KINDS, check_kind
+    from ..workflows.kinematics import job as wf
+
     check_kind(kind.strip().lower(), ALL_KINDS)
     jm, ids = wf.identify_joint_map(joint_map, robot, robot_id, calibration_dir, calibration_file)
     outputs = wf.IdentifyOutputs(out, report, jm, joint_map_out, ids, ur_yaml, ur_hash)
@@ -232,6 +238,9 @@ def simulate(
     """Simulate a measurement session on an arm with hidden errors (1 mm, 0.5°, 2° σ; --ticks joint readings)."""
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a folder")
+    from ..core.kinematic_problem import ALL_KINDS, check_kind
+    from ..workflows.kinematics import sim as sim_wf
+
     kind = check_kind(kind.strip().lower(), ALL_KINDS)
     if not (math.isfinite(gauge_mm) and gauge_mm > 0):
         raise UsageError(f"--gauge-mm must be a positive number, got {gauge_mm}")

@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import pathlib
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.table import Table
 
-from ..core.lerobot import RobotSpec, parse_compat
-from ..core.lerobot.calibration import MotorCalibration
 from ..errors import UsageError
 from . import _common
 from ._left_changed import offer_restore
@@ -29,6 +27,10 @@ from ._options import (
     LeRobotPhysical,
     LeRobotUseDegrees,
 )
+
+if TYPE_CHECKING:
+    from ..core.lerobot import RobotSpec
+    from ..core.lerobot.calibration import MotorCalibration
 
 app = typer.Typer(
     help="LeRobot arms: calibrate, configure, check, migrate, show, export-urdf.", no_args_is_help=True
@@ -402,6 +404,7 @@ def show(
     physical: LeRobotPhysical = False,
 ) -> None:
     """Print live normalised positions (LeRobot's units) of every motor."""
+    from ..core.lerobot import parse_compat
     from ..workflows.lerobot import open_arm, read_positions, require_motors, restore
 
     compat_mode = parse_compat(compat)
@@ -442,6 +445,7 @@ def export_urdf(
     physical: LeRobotPhysical = False,
 ) -> None:
     """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints."""
+    from ..core.lerobot import parse_compat
     from ..workflows.lerobot import export_joint_map, write_joint_map
 
     compat_mode = parse_compat(compat)

@@ -13,13 +13,9 @@ import typer
 
 from ..core.sweep_result import DEFAULT_SPAN_TOLERANCE_RAD
 from ..errors import UsageError
-from ..workflows.sweep.job import SweepRequest, run_sweep
-from ..workflows.sweep.output import SweepNotSavedError
-from ..workflows.sweep.session import DEFAULT_DIRECTION_STEP_S
 from . import _common
+from ._catalog import DEFAULT_DIRECTION_STEP_S
 from ._options import DEFAULT_TOPIC, ReplayFrame, ReplayTopic, RobotProfile
-from ._sweep_confirm import StdinLines, make_confirm, stdin_is_terminal, terminal
-from ._sweep_view import LiveView, print_sweep_warnings, result_table
 
 
 @contextlib.contextmanager
@@ -45,6 +41,9 @@ def _web_view(
 @contextlib.contextmanager
 def _not_lost() -> Iterator[None]:
     """When the sweep's calibration could not be saved, show it (table, warnings, the file's text) first."""
+    from ..workflows.sweep.output import SweepNotSavedError
+    from ._sweep_view import print_sweep_warnings, result_table
+
     try:
         yield
     except SweepNotSavedError as exc:
@@ -189,6 +188,10 @@ def sweep(
         return
     if joints is not None or partial or verify or write_zero:
         raise UsageError("--joints, --partial, --verify and --write-zero go with --auto")
+    from ..workflows.sweep.job import SweepRequest, run_sweep
+    from ._sweep_confirm import StdinLines, make_confirm, stdin_is_terminal, terminal
+    from ._sweep_view import LiveView, print_sweep_warnings, result_table
+
     stop = threading.Event()
     lines = StdinLines(stop) if stdin_is_terminal() else None  # Enter finishes the sweep
     confirm = make_confirm(lines) if lines is not None and terminal() and not yes else None

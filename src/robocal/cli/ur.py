@@ -5,18 +5,18 @@ from __future__ import annotations
 import contextlib
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
 from rich.table import Table
 
-from ..core.ur import RPY_CONVENTIONS, UR_MODELS
 from ..errors import UsageError
-from ..viewer.ur_page import parse_q
-from ..workflows.ur import job as wf
-from ..workflows.ur import verify as ur_verify
+from ._catalog import UR_MODEL_NAMES
 from ._common import console, err_console, exit_code_for, print_warning, print_warnings
+
+if TYPE_CHECKING:
+    from ..workflows.ur import job as wf
+    from ..workflows.ur import verify as ur_verify
 
 app = typer.Typer(
     help="Universal Robots: calibrated kinematics for ur_description (extract, correct, defaults, verify, plot, view).",
@@ -26,7 +26,7 @@ app = typer.Typer(
 RPY_HELP = (
     "Angle convention (any case): 'urdf' (correct, default) or 'upstream' (ur_calibration's Eigen angles)."
 )
-MODELS = ", ".join(UR_MODELS)
+MODELS = ", ".join(UR_MODEL_NAMES)
 DELTAS_HELP = "Calibration deltas (delta_theta/a/d/alpha)."
 DEFAULTS_RPY_HELP = (
     "Angle convention (any case): 'upstream' (default) writes ur_calibration's Eigen angles, as in the "
@@ -73,6 +73,8 @@ def extract(
     urdf_out: _UrdfOut = None,
 ) -> None:
     """Read the calibrated DH from a controller, correct it and write ur_description's kinematics YAML."""
+    from ..workflows.ur import job as wf
+
     replaced = out.is_file()
     result = wf.extract(host, out, port=port, timeout_s=timeout, rpy=rpy, urdf_in=urdf_in, urdf_out=urdf_out)
     raise typer.Exit(_print_result(result, replaced))
@@ -89,6 +91,8 @@ def correct(
     urdf_out: _UrdfOut = None,
 ) -> None:
     """Correct DH parameters offline (no robot) and write ur_description's kinematics YAML."""
+    from ..workflows.ur import job as wf
+
     input_warnings: list[str] = []
     params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
     replaced = out.is_file()
@@ -110,6 +114,8 @@ def defaults(
     checked-in default files; --rpy urdf writes URDF-convention angles instead (the same rotations for
     nominal models).
     """
+    from ..workflows.ur import job as wf
+
     replaced = out.is_file()
     raise typer.Exit(_print_result(wf.defaults(model, out, rpy=rpy), replaced))
 
@@ -193,6 +199,12 @@ def verify(
     (the DH then defaults to the controller's). With --rtde HOST[:PORT], compare the YAML's, the URDF's and the
     DH's FK (whichever are given) with the actual_TCP_pose the controller streams over RTDE at its actual_q.
     """
+    import numpy as np
+
+    from ..viewer.ur_page import parse_q
+    from ..workflows.ur import job as wf
+    from ..workflows.ur import verify as ur_verify
+
     reports: list[ur_verify.VerifyReport] = []
     input_warnings: list[str] = []
     if host is not None:
@@ -232,6 +244,8 @@ def plot(
     deltas: Annotated[Path | None, typer.Option("--deltas", help="Calibration deltas.")] = None,
 ) -> None:
     """Plot the split DH model (arm links far away) next to the corrected model."""
+    from ..workflows.ur import job as wf
+
     input_warnings: list[str] = []
     params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
     console.print(f"wrote {wf.plot(params, out)}")
@@ -265,6 +279,7 @@ def view(
     `robocal ur verify` prints for the YAML `robocal ur correct` writes from the same DH. Serves until Ctrl-C.
     """
     from ..viewer import ur_page
+    from ..workflows.ur import job as wf
 
     if (dh is None) == (host is None):
         raise UsageError("give either --dh FILE or --host HOST")
@@ -306,4 +321,4 @@ def view(
     raise typer.Exit(exit_code_for(warnings))
 
 
-__all__ = ["RPY_CONVENTIONS", "app", "print_reports"]
+__all__ = ["app", "print_reports"]

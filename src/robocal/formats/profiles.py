@@ -29,6 +29,7 @@ from ..errors import FileFormatError, UsageError
 from ..fileio import MAX_DOCUMENT_BYTES, read_text
 from ._numbers import parse_direction, parse_finite, parse_int, parse_motor_id
 from ._profile_auto import check_known_keys, parse_auto_section
+from ._shipped_yaml import load_shipped
 from ._yaml import load_yaml
 from .urdf import UrdfModel
 
@@ -291,7 +292,9 @@ def builtin_profile_names() -> tuple[str, ...]:
 def _builtin(name: str) -> RobotProfile:
     res = _builtin_dir().joinpath(f"{name}.yaml")
     source = f"robocal:data/profiles/{name}.yaml"
-    profile = parse_profile(load_yaml(res.read_text(encoding="utf-8"), source), source)
+    text = res.read_text(encoding="utf-8")
+    data = load_shipped(text)  # the shipped layout, read quickly; anything else: the full reader
+    profile = parse_profile(load_yaml(text, source) if data is None else data, source)
     if profile.name != name:  # pragma: no cover - a packaging mistake
         raise FileFormatError(f"profile {source}: its name is {profile.name!r}, expected {name!r}")
     return profile
