@@ -58,8 +58,8 @@ def outcome(folder: Path, program: list[str], signum: int, delay_s: float) -> tu
     )
     if str(SRC) in err:  # a traceback through robocal's own files
         return "wrong", seen
-    if code == 128 + signum:
-        return (ROBOCAL, seen) if (err, out) == (LINES[signum] + "\n", "") else ("wrong", seen)
+    if code == 128 + signum:  # (the help page may have been printed in part when the signal came)
+        return (ROBOCAL, seen) if err == LINES[signum] + "\n" else ("wrong", seen)
     if code == 0:
         return (FINISHED, seen) if "Usage" in out and not err else ("wrong", seen)
     if code == -signum or (signum == signal.SIGINT and "KeyboardInterrupt" in err):

@@ -143,3 +143,21 @@ def test_names_and_paths_over_the_system_limits_are_usage_errors(
         "a path at most 4095)\n"
     )
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args", [["check", "--calibration", "c.yaml", "--urdf", "r.urdf"], ["--help"]])
+def test_ctrl_c_while_the_command_line_is_parsed_prints_the_line(
+    args: list[str], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """typer turns a KeyboardInterrupt while parsing into a silent exit 130; robocal prints its one line."""
+    import typer.core
+
+    from robocal.cli.main import main
+
+    def interrupted(*_: object, **__: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(typer.core._TyperParameter, "process_value", interrupted)
+    assert main(args) == 130
+    captured = capsys.readouterr()
+    assert (captured.err, captured.out) == ("error: interrupted\n", "")

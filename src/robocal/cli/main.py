@@ -300,8 +300,28 @@ def _command() -> Any:
     if not _built:
         command = typer.main.get_command(app)
         _polish_help(command)
+        _interrupt_parsing_too(command)
         _built.append(command)
     return _built[0]
+
+
+def _interrupt_parsing_too(command: Any) -> None:
+    """A signal while the command line is parsed (or a command is looked up) ends with the interrupted line too.
+
+    typer turns a ``KeyboardInterrupt`` outside the command functions (which :func:`_interruptible` wraps) into a
+    silent exit 130; parsing imports pydantic on first use, so a Ctrl-C, SIGTERM or SIGHUP there was common.
+    """
+    for name in ("make_context", "invoke"):
+        original = getattr(command, name)
+
+        def wrapper(*args: Any, __original: Callable[..., Any] = original, **kwargs: Any) -> Any:
+            try:
+                return __original(*args, **kwargs)
+            except KeyboardInterrupt as exc:
+                entry.quiet_after_interrupt()
+                raise _interrupt_error(exc) from None
+
+        setattr(command, name, wrapper)
 
 
 def _polish_help(command: Any) -> None:
