@@ -19,6 +19,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,10 +38,13 @@ class ClientEnv:
     Attributes:
         requirements: What pip installs (pinned).
         imports: Modules imported once after the install, to check it.
+        unusable: Checked first; its reason, if any, skips the client without building it.
     """
 
     requirements: tuple[str, ...]
     imports: tuple[str, ...]
+    unusable: Callable[[], str | None] | None = None
+    """Why the client could not be used on this machine even if it installed (None: it can; not built then)."""
 
 
 CLIENT_ENVS: dict[str, ClientEnv] = {
@@ -52,13 +56,34 @@ CLIENT_ENVS: dict[str, ClientEnv] = {
     "st3215": ClientEnv(("st3215==0.4.2",), ("st3215",)),
     "feetech_cli": ClientEnv(("feetech-cli==0.1.8",), ("feetech_cli",)),
     "damiao_motor": ClientEnv(("damiao-motor==1.0.6", "python-can==4.6.1"), ("damiao_motor", "can")),
+    # an sdist only: its build clones enactic/openarm_can's C++ library from GitHub (CMake FetchContent), so it
+    # builds only where that host is reached; it then speaks raw SocketCAN (AF_CAN), see test_client_openarm_can.py
+    "openarm_can": ClientEnv(("openarm-can==1.4.1",), ("openarm_can",), unusable=lambda: _no_socketcan()),
 }
 """Client → its environment (the versions issue 29 names, or the newest the index serves)."""
 
 
+def _no_socketcan() -> str | None:
+    """Why this kernel cannot carry SocketCAN frames (None: it can)."""
+    import socket
+
+    family = getattr(socket, "AF_CAN", None)
+    if family is None:
+        return "this Python has no socket.AF_CAN (not Linux)"
+    try:
+        socket.socket(family, socket.SOCK_RAW, socket.CAN_RAW).close()
+    except OSError as exc:
+        return f"it needs SocketCAN and this kernel has none ({exc.strerror}: AF_CAN; no vcan module)"
+    return None
+
+
 def client_python(name: str) -> tuple[Path | None, str]:
-    """The client's environment's Python (built if missing), or None and the reason (pip's error)."""
+    """The client's environment's Python (built if missing), or None and the reason (pip's error, or why it could
+    not be used here)."""
     env = CLIENT_ENVS[name]
+    why = env.unusable() if env.unusable is not None else None
+    if why is not None:
+        return None, f"{name}: {why}"
     ver = f"{sys.version_info[0]}.{sys.version_info[1]}"
     digest = hashlib.sha256("\n".join(env.requirements).encode()).hexdigest()[:10]
     folder = cache_root() / f"client-{name}-py{ver}-{digest}"
