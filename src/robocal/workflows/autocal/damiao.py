@@ -57,7 +57,6 @@ def _motors(profile: RobotProfile, names: Sequence[str]) -> dict[str | None, lis
 def _drivers(
     buses: Sequence[Any], joints: Sequence[Any], profile: RobotProfile, clock: Any, lost_reply_s: float | None
 ) -> dict[str, JointDriver]:
-    from ...backends.damiao.joint_driver import MAX_LAG_RAD
     from .model import joint_driver_class
 
     driver_cls = joint_driver_class("damiao")
@@ -71,7 +70,8 @@ def _drivers(
             if aj is None or not aj.searched:
                 continue
             drivers[name] = driver_cls(
-                bus, name, by_name[name].direction, aj.torque_cap_nm, MAX_LAG_RAD, clock, lost_reply_s=lost_reply_s
+                bus, name, by_name[name].direction, aj.torque_cap_nm, driver_cls.MAX_LAG_RAD, clock,
+                lost_reply_s=lost_reply_s,
             )
     return drivers
 

@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ...backends.robstride.joint_driver import MAX_LAG_RAD
 from ...core.profile import RobotProfile
 from ...errors import UsageError
 from .model import JointDriver, joint_driver_class
@@ -187,12 +186,13 @@ def open_sim_lite(
             for j in on_bus:
                 aj = auto.joint(j.name)
                 cap = aj.torque_cap_nm if aj is not None else 1.0
-                drivers[j.name] = joint_driver_class("robstride")(
+                driver_cls = joint_driver_class("robstride")
+                drivers[j.name] = driver_cls(
                     bus,
                     j.name,
                     by_spec[j.name].direction,
                     cap,
-                    MAX_LAG_RAD,
+                    driver_cls.MAX_LAG_RAD,
                     clock,
                     lost_reply_s=HARDWARE_TIMEOUT_S,
                 )

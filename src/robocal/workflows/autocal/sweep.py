@@ -24,7 +24,6 @@ from typing import Any
 import numpy as np
 
 from ...backends.bus_transaction import transaction
-from ...backends.robstride.joint_driver import MAX_LAG_RAD
 from ...core.health.drift import JointDrift, offset_drift
 from ...core.profile import RobotProfile
 from ...core.sweep import analyse_sweep
@@ -181,8 +180,9 @@ def _open_robstride(
             aj = auto.joint(name)
             if aj is None:
                 continue
-            drivers[name] = joint_driver_class("robstride")(
-                bus, name, by_name[name].direction, aj.torque_cap_nm, MAX_LAG_RAD, clock
+            driver_cls = joint_driver_class("robstride")
+            drivers[name] = driver_cls(
+                bus, name, by_name[name].direction, aj.torque_cap_nm, driver_cls.MAX_LAG_RAD, clock
             )
     return drivers, clock, src.close
 
@@ -345,6 +345,7 @@ def run_sweep_auto(
             f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
         )
     caps = JointCaps(order, vendor.host_loss)
+    max_lag_rad = float(joint_driver_class(vendor.name).MAX_LAG_RAD)  # the vendor's driver says how far it leads
     if confirm_start is not None and not confirm_start(tuple(caps), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
     limits = {j.name: (j.lower, j.upper) for j in specs}
@@ -380,7 +381,7 @@ def run_sweep_auto(
                     profile.auto,
                     limits,
                     joints=[j.name for j in order],
-                    max_lag_rad=MAX_LAG_RAD,
+                    max_lag_rad=max_lag_rad,
                     gravity=gravity,
                     gravity_model=gravity_model,
                     joint_gravity=joint_gravity,
@@ -437,7 +438,7 @@ def run_sweep_auto(
                     MotionGuard(limp=lambda: limp_all(drivers), what="motor state")
                 )  # to the file
                 zeros = store_zeros(
-                    drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=MAX_LAG_RAD,
+                    drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=max_lag_rad,
                     before_store=lambda: held.enter_context(transaction()),
                 )  # fmt: skip
                 result = rezeroed_result(
