@@ -30,6 +30,7 @@ from typing import Any, Literal
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .. import reply_timeout_floor_s, require
+from ..can_receive import LATE_FRAMES, frames_until
 from .protocol import (
     Frame,
     MitCommand,
@@ -58,8 +59,6 @@ DEFAULT_TIMEOUT_S = 0.1
 """Default time to wait for one reply, s (LeRobot waits 1-10 ms and keeps a stale value; robocal raises)."""
 LIMP = MitCommand(0.0, 0.0, 0.0, 0.0, 0.0)
 """The MIT frame that asks for no torque: the one MIT frame a read-only bus sends."""
-_LATE_FRAMES = 1024
-"""At most this many frames already queued are taken once a deadline has passed."""
 
 
 @dataclass(frozen=True)
@@ -221,24 +220,13 @@ class DamiaoBus(ClosesOnExit):
 
     def _drain(self) -> None:
         """Drop replies that came too late for an earlier request (they would answer the next one)."""
-        for _ in range(_LATE_FRAMES):
+        for _ in range(LATE_FRAMES):
             if self._bus.recv(timeout=0.0) is None:
                 return
 
     def _receive(self, deadline: float) -> Iterator[Any]:
         """Standard-id frames received before ``deadline`` (and the ones already queued when it passed)."""
-        late = 0
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                late += 1
-                if late > _LATE_FRAMES:
-                    return
-            msg = self._bus.recv(timeout=max(remaining, 0.0))
-            if msg is None:
-                return
-            if not msg.is_extended_id:
-                yield msg
+        yield from frames_until(self._bus, deadline, extended=False)
 
     def _exchange(
         self, frames: Mapping[str, Frame], *, fd: bool, accept: Mapping[str, tuple[int, int] | None]

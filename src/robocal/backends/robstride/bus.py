@@ -17,6 +17,7 @@ from typing import Any
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .. import reply_timeout_floor_s, require
+from ..can_receive import frames_until
 from .protocol import (
     DEFAULT_HOST_ID,
     FIRMWARE_QUERY,
@@ -72,9 +73,6 @@ def _open_within(deadline_s: float, open_fn: Any, what: str) -> Any:
 
 DEFAULT_TIMEOUT_S = 0.1
 """Default time to wait for one reply (s)."""
-_LATE_FRAMES = 1024
-"""At most this many frames already queued are taken once a deadline has passed (a busy bus cannot hold a read
-forever)."""
 
 
 CAN_TIMEOUT_UNITS_PER_S = 20000
@@ -190,19 +188,9 @@ class RobstrideBus(ClosesOnExit):
         Frames already waiting when the deadline has passed are still taken (without waiting): this process may
         have been descheduled past the deadline while the replies arrived, and those came in time.
         """
-        late = 0
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                late += 1
-                if late > _LATE_FRAMES:
-                    return
-            msg = self._bus.recv(timeout=max(remaining, 0.0))
-            if msg is None:
-                return
-            if msg.is_extended_id:
-                comm, data16, low = split_id(msg.arbitration_id)
-                yield comm, data16 & 0xFF, low, msg  # every reply carries the motor id in bits 15..8
+        for msg in frames_until(self._bus, deadline, extended=True):
+            comm, data16, low = split_id(msg.arbitration_id)
+            yield comm, data16 & 0xFF, low, msg  # every reply carries the motor id in bits 15..8
 
     def _collect(
         self, want: dict[int, set[int]], deadline: float, *, any_host: bool = False

@@ -24,7 +24,6 @@ import contextlib
 import math
 import socket
 import struct
-import threading
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -32,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from ...core.lifecycle import StartsOnEnter
 from ...errors import DeviceError
 from .. import require
+from ..sim.can_channel import SimCanChannel
 from ..sim.physics import Drive, JointPlant, SimClock
 from .protocol import (
     FIRMWARE_QUERY,
@@ -344,8 +343,12 @@ def _only_own_group(bus: Any) -> None:
             sock.setsockopt(socket.IPPROTO_IPV6, _IPV6_MULTICAST_ALL, 0)
 
 
-class SimMotorBus(StartsOnEnter):
+class SimMotorBus(SimCanChannel):
     """A thread answering, on one ``virtual`` CAN channel, for every motor in ``motors``.
+
+    The channel, its thread and the settling on a simulated clock are :class:`~..sim.can_channel.SimCanChannel`'s;
+    this routes a request by the motor id in bits 7..0 of its 29-bit id. The marker frame of :meth:`settle` has a
+    standard (11-bit) id: the Robstride protocol is 29-bit.
 
     Args:
         channel: python-can channel (``virtual``: a name unique per simulated robot; ``socketcan``: ``vcan0``;
@@ -358,6 +361,10 @@ class SimMotorBus(StartsOnEnter):
     Use as a context manager, or call :meth:`start` and :meth:`stop`.
     """
 
+    VENDOR = "Robstride"
+    MARKER_ID = _SETTLE_ID
+    MARKER_EXTENDED = False
+
     def __init__(
         self,
         channel: str,
@@ -366,91 +373,39 @@ class SimMotorBus(StartsOnEnter):
         *,
         interface: str = "virtual",
     ) -> None:
-        self.channel = channel
-        self.interface = interface
         self.motors: dict[int, SimMotor] = {m.can_id: m for m in motors}
         self.silent = set(silent)
-        self.lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._bus: Any = None
-        self._marker_bus: Any = None
-        self._settles: list[threading.Event] = []
-        self._clocks = {id(m.clock): m.clock for m in self.motors.values() if m.clock is not None}
+        super().__init__(
+            channel, interface=interface, clocks={id(m.clock): m.clock for m in self.motors.values()}
+        )
 
     def start(self) -> SimMotorBus:
         """Open the channel and start answering."""
-        can = require("can", "the simulated Robstride bus")
-        try:
-            self._bus = can.Bus(channel=self.channel, interface=self.interface, receive_own_messages=False)
-        except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
-            raise DeviceError(f"cannot open CAN {self.interface}:{self.channel}: {exc}") from None
-        if self.interface == "udp_multicast":
-            _only_own_group(self._bus)
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name=f"sim-robstride-{self.channel}", daemon=True)
-        self._thread.start()
-        if self.interface == "virtual":
-            for clock in self._clocks.values():
-                clock.add_settler(self.settle)
+        super().start()
         return self
 
-    def settle(self, timeout_s: float = 10.0) -> None:
-        """Return once every frame sent on the channel so far has been handled (for ``SimClock.sleep``).
+    def _after_open(self, bus: Any) -> None:
+        if self.interface == "udp_multicast":
+            _only_own_group(bus)
 
-        A standard-id marker frame sent behind them (the host ignores it) is acknowledged by the thread when it
-        gets there, so a request whose reply is lost is applied before simulated time moves on.
-        """
+    def _tick(self) -> None:
+        for m in self.motors.values():
+            if m.clock is None:
+                m.check_watchdog()
+
+    def _answer(self, msg: Any) -> list[Any]:
+        if not msg.is_extended_id:
+            return []
         can = require("can", "the simulated Robstride bus")
-        if self._thread is None or not self._thread.is_alive():
-            return
-        if self._marker_bus is None:
-            self._marker_bus = can.Bus(channel=self.channel, interface="virtual", receive_own_messages=False)
-        done = threading.Event()
-        self._settles.append(done)
-        self._marker_bus.send(can.Message(arbitration_id=_SETTLE_ID, data=b"settle", is_extended_id=False))
-        done.wait(timeout_s)
-
-    def stop(self) -> None:
-        """Stop answering and close the channel."""
-        for clock in self._clocks.values():
-            clock.remove_settler(self.settle)
-        if self._marker_bus is not None:
-            self._marker_bus.shutdown()
-            self._marker_bus = None
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-            self._thread = None
-        if self._bus is not None:
-            self._bus.shutdown()
-            self._bus = None
-
-    def _run(self) -> None:
-        can = require("can", "the simulated Robstride bus")
-        bus = self._bus
-        while not self._stop.is_set():
-            msg = bus.recv(timeout=0.02)
-            with self.lock:  # a host that fell silent: the motors' CAN timeouts (wall clock without a plant)
-                for m in self.motors.values():
-                    if m.clock is None:
-                        m.check_watchdog()
-            if msg is not None and not msg.is_extended_id and msg.arbitration_id == _SETTLE_ID:
-                if self._settles:
-                    self._settles.pop(0).set()
-                continue
-            if msg is None or not msg.is_extended_id:
-                continue
-            motor_id = msg.arbitration_id & 0xFF
-            motor = self.motors.get(motor_id)
-            if motor is None or motor_id in self.silent:
-                continue
-            with self.lock:
-                try:
-                    replies = motor.handle(msg.arbitration_id, bytes(msg.data))
-                except Exception:  # a malformed request: a real motor ignores it
-                    continue
-                if motor.can_id != motor_id:  # type 7 gave it a new CAN id
-                    self.motors[motor.can_id] = self.motors.pop(motor_id)
-            for arb, data in replies:
-                bus.send(can.Message(arbitration_id=arb, data=data, is_extended_id=True))
+        motor_id = msg.arbitration_id & 0xFF
+        motor = self.motors.get(motor_id)
+        if motor is None or motor_id in self.silent:
+            return []
+        with self.lock:
+            try:
+                replies = motor.handle(msg.arbitration_id, bytes(msg.data))
+            except Exception:  # a malformed request: a real motor ignores it
+                return []
+            if motor.can_id != motor_id:  # type 7 gave it a new CAN id
+                self.motors[motor.can_id] = self.motors.pop(motor_id)
+        return [can.Message(arbitration_id=arb, data=data, is_extended_id=True) for arb, data in replies]
