@@ -67,6 +67,8 @@ TIMEOUT_UNIT_S = 50e-6
 LIMP_WAIT_S = 30.0  # hang guard for the watchdogs to act once the host is gone (0.5 s of real time)
 LIMP_BOUND_S = 0.1
 """Issue 26: a signal robocal can act on leaves no motor able to push for longer than this."""
+LIMP_LATENCIES: list[dict[str, float]] = []
+"""Per judged trial with a timed signal: motor → seconds from the signal to its torque off (for the soak's figures)."""
 LIMP_TIMED = ("sigint", "double-sigint", "sigterm", "sighup")
 """The faults robocal can act on, whose limp is timed (a killed, frozen or cut-off host leaves it to the TIMEOUT)."""
 
@@ -340,6 +342,7 @@ def _judge(
     if on:
         failures.append(f"enabled after the run: {', '.join(on)}")
     if signalled_at is not None:
+        LIMP_LATENCIES.append(limp_latency(before, after, signalled_at))
         failures += limp_latency_failures(before, after, signalled_at)
     for name, m in after.items():
         b = before[name]
