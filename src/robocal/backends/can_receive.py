@@ -8,7 +8,7 @@ wait ends.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 __all__ = ["LATE_FRAMES", "frames_until"]
@@ -17,15 +17,18 @@ LATE_FRAMES = 1024
 """At most this many frames already queued are taken once a deadline has passed."""
 
 
-def frames_until(bus: Any, deadline: float, *, extended: bool) -> Iterator[Any]:
+def frames_until(
+    bus: Any, deadline: float, *, extended: bool, now: Callable[[], float] = time.monotonic
+) -> Iterator[Any]:
     """The python-can messages ``bus`` receives before ``deadline`` (``time.monotonic``), late ones too.
 
     Those already queued when the deadline passed are taken without waiting; only extended-id frames
-    (``extended``) or only standard-id ones are yielded.
+    (``extended``) or only standard-id ones are yielded. ``now``: the clock ``deadline`` is on (the caller's
+    ``time.monotonic``).
     """
     late = 0
     while True:
-        remaining = deadline - time.monotonic()
+        remaining = deadline - now()
         if remaining <= 0:
             late += 1
             if late > LATE_FRAMES:

@@ -226,7 +226,7 @@ class DamiaoBus(ClosesOnExit):
 
     def _receive(self, deadline: float) -> Iterator[Any]:
         """Standard-id frames received before ``deadline`` (and the ones already queued when it passed)."""
-        yield from frames_until(self._bus, deadline, extended=False)
+        yield from frames_until(self._bus, deadline, extended=False, now=time.monotonic)
 
     def _exchange(
         self, frames: Mapping[str, Frame], *, fd: bool, accept: Mapping[str, tuple[int, int] | None]

@@ -188,7 +188,7 @@ class RobstrideBus(ClosesOnExit):
         Frames already waiting when the deadline has passed are still taken (without waiting): this process may
         have been descheduled past the deadline while the replies arrived, and those came in time.
         """
-        for msg in frames_until(self._bus, deadline, extended=True):
+        for msg in frames_until(self._bus, deadline, extended=True, now=time.monotonic):
             comm, data16, low = split_id(msg.arbitration_id)
             yield comm, data16 & 0xFF, low, msg  # every reply carries the motor id in bits 15..8
 
