@@ -15,6 +15,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import FileFormatError, FileWriteError, UsageError
+from ..fileio import process_gone
 from ._layout import DatasetLayout
 
 __all__ = ["check_destination", "make_temp_root", "prepare_root", "publish_root", "sweep_leftovers"]
@@ -151,19 +152,6 @@ def publish_root(tmp: Path, dst: Path) -> None:
         ) from None
 
 
-def _alive(pid: int) -> bool:
-    """Whether a process ``pid`` exists on this machine (ours, or another user's)."""
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:  # EPERM: it exists, owned by someone else
-        return True
-    return True
-
-
 def sweep_leftovers(dst: Path) -> tuple[list[str], list[str]]:
     """Remove the temporary folders beside ``dst`` that runs killed midway left behind; name the others.
 
@@ -191,7 +179,7 @@ def sweep_leftovers(dst: Path) -> tuple[list[str], list[str]]:
                 if m is None or not path.is_dir() or path.is_symlink():
                     continue
                 pid = int(m.group(1)) if m.group(1) else None
-                if pid is None or _alive(pid):
+                if pid is None or not process_gone(pid):
                     who = "an unknown run" if pid is None else f"process {pid}, which is still running"
                     warnings.append(f"{path} was left by {who}; remove it if no robocal run is writing {dst}")
                 elif kind == "old" and (path / "root").exists() and not final.exists():

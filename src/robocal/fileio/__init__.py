@@ -36,6 +36,7 @@ from .write import (
     atomic_write_bytes,
     atomic_write_text,
     files_written,
+    process_gone,
     remove_stale_temporaries,
 )
 
@@ -54,6 +55,7 @@ __all__ = [
     "check_output_path",
     "files_written",
     "preflight_output",
+    "process_gone",
     "read_bytes",
     "read_text",
     "remove_stale_temporaries",

@@ -22,6 +22,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "files_written",
+    "process_gone",
     "remove_stale_temporaries",
 ]
 
@@ -36,7 +37,7 @@ def files_written() -> tuple[Path, ...]:
     return tuple(_written)
 
 
-def _process_gone(pid: int) -> bool:
+def process_gone(pid: int) -> bool:
     """True only when no process ``pid`` exists (a process of another user, or one we cannot ask, counts)."""
     try:
         os.kill(pid, 0)
@@ -74,7 +75,7 @@ def remove_stale_temporaries(folder: Path) -> list[Path]:
             st = os.lstat(path)
             if not stat.S_ISREG(st.st_mode) or st.st_uid != os.geteuid():
                 continue
-            if _process_gone(int(match.group(1))):
+            if process_gone(int(match.group(1))):
                 os.unlink(path)
                 removed.append(path)
         except OSError:
