@@ -10,11 +10,13 @@ import pytest
 from robocal.cli.main import main
 
 
-def test_demo_view_is_refused_for_the_openarm(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["demo", "--robot", "openarm", "--auto", "--view", "--out", str(tmp_path / "d")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("error:") == 1 and "--view does not draw the OpenArm" in err
-    assert not any((tmp_path / "d").rglob("*.json"))
+def test_demo_view_draws_the_openarms_urdf() -> None:
+    from robocal.formats.urdf import read_urdf
+    from robocal.workflows.demo.job import demo_urdf
+
+    urdf = demo_urdf("openarm")
+    assert urdf is not None and urdf.name == "openarm_v10_right.urdf"
+    assert read_urdf(urdf).joint_names[:1] == ("openarm_right_joint1",) and demo_urdf("lite") is None
 
 
 @pytest.mark.slow

@@ -28,12 +28,14 @@ ARM = [f"openarm_right_joint{i}" for i in range(1, 8)]
 GRIPPER = "openarm_right_gripper_motor"
 
 
-def _sweep(sim: SimProcess, tmp_path: Path, joints: list[str]) -> tuple[int, str, str, dict[str, dict[str, Any]]]:
+def _sweep(
+    sim: SimProcess, tmp_path: Path, joints: list[str], *more: str
+) -> tuple[int, str, str, dict[str, dict[str, Any]]]:
     """Run the hand sweep while the simulator's hands sweep ``joints``, then Ctrl-C it (the first Ctrl-C finishes
     the sweep and writes); its exit code, output, errors and the simulator's state after the hands' sweep."""
     argv = [sys.executable, "-m", "robocal", "sweep", "--robot", "openarm_follower_right", "--urdf", str(URDF),
             "--source", sim.info["source"], "--out", str(tmp_path / "cal.yaml"), "--format", "lite-yaml",
-            "--report", str(tmp_path / "rep.json")]
+            "--report", str(tmp_path / "rep.json"), *more]
     proc = subprocess.Popen(argv, cwd=tmp_path, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ, **CLIENT_ENV))
     try:
@@ -58,7 +60,8 @@ def test_live_hand_sweep_over_socketcand_finds_every_zero(sim_process: type[SimP
     # the person forgot the gripper: the sweep's own code for it, and nothing written
     code, _, stderr, _ = _sweep(sim, tmp_path, ARM)
     assert code == 2 and "openarm_right_gripper_motor: not_swept" in stderr and not out.exists(), stderr
-    code, stdout, stderr, after = _sweep(sim, tmp_path, [*ARM, GRIPPER])
+    code, stdout, stderr, after = _sweep(sim, tmp_path, [*ARM, GRIPPER], "--view", "--view-port", "0")
+    assert stderr.startswith("sweep view: http://127.0.0.1:"), stderr  # the sweep drawn on the arm (robocal[view])
     # exit 1: warnings of factory zeros (J2-J4, J6, J7 cross the power-on wrap point; J6 reads outside its limits)
     assert code == 1 and stderr.count("error:") == 0 and "Traceback" not in stderr, stderr
     assert f"wrote {out.name}" in stdout or f"wrote {out}" in stdout

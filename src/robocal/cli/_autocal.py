@@ -306,19 +306,22 @@ def sweep_auto(
     raise typer.Exit(outcome.exit_code)
 
 
-def auto_demo_view(run: Callable[[Any], Any], render: Callable[[Any], int], port: int) -> int:
-    """``robocal demo --auto --view``: the simulated Lite's stop searches drawn in the browser as they run.
+def auto_demo_view(
+    run: Callable[[Any], Any], render: Callable[[Any], int], port: int, urdf: Path | None = None
+) -> int:
+    """``robocal demo --auto --view``: the simulated robot's stop searches drawn in the browser as they run.
 
     ``run(view)`` runs the demo with the given live view and returns its result, ``render(result)`` prints it
-    and returns the exit code. The page opens before anything moves and keeps serving the result after the run
-    until Ctrl-C; the exit code is the demo's.
+    and returns the exit code. The page draws ``urdf`` (default: the simulated Lite's), opens before anything
+    moves and keeps serving the result after the run until Ctrl-C; the exit code is the demo's.
     """
     import tempfile
 
     from ..workflows.autocal.sim import write_sim_lite_urdf
 
     with tempfile.TemporaryDirectory(prefix="robocal-demo-auto-view-") as folder:
-        urdf = write_sim_lite_urdf(Path(folder) / "lite_bimanual.urdf")
+        if urdf is None:
+            urdf = write_sim_lite_urdf(Path(folder) / "lite_bimanual.urdf")
         with auto_web_view(port, urdf, AutoLiveView(), "demo --auto") as live:
             result = run(live)
             outcome = result.detail

@@ -15,6 +15,7 @@ from ..workflows.demo.job import (
     DemoResult,
     TruthTable,
     demo_folder,
+    demo_urdf,
     prepare_demo,
     run_demo,
 )
@@ -93,14 +94,12 @@ def demo(
             raise UsageError("--auto is its own demo; it does not go with --identify")
         from ._autocal import AutoLiveView, auto_demo_view
 
-        if view and robot == "openarm":
-            raise UsageError("--view does not draw the OpenArm yet; run demo --robot openarm --auto without it")
         if view:
 
             def run_auto(live: object) -> DemoResult:
                 return run_demo(robot, out, mode="auto", say=_common.console.print, view=live)
 
-            raise typer.Exit(auto_demo_view(run_auto, render, port))
+            raise typer.Exit(auto_demo_view(run_auto, render, port, demo_urdf(robot)))
         result = run_demo(robot, out, mode="auto", say=_common.console.print, view=AutoLiveView())
         raise typer.Exit(render(result))
     if view:

@@ -49,6 +49,7 @@ __all__ = [
     "Say",
     "TruthTable",
     "demo_folder",
+    "demo_urdf",
     "prepare_demo",
     "run_demo",
     "temporary_note",
@@ -197,6 +198,15 @@ def demo_folder(out_dir: Path | None, job: str) -> Iterator[tuple[Path, bool]]:
 def temporary_note(temporary: bool) -> str:
     """The note after a written file's name when the demo's folder is temporary (else empty)."""
     return " (temporary folder, removed on exit; keep the files with --out DIR)" if temporary else ""
+
+
+def demo_urdf(robot: str) -> Path | None:
+    """The URDF ``demo --auto --view`` draws for ``robot`` (the OpenArm's right arm), None for the simulated Lite's."""
+    if robot == "openarm":
+        from importlib import resources
+
+        return Path(str(resources.files("robocal") / "data" / "openarm_v10_right.urdf"))
+    return None
 
 
 def run_demo(
