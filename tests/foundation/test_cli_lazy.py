@@ -24,6 +24,7 @@ from robocal.workflows.sweep.job import DEFAULT_TOPIC as SWEEP_TOPIC
 from robocal.workflows.sweep.session import DEFAULT_DIRECTION_STEP_S
 
 HEAVY = ("numpy", "ruamel", "lxml", "scipy", "trimesh", "cv2", "pyarrow", "matplotlib", "can", "serial")
+HEAVY += ("pydantic",)  # typer coerces values with it: a help page has none
 """Libraries a help page must not import (each costs tens to hundreds of milliseconds of CPU per start)."""
 JOB_PACKAGES = (
     "robocal.backends",
@@ -81,3 +82,25 @@ def test_copied_values_match_their_homes() -> None:
     assert tuple(UR_MODELS) == _catalog.UR_MODEL_NAMES, "the help of ur --model lists _catalog.UR_MODEL_NAMES"
     assert _catalog.robot_profile_names() == builtin_profile_names()
     assert len(_catalog.robot_profile_names()) == 12
+
+
+def test_an_option_not_given_is_coerced_as_typer_does() -> None:
+    """robocal builds typer's coercion of a parameter when a value comes (typer: on the first parse, importing
+    pydantic); for None (an option not given) it gives what typer's own coercion gives."""
+    from typer._coercion import build_runtime_param
+
+    from robocal.cli.main import _command
+
+    def params(command: object) -> list[object]:
+        found = list(getattr(command, "params", []))
+        for sub in (getattr(command, "commands", None) or {}).values():
+            found += params(sub)
+        return found
+
+    checked = 0
+    for param in params(_command()):
+        ours = param.get_runtime_param()  # type: ignore[attr-defined]
+        typers = build_runtime_param(param.type_descriptor)  # type: ignore[attr-defined]
+        assert ours.coerce(None, param=param, ctx=None) == typers.coerce(None, param=param, ctx=None)
+        checked += 1
+    assert checked > 300

@@ -324,6 +324,33 @@ def _interrupt_parsing_too(command: Any) -> None:
         setattr(command, name, wrapper)
 
 
+class _CoercionWhenGiven:
+    """typer's value coercion of one parameter, built when a value comes.
+
+    typer builds it on the parameter's first parse even for None (an option not given, a group's ``--help``), and
+    the first one imports pydantic (~0.1 s of CPU; a help page needs none). None gives what typer's own
+    ``RuntimeParam.coerce`` gives for it (``tests/foundation/test_cli_lazy.py`` compares them).
+    """
+
+    def __init__(self, build: Callable[[], Any]) -> None:
+        self._build = build
+        self._built: Any = None
+
+    def coerce(self, value: Any, param: Any, ctx: Any) -> Any:
+        if value is None:
+            return () if param.multiple or param.nargs == -1 else None
+        if self._built is None:
+            self._built = self._build()
+        return self._built.coerce(value, param=param, ctx=ctx)
+
+
+def _coerce_when_given(param: Any) -> None:
+    build = getattr(param, "get_runtime_param", None)
+    if build is not None and not isinstance(getattr(param, "_robocal_coercion", None), _CoercionWhenGiven):
+        param._robocal_coercion = coercion = _CoercionWhenGiven(build)
+        param.get_runtime_param = lambda: coercion
+
+
 def _polish_help(command: Any) -> None:
     """Flags without ``<bool>`` (``--help`` too), positionals as ``SRC DST``, for every command of the tree."""
     for param in command.params:
@@ -333,12 +360,14 @@ def _polish_help(command: Any) -> None:
             param.__class__ = _PositionalArgument
             if param.metavar is None and param.name:
                 param.metavar = param.name.upper()
+        _coerce_when_given(param)
     original = command.get_help_option
 
     def get_help_option(ctx: Any) -> Any:
         option = original(ctx)
         if isinstance(option, TyperOption) and not isinstance(option, _FlagOption):
             option.__class__ = _FlagOption
+        _coerce_when_given(option)
         return option
 
     command.get_help_option = get_help_option
