@@ -12,7 +12,11 @@ clipped 4–10° short of a stop; a mirrored sign. It prints, per offset and joi
 ``offset`` (named), split by what the data could show: the follower was pressed against a stop (``contact``), the
 leader came within 10° of the range end where the offset would pin the follower (``within 10°``), neither; how
 often the interval holds the truth; how often an offset the data cannot show is reported ``ok`` (it must be
-``unobservable``); the false-alarm rate on fault-free sessions; and slips located to their episode.
+``unobservable``); the false-alarm rate on fault-free sessions; and slips located to their episode. For the SO-101
+(whose URDF has masses) a second set, ``HEALTH_SAG_SEEDS`` sessions (default 88) without any range-end visit,
+measures the sag fit alone: 17° and 5° follower offsets and 17° leader offsets on the loaded joints, and
+offset-free sessions; and for every session the sag fit's 99 % interval is checked against the follower's true
+offset.
 """
 
 from __future__ import annotations
@@ -94,6 +98,8 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         "clip_unseen": [0, 0],
         "flip": [0, 0],
         "errors": 0,
+        "sag_cover": defaultdict(lambda: [0, 0]),
+        "by_arm": defaultdict(lambda: [0, 0]),
     }
     for root, rep_path, f in zip(roots, reports, faults, strict=True):
         rep = json.loads(rep_path.read_text())
@@ -103,6 +109,16 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
             continue
         joints = rep["joints"]
         flagged = [n for n, j in joints.items() if j["status"] in ("offset", "suspect")]
+        if f.slip_joint is None and f.clip_joint is None and f.flip_joint is None:
+            # the sag fit measures the follower's own offset (0 unless the follower's calibration is off)
+            for name, jr in joints.items():
+                sag = jr.get("sag")
+                if sag is None:
+                    continue
+                e_f = f.offset_deg if (f.offset_joint == name and f.offset_arm == "follower") else 0.0
+                c = score["sag_cover"][(name, "offset-free" if e_f == 0.0 else f"{abs(e_f):g}°")]
+                c[1] += 1
+                c[0] += sag["ci99_deg"][0] - 1e-6 <= e_f <= sag["ci99_deg"][1] + 1e-6
         if f.offset_joint is not None:
             t = truth["joints"][f.offset_joint]
             o = t["offset_deg"]
@@ -120,6 +136,9 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
             s["flagged"] += bool(flagged)
             s["ok_wrongly"] += j["status"] == "ok" and abs(o) >= 2.0
             s["others"] += any(n != f.offset_joint for n in flagged)
+            arm_case = score["by_arm"][(abs(o), case, f.offset_arm)]
+            arm_case[0] += j["status"] == "offset"
+            arm_case[1] += 1
             ci = j["ci_deg"]
             s["ci_n"] += ci is not None and j["status"] == "offset"
             s["ci_hit"] += ci is not None and j["status"] == "offset" and ci[0] - 1e-6 <= o <= ci[1] + 1e-6
@@ -163,6 +182,12 @@ def print_score(robot: str, score: dict[str, Any]) -> None:
     print(f"\n-- {robot}: offsets, all joints --")
     for (size, case), (hit, n) in sorted(by_case.items()):
         print(f"{size:7.1f}° {case:11s} named {_rate(hit, n)}")
+    print(f"\n-- {robot}: offsets, by the arm whose calibration is off (the sag sees only the follower's) --")
+    for (size, case, arm), (hit, n) in sorted(score["by_arm"].items()):
+        print(f"{size:7.1f}° {case:11s} {arm:9s} named {_rate(hit, n)}")
+    print(f"\n-- {robot}: sag fit, its 99 % interval holds the follower's true offset --")
+    for (name, what), (hit, n) in sorted(score["sag_cover"].items()):
+        print(f"{name:14s} {what:11s} {_rate(hit, n)}")
     hit, n = score["clean"]
     print(
         f"\nfault-free sessions flagged (false alarms): {_rate(hit, n)}; by joint: {dict(score['clean_joint'])}"
@@ -174,13 +199,68 @@ def print_score(robot: str, score: dict[str, Any]) -> None:
     print(f"datasets refused: {score['errors']}")
 
 
+_SAG_CYCLE = (
+    ("follower", 17.0, "shoulder_lift"),
+    ("follower", 17.0, "elbow_flex"),
+    ("follower", 17.0, "wrist_flex"),
+    ("follower", 5.0, "shoulder_lift"),
+    ("follower", 5.0, "elbow_flex"),
+    ("follower", 5.0, "wrist_flex"),
+    ("leader", 17.0, "shoulder_lift"),
+    ("leader", 17.0, "elbow_flex"),
+    ("leader", 17.0, "wrist_flex"),
+    ("clean", 0.0, ""),
+    ("clean", 0.0, ""),
+)
+
+
+def evaluate_sag(robot: str, n: int, folder: Path) -> None:
+    """Sessions without range-end visits (``p_end`` 0): what the sag fit alone sees (a URDF with masses only)."""
+    seeds = list(range(5000, 5000 + n))
+    cases = [_SAG_CYCLE[i % len(_SAG_CYCLE)] for i in range(n)]
+    rng = np.random.default_rng(77)
+    faults = [
+        TeleopFaults()
+        if arm == "clean"
+        else TeleopFaults(offset_joint=j, offset_deg=size * float(rng.choice([-1.0, 1.0])), offset_arm=arm)
+        for arm, size, j in cases
+    ]
+    t0 = time.perf_counter()
+    roots = generate_teleop_datasets(folder, robot, seeds, faults, p_end=0.0)
+    reports = health_with_datatrove(roots, folder / "reports", use_degrees=True, tasks=2, workers=2)
+    print(f"\n-- {robot}: no range-end visits, {n} sessions ({time.perf_counter() - t0:.0f} s): the sag fit --")
+    tally: dict[tuple[str, float, str], list[int]] = defaultdict(lambda: [0, 0, 0, 0])
+    clean = [0, 0]
+    for rep_path, f, (arm, size, joint) in zip(reports, faults, cases, strict=True):
+        rep = json.loads(rep_path.read_text())
+        if arm == "clean":
+            clean[1] += 1
+            clean[0] += bool(rep["flagged"])
+            continue
+        j = rep["joints"][joint]
+        t = tally[(arm, size, joint)]
+        t[0] += j["status"] == "offset"
+        t[1] += 1
+        t[2] += j["status"] == "ok"
+        t[3] += any(n != joint for n in rep["flagged"])
+        ci = j["ci_deg"]
+        if j["status"] == "offset" and not (ci[0] - 1e-6 <= f.offset_deg <= ci[1] + 1e-6):
+            print(f"   interval misses the truth: {rep['dataset']} {joint} {f.offset_deg:+.1f} in {ci}")
+    for (arm, size, joint), (hit, total, ok, other) in sorted(tally.items()):
+        print(f"{arm:9s} {size:5.1f}° {joint:14s} named {_rate(hit, total):>12s}  ok (wrong) {ok}  other joint {other}")
+    print(f"offset-free sessions flagged: {_rate(*clean)}")
+
+
 def main() -> None:
     n = int(os.environ.get("HEALTH_SEEDS", "200"))
     robots = [r for r in os.environ.get("HEALTH_ROBOTS", "so101,koch").split(",") if r]
+    n_sag = int(os.environ.get("HEALTH_SAG_SEEDS", "88"))
     folder = Path(tempfile.mkdtemp(prefix="robocal-health-"))
     try:
         for robot in robots:
             print_score(robot, evaluate(robot, list(range(n)), folder / robot))
+            if robot == "so101" and n_sag > 0:  # the robot whose URDF has masses
+                evaluate_sag(robot, n_sag, folder / f"{robot}-sag")
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 

@@ -131,22 +131,3 @@ def test_offsets_that_differ_between_episodes_are_a_drift() -> None:
     assert reason == "the offset changes between episodes: -9.00 in episode 2, +0.20 in episode 0"
     episodes[2]["offset"] = -2.5  # within twice the threshold (1.5°): one calibration
     assert drift_reason(episodes, 0.6, HealthConfig(), 1.0) is None
-
-
-def test_sag_pattern_fit_recovers_a_follower_offset_from_synthetic_sag() -> None:
-    """Residual −∂sag/∂q · e over 4 episodes: the joint fit returns e, with an interval that holds it."""
-    from robocal.core.health import sag_offset_fit
-
-    rng = np.random.default_rng(3)
-    n = 4000
-    slope = np.zeros((n, 2, 2))
-    slope[:, 0, 0] = 0.03 * np.cos(np.linspace(0, 20, n))
-    slope[:, 1, 1] = 0.02 * np.sin(np.linspace(0, 13, n))
-    slope[:, 1, 0] = 0.01
-    e = np.array([12.0, -6.0])
-    residual = -np.einsum("nij,j->ni", slope, e) + rng.normal(0, 0.02, (n, 2))
-    fit = sag_offset_fit(residual, slope, np.repeat(np.arange(4), n // 4), np.ones((n, 2), dtype=bool))
-    assert fit is not None
-    est, half = fit
-    assert np.all(np.abs(est - e) <= np.maximum(half, 0.5))
-    assert np.all(half < 3.0)

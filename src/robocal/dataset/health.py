@@ -25,10 +25,15 @@ from ..core.health import (
     HealthConfig,
     JointData,
     JointHealth,
+    SagFit,
     analyse_joint,
     drift_reason,
     episode_verdicts,
+    fit_sag_offsets,
+    fitted_sag,
+    loaded_joints,
     sag_residual_deg,
+    sag_slopes,
 )
 from ..errors import FileFormatError, JointMismatchError, UsageError
 from ._convention import ValueConvention
@@ -98,6 +103,7 @@ class DatasetHealth:
         episodes: Episodes read.
         joints: Per joint: verdict, units, per-episode verdicts, notes.
         pose: ``(N, J)`` the follower's pose in the check's units (the picture's x axis).
+        sag: The sag-pattern fit of the loaded joints (None: no gravity model, or too little data).
     """
 
     root: Path
@@ -105,6 +111,7 @@ class DatasetHealth:
     episodes: int
     joints: tuple[tuple[JointHealth, str, float, list[dict[str, Any]], list[str]], ...]
     pose: FloatArray
+    sag: SagFit | None = None
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -235,13 +242,23 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
     pose_deg = np.array(state / np.where(np.isfinite(upd), upd, 1.0), dtype=np.float64)
     kp = [setup.kp_nm_rad.get(j, math.inf) for j in joints]
     sag_deg = sag_residual_deg(setup.gravity, joints, pose_deg, kp) if setup.gravity is not None else None
+    fit = None
+    if setup.gravity is not None and sag_deg is not None:
+        lead_deg = np.array(action / np.where(np.isfinite(upd), upd, 1.0), dtype=np.float64)
+        fit = _sag_fit(setup.gravity, joints, pose_deg, lead_deg, sag_deg, fr.episode, kp, stops)
     out = []
     for k, j in enumerate(joints):
         u = upd[k] if math.isfinite(upd[k]) else 1.0
         lo, hi = _stop_readings(stops[k], units[k], u)
-        sag = np.zeros(len(action)) if sag_deg is None else sag_deg[:, k] * u
+        if sag_deg is not None:
+            sag = sag_deg[:, k] * u
+        elif stops[k] is not None:  # no URDF masses: the sag's shape fitted from the data (narrows the band)
+            c = cfg or HealthConfig()
+            sag = fitted_sag(action[:, k], state[:, k], fr.episode, pose_deg[:, k], c.slow_deg * u, 3.0 * u)
+        else:
+            sag = np.zeros(len(action))
         data = JointData(j, action[:, k], state[:, k], fr.episode, sag, lo, hi, u)
-        h = analyse_joint(data, cfg)
+        h = _with_sag(analyse_joint(data, cfg), fit, k, u, cfg or HealthConfig())
         episodes = episode_verdicts(data, h.band, cfg)
         drift = drift_reason(episodes, h.band, cfg or HealthConfig(), u)
         extra = [*notes[k], *([drift] if drift else [])]
@@ -249,11 +266,78 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
             status = h.status if h.status == "offset" else "suspect"
             h = replace(h, status=status, reasons=(*h.reasons, *extra))
         out.append((h, units[k], u if math.isfinite(upd[k]) else math.nan, episodes, extra))
-    return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state)
+    return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state, fit)
+
+
+def _sag_fit(
+    gravity: GravityModel,
+    joints: tuple[str, ...],
+    pose_deg: FloatArray,
+    lead_deg: FloatArray,
+    sag_deg: FloatArray,
+    episode: IntArray,
+    kp: list[float],
+    stops: list[tuple[float, float] | None],
+) -> SagFit | None:
+    """The follower's offsets from its sag pattern (:mod:`robocal.core.health.sag`), loaded joints with stops."""
+    cand = [k for k, j in enumerate(joints) if stops[k] is not None and j in gravity.joint_names]
+    if not cand:
+        return None
+    slope = sag_slopes(gravity, joints, pose_deg, kp, cand)
+    rms = np.sqrt(np.mean(slope**2, axis=0)).sum(axis=0)  # per offset: its effect summed over the joints
+    keep = loaded_joints(rms)
+    if not keep:
+        return None
+    cols = [cand[g] for g in keep]
+    slope = slope[:, keep][:, :, keep]
+    a_prev = np.full((len(episode), len(cols)), np.nan)
+    a_prev[1:] = lead_deg[:-1, cols]
+    a_prev[1:][episode[1:] != episode[:-1]] = np.nan
+    residual = a_prev - pose_deg[:, cols] - sag_deg[:, cols]
+    return fit_sag_offsets(
+        residual, slope, sag_deg[:, cols], lead_deg[:, cols], pose_deg[:, cols], episode, tuple(cols)
+    )
+
+
+def _with_sag(h: JointHealth, fit: SagFit | None, col: int, upd: float, cfg: HealthConfig) -> JointHealth:
+    """An ``unobservable`` joint whose sag pattern puts the follower's offset past the threshold → ``offset``.
+
+    The 99 % interval (Student t over the episodes) must lie beyond ``±threshold_deg``. The sag measures the
+    follower's calibration against the gravity model's zero, not against the leader's: the reported offset
+    assumes the leader's calibration is right (a leader's own offset leaves no trace in the sag).
+    """
+    if fit is None or col not in fit.joints or h.status != "unobservable":
+        return h
+    g = fit.joints.index(col)
+    lo, hi = fit.interval(g, 0.99)
+    if not (lo >= cfg.threshold_deg or hi <= -cfg.threshold_deg):
+        return h
+    est = float(fit.estimate[g])
+    why = (
+        f"the follower's gravity sag follows another angle: its calibration is {est:+.1f}° "
+        f"[{lo:+.1f}, {hi:+.1f}] (99 %) from the gravity model's zero (no range-end contact; the leader's "
+        "calibration assumed right)"
+    )
+    return replace(h, status="offset", offset=est * upd, ci=(lo * upd, hi * upd), reasons=(why,))
 
 
 def _num(x: float | None, scale: float = 1.0) -> float | None:
     return None if x is None or not math.isfinite(x) else round(x / scale, 4)
+
+
+def _sag_json(fit: SagFit | None, col: int) -> dict[str, Any] | None:
+    """The sag-pattern fit of one joint: the follower's offset against the gravity model's zero, degrees."""
+    if fit is None or col not in fit.joints:
+        return None
+    g = fit.joints.index(col)
+    lo, hi = fit.interval(g, 0.99)
+    return {
+        "offset_deg": round(float(fit.estimate[g]), 3),
+        "ci99_deg": [round(lo, 3), round(hi, 3)],
+        "se_deg": round(float(fit.se[g]), 3),
+        "episodes": fit.episodes,
+        "frames": fit.frames,
+    }
 
 
 def health_json(result: DatasetHealth) -> dict[str, Any]:
@@ -264,7 +348,8 @@ def health_json(result: DatasetHealth) -> dict[str, Any]:
     leader's: what the follower reads minus what the leader reads at the same physical angle.
     """
     joints: dict[str, Any] = {}
-    for h, units, _upd, eps, _ in result.joints:
+    fit = result.sag
+    for k, (h, units, _upd, eps, _) in enumerate(result.joints):
         deg = units == "degrees"
         scale = 1.0
 
@@ -309,6 +394,7 @@ def health_json(result: DatasetHealth) -> dict[str, Any]:
             "jumps": [
                 {"episode": jp.episode, "frame": jp.frame, "size": round(jp.size, 4)} for jp in h.jumps
             ],
+            "sag": _sag_json(fit, k),
         }
     return {
         "dataset": str(result.root),

@@ -1,13 +1,13 @@
 """Calibration health, pure numpy (issue 30).
 
-The leader/follower model (``model``) and the dataset check (``offsets``); the live monitor (``monitor``) sits
+The leader/follower model (``model``), the dataset check (``offsets``) and the sag-pattern fit (``sag``); the live monitor (``monitor``) sits
 beside them. Importable with numpy alone (a control loop imports it); the monitor's public path is
 :mod:`robocal.health`.
 """
 
 from __future__ import annotations
 
-from .model import feetech_kp_nm_rad, model_band, sag_offset_fit, sag_residual_deg
+from .model import feetech_kp_nm_rad, fitted_sag, model_band, sag_residual_deg, sag_slopes
 from .monitor import Monitor
 from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
 from .offsets import (
@@ -20,6 +20,7 @@ from .offsets import (
     drift_reason,
     episode_verdicts,
 )
+from .sag import SagFit, SagFrames, fit_sag_offsets, loaded_joints, t_quantile
 
 __all__ = [
     "FLAG_KINDS",
@@ -31,12 +32,18 @@ __all__ = [
     "JumpEvent",
     "Monitor",
     "MonitorConfig",
+    "SagFit",
+    "SagFrames",
     "analyse_joint",
     "drift_reason",
     "episode_verdicts",
     "feetech_kp_nm_rad",
+    "fit_sag_offsets",
+    "fitted_sag",
+    "loaded_joints",
     "model_band",
     "monitor_config",
-    "sag_offset_fit",
     "sag_residual_deg",
+    "sag_slopes",
+    "t_quantile",
 ]

@@ -12,7 +12,8 @@ is then not zero even for a perfect calibration:
   with a time constant of a few frames, so the residual grows with speed (the check uses slow frames).
 
 :func:`sag_residual_deg` evaluates the sag term from a :class:`~robocal.core.gravity.GravityModel` (a URDF's masses)
-for every frame; the dead band and the remaining noise set the model band (:func:`model_band`).
+for every frame; the dead band and the remaining noise set the model band (:func:`model_band`). How the sag varies
+with an offset (:func:`sag_slopes`) is what :mod:`.sag` fits.
 """
 
 from __future__ import annotations
@@ -22,10 +23,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..arrays import BoolArray, FloatArray, IntArray
+from ..arrays import FloatArray, IntArray
 from ..gravity import GravityModel, gravity_torques
 
-__all__ = ["feetech_kp_nm_rad", "model_band", "sag_offset_fit", "sag_residual_deg"]
+__all__ = ["feetech_kp_nm_rad", "fitted_sag", "model_band", "sag_residual_deg", "sag_slopes"]
 
 
 def feetech_kp_nm_rad(p_coefficient: int, stall_torque_nm: float, ticks_per_turn: int = 4096) -> float:
@@ -75,51 +76,67 @@ def model_band(residual: FloatArray, floor: float) -> float:
     return max(floor, 4.0 * 1.4826 * mad)
 
 
-def sag_offset_fit(
-    residual: FloatArray, slope: FloatArray, episode: IntArray, mask: BoolArray
-) -> tuple[FloatArray, FloatArray] | None:
-    """The follower's own offsets against the gravity model's zero, from how its sag varies with pose (weak).
+def sag_slopes(
+    model: GravityModel,
+    joints: Sequence[str],
+    state_deg: FloatArray,
+    kp_nm_rad: Sequence[float],
+    cols: Sequence[int],
+    step_deg: float = 0.5,
+) -> FloatArray:
+    """``(N, G, G)`` ``∂ sag_j / ∂ s_k`` (degrees per degree) among the dataset columns ``cols``, central differences."""
+    out = np.zeros((state_deg.shape[0], len(cols), len(cols)))
+    for g, k in enumerate(cols):
+        d = np.zeros(state_deg.shape[1])
+        d[k] = step_deg
+        up = sag_residual_deg(model, joints, state_deg + d, kp_nm_rad)
+        down = sag_residual_deg(model, joints, state_deg - d, kp_nm_rad)
+        out[:, :, g] = ((up - down) / (2 * step_deg))[:, list(cols)]
+    return out
 
-    Sag follows the follower's *true* angles ``s − e_F``; the model evaluates it at the readings ``s``, so the
-    residual of joint ``j`` left after the model is ``Σ_k −∂sag_j/∂s_k · e_F,k``: every loaded joint's offset
-    moves every joint's sag (the shoulder's angle changes the elbow's load). A joint least-squares fit over the
-    slow frames of all the joints, with a jackknife interval over episodes (frames of one episode are not
-    independent).
+
+def fitted_sag(
+    action: FloatArray, state: FloatArray, episode: IntArray, pose_deg: FloatArray, slow: float, edge: float
+) -> FloatArray:
+    """A joint's sag fitted from the data when no URDF masses give it: ``c0 + c1·sin q + c2·cos q`` of its own angle.
+
+    A servo arm without masses in its URDF (LeRobot's Koch) still sags ``τ_g/kp``, and with the Koch's soft
+    factory gains that is several degrees, varying with the pose. The shape ``A·sin(q + φ)`` of one link's
+    gravity is fitted by least squares to ``action(t−1) − state(t)`` on slow frames (``|Δa|`` under ``slow`` twice
+    running) away from the joint's extremes (``edge``: a stop holds the follower there), refitted without the
+    frames past 4 robust sigmas. The phase is free, so the fit also absorbs what an offset does to the sag: it
+    narrows the model band, it measures no offset.
 
     Args:
-        residual: ``(N, G)`` residual after the sag model of the G loaded joints (NaN where not used), degrees.
-        slope: ``(N, G, G)`` ``∂ sag_j / ∂ angle_k`` (degrees per degree).
+        action: ``(N,)`` leader values.
+        state: ``(N,)`` follower values (same units).
         episode: ``(N,)`` episode index.
-        mask: ``(N, G)`` frames to use per joint.
+        pose_deg: ``(N,)`` the follower's angle in degrees (the sine's argument).
+        slow: Slow-frame limit per frame, the values' units.
+        edge: Margin from the extremes, the values' units.
 
     Returns:
-        ``(estimates (G,), half-widths (G,) of ~95 % intervals)`` in degrees, or None (fewer than 3 episodes, or a
-        singular fit).
+        ``(N,)`` the fitted sag (``action − state`` at rest), or zeros when fewer than 30 frames qualify.
     """
-    use = np.asarray(mask, dtype=bool) & np.isfinite(residual)
-    eps = np.unique(episode[use.any(axis=1)])
-    if eps.size < 3:
-        return None
-
-    def fit(rows: np.ndarray) -> FloatArray | None:
-        sel = use & rows[:, None]
-        a = -slope[sel]  # (M, G): frames × joints selected, each a row of the Jacobian
-        b = residual[sel]
-        if a.shape[0] < 10 * a.shape[1]:
-            return None
-        ata = a.T @ a
-        if np.linalg.cond(ata) > 1e8:
-            return None
-        out: FloatArray = np.linalg.solve(ata, a.T @ b)
-        return out
-
-    est = fit(np.ones(len(episode), dtype=bool))
-    if est is None:
-        return None
-    jack = [v for v in (fit(episode != e) for e in eps) if v is not None]
-    if len(jack) < 2:
-        return None
-    vals = np.stack(jack)
-    n = len(jack)
-    se = np.sqrt((n - 1) / n * np.sum((vals - vals.mean(axis=0)) ** 2, axis=0))
-    return est, 2.0 * se
+    n = state.size
+    prev = np.full(n, np.nan)
+    prev[1:] = action[:-1]
+    prev[1:][episode[1:] != episode[:-1]] = np.nan
+    da = np.full(n, np.inf)
+    da[1:] = np.abs(np.diff(action))
+    da[1:][episode[1:] != episode[:-1]] = np.inf
+    ok = (da < slow) & (np.roll(da, 1) < slow) & np.isfinite(prev)
+    ok &= (state > np.min(state) + edge) & (state < np.max(state) - edge)
+    q = np.radians(pose_deg)
+    x = np.stack([np.ones(n), np.sin(q), np.cos(q)], axis=1)
+    y = prev - state
+    if int(ok.sum()) < 30:
+        return np.zeros(n)
+    coef, *_ = np.linalg.lstsq(x[ok], y[ok], rcond=None)
+    err = y[ok] - x[ok] @ coef
+    sigma = 1.4826 * float(np.median(np.abs(err - np.median(err)))) + 1e-9
+    keep = np.flatnonzero(ok)[np.abs(err) < 4 * sigma]
+    if keep.size >= 30:
+        coef, *_ = np.linalg.lstsq(x[keep], y[keep], rcond=None)
+    out: FloatArray = x @ coef
+    return out

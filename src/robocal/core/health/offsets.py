@@ -256,6 +256,9 @@ def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndar
         # short, or a leader whose own offset moves its reading)
         at_stop = held and abs(a_ext - sgn * stop) <= 1.5 * upd
         slack = 0.0 if at_stop else max(0.0, sgn * stop - a_ext) + cfg.window_deg / 3 * upd
+        # a follower pressed well into its stop does not sag (the stop holds it): the offset is then F − A itself,
+        # so the interval reaches from the sag-corrected value to the uncorrected one
+        slack += sag_away
         lo, hi = (o - u - slack, o + u) if sgn > 0 else (o - u, o + u + slack)
         return EndEvidence(name, "pinned", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps)
     gap = max(0.0, sgn * stop - f_ext)

@@ -259,7 +259,7 @@ def evaluate_health(request: HealthRequest) -> tuple[DatasetHealth, dict[str, An
         "urdf": urdf if setup.gravity is not None else None,
         "sag": "gravity torque of the URDF's masses over the follower's position gain"
         if setup.gravity is not None
-        else "none (no URDF masses): the band absorbs the sag",
+        else "no URDF masses: per joint with stops, c0 + c1·sin q + c2·cos q fitted to the slow frames",
         "kp_nm_rad": {j: (round(v, 4) if math.isfinite(v) else None) for j, v in setup.kp_nm_rad.items()},
         "calibration_files": setup.leader is not None,
     }
