@@ -5,6 +5,7 @@ openarm`` in another process: tests/sim/test_sim_openarm_hand_sweep.py)."""
 
 from __future__ import annotations
 
+import json
 import math
 from importlib import resources
 from pathlib import Path
@@ -118,3 +119,26 @@ def test_hand_sweep_from_a_recording_in_lerobots_motor_names(tmp_path: Path) -> 
             assert abs(math.degrees(got - arm.zero_error_rad(j.name))) < 0.05, name
     finally:
         arm.stop()
+
+
+@pytest.mark.slow
+def test_in_process_simulated_arm_hand_sweep(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # sim:openarm: the arm's motors hold the joints' zeros (zeroed=1), its simulated hands sweep every joint
+    out, rep = tmp_path / "c.yaml", tmp_path / "r.json"
+    code = main(["sweep", "--robot", "openarm_follower_right", "--urdf", str(URDF), "--source",
+                 "sim:openarm?seed=5&zeroed=1", "--out", str(out), "--format", "lite-yaml", "--report", str(rep)])
+    err = capsys.readouterr().err
+    assert code == 1, err  # J1 and J2 cross the power-on wrap point: wrap_in_travel
+    warnings = {n: j["warnings"] for n, j in json.loads(rep.read_text())["joints"].items() if j["warnings"]}
+    assert warnings == {RIGHT[0]: ["wrap_in_travel"], RIGHT[1]: ["wrap_in_travel"]}
+    cal = read_calibration(out)
+    for name in RIGHT:  # the true offsets are 0: what is left is the midpoint rule's error on the simulated stops
+        assert abs(math.degrees(cal.calibration.joint_map(name).homing_offset)) < 0.3, name
+
+
+def test_in_process_simulated_arm_options_are_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["sweep", "--robot", "openarm_follower_right", "--urdf", str(URDF), "--source",
+                 "sim:openarm?zeroed=2", "--out", str(tmp_path / "c.yaml")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("error:") == 1 and "zeroed must be 0 or 1, got '2'" in err
+    assert not (tmp_path / "c.yaml").exists()

@@ -126,3 +126,33 @@ def test_convert_keeps_the_measured_ranges_both_ways(tmp_path: Path, capsys: pyt
     assert main(["check", "--calibration", str(ros), *u]) == 0
     out = capsys.readouterr().out
     assert "8/8 joints matched (openarm-ros2)" in out and "robot profile: openarm_follower_right" in out
+
+
+@pytest.mark.slow
+def test_one_session_writes_the_ros_file_with_the_measured_ranges(tmp_path: Path) -> None:
+    from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
+    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+
+    out = tmp_path / "joint_limits.yaml"
+    holder: list[SimAutoOpenArm] = []
+    try:
+        outcome = run_sweep_auto(
+            SweepAutoRequest(URDF, "sim:openarm?seed=4", out, robot="openarm_follower_right", fmt="openarm-ros2",
+                             joints=(RIGHT[4], RIGHT[7]), write_zero=True),
+            open_drivers_fn=sim_openarm_opener(holder),
+        )
+        arm = holder[0].arm
+        truth = {n: (j.stop_lower_rad, j.stop_upper_rad) for n, j in zip(RIGHT, arm.joints, strict=True)}
+        assert all(abs(math.degrees(arm.zero_error_rad(m))) < 0.1 for m in ("joint_5", "gripper"))
+    finally:
+        for sim in holder:
+            sim.close()
+    assert outcome.out == out and outcome.exit_code == 0
+    limits = YAML(typ="safe").load(out.read_text())["joint_limits"]
+    assert list(limits) == ["openarm_right_joint5", "openarm_right_finger_joint1"]
+    j5 = limits["openarm_right_joint5"]  # the measured range, within 0.5° of the simulated stops
+    assert math.degrees(abs(j5["min_position"] - truth[RIGHT[4]][0])) < 0.5
+    assert math.degrees(abs(j5["max_position"] - truth[RIGHT[4]][1])) < 0.5
+    finger = limits["openarm_right_finger_joint1"]
+    assert abs(gripper_rad(finger["max_position"]) - truth[RIGHT[7]][0]) < math.radians(0.5)
+    assert abs(gripper_rad(finger["min_position"]) - truth[RIGHT[7]][1]) < math.radians(0.5)

@@ -4,6 +4,8 @@ Source strings (``--source``):
 
 * ``sim:lite`` or ``sim:lite?seed=N&noise=R&skip=a,b&short=joint:R&flip=a&zero_sta=1&single_turn=1`` — the
   simulated Lite bimanual robot with its simulated operator (see :mod:`robocal.backends.sim.lite`).
+* ``sim:openarm[?seed=N&zeroed=1]`` — one simulated OpenArm arm (the joints' side) whose simulated hands sweep
+  every joint into both stops, read through the Damiao bus (:mod:`.damiao`).
 * ``can:<interface>:<channel>[,<channel>…]`` — live Robstride motors, e.g. ``can:socketcan:can0,can1``; each
   joint is found on the channel where its CAN id answers.
 * ``replay:<file>`` — a CSV (``t,<joint>,…``) or a rosbag2 folder/file (sqlite3 or mcap) of
@@ -73,6 +75,10 @@ def open_source(
     if isinstance(spec, str):
         spec = parse_source(spec)
     check_replay_frame(frame)
+    if spec.kind == "sim" and spec.robot == "openarm":
+        from .damiao import open_sim_openarm_source
+
+        return open_sim_openarm_source(spec, joints)
     if spec.kind == "sim":
         return open_sim_lite_source(spec, joints)
     if spec.kind == "can":

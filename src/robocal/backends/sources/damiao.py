@@ -20,10 +20,12 @@ from ...errors import CalibTimeoutError, UsageError
 from .. import load_backend
 from .spec import JointSpec, Sample, SourceSpec, can_bus_options
 
-__all__ = ["SILENT_LIMIT_S", "DamiaoSource"]
+__all__ = ["SILENT_LIMIT_S", "DamiaoSource", "SimOpenArmHandSource", "open_sim_openarm_source"]
 
 SILENT_LIMIT_S = 2.0
 """A bus with no complete refresh answered for this long, s, ends the sweep (a cable or power lost)."""
+SIM_READ_PERIOD_S = 0.005
+"""The in-process simulated arm is read every 5 ms (a real bus's own pace; the simulator shares the process)."""
 
 
 class DamiaoSource:
@@ -143,3 +145,83 @@ class DamiaoSource:
         for bus in self.buses:
             bus.close()
         self.buses = []
+
+
+class SimOpenArmHandSource(DamiaoSource):
+    """The simulated OpenArm (in real time, on python-can's ``virtual`` bus) with simulated hands, read as a live arm.
+
+    :meth:`begin_sweep` has the hands sweep every joint into both stops, paced by the reads (each placement is
+    read before the hand moves on); the source is exhausted a few samples after the hands are done.
+    """
+
+    def __init__(self, joints: Sequence[JointSpec], buses: Sequence[Any], arm: Any, operator: Any) -> None:
+        super().__init__(joints, buses)
+        self.arm = arm
+        self.operator = operator
+        self._begun = False
+        self._idle = 0
+
+    @property
+    def exhausted(self) -> bool:
+        """True a few samples after the hands finished the sweep."""
+        return self._begun and self._idle > 3
+
+    def read(self) -> Sample:
+        """Read every motor, at most every :data:`SIM_READ_PERIOD_S`; count the samples since the hands stopped.
+
+        The simulator's pacer and hands run in this process: a read loop that never lets go starves them.
+        """
+        time.sleep(SIM_READ_PERIOD_S)
+        sample = super().read()
+        if self._begun and not self.operator.busy():
+            self._idle += 1
+        return sample
+
+    def begin_sweep(self) -> None:
+        """The hands sweep every joint (paced)."""
+        self.operator.sweep(None, seconds=3.0, dwell_s=0.3, paced=True)
+        self._begun = True
+
+    def close(self) -> None:
+        """Close the bus, stop the hands and the simulated arm."""
+        super().close()
+        self.operator.close()
+        self.arm.stop()
+
+
+def open_sim_openarm_source(spec: SourceSpec, joints: Sequence[JointSpec]) -> SimOpenArmHandSource:
+    """Start the simulated OpenArm arm of the joints' side (``sim:openarm?seed=N&zeroed=1``) with its hands.
+
+    The joints are matched to the simulated motors by their CAN id (ESC_ID, the URDF's ``can_id``).
+
+    Raises:
+        UsageError: Joints of no single OpenArm side, or a CAN id the arm does not have.
+    """
+    from ..damiao.bus import DamiaoMotor
+    from ..damiao.openarm import SimOpenArm
+    from ..damiao.openarm_hands import OpenArmHands
+    from ..sim.operator import HandOperator
+
+    sides = {s for s in ("right", "left") if all(j.name.startswith(f"openarm_{s}_") for j in joints)}
+    if len(sides) != 1:
+        raise UsageError(f"--source {spec.text!r}: the joints are not one OpenArm arm's (openarm_right_… / openarm_left_…)")
+    (side,) = sides
+    arm = SimOpenArm(
+        f"robocal-hand-openarm-{id(joints)}-{time.monotonic_ns()}",
+        side=side,  # type: ignore[arg-type]
+        seed=int(spec.options.get("seed", "0")),
+        zeroed=spec.options.get("zeroed") == "1",
+        realtime=True,
+    ).start()
+    try:
+        by_id = {j.esc_id: j for j in arm.joints}
+        unknown = [f"{j.name} (can_id {j.can_id})" for j in joints if j.can_id not in by_id]
+        if unknown:
+            raise UsageError(f"--source {spec.text!r}: the simulated OpenArm has no motor for {', '.join(unknown)}")
+        motors = [DamiaoMotor(j.name, j.can_id, by_id[j.can_id].mst_id, by_id[j.can_id].model) for j in joints]
+        bus = load_backend("damiao")(arm.channel, motors, interface="virtual", timeout_s=1.0)
+    except BaseException:
+        arm.stop()
+        raise
+    bus.disable()
+    return SimOpenArmHandSource(joints, [bus], arm, HandOperator(OpenArmHands([arm])))

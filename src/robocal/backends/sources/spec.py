@@ -103,6 +103,8 @@ class SourceSpec:
 
 
 SIM_OPTIONS = ("seed", "noise", "skip", "short", "flip", "zero_sta", "single_turn")
+OPENARM_SIM_OPTIONS = ("seed", "zeroed")
+"""Options of ``sim:openarm`` for the hand sweep (``sweep --auto`` has its own: autocal/damiao.py)."""
 CAN_OPTIONS = ("host", "port")
 """Options of a ``can:socketcand:…?host=H&port=P`` source (the socketcand server; default 127.0.0.1:29536)."""
 SOCKETCAND_DEFAULT_PORT = 29536
@@ -178,8 +180,13 @@ def parse_source(text: str) -> SourceSpec:
         raise UsageError(f"--source {text!r}: {forms}")
     if kind == "sim":
         robot, _, query = rest.partition("?")
+        if robot == "openarm":  # the hand sweep of the simulated OpenArm (sources/damiao.py)
+            opts = parse_sim_options(text, query, OPENARM_SIM_OPTIONS)
+            if opts.get("zeroed", "0") not in ("0", "1"):
+                raise UsageError(f"--source {text!r}: zeroed must be 0 or 1, got {opts['zeroed']!r}")
+            return SourceSpec("sim", robot=robot, options=opts, text=text)
         if robot != "lite":
-            raise UsageError(f"--source {text!r}: unknown simulated robot {robot!r}; expected sim:lite")
+            raise UsageError(f"--source {text!r}: unknown simulated robot {robot!r}; expected sim:lite or sim:openarm")
         opts = parse_sim_options(text, query, SIM_OPTIONS, joined=("skip", "short", "flip"))
         for key in ("zero_sta", "single_turn"):
             if key in opts and opts[key] not in ("0", "1"):
