@@ -102,3 +102,35 @@ def test_the_record_keeps_the_first_value_per_motor_and_goes_when_the_last_is_ba
     assert kept is not None and kept.registers == {"j2": {"TIMEOUT": 5000}}
     record.changed("j2", None)
     assert find_left_changed(record.store.port) is None and not record.store.exists()
+
+
+def test_a_timeout_write_whose_echo_is_lost_is_still_put_back_to_the_value_before(
+    arm: SimOpenArm, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The TIMEOUT write reaches the motor but its echo is lost: the driver must not read the armed value back as
+    "the value before" (it put 0.5 s back and left the motor armed, seen in the fault soak)."""
+    import math
+
+    from robocal.backends.damiao.bus import DamiaoBus
+    from robocal.backends.damiao.joint_driver import DamiaoJointDriver
+    from robocal.errors import CalibTimeoutError
+
+    grip = arm.motors["gripper"]
+    with DamiaoBus(arm.channel, arm.motor_specs(), interface="virtual", allow_motion=True, timeout_s=1.0) as bus:
+        real = bus.write_register
+        lost: list[int] = []
+
+        def echo_lost_once(motor: str, rid: int, value: float) -> float:
+            out = real(motor, rid, value)  # the motor took it
+            if not lost:
+                lost.append(rid)
+                raise CalibTimeoutError("no reply within 1 s (the echo was lost)")
+            return out
+
+        monkeypatch.setattr(bus, "write_register", echo_lost_once)
+        d = DamiaoJointDriver(bus, "gripper", 1, 0.75, math.radians(3), arm.clock)
+        assert not d.read().ok and lost == [Register.TIMEOUT]  # the enable did not happen
+        assert grip.ram[Register.TIMEOUT] == 10000 and not grip.enabled  # yet the motor is armed
+        assert d.read().ok and grip.enabled
+        d.limp()
+        assert grip.ram[Register.TIMEOUT] == 0 and not grip.enabled  # the value before robocal, not 0.5 s

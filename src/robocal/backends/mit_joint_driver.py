@@ -103,6 +103,7 @@ class MitJointDriver:
         self._last = MitTarget(0.0, 0.0, 0.0, self.kd, 0.0)
         self._q = math.nan
         self._saved_watchdog_s: float | None = None
+        self._armed = False  # the armed watchdog time is confirmed written
         self.last_tx_s = -math.inf
         """When this driver last sent its motor a frame (clock seconds)."""
         self.last_keepalive_s = -math.inf
@@ -136,8 +137,12 @@ class MitJointDriver:
         """``reread``: clear a latched fault (the motor is enabled again after it); True when the reply was lost."""
         raise NotImplementedError
 
-    def _arm_register(self) -> float | None:
-        """Arm the motor's watchdog at :attr:`watchdog_s`; the value before, s (None: the bus has none)."""
+    def _read_watchdog(self) -> float | None:
+        """The motor's watchdog time now, s (None: the bus has no watchdog)."""
+        raise NotImplementedError
+
+    def _write_watchdog(self, timeout_s: float) -> None:
+        """Write the motor's watchdog time (RAM), s."""
         raise NotImplementedError
 
     def _torque_off(self) -> None:
@@ -259,8 +264,16 @@ class MitJointDriver:
         The motor joins the run's keep-alive (on the wall clock the independent thread starts with the first, where
         the vendor has it).
         """
-        if self._saved_watchdog_s is None:
-            self._saved_watchdog_s = self._arm_register()
+        if not self._armed:
+            if self._saved_watchdog_s is None:  # the value before robocal armed it, kept until it is put back
+                self._saved_watchdog_s = self._read_watchdog()
+                if self._saved_watchdog_s is not None and self.on_watchdog is not None:
+                    self.on_watchdog(self.name, self._saved_watchdog_s)  # before the write: a kill after it
+            if self._saved_watchdog_s is not None:
+                # a write whose echo is lost may have armed it all the same: the value kept above stays the one
+                # put back, and the write is repeated before the next motion until one is confirmed
+                self._write_watchdog(self.watchdog_s)
+                self._armed = True
         wait = self.reply_wait_s()
         self._peers().add(
             self,
@@ -274,8 +287,9 @@ class MitJointDriver:
         if run is not None and run.remove(self):
             forget(self.clock)
         if self._saved_watchdog_s is not None:
+            self._armed = False  # whatever this write does, arm again before the next motion
             with suppress(Exception):
-                self.bus.disarm_watchdog(self.name, self._saved_watchdog_s)
+                self._write_watchdog(self._saved_watchdog_s)
                 self._saved_watchdog_s = None
                 if self.on_watchdog is not None:
                     self.on_watchdog(self.name, None)

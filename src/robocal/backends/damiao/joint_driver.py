@@ -123,12 +123,11 @@ class DamiaoJointDriver(MitJointDriver):
     def _push_torque_nm(self, limit_nm: float) -> float:
         return min(limit_nm, self.cap_nm)
 
-    def _arm_register(self) -> float:
-        before_s = float(self.bus.read_register(self.name, Register.TIMEOUT)) * TIMEOUT_UNIT_S
-        if self.on_watchdog is not None:
-            self.on_watchdog(self.name, before_s)  # recorded before the write: a kill after it leaves the record
-        self.bus.write_register(self.name, Register.TIMEOUT, self.bus.watchdog_units(self.watchdog_s))
-        return before_s
+    def _read_watchdog(self) -> float:
+        return float(self.bus.read_register(self.name, Register.TIMEOUT)) * TIMEOUT_UNIT_S
+
+    def _write_watchdog(self, timeout_s: float) -> None:
+        self.bus.write_register(self.name, Register.TIMEOUT, self.bus.watchdog_units(timeout_s))
 
     def _torque_off(self) -> None:
         with suppress(Exception):

@@ -16,6 +16,8 @@ from ...core.stop_search import StopSample
 from ...errors import CalibTimeoutError, DeviceError
 from ..mit_joint_driver import MitJointDriver, MitTarget
 from ..mit_keepalive import KEEPALIVE_S
+from .bus import CAN_TIMEOUT_UNITS_PER_S
+from .protocol import Param
 
 LIMIT_TORQUE = 0x700B
 """Robstride ``limit_torque`` parameter (f32, N·m; RAM until a type-22 save, which robocal never sends)."""
@@ -117,9 +119,13 @@ class RobstrideJointDriver(MitJointDriver):
             self.bus.stop(self.name, clear_faults=True)
         return False
 
-    def _arm_register(self) -> float | None:
-        arm = getattr(self.bus, "arm_watchdog", None)
-        return None if arm is None else float(arm(self.name, self.watchdog_s))
+    def _read_watchdog(self) -> float | None:
+        if getattr(self.bus, "arm_watchdog", None) is None:
+            return None  # a bus without canTimeout
+        return float(self.bus.read_param(self.name, Param.CAN_TIMEOUT)) / CAN_TIMEOUT_UNITS_PER_S
+
+    def _write_watchdog(self, timeout_s: float) -> None:
+        self.bus.disarm_watchdog(self.name, timeout_s)  # writes canTimeout (the bus's arm_watchdog reads it first)
 
     def _torque_off(self) -> None:
         with suppress(Exception):
