@@ -130,7 +130,7 @@ def run_view(
         views = operator.state()
         return Group(
             Text(header),
-            _table(title, views, selected, unit, operator.busy()),
+            _table(title, views, selected, unit, operator.busy),
             Text(f"step {_fmt(step, unit) if unit == 'ticks' else f'{step:.3f}'} {unit}   {message}"),
             Text(KEYS, style="dim"),
         )

@@ -108,6 +108,7 @@ class OpenArmHands:
         with arm.bus.lock:
             plant = arm.plants[joint]
             low, high = plant.params.stop_lower_rad, plant.params.stop_upper_rad
+            wanted = position
             if low is not None:
                 position = max(position, low)
             if high is not None:
@@ -115,7 +116,10 @@ class OpenArmHands:
             before = plant.link_rad
             t0, _ = self._last.get(name, (now, before))
             dt = now - t0
-            velocity = (position - before) / dt if 0 < dt < 0.5 else 0.0
+            # a hand pressing a joint into its stop holds it there, still: a speed would carry the link into the
+            # soft stop's spring (past the stop by an amount that depends on how late the simulator's next step is)
+            at_stop = position != wanted
+            velocity = (position - before) / dt if 0 < dt < 0.5 and not at_stop else 0.0
             arm.motors[joint].set_position(position, velocity)
         self._last[name] = (now, position)
 

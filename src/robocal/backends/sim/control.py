@@ -184,7 +184,7 @@ class ControlServer:
         return {
             "device": self.device,
             "unit": self.operator.device.unit,
-            "busy": self.operator.busy(),
+            "busy": self.operator.busy,
             "joints": [v.as_dict() for v in self.operator.state()],
         }
 

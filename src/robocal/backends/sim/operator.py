@@ -293,8 +293,9 @@ class HandOperator:
         with self._cv:
             self._plans.clear()
 
+    @property
     def busy(self) -> bool:
-        """Whether a motion is running."""
+        """Whether a motion is running (a property, like the simulated Lite operator's)."""
         with self._cv:
             return bool(self._plans)
 

@@ -173,7 +173,7 @@ class SimOpenArmHandSource(DamiaoSource):
         """
         time.sleep(SIM_READ_PERIOD_S)
         sample = super().read()
-        if self._begun and not self.operator.busy():
+        if self._begun and not self.operator.busy:
             self._idle += 1
         return sample
 
