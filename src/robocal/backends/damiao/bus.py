@@ -25,7 +25,7 @@ import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
@@ -51,7 +51,10 @@ from .protocol import (
 )
 from .tables import ID_MAX, OP_READ, OP_WRITE, RANGE_REGISTERS, MotorLimits, Register, model_limits
 
-__all__ = ["DEFAULT_TIMEOUT_S", "LIMP", "DamiaoBus", "DamiaoMotor"]
+if TYPE_CHECKING:
+    from ...core.profile import RobotProfile
+
+__all__ = ["DEFAULT_TIMEOUT_S", "LIMP", "DamiaoBus", "DamiaoMotor", "motors_by_bus"]
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +79,23 @@ class DamiaoMotor:
     esc_id: int
     mst_id: int
     model: str
+
+
+def motors_by_bus(profile: RobotProfile, names: Iterable[str]) -> dict[str | None, list[DamiaoMotor]]:
+    """Per profile bus (in the profile's order), the :class:`DamiaoMotor` of each joint in ``names``.
+
+    Raises:
+        UsageError: A named joint without the id, reply id or model a Damiao bus needs.
+    """
+    wanted = set(names)
+    out: dict[str | None, list[DamiaoMotor]] = {}
+    for j in profile.joints:
+        if j.name not in wanted:
+            continue
+        if j.motor_id is None or j.reply_id is None or j.model is None:
+            raise UsageError(f"profile {profile.name}: joint {j.name} needs id, reply_id and model for a Damiao bus")
+        out.setdefault(j.bus, []).append(DamiaoMotor(j.name, j.motor_id, j.reply_id, j.model.upper()))
+    return out
 
 
 class DamiaoBus(ClosesOnExit):

@@ -69,17 +69,9 @@ class DamiaoSource:
             UsageError: A joint lacks an id, reply id or model, or the channels and the buses differ in number.
             DeviceError, CalibTimeoutError: A channel cannot be opened or a motor does not answer.
         """
-        from ..damiao.bus import DamiaoMotor
+        from ..damiao.bus import motors_by_bus as profile_motors
 
-        names = {j.name for j in joints}
-        by_bus: dict[str | None, list[DamiaoMotor]] = {}
-        for pj in profile.joints:
-            if pj.name not in names:
-                continue
-            if pj.motor_id is None or pj.reply_id is None or pj.model is None:
-                raise UsageError(f"profile {profile.name}: joint {pj.name} needs id, reply_id and model for a Damiao bus")
-            by_bus.setdefault(pj.bus, []).append(DamiaoMotor(pj.name, pj.motor_id, pj.reply_id, pj.model.upper()))
-        motors_by_bus = list(by_bus.values())
+        motors_by_bus = list(profile_motors(profile, (j.name for j in joints)).values())
         if len(spec.channels) != len(motors_by_bus):
             raise UsageError(
                 f"--source {spec.text!r}: the robot has {len(motors_by_bus)} CAN bus(es); give one channel each"

@@ -40,20 +40,6 @@ def openarm_side(profile: RobotProfile) -> str:
     raise UsageError(f"profile {profile.name}: its joints are not one OpenArm arm's (openarm_right_… / openarm_left_…)")
 
 
-def _motors(profile: RobotProfile, names: Sequence[str]) -> dict[str | None, list[Any]]:
-    """Per profile bus, the :class:`DamiaoMotor` of each joint in ``names`` (ids and model from the profile)."""
-    from ...backends.damiao.bus import DamiaoMotor
-
-    out: dict[str | None, list[Any]] = {}
-    for j in profile.joints:
-        if j.name not in names:
-            continue
-        if j.motor_id is None or j.reply_id is None or j.model is None:
-            raise UsageError(f"profile {profile.name}: joint {j.name} needs id, reply_id and model for a Damiao bus")
-        out.setdefault(j.bus, []).append(DamiaoMotor(j.name, j.motor_id, j.reply_id, j.model.upper()))
-    return out
-
-
 def _drivers(
     buses: Sequence[Any], joints: Sequence[Any], profile: RobotProfile, clock: Any, lost_reply_s: float | None
 ) -> dict[str, JointDriver]:
@@ -84,11 +70,12 @@ def open_damiao(
     The channels are taken in the order of the profile's buses (``can:socketcan:can0`` for one arm).
     """
     from ...backends import load_backend
+    from ...backends.damiao.bus import motors_by_bus
     from .model import MonotonicClock
 
     if spec.kind != "can":
         raise UsageError(f"--auto needs a live source (can:...) or sim:openarm, not {spec.kind}")
-    by_bus = _motors(profile, [j.name for j in joints])
+    by_bus = motors_by_bus(profile, [j.name for j in joints])
     if len(spec.channels) != len(by_bus):
         raise UsageError(
             f"--source {spec.text!r}: profile {profile.name} has {len(by_bus)} CAN bus(es) "
@@ -190,7 +177,7 @@ def open_sim_openarm(
     Raises:
         UsageError: A bad option or a joint the simulated arm does not have.
     """
-    from ...backends.damiao.bus import DEFAULT_TIMEOUT_S
+    from ...backends.damiao.bus import DEFAULT_TIMEOUT_S, motors_by_bus
     from ...backends.damiao.openarm import SimOpenArm
     from ...backends.sim.physics import SimClock
 
@@ -240,7 +227,7 @@ def open_sim_openarm(
     try:
         from ...backends import load_backend
 
-        motors = _motors(profile, [j.name for j in joints])
+        motors = motors_by_bus(profile, [j.name for j in joints])
         (on_bus,) = motors.values()
         sim.bus = load_backend("damiao")(arm.channel, on_bus, interface="virtual", allow_motion=True, timeout_s=1.0)
         sim.drivers = _drivers([sim.bus], joints, profile, clock, DEFAULT_TIMEOUT_S)
