@@ -116,7 +116,18 @@ class MitJointDriver:
         """Told before the watchdog is armed (the value it had, s) and after it is put back (None): the state
         folder's record of what a killed run leaves armed (:mod:`robocal.workflows.autocal.damiao_watchdog`)."""
 
+    POSITION_BITS: ClassVar[int] = 16
+    """Width of the position field of the MIT reply, which spans ``±position_range_rad()``."""
+
+    def position_count_rad(self) -> float:
+        """One count of the position reading: ``2·P_MAX / (2^bits − 1)`` of the reply's position field."""
+        return 2.0 * self.position_range_rad() / ((1 << self.POSITION_BITS) - 1)
+
     # ------------------------------------------------------------------------------------------ vendor
+    def position_range_rad(self) -> float:
+        """``P_MAX``: the reply's position field spans ``±P_MAX`` rad (the vendor's, per motor)."""
+        raise NotImplementedError
+
     def _exchange(self, target: MitTarget) -> StopSample:
         """Send ``target`` (joint frame, torque already within the ceiling) and judge the reply (the vendor's).
 

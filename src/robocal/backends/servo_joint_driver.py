@@ -137,6 +137,10 @@ class ServoJointDriver:
         """
         del ram, inverted
 
+    def position_count_rad(self) -> float:
+        """One count of ``Present_Position``: a turn over the encoder's resolution (4096 on the STS and X series)."""
+        return math.tau / self.res
+
     def rad(self, ticks: float) -> float:
         """Unwrapped ticks → joint-frame radians."""
         return ticks * math.tau / self.res

@@ -63,6 +63,10 @@ class DamiaoJointDriver(MitJointDriver):
 
     _mode_checked = False
 
+    def position_range_rad(self) -> float:
+        """The motor's PMAX (register 21 where it was read, else its model's: 12.5 rad on the OpenArm's)."""
+        return float(self.bus.limits[self.name].p_max_rad)
+
     # ------------------------------------------------------------------------------------------ frames
     def _sample(self, st: MotorState, overload: bool = False) -> StopSample:
         d = self.direction

@@ -17,7 +17,7 @@ from ...errors import CalibTimeoutError, DeviceError
 from ..mit_joint_driver import MitJointDriver, MitTarget
 from ..mit_keepalive import KEEPALIVE_S
 from .bus import CAN_TIMEOUT_UNITS_PER_S
-from .protocol import Param
+from .protocol import P_MAX_RAD, Param
 
 LIMIT_TORQUE = 0x700B
 """Robstride ``limit_torque`` parameter (f32, N·m; RAM until a type-22 save, which robocal never sends)."""
@@ -72,6 +72,10 @@ class RobstrideJointDriver(MitJointDriver):
                  **kwargs: Any) -> None:  # fmt: skip
         super().__init__(bus, name, direction, cap_nm, max_lag_rad, clock, **kwargs)
         self._saved_limit: float | None = None
+
+    def position_range_rad(self) -> float:
+        """±4π rad on every Robstride model (the type-2 feedback's position field)."""
+        return P_MAX_RAD
 
     def _sample(self, fb: Any) -> StopSample:
         d = self.direction

@@ -96,6 +96,10 @@ class JointDriver(Protocol):
         """Torque off now (must not raise)."""
         ...
 
+    def position_count_rad(self) -> float:
+        """One count of the joint's position reading, rad (``--verify``'s resolution term; the vendor's)."""
+        ...
+
 
 class AutoView(Protocol):
     """A live view of the run."""

@@ -418,7 +418,8 @@ def run_sweep_auto(
                 raise AutoCalFailedError(
                     f"verification failed for {auto.failure_summary()}; nothing was written", auto
                 )
-            drifts = _drifts(result, rows, prior, expected, r.tolerance_deg)
+            counts = {n: d.position_count_rad() for n, d in drivers.items()}
+            drifts = _drifts(result, rows, prior, expected, r.tolerance_deg, counts)
             code = 1 if any(d.flagged for d in drifts) else 0
             return AutoSweepOutcome(auto, result, None, fmt, None, code, drifts)
         if auto.failed and not partial:
@@ -461,18 +462,18 @@ def run_sweep_auto(
     return AutoSweepOutcome(auto, result, out_path if rows else None, fmt, report_path, code)
 
 
-ROBSTRIDE_COUNT_RAD = 8 * math.pi / 65536
-"""One count of a Robstride position reading (16 bits over ±4π)."""
-
-
 def _drifts(
     result: SweepResult,
     rows: Sequence[Any],
     prior: Mapping[str, float],
     expected: Mapping[str, tuple[float, float]],
     tolerance_deg: float,
+    count_rad: Mapping[str, float],
 ) -> tuple[JointDrift, ...]:
-    """Per searched joint with a stored offset: the offset its stops give now against the stored one."""
+    """Per searched joint with a stored offset: the offset its stops give now against the stored one.
+
+    ± one count of its motor's reading, ``count_rad`` (the vendor's: Robstride 8π/65535, Damiao 2·PMAX/65535).
+    """
     out = []
     for j in rows:
         if j.name not in prior:
@@ -487,7 +488,7 @@ def _drifts(
                 js.homing_offset,
                 prior[j.name],
                 span_error if math.isfinite(span_error) else 0.0,
-                ROBSTRIDE_COUNT_RAD,
+                count_rad[j.name],
                 tolerance_deg,
             )
         )
