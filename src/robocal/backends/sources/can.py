@@ -7,7 +7,6 @@ Both open :class:`~robocal.backends.robstride.RobstrideBus` through the backend 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -15,32 +14,19 @@ import numpy as np
 
 from ...errors import CalibTimeoutError, JointMismatchError, UsageError
 from .. import load_backend
+from .live_can import LiveCanSource
 from .spec import JointSpec, Sample, SourceSpec, can_bus_options
 
 __all__ = ["RobstrideSource", "SimLiteSource", "open_can", "open_sim_lite_source"]
 
 
-class RobstrideSource:
+class RobstrideSource(LiveCanSource):
     """Live joint positions from Robstride buses, read passively (MIT zero-torque polls).
 
     Args:
         joints: The joints (with CAN id and model).
         buses: One :class:`~robocal.backends.robstride.RobstrideBus` per channel, each listing its joints.
     """
-
-    frame = "motor"
-
-    def __init__(self, joints: Sequence[JointSpec], buses: Sequence[Any]) -> None:
-        self.joints = tuple(joints)
-        self.joint_names = tuple(j.name for j in self.joints)
-        self.buses = list(buses)
-        self._index = {n: i for i, n in enumerate(self.joint_names)}
-        self._t0 = time.monotonic()
-
-    @property
-    def exhausted(self) -> bool:
-        """A live robot never runs out."""
-        return False
 
     def read(self) -> Sample:
         """Poll every joint once (zero torque) and return raw positions, velocities and torques."""
@@ -54,9 +40,6 @@ class RobstrideSource:
                 pos[i], vel[i], eff[i] = fb.position_rad, fb.velocity_rad_s, fb.torque_nm
         return Sample(self._now(), pos, vel, eff)
 
-    def _now(self) -> float:
-        return time.monotonic() - self._t0
-
     def zero_sta(self) -> dict[str, int]:
         """Read ``zero_sta`` (0x7029) of every motor."""
         from ..robstride.protocol import Param
@@ -65,18 +48,6 @@ class RobstrideSource:
         for bus in self.buses:
             out.update({k: int(v) for k, v in bus.read_param_many(list(bus.motors), Param.ZERO_STA).items()})
         return out
-
-    def begin_sweep(self) -> None:
-        """Nothing to do on a live robot (the operator is a person)."""
-
-    def prompt_positive(self, joint: str) -> None:
-        """Nothing to do on a live robot (the CLI shows the instruction)."""
-
-    def close(self) -> None:
-        """Close every bus."""
-        for bus in self.buses:
-            bus.close()
-        self.buses = []
 
 
 class SimLiteSource(RobstrideSource):

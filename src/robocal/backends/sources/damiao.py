@@ -18,6 +18,7 @@ import numpy as np
 from ...core.profile import RobotProfile
 from ...errors import CalibTimeoutError, UsageError
 from .. import load_backend
+from .live_can import LiveCanSource
 from .spec import JointSpec, Sample, SourceSpec, can_bus_options
 
 __all__ = ["SILENT_LIMIT_S", "DamiaoSource", "SimOpenArmHandSource", "open_sim_openarm_source"]
@@ -28,7 +29,7 @@ SIM_READ_PERIOD_S = 0.005
 """The in-process simulated arm is read every 5 ms (a real bus's own pace; the simulator shares the process)."""
 
 
-class DamiaoSource:
+class DamiaoSource(LiveCanSource):
     """Live joint positions from Damiao buses, read passively (refresh frames; every motor off).
 
     Args:
@@ -36,14 +37,8 @@ class DamiaoSource:
         buses: One open :class:`~robocal.backends.damiao.bus.DamiaoBus` per channel, its motors named as the joints.
     """
 
-    frame = "motor"
-
     def __init__(self, joints: Sequence[JointSpec], buses: Sequence[Any]) -> None:
-        self.joints = tuple(joints)
-        self.joint_names = tuple(j.name for j in self.joints)
-        self.buses = list(buses)
-        self._index = {n: i for i, n in enumerate(self.joint_names)}
-        self._t0 = time.monotonic()
+        super().__init__(joints, buses)
         self._answered: dict[int, float] = {}
         self.silent_limit_s = SILENT_LIMIT_S
         """A bus that has answered no refresh for this long ends the sweep (:meth:`read`)."""
@@ -91,11 +86,6 @@ class DamiaoSource:
             raise
         return cls(joints, buses)
 
-    @property
-    def exhausted(self) -> bool:
-        """A live robot never runs out."""
-        return False
-
     def read(self) -> Sample:
         """Refresh every motor once; raw positions, velocities and torques (motor frame).
 
@@ -120,23 +110,11 @@ class DamiaoSource:
             for name, st in states.items():
                 i = self._index[name]
                 pos[i], vel[i], eff[i] = st.position_rad, st.velocity_rad_s, st.torque_nm
-        return Sample(time.monotonic() - self._t0, pos, vel, eff)
+        return Sample(self._now(), pos, vel, eff)
 
     def zero_sta(self) -> dict[str, int]:
         """1 for every joint: after a power cycle a Damiao motor reads within ±π of its stored zero."""
         return dict.fromkeys(self.joint_names, 1)
-
-    def begin_sweep(self) -> None:
-        """Nothing to do on a live robot (the operator is a person)."""
-
-    def prompt_positive(self, joint: str) -> None:
-        """Nothing to do on a live robot (the CLI shows the instruction)."""
-
-    def close(self) -> None:
-        """Close every bus (the motors stay off)."""
-        for bus in self.buses:
-            bus.close()
-        self.buses = []
 
 
 class SimOpenArmHandSource(DamiaoSource):
