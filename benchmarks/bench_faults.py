@@ -89,6 +89,10 @@ def main(argv: list[str] | None = None) -> None:
         f"siblings); pass/fail/not-reached:"
     )
     print(table(results))
+    if any(r.robot.startswith("openarm") for r in results):
+        from tests.faults.damiao_harness import limp_summary
+
+        print(limp_summary())
     failed = [r for r in results if r.verdict == "fail"]
     print(f"failed: {len(failed)}; passed: {sum(r.verdict == 'pass' for r in results)}; "
           f"not reached: {sum(r.verdict == 'not-reached' for r in results)}; "

@@ -21,11 +21,13 @@ simulated motors' own state:
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import random
 import signal
 import socket
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -60,6 +62,8 @@ ZERO_PHASE = "zero-write"
 HOST_LOST = ("sigkill", "lost-device", "lost-bus", "frozen-device")
 HELD_PHASE = "held"
 """Two joints searched: the second's search, while the first holds its park angle (an idle enabled motor)."""
+HELD_JOINTS = "openarm_right_gripper_motor,openarm_right_joint7"
+"""The joints of a ``held`` trial: the gripper parks and holds while J7 is searched (two motors to make limp)."""
 STARVE_S = 0.15
 """``starve``: robocal is stopped this long, then runs this long, until it exits."""
 WATCHDOG_S = 0.5  # the TIMEOUT robocal arms (backends/damiao/joint_driver.py WATCHDOG_S)
@@ -67,14 +71,22 @@ TIMEOUT_UNIT_S = 50e-6
 LIMP_WAIT_S = 30.0  # hang guard for the watchdogs to act once the host is gone (0.5 s of real time)
 LIMP_BOUND_S = 0.1
 """Issue 26: a signal robocal can act on leaves no motor able to push for longer than this."""
-LIMP_LATENCIES: list[dict[str, float]] = []
-"""Per judged trial with a timed signal: motor → seconds from the signal to its torque off (for the soak's figures)."""
+LIMP_LATENCIES: list[dict[str, tuple[float, float | None]]] = []
+"""Per judged trial with a timed signal: motor → seconds from the signal to the simulator's torque off, and to its
+disable frame on the wire (None: not seen, or no relay) (the soak's figures, :func:`limp_summary`)."""
+DISABLE = bytes([0xFF] * 7 + [0xFD])
+"""The data of a Damiao disable frame (0xFD): the frame that takes a motor's torque away."""
 LIMP_TIMED = ("sigint", "double-sigint", "sigterm", "sighup")
 """The faults robocal can act on, whose limp is timed (a killed, frozen or cut-off host leaves it to the TIMEOUT)."""
 
 
 class _Relay:
-    """A TCP relay robocal's socketcand client goes through; :meth:`cut` closes every connection and stops listening."""
+    """A TCP relay robocal's socketcand client goes through; :meth:`cut` closes every connection and stops listening.
+
+    It also notes every CAN frame robocal sends (:attr:`sent`: the host's ``time.monotonic()`` at which the relay
+    read it, arbitration id, data): the wire's view, independent of robocal's own account and of when the
+    simulator got round to the frame.
+    """
 
     def __init__(self, host: str, port: int) -> None:
         self.upstream = (host, port)
@@ -82,6 +94,7 @@ class _Relay:
         self.port = self.sock.getsockname()[1]
         self.conns: list[socket.socket] = []
         self.lock = threading.Lock()
+        self.sent: list[tuple[float, int, bytes]] = []
         threading.Thread(target=self._accept, daemon=True).start()
 
     def _accept(self) -> None:
@@ -93,18 +106,32 @@ class _Relay:
             upstream = socket.create_connection(self.upstream)
             with self.lock:
                 self.conns += [client, upstream]
-            for a, b in ((client, upstream), (upstream, client)):
-                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+            threading.Thread(target=self._pump, args=(client, upstream, self._note), daemon=True).start()
+            threading.Thread(target=self._pump, args=(upstream, client), daemon=True).start()
 
     @staticmethod
-    def _pump(src: socket.socket, dst: socket.socket) -> None:
+    def _pump(src: socket.socket, dst: socket.socket, note: Any = None) -> None:
+        text = ""
         try:
             while data := src.recv(65536):
+                if note is not None:
+                    text = note(time.monotonic(), text + data.decode("ascii", "replace"))
                 dst.sendall(data)
         except OSError:
             pass
         with _suppress():
             dst.shutdown(socket.SHUT_WR)
+
+    def _note(self, at: float, text: str) -> str:
+        """Note the complete ``< send ID LEN B0 B1 ... >`` commands in ``text`` (socketcand's raw mode, as
+        python-can writes them); returns the incomplete rest."""
+        while (end := text.find(">")) >= 0:
+            words = text[:end].split()
+            text = text[end + 1 :]
+            if len(words) >= 3 and words[:2] == ["<", "send"]:
+                with contextlib.suppress(ValueError):  # not a frame python-can wrote
+                    self.sent.append((at, int(words[2], 16), bytes(int(b, 16) for b in words[4:])))
+        return text
 
     def cut(self) -> None:
         with _suppress():
@@ -150,7 +177,7 @@ def run_openarm_trial(
         relay = None
         try:
             relay = _Relay("127.0.0.1", int(sim.info["socketcand"].rsplit(":", 1)[1]))
-            default = ZERO_JOINTS if write_zero else OPENARM_JOINT
+            default = ZERO_JOINTS if write_zero else HELD_JOINTS if phase == HELD_PHASE else OPENARM_JOINT
             return _trial(sim, relay, folder, fault, phase, rng, joints or default, write_zero, reply_ms)
         finally:
             if relay is not None:
@@ -228,7 +255,8 @@ def _trial(
     if fault == "frozen-device":
         os.kill(sim.proc.pid, signal.SIGCONT)
     failures = tuple(
-        _judge(sim, folder, fault, code, before, run, write_zero, signalled_at=signalled_at, watchdog_s=watchdog_s)
+        _judge(sim, folder, fault, code, before, run, write_zero, signalled_at=signalled_at, watchdog_s=watchdog_s,
+               sent=relay.sent)
     )
     tail = " | ".join(ln.strip() for ln in run.lines[-3:])
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
@@ -292,15 +320,64 @@ def limp_latency(before: dict[str, dict[str, Any]], after: dict[str, dict[str, A
     return out
 
 
+def wire_latency(
+    sent: list[tuple[float, int, bytes]], motors: dict[str, dict[str, Any]], signalled_at: float
+) -> dict[str, float]:
+    """Per motor: how long after the signal (s) its first disable frame (0xFD to its ESC_ID) was on the wire (the
+    relay read it); ``sent`` is the relay's :attr:`_Relay.sent`."""
+    esc = {int(m["ram"]["ESC_ID"]): name for name, m in motors.items()}
+    out: dict[str, float] = {}
+    for at, arb, data in sent:
+        name = esc.get(arb)
+        if name is not None and at >= signalled_at and data == DISABLE and name not in out:
+            out[name] = at - signalled_at
+    return out
+
+
 def limp_latency_failures(
-    before: dict[str, dict[str, Any]], after: dict[str, dict[str, Any]], signalled_at: float
+    before: dict[str, dict[str, Any]],
+    after: dict[str, dict[str, Any]],
+    signalled_at: float,
+    sent: list[tuple[float, int, bytes]] | None = None,
 ) -> list[str]:
-    """A motor whose torque went off later than :data:`LIMP_BOUND_S` after the signal."""
-    return [
-        f"{name}: limp {dt * 1000:.0f} ms after the signal (bound {LIMP_BOUND_S * 1000:.0f} ms)"
-        for name, dt in limp_latency(before, after, signalled_at).items()
-        if dt > LIMP_BOUND_S
-    ]
+    """A motor whose torque went off later than :data:`LIMP_BOUND_S` after the signal, as the simulator stamped it.
+
+    With the frames robocal sent (``sent``, the relay's): a motor whose disable frame was on the wire within the
+    bound had robocal's part done; the simulator's later stamp is then the test rig's lateness (the simulator or
+    the relay descheduled on a loaded machine), kept in :data:`LIMP_LATENCIES` and the soak's figures, not a
+    failure.
+    """
+    on_wire = wire_latency(sent, after, signalled_at) if sent is not None else {}
+    out = []
+    for name, dt in limp_latency(before, after, signalled_at).items():
+        wire = on_wire.get(name)
+        if dt > LIMP_BOUND_S and (wire is None or wire > LIMP_BOUND_S):
+            seen = "" if sent is None else "; its disable frame " + (
+                "not seen" if wire is None else f"on the wire after {wire * 1000:.0f} ms")
+            out.append(f"{name}: limp {dt * 1000:.0f} ms after the signal (bound {LIMP_BOUND_S * 1000:.0f} ms{seen})")
+    return out
+
+
+def limp_summary(latencies: list[dict[str, tuple[float, float | None]]] | None = None) -> str:
+    """The soak's limp times: per motor made limp after a timed signal, from the signal to its disable frame on the
+    wire and to the simulator's torque off (max / median, ms), and how many were over the bound."""
+    trials = LIMP_LATENCIES if latencies is None else latencies
+    rows = [v for trial in trials for v in trial.values()]
+    if not rows:
+        return "limp times: no timed signal reached an enabled motor"
+
+    def fig(xs: list[float]) -> str:
+        return f"max {max(xs) * 1000:.1f} ms, median {statistics.median(xs) * 1000:.1f} ms" if xs else "none"
+
+    bound = f"{LIMP_BOUND_S * 1000:.0f} ms"
+    wires = [w for _s, w in rows if w is not None]
+    late_wire = sum(w is None or w > LIMP_BOUND_S for _s, w in rows)
+    late_sim = sum(s > LIMP_BOUND_S for s, _w in rows)
+    return (
+        f"limp times ({len(rows)} motors after {len(trials)} timed signals): disable frame on the wire {fig(wires)} "
+        f"({late_wire} over {bound} or not seen); the simulator's torque off {fig([s for s, _w in rows])} "
+        f"({late_sim} over {bound})"
+    )
 
 
 def _judge(
@@ -314,6 +391,7 @@ def _judge(
     *,
     signalled_at: float | None = None,
     watchdog_s: float = WATCHDOG_S,
+    sent: list[tuple[float, int, bytes]] | None = None,
 ) -> list[str]:
     failures: list[str] = []
     err = "".join(run.lines)
@@ -342,8 +420,9 @@ def _judge(
     if on:
         failures.append(f"enabled after the run: {', '.join(on)}")
     if signalled_at is not None:
-        LIMP_LATENCIES.append(limp_latency(before, after, signalled_at))
-        failures += limp_latency_failures(before, after, signalled_at)
+        on_wire = wire_latency(sent, after, signalled_at) if sent is not None else {}
+        LIMP_LATENCIES.append({n: (dt, on_wire.get(n)) for n, dt in limp_latency(before, after, signalled_at).items()})
+        failures += limp_latency_failures(before, after, signalled_at, sent)
     for name, m in after.items():
         b = before[name]
         tripped = len(m["lost_comm_at_s"]) > len(b["lost_comm_at_s"])

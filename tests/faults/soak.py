@@ -36,7 +36,8 @@ def soak(
     for _ in range(trials):
         robot = rng.choice(robots)
         faults = LITE_FAULTS if robot == "lite" else (*FAULTS, "lost-bus") if "openarm" in robot else FAULTS
-        phases = (*PHASES, "zero-write") if robot == "openarm-zero" else PHASES
+        # openarm-zero: right after a zero reached flash; openarm: also the gripper held while J7 is searched
+        phases = (*PHASES, "zero-write") if robot == "openarm-zero" else (*PHASES, "held") if robot == "openarm" else PHASES
         fault, phase = rng.choice(faults), rng.choice(phases)
         plan.append((robot, fault, phase, rng.randrange(2**32)))
     results: list[TrialResult] = []

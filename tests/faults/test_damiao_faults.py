@@ -19,7 +19,18 @@ import pytest
 
 pytest.importorskip("can")
 
-from .damiao_harness import HELD_PHASE, ZERO_PHASE, _judge, _motors, limp_latency, run_openarm_trial
+from .damiao_harness import (
+    DISABLE,
+    HELD_JOINTS,
+    HELD_PHASE,
+    ZERO_PHASE,
+    _judge,
+    _motors,
+    limp_latency,
+    limp_latency_failures,
+    limp_summary,
+    run_openarm_trial,
+)
 from .harness import TrialResult, _Sim
 
 pytestmark = pytest.mark.timeout(900)
@@ -63,6 +74,32 @@ def test_the_oracle_sees_a_motor_left_enabled_and_a_register_left_changed(tmp_pa
         assert _motors(sim.state())["openarm_right_gripper_motor"]["ram"]["KP_ASR"] == 0.125
     finally:
         sim.stop()
+
+
+def test_a_late_simulator_stamp_fails_the_limp_bound_only_when_the_disable_was_late_on_the_wire_too() -> None:
+    """The relay's view (``sent``) separates robocal's lateness from the simulator's: a disable frame on the wire
+    within 100 ms is robocal's part done; a later one, or none (a zero-torque MIT frame alone), fails."""
+
+    def motor(esc_id: int, offs: list[list[float]]) -> dict[str, object]:
+        return {"ram": {"ESC_ID": esc_id}, "torque_off_at": offs}
+
+    before = {"j7": motor(7, []), "grip": motor(8, [[0.5, 99.0]])}
+    after = {"j7": motor(7, [[1.0, 100.030]]), "grip": motor(8, [[0.5, 99.0], [1.2, 100.200]])}
+    sig = 100.0
+    assert limp_latency_failures(before, after, sig) == ["grip: limp 200 ms after the signal (bound 100 ms)"]
+    limp = bytes.fromhex("7fff7ff0000007ff")
+    assert limp_latency_failures(before, after, sig, [(100.002, 7, DISABLE), (100.004, 8, DISABLE)]) == []
+    assert limp_latency_failures(before, after, sig, [(99.9, 8, DISABLE), (100.150, 8, DISABLE)]) == [
+        "grip: limp 200 ms after the signal (bound 100 ms; its disable frame on the wire after 150 ms)"
+    ]
+    assert limp_latency_failures(before, after, sig, [(100.001, 8, limp)]) == [
+        "grip: limp 200 ms after the signal (bound 100 ms; its disable frame not seen)"
+    ]
+    summary = limp_summary([{"j7": (0.030, 0.002), "grip": (0.200, 0.004)}])
+    assert summary == (
+        "limp times (2 motors after 1 timed signals): disable frame on the wire max 4.0 ms, median 3.0 ms "
+        "(0 over 100 ms or not seen); the simulator's torque off max 200.0 ms, median 115.0 ms (1 over 100 ms)"
+    )
 
 
 @pytest.mark.slow
@@ -167,9 +204,6 @@ def test_a_signal_while_zeros_go_to_flash_ends_after_the_file_is_written(fault: 
     )
     assert result.exit_code == {"sigint": 130, "sigterm": 143, "sighup": 129}[fault]
     assert "after writing" in result.stderr_tail and "(complete)" in result.stderr_tail
-
-
-HELD_JOINTS = "openarm_right_gripper_motor,openarm_right_joint7"  # the gripper parks and holds while J7 is searched
 
 
 @pytest.mark.slow

@@ -9,6 +9,12 @@ torque off. A bus runs each packet exchange inside :func:`transaction`; a guard'
 :func:`raise_now_or_after` instead of raising, and the exception comes out as soon as the exchange is complete
 (at most one packet timeout later), with the port in a clean state.
 
+Signals go to the main thread: a helper thread robocal starts while motors move (the keep-alive of the CAN
+motors, a viewer) is started by :func:`start_signal_free` with :data:`HANDLED_SIGNALS` blocked in it. Otherwise
+the kernel may deliver a process-directed signal to that thread; Python then runs the handler only when the main
+thread next runs byte code, which a main thread blocked in a reply wait does only once the wait ends (up to the
+reply timeout later).
+
 Module state: the nesting depth of the exchange running on the main thread (signal handlers run there) and the
 one exception held back. Other threads' exchanges are not counted.
 """
@@ -16,10 +22,16 @@ one exception held back. Other threads' exchanges are not counted.
 from __future__ import annotations
 
 import contextlib
+import signal
 import threading
 from collections.abc import Iterator
 
-__all__ = ["in_transaction", "raise_now_or_after", "transaction"]
+__all__ = ["HANDLED_SIGNALS", "in_transaction", "raise_now_or_after", "start_signal_free", "transaction"]
+
+HANDLED_SIGNALS: tuple[signal.Signals, ...] = tuple(
+    getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT") if hasattr(signal, n)
+)
+"""The signals robocal's handlers turn into a safe ending (Ctrl-C, kill, a closed terminal, Ctrl-\\)."""
 
 _depth = 0
 _held: BaseException | None = None
@@ -55,3 +67,23 @@ def raise_now_or_after(exc: BaseException) -> None:
             _held = exc
         return
     raise exc
+
+
+def start_signal_free(thread: threading.Thread) -> threading.Thread:
+    """Start ``thread`` with :data:`HANDLED_SIGNALS` blocked in it (they go to the main thread); returns it.
+
+    The calling thread blocks them around ``thread.start()`` (a new thread inherits the mask), so there is no
+    instant at which the new thread could take one; a signal that arrives meanwhile stays pending and is taken
+    by the caller once its mask is restored. Where ``pthread_sigmask`` does not exist (Windows) the thread is
+    just started (signals there only ever reach the main thread).
+    """
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None:
+        thread.start()
+        return thread
+    old = mask(signal.SIG_BLOCK, HANDLED_SIGNALS)
+    try:
+        thread.start()
+    finally:
+        mask(signal.SIG_SETMASK, old)
+    return thread

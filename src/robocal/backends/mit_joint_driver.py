@@ -160,6 +160,9 @@ class MitJointDriver:
         """The vendor's torque-off frames and anything else put back on limp; never raises."""
         raise NotImplementedError
 
+    def _torque_off_nowait(self) -> None:
+        """The vendor's torque-off frames sent without awaiting a reply (may raise; none by default)."""
+
     def _push_torque_nm(self, limit_nm: float) -> float:
         """The feed-forward torque of a push asking for ``limit_nm`` (before the ceiling clamp)."""
         return limit_nm
@@ -304,6 +307,18 @@ class MitJointDriver:
                 self._saved_watchdog_s = None
                 if self.on_watchdog is not None:
                     self.on_watchdog(self.name, None)
+
+    def torque_off_nowait(self) -> None:
+        """The vendor's torque-off frames at once, no reply awaited and no lock waited for; never raises.
+
+        What :func:`robocal.workflows.autocal.model.limp_all` sends every enabled motor before the confirmed
+        :meth:`limp` of any: one motor's lost or late reply (or the state file written when its watchdog is put
+        back) no longer holds back another motor's torque-off (issue 26: every motor limp within 100 ms). The
+        last command becomes the no-torque one, so a keep-alive sent meanwhile pushes nothing.
+        """
+        self._last = MitTarget(0.0, 0.0, 0.0, 0.0, 0.0)
+        with suppress(Exception):
+            self._torque_off_nowait()
 
     def limp(self) -> None:
         """The vendor's torque-off, the watchdog put back; never raises."""

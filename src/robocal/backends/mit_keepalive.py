@@ -29,6 +29,7 @@ from typing import Protocol
 
 from ..errors import UsageError
 from . import REPLY_TIMEOUT_ENV
+from .bus_transaction import start_signal_free
 
 __all__ = [
     "KEEPALIVE_S",
@@ -109,8 +110,8 @@ class KeepAliveThread:
         """Keep-alive frames sent (tests)."""
         self._members: list[KeptAlive] = []
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="robocal-keepalive", daemon=True)
-        self._thread.start()
+        # the handled signals stay with the main thread (a signal taken here would wait for its reply wait to end)
+        self._thread = start_signal_free(threading.Thread(target=self._run, name="robocal-keepalive", daemon=True))
 
     def beat(self) -> None:
         """The host's loop is alive (a driver begins a bus call)."""

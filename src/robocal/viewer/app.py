@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..backends.bus_transaction import start_signal_free
 from ..errors import UsageError
 from .latest import Frame, LatestFrame, next_tick
 from .mapping import JointMapper
@@ -144,8 +145,8 @@ class ViewerApp(ServedPage):
             server.stop()
             raise
         if loop:
-            self._thread = threading.Thread(target=self._loop, name="robocal-view-page", daemon=True)
-            self._thread.start()
+            thread = threading.Thread(target=self._loop, name="robocal-view-page", daemon=True)
+            self._thread = start_signal_free(thread)  # signals go to the main thread
         return self
 
     def stop(self) -> None:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..backends.bus_transaction import start_signal_free
 from ..core.arrays import FloatArray
 from ..errors import CalibError, UsageError
 from .app import ReplayControl, ViewerApp
@@ -49,8 +50,8 @@ class Feed:
 
     def start(self) -> Feed:
         """Start the thread."""
-        self._thread = threading.Thread(target=self._main, name=f"robocal-view-feed-{self.name}", daemon=True)
-        self._thread.start()
+        thread = threading.Thread(target=self._main, name=f"robocal-view-feed-{self.name}", daemon=True)
+        self._thread = start_signal_free(thread)  # signals go to the main thread, which makes the motors limp
         return self
 
     def stop(self) -> None:

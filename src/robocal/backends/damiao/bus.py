@@ -364,6 +364,28 @@ class DamiaoBus(ClosesOnExit):
         self._send(clear_error_frame(spec.esc_id), fd=self.fd)
         return self.read_state(spec.name)
 
+    def torque_off_nowait(self, motors: Iterable[str] | None = None) -> None:
+        """The no-torque MIT frame, then disable (0xFD), to each motor (all by default); no reply awaited.
+
+        The first frames of a limp: each motor's torque goes off as fast as the frames go out, whatever another
+        motor's reply does (the replies are dropped by the next exchange). Always allowed. Every frame is tried;
+        the first send that failed is raised afterwards.
+
+        Raises:
+            DeviceError: A frame could not be sent (a closed or lost channel).
+        """
+        names = self._names(motors)
+        frames = [encode_mit_command(self.motors[n].esc_id, LIMP, self.limits[n]) for n in names]
+        frames += [disable_frame(self.motors[n].esc_id) for n in names]
+        failed: DeviceError | None = None
+        for frame in frames:
+            try:
+                self._send(frame, fd=self.fd)
+            except DeviceError as exc:
+                failed = failed or exc
+        if failed is not None:
+            raise failed
+
     def limp(self, motors: Iterable[str] | None = None) -> dict[str, MotorState]:
         """The no-torque MIT frame ``(0, 0, 0, 0, 0)`` to each motor: a passive read, allowed read-only."""
         names = self._names(motors)

@@ -44,7 +44,8 @@ class DamiaoJointDriver(MitJointDriver):
     The search's commands as :class:`~robocal.backends.mit_joint_driver.MitJointDriver` maps them (a push asks at
     most the cap); ``limp``: the zero-torque MIT frame, then disable (0xFD), TIMEOUT put back; ``reread``: clear
     error (0xFB), enable (0xFC), the last command again. Angles are in the joint's frame ``s =
-    direction·reading`` (the reading is relative to the motor's stored zero). An overload state (0xE) is suspect
+    direction·reading`` (the reading is relative to the motor's stored zero). ``torque_off_nowait``: the
+    no-torque MIT frame and disable, sent without awaiting a reply (the first frames of every ``limp_all``). An overload state (0xE) is suspect
     evidence (the search re-reads); every other error state ends the run. TIMEOUT is armed over twice the reply
     wait (:func:`~robocal.backends.mit_keepalive.watchdog_for`), and on a live bus the run's idle motors are kept
     alive from a thread of their own.
@@ -132,6 +133,9 @@ class DamiaoJointDriver(MitJointDriver):
 
     def _write_watchdog(self, timeout_s: float) -> None:
         self.bus.write_register(self.name, Register.TIMEOUT, self.bus.watchdog_units(timeout_s))
+
+    def _torque_off_nowait(self) -> None:
+        self.bus.torque_off_nowait([self.name])
 
     def _torque_off(self) -> None:
         with suppress(Exception):

@@ -60,8 +60,9 @@ def _open_within(deadline_s: float, open_fn: Any, what: str) -> Any:
         except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
             box.append(("error", exc))
 
-    worker = threading.Thread(target=run, name=f"open {what}", daemon=True)
-    worker.start()
+    from ..bus_transaction import start_signal_free
+
+    worker = start_signal_free(threading.Thread(target=run, name=f"open {what}", daemon=True))
     worker.join(deadline_s)
     if not box:
         raise DeviceError(f"cannot open {what}: no answer within {deadline_s:g} s (the device or server is frozen)")

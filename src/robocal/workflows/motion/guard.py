@@ -27,7 +27,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from types import FrameType, TracebackType
 from typing import Protocol, TypeVar
 
-from ...backends.bus_transaction import raise_now_or_after
+from ...backends.bus_transaction import HANDLED_SIGNALS, raise_now_or_after
 from ...errors import CalibError, SignalInterrupt
 from .snapshot import SnapshotStore
 
@@ -41,9 +41,7 @@ __all__ = [
 
 T = TypeVar("T")
 
-GUARDED_SIGNALS: tuple[signal.Signals, ...] = tuple(
-    getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT") if hasattr(signal, n)
-)
+GUARDED_SIGNALS: tuple[signal.Signals, ...] = HANDLED_SIGNALS
 """The signals a guarded command turns into a safe ending (Ctrl-C, kill, a closed terminal, Ctrl-\\)."""
 
 

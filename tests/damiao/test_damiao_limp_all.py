@@ -1,0 +1,130 @@
+"""Every enabled Damiao motor's torque goes off at once, whatever another motor's reply does (issues 26, 31).
+
+``limp_all`` first sends each enabled motor its no-torque MIT frame and disable without awaiting a reply, then
+confirms each limp. Before, it limped motor after motor, each limp three awaited exchanges (and the state file of
+the watchdog put back), so a lost reply of the first motor held the second motor's torque-off back by whole reply
+waits (seen in the Damiao fault soak: a held gripper limp 129 ms and 664 ms after SIGTERM). And robocal's helper
+threads keep the handled signals blocked, so the kernel hands a signal to the main thread, whose handler makes the
+motors limp. Judged by the simulated motors (when each one's torque went off) and the threads' signal masks.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("can")
+
+from robocal.backends import REPLY_TIMEOUT_ENV
+from robocal.backends.bus_transaction import HANDLED_SIGNALS, start_signal_free
+from robocal.backends.clock import MonotonicClock
+from robocal.backends.damiao.bus import DamiaoBus
+from robocal.backends.damiao.joint_driver import DamiaoJointDriver
+from robocal.backends.damiao.openarm import SimOpenArm
+from robocal.backends.mit_keepalive import peers_of
+from robocal.workflows.autocal.model import limp_all
+
+
+class _Recorder:
+    """A driver that notes what it is asked, in order (``quick``: it has ``torque_off_nowait``)."""
+
+    def __init__(self, name: str, log: list[str], *, enabled: bool) -> None:
+        self.name, self.log, self.enabled = name, log, enabled
+
+    def limp(self) -> None:
+        self.log.append(f"limp {self.name}")
+
+
+class _QuickRecorder(_Recorder):
+    def torque_off_nowait(self) -> None:
+        self.log.append(f"nowait {self.name}")
+        raise OSError("a lost bus: limp_all goes on")
+
+
+def test_every_enabled_motor_is_sent_its_torque_off_before_any_limp_waits_for_a_reply() -> None:
+    log: list[str] = []
+    drivers = [
+        _QuickRecorder("parked", log, enabled=False),
+        _QuickRecorder("searched", log, enabled=True),
+        _Recorder("servo", log, enabled=True),
+        _QuickRecorder("held", log, enabled=True),
+    ]
+    assert limp_all(drivers) == []
+    assert log == [
+        "nowait searched", "nowait held",  # the enabled MIT motors, at once
+        "limp searched", "limp servo", "limp held", "limp parked",  # then each confirmed, the enabled first
+    ]  # fmt: skip
+
+
+@pytest.fixture
+def arm() -> Iterator[SimOpenArm]:
+    a = SimOpenArm(f"oa-limp-all-{id(object())}", seed=4, realtime=True).start()
+    yield a
+    a.stop()
+
+
+def test_a_lost_reply_of_the_first_motor_does_not_hold_back_the_second_motors_torque_off(
+    arm: SimOpenArm, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """J7 stops answering (every exchange with it waits the whole 0.5 s); the held gripper, limped after it, goes
+    off within 0.25 s of ``limp_all`` (before: after J7's three lost exchanges, over 1.5 s)."""
+    monkeypatch.setenv(REPLY_TIMEOUT_ENV, "500")
+    clock = MonotonicClock()
+    with DamiaoBus(arm.channel, arm.motor_specs(), interface="virtual", allow_motion=True) as bus:
+        j7, grip = (DamiaoJointDriver(bus, n, 1, 0.75, math.radians(3), clock) for n in ("joint_7", "gripper"))
+        for d in (j7, grip):
+            assert d.read().ok and d.enabled
+        assert arm.motors["gripper"].pushing() and arm.motors["joint_7"].pushing()
+        arm.silence("joint_7")
+        offs = len(arm.motors["gripper"].torque_off_at)
+        t0 = time.monotonic()
+        limp_all([j7, grip])  # J7 first: both enabled, the order given
+        took_s = time.monotonic() - t0
+        grip_off = arm.motors["gripper"].torque_off_at[offs:]
+        assert grip_off, "the gripper's torque never went off"
+        assert grip_off[0][1] - t0 < 0.25, f"gripper off {grip_off[0][1] - t0:.3f} s after limp_all began"
+        assert took_s >= 1.0  # J7's confirmed limp still waited for its (lost) replies, after the gripper was off
+        assert not arm.motors["gripper"].enabled
+        arm.silence("joint_7", False)
+        j7.limp()  # its torque-off frames were lost with it; once it answers, the limp goes through
+        assert not arm.motors["joint_7"].enabled
+    assert peers_of(clock, create=False) is None
+
+
+def _blocked_in(native_id: int) -> set[int]:
+    """The signals blocked in thread ``native_id`` of this process (Linux ``/proc``)."""
+    status = Path(f"/proc/self/task/{native_id}/status").read_text()
+    mask = int(next(ln.split()[1] for ln in status.splitlines() if ln.startswith("SigBlk:")), 16)
+    return {s for s in range(1, 65) if mask >> (s - 1) & 1}
+
+
+def test_a_thread_started_signal_free_blocks_the_handled_signals_and_the_caller_keeps_its_mask() -> None:
+    seen: list[set[int]] = []
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    thread = start_signal_free(threading.Thread(target=lambda: seen.append(signal.pthread_sigmask(signal.SIG_BLOCK, []))))
+    thread.join(30)
+    assert seen and {int(s) for s in HANDLED_SIGNALS} <= {int(s) for s in seen[0]}
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == before
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads the thread's mask from /proc (Linux)")
+def test_the_keepalive_thread_leaves_every_handled_signal_to_the_main_thread(arm: SimOpenArm) -> None:
+    """A process-directed SIGTERM taken by the keep-alive thread would be handled only once the main thread's reply
+    wait ended (up to the reply timeout later); the thread blocks them, so the kernel hands them to the main one."""
+    clock = MonotonicClock()
+    with DamiaoBus(arm.channel, arm.motor_specs(), interface="virtual", allow_motion=True) as bus:
+        grip = DamiaoJointDriver(bus, "gripper", 1, 0.75, math.radians(3), clock)
+        assert grip.read().ok
+        run = peers_of(clock, create=False)
+        assert run is not None and run.thread is not None and run.thread.alive()
+        native_id = run.thread._thread.native_id
+        assert native_id is not None
+        assert {int(s) for s in HANDLED_SIGNALS} <= _blocked_in(native_id)
+        assert not {int(s) for s in HANDLED_SIGNALS} & _blocked_in(threading.main_thread().native_id or 0)
+        grip.limp()
