@@ -226,7 +226,7 @@ def _trial(
         elif phase == HELD_PHASE:
             injected = _wait_for_held(run, rng)
         else:
-            injected = _wait_for_phase(run, sim, phase, len(joints.split(",")), rng)
+            injected = _wait_for_phase(run, sim, phase, len(joints.split(",")), rng, folder)
         signalled_at = None
         if injected:
             if fault in LIMP_TIMED:

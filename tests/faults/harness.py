@@ -269,7 +269,7 @@ def _trial(
     ))  # fmt: skip
     run.start_reader()
     try:
-        injected = _wait_for_phase(run, sim, phase, n_joints, rng)
+        injected = _wait_for_phase(run, sim, phase, n_joints, rng, folder)
         if injected:
             _inject(run.proc, sim, fault, rng)
         try:
@@ -315,8 +315,15 @@ def _before_robocal(fault: str, code: int, run: _Run) -> bool:
     return signums[fault] == signal.SIGINT and code in (-2, 1) and err.rstrip().endswith("KeyboardInterrupt")
 
 
-def _wait_for_phase(run: _Run, sim: _Sim, phase: str, n_joints: int, rng: random.Random) -> bool:
-    """Wait until ``phase`` (then a random part of it); False when robocal ended first."""
+def _wait_for_phase(
+    run: _Run, sim: _Sim, phase: str, n_joints: int, rng: random.Random, folder: Path | None = None
+) -> bool:
+    """Wait until ``phase`` (then a random part of it); False when robocal ended first.
+
+    ``file-write`` with ``folder``: the instant is taken from the run itself, the first calibration file or
+    ``.rc-*`` temporary under ``folder/cal`` (polled every 2 ms), then up to 30 ms more; a fixed delay after the
+    last joint line missed it in about one trial in eight (the run had ended 0.3 s after that line).
+    """
     deadline = time.monotonic() + HANG_GUARD_S
 
     def alive() -> bool:
@@ -343,6 +350,12 @@ def _wait_for_phase(run: _Run, sim: _Sim, phase: str, n_joints: int, rng: random
         return (
             False  # the search failed: robocal ends on its own (exit 3), there is no new calibration to write
         )
+    if phase == "file-write" and folder is not None:
+        cal = folder / "cal"
+        while alive() and not (any(cal.rglob("*.json")) or any(cal.rglob(".rc-*"))):
+            time.sleep(0.002)
+        time.sleep(rng.uniform(0.0, 0.03))
+        return alive()
     time.sleep(rng.uniform(0.0, 0.4) if phase == "restore" else rng.uniform(0.3, 1.5))
     return alive()
 
