@@ -76,7 +76,9 @@ class ConsoleOperator:
                     sys.stdin.readline()
                 self._done.set()
 
-            threading.Thread(target=wait, daemon=True).start()
+            from ..workflows.motion.guard import start_signal_free  # signals go to the main thread's handlers
+
+            start_signal_free(threading.Thread(target=wait, daemon=True))
             return
         _common.err_console.print(message)
         sys.stdin.readline()

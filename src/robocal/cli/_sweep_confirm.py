@@ -28,7 +28,9 @@ class StdinLines:
         self.stop = stop
         self.lines: queue.Queue[str | None] = queue.Queue()
         self.prompting = False
-        threading.Thread(target=self._run, name="robocal-stdin", daemon=True).start()
+        from ..workflows.motion.guard import start_signal_free  # signals go to the main thread's handlers
+
+        start_signal_free(threading.Thread(target=self._run, name="robocal-stdin", daemon=True))
 
     def _run(self) -> None:
         while True:

@@ -13,6 +13,10 @@
   (:mod:`robocal.workflows.motion.snapshot`) while the registers may differ from it; it is removed when the run
   ends cleanly or everything was restored, so the next command on that bus can offer to restore what was left.
 
+Signals reach the main thread only if no other thread takes them: robocal's helper threads (a stdin reader, the
+keep-alive of CAN motors, a viewer) are started with :func:`start_signal_free`, which blocks the guarded signals in
+them (from :mod:`robocal.backends.bus_transaction`).
+
 The bus-specific parts come from the caller as callables: ``limp`` (torque off on every motor of the bus, never
 raises; returns the motors it could not confirm limp), ``restore`` (write a snapshot back, check it, report),
 and optional ``arm``/``disarm`` hooks (a host-loss watchdog).
@@ -27,7 +31,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from types import FrameType, TracebackType
 from typing import Protocol, TypeVar
 
-from ...backends.bus_transaction import HANDLED_SIGNALS, raise_now_or_after
+from ...backends.bus_transaction import HANDLED_SIGNALS, raise_now_or_after, start_signal_free
 from ...errors import CalibError, SignalInterrupt
 from .snapshot import SnapshotStore
 
@@ -37,6 +41,7 @@ __all__ = [
     "RestoreReport",
     "reraise_with_note",
     "signal_name",
+    "start_signal_free",
 ]
 
 T = TypeVar("T")
