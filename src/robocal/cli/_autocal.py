@@ -13,7 +13,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.table import Table
@@ -23,6 +23,9 @@ from ..errors import UsageError
 from ..workflows.autocal.model import AutoCalResult, JointOutcome
 from ..workflows.written import files_written
 from . import _common
+
+if TYPE_CHECKING:
+    from ..workflows.autocal.sweep import SweepAutoRequest
 
 __all__ = [
     "AutoLiveView",
@@ -240,58 +243,29 @@ def searched_footer(search_s: float) -> str:
     return f"searched in {search_s:.1f} s; nothing was written (every register the search changed is back, no file)"
 
 
-def sweep_auto(
-    urdf: Path,
-    source: str,
-    out: Path,
-    *,
-    robot: str | None,
-    joints: str | None,
-    report: Path | None,
-    fmt: str | None,
-    partial: bool,
-    yes: bool,
-    view_port: int | None = None,
-    verify: bool = False,
-    tolerance_deg: float = 2.0,
-    write_zero: bool = False,
-) -> None:
-    """``robocal sweep --auto``: run, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C).
+def sweep_auto(request: SweepAutoRequest, *, confirm_start: Any, view_port: int | None = None) -> None:
+    """``robocal sweep --auto``: run ``request``, print the tables, exit 0/1 (3 on failure, 130 on Ctrl-C).
 
-    With ``view_port`` (``--view``), the search is drawn on the robot in the browser as well.
+    Args:
+        request: The run, built (and checked) by the command from its options.
+        confirm_start: The clear-workspace prompt (:func:`make_confirm_start`; None with ``--yes``).
+        view_port: ``--view``: the search is drawn on the robot in the browser as well.
     """
-    from ..workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+    from ..workflows.autocal.sweep import run_sweep_auto
     from ._sweep_view import print_sweep_warnings, result_table
 
-    names = _common.parse_csv_list(joints, "--joints")  # "" or "a,,b": one error line, nothing moves
-    confirm = make_confirm_start(yes)
     before = len(files_written())
-    with auto_web_view(view_port, urdf, AutoLiveView(), "sweep --auto") as live:
+    with auto_web_view(view_port, Path(request.urdf_path), AutoLiveView(), "sweep --auto") as live:
         try:
-            outcome = run_sweep_auto(
-                SweepAutoRequest(
-                    urdf,
-                    source,
-                    out,
-                    robot=robot,
-                    joints=names,
-                    report=report,
-                    fmt=fmt,
-                    partial=partial,
-                    verify=verify,
-                    tolerance_deg=tolerance_deg,
-                    write_zero=write_zero,
-                ),
-                confirm_start=confirm,
-                view=live,
-            )
+            outcome = run_sweep_auto(request, confirm_start=confirm_start, view=live)
         except KeyboardInterrupt:
             _common.err_console.print(interrupted_limp_text(before), markup=False)
             raise
         if view_port is not None:
             live.finish(outcome.auto, outcome.result)
     _common.console.print(auto_table(outcome.auto))
-    if verify:
+    if request.verify:
+        out, tolerance_deg = request.out, request.tolerance_deg
         title = f"drift of {out} (tolerance {tolerance_deg:g}°)"
         print_drifts(outcome.drifts, title, out, tolerance_deg, searched_footer(outcome.auto.total_time_s))
         raise typer.Exit(outcome.exit_code)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import pathlib
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -28,7 +28,10 @@ from ._autocal import (
 from ._left_changed import offer_restore
 from ._lerobot_render import print_calibration, status
 
-__all__ = ["calibrate_auto", "check_auto_options", "verify_auto"]
+if TYPE_CHECKING:
+    from ..workflows.lerobot.auto import AutoCalibrationRequest
+
+__all__ = ["auto_request", "calibrate_auto", "check_auto_options", "verify_auto"]
 
 
 def check_auto_options(
@@ -85,7 +88,7 @@ def check_auto_options(
         )
 
 
-def calibrate_auto(
+def auto_request(
     robot: str,
     spec: RobotSpec,
     port: str,
@@ -93,27 +96,47 @@ def calibrate_auto(
     *,
     joints: str | None,
     partial: bool,
-    yes: bool,
     sweep_full_turn: bool,
-    view: Any = None,
-    view_port: int | None = None,
     urdf: pathlib.Path | None = None,
-) -> None:
-    """Run the automatic calibration, print the tables, exit 0 / 1 (``--partial`` with a failed joint).
+) -> AutoCalibrationRequest:
+    """The ``--auto`` run's request from the command's options, checked before the port opens.
 
-    Ctrl-C: every motor limp, every register restored, no file (exit 130); a fault or a failed joint: exit 3
-    with one ``error:`` line (the CLI's error handler).
+    Raises:
+        UsageError: No ``auto_calibration`` section, an empty ``--joints``, bad ``sim?...`` options, a bad
+            ``--urdf``.
     """
-    from ..workflows.lerobot.auto import AutoCalibrationRequest, auto_calibrate, auto_section
-    from ..workflows.lerobot.auto_sim import auto_gravity_model, open_auto_arm, parse_sim_port
-    from ._lerobot_render import interrupted
+    from ..workflows.lerobot.auto import AutoCalibrationRequest, auto_section
+    from ..workflows.lerobot.auto_sim import auto_gravity_model, parse_sim_port
 
     section = auto_section(robot)
     names = _common.parse_csv_list(joints, "--joints") if joints is not None else None
     if joints is not None and not names:
         raise UsageError("--joints: give at least one joint name")
     parse_sim_port(port, spec)  # bad sim options are refused before the port opens
-    gravity_model = auto_gravity_model(spec, port, section, urdf)  # a bad --urdf too
+    return AutoCalibrationRequest(
+        spec,
+        section,
+        path=path,
+        joints=names,
+        partial=partial,
+        sweep_full_turn=sweep_full_turn,
+        gravity_model=auto_gravity_model(spec, port, section, urdf),  # a bad --urdf too
+    )
+
+
+def calibrate_auto(
+    request: AutoCalibrationRequest, robot: str, port: str, *, yes: bool, view_port: int | None = None
+) -> None:
+    """Run the automatic calibration ``request`` (:func:`auto_request`) on ``port``, print the tables, exit 0 / 1.
+
+    Exit 1: ``--partial`` with a failed joint. Ctrl-C: every motor limp, every register restored, no file (exit
+    130); a fault or a failed joint: exit 3 with one ``error:`` line (the CLI's error handler).
+    """
+    from ..workflows.lerobot.auto import auto_calibrate
+    from ..workflows.lerobot.auto_sim import open_auto_arm
+    from ._lerobot_render import interrupted
+
+    spec = request.spec
     confirm = make_confirm_start(yes, what=spec.name)
 
     def page(inner: Any, page_port: int) -> Any:  # --view: the stop search drawn on the arm in the browser
@@ -121,25 +144,15 @@ def calibrate_auto(
 
         return open_lerobot_auto_page(robot, spec.motor_names, inner=inner, port=page_port)
 
-    live_view = view if view is not None else AutoLiveView()
     with (
-        auto_web_view(view_port, None, live_view, "", page=page) as live,
-        open_auto_arm(spec, port, section) as arm,
+        auto_web_view(view_port, None, AutoLiveView(), "", page=page) as live,
+        open_auto_arm(spec, port, request.section) as arm,
     ):
         offer_restore(arm.bus, spec, port, arm.sim)
         try:
             result = auto_calibrate(
                 arm.bus,
-                AutoCalibrationRequest(
-                    spec,
-                    section,
-                    path=path,
-                    joints=names,
-                    partial=partial,
-                    sweep_full_turn=sweep_full_turn,
-                    gravity_model=gravity_model,
-                    snapshot_port=port if arm.sim is None else None,
-                ),
+                replace(request, snapshot_port=port if arm.sim is None else None),
                 clock=arm.clock,
                 confirm_start=confirm,
                 view=live,

@@ -153,7 +153,7 @@ def calibrate(
     ),
 ) -> None:
     """Calibrate a LeRobot arm (mid pose, then sweep every joint, or --auto) and write LeRobot's JSON."""
-    from ._lerobot_auto import calibrate_auto, check_auto_options, verify_auto
+    from ._lerobot_auto import auto_request, calibrate_auto, check_auto_options, verify_auto
 
     check_auto_options(
         auto=auto,
@@ -197,18 +197,10 @@ def calibrate(
     # the calibration folder must be writable before the port is even opened (the workflow checks again)
     check_calibration_writable(path)
     if auto:
-        calibrate_auto(
-            robot,
-            spec,
-            port,
-            path,
-            joints=joints,
-            partial=partial,
-            yes=yes,
-            sweep_full_turn=sweep_full_turn,
-            view_port=view_port if web_view else None,
-            urdf=urdf,
+        request = auto_request(
+            robot, spec, port, path, joints=joints, partial=partial, sweep_full_turn=sweep_full_turn, urdf=urdf
         )
+        calibrate_auto(request, robot, port, yes=yes, view_port=view_port if web_view else None)
     update, close = sweep_renderer()
     web = _web_view(robot, spec, update, view_port) if web_view else None
     with open_arm(spec, port) as (bus, arm):

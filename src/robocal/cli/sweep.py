@@ -163,28 +163,30 @@ def sweep(
 ) -> None:
     """Hard-stop sweep calibration: sweep every joint between its stops, then write the homing offsets."""
     if auto:
-        from ._autocal import sweep_auto
+        from ..workflows.autocal.sweep import SweepAutoRequest
+        from ._autocal import make_confirm_start, sweep_auto
 
         if prior is not None or threshold is not None or method is not None or direction_check or frame:
             raise UsageError(
                 "--auto finds the stops itself: --prior, --threshold, --method, --direction-check "
                 "and --frame do not apply"
             )
-        sweep_auto(
+        names = _common.parse_csv_list(joints, "--joints")  # "" or "a,,b": one error line, nothing moves
+        confirm = make_confirm_start(yes)
+        request = SweepAutoRequest(
             urdf,
             source,
             out,
             robot=robot,
-            joints=joints,
+            joints=names,
             report=report,
             fmt=fmt,
             partial=partial,
-            yes=yes,
-            view_port=view_port if web_view else None,
             verify=verify,
             tolerance_deg=tolerance_deg,
             write_zero=write_zero,
         )
+        sweep_auto(request, confirm_start=confirm, view_port=view_port if web_view else None)
         return
     if joints is not None or partial or verify or write_zero:
         raise UsageError("--joints, --partial, --verify and --write-zero go with --auto")
