@@ -1,4 +1,5 @@
-"""Helpers of the motion-guard tests: a simulated arm in its own process, ``robocal`` as a child process, signals.
+"""Helpers of the motion-guard tests: a simulated arm in its own process, ``robocal`` as a child process, signals,
+and the count of what a bus in this process was asked to do (:func:`count_bus_calls`).
 
 The oracle of these tests is the simulated arm's own state (:meth:`ArmHost.state`: every register of every servo,
 read in the simulator's process after robocal has exited), never what robocal printed.
@@ -15,7 +16,9 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from robocal.backends import REPLY_TIMEOUT_ENV
 
@@ -34,6 +37,19 @@ KEPT = {
     ),
 }  # fmt: skip
 """The registers a guarded run must leave as they were (EEPROM and RAM), per vendor."""
+
+
+def count_bus_calls(bus: Any) -> list[tuple[str, int]]:
+    """Record every operation of a LeRobot servo bus (what, retries allowed) from now on, in the returned list."""
+    calls: list[tuple[str, int]] = []
+    real: Callable[..., Any] = bus._call
+
+    def counted(what: str, motor_id: int | None, register: str, fn: Callable[[], Any]) -> Any:
+        calls.append((what, bus.retries))
+        return real(what, motor_id, register, fn)
+
+    bus._call = counted
+    return calls
 
 
 class ArmHost:

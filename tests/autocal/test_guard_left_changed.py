@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import signal
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -18,15 +17,6 @@ import pytest
 from .guardlib import HANG_GUARD_S, ArmHost, Robocal, auto_args, kept_registers, torque_on
 
 pytestmark = [pytest.mark.timeout(600)]
-
-
-@pytest.fixture
-def arm() -> Iterator[ArmHost]:
-    host = ArmHost("so101_follower")
-    try:
-        yield host
-    finally:
-        host.close()
 
 
 @pytest.mark.slow

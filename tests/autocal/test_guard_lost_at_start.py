@@ -10,9 +10,6 @@ Judged by the packets robocal sent and by the simulated servos' registers.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import pytest
 
 from robocal.backends.sim.lerobot_arms import SimArm
@@ -22,22 +19,11 @@ from robocal.workflows.lerobot.auto import snapshot_registers
 from robocal.workflows.lerobot.guard import find_left_over
 from robocal.workflows.motion.snapshot import SnapshotStore
 
+from .guardlib import count_bus_calls
+
 pytestmark = pytest.mark.timeout(300)
 
 REGISTERS = ("Homing_Offset", "Min_Position_Limit", "Max_Position_Limit", "Torque_Enable", "Operating_Mode")
-
-
-def _counting(bus: Any) -> list[tuple[str, int]]:
-    """Record every bus operation (what, retries allowed) from now on."""
-    calls: list[tuple[str, int]] = []
-    real: Callable[..., Any] = bus._call
-
-    def counted(what: str, motor_id: int | None, register: str, fn: Callable[[], Any]) -> Any:
-        calls.append((what, bus.retries))
-        return real(what, motor_id, register, fn)
-
-    bus._call = counted
-    return calls
 
 
 def _servo_state(arm: SimArm) -> dict[str, tuple[int, ...]]:
@@ -51,7 +37,7 @@ def test_a_lost_device_before_the_snapshot_is_given_up_after_one_round(robot: st
         was = _servo_state(arm)
         arm.bus.silent_ids.update(m.motor_id for m in spec.motors)
         bus = open_bus(spec, arm.port)
-        calls = _counting(bus)
+        calls = count_bus_calls(bus)
         try:
             with pytest.raises(DeviceGoneError) as info:
                 snapshot_registers(bus, spec, ["gripper"])
@@ -98,7 +84,7 @@ def test_a_lost_device_with_a_kept_snapshot_is_given_up_after_one_round(robot: s
         )
         arm.bus.silent_ids.update(m.motor_id for m in spec.motors)
         bus = open_bus(spec, arm.port)
-        calls = _counting(bus)
+        calls = count_bus_calls(bus)
         try:
             with pytest.raises(DeviceGoneError) as info:
                 find_left_over(bus, spec, arm.port)

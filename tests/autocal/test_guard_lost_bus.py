@@ -22,6 +22,8 @@ from robocal.workflows.lerobot import open_bus, robot_spec
 from robocal.workflows.lerobot.calibrate import hand_snapshot
 from robocal.workflows.lerobot.guard import arm_guard, find_left_over, restore_left_over
 
+from .guardlib import count_bus_calls
+
 pytestmark = pytest.mark.timeout(300)
 
 
@@ -35,19 +37,6 @@ class _GoneSerial:
         return gone
 
 
-def _counting(bus: Any) -> list[tuple[str, int]]:
-    """Record every bus operation (what, retries allowed) from now on."""
-    calls: list[tuple[str, int]] = []
-    real: Callable[..., Any] = bus._call
-
-    def counted(what: str, motor_id: int | None, register: str, fn: Callable[[], Any]) -> Any:
-        calls.append((what, bus.retries))
-        return real(what, motor_id, register, fn)
-
-    bus._call = counted
-    return calls
-
-
 def _run_lost(arm: SimArm, lose: Callable[[Any], None]) -> tuple[DeviceError, list[tuple[str, int]], Any]:
     bus = open_bus(arm.spec, arm.port)
     before = hand_snapshot(bus, arm.spec)
@@ -58,7 +47,7 @@ def _run_lost(arm: SimArm, lose: Callable[[Any], None]) -> tuple[DeviceError, li
         bus.write("Torque_Enable", 6, 1)
         bus.write("Homing_Offset", 6, 5)
         lose(bus)
-        calls = _counting(bus)
+        calls = count_bus_calls(bus)
         bus.read("Present_Position", 6)
     return info.value, calls, bus
 

@@ -14,7 +14,6 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -22,15 +21,6 @@ import pytest
 from .guardlib import HANG_GUARD_S, SIGNAL_EXIT, ArmHost, Robocal, auto_args, kept_registers, torque_on
 
 pytestmark = [pytest.mark.timeout(600)]
-
-
-@pytest.fixture
-def arm() -> Iterator[ArmHost]:
-    host = ArmHost("so101_follower")
-    try:
-        yield host
-    finally:
-        host.close()
 
 
 @pytest.fixture

@@ -22,10 +22,12 @@ from robocal.backends.damiao.tables import Register
 from robocal.core.stop_search import Command
 from robocal.errors import DeviceError, UsageError
 from robocal.formats import read_calibration
-from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
+from robocal.workflows.autocal.damiao import SimAutoOpenArm
 from robocal.workflows.autocal.job import AutoCalFailedError
 from robocal.workflows.autocal.joint import press_fraction
 from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+
+from .openarm_session import openarm_session
 
 
 def _urdf(side: str) -> Path:
@@ -34,18 +36,12 @@ def _urdf(side: str) -> Path:
 
 def _run(tmp_path: Path, source: str, side: str = "right", joints: list[str] | None = None,
          partial: bool = False) -> tuple[SimAutoOpenArm, Path, Path, object]:
-    holder: list[SimAutoOpenArm] = []
     out, rep = tmp_path / "cal.yaml", tmp_path / "rep.json"
-    try:
-        outcome = run_sweep_auto(
-            SweepAutoRequest(_urdf(side), source, out, robot=f"openarm_follower_{side}", joints=joints, report=rep,
-                             partial=partial),
-            open_drivers_fn=sim_openarm_opener(holder),
-        )
-    finally:
-        for sim in holder:
-            sim.close()
-    return holder[0], out, rep, outcome
+    request = SweepAutoRequest(_urdf(side), source, out, robot=f"openarm_follower_{side}", joints=joints, report=rep,
+                               partial=partial)
+    with openarm_session(request) as (outcome, sim):
+        pass  # judged after the simulators stopped: the motors keep their state
+    return sim, out, rep, outcome
 
 
 # ------------------------------------------------------------------------------------------ the driver alone

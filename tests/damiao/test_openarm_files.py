@@ -5,21 +5,17 @@ from __future__ import annotations
 
 import json
 import math
-from importlib import resources
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from robocal.cli.main import main
-from robocal.core.jointmap import RobotCalibration
 from robocal.errors import FileFormatError, InvalidCalibrationError
 from robocal.formats import detect_format, read_calibration, write_calibration
 from robocal.formats.calibration._base import CalibrationFile
 from robocal.formats.urdf import read_urdf
 
-URDF = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
-RIGHT = [f"openarm_right_joint{i}" for i in range(1, 8)] + ["openarm_right_gripper_motor"]
+from .openarm_session import RIGHT, URDF, openarm_session, session_file
 
 # LeRobot 0.6.1 writes draccus.dump(..., indent=4): this is the text of a right arm with its design ranges
 # (robocal's URDF limits, whole degrees) and J4 measured 0.1..139.9° (rounded inward: 1..139)
@@ -38,8 +34,7 @@ PINNED_TAIL = (
 
 
 def _cal(offsets_deg: float = 0.0) -> CalibrationFile:
-    cal = RobotCalibration(RIGHT, np.ones(8), np.full(8, math.radians(offsets_deg)))
-    return CalibrationFile(cal, {}, "robocal", ranges_rad={RIGHT[3]: (math.radians(0.1), math.radians(139.9))})
+    return session_file(offsets_deg, {RIGHT[3]: (math.radians(0.1), math.radians(139.9))})
 
 
 def test_lerobot_json_bytes_sniffed_and_read_back(tmp_path: Path) -> None:
@@ -89,18 +84,13 @@ def test_convert_and_check_between_robocal_and_lerobot(tmp_path: Path, capsys: p
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_one_session_stores_the_zeros_and_writes_lerobots_file(tmp_path: Path) -> None:
-    from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
-    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+    from robocal.workflows.autocal.sweep import SweepAutoRequest
 
-    holder: list[SimAutoOpenArm] = []
     out, rep = tmp_path / "openarm_follower.json", tmp_path / "rep.json"
-    try:
-        outcome = run_sweep_auto(
-            SweepAutoRequest(URDF, "sim:openarm?seed=6", out, robot="openarm_follower_right", report=rep,
-                             fmt="openarm-lerobot", write_zero=True),
-            open_drivers_fn=sim_openarm_opener(holder),
-        )
-        arm = holder[0].arm
+    request = SweepAutoRequest(URDF, "sim:openarm?seed=6", out, robot="openarm_follower_right", report=rep,
+                               fmt="openarm-lerobot", write_zero=True)
+    with openarm_session(request) as (outcome, sim):
+        arm = sim.arm
         # judged by the simulator: each motor's stored zero is the joint's 0, one flash write each, all limp
         for name, motor in arm.motors.items():
             assert abs(math.degrees(arm.zero_error_rad(name))) < 0.1, name
@@ -108,9 +98,6 @@ def test_one_session_stores_the_zeros_and_writes_lerobots_file(tmp_path: Path) -
         arm.power_cycle()  # the zero is in flash: after a power cycle the motors still read the joint angles
         for name in arm.motors:
             assert abs(math.degrees(arm.zero_error_rad(name))) < 0.1, name
-    finally:
-        for sim in holder:
-            sim.close()
     assert outcome.out == out and outcome.fmt == "openarm-lerobot"
     # the diagnostics are those of the new zeros: only J1 and J2, whose ranges cross +180° from the zero, warn
     # that a power cycle brings a reading beyond it back a turn off (exit 1)

@@ -5,10 +5,8 @@ measured ranges), bytes pinned, read as a third party reads it (ruamel.yaml), an
 from __future__ import annotations
 
 import math
-from importlib import resources
 from pathlib import Path
 
-import numpy as np
 import pytest
 from ruamel.yaml import YAML
 
@@ -20,8 +18,8 @@ from robocal.formats.calibration._base import CalibrationFile
 from robocal.formats.calibration.openarm_ros2 import finger_m, gripper_rad
 from robocal.formats.urdf import read_urdf
 
-URDF = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
-RIGHT = [f"openarm_right_joint{i}" for i in range(1, 8)] + ["openarm_right_gripper_motor"]
+from .openarm_session import RIGHT, URDF, openarm_session, session_file
+
 MEASURED = {  # a session's ranges, rad: J4 0.1..139.9°, the gripper −59.7..−0.2°
     RIGHT[3]: (math.radians(0.1), math.radians(139.9)),
     RIGHT[7]: (math.radians(-59.7), math.radians(-0.2)),
@@ -37,8 +35,7 @@ PINNED_FINGER = (
 
 
 def _cal(offset_deg: float = 0.0) -> CalibrationFile:
-    cal = RobotCalibration(RIGHT, np.ones(8), np.full(8, math.radians(offset_deg)))
-    return CalibrationFile(cal, {}, "robocal", ranges_rad=MEASURED)
+    return session_file(offset_deg, MEASURED)
 
 
 def _write(path: Path, cf: CalibrationFile, fmt: str) -> None:
@@ -130,23 +127,15 @@ def test_convert_keeps_the_measured_ranges_both_ways(tmp_path: Path, capsys: pyt
 
 @pytest.mark.slow
 def test_one_session_writes_the_ros_file_with_the_measured_ranges(tmp_path: Path) -> None:
-    from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
-    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+    from robocal.workflows.autocal.sweep import SweepAutoRequest
 
     out = tmp_path / "joint_limits.yaml"
-    holder: list[SimAutoOpenArm] = []
-    try:
-        outcome = run_sweep_auto(
-            SweepAutoRequest(URDF, "sim:openarm?seed=4", out, robot="openarm_follower_right", fmt="openarm-ros2",
-                             joints=(RIGHT[4], RIGHT[7]), write_zero=True),
-            open_drivers_fn=sim_openarm_opener(holder),
-        )
-        arm = holder[0].arm
+    request = SweepAutoRequest(URDF, "sim:openarm?seed=4", out, robot="openarm_follower_right", fmt="openarm-ros2",
+                               joints=(RIGHT[4], RIGHT[7]), write_zero=True)
+    with openarm_session(request) as (outcome, sim):
+        arm = sim.arm
         truth = {n: (j.stop_lower_rad, j.stop_upper_rad) for n, j in zip(RIGHT, arm.joints, strict=True)}
         assert all(abs(math.degrees(arm.zero_error_rad(m))) < 0.1 for m in ("joint_5", "gripper"))
-    finally:
-        for sim in holder:
-            sim.close()
     assert outcome.out == out and outcome.exit_code == 0
     limits = YAML(typ="safe").load(out.read_text())["joint_limits"]
     assert list(limits) == ["openarm_right_joint5", "openarm_right_finger_joint1"]

@@ -6,30 +6,24 @@ moved by a known amount (``sim:openarm?zeroed=1&zero_drift=...``) and the drift 
 from __future__ import annotations
 
 import math
-from importlib import resources
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 pytest.importorskip("can")
 
 from robocal.cli.main import main
-from robocal.core.jointmap import RobotCalibration
 from robocal.formats import write_calibration
-from robocal.formats.calibration._base import CalibrationFile
 from robocal.formats.urdf import read_urdf
-from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
-from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+from robocal.workflows.autocal.sweep import SweepAutoRequest
 
-URDF = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
-RIGHT = [f"openarm_right_joint{i}" for i in range(1, 8)] + ["openarm_right_gripper_motor"]
+from .openarm_session import URDF, openarm_session, session_file
+
 J5, GRIPPER = "openarm_right_joint5", "openarm_right_gripper_motor"
 
 
 def _lerobot_file(path: Path) -> bytes:
-    cal = RobotCalibration(RIGHT, np.ones(8), np.zeros(8))
-    write_calibration(path, CalibrationFile(cal), "openarm-lerobot", urdf=read_urdf(URDF), robot="openarm_follower_right")
+    write_calibration(path, session_file(), "openarm-lerobot", urdf=read_urdf(URDF), robot="openarm_follower_right")
     return path.read_bytes()
 
 
@@ -39,21 +33,14 @@ def test_verify_finds_a_moved_motor_zero_within_0_3_degrees_and_writes_nothing(
     out = tmp_path / "arm.json"
     before = _lerobot_file(out)
     source = f"sim:openarm?seed=3&zeroed=1&zero_drift={J5}:3.0,{GRIPPER}:-1.2"
-    holder: list[SimAutoOpenArm] = []
-    try:
-        outcome = run_sweep_auto(
-            SweepAutoRequest(URDF, source, out, robot="openarm_follower_right", fmt="openarm-lerobot",
-                             joints=(J5, GRIPPER), verify=True),
-            open_drivers_fn=sim_openarm_opener(holder),
-        )
-        arm = holder[0].arm
+    request = SweepAutoRequest(URDF, source, out, robot="openarm_follower_right", fmt="openarm-lerobot",
+                               joints=(J5, GRIPPER), verify=True)
+    with openarm_session(request) as (outcome, sim):
+        arm = sim.arm
         # the injected drift as the simulator holds it: each motor reads that much more than its joint
         assert math.degrees(arm.zero_error_rad("joint_5")) == pytest.approx(3.0, abs=1e-6)
         assert math.degrees(arm.zero_error_rad("gripper")) == pytest.approx(-1.2, abs=1e-6)
         assert all(m.flash_writes == 0 and not m.enabled for m in arm.motors.values())
-    finally:
-        for sim in holder:
-            sim.close()
     drifts = {d.name: d for d in outcome.drifts}
     assert set(drifts) == {J5, GRIPPER}
     assert drifts[J5].drift_deg == pytest.approx(3.0, abs=0.3) and drifts[J5].flagged

@@ -1,4 +1,5 @@
-"""Shared pieces of the interruption tests: a child ``robocal`` that stops at a chosen import, and its run."""
+"""Shared pieces of the interruption tests: a child ``robocal`` that stops at a chosen import, and its run; a child
+Python that reports its signal handlers."""
 
 from __future__ import annotations
 
@@ -74,3 +75,29 @@ def paused_child(
         assert time.monotonic() < deadline, f"robocal did not reach the import of {module} in 120 s"
         time.sleep(0.01)
     return proc, marker
+
+
+def signalled_at_import(
+    argv: list[str], tmp: Path, module: str, signum: int, *, program: list[str] | None = None
+) -> tuple[int, str, str]:
+    """Hold ``robocal ARGV`` at the first import of ``module`` (:func:`paused_child`), send it ``signum``.
+
+    Returns:
+        Its exit code, standard output and standard error once it has ended (bounded: 120 s).
+    """
+    proc, _ = paused_child(argv, tmp, module, program=program)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=120)
+    return proc.returncode, out, err
+
+
+def python_with_robocal(code: str) -> str:
+    """Run ``python -c CODE`` with only robocal's sources on the path; its standard output (stderr on failure)."""
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PYTHONPATH": str(SRC)},
+    )
+    return r.stdout or r.stderr

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import paused_child
+from .conftest import python_with_robocal, signalled_at_import
 
 SIGNALS = [
     (signal.SIGINT, 130, "error: interrupted"),
@@ -37,10 +37,8 @@ SLOW = pytest.mark.slow  # a Python start-up each (2-5 s on a loaded machine)
 def test_signal_while_importing_prints_one_line(
     tmp_path: Path, signum: int, code: int, line: str, module: str
 ) -> None:
-    proc, _ = paused_child(["check", "--help"], tmp_path, module)
-    proc.send_signal(signum)
-    out, err = proc.communicate(timeout=120)
-    assert (proc.returncode, err, out) == (code, line + "\n", "")
+    returncode, out, err = signalled_at_import(["check", "--help"], tmp_path, module, signum)
+    assert (returncode, err, out) == (code, line + "\n", "")
 
 
 @pytest.mark.parametrize("program", ["-m", "script"])
@@ -54,27 +52,14 @@ def test_signal_at_robocal_s_first_import_prints_one_line(tmp_path: Path, progra
     script.write_text("import re\nimport sys\nfrom robocal.cli.entry import run\nsys.exit(run())\n")
     argv = None if program == "-m" else [sys.executable, str(script)]
     for signum, code, line in (SIGNALS[0], SIGNALS[1]):
-        proc, _ = paused_child(["check", "--help"], tmp_path, "robocal.errors", program=argv)
-        proc.send_signal(signum)
-        out, err = proc.communicate(timeout=120)
-        assert (proc.returncode, err, out) == (code, line + "\n", ""), signum
+        returncode, out, err = signalled_at_import(["check", "--help"], tmp_path, "robocal.errors", signum, program=argv)
+        assert (returncode, err, out) == (code, line + "\n", ""), signum
 
 
 def test_importing_robocal_installs_no_handler() -> None:
     """Only the ``robocal`` program installs handlers at import: a program that imports robocal keeps its own."""
-    import subprocess
-
-    from .conftest import SRC
-
     code = "import signal, robocal; print(signal.getsignal(signal.SIGINT) is signal.default_int_handler, signal.getsignal(signal.SIGTERM) == signal.SIG_DFL)"
-    r = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env={"PYTHONPATH": str(SRC)},
-    )
-    assert r.stdout == "True True\n", r.stderr
+    assert python_with_robocal(code) == "True True\n"
 
 
 @SLOW
@@ -82,10 +67,9 @@ def test_old_console_script_is_covered_too(tmp_path: Path) -> None:
     """A ``robocal`` script generated before the new entry point (``from robocal.cli.main import run``)."""
     script = tmp_path / "robocal"
     script.write_text("import sys\nfrom robocal.cli.main import run\nsys.exit(run())\n")
-    proc, _ = paused_child(["check", "--help"], tmp_path, "typer", program=[sys.executable, str(script)])
-    proc.send_signal(signal.SIGINT)
-    _out, err = proc.communicate(timeout=120)
-    assert (proc.returncode, err) == (130, "error: interrupted\n")
+    program = [sys.executable, str(script)]
+    returncode, _out, err = signalled_at_import(["check", "--help"], tmp_path, "typer", signal.SIGINT, program=program)
+    assert (returncode, err) == (130, "error: interrupted\n")
 
 
 @SLOW
@@ -96,33 +80,20 @@ def test_signal_while_a_command_opens_its_source(tmp_path: Path, signum: int, co
 
     (tmp_path / "lite.urdf").write_text(lite_urdf_text())
     argv = ["sweep", "--urdf", "lite.urdf", "--source", "sim:lite?seed=3", "--out", "cal.yaml"]
-    proc, _ = paused_child(argv, tmp_path, "can")
-    proc.send_signal(signum)
-    _out, err = proc.communicate(timeout=120)
-    assert (proc.returncode, err) == (code, line + "\n")
+    returncode, _out, err = signalled_at_import(argv, tmp_path, "can", signum)
+    assert (returncode, err) == (code, line + "\n")
     assert not (tmp_path / "cal.yaml").exists()
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".rc-")]
 
 
 def test_ignored_sighup_stays_ignored(tmp_path: Path) -> None:
     """``nohup robocal ...``: the parent ignores SIGHUP, and so does robocal (a closed terminal must not stop it)."""
-    import subprocess
-
-    from .conftest import SRC
-
     code = (
         "import signal, sys; signal.signal(signal.SIGHUP, signal.SIG_IGN); "
         "from robocal.cli import entry; entry.install_startup_handlers(); "
         "print(signal.getsignal(signal.SIGHUP) == signal.SIG_IGN, signal.getsignal(signal.SIGTERM) is not None)"
     )
-    r = subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env={"PYTHONPATH": str(SRC)},
-    )
-    assert r.stdout == "True True\n", r.stderr
+    assert python_with_robocal(code) == "True True\n"
 
 
 @SLOW

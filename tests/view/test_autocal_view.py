@@ -11,7 +11,6 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-import numpy as np
 import pytest
 
 pytest.importorskip("viser")  # robocal[view]; installed by the [test] extra
@@ -23,28 +22,11 @@ from robocal.viewer.autocal_page import open_auto_sweep_page
 from robocal.viewer.sweep_page import FAIL_RGB, LIVE_RGB, STATUS_RGB, status_rgb
 from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
+from .autocal_pages import Recorder, assert_page_shows_the_report
 from .conftest import LITE_URDF, serve_then_ctrl_c
 
 JOINTS = ["left_wrist_roll", "left_wrist_pitch", "right_elbow_pitch"]
 SOURCE = "sim:lite?seed=0&missing=left_wrist_roll"
-
-
-class Recorder:
-    """An inner auto view: what the page view forwards."""
-
-    def __init__(self) -> None:
-        self.calls: list[tuple[str, str]] = []
-        self.q: dict[str, list[float]] = {}
-
-    def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
-        self.calls.append(("start", name))
-
-    def sample(self, name: str, phase: str, side: str, sample: Any) -> None:
-        if sample.ok:
-            self.q.setdefault(name, []).append(sample.q_rad)
-
-    def joint_done(self, outcome: Any) -> None:
-        self.calls.append(("done", outcome.name))
 
 
 def test_status_colours_of_the_auto_codes() -> None:
@@ -97,25 +79,10 @@ def test_the_search_drawn_with_the_report_codes(tmp_path: Path) -> None:
         web.finish(outcome.auto, outcome.result)
         # every call reached the terminal's view too, in the search order
         assert [c for c in rec.calls if c[0] == "start"] == [("start", o.name) for o in outcome.auto.joints]
-        doc = json.loads(report.read_text())
-        state = {j["name"]: j for j in web.status()["joints"]}
-        assert web.status()["finished"] is True and web.status()["active"] is None
-        for name in JOINTS:
-            entry = state[name]
-            auto = doc["auto"]["joints"][name]
-            # a passed joint has the sweep report's code, a failed one the auto report's
-            code = (doc["joints"][name]["warnings"] or ["ok"])[0] if auto["code"] == "ok" else auto["code"]
-            assert entry["status"] == code
-            assert entry["color"] == list(status_rgb(code))
-            for key, rep in (("stop_minus", "q_stop_minus_deg"), ("stop_plus", "q_stop_plus_deg")):
-                if auto[rep] is None:
-                    assert entry[key] is None
-                else:
-                    assert math.degrees(entry[key]) == pytest.approx(auto[rep], abs=1e-3)
-            # the travelled range is what the joint read, and it reaches the found stops
-            q = np.array(rec.q[name])
-            assert entry["seen_min"] == pytest.approx(q.min()) and entry["seen_max"] == pytest.approx(q.max())
-            assert entry["current"] == pytest.approx(q[-1])
+        state = assert_page_shows_the_report(web, json.loads(report.read_text()), rec, JOINTS)
+        assert web.status()["active"] is None
+        for name in JOINTS:  # the joint drawn where it last read
+            assert state[name]["current"] == pytest.approx(rec.q[name][-1])
         assert state["left_wrist_roll"]["status"] == "missing_stop"
         assert state["left_wrist_roll"]["color"] == list(FAIL_RGB)
         # a joint not searched has no arc

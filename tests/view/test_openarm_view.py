@@ -5,23 +5,21 @@ tests/sim/test_sim_openarm_hand_sweep.py."""
 from __future__ import annotations
 
 import json
-import math
 from importlib import resources
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 pytest.importorskip("viser")  # robocal[view]
 pytest.importorskip("can")
 
 from robocal.viewer.autocal_page import open_auto_sweep_page
-from robocal.viewer.sweep_page import FAIL_RGB, status_rgb
+from robocal.viewer.sweep_page import FAIL_RGB
 from robocal.workflows.autocal.damiao import sim_openarm_opener
 from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
 
+from .autocal_pages import Recorder, assert_page_shows_the_report
 from .conftest import serve_then_ctrl_c
-from .test_autocal_view import Recorder
 
 URDF = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
 JOINTS = ["openarm_right_joint5", "openarm_right_joint6", "openarm_right_gripper_motor"]
@@ -53,20 +51,7 @@ def test_the_openarm_search_drawn_with_the_report_codes(tmp_path: Path) -> None:
             open_drivers_fn=sim_openarm_opener(),
         )
         web.finish(outcome.auto, outcome.result)
-        doc = json.loads(report.read_text())
-        state = {j["name"]: j for j in web.status()["joints"]}
-        assert web.status()["finished"] is True
-        for name in JOINTS:
-            entry, auto = state[name], doc["auto"]["joints"][name]
-            code = (doc["joints"][name]["warnings"] or ["ok"])[0] if auto["code"] == "ok" else auto["code"]
-            assert entry["status"] == code and entry["color"] == list(status_rgb(code)), name
-            for key, rep in (("stop_minus", "q_stop_minus_deg"), ("stop_plus", "q_stop_plus_deg")):
-                if auto[rep] is None:
-                    assert entry[key] is None
-                else:
-                    assert math.degrees(entry[key]) == pytest.approx(auto[rep], abs=1e-3)
-            q = np.array(rec.q[name])
-            assert entry["seen_min"] == pytest.approx(q.min()) and entry["seen_max"] == pytest.approx(q.max())
+        state = assert_page_shows_the_report(web, json.loads(report.read_text()), rec, JOINTS)
         assert state["openarm_right_joint6"]["status"] == "missing_stop"
         assert state["openarm_right_joint6"]["color"] == list(FAIL_RGB)
         assert state["openarm_right_joint5"]["status"] in ("ok", "wrap_in_travel")
