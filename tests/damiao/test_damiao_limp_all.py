@@ -128,3 +128,48 @@ def test_the_keepalive_thread_leaves_every_handled_signal_to_the_main_thread(arm
         assert {int(s) for s in HANDLED_SIGNALS} <= _blocked_in(native_id)
         assert not {int(s) for s in HANDLED_SIGNALS} & _blocked_in(threading.main_thread().native_id or 0)
         grip.limp()
+
+
+class _Zeroing(_QuickRecorder):
+    """A motor that stores its zero (``--write-zero``); the first one's store meets a signal."""
+
+    def store_zero(self) -> float:
+        from robocal.backends.bus_transaction import raise_now_or_after
+        from robocal.errors import SignalInterrupt
+
+        self.log.append(f"store {self.name}")
+        if len(self.log) == 1:
+            raise_now_or_after(SignalInterrupt(signal.SIGTERM))  # the handler, inside the held window
+        return 0.0
+
+
+class _Section:
+    joint_names = ("grip", "j6", "j5")
+
+    def joint(self, name: str) -> object:
+        return type("AutoJoint", (), {"speed_rad_s": 0.1, "torque_cap_nm": 0.5})()
+
+
+def test_a_signal_while_zeros_go_to_flash_stores_no_further_zero_and_the_rest_go_limp_at_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Before, every remaining motor stayed held until its own zero was stored (each a limp and four exchanges
+    after the previous one's): over 100 ms after the signal. Now the first store ends the flash writes."""
+    import contextlib
+
+    from robocal.backends.bus_transaction import transaction
+    from robocal.errors import SignalInterrupt
+    from robocal.workflows.autocal import zero
+
+    monkeypatch.setattr(zero, "move_to", lambda *a, **k: None)
+    monkeypatch.setattr(zero, "_hold", lambda driver, target, cap, periods: target)
+    log: list[str] = []
+    drivers = {n: _Zeroing(n, log, enabled=True) for n in _Section.joint_names}
+    stored: list[dict[str, float]] = []
+    with pytest.raises(SignalInterrupt), contextlib.ExitStack() as held:  # the held signal comes out at the end
+        stored.append(
+            zero.store_zeros(drivers, {"grip": 0.1, "j6": 0.2, "j5": 0.3}, _Section(), max_lag_rad=0.05,  # type: ignore[arg-type]
+                             before_store=lambda: held.enter_context(transaction()))
+        )  # fmt: skip
+    assert stored == [{"grip": 0.0}]  # the caller's file rezeroes only what reached flash
+    assert log == ["store grip", "nowait j6", "nowait j5", "limp j6", "limp j5"]

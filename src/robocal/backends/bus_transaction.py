@@ -26,7 +26,14 @@ import signal
 import threading
 from collections.abc import Iterator
 
-__all__ = ["HANDLED_SIGNALS", "in_transaction", "raise_now_or_after", "start_signal_free", "transaction"]
+__all__ = [
+    "HANDLED_SIGNALS",
+    "holding",
+    "in_transaction",
+    "raise_now_or_after",
+    "start_signal_free",
+    "transaction",
+]
 
 HANDLED_SIGNALS: tuple[signal.Signals, ...] = tuple(
     getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT") if hasattr(signal, n)
@@ -40,6 +47,11 @@ _held: BaseException | None = None
 def in_transaction() -> bool:
     """Whether the main thread is inside a packet exchange."""
     return _depth > 0
+
+
+def holding() -> bool:
+    """Whether an exception a signal handler raised is held back until the exchange is complete."""
+    return _held is not None
 
 
 @contextlib.contextmanager

@@ -16,13 +16,14 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from ...backends.bus_transaction import holding
 from ...core.profile_auto import AutoSection
 from ...core.stop_search import Command
 from ...core.sweep import analyse_sweep
 from ...core.sweep_result import SweepResult
 from ...errors import UsageError
 from .joint import TRANSIT_FACTOR, move_to
-from .model import JointDriver
+from .model import JointDriver, limp_all
 
 __all__ = ["HOLD_S", "ZERO_TOL_RAD", "can_store_zero", "rezeroed_result", "store_zeros"]
 
@@ -66,10 +67,14 @@ def store_zeros(
     """Move every joint of ``offsets_rad`` to its 0, then store each one's zero in its motor.
 
     ``before_store`` is called once, after the moves and before the first zero is stored (the caller holds
-    signals back from there until its file is written: a flash write cannot be taken back).
+    signals back from there until its file is written: a flash write cannot be taken back). A signal held back
+    meanwhile stores no further zero: the joints not yet zeroed are made limp at once (issue 26: within 100 ms,
+    not after the other motors' flash writes) and left with their zero as it was; the caller's file says which
+    zeros were stored.
 
     Returns:
-        Joint → its angle (from its stops) where the zero was stored, rad: the new zero's error.
+        Joint → its angle (from its stops) where the zero was stored, rad: the new zero's error (only the joints
+        whose zero was stored).
     """
     at: dict[str, float] = {}
     for name, offset in offsets_rad.items():
@@ -87,10 +92,16 @@ def store_zeros(
         at[name] = q - offset
     if before_store is not None:
         before_store()
+    stored: dict[str, float] = {}
     for name in section.joint_names:
-        if name in at:
-            drivers[name].store_zero()  # type: ignore[attr-defined]
-    return at
+        if name not in at:
+            continue
+        if holding():  # a signal came: no further flash write; every joint still held goes limp now
+            limp_all([drivers[n] for n in at if n not in stored])
+            break
+        drivers[name].store_zero()  # type: ignore[attr-defined]
+        stored[name] = at[name]
+    return stored
 
 
 def rezeroed_result(
