@@ -42,6 +42,7 @@ from .harness import (
     HANG_GUARD_S,
     SRC,
     TrialResult,
+    _before_robocal,
     _default_signals,
     _inject,
     _Run,
@@ -258,6 +259,9 @@ def _trial(
         _judge(sim, folder, fault, code, before, run, write_zero, signalled_at=signalled_at, watchdog_s=watchdog_s,
                sent=relay.sent)
     )
+    if failures and _before_robocal(fault, code, run) and all("exit" in f for f in failures):
+        # as for the other robots: the signal met Python's own start-up, before robocal's first line
+        return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
     tail = " | ".join(ln.strip() for ln in run.lines[-3:])
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
 
