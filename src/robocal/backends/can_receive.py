@@ -1,8 +1,12 @@
-"""The reply wait every python-can bus of robocal shares (Robstride, Damiao): frames until a deadline, late ones too.
+"""What every python-can bus of robocal shares (Robstride, Damiao): opening within a deadline, and the reply wait.
 
-A reply that arrived before the deadline while this process was descheduled is still a reply in time: once the
-deadline has passed, the frames already queued are taken without waiting (at most :data:`LATE_FRAMES`), then the
-wait ends.
+Opening (:func:`open_within`): python-can's socketcand client waits for the server's greeting without a timeout, so
+a server that accepts and then says nothing (a frozen process) would hang the command forever; the channel is
+opened in a worker thread and given up after a deadline (a device error, exit 3).
+
+The reply wait (:func:`frames_until`): a reply that arrived before the deadline while this process was descheduled
+is still a reply in time: once the deadline has passed, the frames already queued are taken without waiting (at
+most :data:`LATE_FRAMES`), then the wait ends.
 """
 
 from __future__ import annotations
@@ -11,7 +15,13 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-__all__ = ["LATE_FRAMES", "frames_until"]
+from ..errors import DeviceError
+
+__all__ = ["LATE_FRAMES", "OPEN_DEADLINE_S", "frames_until", "open_within"]
+
+OPEN_DEADLINE_S = 15.0
+"""Opening a CAN channel gives up after this (plus the reply timeout): python-can itself retries a refused
+socketcand connection for up to 10 s."""
 
 LATE_FRAMES = 1024
 """At most this many frames already queued are taken once a deadline has passed."""
@@ -38,3 +48,34 @@ def frames_until(
             return
         if bool(msg.is_extended_id) == extended:
             yield msg
+
+
+def open_within(deadline_s: float, open_fn: Callable[[], Any], what: str) -> Any:
+    """``open_fn()`` in a worker thread, or :class:`DeviceError` when it neither returns nor raises in time.
+
+    A client stuck in its handshake is left behind in its (daemon) thread, which takes no signal (they stay with
+    the main thread); the command ends with exit 3.
+
+    Raises:
+        DeviceError: ``open_fn`` raised (``cannot open WHAT: ...``) or did not return within ``deadline_s``.
+    """
+    import threading
+
+    from .bus_transaction import start_signal_free
+
+    box: list[Any] = []
+
+    def run() -> None:
+        try:
+            box.append(("ok", open_fn()))
+        except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
+            box.append(("error", exc))
+
+    worker = start_signal_free(threading.Thread(target=run, name=f"open {what}", daemon=True))
+    worker.join(deadline_s)
+    if not box:
+        raise DeviceError(f"cannot open {what}: no answer within {deadline_s:g} s (the device or server is frozen)")
+    kind, value = box[0]
+    if kind == "error":
+        raise DeviceError(f"cannot open {what}: {value}") from None
+    return value

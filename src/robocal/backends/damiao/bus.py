@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .. import reply_timeout_floor_s, require
-from ..can_receive import LATE_FRAMES, frames_until
+from ..can_receive import LATE_FRAMES, OPEN_DEADLINE_S, frames_until, open_within
 from .protocol import (
     Frame,
     MitCommand,
@@ -179,12 +179,12 @@ class DamiaoBus(ClosesOnExit):
             kwargs = dict(bus_kwargs or {})
             if self.fd:
                 kwargs["fd"] = True
-            try:
-                self._bus = self._can.Bus(
-                    channel=channel, interface=interface, receive_own_messages=False, **kwargs
-                )
-            except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
-                raise DeviceError(f"cannot open CAN {interface}:{channel}: {exc}") from None
+            # in a worker with a deadline: python-can's socketcand client waits for a frozen server's greeting forever
+            self._bus = open_within(
+                OPEN_DEADLINE_S + self.timeout_s,
+                lambda: self._can.Bus(channel=channel, interface=interface, receive_own_messages=False, **kwargs),
+                f"CAN {interface}:{channel}",
+            )
         if ranges == "registers":
             try:
                 self.read_ranges()

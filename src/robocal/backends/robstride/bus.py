@@ -17,7 +17,8 @@ from typing import Any
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .. import reply_timeout_floor_s, require
-from ..can_receive import frames_until
+from ..can_receive import OPEN_DEADLINE_S as _OPEN_DEADLINE_S
+from ..can_receive import frames_until, open_within
 from .protocol import (
     DEFAULT_HOST_ID,
     FIRMWARE_QUERY,
@@ -39,37 +40,8 @@ from .protocol import (
 
 __all__ = ["CAN_TIMEOUT_UNITS_PER_S", "MotorSpec", "RobstrideBus"]
 
-OPEN_DEADLINE_S = 15.0
-"""Opening a CAN channel gives up after this (plus the reply timeout): python-can's socketcand client waits for the
-server's greeting without a timeout, so a server that accepts and then says nothing (a frozen process) would hang
-the command forever; python-can itself retries a refused connection for up to 10 s."""
-
-
-def _open_within(deadline_s: float, open_fn: Any, what: str) -> Any:
-    """``open_fn()`` in a worker thread, or :class:`DeviceError` when it neither returns nor raises in time.
-
-    A client stuck in its handshake is left behind in its (daemon) thread; the command ends with exit 3.
-    """
-    import threading
-
-    box: list[Any] = []
-
-    def run() -> None:
-        try:
-            box.append(("ok", open_fn()))
-        except Exception as exc:  # python-can raises CanError / OSError / ValueError by interface
-            box.append(("error", exc))
-
-    from ..bus_transaction import start_signal_free
-
-    worker = start_signal_free(threading.Thread(target=run, name=f"open {what}", daemon=True))
-    worker.join(deadline_s)
-    if not box:
-        raise DeviceError(f"cannot open {what}: no answer within {deadline_s:g} s (the device or server is frozen)")
-    kind, value = box[0]
-    if kind == "error":
-        raise DeviceError(f"cannot open {what}: {value}") from None
-    return value
+OPEN_DEADLINE_S = _OPEN_DEADLINE_S
+"""Opening a CAN channel gives up after this plus the reply timeout (:func:`~robocal.backends.can_receive.open_within`)."""
 
 
 DEFAULT_TIMEOUT_S = 0.1
@@ -146,7 +118,7 @@ class RobstrideBus(ClosesOnExit):
                 raise UsageError(
                     f"CAN interface {interface!r} is unknown to python-can; expected one of {', '.join(valid)}"
                 )
-            self._bus = _open_within(
+            self._bus = open_within(
                 OPEN_DEADLINE_S + self.timeout_s,
                 lambda: self._can.Bus(
                     channel=channel, interface=interface, receive_own_messages=False, **dict(bus_options or {})
