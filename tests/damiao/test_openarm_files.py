@@ -111,3 +111,47 @@ def test_one_session_stores_the_zeros_and_writes_lerobots_file(tmp_path: Path) -
         assert lo <= doc[motor]["range_min"] <= lo + 1 and hi - 1 <= doc[motor]["range_max"] <= hi, motor
     stored = json.loads(rep.read_text())["zero_stored_at_deg"]
     assert set(stored) == set(RIGHT) and max(abs(v) for v in stored.values()) <= 0.05
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_a_signal_after_the_first_zero_in_flash_ends_the_run_after_the_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """From the first zero stored (a flash write cannot be taken back) to the file, signals wait (the motion
+    guard's hold): SIGTERM right after the first zero still stores the second and writes the file, then ends the
+    run. Judged by the simulated motors' flash writes and the file (in-process; the fault harness does it over
+    socketcand in tests/faults/test_damiao_faults.py)."""
+    import os
+    import signal
+
+    from robocal.backends.damiao.joint_driver import DamiaoJointDriver
+    from robocal.errors import SignalInterrupt
+    from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
+    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+
+    real_store = DamiaoJointDriver.store_zero
+    stored: list[str] = []
+
+    def store_then_sigterm(self: DamiaoJointDriver) -> None:
+        real_store(self)
+        stored.append(self.name)
+        if len(stored) == 1:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(DamiaoJointDriver, "store_zero", store_then_sigterm)
+    out = tmp_path / "joint_limits.yaml"
+    request = SweepAutoRequest(URDF, "sim:openarm?seed=4", out, robot="openarm_follower_right", fmt="openarm-ros2",
+                               joints=(RIGHT[4], RIGHT[7]), write_zero=True)
+    holder: list[SimAutoOpenArm] = []
+    try:
+        with pytest.raises(SignalInterrupt) as info:
+            run_sweep_auto(request, open_drivers_fn=sim_openarm_opener(holder))
+        motors = holder[0].arm.motors
+        assert [motors[m].flash_writes for m in ("joint_5", "gripper")] == [1, 1]  # both zeros stored
+        assert not any(m.enabled for m in motors.values())
+    finally:
+        for sim in holder:
+            sim.close()
+    assert info.value.signum == signal.SIGTERM and stored == [RIGHT[7], RIGHT[4]]
+    assert out.is_file() and "openarm_right_joint5:" in out.read_text()  # the file, then the signal
