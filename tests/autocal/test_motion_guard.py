@@ -102,25 +102,3 @@ def test_what_could_not_be_restored_is_kept_and_named(tmp_path: Path, monkeypatc
     )
     kept = find_left_changed("/dev/ttyFAKE1")
     assert kept is not None and kept.registers == {"b": {"Homing_Offset": 7, "Lock": 1}} and kept.command == "test"
-
-
-def test_holding_raises_the_first_signal_after_the_block_and_lets_a_fault_go_on() -> None:
-    """The one hold of the steps a restore must no longer undo (the result file, a zero in flash)."""
-    calls: list[str] = []
-    seen: list[str] = []
-    guard = MotionGuard(limp=lambda: calls.append("limp") or [], on_status=seen.append, what="motor state")
-    with pytest.raises(SignalInterrupt) as info, guard, guard.holding("storing the zeros"):
-        os.kill(os.getpid(), signal.SIGTERM)  # held: the block goes on to its end
-        os.kill(os.getpid(), signal.SIGINT)
-        calls.append("stored")
-    assert info.value.signum == signal.SIGTERM and calls == ["stored", "limp"]
-    assert seen == [
-        "still storing the zeros; SIGTERM is ignored until it is done",
-        "still storing the zeros; Ctrl-C is ignored until it is done",
-    ]
-    # a fault inside the block goes on as it is (a signal held meanwhile does not replace it)
-    guard = MotionGuard(limp=lambda: [], what="motor state")
-    with pytest.raises(DeviceError, match=r"^/dev/x: gone"), guard, guard.holding("storing the zeros"):
-        os.kill(os.getpid(), signal.SIGHUP)
-        raise DeviceError("/dev/x: gone")
-    assert guard.deferred == [signal.SIGHUP]

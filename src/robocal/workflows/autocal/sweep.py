@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ...backends.bus_transaction import transaction
 from ...core.health.drift import JointDrift, offset_drift
 from ...core.profile import RobotProfile
 from ...core.sweep import analyse_sweep
@@ -428,18 +429,18 @@ def run_sweep_auto(
                 auto,
             )
         zeros: dict[str, float] = {}
-        # from the first zero stored in flash (irreversible) to the file written, a signal waits (the guard holds
-        # it) and comes out after the file: "interrupted after writing ..." (issue 26 item 6, issue 31)
+        # from the first zero stored in flash (irreversible) to the file written, a signal waits (bus_transaction
+        # holds it) and comes out after the file: "interrupted after writing ..." (issue 26 item 6, issue 31)
         with contextlib.ExitStack() as held:  # closed on any exception too: nothing stays held
             if r.write_zero and searched:
                 from .zero import rezeroed_result, store_zeros
 
-                guard = held.enter_context(
+                held.enter_context(
                     MotionGuard(limp=lambda: limp_all(drivers), what="motor state")
                 )  # to the file
                 zeros = store_zeros(
                     drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=max_lag_rad,
-                    before_store=lambda: held.enter_context(guard.holding("storing the zeros and writing the file")),
+                    before_store=lambda: held.enter_context(transaction()),
                 )  # fmt: skip
                 result = rezeroed_result(
                     result, zeros, wraps=profile.position_wraps, zero_sta=1 if vendor.power_on_half_turn else 0

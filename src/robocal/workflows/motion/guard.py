@@ -173,32 +173,19 @@ class MotionGuard:
         finally:
             self._restoring, self._doing = was, was_doing
 
-    @contextlib.contextmanager
-    def holding(self, doing: str) -> Iterator[None]:
-        """Hold every guarded signal off while the block runs; the first that came is raised once it is done.
-
-        For the steps a signal must not cut short and a restore must no longer undo (the result file, once the
-        motors hold what it says; a zero stored in a motor's flash, until the file is written): a signal
-        during the block waits (shown through ``on_status`` as "still ``doing``"), and when the block completes
-        it is raised (``SignalInterrupt``), so the command ends by that signal and says what was written. An
-        exception from the block goes on as it is (the guard then limps and restores as for any fault).
-        """
-        seen = len(self.deferred)
-        with self.deferring(doing):
-            yield
-        if len(self.deferred) > seen:
-            raise SignalInterrupt(self.deferred[seen])
-
     def finish_with(self, write: Callable[[], T]) -> T:
-        """The run's last step (e.g. the calibration file) under :meth:`holding`, then :meth:`resolved`.
+        """The run's last step (e.g. the calibration file) with signals held off, then :meth:`resolved`.
 
         The motors hold what the run meant them to; a signal during ``write`` no longer undoes them: once the
         write is done it is raised (``SignalInterrupt``), so the command ends by that signal and says what was
         written, with the motors and the file agreeing. A write that fails (a full disk) still restores.
         """
-        with self.holding("writing the result"):
+        seen = len(self.deferred)
+        with self.deferring("writing the result"):
             out = write()
-            self.resolved()
+        self.resolved()
+        if len(self.deferred) > seen:
+            raise SignalInterrupt(self.deferred[seen])
         return out
 
     # ---------------------------------------------------------------------------------------- life cycle
