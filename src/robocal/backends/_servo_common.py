@@ -96,6 +96,9 @@ class SdkBusBase(ClosesOnExit):
         self.port = port
         self.motors = dict(motors)
         self.retries = retries
+        self.watchdog_armed_s: dict[int, float] = {}
+        """Motor id → the host-loss watchdog time armed on it (s); empty where none is armed or the family has
+        none (Feetech). The joint drivers check a motor whose host was silent long enough to trip it."""
         self._sdk = sdk
         self._port_handler = sdk.PortHandler(port)
         self._ph = sdk.PacketHandler(protocol)

@@ -51,7 +51,12 @@ from ..core.stop_search import Command, StopSample
 from ..errors import CalibTimeoutError, UsageError
 from .clock import Clock
 
-__all__ = ["ServoJointDriver"]
+__all__ = ["WATCHDOG_CHECK_FRACTION", "ServoJointDriver"]
+
+WATCHDOG_CHECK_FRACTION = 0.5
+"""A bus exchange whose window (from the start of the driver's previous exchange to the end of this one) is longer
+than this fraction of the motor's armed host-loss watchdog time may have let the watchdog trip (robocal was held
+up): the driver asks the motor before it hands the reading on (:meth:`ServoJointDriver.send`)."""
 
 
 def _motor_model(joint: str, bus_model: str, motor: str | None) -> MotorModel:
@@ -113,6 +118,9 @@ class ServoJointDriver:
         self._present = 0  # its Present_Position
         self._q = math.nan
         self._limit_nm = math.nan
+        self._exchange_start_s = math.nan  # when the previous bus exchange of this driver began (clock time)
+        self.watchdog_recoveries = 0
+        """How often a tripped host-loss watchdog was found (robocal held up past it), cleared and re-armed."""
         self._init_vendor()
 
     # -- frame ----------------------------------------------------------------------------------------
@@ -175,6 +183,13 @@ class ServoJointDriver:
         """Clear a latch and hold the present position."""
         raise NotImplementedError
 
+    def _recover_watchdog(self) -> bool:
+        """Whether the motor's host-loss watchdog had tripped; if so it is cleared and armed again.
+
+        The vendor's check (Dynamixel ``Bus_Watchdog`` −1); a family without a watchdog never gets here.
+        """
+        return False
+
     # -- common ---------------------------------------------------------------------------------------
     def _sync(self, register: str, value: int) -> None:
         self.bus.sync_write(register, {self.motor_id: int(value)})
@@ -183,7 +198,41 @@ class ServoJointDriver:
         return int(self.bus.sync_read(register, [self.motor_id])[self.motor_id])
 
     def read(self) -> StopSample:
-        """Read the joint without changing what the motor does (a lost reply gives ``ok=False``)."""
+        """Read the joint without changing what the motor does (a lost reply gives ``ok=False``).
+
+        Like :meth:`send`, a reading after a silence that may have tripped the motor's host-loss watchdog is
+        taken again once the watchdog is cleared and armed again.
+        """
+        start = self.clock.now()
+        s = self._read_sample()
+        if self._watchdog_may_have_tripped(start) and self._watchdog_recovered():
+            s = self._read_sample()
+        return s
+
+    def _watchdog_may_have_tripped(self, start_s: float) -> bool:
+        """Whether the motor heard nothing from robocal long enough for its armed watchdog to trip.
+
+        The longest silence the motor saw since the previous exchange lies inside the window from that exchange's
+        start to now (robocal may have been descheduled anywhere in it, even while a reply waited for it), so a
+        window longer than :data:`WATCHDOG_CHECK_FRACTION` of the watchdog time is checked; the first exchange of
+        a driver always is. Restarts the window at ``start_s``.
+        """
+        previous, self._exchange_start_s = self._exchange_start_s, start_s
+        armed_s = getattr(self.bus, "watchdog_armed_s", {}).get(self.motor_id)
+        if armed_s is None:
+            return False
+        return not self.clock.now() - previous <= WATCHDOG_CHECK_FRACTION * armed_s  # NaN: the first exchange
+
+    def _watchdog_recovered(self) -> bool:
+        """:meth:`_recover_watchdog`, counted; a lost reply is not a trip (the reading says so)."""
+        try:
+            tripped = self._recover_watchdog()
+        except CalibTimeoutError:
+            return False
+        self.watchdog_recoveries += int(tripped)
+        return tripped
+
+    def _read_sample(self) -> StopSample:
         try:
             present, v, tau, bits = self._read_raw()
         except CalibTimeoutError:
@@ -222,7 +271,20 @@ class ServoJointDriver:
 
         For joints searched at the same time (:func:`robocal.workflows.autocal.group.run_lockstep`), which
         let one period pass for all of them.
+
+        A motor whose host-loss watchdog may have tripped while robocal was held up (a gap between exchanges;
+        :meth:`_watchdog_may_have_tripped`) is asked first: a tripped one stopped on its own and refused the goal
+        (Dynamixel: it holds where it was), so its reading is no evidence of a stop; the watchdog is cleared and
+        armed again and ``cmd`` carried out once more, and only that reading is handed on (issue 26 item 4: a
+        scheduling gap is never taken for contact).
         """
+        start = self.clock.now()
+        s = self._send_once(cmd)
+        if cmd.action != "limp" and self._watchdog_may_have_tripped(start) and self._watchdog_recovered():
+            s = self._send_once(cmd)
+        return s
+
+    def _send_once(self, cmd: Command) -> StopSample:
         if cmd.action == "limp":
             self.limp()
             return StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q))
@@ -237,7 +299,7 @@ class ServoJointDriver:
                     self._sync("Goal_Position", self._goal(self.ticks(cmd.q_target_rad)))
         except CalibTimeoutError:
             pass  # the reading below says so
-        return self.read()
+        return self._read_sample()
 
     def limp(self) -> None:
         """Torque off now (a SYNC_WRITE: no status packet to wait for); never raises."""

@@ -57,10 +57,13 @@ class DynamixelBus(SdkBusBase):
         units = max(1, min(127, round(timeout_s / BUS_WATCHDOG_UNIT_S)))
         for motor_id in motor_ids:
             self.write("Bus_Watchdog", motor_id, units)
+            self.watchdog_armed_s[motor_id] = units * BUS_WATCHDOG_UNIT_S
 
     def disarm_watchdog(self, motor_ids: Sequence[int]) -> None:
         """``Bus_Watchdog`` 0 on each motor (off, and a tripped watchdog's error cleared); one SYNC_WRITE."""
         self.sync_write("Bus_Watchdog", dict.fromkeys(motor_ids, 0))
+        for motor_id in motor_ids:
+            self.watchdog_armed_s.pop(motor_id, None)
 
     def reboot(self, motor_id: int) -> None:
         """REBOOT instruction (0x08): the only way to clear ``Hardware_Error_Status``; torque is off after it."""

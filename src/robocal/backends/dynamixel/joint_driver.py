@@ -1,7 +1,9 @@
 """The Dynamixel X servo as a joint driver of the automatic hard-stop calibration (real registers).
 
 The shared loop, frame and safety rules are in :mod:`robocal.backends.servo_joint_driver`; this module holds what
-is Dynamixel's: ``Goal_Current`` (or ``Goal_PWM``) as the cap, ``Hardware_Error_Status`` and the REBOOT.
+is Dynamixel's: ``Goal_Current`` (or ``Goal_PWM``) as the cap, ``Hardware_Error_Status`` and the REBOOT, and the
+check of a ``Bus_Watchdog`` that tripped while robocal was held up (cleared and armed again before the reading is
+used: :meth:`~robocal.backends.servo_joint_driver.ServoJointDriver.send`).
 """
 
 from __future__ import annotations
@@ -94,6 +96,15 @@ class DynamixelJointDriver(ServoJointDriver):
 
     def _goal(self, target_ticks: float) -> int:
         return round(target_ticks)
+
+    def _recover_watchdog(self) -> bool:
+        """``Bus_Watchdog`` −1 (tripped: the servo stopped and refuses goals): written 0 (cleared), then armed again."""
+        if self._read1("Bus_Watchdog") != -1:
+            return False
+        armed_s = self.bus.watchdog_armed_s[self.motor_id]
+        self._sync("Bus_Watchdog", 0)
+        self.bus.arm_watchdog([self.motor_id], armed_s)
+        return True
 
     def _clear(self) -> None:
         self._sync("Torque_Enable", 0)  # stop pushing first: a motor pressed into a stop may not answer until then
