@@ -16,7 +16,10 @@ often the interval holds the truth; how often an offset the data cannot show is 
 (whose URDF has masses) a second set, ``HEALTH_SAG_SEEDS`` sessions (default 88) without any range-end visit,
 measures the sag fit alone: 17° and 5° follower offsets and 17° leader offsets on the loaded joints, and
 offset-free sessions; and for every session the sag fit's 99 % interval is checked against the follower's true
-offset.
+offset. With calibration files (``HEALTH_FILES=0`` to skip): the offset-free, 5° and 17° sessions are checked
+again with the two arms' LeRobot calibrations the generator writes (:mod:`robocal.dataset.teleop_calibration`: an
+offset made by a range recorded short at one end), counting the offset joint flagged (``offset`` or ``suspect``)
+and named, and the offset-free sessions flagged.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import shutil
 import tempfile
 import time
 from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +38,7 @@ import numpy as np
 
 from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults
 from robocal.dataset.teleop_sim import generate_teleop_datasets
+from robocal.workflows.dataset.health import HealthRequest, evaluate_health
 from robocal.workflows.dataset.health_cluster import health_with_datatrove
 
 OFFSETS_DEG = (0.5, 1.0, 2.0, 5.0, 17.0)
@@ -79,7 +84,7 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
     roots = []
     for chunk in range(0, len(seeds), 50):  # bounded memory: 50 sessions integrated at a time
         roots += generate_teleop_datasets(
-            folder, robot, seeds[chunk : chunk + 50], faults[chunk : chunk + 50]
+            folder, robot, seeds[chunk : chunk + 50], faults[chunk : chunk + 50], calibration_files=True
         )
     t_sim = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -100,7 +105,10 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         "errors": 0,
         "sag_cover": defaultdict(lambda: [0, 0]),
         "by_arm": defaultdict(lambda: [0, 0]),
+        "files": defaultdict(lambda: [0, 0, 0]),
     }
+    if os.environ.get("HEALTH_FILES", "1") != "0":
+        _score_with_files(robot, roots, faults, score["files"])
     for root, rep_path, f in zip(roots, reports, faults, strict=True):
         rep = json.loads(rep_path.read_text())
         truth = json.loads(root.with_name(root.name + ".truth.json").read_text())
@@ -165,6 +173,48 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
     return score
 
 
+def _check_with_files(job: tuple[str, str]) -> dict[str, Any]:
+    root, robot_type = Path(job[0]), job[1]
+    _, rep = evaluate_health(
+        HealthRequest(
+            root,
+            root.with_name(root.name + ".health.json"),
+            robot=robot_type,
+            use_degrees=True,
+            leader_calibration=root.with_name(root.name + ".leader.json"),
+            follower_calibration=root.with_name(root.name + ".follower.json"),
+        )
+    )
+    return rep
+
+
+def _score_with_files(robot: str, roots: list[Path], faults: list[TeleopFaults], out: Any) -> None:
+    """Check the offset-free, 5° and 17° sessions again with the two calibration files (2 processes)."""
+    picked = [
+        (r, f)
+        for r, f in zip(roots, faults, strict=True)
+        if f.slip_joint is None and f.clip_joint is None and f.flip_joint is None
+        and (f.offset_joint is None or abs(f.offset_deg) >= 5.0)
+    ]
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(2) as pool:
+        reports = list(pool.map(_check_with_files, [(str(r), TELEOP_ARMS[robot].robot_type) for r, _ in picked]))
+    print(f"{robot}: {len(picked)} sessions checked with their calibration files in {time.perf_counter() - t0:.0f} s")
+    for (root, f), rep in zip(picked, reports, strict=True):
+        if f.offset_joint is None:
+            c = out[("offset-free", "", "")]
+            c[0] += bool(rep["flagged"])
+            c[1] += 1
+            continue
+        truth = json.loads(root.with_name(root.name + ".truth.json").read_text())["joints"][f.offset_joint]
+        case = "contact" if truth["follower_contact"] else "no contact"
+        j = rep["joints"][f.offset_joint]
+        c = out[(f"{abs(f.offset_deg):g}°", f.offset_joint, case)]
+        c[0] += j["status"] in ("offset", "suspect") and all(n == f.offset_joint for n in rep["flagged"])
+        c[1] += 1
+        c[2] += j["status"] == "offset"
+
+
 def print_score(robot: str, score: dict[str, Any]) -> None:
     """The tables of one robot."""
     print(f"\n-- {robot}: offsets (flagged 'offset' on the right joint; interval holds the truth) --")
@@ -196,6 +246,13 @@ def print_score(robot: str, score: dict[str, Any]) -> None:
     print(f"clipped values flagged suspect, the leader past the clipped value: {_rate(*score['clip'])}; "
           f"never past it: {_rate(*score['clip_unseen'])}")
     print(f"mirrored signs flagged suspect: {_rate(*score['flip'])}")
+    if score["files"]:
+        print(f"\n-- {robot}: with the calibration files (flagged and named: offset or suspect, no other joint) --")
+        for (size, joint, case), (hit, n, off) in sorted(score["files"].items()):
+            if size == "offset-free":
+                print(f"offset-free sessions flagged: {_rate(hit, n)}")
+            else:
+                print(f"{size:>4s} {joint:14s} {case:11s} named {_rate(hit, n):>14s}  of them 'offset' {off}")
     print(f"datasets refused: {score['errors']}")
 
 

@@ -156,7 +156,10 @@ def test_range_units_without_files_and_degrees_with_them(
     joints = json.loads(report.read_text())["joints"]
     assert code == 1
     assert joints["wrist_flex"]["status"] == "suspect"
-    assert "recorded ranges differ: leader 206.7°, follower 194.8° (calibration files)" in joints["wrist_flex"]["reasons"]
+    assert (
+        "recorded ranges differ: leader 206.7°, follower 194.8° (calibration files; the profile's stops span 194.8°): "
+        "a range recorded 12.0° short at one end moves that arm's zero by up to ±6.0°"
+    ) in joints["wrist_flex"]["reasons"]
 
 
 def _write(session: TeleopSession, root: Path) -> Path:

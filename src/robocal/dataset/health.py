@@ -233,11 +233,15 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
         units, upd = ["degrees"] * len(joints), [1.0] * len(joints)
         for k in range(len(joints)):
             span_l, span_f = float(np.diff(lead_ends[:, k])[0]), float(np.diff(foll_ends[:, k])[0])
-            if stops[k] is not None and math.isfinite(span_l) and math.isfinite(span_f):
+            design = stops[k]
+            if design is not None and math.isfinite(span_l) and math.isfinite(span_f):
                 stops[k] = (float(foll_ends[0, k]), float(foll_ends[1, k]))
                 if abs(span_l - span_f) > 5.0:
+                    gap = abs(span_l - span_f)
                     notes[k].append(
-                        f"recorded ranges differ: leader {span_l:.1f}°, follower {span_f:.1f}° (calibration files)"
+                        f"recorded ranges differ: leader {span_l:.1f}°, follower {span_f:.1f}° (calibration files; "
+                        f"the profile's stops span {design[1] - design[0]:.1f}°): a range recorded {gap:.1f}° short "
+                        f"at one end moves that arm's zero by up to ±{gap / 2:.1f}°"
                     )
     pose_deg = np.array(state / np.where(np.isfinite(upd), upd, 1.0), dtype=np.float64)
     kp = [setup.kp_nm_rad.get(j, math.inf) for j in joints]
@@ -259,7 +263,7 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
             sag = np.zeros(len(action))
         data = JointData(j, action[:, k], state[:, k], fr.episode, sag, lo, hi, u)
         h = _with_sag(analyse_joint(data, cfg), fit, k, u, cfg or HealthConfig())
-        episodes = episode_verdicts(data, h.band, cfg)
+        episodes = episode_verdicts(data, h.band, cfg, h.end_bands)
         drift = drift_reason(episodes, h.band, cfg or HealthConfig(), u)
         extra = [*notes[k], *([drift] if drift else [])]
         if extra:

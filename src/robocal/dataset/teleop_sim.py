@@ -149,6 +149,7 @@ def generate_teleop_datasets(
     episodes: int = 6,
     episode_s: float = 15.0,
     p_end: float = 0.35,
+    calibration_files: bool = False,
 ) -> list[Path]:
     """Simulate and write one dataset per seed as ``folder/<robot>-<seed>`` (+ ``.truth.json``).
 
@@ -161,17 +162,22 @@ def generate_teleop_datasets(
         episodes: Episodes per dataset.
         episode_s: Seconds per episode (30 fps).
         p_end: Chance per episode and joint of a visit to (or near) a range end.
+        calibration_files: Also write the two arms' LeRobot calibrations that make the injected offset,
+            ``ROOT.leader.json`` and ``ROOT.follower.json`` (:mod:`.teleop_calibration`; degrees only).
 
     Returns:
         The dataset roots.
 
     Raises:
-        UsageError: Unknown robot, or ``seeds`` and ``faults`` differ in length.
+        UsageError: Unknown robot, ``seeds`` and ``faults`` differ in length, or calibration files without
+            degrees.
     """
     if robot not in TELEOP_ARMS:
         raise UsageError(f"simulated teleoperation: robot {robot!r}; expected {', '.join(TELEOP_ARMS)}")
     if len(seeds) != len(faults):
         raise UsageError("simulated teleoperation: one fault set per seed")
+    if calibration_files and not use_degrees:
+        raise UsageError("simulated teleoperation: calibration files go with degrees (use_degrees)")
     arm = TELEOP_ARMS[robot]
     sessions = simulate_sessions(
         arm,
@@ -188,5 +194,9 @@ def generate_teleop_datasets(
     for s in sessions:
         root = base / f"{robot}-{s.seed}"
         write_teleop_dataset(s, root, use_degrees=use_degrees)
+        if calibration_files:
+            from .teleop_calibration import write_calibration_pair
+
+            write_calibration_pair(s, root)
         roots.append(root)
     return roots

@@ -18,6 +18,7 @@ from .offsets import (
     JumpEvent,
     analyse_joint,
     drift_reason,
+    end_bands,
     episode_verdicts,
 )
 from .sag import SagFit, SagFrames, fit_sag_offsets, loaded_joints, t_quantile
@@ -36,6 +37,7 @@ __all__ = [
     "SagFrames",
     "analyse_joint",
     "drift_reason",
+    "end_bands",
     "episode_verdicts",
     "feetech_kp_nm_rad",
     "fit_sag_offsets",

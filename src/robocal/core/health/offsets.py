@@ -29,6 +29,7 @@ import numpy as np
 
 from ..arrays import FloatArray, IntArray
 from .model import model_band
+from .sag import last_direction
 
 __all__ = [
     "EndEvidence",
@@ -38,6 +39,7 @@ __all__ = [
     "JumpEvent",
     "analyse_joint",
     "drift_reason",
+    "end_bands",
     "episode_verdicts",
 ]
 
@@ -56,6 +58,8 @@ class HealthConfig:
         jump_floor_deg: Smallest step reported as a jump.
         min_frames: Frames at an end needed for evidence.
         clip_frames: Bit-identical frames at an extreme (and 90 % of the frames there) that make a clipped value.
+        end_margin_deg: Added to a range end's own band (:func:`end_bands`): the end's excess is the extreme of
+            many frames, the band a spread of single frames.
     """
 
     threshold_deg: float = 1.5
@@ -67,6 +71,7 @@ class HealthConfig:
     jump_floor_deg: float = 3.0
     min_frames: int = 3
     clip_frames: int = 10
+    end_margin_deg: float = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,6 +112,9 @@ class EndEvidence:
         upper: Upper bound (``inf``: none).
         frames: Frames at the end.
         episodes: Episodes those frames belong to.
+        threshold: Smallest ``|F − A|`` a pinned end flags (``max(threshold_deg, band + ½°)``, this end's band).
+        excess: How far the leader went on past the follower, beyond the sag holding the follower off the stop
+            (pinned above this end's band).
     """
 
     end: str
@@ -117,6 +125,8 @@ class EndEvidence:
     upper: float
     frames: int
     episodes: tuple[int, ...]
+    threshold: float = 0.0
+    excess: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -149,6 +159,8 @@ class JointHealth:
         band: Model band half-width.
         residual: ``(N,)`` ``action(t−1) − state(t) − sag(t)`` (NaN at an episode's first frame).
         used: ``(N,)`` frames the band was fitted on or an end was read from.
+        end_bands: ``(lower end, upper end)``: how far a correct follower's residual goes towards each end when it
+            comes from the middle (:func:`end_bands`).
     """
 
     name: str
@@ -161,6 +173,7 @@ class JointHealth:
     band: float
     residual: FloatArray = field(repr=False)
     used: FloatArray = field(repr=False)
+    end_bands: tuple[float, float] = (math.nan, math.nan)
 
 
 def _lagged(d: JointData) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -224,6 +237,37 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
     return tuple(events)
 
 
+def end_bands(
+    d: JointData, residual: FloatArray, slow: np.ndarray, band: float, cfg: HealthConfig
+) -> tuple[float, float]:
+    """``(lower, upper)``: how far a correct follower's residual reaches towards each range end.
+
+    A follower arriving at an end moves towards it, and its friction dead band leaves it short of its goal on that
+    side only (``sgn·(action − state) > 0``), a few tenths of a degree on an STS3215 at P 16 but up to 1.3° on an
+    XL330 at its factory gain. The symmetric band of all slow frames holds both sides and the lag of slow moves;
+    an end is judged against the frames that came the same way: the slow frames whose reading last moved (by
+    more than ``near_deg / 2``) towards that end, away from the joint's extremes (a stop holds the follower
+    there): ``median + max(floor, 4·1.4826·MAD)`` of ``sgn·residual`` (at least the floor) plus ``end_margin_deg``,
+    at most the symmetric band. Fewer than 30 such frames: the symmetric band.
+    """
+    upd = d.units_per_deg
+    direction = last_direction(d.state, d.episode, 0.5 * cfg.near_deg * upd)
+    edge = 3.0 * upd
+    inner = (d.state > float(np.min(d.state)) + edge) & (d.state < float(np.max(d.state)) - edge)
+    ok = slow & inner & np.isfinite(residual)
+    floor = cfg.band_floor_deg * upd
+    out = []
+    for sgn in (-1.0, 1.0):
+        x = sgn * residual[ok & (direction == sgn)]
+        if x.size < 30:
+            out.append(band)
+            continue
+        med = float(np.median(x))
+        half = max(floor, 4.0 * 1.4826 * float(np.median(np.abs(x - med))))
+        out.append(min(band, max(floor, med + half) + cfg.end_margin_deg * upd))
+    return out[0], out[1]
+
+
 def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndarray) -> EndEvidence | None:
     """Evidence at the upper (``sgn`` +1) or lower (−1) end from the frames in ``mask``."""
     stop = d.stop_hi if sgn > 0 else d.stop_lo
@@ -245,10 +289,11 @@ def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndar
     eps = tuple(sorted({int(e) for e in d.episode[mask][near]}))
     u = 0.5 * upd + 0.5 * band
     name = "hi" if sgn > 0 else "lo"
+    thr = max(cfg.threshold_deg * upd, band + 0.5 * upd)
     if excess > band:
         same = int(np.sum(fv == f_ext))
         if same >= cfg.clip_frames and same >= 0.9 * len(idx):
-            return EndEvidence(name, "clipped", sgn * f_ext, sgn * a_ext, -math.inf, math.inf, len(idx), eps)
+            return EndEvidence(name, "clipped", sgn * f_ext, sgn * a_ext, -math.inf, math.inf, len(idx), eps, thr, excess)
         held = int(np.sum(av[idx] >= a_ext - 0.25 * upd)) >= 5
         o = -sgn * excess
         # the leader may have stopped short of its stop: unless it rested right at the stop's expected reading,
@@ -260,11 +305,11 @@ def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndar
         # so the interval reaches from the sag-corrected value to the uncorrected one
         slack += sag_away
         lo, hi = (o - u - slack, o + u) if sgn > 0 else (o - u, o + u + slack)
-        return EndEvidence(name, "pinned", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps)
+        return EndEvidence(name, "pinned", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps, thr, excess)
     gap = max(0.0, sgn * stop - f_ext)
     bound = band + u + gap
     lo, hi = (-bound, math.inf) if sgn > 0 else (-math.inf, bound)
-    return EndEvidence(name, "together", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps)
+    return EndEvidence(name, "together", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps, thr, excess)
 
 
 def _verdict(
@@ -278,13 +323,15 @@ def _verdict(
     hi = min(e.upper for e in usable)
     pinned = [e for e in usable if e.kind == "pinned"]
     est = None
+    pin_thr = thr
     if pinned:
         best = max(pinned, key=lambda e: abs(e.follower - e.leader))
         est = best.follower - best.leader
+        pin_thr = best.threshold
     if lo > hi + 1e-9:
         reasons.append(f"range ends disagree (bounds {lo:.2f} > {hi:.2f})")
         return "suspect", est, None, reasons
-    if est is not None and abs(est) >= thr:
+    if est is not None and abs(est) >= pin_thr:
         return "offset", est, (lo, hi), reasons
     if lo >= thr or hi <= -thr:
         est = lo if lo >= thr else hi
@@ -337,7 +384,8 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
             )
     jumps = _jumps(d, same, cfg)
     everything = np.ones(d.action.shape, dtype=bool)
-    ends = [e for e in (_end(d, 1.0, band, cfg, everything), _end(d, -1.0, band, cfg, everything)) if e]
+    b_lo, b_hi = end_bands(d, residual, slow, band, cfg)
+    ends = [e for e in (_end(d, 1.0, b_hi, cfg, everything), _end(d, -1.0, b_lo, cfg, everything)) if e]
     for e in ends:
         sgn = 1.0 if e.end == "hi" else -1.0
         used[sgn * d.state >= sgn * e.follower - cfg.near_deg * upd] = 2.0
@@ -361,17 +409,25 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
         )
         if status != "offset":
             status = "suspect"
-    return JointHealth(d.name, status, est, ci, tuple(reasons), tuple(ends), jumps, band, residual, used)
+    return JointHealth(
+        d.name, status, est, ci, tuple(reasons), tuple(ends), jumps, band, residual, used, (b_lo, b_hi)
+    )
 
 
-def episode_verdicts(d: JointData, band: float, cfg: HealthConfig | None = None) -> list[dict[str, object]]:
-    """Per-episode offset, interval and verdict from that episode's range-end evidence alone."""
+def episode_verdicts(
+    d: JointData, band: float, cfg: HealthConfig | None = None, end_band: tuple[float, float] | None = None
+) -> list[dict[str, object]]:
+    """Per-episode offset, interval and verdict from that episode's range-end evidence alone.
+
+    ``end_band``: the session's :func:`end_bands` (``(lower, upper)``; default the symmetric ``band`` at both).
+    """
     cfg = cfg or HealthConfig()
     thr = max(cfg.threshold_deg * d.units_per_deg, band + 0.5 * d.units_per_deg)
+    b_lo, b_hi = end_band if end_band is not None else (band, band)
     out: list[dict[str, object]] = []
     for ep in np.unique(d.episode):
         mask = d.episode == ep
-        ends = [e for e in (_end(d, 1.0, band, cfg, mask), _end(d, -1.0, band, cfg, mask)) if e]
+        ends = [e for e in (_end(d, 1.0, b_hi, cfg, mask), _end(d, -1.0, b_lo, cfg, mask)) if e]
         status, est, ci, _ = _verdict(ends, thr, cfg.ok_limit_deg * d.units_per_deg)
         out.append({"episode": int(ep), "offset": est, "ci": ci, "status": status, "frames": int(mask.sum())})
     return out

@@ -1,0 +1,65 @@
+"""The calibration-files route (issue 30): the generator's two LeRobot files make the injected offset the way a
+range recorded short at one end does, and the check names the joint from them where the data has no range end."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults, simulate_sessions
+from robocal.cli.main import main
+from robocal.dataset.teleop_calibration import SCATTER_DEG, calibration_pair
+from robocal.dataset.teleop_sim import generate_teleop_datasets
+from robocal.errors import UsageError
+
+TICKS_PER_DEG = 4095 / 360
+
+
+def test_a_17_degree_follower_offset_is_a_range_recorded_34_degrees_short_at_its_upper_end() -> None:
+    faults = TeleopFaults(offset_joint="elbow_flex", offset_deg=17.0, offset_arm="follower")
+    (session,) = simulate_sessions(TELEOP_ARMS["so101"], [3], [faults], episodes=1, episode_s=1.0)
+    leader, follower = calibration_pair(session, np.random.default_rng(0))
+    design = 2 * 96.83
+    for cal, e in ((leader["elbow_flex"], 0.0), (follower["elbow_flex"], 17.0)):
+        span = (cal.range_max - cal.range_min) / TICKS_PER_DEG
+        mid = 0.5 * (cal.range_min + cal.range_max)
+        assert design - 2 * abs(e) - 2 * SCATTER_DEG - 0.1 <= span <= design - 2 * abs(e) + 0.1
+        for true_deg in (-50.0, 0.0, 40.0):  # LeRobot's DEGREES value of a true angle reads it + e
+            present = 2047 + (true_deg + e) * TICKS_PER_DEG
+            assert (present - mid) * 360 / 4095 == pytest.approx(true_deg + e, abs=0.1)
+        upper_short = 96.83 - (cal.range_max - 2047) / TICKS_PER_DEG + e  # the true angle of the recorded end
+        assert upper_short == pytest.approx(2 * e, abs=SCATTER_DEG + 0.1)
+    assert (follower["wrist_roll"].range_min, follower["wrist_roll"].range_max) == (0, 4095)  # a full turn
+
+
+def test_files_go_with_degrees(tmp_path: Path) -> None:
+    with pytest.raises(UsageError, match="calibration files go with degrees"):
+        generate_teleop_datasets(tmp_path, "koch", [1], [TeleopFaults()], use_degrees=False, calibration_files=True)
+
+
+def _check(root: Path, report: Path) -> tuple[int, dict[str, object]]:
+    code = main(["dataset", "health", str(root), "--robot", "koch_follower", "--use-degrees", "--report", str(report),
+                 "--leader-calibration", str(root.with_name(root.name + ".leader.json")),
+                 "--follower-calibration", str(root.with_name(root.name + ".follower.json"))])  # fmt: skip
+    return code, json.loads(report.read_text())
+
+
+@pytest.mark.slow
+def test_a_leader_offset_without_range_end_contact_is_named_from_the_files(tmp_path: Path) -> None:
+    faults = [TeleopFaults(offset_joint="shoulder_lift", offset_deg=-17.0, offset_arm="leader"), TeleopFaults()]
+    roots = generate_teleop_datasets(tmp_path, "koch", [7, 8], faults, episodes=2, p_end=0.0, calibration_files=True)
+    truth = json.loads(roots[0].with_name(roots[0].name + ".truth.json").read_text())["joints"]["shoulder_lift"]
+    assert not truth["follower_contact"]
+    code, rep = _check(roots[0], tmp_path / "off.json")
+    joint = rep["joints"]["shoulder_lift"]  # type: ignore[index]
+    assert code == 1 and rep["flagged"] == ["shoulder_lift"]
+    assert joint["status"] == "suspect"
+    (why,) = [r for r in joint["reasons"] if r.startswith("recorded ranges differ: leader 15")]
+    gap = float(why.split("a range recorded ")[1].split("°")[0])
+    assert math.isclose(gap, 34.0, abs_tol=2 * SCATTER_DEG + 0.2)
+    code, rep = _check(roots[1], tmp_path / "clean.json")
+    assert code == 0 and rep["flagged"] == []
