@@ -23,6 +23,7 @@ from .damiao_harness import (
     DISABLE,
     HELD_JOINTS,
     HELD_PHASE,
+    ZERO_NEXT_RUNS,
     ZERO_PHASE,
     _judge,
     _motors,
@@ -72,6 +73,45 @@ def test_the_oracle_sees_a_motor_left_enabled_and_a_register_left_changed(tmp_pa
             "openarm_right_gripper_motor: RAM register(s) changed: KP_ASR",
         ]
         assert _motors(sim.state())["openarm_right_gripper_motor"]["ram"]["KP_ASR"] == 0.125
+    finally:
+        sim.stop()
+
+
+def test_the_oracle_accepts_a_zero_in_flash_after_a_lost_host_only_when_the_next_run_reports_it(
+    tmp_path: Path,
+) -> None:
+    """``--write-zero`` killed after a zero reached flash: one write per motor is judged by the next run (which it
+    runs through ``next_run``); without that run, or for a fault robocal could act on, it is a failure."""
+    from robocal.backends.damiao.bus import DamiaoBus, DamiaoMotor
+
+    sim = _Sim("openarm", tmp_path, argv=("--side", "right", "--port", "0"))
+    try:
+        before = _motors(sim.state())
+        host, port = sim.info["socketcand"].rsplit(":", 1)
+        grip = DamiaoMotor("openarm_right_gripper_motor", 0x08, 0x18, "DM4310")
+        bus = DamiaoBus(
+            "can0", [grip], interface="socketcand", allow_motion=True, bus_kwargs={"host": host, "port": int(port)}
+        )
+        try:
+            bus.set_zero(grip.name, confirm=True)  # the killed run's one zero in flash
+        finally:
+            bus.close()
+        (tmp_path / "cal").mkdir()
+        asked: list[list[str]] = []
+
+        def next_run(zeroed: list[str]) -> list[str]:
+            asked.append(zeroed)
+            return ["next run did not say so"] if len(asked) > 1 else []
+
+        assert _judge(sim, tmp_path, "sigkill", -9, before, _Ended(), True, next_run=next_run) == []  # type: ignore[arg-type]
+        assert asked == [["openarm_right_gripper_motor"]]
+        assert _judge(sim, tmp_path, "sigkill", -9, before, _Ended(), True, next_run=next_run) == [  # type: ignore[arg-type]
+            "next run did not say so"
+        ]
+        flash = "openarm_right_gripper_motor: flash changed: zero (1 writes)"
+        assert _judge(sim, tmp_path, "sigkill", -9, before, _Ended(), True) == [flash]  # type: ignore[arg-type]
+        assert flash in _judge(sim, tmp_path, "sigint", 130, before, _Ended(), True, next_run=next_run)  # type: ignore[arg-type]
+        assert len(asked) == 2
     finally:
         sim.stop()
 
@@ -204,6 +244,16 @@ def test_a_signal_while_zeros_go_to_flash_ends_after_the_file_is_written(fault: 
     )
     assert result.exit_code == {"sigint": 130, "sigterm": 143, "sighup": 129}[fault]
     assert "after writing" in result.stderr_tail and "(complete)" in result.stderr_tail
+
+
+@pytest.mark.slow
+def test_a_run_killed_after_a_zero_reached_flash_is_reported_by_the_next_run() -> None:
+    """SIGKILL right after the first zero reached flash (the soak's finding: both motors' zeros in flash, no file,
+    nothing said): the state folder's record names them and the next run's note says so, then writes the file."""
+    result = _reached("sigkill", ZERO_PHASE, "openarm-zero/sigkill", write_zero=True)
+    assert result.failures == (), f"exit {result.exit_code}: {'; '.join(result.failures)} [{result.stderr_tail}]"
+    assert result.exit_code == -9
+    assert ZERO_NEXT_RUNS and "openarm_right_gripper_motor" in ZERO_NEXT_RUNS[-1]  # the next run was judged
 
 
 @pytest.mark.slow

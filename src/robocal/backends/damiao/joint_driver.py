@@ -11,6 +11,7 @@ openarm_can also assume; robocal reads it and refuses otherwise, it never change
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from contextlib import suppress
 from typing import ClassVar
 
@@ -63,6 +64,9 @@ class DamiaoJointDriver(MitJointDriver):
     KEEPALIVE_IGNORES: ClassVar[tuple[type[BaseException], ...]] = (CalibTimeoutError, DamiaoOverloadError)
 
     _mode_checked = False
+    on_zero: Callable[[str, str, float], None] | None = None
+    """Told each state of this motor's zero in ``--write-zero`` (planned, storing, stored, unchanged, written) and
+    the reading where it goes: the state folder's record (:mod:`robocal.workflows.autocal.damiao_watchdog`)."""
 
     def position_range_rad(self) -> float:
         """The motor's PMAX (register 21 where it was read, else its model's: 12.5 rad on the OpenArm's)."""

@@ -111,16 +111,17 @@ def open_damiao(
 def _keep_watchdog_records(
     buses: Sequence[Any], drivers: Mapping[str, Any], interface: str, options: Mapping[str, Any]
 ) -> None:
-    """Per bus: put back what a killed run left armed (a note says so), then record what this run arms."""
-    from .damiao_watchdog import WatchdogRecord, bus_key, restore_left_armed
+    """Per bus: say what a killed run left (a note each), put its TIMEOUT back, record what this run arms and stores."""
+    from .damiao_watchdog import WatchdogRecord, bus_key, note_left_zeros, restore_left_armed
 
     for bus in buses:
         key = bus_key(interface, bus.channel, options)
         restore_left_armed(bus, key)
-        record = WatchdogRecord(key)
+        record = WatchdogRecord(key, zeros=note_left_zeros(key))
         for name in bus.motors:
             if name in drivers:
                 drivers[name].on_watchdog = record.changed
+                drivers[name].on_zero = record.zero
 
 
 def openarm_gravity(profile: RobotProfile) -> dict[str, JointGravity]:

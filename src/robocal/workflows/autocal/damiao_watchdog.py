@@ -8,19 +8,38 @@ values before are kept in the state folder from just before the first TIMEOUT wr
 back (:class:`WatchdogRecord`, one file per bus), and the next ``sweep --auto`` that opens that bus finds it
 (:func:`restore_left_armed`): it says which motors a previous run left armed, writes their TIMEOUT back, reads
 it back and removes the file once every one is as before.
+
+``sweep --auto --write-zero`` stores zeros in the motors' flash (0xFE), which no write can take back: the stored
+zero is the position the motor is at. The same record keeps, from just before the first zero goes to flash until
+the calibration file is written, which motors are being re-zeroed and by how much (:meth:`WatchdogRecord.zero`).
+A run killed in between leaves it; the next run on that bus says in one ``note:`` which motors have a new zero in
+flash and no file (:func:`note_left_zeros`), and carries the entry on until a ``--write-zero`` run writes a file
+for those motors.
 """
 
 from __future__ import annotations
 
 import logging
+import math
+import os
+import time
 from collections.abc import Mapping
 from contextlib import suppress
 from dataclasses import dataclass
 from typing import Any
 
-from ..motion.snapshot import SnapshotStore, find_left_changed
+from ..motion.snapshot import LeftChanged, SnapshotStore, find_left_changed
 
-__all__ = ["TIMEOUT_UNIT_S", "LeftArmed", "WatchdogRecord", "bus_key", "restore_left_armed"]
+__all__ = [
+    "TIMEOUT_UNIT_S",
+    "ZERO_STATES",
+    "LeftArmed",
+    "WatchdogRecord",
+    "bus_key",
+    "left_zeros",
+    "note_left_zeros",
+    "restore_left_armed",
+]
 
 log = logging.getLogger("robocal.notes")
 
@@ -29,6 +48,12 @@ TIMEOUT_UNIT_S = 50e-6
 _REGISTER = "TIMEOUT"
 _TIMEOUT_RID = 9
 """Register id of TIMEOUT (``backends.damiao.tables.Register.TIMEOUT``)."""
+_ZEROS = "zeros"
+"""The record's entry (its ``about``) of the zeros a ``--write-zero`` run is storing: motor → its state."""
+ZERO_STATES = ("planned", "storing", "stored", "unchanged", "written")
+"""A motor's zero in :meth:`WatchdogRecord.zero`: to be stored; going to flash now (it may be there); in flash; not
+stored after all (a signal stopped the zeroing first); in the calibration file written. The last two drop the
+entry (``unchanged`` only a ``planned`` one)."""
 
 
 def bus_key(interface: str, channel: str, options: Mapping[str, Any] | None = None) -> str:
@@ -42,23 +67,60 @@ class WatchdogRecord:
     """The TIMEOUT values before a run armed them, for one bus, kept on disk while any is armed.
 
     :meth:`changed` is the drivers' ``on_watchdog`` hook: called before a TIMEOUT is written (with the value it
-    had) and after it was put back (None).
+    had) and after it was put back (None). :meth:`zero` is their ``on_zero`` hook (``--write-zero``). The file is
+    kept while a TIMEOUT is armed or a stored zero is in no written file.
+
+    Args:
+        key: The bus (:func:`bus_key`).
+        command: The run, as the next run's note names it.
+        zeros: The zeros a killed run left (:func:`note_left_zeros`), carried on until a file holds them.
     """
 
-    def __init__(self, key: str, command: str = "sweep --auto") -> None:
+    def __init__(
+        self, key: str, command: str = "sweep --auto", zeros: Mapping[str, Mapping[str, Any]] | None = None
+    ) -> None:
         self.store = SnapshotStore(key, command)
         self.before: dict[str, dict[str, int]] = {}
+        self.zeros: dict[str, dict[str, Any]] = {m: dict(z) for m, z in (zeros or {}).items()}
 
     def changed(self, motor: str, before_s: float | None) -> None:
         """``motor``'s TIMEOUT is about to be armed (its value before, s) or was put back (None)."""
         if before_s is None:
-            if self.before.pop(motor, None) is not None and not self.before:
-                self.store.remove()
+            if self.before.pop(motor, None) is None:
                 return
         else:
             self.before.setdefault(motor, {_REGISTER: round(before_s / TIMEOUT_UNIT_S)})
-        if self.before:
-            self.store.save(self.before, vendor="damiao", register="TIMEOUT (9), units of 50 us")
+        self._keep()
+
+    def zero(self, motor: str, state: str, reading_rad: float = 0.0) -> None:
+        """``motor``'s zero is now ``state`` (:data:`ZERO_STATES`).
+
+        ``reading_rad``: the motor's reading (its own frame) where the new zero is stored, i.e. how much every
+        reading of it drops.
+
+        A zero a killed run left (perhaps) stored stays named until this run stores it again (the amounts add up)
+        or a file holds it; ``planned``, ``storing`` and ``unchanged`` never hide it.
+        """
+        entry = self.zeros.get(motor)
+        if state == "written" or (state == "unchanged" and entry is not None and entry["state"] == "planned"):
+            if self.zeros.pop(motor, None) is None:
+                return
+        elif state == "unchanged" or (entry is not None and entry["state"] != "planned" and state != "stored"):
+            return  # a zero (perhaps) in flash stays named as it is until this run stores the next one
+        else:
+            base = float(entry["reading_deg"]) if entry is not None and entry["state"] == "stored" else 0.0
+            since = entry["since"] if entry is not None else f"pid {os.getpid()}, {_now()}"
+            self.zeros[motor] = {"state": state, "reading_deg": base + math.degrees(reading_rad), "since": since}
+        self._keep()
+
+    def _keep(self) -> None:
+        """Write the record, or remove it when nothing is armed and no zero is being or was left stored."""
+        if not self.before and not self.zeros:
+            self.store.remove()
+            return
+        self.store.save(
+            self.before, vendor="damiao", register="TIMEOUT (9), units of 50 us", **{_ZEROS: self.zeros}
+        )
 
 
 @dataclass(frozen=True)
@@ -121,7 +183,7 @@ def restore_left_armed(bus: Any, key: str) -> LeftArmed | None:
         except Exception:
             ok = False
         (restored if ok else not_restored).append(motor)
-    if not not_restored:
+    if not not_restored and not left_zeros(kept):
         SnapshotStore(key, kept.command).remove()
         with suppress(OSError):
             kept.path.unlink()
@@ -135,3 +197,51 @@ def restore_left_armed(bus: Any, key: str) -> LeftArmed | None:
     )
     log.warning("%s", left.describe())
     return left
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+def left_zeros(kept: LeftChanged) -> dict[str, dict[str, Any]]:
+    """The zeros a kept record names as (perhaps) in flash with no file written: motor → its entry."""
+    zeros = kept.about.get(_ZEROS)
+    if not isinstance(zeros, dict):
+        return {}
+    return {
+        str(m): dict(z)
+        for m, z in zeros.items()
+        if isinstance(z, dict) and z.get("state") in ("storing", "stored") and "reading_deg" in z
+    }
+
+
+def note_left_zeros(key: str) -> dict[str, dict[str, Any]]:
+    """Say in one ``note:`` what zeros a killed ``--write-zero`` run left in flash on bus ``key``; returns them.
+
+    The returned entries are for the next :class:`WatchdogRecord` of this bus (it carries them on).
+    """
+    kept = find_left_changed(key)
+    zeros = left_zeros(kept) if kept is not None else {}
+    if kept is None or not zeros:
+        return {}
+    stored = [m for m, z in zeros.items() if z["state"] == "stored"]
+    maybe = [m for m, z in zeros.items() if z["state"] == "storing"]
+
+    def each(names: list[str]) -> str:
+        return ", ".join(f"{m} (readings {-float(zeros[m]['reading_deg']):+.2f}°)" for m in names)
+
+    since = min(str(z.get("since", "")) for z in zeros.values())
+    what = []
+    if stored:
+        what.append(f"stored a new zero in flash on {each(stored)}")
+    if maybe:
+        what.append(f"was storing one on {each(maybe)} (it may be in flash)")
+    log.warning(
+        "a previous `robocal sweep --auto --write-zero` (%s) on %s %s but wrote no calibration file for them; "
+        "run `robocal sweep --auto --write-zero` again to write it (calibration files of other stacks made before "
+        "read these joints off by that much)",
+        since,
+        kept.port,
+        " and ".join(what),
+    )
+    return zeros

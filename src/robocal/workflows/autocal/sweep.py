@@ -47,6 +47,7 @@ from .model import (
     joint_driver_class,
     limp_all,
 )
+from .zero import rezeroed_result, store_zeros, zeros_written
 
 __all__ = ["AutoSweepOutcome", "SweepAutoRequest", "auto_sweep_result", "run_sweep_auto"]
 
@@ -433,8 +434,6 @@ def run_sweep_auto(
         # holds it) and comes out after the file: "interrupted after writing ..." (issue 26 item 6, issue 31)
         with contextlib.ExitStack() as held:  # closed on any exception too: nothing stays held
             if r.write_zero and searched:
-                from .zero import rezeroed_result, store_zeros
-
                 held.enter_context(
                     MotionGuard(limp=lambda: limp_all(drivers), what="motor state")
                 )  # to the file
@@ -454,6 +453,8 @@ def run_sweep_auto(
                     atomic_write_text(report_path, json.dumps(doc, indent=2) + "\n")
                 if rows:
                     write_sweep_files(result, urdf, rows, out_path, fmt, None, existing, profile)
+            if zeros:
+                zeros_written(drivers, list(zeros))  # the state folder's record of them goes
     finally:
         limp_all(drivers)
         with contextlib.suppress(Exception):

@@ -25,7 +25,7 @@ from ...errors import UsageError
 from .joint import TRANSIT_FACTOR, move_to
 from .model import JointDriver, limp_all
 
-__all__ = ["HOLD_S", "ZERO_TOL_RAD", "can_store_zero", "rezeroed_result", "store_zeros"]
+__all__ = ["HOLD_S", "ZERO_TOL_RAD", "can_store_zero", "rezeroed_result", "store_zeros", "zeros_written"]
 
 ZERO_TOL_RAD = math.radians(0.02)
 """The held joint's angle must be within this of 0 before its zero is stored (up to 8 refinements)."""
@@ -55,6 +55,19 @@ def _hold(driver: JointDriver, target: float, cap: float, periods: int) -> float
     return float(np.mean(half)) if half else math.nan
 
 
+def _tell(driver: JointDriver, name: str, state: str, s_rad: float = 0.0) -> None:
+    """Tell the driver's ``on_zero`` hook (the state folder's record) a zero's state and the motor's reading there."""
+    hook = getattr(driver, "on_zero", None)
+    if hook is not None:
+        hook(name, state, getattr(driver, "direction", 1) * s_rad)
+
+
+def zeros_written(drivers: Mapping[str, JointDriver], names: Sequence[str]) -> None:
+    """The calibration file holding these joints' new zeros is written: the record of them can go."""
+    for name in names:
+        _tell(drivers[name], name, "written")
+
+
 def store_zeros(
     drivers: Mapping[str, JointDriver],
     offsets_rad: Mapping[str, float],
@@ -71,6 +84,11 @@ def store_zeros(
     meanwhile stores no further zero: the joints not yet zeroed are made limp at once (issue 26: within 100 ms,
     not after the other motors' flash writes) and left with their zero as it was; the caller's file says which
     zeros were stored.
+
+    Each driver's ``on_zero`` hook, where it has one, is told each zero's state (``planned`` for all before the
+    first flash write, then ``storing`` and ``stored`` around each; ``unchanged`` for those a signal spared), with
+    the motor's reading where the zero goes; the caller tells it ``written`` (:func:`zeros_written`) once its
+    file holds them.
 
     Returns:
         Joint → its angle (from its stops) where the zero was stored, rad: the new zero's error (only the joints
@@ -90,17 +108,24 @@ def store_zeros(
             target -= q - offset
             q = _hold(d, target, aj.torque_cap_nm, round(HOLD_S / period_s))
         at[name] = q - offset
+    zeroing = [n for n in section.joint_names if n in at]
+    for name in zeroing:  # recorded before the first flash write: a killed run's next run says what it left
+        _tell(drivers[name], name, "planned", offsets_rad[name] + at[name])
     if before_store is not None:
         before_store()
     stored: dict[str, float] = {}
-    for name in section.joint_names:
-        if name not in at:
-            continue
+    for name in zeroing:
         if holding():  # a signal came: no further flash write; every joint still held goes limp now
             limp_all([drivers[n] for n in at if n not in stored])
             break
+        q_zero = offsets_rad[name] + at[name]
+        _tell(drivers[name], name, "storing", q_zero)
         drivers[name].store_zero()  # type: ignore[attr-defined]
         stored[name] = at[name]
+        _tell(drivers[name], name, "stored", q_zero)
+    for name in zeroing:
+        if name not in stored:
+            _tell(drivers[name], name, "unchanged")
     return stored
 
 
