@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-from importlib import resources
 from pathlib import Path
 
 import pytest
@@ -37,20 +36,17 @@ def test_the_same_seed_is_the_same_arm_so_copied_zeros_are_its_motors_after_a_po
 def test_openarm_follower_reads_every_joint_within_0_1_deg_with_robocals_file_and_zeros(
     lerobot_python: Path, tmp_path: Path
 ) -> None:
-    from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
-    from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+    from tests.damiao.openarm_session import URDF, openarm_session
+
+    from robocal.workflows.autocal.sweep import SweepAutoRequest
 
     seed = 7
     cal_dir = tmp_path / "cal"
     cal_dir.mkdir()
-    urdf = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
-    holder: list[SimAutoOpenArm] = []
-    run_sweep_auto(
-        SweepAutoRequest(urdf, f"sim:openarm?seed={seed}", cal_dir / "arm.json", robot="openarm_follower_right",
-                         fmt="openarm-lerobot", write_zero=True),
-        open_drivers_fn=sim_openarm_opener(holder),
-    )
-    zeros = {name: m.zero_abs_rad for name, m in holder[0].arm.motors.items()}
+    request = SweepAutoRequest(URDF, f"sim:openarm?seed={seed}", cal_dir / "arm.json", robot="openarm_follower_right",
+                               fmt="openarm-lerobot", write_zero=True)
+    with openarm_session(request) as (_outcome, sim):  # the simulators are stopped before LeRobot's run
+        zeros = {name: m.zero_abs_rad for name, m in sim.arm.motors.items()}
     written = json.loads((cal_dir / "arm.json").read_text())
     assert written["joint_4"]["range_min"] in (0, 1) and written["joint_1"]["range_max"] in (199, 200)
     r = run_damiao(lerobot_python, tmp_path, "follower", seed=seed, zeros=zeros, cal_dir=str(cal_dir), id="arm")
