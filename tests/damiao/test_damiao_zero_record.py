@@ -136,3 +136,22 @@ def test_the_record_names_each_zero_by_its_state_and_carries_a_left_one_on(
     again.zero("g", "written")
     again.zero("j6", "written")
     assert find_left_changed(key) is None
+
+
+def test_the_hand_sweep_names_a_left_zero_before_it_opens_the_bus(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The hand sweep reads the motors against their stored zeros: it says first what a killed run left there."""
+    from robocal.cli.main import main
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    channel = f"nobody-{id(tmp_path)}"  # no motor answers: the sweep ends exit 3 after the note
+    WatchdogRecord(bus_key("virtual", channel)).zero(GRIPPER, "stored", math.radians(7.5))
+    urdf = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
+    code = main(["sweep", "--robot", "openarm_follower_right", "--urdf", str(urdf), "--source",
+                 f"can:virtual:{channel}", "--out", str(tmp_path / "c.yaml")])  # fmt: skip
+    err = capsys.readouterr().err
+    notes = [ln for ln in err.splitlines() if ln.startswith("note: a previous `robocal sweep --auto --write-zero`")]
+    assert code == 3 and len(notes) == 1, err
+    assert f"on damiao:virtual:{channel} stored a new zero in flash on {GRIPPER} (readings -7.50°)" in notes[0]
+    assert not (tmp_path / "c.yaml").exists()

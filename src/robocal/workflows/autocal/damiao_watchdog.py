@@ -38,6 +38,7 @@ __all__ = [
     "bus_key",
     "left_zeros",
     "note_left_zeros",
+    "note_left_zeros_on",
     "restore_left_armed",
 ]
 
@@ -245,3 +246,10 @@ def note_left_zeros(key: str) -> dict[str, dict[str, Any]]:
         " and ".join(what),
     )
     return zeros
+
+
+def note_left_zeros_on(spec: Any) -> None:
+    """:func:`note_left_zeros` for every bus of a ``can:`` source (the hand sweep: read-only, it changes nothing)."""
+    options = {k: v for k, v in spec.options.items() if k in ("host", "port")}
+    for channel in spec.channels:
+        note_left_zeros(bus_key(spec.interface, channel, options))
