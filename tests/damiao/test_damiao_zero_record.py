@@ -155,3 +155,47 @@ def test_the_hand_sweep_names_a_left_zero_before_it_opens_the_bus(
     assert code == 3 and len(notes) == 1, err
     assert f"on damiao:virtual:{channel} stored a new zero in flash on {GRIPPER} (readings -7.50°)" in notes[0]
     assert not (tmp_path / "c.yaml").exists()
+
+
+def test_a_fault_while_zeros_go_to_flash_says_which_are_there(arm: SimOpenArm) -> None:
+    """J6 goes silent right after the gripper's zero reached flash: the run ends with a device error, and first a
+    note names the gripper's zero in flash and J6's perhaps; the record keeps both for the next run."""
+    urdf = read_urdf(Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf"))))
+    profile = resolve_profile("openarm_follower_right", urdf)
+    assert profile is not None and profile.auto is not None
+    drivers, _clock, close = open_damiao(
+        parse_source(f"can:virtual:{arm.channel}"), joints_from_urdf(urdf, profile, None), profile
+    )
+    j6 = "openarm_right_joint6"
+    records: list[logging.LogRecord] = []
+    handler = logging.Handler()
+    handler.emit = records.append  # type: ignore[method-assign]
+    logging.getLogger("robocal.notes").addHandler(handler)
+    try:
+        d: Any = drivers
+        hook = d[GRIPPER].on_zero
+
+        def then_silence(motor: str, state: str, reading_rad: float = 0.0) -> None:
+            hook(motor, state, reading_rad)
+            if state == "stored":
+                arm.silence("joint_6")  # the cable to J6 lost
+
+        d[GRIPPER].on_zero = then_silence
+        targets = {n: d[n].read().q_rad for n in (GRIPPER, j6)}
+        with pytest.raises(Exception) as failed:
+            store_zeros({n: d[n] for n in targets}, targets, profile.auto, max_lag_rad=d[GRIPPER].MAX_LAG_RAD)
+        assert not isinstance(failed.value, AssertionError)
+    finally:
+        logging.getLogger("robocal.notes").removeHandler(handler)
+        arm.silence("joint_6", False)
+        limp_all(list(drivers.values()))
+        close()
+    notes = [r.getMessage() for r in records]
+    assert notes == [
+        f"the zero of {GRIPPER} is in flash, {j6}'s may be (its store failed); no calibration file was "
+        "written: run `robocal sweep --auto --write-zero` again to write it"
+    ]
+    kept = find_left_changed(bus_key("virtual", arm.channel))
+    assert kept is not None
+    assert {m: z["state"] for m, z in left_zeros(kept).items()} == {GRIPPER: "stored", j6: "storing"}
+    assert arm.motors["gripper"].flash_writes == 1

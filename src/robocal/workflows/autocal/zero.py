@@ -11,6 +11,7 @@ joint away. Runs inside the caller's motion guard.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
 
@@ -60,6 +61,17 @@ def _tell(driver: JointDriver, name: str, state: str, s_rad: float = 0.0) -> Non
     hook = getattr(driver, "on_zero", None)
     if hook is not None:
         hook(name, state, getattr(driver, "direction", 1) * s_rad)
+
+
+def _say_left(stored: Sequence[str], failed: str) -> None:
+    """A fault while zeros go to flash: one ``note:`` on what is in flash (no write takes it back), no file."""
+    what = f"the zero{'s' if len(stored) > 1 else ''} of {', '.join(stored)} {'are' if len(stored) > 1 else 'is'} in flash, " if stored else ""
+    logging.getLogger("robocal.notes").warning(
+        "%s%s's may be (its store failed); no calibration file was written: run `robocal sweep --auto "
+        "--write-zero` again to write it",
+        what,
+        failed,
+    )
 
 
 def zeros_written(drivers: Mapping[str, JointDriver], names: Sequence[str]) -> None:
@@ -120,7 +132,11 @@ def store_zeros(
             break
         q_zero = offsets_rad[name] + at[name]
         _tell(drivers[name], name, "storing", q_zero)
-        drivers[name].store_zero()  # type: ignore[attr-defined]
+        try:
+            drivers[name].store_zero()  # type: ignore[attr-defined]
+        except Exception:
+            _say_left(list(stored), name)
+            raise
         stored[name] = at[name]
         _tell(drivers[name], name, "stored", q_zero)
     for name in zeroing:
