@@ -86,20 +86,22 @@ LIMP_TIMED = ("sigint", "double-sigint", "sigterm", "sighup")
 
 
 class _Relay:
-    """A TCP relay robocal's socketcand client goes through; :meth:`cut` closes every connection and stops listening.
+    """A TCP relay robocal's socketcand client goes through; :meth:`cut` closes every connection and closes each new
+    one at once (the bus gone) until :meth:`resume` (the next run on the same address); :meth:`close` ends it.
 
     It also notes every CAN frame robocal sends (:attr:`sent`: the host's ``time.monotonic()`` at which the relay
     read it, arbitration id, data): the wire's view, independent of robocal's own account and of when the
     simulator got round to the frame.
     """
 
-    def __init__(self, host: str, port: int, listen_port: int = 0) -> None:
+    def __init__(self, host: str, port: int) -> None:
         self.upstream = (host, port)
-        self.sock = socket.create_server(("127.0.0.1", listen_port))
+        self.sock = socket.create_server(("127.0.0.1", 0))
         self.port = self.sock.getsockname()[1]
         self.conns: list[socket.socket] = []
         self.lock = threading.Lock()
         self.sent: list[tuple[float, int, bytes]] = []
+        self.refusing = False
         threading.Thread(target=self._accept, daemon=True).start()
 
     def _accept(self) -> None:
@@ -108,6 +110,10 @@ class _Relay:
                 client, _ = self.sock.accept()
             except OSError:
                 return
+            if self.refusing:
+                with _suppress():
+                    client.close()
+                continue
             upstream = socket.create_connection(self.upstream)
             with self.lock:
                 self.conns += [client, upstream]
@@ -139,14 +145,23 @@ class _Relay:
         return text
 
     def cut(self) -> None:
+        self.refusing = True
+        with self.lock:
+            conns, self.conns = self.conns, []
+        for c in conns:
+            with _suppress():
+                c.shutdown(socket.SHUT_RDWR)
+            with _suppress():
+                c.close()
+
+    def resume(self) -> None:
+        """Relay new connections again (the port kept: the same bus address for the next run)."""
+        self.refusing = False
+
+    def close(self) -> None:
+        self.cut()
         with _suppress():
             self.sock.close()
-        with self.lock:
-            for c in self.conns:
-                with _suppress():
-                    c.shutdown(socket.SHUT_RDWR)
-                with _suppress():
-                    c.close()
 
 
 def _motors(state: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -186,7 +201,7 @@ def run_openarm_trial(
             return _trial(sim, relay, folder, fault, phase, rng, joints or default, write_zero, reply_ms)
         finally:
             if relay is not None:
-                relay.cut()
+                relay.close()
             sim.stop()
 
 
@@ -264,11 +279,11 @@ def _trial(
 
         ZERO_NEXT_RUNS.append(zeroed)
         relay.cut()
-        again = _Relay("127.0.0.1", relay.upstream[1], listen_port=relay.port)  # the same bus: the same address
+        relay.resume()  # the same bus: the same address (the record is kept per bus)
         try:
             return damiao_next_run_reports_zeros(sim, folder, args, env, zeroed)
         finally:
-            again.cut()
+            relay.cut()
 
     failures = tuple(
         _judge(sim, folder, fault, code, before, run, write_zero, signalled_at=signalled_at, watchdog_s=watchdog_s,
