@@ -173,3 +173,30 @@ def test_a_signal_while_zeros_go_to_flash_stores_no_further_zero_and_the_rest_go
         )  # fmt: skip
     assert stored == [{"grip": 0.0}]  # the caller's file rezeroes only what reached flash
     assert log == ["store grip", "nowait j6", "nowait j5", "limp j6", "limp j5"]
+
+
+def test_a_signal_during_limp_all_is_handled_once_every_motor_is_limp() -> None:
+    """Found by the Damiao soak: SIGINT / SIGHUP just after the file was written met the final ``limp_all``; the
+    signal's exception left the gripper's limp before its TIMEOUT was put back (left armed at 0.5 s)."""
+    import os
+
+    from robocal.errors import SignalInterrupt
+
+    log: list[str] = []
+
+    class _Signalled(_Recorder):
+        def limp(self) -> None:
+            os.kill(os.getpid(), signal.SIGHUP)  # the handler would run at the next line
+            time.sleep(0.05)
+            log.append(f"limp {self.name} (watchdog put back)")
+
+    def handler(signum: int, frame: object) -> None:
+        raise SignalInterrupt(signum)
+
+    old = signal.signal(signal.SIGHUP, handler)
+    try:
+        with pytest.raises(SignalInterrupt):
+            limp_all([_Signalled("grip", log, enabled=True), _Recorder("j7", log, enabled=True)])
+    finally:
+        signal.signal(signal.SIGHUP, old)
+    assert log == ["limp grip (watchdog put back)", "limp j7"]

@@ -31,6 +31,7 @@ __all__ = [
     "holding",
     "in_transaction",
     "raise_now_or_after",
+    "signals_held",
     "start_signal_free",
     "transaction",
 ]
@@ -99,3 +100,29 @@ def start_signal_free(thread: threading.Thread) -> threading.Thread:
     finally:
         mask(signal.SIG_SETMASK, old)
     return thread
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """Hold :data:`HANDLED_SIGNALS` off while the block runs, whatever handler is installed.
+
+    The first one that came is raised again as the block ends, so its handler (or default action) acts then. For what must not be cut short once begun, such as making every motor limp and putting its watchdog back: a
+    signal's exception inside would skip the motors after it. Main thread only (where handlers run; elsewhere the
+    block just runs); SIGKILL still ends the process.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    previous: dict[signal.Signals, object] = {}
+    for sig in HANDLED_SIGNALS:
+        with contextlib.suppress(OSError, ValueError):
+            previous[sig] = signal.signal(sig, lambda n, _frame: came.append(n))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            with contextlib.suppress(OSError, ValueError, TypeError):
+                signal.signal(sig, handler)  # type: ignore[arg-type]
+        if came:
+            signal.raise_signal(came[0])  # handled now, by the handler it was meant for

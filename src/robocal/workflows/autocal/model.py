@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from ...backends import load_backend
+from ...backends.bus_transaction import signals_held
 from ...backends.clock import Clock, MonotonicClock
 from ...core.named import get_named
 from ...core.profile_auto import NOT_SEARCHED, AutoJoint
@@ -204,21 +205,23 @@ def limp_all(drivers: Mapping[str, JointDriver] | Sequence[JointDriver]) -> list
     without awaiting a reply (``torque_off_nowait``, the MIT-mode CAN motors) does so, all before any reply is
     waited for; then each driver's confirmed ``limp``, the enabled ones first. So no motor that can push waits
     behind another motor's exchanges, lost replies or watchdog bookkeeping (issue 26: every motor limp within
-    100 ms).
+    100 ms). Signals are held off meanwhile (:func:`~robocal.backends.bus_transaction.signals_held`): one that
+    comes during a limp (Ctrl-C just after the file was written) no longer skips the watchdogs put back after it.
     """
     items = list(drivers.values() if isinstance(drivers, Mapping) else drivers)
     ordered = sorted(items, key=lambda d: not getattr(d, "enabled", True))
-    for d in ordered:
-        quick = getattr(d, "torque_off_nowait", None)
-        if quick is not None and getattr(d, "enabled", True):
-            with suppress(Exception):  # never raises by contract; a limp must reach every motor all the same
-                quick()
     failed: list[str] = []
-    for d in ordered:
-        try:  # a limp must reach every motor
-            d.limp()
-        except Exception:
-            failed.append(d.name)
+    with signals_held():  # a signal meanwhile comes out once every motor is limp and its watchdog put back
+        for d in ordered:
+            quick = getattr(d, "torque_off_nowait", None)
+            if quick is not None and getattr(d, "enabled", True):
+                with suppress(Exception):  # never raises by contract; a limp must reach every motor all the same
+                    quick()
+        for d in ordered:
+            try:  # a limp must reach every motor
+                d.limp()
+            except Exception:
+                failed.append(d.name)
     return failed
 
 
