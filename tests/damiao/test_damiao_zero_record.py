@@ -138,17 +138,19 @@ def test_the_record_names_each_zero_by_its_state_and_carries_a_left_one_on(
     assert find_left_changed(key) is None
 
 
-def test_the_hand_sweep_names_a_left_zero_before_it_opens_the_bus(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize("auto", [["--auto", "--write-zero", "--yes"], []], ids=["auto", "hand"])
+def test_the_next_run_names_a_left_zero_before_it_opens_the_bus(
+    auto: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """The hand sweep reads the motors against their stored zeros: it says first what a killed run left there."""
+    """``sweep --auto`` and the hand sweep (which reads the motors against their stored zeros) say first what a
+    killed run left there, even when the bus then does not answer."""
     from robocal.cli.main import main
 
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
     channel = f"nobody-{id(tmp_path)}"  # no motor answers: the sweep ends exit 3 after the note
     WatchdogRecord(bus_key("virtual", channel)).zero(GRIPPER, "stored", math.radians(7.5))
     urdf = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
-    code = main(["sweep", "--robot", "openarm_follower_right", "--urdf", str(urdf), "--source",
+    code = main(["sweep", *auto, "--robot", "openarm_follower_right", "--urdf", str(urdf), "--source",
                  f"can:virtual:{channel}", "--out", str(tmp_path / "c.yaml")])  # fmt: skip
     err = capsys.readouterr().err
     notes = [ln for ln in err.splitlines() if ln.startswith("note: a previous `robocal sweep --auto --write-zero`")]

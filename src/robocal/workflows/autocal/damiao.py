@@ -82,6 +82,9 @@ def open_damiao(
             f"({', '.join(str(b) for b in by_bus)}); give one channel each"
         )
     options = {k: v for k, v in spec.options.items() if k in ("host", "port")}
+    from .damiao_watchdog import note_left_zeros_on
+
+    left = note_left_zeros_on(spec)  # before the buses open: said even when they do not
     bus_cls = load_backend("damiao")
     buses: list[Any] = []
     try:
@@ -101,7 +104,7 @@ def open_damiao(
 
     try:
         drivers = _drivers(buses, joints, profile, clock, None)
-        _keep_watchdog_records(buses, drivers, spec.interface, options)
+        _keep_watchdog_records(buses, drivers, spec.interface, options, left)
     except BaseException:
         close()
         raise
@@ -109,15 +112,22 @@ def open_damiao(
 
 
 def _keep_watchdog_records(
-    buses: Sequence[Any], drivers: Mapping[str, Any], interface: str, options: Mapping[str, Any]
+    buses: Sequence[Any],
+    drivers: Mapping[str, Any],
+    interface: str,
+    options: Mapping[str, Any],
+    left: Mapping[str, Any],
 ) -> None:
-    """Per bus: say what a killed run left (a note each), put its TIMEOUT back, record what this run arms and stores."""
-    from .damiao_watchdog import WatchdogRecord, bus_key, note_left_zeros, restore_left_armed
+    """Per bus: put back the TIMEOUT a killed run left armed (a note), record what this run arms and stores.
+
+    ``left``: channel → the zeros a killed run left (:func:`~.damiao_watchdog.note_left_zeros`), carried on.
+    """
+    from .damiao_watchdog import WatchdogRecord, bus_key, restore_left_armed
 
     for bus in buses:
         key = bus_key(interface, bus.channel, options)
         restore_left_armed(bus, key)
-        record = WatchdogRecord(key, zeros=note_left_zeros(key))
+        record = WatchdogRecord(key, zeros=left.get(bus.channel))
         for name in bus.motors:
             if name in drivers:
                 drivers[name].on_watchdog = record.changed

@@ -248,8 +248,7 @@ def note_left_zeros(key: str) -> dict[str, dict[str, Any]]:
     return zeros
 
 
-def note_left_zeros_on(spec: Any) -> None:
-    """:func:`note_left_zeros` for every bus of a ``can:`` source (the hand sweep: read-only, it changes nothing)."""
+def note_left_zeros_on(spec: Any) -> dict[str, dict[str, dict[str, Any]]]:
+    """:func:`note_left_zeros` for every bus of a ``can:`` source, before it is opened; channel → what it returned."""
     options = {k: v for k, v in spec.options.items() if k in ("host", "port")}
-    for channel in spec.channels:
-        note_left_zeros(bus_key(spec.interface, channel, options))
+    return {channel: note_left_zeros(bus_key(spec.interface, channel, options)) for channel in spec.channels}
