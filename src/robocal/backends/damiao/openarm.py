@@ -16,8 +16,6 @@ calibration would (the motor reads the joint angle). The joint angle of the trut
 from __future__ import annotations
 
 import math
-import threading
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Literal
@@ -26,6 +24,7 @@ import numpy as np
 
 from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
+from ..sim.pacer import RealtimePacer
 from ..sim.physics import JointPlant, PlantParams, SimClock
 from ..sim.scenarios import Scenario, make_plant
 from .bus import DamiaoMotor
@@ -167,8 +166,7 @@ class SimOpenArm(StartsOnEnter):
     ) -> None:
         self.side: Side = side
         self.realtime = realtime
-        self._pacer: threading.Thread | None = None
-        self._stop_pacer = threading.Event()
+        self._pacer: RealtimePacer | None = None
         self.joints = openarm_joints(side)
         names = {j.name for j in self.joints}
         unknown = sorted(set(scenarios or {}) - names)
@@ -208,29 +206,19 @@ class SimOpenArm(StartsOnEnter):
         """Start answering on the channel (and, ``realtime``, moving the clock with the wall clock)."""
         self.bus.start()
         if self.realtime:
-            self._stop_pacer.clear()
-            self._pacer = threading.Thread(target=self._pace, name=f"sim-openarm-{self.channel}", daemon=True)
+            lock = self.bus.lock
+            self._pacer = RealtimePacer(
+                self.clock, self.motors.values(), lambda: lock, name=f"sim-openarm-{self.channel}"
+            )
             self._pacer.start()
         return self
 
     def stop(self) -> None:
         """Stop answering."""
-        self._stop_pacer.set()
         if self._pacer is not None:
-            self._pacer.join(timeout=2.0)
+            self._pacer.stop()
             self._pacer = None
         self.bus.stop()
-
-    def _pace(self, period_s: float = 0.005) -> None:
-        """Keep simulated time level with the wall clock (never behind it), integrating every joint."""
-        wall0, sim0 = time.monotonic(), self.clock.now()
-        while not self._stop_pacer.wait(period_s):
-            with self.bus.lock:
-                behind = sim0 + (time.monotonic() - wall0) - self.clock.now()
-                if behind > 0:
-                    self.clock.advance(behind)
-                for m in self.motors.values():
-                    m.sync()
 
     def motor_specs(self) -> list[DamiaoMotor]:
         """The arm's motors as :class:`~.bus.DamiaoBus` takes them."""

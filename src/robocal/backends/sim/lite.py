@@ -27,8 +27,9 @@ from ...core.lifecycle import StartsOnEnter
 from ...errors import UsageError
 from ..robstride.protocol import CommType
 from ..robstride.sim import SimMotor, SimMotorBus
-from .lite_physics import RealtimePacer, lite_plant_params
+from .lite_physics import lite_plant_params
 from .operator import JointView
+from .pacer import RealtimePacer
 from .physics import SimClock
 from .scenarios import Scenario, make_plant
 
@@ -257,7 +258,7 @@ class SimLite(StartsOnEnter):
         self.operator = SimOperator(self, skip=skip, short_rad=short_rad)
         self.pacer: RealtimePacer | None = None
         if self.clock is not None:
-            self.pacer = RealtimePacer(self.clock, self.motors.values(), self._both_locks)
+            self.pacer = RealtimePacer(self.clock, self.motors.values(), self._both_locks, name="sim-lite-pacer")
 
     @contextlib.contextmanager
     def _both_locks(self) -> Iterator[None]:
