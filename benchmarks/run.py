@@ -66,7 +66,7 @@ BENCHMARKS = (
         "autocal_servo", True, "~65 min", "auto-calibration on the servo firmware, 100 runs per SO-101 joint"
     ),
     Benchmark(
-        "health", True, "~25 min", "dataset health: recall / false alarms per offset and joint, 200 sessions per arm + 88 for the sag fit"
+        "health", True, "~35 min", "dataset health: recall / false alarms per offset and joint, 200 sessions per arm (again with the calibration files) + 88 for the sag fit"
     ),
     Benchmark(
         "openarm", True, "~3 min", "zero-touch calibration of the simulated OpenArm v10: 20 seeded whole-arm runs"
