@@ -200,3 +200,42 @@ def test_a_signal_during_limp_all_is_handled_once_every_motor_is_limp() -> None:
     finally:
         signal.signal(signal.SIGHUP, old)
     assert log == ["limp grip (watchdog put back)", "limp j7"]
+
+
+@pytest.mark.timeout(600)
+def test_every_motor_is_limp_before_the_calibration_file_is_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Found by the Damiao soak: SIGHUP while the file was being written left the held gripper on for 457 ms (an
+    fsync, which no signal interrupts, ran first). Without ``--write-zero`` nothing needs the motors once the
+    search is over: they are limp before any file is written."""
+    from importlib import resources
+
+    import robocal.workflows.sweep.job as job_mod
+    from robocal.backends.damiao import openarm as openarm_mod
+    from robocal.workflows.autocal.sweep import SweepAutoRequest
+
+    from .openarm_session import openarm_session
+
+    holder: list[dict[str, bool]] = []
+    arms: list[SimOpenArm] = []
+    original = job_mod.write_sweep_files  # run_sweep_auto imports it from there when it runs
+
+    def noting(*args: object, **kwargs: object) -> object:
+        holder.append({n: m.enabled for n, m in arms[0].motors.items()})
+        return original(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(job_mod, "write_sweep_files", noting)
+    started = openarm_mod.SimOpenArm.start
+
+    def start(self: SimOpenArm) -> SimOpenArm:
+        arms.append(self)
+        return started(self)
+
+    monkeypatch.setattr(openarm_mod.SimOpenArm, "start", start)
+    urdf = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
+    request = SweepAutoRequest(urdf, "sim:openarm?seed=6", tmp_path / "c.json", robot="openarm_follower_right",
+                               joints=("openarm_right_gripper_motor", "openarm_right_joint7"))  # fmt: skip
+    with openarm_session(request) as (outcome, _sim):
+        assert outcome.out == tmp_path / "c.json"
+    assert holder == [dict.fromkeys(holder[0], False)] and len(holder[0]) == 8

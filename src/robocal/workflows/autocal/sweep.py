@@ -395,8 +395,13 @@ def run_sweep_auto(
         with contextlib.suppress(Exception):
             close()
         raise
-    # the run is over: the joints hold their park angles; nothing is written before this point
+    # the run is over: the joints hold their park angles; nothing is written before this point. Without
+    # --write-zero nothing needs them any more: limp now, before the files (a signal during a file's fsync, which no
+    # signal interrupts, was handled only once it returned: a held gripper limp 457 ms after SIGHUP, issue 26)
+    limped = not r.write_zero
     try:
+        if limped:
+            limp_all(drivers)
         prior = offsets_by_joint(existing) if existing is not None else {}
         expected: dict[str, tuple[float, float]] = {}
         for j in specs:
@@ -456,7 +461,8 @@ def run_sweep_auto(
             if zeros:
                 zeros_written(drivers, list(zeros))  # the state folder's record of them goes
     finally:
-        limp_all(drivers)
+        if not limped:
+            limp_all(drivers)
         with contextlib.suppress(Exception):
             close()
     code = 0 if result.ok and not auto.failed else 1
