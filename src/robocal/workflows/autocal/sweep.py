@@ -376,20 +376,9 @@ def run_sweep_auto(
         # the one motion guard (motion_guard.py): SIGINT/SIGTERM/SIGHUP/SIGQUIT or a fault → every motor limp
         # (signals held off until it is done), the line says which motors did not answer the torque-off
         with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
-            auto = run_autocal(
-                drivers,
-                AutoCalRequest(
-                    profile.auto,
-                    limits,
-                    joints=[j.name for j in order],
-                    max_lag_rad=max_lag_rad,
-                    gravity=gravity,
-                    gravity_model=gravity_model,
-                    joint_gravity=joint_gravity,
-                ),
-                view=view,
-                clock=clock,
-            )
+            autocal = AutoCalRequest(profile.auto, limits, joints=[j.name for j in order], max_lag_rad=max_lag_rad,
+                                     gravity=gravity, gravity_model=gravity_model, joint_gravity=joint_gravity)  # fmt: skip
+            auto = run_autocal(drivers, autocal, view=view, clock=clock)
     except BaseException:
         limp_all(drivers)
         with contextlib.suppress(Exception):
