@@ -58,6 +58,8 @@ def test_a_leader_offset_without_range_end_contact_is_named_from_the_files(tmp_p
     joint = rep["joints"]["shoulder_lift"]  # type: ignore[index]
     assert code == 1 and rep["flagged"] == ["shoulder_lift"]
     assert joint["status"] == "suspect"
+    for end in joint["range_ends"]:  # a together end: its excess under its own band, never wider than the symmetric
+        assert end["kind"] == "together" and end["excess"] <= end["band"] <= joint["model_band"]
     (why,) = [r for r in joint["reasons"] if r.startswith("recorded ranges differ: leader 15")]
     gap = float(why.split("a range recorded ")[1].split("°")[0])
     assert math.isclose(gap, 34.0, abs_tol=2 * SCATTER_DEG + 0.2)

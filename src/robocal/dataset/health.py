@@ -392,6 +392,8 @@ def health_json(result: DatasetHealth) -> dict[str, Any]:
                     "leader": round(e.leader, 4),
                     "frames": e.frames,
                     "episodes": list(e.episodes),
+                    "excess": _num(e.excess),
+                    "band": _num(h.end_bands[0 if e.end == "lo" else 1]),
                 }
                 for e in h.ends
             ],
