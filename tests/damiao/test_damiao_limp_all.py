@@ -162,7 +162,7 @@ def test_a_signal_while_zeros_go_to_flash_stores_no_further_zero_and_the_rest_go
     from robocal.workflows.autocal import zero
 
     monkeypatch.setattr(zero, "move_to", lambda *a, **k: None)
-    monkeypatch.setattr(zero, "_hold", lambda driver, target, cap, periods: target)
+    monkeypatch.setattr(zero, "_hold", lambda driver, name, target, cap, periods: target)
     log: list[str] = []
     drivers = {n: _Zeroing(n, log, enabled=True) for n in _Section.joint_names}
     stored: list[dict[str, float]] = []
@@ -239,3 +239,27 @@ def test_every_motor_is_limp_before_the_calibration_file_is_written(
     with openarm_session(request) as (outcome, _sim):
         assert outcome.out == tmp_path / "c.json"
     assert holder == [dict.fromkeys(holder[0], False)] and len(holder[0]) == 8
+
+
+def test_a_motor_lost_while_held_at_its_zero_is_a_lost_device_and_no_zero_is_stored(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Found by the Damiao soak (``--write-zero``, the device lost after the searches): the hold at the zero read
+    nothing, its NaN became the next target and ended the run as bad input (``cannot encode nan``, exit 2)."""
+    import math
+
+    from robocal.errors import DeviceError
+    from robocal.workflows.autocal import zero
+
+    class _Lost(_Zeroing):
+        def settle_at(self, target_rad: float, duration_s: float) -> float:
+            self.log.append(f"settle {self.name} at {target_rad}")
+            return math.nan  # every reading of the hold lost
+
+    monkeypatch.setattr(zero, "move_to", lambda *a, **k: None)
+    log: list[str] = []
+    drivers = {n: _Lost(n, log, enabled=True) for n in _Section.joint_names}
+    with pytest.raises(DeviceError, match=r"^grip: no position reading while holding it at its zero"):
+        zero.store_zeros(drivers, {"grip": 0.1, "j6": 0.2, "j5": 0.3}, _Section(), max_lag_rad=0.05)  # type: ignore[arg-type]
+    assert log == ["settle grip at 0.1"]  # one hold, no NaN target sent, nothing stored
+    assert DeviceError("x").exit_code == 3

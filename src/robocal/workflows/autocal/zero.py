@@ -22,7 +22,7 @@ from ...core.profile_auto import AutoSection
 from ...core.stop_search import Command
 from ...core.sweep import analyse_sweep
 from ...core.sweep_result import SweepResult
-from ...errors import UsageError
+from ...errors import DeviceError, UsageError
 from .joint import TRANSIT_FACTOR, move_to
 from .model import JointDriver, limp_all
 
@@ -47,13 +47,23 @@ def can_store_zero(drivers: Mapping[str, JointDriver], names: Sequence[str]) -> 
         )
 
 
-def _hold(driver: JointDriver, target: float, cap: float, periods: int) -> float:
+def _hold(driver: JointDriver, name: str, target: float, cap: float, periods: int) -> float:
+    """Hold ``name`` at ``target`` (rad) for ``periods``; the mean reading of the second half (rad).
+
+    Raises:
+        DeviceError: No reading came in the second half (the motor stopped answering): there is no position to
+            refine the target with, nor one to store as its zero.
+    """
     settle = getattr(driver, "settle_at", None)
     if settle is not None:
-        return float(settle(target, periods * 0.01))
-    qs = [driver.execute(Command("drive", target, 0.0, cap)).q_rad for _ in range(periods)]
-    half = [q for q in qs[len(qs) // 2 :] if math.isfinite(q)]
-    return float(np.mean(half)) if half else math.nan
+        q = float(settle(target, periods * 0.01))
+    else:
+        qs = [driver.execute(Command("drive", target, 0.0, cap)).q_rad for _ in range(periods)]
+        half = [q for q in qs[len(qs) // 2 :] if math.isfinite(q)]
+        q = float(np.mean(half)) if half else math.nan
+    if not math.isfinite(q):
+        raise DeviceError(f"{name}: no position reading while holding it at its zero (the motor stopped answering)")
+    return q
 
 
 def _tell(driver: JointDriver, name: str, state: str, s_rad: float = 0.0) -> None:
@@ -113,12 +123,12 @@ def store_zeros(
         d = drivers[name]
         move_to(d, offset, aj.speed_rad_s * TRANSIT_FACTOR, aj.torque_cap_nm, max_lag_rad)
         target = offset
-        q = _hold(d, target, aj.torque_cap_nm, round(HOLD_S / period_s))
+        q = _hold(d, name, target, aj.torque_cap_nm, round(HOLD_S / period_s))
         for _ in range(8):
             if abs(q - offset) <= ZERO_TOL_RAD:
                 break
             target -= q - offset
-            q = _hold(d, target, aj.torque_cap_nm, round(HOLD_S / period_s))
+            q = _hold(d, name, target, aj.torque_cap_nm, round(HOLD_S / period_s))
         at[name] = q - offset
     zeroing = [n for n in section.joint_names if n in at]
     for name in zeroing:  # recorded before the first flash write: a killed run's next run says what it left
