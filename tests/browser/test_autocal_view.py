@@ -31,21 +31,36 @@ def _auto_state(page: Any) -> dict[str, Any] | None:
 
 
 class Pace:
-    """An inner view that lets a little wall time pass per reading: the simulated clock runs far faster than a
-    real robot, and the page (polled by the test) should see each joint move."""
+    """An inner view that lets wall time pass per reading: the simulated clock runs far faster than a real robot,
+    and the page (polled by the test) should see a joint move. Until the test has seen that (``seen_moving``),
+    each reading waits up to 50 ms for it, at most :attr:`GATE_S` in all, so a page or poller starved on a loaded
+    machine still sees the joint at several positions, and the run is never held longer; then 2 ms per reading."""
+
+    GATE_S = 20.0
+
+    def __init__(self) -> None:
+        self.seen_moving = threading.Event()
+        self.gate_left_s = self.GATE_S
 
     def joint_start(self, name: str, cap_nm: float, speed_rad_s: float) -> None:
         pass
 
     def sample(self, name: str, phase: str, side: str, sample: Any) -> None:
+        if self.gate_left_s > 0 and not self.seen_moving.is_set():
+            t0 = time.monotonic()
+            self.seen_moving.wait(min(0.05, self.gate_left_s))
+            self.gate_left_s -= time.monotonic() - t0
+            return
         time.sleep(0.002)
 
     def joint_done(self, outcome: Any) -> None:
         pass
 
 
+@pytest.mark.timeout(300)  # a browser, a server and a search on a loaded 2-core machine
 def test_stop_search_drawn_live_then_with_the_report_codes(page: Any, tmp_path: Path) -> None:
-    web = open_auto_sweep_page(LITE_URDF, inner=Pace(), port=0)
+    pace = Pace()
+    web = open_auto_sweep_page(LITE_URDF, inner=pace, port=0)
     try:
         cam = web.app.server.initial_camera  # in front of the robot (it faces +x), a little above
         cam.position = (0.8, -0.2, 0.2)
@@ -86,6 +101,8 @@ def test_stop_search_drawn_live_then_with_the_report_codes(page: Any, tmp_path: 
                     searching = {j["name"]: j["status"] for j in st["joints"]}[st["active"]]
                     if q is not None and searching == "searching":
                         seen.setdefault(st["active"], set()).add(round(q, 6))
+                        if len(seen[st["active"]]) >= 3:
+                            pace.seen_moving.set()
                 page.wait_for_timeout(50)
         finally:
             worker.join(timeout=300)

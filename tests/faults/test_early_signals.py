@@ -116,3 +116,46 @@ def test_signals_at_random_instants_from_the_start(tmp_path: Path) -> None:
         outcome(tmp_path, rng.choice(progs), rng.choice(list(LINES)), rng.uniform(0, 1.5)) for _ in range(10)
     ]
     assert [s for cls, s in seen if cls not in (ROBOCAL, FINISHED, PYTHON)] == []
+
+
+LATE_SIGNAL = """
+import signal
+from robocal.cli import entry
+
+real = entry._block_signals_until_exit
+calls = []
+
+def signal_lands_first():  # a SIGINT that arrived as main() returned: its handler runs at the next call
+    if not calls:
+        calls.append(1)
+        signal.raise_signal(signal.{name})  # Python runs the handler here, before the blocking is done
+    real()
+
+entry._block_signals_until_exit = signal_lands_first
+entry.install_startup_handlers()
+
+def main():
+    print("the command's last line", flush=True)
+    return {code}
+
+entry.run_command(main)
+"""
+
+
+@pytest.mark.parametrize(("name", "code"), [("SIGINT", 0), ("SIGTERM", 1)])
+def test_a_signal_as_the_finished_command_returns_is_ignored(name: str, code: int) -> None:
+    """The command had finished (written, printed) when the signal came, before the handlers were blocked: the
+    process exits with the command's code, no traceback (it was killed by SIGINT: the rare exit -2 of
+    tests/faults/test_sweep_interrupts.py)."""
+    import subprocess
+
+    from .conftest import SRC
+
+    r = subprocess.run(
+        [sys.executable, "-c", LATE_SIGNAL.format(name=name, code=code)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PYTHONPATH": str(SRC)},
+    )
+    assert (r.returncode, r.stdout, r.stderr) == (code, "the command's last line\n", "")

@@ -159,16 +159,22 @@ def run_command(main: Callable[[], int]) -> None:
         main: :func:`robocal.cli.main.main`.
     """
     install_command_handlers()
+    code: int | None = None
     try:
         code = main()
-    except KeyboardInterrupt as exc:  # only if it escaped main's own handlers (e.g. a second signal there)
-        quiet_after_interrupt()
-        signum = getattr(exc, "signum", None) or first_signal() or int(signal.SIGINT)
-        try:
-            os.write(2, f"error: {interrupted_text(signum)}\n".encode())
-        finally:
-            os._exit(exit_code_for(signum))
-    _block_signals_until_exit()
+        _block_signals_until_exit()
+    except KeyboardInterrupt as exc:
+        if code is None:  # it escaped main's own handlers (e.g. a second signal there)
+            quiet_after_interrupt()
+            signum = getattr(exc, "signum", None) or first_signal() or int(signal.SIGINT)
+            try:
+                os.write(2, f"error: {interrupted_text(signum)}\n".encode())
+            finally:
+                os._exit(exit_code_for(signum))
+        # the command had finished (its files written, its lines printed) when the signal came, before the
+        # handlers were blocked: ignored like one a moment later (it used to escape as a KeyboardInterrupt
+        # traceback, the process killed by SIGINT: the rare exit -2 of tests/faults/test_sweep_interrupts.py)
+        _block_signals_until_exit()
     sys.exit(code)
 
 
@@ -179,9 +185,15 @@ def _block_signals_until_exit() -> None:
     another thread may take the signal, so a Ctrl-C landing then would end the process as killed by SIGINT after
     everything was written and printed. Ignoring is process-wide and survives the shutdown.
     """
-    if _installed:
-        for signum in HANDLED_SIGNALS:
-            try:
-                signal.signal(signum, signal.SIG_IGN)
-            except (OSError, ValueError):
-                continue
+    if not _installed:
+        return
+    for _attempt in range(len(HANDLED_SIGNALS) + 1):  # a signal that lands while they are set is ignored too
+        try:
+            for signum in HANDLED_SIGNALS:
+                try:
+                    signal.signal(signum, signal.SIG_IGN)
+                except (OSError, ValueError):
+                    continue
+            return
+        except KeyboardInterrupt:
+            continue

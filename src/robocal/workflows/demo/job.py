@@ -321,14 +321,14 @@ def _lerobot_demo(robot: str, folder: Path, say: Say, temporary: bool) -> DemoRe
     """Calibrate the simulated follower and leader through the real SDK on a pty; recovered vs true stops."""
     from ...backends.sim.lerobot_arms import SimArm, SimArmOperator
     from ...formats.lerobot import calibration_path
-    from ..lerobot import CalibrateRequest, calibrate, open_bus, robot_spec
+    from ..lerobot import CalibrateRequest, calibrate, open_sim_bus, robot_spec
 
     ok = True
     sections = []
     for name in (f"{robot}_follower", f"{robot}_leader"):
         spec = robot_spec(name)
         with SimArm(spec, noise_ticks=1, seed=1) as arm:
-            bus = open_bus(spec, arm.port)
+            bus = open_sim_bus(spec, arm)
             try:
                 path = calibration_path(spec.kind, spec.device_name, "demo", root=folder)
                 result = calibrate(bus, CalibrateRequest(spec, path=path, sweep_full_turn=True), SimArmOperator(arm))

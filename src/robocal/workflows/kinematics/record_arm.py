@@ -96,7 +96,7 @@ def open_record_bus(
         UsageError: Bad ``sim`` options.
         DeviceError: The port cannot be opened.
     """
-    from ..lerobot import open_bus
+    from ..lerobot import open_bus, open_sim_bus
 
     if port != "sim" and not port.startswith("sim?"):
         bus = open_bus(spec, port)
@@ -116,7 +116,7 @@ def open_record_bus(
         cals = read_calibration_file(calibration)
     arm = SimArm(spec, seed=int(opts.get("seed", "0")), noise_ticks=1, transport=transport).start()
     try:
-        bus = open_bus(spec, arm.port)
+        bus = open_sim_bus(spec, arm)
     except BaseException:
         arm.stop()
         raise

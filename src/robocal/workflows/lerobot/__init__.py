@@ -14,7 +14,7 @@
 
 from __future__ import annotations
 
-from .arms import norm_modes, open_arm, open_bus, robot_names, robot_spec, sim_operator
+from .arms import norm_modes, open_arm, open_bus, open_sim_bus, robot_names, robot_spec, sim_operator
 from .calibrate import (
     CalibrateRequest,
     CalibrationNotSavedError,
@@ -63,6 +63,7 @@ __all__ = [
     "norm_modes",
     "open_arm",
     "open_bus",
+    "open_sim_bus",
     "range_warnings",
     "read_calibration_file",
     "read_eeprom",

@@ -19,6 +19,7 @@ __all__ = [
     "norm_modes",
     "open_arm",
     "open_bus",
+    "open_sim_bus",
     "robot_names",
     "robot_spec",
     "sim_operator",
@@ -55,6 +56,20 @@ def open_bus(
         port, motors, retries=retries, packet_timeout_ms=packet_timeout_ms
     )
     return bus
+
+
+SIM_PACKET_TIMEOUT_MS = 1000.0
+"""The least wait for a status packet from a simulated arm running in this process on a pseudo-terminal
+(``--port sim``): not a wire, its reply waits for the simulator's thread, which a starved process may not run for
+hundreds of ms (a loaded machine). A real port keeps :func:`open_bus`'s 100 ms; an in-process port
+(``inproc://``) answers within the call and keeps it too (its time is the simulated clock's)."""
+
+
+def open_sim_bus(spec: RobotSpec, arm: Any) -> ServoBus:
+    """:func:`open_bus` on a simulated arm of this process (a ``SimArm``), with :data:`SIM_PACKET_TIMEOUT_MS`."""
+    pty = getattr(arm.bus, "transport", "pty") == "pty"
+    return open_bus(spec, arm.port, packet_timeout_ms=SIM_PACKET_TIMEOUT_MS if pty else 100.0)
+
 
 def norm_modes(
     spec: RobotSpec, *, use_degrees: bool | None = None, overrides: Mapping[str, str] | None = None
@@ -105,7 +120,7 @@ def open_arm(spec: RobotSpec, port: str) -> Iterator[tuple[ServoBus, Any]]:
         from ...backends.sim.lerobot_arms import SimArm
 
         with SimArm(spec) as arm:
-            bus = open_bus(spec, arm.port)
+            bus = open_sim_bus(spec, arm)
             try:
                 yield bus, arm
             finally:

@@ -32,7 +32,7 @@ from ...errors import UsageError
 from ..autocal.job import joint_gravity_for
 from ..autocal.model import Clock, MonotonicClock
 from ..autocal.sim import SIM_FAULTS, fault_scenario
-from .arms import open_bus
+from .arms import open_bus, open_sim_bus
 
 ARM_OPTIONS = (*SIM_FAULTS, "gravity")
 """Per-joint options of a simulated LeRobot arm: the scenarios of ``sim:lite`` and ``gravity`` (the joint carries
@@ -192,7 +192,7 @@ def open_auto_arm(
         plants = attach_physics(
             arm, clock, scenarios=scenarios, search_torque_nm=push, seed=seed or 0, gravity=gravity
         )
-        bus = open_bus(spec, arm.port)
+        bus = open_sim_bus(spec, arm)
         try:
             yield AutoArm(bus, clock, arm, plants)
         finally:
