@@ -16,6 +16,13 @@ One search drives one joint into one stop (``direction`` −1 or +1)::
 * **Target.** The position target ramps at ``speed_rad_s`` but never leads the joint by more than
   ``max_lag_rad``; with a position gain ``kp`` a driver sets ``max_lag_rad = cap/kp`` so the push at the stop is
   bounded by the cap even before the motor's own torque limit.
+* **Evidence under load.** The lag test measures how far the joint is short of the target it had a whole
+  control period to reach (the one sent before the last), never of the target just advanced by the time since
+  the last reading: after a scheduling gap that target leads by ``speed·gap`` (up to ``max_lag_rad``) although
+  the joint followed every command, so a slow loop looked held back (issue 26 item 4: the SO-101's and Koch's
+  stops found in free travel under CPU load). The dwells (stall, blocked) and the time bound run on a clock
+  that counts each reading's interval at most ``evidence_gap_s``: a gap neither confirms a stop nor uses up
+  the search's time.
 * **Suspect evidence.** An overload flag or a lost reply never declares a stop by itself: the search asks for a
   re-read (``Command.action == "reread"``: clear the latch, read the position). If the joint was armed and
   slow, and the re-read position agrees with the last good one within ``confirm_tol_rad``, the stop is
@@ -46,10 +53,11 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import InvalidCalibrationError
-from .stop_types import FAIL_CODES, TESTS, Command, SearchConfig, StopResult, StopSample
+from .stop_types import EVIDENCE_GAP_S, FAIL_CODES, TESTS, Command, SearchConfig, StopResult, StopSample
 from .stop_zero import JointStops, joint_zero, summarise, with_gravity
 
 __all__ = [
+    "EVIDENCE_GAP_S",
     "FAIL_CODES",
     "TESTS",
     "Command",
@@ -89,6 +97,8 @@ class StopSearch:
         self._q0 = math.nan
         self._t_last = math.nan
         self._target = math.nan
+        self._given = math.nan  # the target of the command before the last (the joint had a period to reach it)
+        self._counted_s = 0.0  # time since the start, each reading's interval counted at most evidence_gap_s
         self._armed = False
         self._stall_since: float | None = None
         self._blocked_since: float | None = None
@@ -138,7 +148,7 @@ class StopSearch:
             return self._fail("no_reply", "no position reading at the start of the search", sample)
         self._t0 = self._t_last = sample.t_s
         self._q0 = self._touch_start_q = sample.q_rad
-        self._target = sample.q_rad
+        self._target = self._given = sample.q_rad
         self._last_good = sample
         return self._drive_cmd()
 
@@ -155,6 +165,7 @@ class StopSearch:
             return self._final_cmd()
         dt = sample.t_s - self._t_last if math.isfinite(self._t_last) else 0.0
         self._t_last = sample.t_s
+        self._counted_s += min(max(dt, 0.0), cfg.evidence_gap_s)
         if dt > cfg.reply_timeout_s and self._phase in (_APPROACH, _PRESS_HI, _PRESS_LO, _BACKOFF):
             # the host was held up (descheduled, a reply that came late): what the joint did in between is
             # unknown, so the reading is not evidence of a stop or of free travel; a fault, never a missed stop
@@ -164,7 +175,7 @@ class StopSearch:
                 "was held up or the reply was late)",
                 sample,
             )
-        if sample.t_s - self._t0 > cfg.max_time_s:
+        if self._counted_s > cfg.max_time_s:
             if not sample.ok or not math.isfinite(sample.q_rad):  # silent at the bound: the device, not the stop
                 return self._fail(
                     "no_reply",
@@ -221,6 +232,9 @@ class StopSearch:
 
     def _approach(self, s: StopSample, dt: float) -> Command:
         cfg, d = self.config, self.direction
+        # how far the joint is short of the target it had a whole period to reach (module docstring)
+        lag = d * (self._given - s.q_rad)
+        self._given = self._target
         self._target += d * cfg.speed_rad_s * max(dt, 0.0)
         lead = d * (self._target - s.q_rad)
         clamped = abs(lead) > cfg.max_lag_rad
@@ -239,14 +253,13 @@ class StopSearch:
         ):
             self._armed = True
         slow = math.isfinite(v) and abs(v) < cfg.v_fraction * cfg.speed_rad_s
-        lag = d * (self._target - s.q_rad)
         torque_hit = math.isfinite(s.torque_nm) and d * s.torque_nm >= cfg.torque_fraction * cfg.torque_cap_nm
         lag_hit = lag >= cfg.lag_fraction * cfg.max_lag_rad
         if not self._armed and slow and (torque_hit or lag_hit):
             # held at the full push before the test could arm: something blocks the joint right here
             if self._blocked_since is None:
-                self._blocked_since = s.t_s
-            elif s.t_s - self._blocked_since >= 2 * cfg.dwell_s:
+                self._blocked_since = self._counted_s
+            elif self._counted_s - self._blocked_since >= 2 * cfg.dwell_s:
                 self._result = replace(
                     self._make_fail(
                         "blocked",
@@ -262,10 +275,10 @@ class StopSearch:
             self._blocked_since = None
         if self._armed and slow and (torque_hit or lag_hit):
             if self._stall_since is None:
-                self._stall_since = s.t_s
+                self._stall_since = self._counted_s
                 self._window = []
             self._window.append(s)
-            if s.t_s - self._stall_since >= cfg.dwell_s:
+            if self._counted_s - self._stall_since >= cfg.dwell_s:
                 test = "torque" if torque_hit else "lag"
                 return self._contact(s, test)
         else:
@@ -346,7 +359,7 @@ class StopSearch:
                 self._armed = False
                 self._stall_since = None
                 self._touch_start_q = s.q_rad
-                self._target = s.q_rad
+                self._target = self._given = s.q_rad
                 return self._drive_cmd()
             return self._finish(s)
         return Command(
@@ -423,7 +436,7 @@ class StopSearch:
                 s,
             )
         self._stall_since = None
-        self._target = s.q_rad
+        self._target = self._given = s.q_rad
         return self._drive_cmd()
 
     # -- ends ---------------------------------------------------------------------------------------------

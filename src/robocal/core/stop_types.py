@@ -10,6 +10,7 @@ from typing import Any
 from ..errors import InvalidCalibrationError
 
 __all__ = [
+    "EVIDENCE_GAP_S",
     "FAIL_CODES",
     "TESTS",
     "CodedOutcome",
@@ -32,6 +33,10 @@ FAIL_CODES = (
     "aborted",
 )
 """Why a search or a joint failed (``ok`` otherwise)."""
+EVIDENCE_GAP_S = 0.1
+"""A reading's interval counts at most this long toward a stop search's or a move's dwells and time bound
+(:attr:`SearchConfig.evidence_gap_s`): what a joint did while robocal was held up is unknown."""
+
 TESTS = ("torque", "lag", "overload+reread", "no-reply+reread", "transit-stall", "blocked")
 """Which test declared the stop."""
 
@@ -75,6 +80,9 @@ class SearchConfig:
         touch_tol_rad: Agreement of the two touches.
         confirm_tol_rad: A re-read position confirms a suspect stop when within this of the last good one.
         reply_timeout_s: Replies missing for longer than this fail the search.
+        evidence_gap_s: A reading that comes more than this after the one before counts only this long toward a
+            dwell (the stall and blocked tests) and the time bound: what the joint did while robocal was held up
+            is unknown, so a scheduling gap neither confirms a stop nor uses up the search's time.
         max_suspects: Unconfirmed suspect events allowed before the search fails.
         gravity_nm: Gravity torque on the joint as a function of q (joint frame), or None (taken as 0).
     """
@@ -98,6 +106,7 @@ class SearchConfig:
     confirm_tol_rad: float = math.radians(1.0)
     reply_timeout_s: float = 0.5
     max_suspects: int = 3
+    evidence_gap_s: float = EVIDENCE_GAP_S
     gravity_nm: Callable[[float], float] | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -108,6 +117,7 @@ class SearchConfig:
             "max_time_s",
             "max_lag_rad",
             "dwell_s",
+            "evidence_gap_s",
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
