@@ -25,7 +25,7 @@ from robocal.backends.sources.spec import parse_source
 from robocal.formats.profiles import resolve_profile
 from robocal.formats.urdf import read_urdf
 from robocal.workflows.autocal.damiao import open_damiao
-from robocal.workflows.autocal.damiao_watchdog import WatchdogRecord, bus_key
+from robocal.workflows.motion.damiao_watchdog import WatchdogRecord, bus_key
 from robocal.workflows.motion.snapshot import find_left_changed
 from robocal.workflows.sweep.joint_specs import joints_from_urdf
 

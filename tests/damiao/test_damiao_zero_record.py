@@ -27,9 +27,9 @@ from robocal.backends.sources.spec import parse_source
 from robocal.formats.profiles import resolve_profile
 from robocal.formats.urdf import read_urdf
 from robocal.workflows.autocal.damiao import open_damiao
-from robocal.workflows.autocal.damiao_watchdog import WatchdogRecord, bus_key, left_zeros, note_left_zeros
 from robocal.workflows.autocal.model import limp_all
 from robocal.workflows.autocal.zero import store_zeros, zeros_written
+from robocal.workflows.motion.damiao_watchdog import WatchdogRecord, bus_key, left_zeros, note_left_zeros
 from robocal.workflows.motion.snapshot import find_left_changed, state_dir
 from robocal.workflows.sweep.joint_specs import joints_from_urdf
 

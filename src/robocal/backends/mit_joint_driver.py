@@ -114,7 +114,7 @@ class MitJointDriver:
         """The host-loss watchdog armed on the motor, s."""
         self.on_watchdog: Callable[[str, float | None], None] | None = None
         """Told before the watchdog is armed (the value it had, s) and after it is put back (None): the state
-        folder's record of what a killed run leaves armed (:mod:`robocal.workflows.autocal.damiao_watchdog`)."""
+        folder's record of what a killed run leaves armed (:mod:`robocal.workflows.motion.damiao_watchdog`)."""
 
     POSITION_BITS: ClassVar[int] = 16
     """Width of the position field of the MIT reply, which spans ``±position_range_rad()``."""

@@ -66,7 +66,7 @@ class DamiaoJointDriver(MitJointDriver):
     _mode_checked = False
     on_zero: Callable[[str, str, float], None] | None = None
     """Told each state of this motor's zero in ``--write-zero`` (planned, storing, stored, unchanged, written) and
-    the reading where it goes: the state folder's record (:mod:`robocal.workflows.autocal.damiao_watchdog`)."""
+    the reading where it goes: the state folder's record (:mod:`robocal.workflows.motion.damiao_watchdog`)."""
 
     def position_range_rad(self) -> float:
         """The motor's PMAX (register 21 where it was read, else its model's: 12.5 rad on the OpenArm's)."""

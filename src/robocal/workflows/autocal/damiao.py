@@ -82,7 +82,7 @@ def open_damiao(
             f"({', '.join(str(b) for b in by_bus)}); give one channel each"
         )
     options = {k: v for k, v in spec.options.items() if k in ("host", "port")}
-    from .damiao_watchdog import note_left_zeros_on
+    from ..motion.damiao_watchdog import note_left_zeros_on
 
     left = note_left_zeros_on(spec)  # before the buses open: said even when they do not
     bus_cls = load_backend("damiao")
@@ -120,9 +120,9 @@ def _keep_watchdog_records(
 ) -> None:
     """Per bus: put back the TIMEOUT a killed run left armed (a note), record what this run arms and stores.
 
-    ``left``: channel → the zeros a killed run left (:func:`~.damiao_watchdog.note_left_zeros`), carried on.
+    ``left``: channel → the zeros a killed run left (:func:`~..motion.damiao_watchdog.note_left_zeros`), carried on.
     """
-    from .damiao_watchdog import WatchdogRecord, bus_key, restore_left_armed
+    from ..motion.damiao_watchdog import WatchdogRecord, bus_key, restore_left_armed
 
     for bus in buses:
         key = bus_key(interface, bus.channel, options)

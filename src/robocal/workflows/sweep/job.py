@@ -287,7 +287,7 @@ def run_sweep(
     if vendor_source is not None and open_source_fn is None:  # not Robstride's protocol: the vendor's own source
         assert profile is not None
         if vendor_source == "damiao.source":  # the zeros a killed `sweep --auto --write-zero` left in flash: a note
-            from ..autocal.damiao_watchdog import note_left_zeros_on
+            from ..motion.damiao_watchdog import note_left_zeros_on
 
             note_left_zeros_on(spec)
         src: Source = load_backend(vendor_source).open(spec, joints, profile)

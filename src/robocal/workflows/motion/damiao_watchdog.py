@@ -3,7 +3,7 @@
 ``sweep --auto`` arms every motor's host-loss watchdog (TIMEOUT, register 9, RAM) before it moves and writes the
 old value back when the motor goes limp. A run killed with SIGKILL, a power cut of the host or a lost bus leaves it
 armed until the motor's next power cycle, and another stack (LeRobot, openarm_can) driving that motor then finds
-it stopping itself whenever its host pauses. So, as for the servo arms' EEPROM (:mod:`..motion.snapshot`), the
+it stopping itself whenever its host pauses. So, as for the servo arms' EEPROM (:mod:`.snapshot`), the
 values before are kept in the state folder from just before the first TIMEOUT write until the last one is put
 back (:class:`WatchdogRecord`, one file per bus), and the next ``sweep --auto`` that opens that bus finds it
 (:func:`restore_left_armed`): it says which motors a previous run left armed, writes their TIMEOUT back, reads
@@ -28,7 +28,7 @@ from contextlib import suppress
 from dataclasses import dataclass
 from typing import Any
 
-from ..motion.snapshot import LeftChanged, SnapshotStore, find_left_changed
+from .snapshot import LeftChanged, SnapshotStore, find_left_changed
 
 __all__ = [
     "TIMEOUT_UNIT_S",
