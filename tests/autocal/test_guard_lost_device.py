@@ -55,13 +55,13 @@ def test_cli_auto_with_the_adapter_gone_mid_search_exits_3_not_70(
     import robocal.cli._lerobot_auto as cli_auto
 
     buses: list[Any] = []
-    real_open = auto_sim.open_bus
+    real_open = auto_sim.open_sim_bus
 
     def opened(*args: Any, **kwargs: Any) -> Any:
         buses.append(real_open(*args, **kwargs))
         return buses[-1]
 
-    monkeypatch.setattr(auto_sim, "open_bus", opened)
+    monkeypatch.setattr(auto_sim, "open_sim_bus", opened)
     real_view = cli_auto.AutoLiveView
 
     class Unplugged(real_view):  # type: ignore[misc,valid-type]

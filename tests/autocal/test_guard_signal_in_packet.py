@@ -38,7 +38,7 @@ def test_ctrl_c_inside_a_packet_still_ends_limp_and_restored(
 
     monkeypatch.setattr(SimArm, "__enter__", enter)
     buses: list[Any] = []
-    real_open = auto_sim.open_bus
+    real_open = auto_sim.open_sim_bus
 
     def opened(*args: Any, **kwargs: Any) -> Any:
         bus = real_open(*args, **kwargs)
@@ -46,7 +46,7 @@ def test_ctrl_c_inside_a_packet_still_ends_limp_and_restored(
         before.append({m.name: dict(arms[0].servo(m.name).eeprom_snapshot()) for m in arms[0].spec.motors})
         return bus
 
-    monkeypatch.setattr(auto_sim, "open_bus", opened)
+    monkeypatch.setattr(auto_sim, "open_sim_bus", opened)
     import robocal.cli._lerobot_auto as cli_auto
 
     real_view = cli_auto.AutoLiveView
