@@ -464,6 +464,9 @@ def _judge(
         on_wire = wire_latency(sent, after, signalled_at) if sent is not None else {}
         LIMP_LATENCIES.append({n: (dt, on_wire.get(n)) for n, dt in limp_latency(before, after, signalled_at).items()})
         failures += limp_latency_failures(before, after, signalled_at, sent)
+    # robocal went silent for longer than a TIMEOUT (a host-lost fault, or a CPU stall that tripped a watchdog): a zero
+    # already in flash stays; the next run must say so
+    went_silent = host_lost or any(len(m["lost_comm_at_s"]) > len(before[n]["lost_comm_at_s"]) for n, m in after.items())
     for name, m in after.items():
         b = before[name]
         tripped = len(m["lost_comm_at_s"]) > len(b["lost_comm_at_s"])
@@ -480,7 +483,7 @@ def _judge(
         if write_zero and finished and m["flash_writes"] == b["flash_writes"] + 1 and not flash:
             continue  # --write-zero finished: this joint's new zero (one write); its accuracy is test_openarm_files'
         one_zero = m["flash_writes"] == b["flash_writes"] + 1 and not flash and m["zero_abs_rad"] != b["zero_abs_rad"]
-        if write_zero and host_lost and next_run is not None and one_zero:
+        if write_zero and went_silent and next_run is not None and one_zero:
             zeroed.append(name)  # no write takes a zero back: the next run must say it is there (judged below)
             continue
         if flash or m["zero_abs_rad"] != b["zero_abs_rad"] or m["flash_writes"] != b["flash_writes"]:
