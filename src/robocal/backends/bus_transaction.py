@@ -115,10 +115,10 @@ def signals_held() -> Iterator[None]:
         return
     came: list[int] = []
     previous: dict[signal.Signals, object] = {}
-    for sig in HANDLED_SIGNALS:
-        with contextlib.suppress(OSError, ValueError):
-            previous[sig] = signal.signal(sig, lambda n, _frame: came.append(n))
-    try:
+    try:  # installed inside: a signal that lands between two installs still gets every handler put back
+        for sig in HANDLED_SIGNALS:
+            with contextlib.suppress(OSError, ValueError):
+                previous[sig] = signal.signal(sig, lambda n, _frame: came.append(n))
         yield
     finally:
         for sig, handler in previous.items():
