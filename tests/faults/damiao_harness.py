@@ -292,7 +292,7 @@ def _trial(
     if failures and _before_robocal(fault, code, run) and all("exit" in f for f in failures):
         # as for the other robots: the signal met Python's own start-up, before robocal's first line
         return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
-    tail = " | ".join(ln.strip() for ln in run.lines[-3:])
+    tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))  # a failure: all of it
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
 
 

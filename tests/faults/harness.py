@@ -294,7 +294,7 @@ def _trial(
         # the signal came while the interpreter itself was starting, before robocal's first line (its handlers):
         # Python's default ended it and nothing was touched (the other checks passed): robocal was not reached
         return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
-    tail = " | ".join(ln.strip() for ln in run.lines[-3:])
+    tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))  # a failure: all of it
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
 
 

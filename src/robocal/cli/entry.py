@@ -114,10 +114,54 @@ def install_startup_handlers() -> None:
 
 
 def install_command_handlers() -> None:
-    """While a command runs: SIGINT raises ``KeyboardInterrupt``, SIGTERM/SIGHUP :class:`SignalInterrupt`."""
+    """While a command runs: SIGINT raises ``KeyboardInterrupt``, SIGTERM/SIGHUP :class:`SignalInterrupt`.
+
+    Also :func:`_redeliver_swallowed`: a signal's exception raised inside a finalizer is delivered again.
+    """
     global _installed
     _installed = True
     _install(_raise_interrupt)
+    if getattr(sys.unraisablehook, "__wrapped__", None) is None:
+        previous = sys.unraisablehook
+
+        def hook(unraisable: object) -> None:
+            if not _redeliver_swallowed(unraisable):
+                previous(unraisable)  # type: ignore[arg-type]
+
+        hook.__wrapped__ = previous  # type: ignore[attr-defined]
+        sys.unraisablehook = hook
+
+
+def _redeliver_swallowed(unraisable: object) -> bool:
+    """Deliver again a signal whose exception Python swallowed; True when ``unraisable`` was one.
+
+    A handler that raises runs wherever the main thread is when the signal lands; inside a finalizer (an object's
+    ``__del__``, a weakref callback, run by the garbage collector between any two lines, e.g. an abandoned
+    python-can bus or serial port being closed) the exception cannot propagate: Python prints ``Exception ignored
+    in …`` and goes on, the signal lost — the command ran to its end after a Ctrl-C. Here a short-lived thread
+    trips it again for the main thread a moment later (tripped from here, the handler would run inside this hook, swallowed
+    again), whose handler then runs at its next line, outside the finalizer; a finalizer that takes it again
+    brings it back here. Not printed: the interruption is reported once, where it ends the command.
+    """
+    exc = getattr(unraisable, "exc_value", None)
+    if not isinstance(exc, KeyboardInterrupt):
+        return False
+    signum = int(getattr(exc, "signum", None) or signal.SIGINT)
+    import _thread
+    import time
+
+    def again() -> None:
+        time.sleep(0.002)  # the main thread leaves the finalizer meanwhile (if not, it comes back here)
+        try:
+            _thread.interrupt_main(signal.Signals(signum))
+        except (ValueError, OSError):  # a signal this platform cannot simulate
+            return
+
+    try:  # the low-level start: threading's waits for the thread, and the handler would run in that wait
+        _thread.start_new_thread(again, ())
+    except RuntimeError:  # the interpreter is shutting down: the command is over
+        return False
+    return True
 
 
 def quiet_after_interrupt() -> None:
