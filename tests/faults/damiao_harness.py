@@ -35,6 +35,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,7 @@ from .harness import (
     _suppress,
     _wait_for_phase,
 )
+from .runqueue import RunQueueSampler
 
 OPENARM_ROBOT = "openarm"
 OPENARM_FAULTS = (*FAULTS, "lost-bus")
@@ -79,6 +81,8 @@ LIMP_BOUND_S = 0.1
 LIMP_LATENCIES: list[dict[str, tuple[float, float | None]]] = []
 """Per judged trial with a timed signal: motor → seconds from the signal to the simulator's torque off, and to its
 disable frame on the wire (None: not seen, or no relay) (the soak's figures, :func:`limp_summary`)."""
+LIMP_LOAD_LATE: list[tuple[float, float]] = []
+"""Disable frames later than the bound on the wire only by robocal's run-queue wait: (on the wire, waited), s."""
 DISABLE = bytes([0xFF] * 7 + [0xFD])
 """The data of a Damiao disable frame (0xFD): the frame that takes a motor's torque away."""
 LIMP_TIMED = ("sigint", "double-sigint", "sigterm", "sighup")
@@ -239,6 +243,7 @@ def _trial(
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals,
     ))  # fmt: skip
     run.start_reader()
+    run_queue = RunQueueSampler(run.proc).start()
     robot = "openarm-zero" if write_zero else OPENARM_ROBOT
     try:
         if phase == ZERO_PHASE:
@@ -287,7 +292,7 @@ def _trial(
 
     failures = tuple(
         _judge(sim, folder, fault, code, before, run, write_zero, signalled_at=signalled_at, watchdog_s=watchdog_s,
-               sent=relay.sent, next_run=next_run)
+               sent=relay.sent, next_run=next_run, waited_s=run_queue.waited_s)
     )
     if failures and _before_robocal(fault, code, run) and all("exit" in f for f in failures):
         # as for the other robots: the signal met Python's own start-up, before robocal's first line
@@ -373,21 +378,30 @@ def limp_latency_failures(
     after: dict[str, dict[str, Any]],
     signalled_at: float,
     sent: list[tuple[float, int, bytes]] | None = None,
+    waited_s: Callable[[float, float], float] | None = None,
 ) -> list[str]:
     """A motor whose torque went off later than :data:`LIMP_BOUND_S` after the signal, as the simulator stamped it.
 
     With the frames robocal sent (``sent``, the relay's): a motor whose disable frame was on the wire within the
     bound had robocal's part done; the simulator's later stamp is then the test rig's lateness (the simulator or
     the relay descheduled on a loaded machine), kept in :data:`LIMP_LATENCIES` and the soak's figures, not a
-    failure.
+    failure. ``waited_s(t0, t1)``: how long robocal was runnable but not running between two instants
+    (:class:`tests.faults.runqueue.RunQueueSampler`); a frame later than the bound only by that wait is the
+    machine's lateness (counted in :data:`LIMP_LOAD_LATE`), not robocal's.
     """
     on_wire = wire_latency(sent, after, signalled_at) if sent is not None else {}
     out = []
     for name, dt in limp_latency(before, after, signalled_at).items():
         wire = on_wire.get(name)
         if dt > LIMP_BOUND_S and (wire is None or wire > LIMP_BOUND_S):
+            waited = waited_s(signalled_at, signalled_at + wire) if waited_s is not None and wire is not None else 0.0
+            if wire is not None and wire - waited <= LIMP_BOUND_S:
+                LIMP_LOAD_LATE.append((wire, waited))
+                continue
             seen = "" if sent is None else "; its disable frame " + (
                 "not seen" if wire is None else f"on the wire after {wire * 1000:.0f} ms")
+            if waited > 0:
+                seen += f", robocal waiting for a CPU {waited * 1000:.0f} ms of it"
             out.append(f"{name}: limp {dt * 1000:.0f} ms after the signal (bound {LIMP_BOUND_S * 1000:.0f} ms{seen})")
     return out
 
@@ -410,7 +424,10 @@ def limp_summary(latencies: list[dict[str, tuple[float, float | None]]] | None =
     return (
         f"limp times ({len(rows)} motors after {len(trials)} timed signals): disable frame on the wire {fig(wires)} "
         f"({late_wire} over {bound} or not seen); the simulator's torque off {fig([s for s, _w in rows])} "
-        f"({late_sim} over {bound})"
+        f"({late_sim} over {bound}); over {bound} on the wire only while robocal waited for a CPU: "
+        f"{len(LIMP_LOAD_LATE)}"
+        + (f" (on the wire max {max(w for w, _ in LIMP_LOAD_LATE) * 1000:.0f} ms, of which waiting "
+           f"{max(q for _, q in LIMP_LOAD_LATE) * 1000:.0f} ms)" if LIMP_LOAD_LATE else "")
     )
 
 
@@ -427,6 +444,7 @@ def _judge(
     watchdog_s: float = WATCHDOG_S,
     sent: list[tuple[float, int, bytes]] | None = None,
     next_run: Any = None,
+    waited_s: Callable[[float, float], float] | None = None,
 ) -> list[str]:
     """What the trial got wrong, by the simulator's state (the module's docstring lists the oracle).
 
@@ -463,7 +481,7 @@ def _judge(
     if signalled_at is not None:
         on_wire = wire_latency(sent, after, signalled_at) if sent is not None else {}
         LIMP_LATENCIES.append({n: (dt, on_wire.get(n)) for n, dt in limp_latency(before, after, signalled_at).items()})
-        failures += limp_latency_failures(before, after, signalled_at, sent)
+        failures += limp_latency_failures(before, after, signalled_at, sent, waited_s)
     # robocal went silent for longer than a TIMEOUT (a host-lost fault, or a CPU stall that tripped a watchdog): a zero
     # already in flash stays; the next run must say so
     went_silent = host_lost or any(len(m["lost_comm_at_s"]) > len(before[n]["lost_comm_at_s"]) for n, m in after.items())

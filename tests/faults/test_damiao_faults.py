@@ -138,8 +138,56 @@ def test_a_late_simulator_stamp_fails_the_limp_bound_only_when_the_disable_was_l
     summary = limp_summary([{"j7": (0.030, 0.002), "grip": (0.200, 0.004)}])
     assert summary == (
         "limp times (2 motors after 1 timed signals): disable frame on the wire max 4.0 ms, median 3.0 ms "
-        "(0 over 100 ms or not seen); the simulator's torque off max 200.0 ms, median 115.0 ms (1 over 100 ms)"
+        "(0 over 100 ms or not seen); the simulator's torque off max 200.0 ms, median 115.0 ms (1 over 100 ms); "
+        "over 100 ms on the wire only while robocal waited for a CPU: 0"
     )
+
+
+def test_a_disable_frame_late_only_by_robocal_s_run_queue_wait_is_the_machine_s_lateness() -> None:
+    """Issue 26 item 4: robocal descheduled on a loaded machine cannot send; the oracle takes off the time the
+    kernel kept it waiting for a CPU (/proc/PID/schedstat, sampled strictly inside the window: never overstated)."""
+    from . import damiao_harness
+    from .runqueue import waited_between
+
+    times, waits = [100.00, 100.05, 100.30, 100.60, 100.70], [0, 10_000_000, 260_000_000, 560_000_000, 560_000_000]
+    assert waited_between(times, waits, 100.0, 100.653) == pytest.approx(0.56)
+    assert waited_between(times, waits, 100.01, 100.29) == 0.0  # one sample inside: nothing known
+    assert waited_between(times, waits, 100.01, 100.65) == pytest.approx(0.55)
+
+    def motor(esc_id: int, offs: list[list[float]]) -> dict[str, object]:
+        return {"ram": {"ESC_ID": esc_id}, "torque_off_at": offs}
+
+    before, after = {"grip": motor(8, [])}, {"grip": motor(8, [[1.2, 100.660]])}
+    sent = [(100.653, 8, DISABLE)]
+    damiao_harness.LIMP_LOAD_LATE.clear()
+    try:
+        assert limp_latency_failures(before, after, 100.0, sent, lambda a, b: waited_between(times, waits, a, b)) == []
+        assert [(pytest.approx(0.653), pytest.approx(0.56))] == damiao_harness.LIMP_LOAD_LATE
+        assert limp_latency_failures(before, after, 100.0, sent, lambda a, b: 0.5) == [
+            "grip: limp 660 ms after the signal (bound 100 ms; its disable frame on the wire after 653 ms, robocal "
+            "waiting for a CPU 500 ms of it)"
+        ]
+    finally:
+        damiao_harness.LIMP_LOAD_LATE.clear()
+
+
+def test_the_run_queue_sampler_reads_a_live_process() -> None:
+    import subprocess
+    import sys
+    import time
+
+    from .runqueue import RunQueueSampler
+
+    proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(0.5)"], text=True)
+    sampler = RunQueueSampler(proc).start()
+    try:
+        deadline = time.monotonic() + 30
+        while len(sampler.times) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        proc.wait()
+    assert len(sampler.times) >= 3 and sampler.waits_ns == sorted(sampler.waits_ns)
+    assert sampler.waited_s(sampler.times[0], sampler.times[-1]) >= 0.0
 
 
 @pytest.mark.slow
