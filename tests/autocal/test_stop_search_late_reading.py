@@ -1,6 +1,8 @@
 """Issue 26 item 4: a reading that comes late (the host was descheduled for hundreds of milliseconds, or the reply
 was late) while a joint is driven is a fault: the search fails ``no_reply`` and limps the joint, never takes the
-gap for a stall (a stop) or for free travel."""
+gap for a stall (a stop) or for free travel. A driver whose motor's own host-loss watchdog decides sets no such bound
+(``max_reading_gap_s=inf``, the Damiao driver; issue 31): the gap then only counts at most ``evidence_gap_s``.
+A lost reply while the joint rests in free travel confirms no stop (issue 31)."""
 
 from __future__ import annotations
 
@@ -65,3 +67,71 @@ def test_silence_at_the_time_bound_is_no_reply_not_a_missing_stop() -> None:
     assert search.result.code == "no_reply"
     assert "the device is lost or not answering" in search.result.reason
     assert "no stop" not in search.result.reason
+
+
+def test_a_driver_whose_motor_watchdog_decides_goes_on_after_a_gap_without_counting_it() -> None:
+    """``max_reading_gap_s=inf`` (the Damiao driver: the motor's armed TIMEOUT and the read-back decide, issue 31):
+    a gap is not a fault; it counts at most ``evidence_gap_s`` toward the dwell, so one gap never confirms a stop."""
+    cfg = SearchConfig(
+        speed_rad_s=SPEED, torque_cap_nm=1.0, max_travel_rad=2.0, max_time_s=30.0, max_lag_rad=0.1,
+        reply_timeout_s=0.5, max_reading_gap_s=math.inf,
+    )  # fmt: skip
+    search = StopSearch(+1, cfg)
+    t = _moving(search, 60)
+    q = SPEED * t
+    for gap_s in (0.8, 3.0):  # two stalled readings, each after a long gap: 0.1 s of the dwell counted
+        t += gap_s
+        cmd = search.step(StopSample(t, q, 0.0, 1.0))
+        assert cmd.action == "drive" and not search.done
+    actions = []
+    for _ in range(12):  # the rest of the 0.2 s dwell needs ~0.1 s more of readings 10 ms apart
+        t += 0.01
+        actions.append(search.step(StopSample(t, q, 0.0, 1.0)).action)
+    assert actions[:8] == ["drive"] * 8 and "push" in actions[8:11]
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan])
+def test_a_reading_gap_bound_must_be_positive(bad: float) -> None:
+    from robocal.errors import InvalidCalibrationError
+
+    with pytest.raises(InvalidCalibrationError, match="max_reading_gap_s"):
+        SearchConfig(
+            speed_rad_s=SPEED, torque_cap_nm=1.0, max_travel_rad=2.0, max_time_s=30.0, max_lag_rad=0.1,
+            max_reading_gap_s=bad,
+        )  # fmt: skip
+
+
+def test_a_lost_reply_while_the_joint_rests_in_free_travel_confirms_no_stop() -> None:
+    """A reply lost while an armed joint happens to rest (a stick-slip step on a busy host) and a re-read that
+    agrees: not a stop (issue 31's soak: the gripper's upper stop "confirmed" 24° short). The joint is driven on
+    2° past that place; it follows, and the search goes on."""
+    search = StopSearch(+1, _config())
+    t = _moving(search, 60)  # armed (0.6 s at the search speed: 6° of travel)
+    q = SPEED * t
+    t += 0.04
+    assert search.step(StopSample(t, q, 0.0, 0.02)).action == "drive"  # at rest, no push: a stick-slip step
+    t += 0.1
+    assert search.step(StopSample(t, math.nan, ok=False)).action == "reread"  # the reply came too late
+    t += 0.01
+    cmd = search.step(StopSample(t, q + math.radians(0.3), 0.0, 0.02))  # the re-read agrees within 1°
+    assert cmd.action == "drive" and cmd.q_target_rad == pytest.approx(q + math.radians(2.3))  # on, 2° past it
+    for _ in range(30):  # it follows: no stop
+        t += 0.01
+        q += SPEED * 0.01 + math.radians(0.07)
+        assert search.step(StopSample(t, q, SPEED, 0.1)).action == "drive"
+    assert not search.done and search.phase == "approach"
+
+
+def test_a_joint_silent_at_its_stop_is_confirmed_once_it_stays_put_when_driven_past() -> None:
+    search = StopSearch(+1, _config())
+    t = _moving(search, 60)
+    q = SPEED * t
+    t += 0.01
+    search.step(StopSample(t, q, 0.0, 0.3))  # slowed at the stop
+    for _ in range(2):  # silent at the stop: lost, re-read where it was, driven past, lost again, re-read there
+        t += 0.1
+        assert search.step(StopSample(t, math.nan, ok=False)).action == "reread"
+        t += 0.01
+        cmd = search.step(StopSample(t, q, 0.0, 0.3))
+    assert cmd.action == "drive" and cmd.q_target_rad == pytest.approx(q)  # backing off from the confirmed stop
+    assert search.phase == "backoff"

@@ -24,12 +24,17 @@ One search drives one joint into one stop (``direction`` −1 or +1)::
   that counts each reading's interval at most ``evidence_gap_s``: a gap neither confirms a stop nor uses up
   the search's time.
 * **Suspect evidence.** An overload flag or a lost reply never declares a stop by itself: the search asks for a
-  re-read (``Command.action == "reread"``: clear the latch, read the position). If the joint was armed and
-  slow, and the re-read position agrees with the last good one within ``confirm_tol_rad``, the stop is
-  confirmed (test ``overload+reread`` or ``no-reply+reread``); otherwise the approach continues (at most
-  ``max_suspects`` times). Replies missing for longer than ``reply_timeout_s`` fail the search (``no_reply``), and
-  so does a reading that comes more than ``reply_timeout_s`` after the one before while the joint is driven (the
-  host was descheduled or the reply was late: a fault, the joint limp, never a missed stop; issue 26).
+  re-read (``Command.action == "reread"``: clear the latch, read the position). After an overload, if the joint
+  was armed and slow and the re-read position agrees with the last good one within ``confirm_tol_rad``, the stop
+  is confirmed (test ``overload+reread``). A lost reply is no evidence of a push at all (on a busy host a reply
+  comes late while a joint following its target stick-slip happens to rest): its agreeing re-read only marks the
+  place, the joint is driven ``2·confirm_tol_rad`` past it, and only a further lost reply whose re-read finds it
+  still there confirms the stop (``no-reply+reread``: a motor silent while it presses). Otherwise the approach
+  continues (at most ``max_suspects`` times). Replies missing for longer than ``reply_timeout_s`` fail the search
+  (``no_reply``), and so does a reading that comes more than ``max_reading_gap_s`` (default ``reply_timeout_s``)
+  after the one before while the joint is driven (the host was descheduled or the reply was late: a fault, the
+  joint limp, never a missed stop; issue 26). A driver whose motor's own host-loss watchdog decides (Damiao) sets
+  no such bound: the reading after the gap says whether the motor stopped itself.
 * **Bounds.** Travel beyond ``max_travel_rad`` from the start fails the search (``missing_stop``); a search
   running longer than ``max_time_s`` fails it too (``timeout``). Both end with ``Command.action == "limp"``.
 * **Stiffness.** At contact the joint is pressed at the cap (reading ``q_hi``, ``τ_hi``), then at
@@ -106,6 +111,7 @@ class StopSearch:
         self._last_good: StopSample | None = None
         self._no_reply_since: float | None = None
         self._suspects = 0
+        self._probe_q: float | None = None  # a lost reply's re-read position the joint was then driven past
         self._suspect_kind = ""
         self._travel = 0.0
         self._peak = 0.0
@@ -166,12 +172,13 @@ class StopSearch:
         dt = sample.t_s - self._t_last if math.isfinite(self._t_last) else 0.0
         self._t_last = sample.t_s
         self._counted_s += min(max(dt, 0.0), cfg.evidence_gap_s)
-        if dt > cfg.reply_timeout_s and self._phase in (_APPROACH, _PRESS_HI, _PRESS_LO, _BACKOFF):
+        gap_s = cfg.reply_timeout_s if cfg.max_reading_gap_s is None else cfg.max_reading_gap_s
+        if dt > gap_s and self._phase in (_APPROACH, _PRESS_HI, _PRESS_LO, _BACKOFF):
             # the host was held up (descheduled, a reply that came late): what the joint did in between is
             # unknown, so the reading is not evidence of a stop or of free travel; a fault, never a missed stop
             return self._fail(
                 "no_reply",
-                f"a reading came {dt:.2f} s after the one before (more than {cfg.reply_timeout_s:.2f} s: robocal "
+                f"a reading came {dt:.2f} s after the one before (more than {gap_s:.2f} s: robocal "
                 "was held up or the reply was late)",
                 sample,
             )
@@ -212,6 +219,8 @@ class StopSearch:
                 self._last_good = sample
             return self._suspect("overload")
         self._last_good = sample
+        if self._probe_q is not None and abs(sample.q_rad - self._probe_q) > cfg.confirm_tol_rad:
+            self._probe_q = None  # it moved on from where a reply went missing: that was no stop
         if self._travel > cfg.max_travel_rad:
             return self._fail(
                 "missing_stop",
@@ -360,6 +369,7 @@ class StopSearch:
                 self._stall_since = None
                 self._touch_start_q = s.q_rad
                 self._target = self._given = s.q_rad
+                self._probe_q = None
                 return self._drive_cmd()
             return self._finish(s)
         return Command(
@@ -417,6 +427,15 @@ class StopSearch:
             self._touches.append(q)
             self._last_good = s
             return self._start_backoff(s)
+        probing = resume == _APPROACH and self._suspect_kind == "no-reply" and self._armed and slow and agrees
+        if probing and not self._probed(s):
+            # a lost reply is no evidence: drive the joint on from here and ask again (see _probed)
+            self._suspects += 1
+            self._last_good = s
+            self._probe_q = s.q_rad
+            self._stall_since = None
+            self._target = self._given = s.q_rad + self.direction * min(cfg.max_lag_rad, 2.0 * cfg.confirm_tol_rad)
+            return Command("drive", self._target, 0.0, cfg.torque_cap_nm)
         if resume == _APPROACH and self._armed and slow and agrees:
             test = "overload+reread" if self._suspect_kind == "overload" else "no-reply+reread"
             q = s.q_rad
@@ -438,6 +457,19 @@ class StopSearch:
         self._stall_since = None
         self._target = self._given = s.q_rad
         return self._drive_cmd()
+
+    def _probed(self, s: StopSample) -> bool:
+        """Whether a lost reply's re-read ``s`` confirms a stop: the joint was driven past this point and stayed.
+
+        An overload flag is the motor's own evidence of a push; a lost reply is none. On a busy host a reply comes
+        late while the joint, following its target in stick-slip steps, happens to be at rest, and its re-read
+        agrees with the last good reading: the soak's OpenArm gripper had a stop "confirmed" that way 24° short of
+        the true one (``span_mismatch``). So the first such re-read only marks the place (``_probe_q``); the joint
+        is then driven on with a target ``2·confirm_tol`` (at most ``max_lag``) beyond it, and only a further lost
+        reply whose re-read finds it still within ``confirm_tol`` of that place confirms the stop: the joint did
+        not follow a target it could follow in free travel.
+        """
+        return self._probe_q is not None and abs(s.q_rad - self._probe_q) <= self.config.confirm_tol_rad
 
     # -- ends ---------------------------------------------------------------------------------------------
     def _make_fail(self, code: str, reason: str, s: StopSample | None = None) -> StopResult:

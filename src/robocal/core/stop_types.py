@@ -80,6 +80,12 @@ class SearchConfig:
         touch_tol_rad: Agreement of the two touches.
         confirm_tol_rad: A re-read position confirms a suspect stop when within this of the last good one.
         reply_timeout_s: Replies missing for longer than this fail the search.
+        max_reading_gap_s: A reading that comes more than this after the one before while the joint is driven fails
+            the search (``no_reply``); None: ``reply_timeout_s``; ``math.inf``: never, for a driver whose motor has a
+            host-loss watchdog it arms and whose trip it reports as a fault (a Damiao motor: robocal held up for less
+            than the watchdog left the motor under its last command, its target within ``max_lag_rad`` of the
+            joint, so the reading after the gap is evidence like any other; held up for longer, the motor stopped
+            itself and the next reading says so).
         evidence_gap_s: A reading that comes more than this after the one before counts only this long toward a
             dwell (the stall and blocked tests) and the time bound: what the joint did while robocal was held up
             is unknown, so a scheduling gap neither confirms a stop nor uses up the search's time.
@@ -105,6 +111,7 @@ class SearchConfig:
     touch_tol_rad: float = math.radians(0.5)
     confirm_tol_rad: float = math.radians(1.0)
     reply_timeout_s: float = 0.5
+    max_reading_gap_s: float | None = None
     max_suspects: int = 3
     evidence_gap_s: float = EVIDENCE_GAP_S
     gravity_nm: Callable[[float], float] | None = field(default=None, compare=False)
@@ -124,6 +131,9 @@ class SearchConfig:
                 raise InvalidCalibrationError(
                     f"stop search: {name} must be a positive finite number, got {value!r}"
                 )
+        gap = self.max_reading_gap_s
+        if gap is not None and not (isinstance(gap, (int, float)) and gap > 0 and not math.isnan(gap)):
+            raise InvalidCalibrationError(f"stop search: max_reading_gap_s must be None or > 0, got {gap!r}")
         for name in ("torque_fraction", "lag_fraction", "v_fraction", "arm_speed_fraction", "press_fraction"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0 < value < 1.5):

@@ -19,9 +19,9 @@ from ...core.stop_search import StopSample
 from ...errors import CalibTimeoutError, DeviceError
 from ..mit_joint_driver import MitJointDriver, MitTarget
 from ..mit_keepalive import KEEPALIVE_S, WATCHDOG_MIN_S
-from .faults import DamiaoLostCommError, DamiaoOverloadError
+from .faults import DamiaoLostCommError, DamiaoOverloadError, fault_error
 from .protocol import MitCommand, MotorState
-from .tables import ControlMode, Register
+from .tables import ControlMode, Register, State
 
 __all__ = ["KEEPALIVE_S", "MAX_LAG_RAD", "WATCHDOG_S", "DamiaoJointDriver", "DamiaoWatchdogError"]
 
@@ -62,8 +62,14 @@ class DamiaoJointDriver(MitJointDriver):
     WATCHDOG_FOLLOWS_REPLY_WAIT: ClassVar[bool] = True
     KEEPALIVE_THREAD: ClassVar[bool] = True
     KEEPALIVE_IGNORES: ClassVar[tuple[type[BaseException], ...]] = (CalibTimeoutError, DamiaoOverloadError)
+    READING_GAP_S: ClassVar[float] = math.inf
+    """No bound on the time between two readings of a search (``SearchConfig.max_reading_gap_s``): robocal held up
+    for less than the armed TIMEOUT left the motor under its last command (a target within ``MAX_LAG_RAD`` of the
+    joint, a push at most the cap), so the reading after the gap is evidence like any other; held up for longer,
+    the motor stopped itself (0xD) and the next reading, enable or re-read says so (:class:`DamiaoWatchdogError`)."""
 
     _mode_checked = False
+    _ever_enabled = False
     on_zero: Callable[[str, str, float], None] | None = None
     """Told each state of this motor's zero in ``--write-zero`` (planned, storing, stored, unchanged, written) and
     the reading where it goes: the state folder's record (:mod:`robocal.workflows.motion.damiao_watchdog`)."""
@@ -94,10 +100,7 @@ class DamiaoJointDriver(MitJointDriver):
             return StopSample(self.clock.now(), self._q, ok=math.isfinite(self._q), overload=True)
         except DamiaoLostCommError as exc:
             self.enabled = False
-            raise DamiaoWatchdogError(
-                f"joint {self.name}: the motor reported communication lost (0xD): its TIMEOUT ({self.watchdog_s:g} s) "
-                f"tripped because no frame reached it in time (robocal was held up or the bus dropped frames): {exc}"
-            ) from None
+            raise DamiaoWatchdogError(self._tripped(exc)) from None
 
     def _send_nowait(self, target: MitTarget) -> None:
         self.bus.send_mit(self.name, self._command(target))
@@ -116,18 +119,41 @@ class DamiaoJointDriver(MitJointDriver):
             st = self.bus.enable([self.name])[self.name]
         except CalibTimeoutError:
             return StopSample(self.clock.now(), math.nan, ok=False)
-        self.enabled = True
+        except DamiaoLostCommError as exc:
+            if not self._ever_enabled:
+                raise  # found so (a previous run's host lost): not this run's
+            raise DamiaoWatchdogError(self._tripped(exc)) from None  # tripped since this run last drove it
+        self.enabled = self._ever_enabled = True
         self._last = MitTarget(0.0, 0.0, 0.0, self.kd, 0.0)  # damping only until the first command
         return self._sample(st)
 
     def _clear_fault(self) -> bool:
+        """Clear an overload latch (0xE), the one state the search re-reads; any other error state is raised.
+
+        The state is read before anything is cleared: a reread follows a lost reply as well as an overload, and a
+        motor whose TIMEOUT tripped meanwhile (robocal held up past it: state 0xD, limp) must end the run as the
+        fault it is (:class:`DamiaoWatchdogError`), not be cleared and driven on as if it had held its command.
+        """
         try:
+            code = self.bus.read_state(self.name, check=False).state
+            if code == State.LOST_COMM:
+                self.enabled = False
+                raise DamiaoWatchdogError(self._tripped("state 0xD read before clearing a latch"))
+            err = fault_error(code, self.name) if code != State.OVERLOAD else None
+            if err is not None:
+                raise err
             self.bus.clear_error(self.name)
         except CalibTimeoutError:
             return True
         except DamiaoOverloadError:
             pass  # still latched: the enable after it is ignored and the next reading says so again
         return False
+
+    def _tripped(self, what: object) -> str:
+        return (
+            f"joint {self.name}: the motor reported communication lost (0xD): its TIMEOUT ({self.watchdog_s:g} s) "
+            f"tripped because no frame reached it in time (robocal was held up or the bus dropped frames): {what}"
+        )
 
     def _push_torque_nm(self, limit_nm: float) -> float:
         return min(limit_nm, self.cap_nm)

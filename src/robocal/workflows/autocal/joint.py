@@ -72,6 +72,7 @@ def _config(
     max_lag_rad: float,
     gravity: Callable[[float], float] | None,
     press_fraction: float = 0.5,
+    max_reading_gap_s: float | None = None,
 ) -> SearchConfig:
     speed = joint.speed_rad_s
     return SearchConfig(
@@ -91,8 +92,39 @@ def _config(
         gravity_nm=gravity,
         # a reading later than this after the one before is a fault (stop_search.py); a machine whose replies
         # may take longer ($ROBOCAL_REPLY_TIMEOUT_MS, a simulator in another process) gets twice that
-        reply_timeout_s=max(0.5, 2.0 * reply_timeout_floor_s()),
+        reply_timeout_s=reply_bound_s(),
+        max_reading_gap_s=max_reading_gap_s,
     )
+
+
+READ_TRIES = 20
+"""At most this many reads in :func:`read_within`."""
+
+
+def reply_bound_s() -> float:
+    """How long a joint may go without a good reading before its search or move fails ``no_reply``, s.
+
+    0.5 s; a machine whose replies may take longer (``$ROBOCAL_REPLY_TIMEOUT_MS``, a simulator in another process)
+    gets twice that floor.
+    """
+    return max(0.5, 2.0 * reply_timeout_floor_s())
+
+
+def read_within(driver: JointDriver, bound_s: float) -> StopSample:
+    """A good reading of ``driver``, asked again while replies are lost for at most ``bound_s`` (its clock's time).
+
+    On a busy host one reply can come later than the bus's wait (dropped by the next exchange): a single lost
+    reading at the start of a search or a move is no reason to fail the joint (the fault soaks' "no position
+    reading at the start of the search" with no fault injected). A device that stays silent for ``bound_s``
+    still fails as before: the last (not ok) reading is returned.
+    """
+    s = driver.read()
+    t0 = s.t_s
+    for _ in range(READ_TRIES - 1):  # also bounded where a lost reply takes no time (a test's driver)
+        if s.ok or not s.t_s - t0 < bound_s:
+            break
+        s = driver.read()
+    return s
 
 
 PRESS_NET_FRACTION = 0.1
@@ -147,7 +179,7 @@ def search_steps(
     driver: JointDriver, search: StopSearch, view: AutoView | None = None, side: str = ""
 ) -> JointSteps[StopResult]:
     """One stop search on ``driver`` to its end, as steps; a failed search leaves the joint limp."""
-    cmd = search.start(driver.read())
+    cmd = search.start(read_within(driver, search.config.reply_timeout_s))
     while not search.done:
         s = yield cmd
         if view is not None:
@@ -209,7 +241,7 @@ def move_steps(
         AutoCalAbortedError: The joint does not get there in time (blocked, without ``stall_s``), or its
             overload protection latched more than :data:`MOVE_OVERLOAD_CLEARS` times.
     """
-    s = driver.read()
+    s = read_within(driver, reply_bound_s())
     if not s.ok:
         raise CalibTimeoutError(f"joint {driver.name}: no reply")
     ref = sent = s.q_rad
@@ -344,8 +376,10 @@ def calibrate_joint_steps(
     first_press = press_fraction(
         cap, gravity_joint, expected_lower_rad if first_dir < 0 else expected_upper_rad, first_dir
     )
+    gap_s = getattr(driver, "READING_GAP_S", None)  # a driver whose motor's watchdog and read-back decide
     cfg = _config(
-        joint, section, max_travel_rad=span + tol, max_lag_rad=max_lag_rad, gravity=gravity, press_fraction=first_press
+        joint, section, max_travel_rad=span + tol, max_lag_rad=max_lag_rad, gravity=gravity, press_fraction=first_press,
+        max_reading_gap_s=gap_s,
     )
     first = yield from search_steps(
         driver, StopSearch(first_dir, cfg), view, "lower" if first_dir < 0 else "upper"
@@ -389,6 +423,7 @@ def calibrate_joint_steps(
                 max_lag_rad=max_lag_rad,
                 gravity=gravity,
                 press_fraction=press_fraction(cap, gravity_joint, expected_upper_rad, 1),
+                max_reading_gap_s=gap_s,
             )
             upper = yield from search_steps(driver, StopSearch(1, cfg2), view, "upper")
             # blocked right after the transit: an early stop (obstacle, cable), judged by the span check
