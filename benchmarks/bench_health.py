@@ -9,8 +9,10 @@ encoder ticks), writes each as a LeRobot v3 root with its truth, checks them all
 Per robot, the sessions cycle through: no fault; a single-joint calibration offset of 0.5, 1, 2, 5 or 17° (random
 sign, on the leader or the follower, on a joint with stops); an encoder slip of 5–15° in one episode; values
 clipped 4–10° short of a stop; a mirrored sign. It prints, per offset and joint, how often the joint is flagged
-``offset`` (named), split by what the data could show: the follower was pressed against a stop (``contact``), the
-leader came within 10° of the range end where the offset would pin the follower (``within 10°``), neither; how
+``offset`` (named), split by what the data could show: the follower's stop held it harder than its friction could
+(``pressed``: the simulator's stop torque, kept 0.2 s, past ``2·τ_stiction``, as goal error ``τ/kp``), its goal
+went past the stop but gravity and friction took it (``touched``: the stop held it by less), the leader came within
+10° of the range end where the offset would pin the follower (``within 10°``), neither; how
 often the interval holds the truth; how often an offset the data cannot show is reported ``ok`` (it must be
 ``unobservable``); the false-alarm rate on fault-free sessions; and slips located to their episode. For the SO-101
 (whose URDF has masses) a second set, ``HEALTH_SAG_SEEDS`` sessions (default 88) without any range-end visit,
@@ -73,6 +75,17 @@ def session_faults(robot: str, seed: int) -> TeleopFaults:
     return TeleopFaults()
 
 
+def contact_case(t: dict[str, Any], offset_deg: float) -> str:
+    """``pressed``, ``touched``, ``within 10°`` or ``far``: what the session let the data show (module docstring)."""
+    held = t["held_lo_deg"] if offset_deg > 0 else t["held_hi_deg"]
+    if held > t["friction_span_deg"]:
+        return "pressed"
+    if t["follower_contact"]:
+        return "touched"
+    end_gap = t["approach_lo_deg"] if offset_deg > 0 else t["approach_hi_deg"]
+    return "within 10°" if end_gap is not None and end_gap <= 10 else "far"
+
+
 def _rate(hits: int, n: int) -> str:
     return f"{hits}/{n} ({100.0 * hits / n:.0f} %)" if n else "-"
 
@@ -130,12 +143,7 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         if f.offset_joint is not None:
             t = truth["joints"][f.offset_joint]
             o = t["offset_deg"]
-            end_gap = t["approach_lo_deg"] if o > 0 else t["approach_hi_deg"]
-            case = (
-                "contact"
-                if t["follower_contact"]
-                else ("within 10°" if end_gap is not None and end_gap <= 10 else "far")
-            )
+            case = contact_case(t, o)
             key = (abs(o), f.offset_joint, case)
             j = joints[f.offset_joint]
             s = score["offset"][key]

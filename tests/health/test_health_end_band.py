@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults, TeleopSession, simulate_sessions
-from robocal.core.health import HealthConfig, JointData, JointHealth, analyse_joint, end_bands, fitted_sag
+from robocal.core.health import HealthConfig, JointData, JointHealth, analyse_joint, end_bands, fitted_joint
 
 
 def _dead_band_joint(h_deg: float, n: int = 3000) -> tuple[JointData, np.ndarray, np.ndarray]:
@@ -52,15 +52,20 @@ def _analysed(session: TeleopSession, name: str) -> JointHealth:
     a = session.action_deg.reshape(-1, j)[:, k]
     s = session.state_deg.reshape(-1, j)[:, k]
     ep = np.repeat(np.arange(e), t)
-    sag = fitted_sag(a, s, ep, s, 0.3, 3.0)  # the dataset check's sag without URDF masses
-    return analyse_joint(JointData(name, a, s, ep, sag, arm.stop_lo_deg[k], arm.stop_hi_deg[k]))
+    # the dataset check's joint without URDF masses: the sag and the dead band's side fitted from the data
+    return analyse_joint(fitted_joint(name, a, s, ep, s, arm.stop_lo_deg[k], arm.stop_hi_deg[k]))
 
 
 def test_a_5_degree_koch_wrist_offset_pinned_at_its_stop_is_flagged() -> None:
     h = _koch_wrist(TeleopFaults(offset_joint="wrist_flex", offset_deg=-5.0, offset_arm="follower"), 136)
     hi = next(e for e in h.ends if e.end == "hi")
     assert hi.kind == "pinned"
-    assert hi.excess <= h.band  # the symmetric band alone would have read it as "together"
+    # with the dead band's side fitted, the symmetric band is 1.18° (2-4.5° without it, which hid this end)
+    assert h.band == pytest.approx(1.18, abs=0.01)
+    assert hi.excess == pytest.approx(3.09, abs=0.01)
+    # and the leader went on 5.0° past the follower, beyond the 3.14° it ever led it by elsewhere that way
+    assert hi.leader - hi.follower == pytest.approx(5.0, abs=0.01)
+    assert h.raw_caps[1] == pytest.approx(3.14, abs=0.01)
     assert h.status == "offset" and h.offset == pytest.approx(-5.0, abs=0.3)
     assert h.ci is not None and h.ci[0] <= -5.0 <= h.ci[1]
 

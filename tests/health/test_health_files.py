@@ -65,3 +65,23 @@ def test_a_leader_offset_without_range_end_contact_is_named_from_the_files(tmp_p
     assert math.isclose(gap, 34.0, abs_tol=2 * SCATTER_DEG + 0.2)
     code, rep = _check(roots[1], tmp_path / "clean.json")
     assert code == 0 and rep["flagged"] == []
+
+
+@pytest.mark.slow
+def test_a_full_turn_wrist_roll_offset_the_files_cannot_carry_is_unobservable_and_says_why(tmp_path: Path) -> None:
+    # lerobot#3758's 17° on the SO-101's wrist_roll, on the follower, never taken near a stop: LeRobot records
+    # wrist_roll as a full turn (0..4095), so neither the data nor the files can show it; it must not read "ok"
+    faults = [TeleopFaults(offset_joint="wrist_roll", offset_deg=17.0, offset_arm="follower")]
+    (root,) = generate_teleop_datasets(tmp_path, "so101", [4], faults, episodes=2, p_end=0.0, calibration_files=True)
+    report = tmp_path / "h.json"
+    code = main(["dataset", "health", str(root), "--robot", "so101_follower", "--report", str(report),
+                 "--leader-calibration", str(root.with_name(root.name + ".leader.json")),
+                 "--follower-calibration", str(root.with_name(root.name + ".follower.json"))])  # fmt: skip
+    joint = json.loads(report.read_text())["joints"]["wrist_roll"]
+    assert code == 0 and joint["status"] == "unobservable"
+    assert joint["offset_deg"] is None and joint["ci_deg"] is None
+    assert joint["reasons"] == [
+        "no range-end contact",
+        "recorded as a full turn in the calibration files: its zero is the homing pose, which the files do not "
+        "carry; only the follower held at a stop can show its offset",
+    ]

@@ -30,7 +30,7 @@ from ..core.health import (
     drift_reason,
     episode_verdicts,
     fit_sag_offsets,
-    fitted_sag,
+    fitted_joint,
     loaded_joints,
     sag_residual_deg,
     sag_slopes,
@@ -49,6 +49,8 @@ __all__ = [
 ]
 
 TICKS_PER_TURN = 4096
+_FULL_TURN_DEG = 359.0
+"""A recorded range this wide is LeRobot's full-turn motor (``0..4095``), not a range between stops."""
 
 
 @dataclass(frozen=True)
@@ -226,7 +228,8 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
     units = [setup.units.get(j, "units") for j in joints]
     upd = [setup.units_per_deg.get(j, math.nan) for j in joints]
     stops: list[tuple[float, float] | None] = [setup.stop_deg.get(j) for j in joints]
-    notes: list[list[str]] = [[] for _ in joints]
+    notes: list[list[str]] = [[] for _ in joints]  # flag the joint (suspect)
+    info: list[list[str]] = [[] for _ in joints]  # said, not flagged
     if setup.leader is not None and setup.follower is not None:
         action, lead_ends = _to_degrees(setup.leader, joints, action)
         state, foll_ends = _to_degrees(setup.follower, joints, state)
@@ -234,7 +237,13 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
         for k in range(len(joints)):
             span_l, span_f = float(np.diff(lead_ends[:, k])[0]), float(np.diff(foll_ends[:, k])[0])
             design = stops[k]
-            if design is not None and math.isfinite(span_l) and math.isfinite(span_f):
+            if design is not None and min(span_l, span_f) >= _FULL_TURN_DEG:
+                # LeRobot's full-turn motor (wrist_roll: 0..4095): the range is not the stops; the profile's stay
+                info[k].append(
+                    "recorded as a full turn in the calibration files: its zero is the homing pose, which the files "
+                    "do not carry; only the follower held at a stop can show its offset"
+                )
+            elif design is not None and math.isfinite(span_l) and math.isfinite(span_f):
                 stops[k] = (float(foll_ends[0, k]), float(foll_ends[1, k]))
                 if abs(span_l - span_f) > 5.0:
                     gap = abs(span_l - span_f)
@@ -255,20 +264,20 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
         u = upd[k] if math.isfinite(upd[k]) else 1.0
         lo, hi = _stop_readings(stops[k], units[k], u)
         if sag_deg is not None:
-            sag = sag_deg[:, k] * u
+            data = JointData(j, action[:, k], state[:, k], fr.episode, sag_deg[:, k] * u, lo, hi, u)
         elif stops[k] is not None:  # no URDF masses: the sag's shape fitted from the data (narrows the band)
-            c = cfg or HealthConfig()
-            sag = fitted_sag(action[:, k], state[:, k], fr.episode, pose_deg[:, k], c.slow_deg * u, 3.0 * u)
+            data = fitted_joint(j, action[:, k], state[:, k], fr.episode, pose_deg[:, k], lo, hi, u, cfg)
         else:
-            sag = np.zeros(len(action))
-        data = JointData(j, action[:, k], state[:, k], fr.episode, sag, lo, hi, u)
+            data = JointData(j, action[:, k], state[:, k], fr.episode, np.zeros(len(action)), lo, hi, u)
         h = _with_sag(analyse_joint(data, cfg), fit, k, u, cfg or HealthConfig())
-        episodes = episode_verdicts(data, h.band, cfg, h.end_bands)
+        episodes = episode_verdicts(data, h.band, cfg, h.end_bands, h.raw_caps)
         drift = drift_reason(episodes, h.band, cfg or HealthConfig(), u)
         extra = [*notes[k], *([drift] if drift else [])]
         if extra:
             status = h.status if h.status == "offset" else "suspect"
             h = replace(h, status=status, reasons=(*h.reasons, *extra))
+        if info[k]:
+            h = replace(h, reasons=(*h.reasons, *info[k]))
         out.append((h, units[k], u if math.isfinite(upd[k]) else math.nan, episodes, extra))
     return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state, fit)
 
@@ -394,6 +403,7 @@ def health_json(result: DatasetHealth) -> dict[str, Any]:
                     "episodes": list(e.episodes),
                     "excess": _num(e.excess),
                     "band": _num(h.end_bands[0 if e.end == "lo" else 1]),
+                    "raw_cap": _num(h.raw_caps[0 if e.end == "lo" else 1]),
                 }
                 for e in h.ends
             ],

@@ -193,6 +193,14 @@ class TeleopJointTruth:
         approach_hi_deg: Closest to the upper stop.
         follower_contact: The follower was pressed against a stop by more than 0.5° of goal beyond it.
         pin_depth_deg: How far beyond a stop the follower's goal went at most (0: never beyond).
+        held_lo_deg: How hard the lower stop held the follower: the largest stop torque kept for 0.2 s, as the
+            goal error of the follower's position gain that makes it (``τ_stop / kp``, degrees; 0: never held).
+            Gravity sag and friction make it smaller than ``pin_depth_deg``: a goal 3° past the stop of a joint
+            that sags 2.5° there holds it by 0.5° only.
+        held_hi_deg: Same, the upper stop.
+        friction_span_deg: ``2·τ_stiction / kp``, degrees: how far apart friction lets a correct follower come to
+            rest for one goal (either side of it). A stop that holds the follower by less than this leaves a
+            residual a correct follower's friction could also leave: the offset is not in the data.
     """
 
     offset_deg: float
@@ -200,6 +208,9 @@ class TeleopJointTruth:
     approach_hi_deg: float
     follower_contact: bool
     pin_depth_deg: float = 0.0
+    held_lo_deg: float = 0.0
+    held_hi_deg: float = 0.0
+    friction_span_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -277,6 +288,17 @@ def _quantise_deg(x: FloatArray) -> FloatArray:
     return out
 
 
+def _held_deg(stop_nm: FloatArray, kp_nm_rad: FloatArray, frames: int) -> tuple[FloatArray, FloatArray]:
+    """``(L, J)`` per end: the largest stop torque kept for ``frames`` frames running, as degrees of goal error."""
+    deg = np.degrees(stop_nm / kp_nm_rad)
+    out = []
+    for x in (np.maximum(deg, 0.0), np.maximum(-deg, 0.0)):  # lower stop pushes up (+), upper down (−)
+        k = max(1, min(frames, x.shape[1]))
+        win = np.lib.stride_tricks.sliding_window_view(x, k, axis=1)
+        out.append(win.min(axis=-1).max(axis=1))
+    return out[0], out[1]
+
+
 def simulate_sessions(
     arm: TeleopArm,
     seeds: list[int],
@@ -337,10 +359,20 @@ def simulate_sessions(
     # each episode starts with the follower settled on its first goal (a second of holding, then cut)
     settle = int(fps)
     padded = np.concatenate([np.repeat(goal_rad[:, :1, :], settle, axis=1), goal_rad], axis=1)
+    stop_nm = np.zeros(padded.shape)
+    plant = arm.plant()
     q_f = simulate_tracking(
-        padded, arm.plant(), gravity or default_gravity, fps=fps, rng=rng_all, q0_rad=goal_rad[:, 0, :]
+        padded,
+        plant,
+        gravity or default_gravity,
+        fps=fps,
+        rng=rng_all,
+        q0_rad=goal_rad[:, 0, :],
+        stop_torque_out=stop_nm,
     )[:, settle:, :]
     state = np.degrees(q_f) + ef_all
+    span = np.degrees(2.0 * plant.stiction_nm / plant.kp_nm_rad)
+    held_lo, held_hi = _held_deg(stop_nm[:, settle:, :], np.asarray(arm.kp_nm_rad), round(0.2 * fps))
     sessions = []
     lo, hi = np.asarray(arm.stop_lo_deg), np.asarray(arm.stop_hi_deg)
     for s, (seed, f) in enumerate(zip(seeds, faults, strict=True)):
@@ -364,6 +396,9 @@ def simulate_sessions(
                 approach_hi_deg=float(np.min(hi[j] - lt[..., j])) if math.isfinite(hi[j]) else _INF,
                 follower_contact=bool(np.any(past > 0.5)),
                 pin_depth_deg=max(0.0, float(np.max(past))),
+                held_lo_deg=float(np.max(held_lo[sl, j])),
+                held_hi_deg=float(np.max(held_hi[sl, j])),
+                friction_span_deg=float(span[j]),
             )
         sessions.append(TeleopSession(arm, fps, a, st, f, truth, seed))
     return sessions

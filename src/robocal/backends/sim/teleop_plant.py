@@ -92,6 +92,7 @@ def simulate_tracking(
     substeps: int = 8,
     q0_rad: FloatArray | None = None,
     rng: np.random.Generator | None = None,
+    stop_torque_out: FloatArray | None = None,
 ) -> FloatArray:
     """Drive every lane's joints to a goal that changes once per frame; return the readings at each frame.
 
@@ -106,6 +107,9 @@ def simulate_tracking(
         substeps: Integration steps per frame.
         q0_rad: ``(L, J)`` start angles (default: the first goal).
         rng: Noise source (default: seeded 0).
+        stop_torque_out: ``(L, T, J)`` filled, when given, with the stops' spring torque on the link at the end of
+            each frame's steps, N·m (negative: the upper stop holds it, positive: the lower; 0: free). A truth of
+            the simulation (how hard the follower was held by a stop), never in a dataset.
 
     Returns:
         ``(L, T, J)`` encoder readings of the link, rad, quantised.
@@ -151,4 +155,8 @@ def simulate_tracking(
             q = np.where(breaks, q + v1 * dt, q)
             stuck = ~breaks | stop_now
             v = v1
+        if stop_torque_out is not None:
+            link = q + half * np.sign(tau_g)
+            spring = p.stop_k_nm_rad * (np.maximum(0.0, p.stop_lo_rad - link) - np.maximum(0.0, link - p.stop_hi_rad))
+            stop_torque_out[:, t, :] = spring
     return out

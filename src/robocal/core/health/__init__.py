@@ -7,6 +7,7 @@ beside them. Importable with numpy alone (a control loop imports it); the monito
 
 from __future__ import annotations
 
+from .ends import end_bands, end_raw_caps
 from .model import feetech_kp_nm_rad, fitted_sag, model_band, sag_residual_deg, sag_slopes
 from .monitor import Monitor
 from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
@@ -18,10 +19,10 @@ from .offsets import (
     JumpEvent,
     analyse_joint,
     drift_reason,
-    end_bands,
     episode_verdicts,
+    fitted_joint,
 )
-from .sag import SagFit, SagFrames, fit_sag_offsets, loaded_joints, t_quantile
+from .sag import SagFit, SagFrames, fit_sag_offsets, last_direction, loaded_joints, t_quantile
 
 __all__ = [
     "FLAG_KINDS",
@@ -38,10 +39,13 @@ __all__ = [
     "analyse_joint",
     "drift_reason",
     "end_bands",
+    "end_raw_caps",
     "episode_verdicts",
     "feetech_kp_nm_rad",
     "fit_sag_offsets",
+    "fitted_joint",
     "fitted_sag",
+    "last_direction",
     "loaded_joints",
     "model_band",
     "monitor_config",

@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..arrays import FloatArray, IntArray
-from .model import model_band
+from .ends import end_bands, end_raw_caps
+from .model import fitted_sag, model_band
 from .sag import last_direction
 
 __all__ = [
@@ -39,8 +40,8 @@ __all__ = [
     "JumpEvent",
     "analyse_joint",
     "drift_reason",
-    "end_bands",
     "episode_verdicts",
+    "fitted_joint",
 ]
 
 
@@ -87,6 +88,8 @@ class JointData:
         stop_lo: Expected reading of the lower stop for a correct calibration (NaN: none known).
         stop_hi: Same, upper stop.
         units_per_deg: Dataset units per degree (1 in degrees).
+        sag_fitted: ``sag`` was fitted from these frames (no URDF masses): it is extrapolated at the range ends, so a
+            pinned end must also stand out of the raw residual (:func:`end_raw_caps`).
     """
 
     name: str
@@ -97,6 +100,7 @@ class JointData:
     stop_lo: float = math.nan
     stop_hi: float = math.nan
     units_per_deg: float = 1.0
+    sag_fitted: bool = False
 
 
 @dataclass(frozen=True)
@@ -161,6 +165,8 @@ class JointHealth:
         used: ``(N,)`` frames the band was fitted on or an end was read from.
         end_bands: ``(lower end, upper end)``: how far a correct follower's residual goes towards each end when it
             comes from the middle (:func:`end_bands`).
+        raw_caps: ``(lower end, upper end)``: the largest raw residual towards each end elsewhere when the sag was
+            fitted from the data (:func:`end_raw_caps`; ``-inf``: not used).
     """
 
     name: str
@@ -174,6 +180,31 @@ class JointHealth:
     residual: FloatArray = field(repr=False)
     used: FloatArray = field(repr=False)
     end_bands: tuple[float, float] = (math.nan, math.nan)
+    raw_caps: tuple[float, float] = (-math.inf, -math.inf)
+
+
+def fitted_joint(
+    name: str,
+    action: FloatArray,
+    state: FloatArray,
+    episode: IntArray,
+    pose_deg: FloatArray,
+    stop_lo: float,
+    stop_hi: float,
+    units_per_deg: float = 1.0,
+    cfg: HealthConfig | None = None,
+) -> JointData:
+    """A joint with stops but no URDF masses, its sag fitted from its own frames (the dataset check's Koch path).
+
+    The sag is :func:`~.model.fitted_sag` with the friction dead band's side (the sign of the reading's last move)
+    as a fourth column, and ``sag_fitted`` set: a pinned end must also stand out of the raw residual
+    (:func:`~.ends.end_raw_caps`).
+    """
+    c = cfg or HealthConfig()
+    u = units_per_deg
+    way = last_direction(state, episode, 0.5 * c.near_deg * u)
+    sag = fitted_sag(action, state, episode, pose_deg, c.slow_deg * u, 3.0 * u, way)
+    return JointData(name, action, state, episode, sag, stop_lo, stop_hi, u, sag_fitted=True)
 
 
 def _lagged(d: JointData) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -237,38 +268,9 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
     return tuple(events)
 
 
-def end_bands(
-    d: JointData, residual: FloatArray, slow: np.ndarray, band: float, cfg: HealthConfig
-) -> tuple[float, float]:
-    """``(lower, upper)``: how far a correct follower's residual reaches towards each range end.
-
-    A follower arriving at an end moves towards it, and its friction dead band leaves it short of its goal on that
-    side only (``sgn·(action − state) > 0``), a few tenths of a degree on an STS3215 at P 16 but up to 1.3° on an
-    XL330 at its factory gain. The symmetric band of all slow frames holds both sides and the lag of slow moves;
-    an end is judged against the frames that came the same way: the slow frames whose reading last moved (by
-    more than ``near_deg / 2``) towards that end, away from the joint's extremes (a stop holds the follower
-    there): ``median + max(floor, 4·1.4826·MAD)`` of ``sgn·residual`` (at least the floor) plus ``end_margin_deg``,
-    at most the symmetric band. Fewer than 30 such frames: the symmetric band.
-    """
-    upd = d.units_per_deg
-    direction = last_direction(d.state, d.episode, 0.5 * cfg.near_deg * upd)
-    edge = 3.0 * upd
-    inner = (d.state > float(np.min(d.state)) + edge) & (d.state < float(np.max(d.state)) - edge)
-    ok = slow & inner & np.isfinite(residual)
-    floor = cfg.band_floor_deg * upd
-    out = []
-    for sgn in (-1.0, 1.0):
-        x = sgn * residual[ok & (direction == sgn)]
-        if x.size < 30:
-            out.append(band)
-            continue
-        med = float(np.median(x))
-        half = max(floor, 4.0 * 1.4826 * float(np.median(np.abs(x - med))))
-        out.append(min(band, max(floor, med + half) + cfg.end_margin_deg * upd))
-    return out[0], out[1]
-
-
-def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndarray) -> EndEvidence | None:
+def _end(
+    d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndarray, raw_cap: float = -math.inf
+) -> EndEvidence | None:
     """Evidence at the upper (``sgn`` +1) or lower (−1) end from the frames in ``mask``."""
     stop = d.stop_hi if sgn > 0 else d.stop_lo
     if not math.isfinite(stop) or not mask.any():
@@ -290,7 +292,7 @@ def _end(d: JointData, sgn: float, band: float, cfg: HealthConfig, mask: np.ndar
     u = 0.5 * upd + 0.5 * band
     name = "hi" if sgn > 0 else "lo"
     thr = max(cfg.threshold_deg * upd, band + 0.5 * upd)
-    if excess > band:
+    if excess > band and a_ext - f_ext > raw_cap:
         same = int(np.sum(fv == f_ext))
         if same >= cfg.clip_frames and same >= 0.9 * len(idx):
             return EndEvidence(name, "clipped", sgn * f_ext, sgn * a_ext, -math.inf, math.inf, len(idx), eps, thr, excess)
@@ -338,8 +340,19 @@ def _verdict(
         return "offset", est, (lo, hi), reasons
     if math.isfinite(lo) and math.isfinite(hi) and -ok_limit <= lo and hi <= ok_limit:
         return "ok", est if est is not None else 0.5 * (lo + hi), (lo, hi), reasons
-    side = "negative" if not math.isfinite(lo) else "positive"
-    return "unobservable", est, None, [f"no range-end contact that would show a {side} offset"]
+    if math.isfinite(lo) and math.isfinite(hi):
+        reasons.append("neither range end pressed the follower against its stop")
+    else:
+        reasons.append(f"no range-end contact that would show a {'negative' if math.isinf(lo) else 'positive'} offset")
+    for e in usable:
+        if e.kind == "together":  # what a visited end shows: the follower came there with its leader, not held
+            above = e.end == "hi"
+            reasons.append(
+                f"the {'upper' if above else 'lower'} end: the follower came to {e.follower:.2f} with its leader at "
+                f"{e.leader:.2f}, not held by its stop (a {'negative' if above else 'positive'} offset shows there "
+                "only as a follower held at its stop while the leader goes on)"
+            )
+    return "unobservable", est, None, reasons
 
 
 def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
@@ -385,7 +398,10 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
     jumps = _jumps(d, same, cfg)
     everything = np.ones(d.action.shape, dtype=bool)
     b_lo, b_hi = end_bands(d, residual, slow, band, cfg)
-    ends = [e for e in (_end(d, 1.0, b_hi, cfg, everything), _end(d, -1.0, b_lo, cfg, everything)) if e]
+    c_lo, c_hi = end_raw_caps(d, slow, cfg)
+    ends = [
+        e for e in (_end(d, 1.0, b_hi, cfg, everything, c_hi), _end(d, -1.0, b_lo, cfg, everything, c_lo)) if e
+    ]
     for e in ends:
         sgn = 1.0 if e.end == "hi" else -1.0
         used[sgn * d.state >= sgn * e.follower - cfg.near_deg * upd] = 2.0
@@ -410,16 +426,21 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
         if status != "offset":
             status = "suspect"
     return JointHealth(
-        d.name, status, est, ci, tuple(reasons), tuple(ends), jumps, band, residual, used, (b_lo, b_hi)
+        d.name, status, est, ci, tuple(reasons), tuple(ends), jumps, band, residual, used, (b_lo, b_hi), (c_lo, c_hi)
     )
 
 
 def episode_verdicts(
-    d: JointData, band: float, cfg: HealthConfig | None = None, end_band: tuple[float, float] | None = None
+    d: JointData,
+    band: float,
+    cfg: HealthConfig | None = None,
+    end_band: tuple[float, float] | None = None,
+    raw_caps: tuple[float, float] = (-math.inf, -math.inf),
 ) -> list[dict[str, object]]:
     """Per-episode offset, interval and verdict from that episode's range-end evidence alone.
 
-    ``end_band``: the session's :func:`end_bands` (``(lower, upper)``; default the symmetric ``band`` at both).
+    ``end_band``: the session's :func:`end_bands` (``(lower, upper)``; default the symmetric ``band`` at both);
+    ``raw_caps``: the session's :func:`end_raw_caps`.
     """
     cfg = cfg or HealthConfig()
     thr = max(cfg.threshold_deg * d.units_per_deg, band + 0.5 * d.units_per_deg)
@@ -427,7 +448,7 @@ def episode_verdicts(
     out: list[dict[str, object]] = []
     for ep in np.unique(d.episode):
         mask = d.episode == ep
-        ends = [e for e in (_end(d, 1.0, b_hi, cfg, mask), _end(d, -1.0, b_lo, cfg, mask)) if e]
+        ends = [e for e in (_end(d, 1.0, b_hi, cfg, mask, raw_caps[1]), _end(d, -1.0, b_lo, cfg, mask, raw_caps[0])) if e]
         status, est, ci, _ = _verdict(ends, thr, cfg.ok_limit_deg * d.units_per_deg)
         out.append({"episode": int(ep), "offset": est, "ci": ci, "status": status, "frames": int(mask.sum())})
     return out
