@@ -17,8 +17,8 @@ from typing import Any
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .. import reply_timeout_floor_s, require
+from ..can_receive import LATE_FRAMES, frames_until, open_within
 from ..can_receive import OPEN_DEADLINE_S as _OPEN_DEADLINE_S
-from ..can_receive import frames_until, open_within
 from .protocol import (
     DEFAULT_HOST_ID,
     FIRMWARE_QUERY,
@@ -189,9 +189,17 @@ class RobstrideBus(ClosesOnExit):
             raise CalibTimeoutError(f"no reply within {self.timeout_s:g} s from {names}")
         return got
 
+    def _drain(self) -> None:
+        """Drop replies that came too late for an earlier request, or answer frames sent without a wait."""
+        for _ in range(LATE_FRAMES):
+            if self._bus.recv(timeout=0.0) is None:
+                return
+
     def _request_many(
         self, frames: Mapping[int, tuple[int, bytes]], reply_types: set[int], *, any_host: bool = False
     ) -> dict[int, tuple[int, bytes]]:
+        if self._bus is not None:
+            self._drain()
         for arb, data in frames.values():
             self._send(arb, data)
         want = dict.fromkeys(frames, reply_types)
@@ -234,6 +242,28 @@ class RobstrideBus(ClosesOnExit):
     def stop(self, motor: str | int, clear_faults: bool = False) -> Feedback:
         """Type 4: stop (reset mode); ``clear_faults`` also clears faults."""
         return self._simple(motor, CommType.STOP, bytes([1 if clear_faults else 0, 0, 0, 0, 0, 0, 0, 0]))
+
+    def torque_off_nowait(self, motors: Iterable[str | int] | None = None) -> None:
+        """The no-torque MIT frame, then stop (type 4, reset mode), to each motor (all by default); no reply awaited.
+
+        The first frames of a limp (``limp_all``): each motor's torque goes off as fast as the frames go out,
+        whatever another motor's replies do (they are dropped before the next exchange). Always allowed. Every
+        frame is tried; the first send that failed is raised afterwards.
+
+        Raises:
+            DeviceError: A frame could not be sent (a closed or lost channel).
+        """
+        specs = [self._spec(m) for m in (self.motors if motors is None else motors)]
+        frames = [encode_mit_command(s.can_id, 0.0, 0.0, 0.0, 0.0, 0.0, self._limits[s.can_id]) for s in specs]
+        frames += [(make_id(CommType.STOP, self.host_id, s.can_id), bytes(8)) for s in specs]
+        failed: DeviceError | None = None
+        for arb, data in frames:
+            try:
+                self._send(arb, data)
+            except DeviceError as exc:
+                failed = failed or exc
+        if failed is not None:
+            raise failed
 
     def mit_command(
         self,

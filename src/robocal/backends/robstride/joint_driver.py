@@ -55,7 +55,9 @@ class RobstrideJointDriver(MitJointDriver):
     """A Robstride motor driven with MIT frames (type 1) through :class:`~robocal.backends.robstride.RobstrideBus`.
 
     The search's commands as :class:`~robocal.backends.mit_joint_driver.MitJointDriver` maps them; ``limp``: MIT
-    ``(0, 0, 0, 0, 0)`` then type 4 (stop); ``reread``: type 4 stop with fault clear, type 3 enable, the last
+    ``(0, 0, 0, 0, 0)`` then type 4 (stop), both also sent first without awaiting a reply (``torque_off_nowait``,
+    the first frames of every ``limp_all``: a motor that stopped answering no longer holds another's stop back by
+    its reply waits); ``reread``: type 4 stop with fault clear, type 3 enable, the last
     command again. The firmware's ``limit_torque`` (0x700B, a RAM parameter: type 18, never saved to flash) is set
     to ``1.05·cap`` when the motor is first enabled, so a rebound or a control-period delay can never push harder
     than the cap + 5 %; :meth:`limp` writes the value read before back (a power cycle restores it too). The cap,
@@ -130,6 +132,9 @@ class RobstrideJointDriver(MitJointDriver):
 
     def _write_watchdog(self, timeout_s: float) -> None:
         self.bus.disarm_watchdog(self.name, timeout_s)  # writes canTimeout (the bus's arm_watchdog reads it first)
+
+    def _torque_off_nowait(self) -> None:
+        self.bus.torque_off_nowait([self.name])
 
     def _torque_off(self) -> None:
         with suppress(Exception):
