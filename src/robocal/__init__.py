@@ -5,8 +5,7 @@ normalisation, and Universal Robots kinematic calibration correction. The math l
 :mod:`robocal.core` (pure numpy); hardware, files and the CLI are layered around it.
 """
 
-from __future__ import annotations
-
+# no `from __future__` import here: it is a module of its own to load, a window before the handlers below
 import os as _os  # already loaded by Python's start-up (site): costs nothing
 import sys as _sys
 
