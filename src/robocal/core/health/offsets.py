@@ -228,14 +228,16 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
     outliers); a frame whose prediction error passes ``max(jump_floor, 8·σ)`` (σ from the median absolute
     error) and 40 % of the commanded speed, and moves the reading away from the goal is a step (friction lets a follower stick, then jump
     *towards* its goal). Frames at the follower's extremes (a stop holds it, the linear response does not apply)
-    are left out.
+    are left out of the fit, and judged only when the reading itself jumped away from its goal by more than the
+    threshold.
     """
     s, a = d.state, d.action
     n = s.size
-    ok = np.zeros(n, dtype=bool)
-    ok[3:] = (same[3:] > 0) & (same[2:-1] > 0) & (same[1:-2] > 0)
+    hist = np.zeros(n, dtype=bool)
+    hist[3:] = (same[3:] > 0) & (same[2:-1] > 0) & (same[1:-2] > 0)
     lo_x, hi_x = float(np.min(s)), float(np.max(s))
     edge = cfg.near_deg * 3 * d.units_per_deg
+    ok = hist.copy()
     for lag in (0, 1):
         sl = np.roll(s, lag)
         ok &= (sl > lo_x + edge) & (sl < hi_x - edge)
@@ -252,6 +254,17 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
         sigma = 1.4826 * float(np.median(np.abs(err - np.median(err)))) + 1e-9
         keep = np.abs(err) < 6 * sigma
     thr = max(cfg.jump_floor_deg * d.units_per_deg, 8.0 * sigma)
+    # a frame at the extremes is judged too when its reading itself jumped away from the goal by more than the
+    # threshold: a stop holds a follower still, it never throws it away from its goal (a slip's own reading is
+    # often the session's extreme)
+    ds = np.zeros(n)
+    ds[1:] = np.diff(s)
+    away = np.zeros(n)  # how much further from its goal the reading moved in the frame
+    away[1:] = np.abs(a[:-1] - s[1:]) - np.abs(a[:-1] - s[:-1])
+    thrown = hist & ~ok & (np.abs(ds) > thr) & (away > 0.5 * thr)
+    idx = np.union1d(idx, np.flatnonzero(thrown))
+    x = np.stack([a[idx - 1] - s[idx - 1], a[idx - 2] - s[idx - 2], s[idx - 1] - s[idx - 2]], axis=1)
+    err = s[idx] - s[idx - 1] - x @ coef
     events: list[JumpEvent] = []
     last = -10
     # a slipped reading jumps away from the goal; a follower breaking free of friction jumps towards it
