@@ -9,7 +9,9 @@ held the follower, which says whether the data can show the offset at all.
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -147,3 +149,24 @@ def test_the_simulator_records_how_hard_the_stop_held_the_follower() -> None:
         "the lower end: the follower came to -94.47 with its leader at -96.77, not held by its stop (a positive "
         "offset shows there only as a follower held at its stop while the leader goes on)",
     )
+
+
+@pytest.mark.slow
+def test_the_report_carries_each_ends_band_and_raw_cap(tmp_path: Path) -> None:
+    from robocal.cli.main import main
+    from robocal.dataset.teleop_sim import generate_teleop_datasets
+
+    faults = [TeleopFaults(offset_joint="wrist_flex", offset_deg=5.0, offset_arm="follower")]
+    (root,) = generate_teleop_datasets(tmp_path, "koch", [22], faults)  # the session of the test above
+    report = tmp_path / "h.json"
+    code = main(["dataset", "health", str(root), "--robot", "koch_follower", "--use-degrees", "--report", str(report)])
+    rep = json.loads(report.read_text())
+    assert code == 1 and rep["flagged"] == ["wrist_flex"]
+    joint = rep["joints"]["wrist_flex"]
+    assert joint["status"] == "offset" and joint["offset_deg"] == pytest.approx(4.91, abs=0.01)
+    (lo,) = [e for e in joint["range_ends"] if e["end"] == "lo"]
+    assert lo["kind"] == "pinned"
+    assert lo["leader"] - lo["follower"] < -lo["raw_cap"]  # the leader went on past the follower beyond the cap
+    assert lo["excess"] > lo["band"]
+    shoulder = rep["joints"]["shoulder_pan"]  # no stops (a full turn): no fitted sag, no cap
+    assert shoulder["status"] == "unobservable" and shoulder["range_ends"] == []
