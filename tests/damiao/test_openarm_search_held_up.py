@@ -29,9 +29,12 @@ pytest.importorskip("can")
 from robocal.backends.damiao.protocol import MitCommand, MotorState
 from robocal.errors import CalibTimeoutError, DeviceError
 from robocal.formats import read_calibration
+from robocal.workflows.autocal import sweep as sweep_module
 from robocal.workflows.autocal.damiao import SimAutoOpenArm, sim_openarm_opener
-from robocal.workflows.autocal.job import AutoCalAbortedError
+from robocal.workflows.autocal.model import AutoCalAbortedError, AutoCalFailedError
 from robocal.workflows.autocal.sweep import SweepAutoRequest, run_sweep_auto
+
+pytestmark = pytest.mark.timeout(600)  # a loaded machine: the in-process simulator shares this process
 
 GRIPPER = "openarm_right_gripper_motor"
 URDF = Path(str(resources.files("robocal").joinpath("data", "openarm_v10_right.urdf")))
@@ -153,3 +156,31 @@ def test_a_timeout_tripped_while_robocal_was_held_up_is_a_fault_not_cleared_by_t
     assert not motor.enabled and motor.ram[9] == 0  # limp, its TIMEOUT put back
     assert motor.requests.get("clear error", 0) == 0  # the trip was never cleared
     assert not (tmp_path / "cal.yaml").exists()
+
+
+@pytest.mark.slow
+def test_a_failed_joint_stays_limp_until_the_run_ends(tmp_path: Path) -> None:
+    """The joint's time used to be read off the motor after its failure, which switched it on again (enable,
+    damping only, TIMEOUT armed) until the run's last limp."""
+    holder: list[SimAutoOpenArm] = []
+    request = SweepAutoRequest(
+        URDF, f"sim:openarm?seed=3&missing={GRIPPER}", tmp_path / "cal.yaml", robot="openarm_follower_right",
+        joints=[GRIPPER],
+    )  # fmt: skip
+    enables: list[int] = []
+    real_limp_all = sweep_module.limp_all
+
+    def limp_all(drivers: Any) -> list[str]:  # the run's last limp: how often was the gripper enabled by then
+        enables.append(holder[0].arm.motors["gripper"].requests.get("enable", 0))
+        return real_limp_all(drivers)
+
+    try:
+        sweep_module.limp_all = limp_all  # type: ignore[assignment]
+        with pytest.raises(AutoCalFailedError, match="missing_stop"):
+            run_sweep_auto(request, open_drivers_fn=sim_openarm_opener(holder))
+    finally:
+        sweep_module.limp_all = real_limp_all  # type: ignore[assignment]
+        for sim in holder:
+            sim.close()
+    assert enables and enables[0] == 1  # before: 2 (switched on again after its failed search)
+    assert not holder[0].arm.motors["gripper"].enabled

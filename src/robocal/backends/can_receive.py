@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import Any, TypeVar
 
-from ..errors import DeviceError
+from ..errors import CalibTimeoutError, DeviceError
 
-__all__ = ["LATE_FRAMES", "OPEN_DEADLINE_S", "frames_until", "open_within"]
+__all__ = ["LATE_FRAMES", "OPEN_DEADLINE_S", "READ_TRIES", "asked_again", "frames_until", "open_within"]
+
+_T = TypeVar("_T")
 
 OPEN_DEADLINE_S = 15.0
 """Opening a CAN channel gives up after this (plus the reply timeout): python-can itself retries a refused
@@ -79,3 +81,23 @@ def open_within(deadline_s: float, open_fn: Callable[[], Any], what: str) -> Any
     if kind == "error":
         raise DeviceError(f"cannot open {what}: {value}") from None
     return value
+
+
+READ_TRIES = 3
+"""A read (it changes nothing) is asked this many times before a device that did not answer is named."""
+
+
+def asked_again(read: Callable[[], _T], tries: int = READ_TRIES) -> _T:
+    """``read()``, asked again up to ``tries`` times in all while it raises :class:`CalibTimeoutError`.
+
+    For requests that change nothing (a register read): on a busy host one reply can come later than the wait
+    (python-can's queue, a simulator or a bus adapter descheduled), and the Damiao fault soaks of 2026-11-29 lost
+    runs at connect to "no reply within 0.1 s" from all eight motors with no fault injected. A device that stays
+    silent is still named, ``tries`` reply waits later (the last attempt's error is raised).
+    """
+    for _ in range(tries - 1):
+        try:
+            return read()
+        except CalibTimeoutError:
+            continue
+    return read()

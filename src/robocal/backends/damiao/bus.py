@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from ...core.lifecycle import ClosesOnExit
 from ...errors import CalibTimeoutError, DeviceError, ProtocolError, UsageError
 from .. import reply_timeout_floor_s, require
-from ..can_receive import LATE_FRAMES, OPEN_DEADLINE_S, frames_until, open_within
+from ..can_receive import LATE_FRAMES, OPEN_DEADLINE_S, asked_again, frames_until, open_within
 from .protocol import (
     Frame,
     MitCommand,
@@ -318,7 +318,8 @@ class DamiaoBus(ClosesOnExit):
         """Register ``rid`` of several motors (all by default); motor name → value."""
         names = self._names(motors)
         frames = {n: register_read_frame(self.motors[n].esc_id, rid) for n in names}
-        got = self._exchange(frames, fd=False, accept=dict.fromkeys(names, (OP_READ, int(rid))))
+        accept = dict.fromkeys(names, (OP_READ, int(rid)))  # a read changes nothing: asked again before naming one
+        got = asked_again(lambda: self._exchange(frames, fd=False, accept=accept))
         return {n: decode_register_reply(got[n]).value for n in names}
 
     def read_ranges(self) -> dict[str, MotorLimits]:

@@ -455,7 +455,8 @@ def calibrate_joint_steps(
             )
     else:
         driver.limp()
-    outcome = JointOutcome(stops, cap, joint.speed_rad_s, driver.read().t_s - t0)
+    clock = getattr(driver, "clock", None)  # a failed joint is limp: reading it would switch its motor on again
+    outcome = JointOutcome(stops, cap, joint.speed_rad_s, (clock.now() if clock else driver.read().t_s) - t0)
     if view is not None:
         view.joint_done(outcome)
     return outcome
