@@ -135,3 +135,29 @@ def test_a_joint_silent_at_its_stop_is_confirmed_once_it_stays_put_when_driven_p
         cmd = search.step(StopSample(t, q, 0.0, 0.3))
     assert cmd.action == "drive" and cmd.q_target_rad == pytest.approx(q)  # backing off from the confirmed stop
     assert search.phase == "backoff"
+
+
+def test_lost_replies_all_along_the_travel_are_counted_per_place_not_per_search() -> None:
+    """A busy host loses a reply now and then while the joint travels freely: five such events over 30° are not
+    the ``max_suspects`` (3) events at one place that fail a search (the soak's J6: "4 no-reply events the position
+    re-read did not confirm as a stop" with no fault injected). Four at one place still fail it."""
+    search = StopSearch(+1, _config())
+    t = _moving(search, 10)  # not armed yet (1° of travel): every lost reply is a plain suspect
+    q = SPEED * t
+    for _ in range(5):
+        t += 0.1
+        assert search.step(StopSample(t, math.nan, ok=False)).action == "reread"
+        t += 0.01
+        search.step(StopSample(t, q, SPEED, 0.1))  # the re-read: where it was
+        for _ in range(60):  # then 6° of free travel
+            t += 0.01
+            q += SPEED * 0.01
+            assert search.step(StopSample(t, q, SPEED, 0.1)).action != "limp"
+    assert not search.done
+    for _ in range(4):  # four at one place (re-read there each time, as if moving: not a probe of a stop)
+        t += 0.1
+        search.step(StopSample(t, math.nan, ok=False))
+        t += 0.01
+        cmd = search.step(StopSample(t, q, SPEED, 0.1))
+    assert cmd.action == "limp" and search.result.code == "no_reply"
+    assert "4 no-reply events the position re-read did not confirm as a stop" in search.result.reason

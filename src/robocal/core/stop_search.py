@@ -61,20 +61,8 @@ from ..errors import InvalidCalibrationError
 from .stop_types import EVIDENCE_GAP_S, FAIL_CODES, TESTS, Command, SearchConfig, StopResult, StopSample
 from .stop_zero import JointStops, joint_zero, summarise, with_gravity
 
-__all__ = [
-    "EVIDENCE_GAP_S",
-    "FAIL_CODES",
-    "TESTS",
-    "Command",
-    "JointStops",
-    "SearchConfig",
-    "StopResult",
-    "StopSample",
-    "StopSearch",
-    "joint_zero",
-    "summarise",
-    "with_gravity",
-]
+__all__ = ["EVIDENCE_GAP_S", "FAIL_CODES", "TESTS", "Command", "JointStops", "SearchConfig", "StopResult",
+           "StopSample", "StopSearch", "joint_zero", "summarise", "with_gravity"]  # fmt: skip
 
 _APPROACH, _CONFIRM, _PRESS_HI, _PRESS_LO, _BACKOFF, _DONE = range(6)
 
@@ -112,6 +100,7 @@ class StopSearch:
         self._no_reply_since: float | None = None
         self._suspects = 0
         self._probe_q: float | None = None  # a lost reply's re-read position the joint was then driven past
+        self._suspect_q: float | None = None  # where the last unconfirmed suspect was re-read
         self._suspect_kind = ""
         self._travel = 0.0
         self._peak = 0.0
@@ -221,6 +210,8 @@ class StopSearch:
         self._last_good = sample
         if self._probe_q is not None and abs(sample.q_rad - self._probe_q) > cfg.confirm_tol_rad:
             self._probe_q = None  # it moved on from where a reply went missing: that was no stop
+        if self._suspect_q is not None and abs(sample.q_rad - self._suspect_q) > 2.0 * cfg.confirm_tol_rad:
+            self._suspects, self._suspect_q = 0, None  # max_suspects counts events at one place, not a busy host's
         if self._travel > cfg.max_travel_rad:
             return self._fail(
                 "missing_stop",
@@ -432,7 +423,7 @@ class StopSearch:
             # a lost reply is no evidence: drive the joint on from here and ask again (see _probed)
             self._suspects += 1
             self._last_good = s
-            self._probe_q = s.q_rad
+            self._probe_q = self._suspect_q = s.q_rad
             self._stall_since = None
             self._target = self._given = s.q_rad + self.direction * min(cfg.max_lag_rad, 2.0 * cfg.confirm_tol_rad)
             return Command("drive", self._target, 0.0, cfg.torque_cap_nm)
@@ -447,7 +438,7 @@ class StopSearch:
             self._last_good = s
             return self._start_backoff(s)
         self._suspects += 1
-        self._last_good = s
+        self._last_good, self._suspect_q = s, s.q_rad
         if self._suspects > cfg.max_suspects:
             return self._fail(
                 "no_reply" if self._suspect_kind == "no-reply" else "blocked",

@@ -89,7 +89,9 @@ class SearchConfig:
         evidence_gap_s: A reading that comes more than this after the one before counts only this long toward a
             dwell (the stall and blocked tests) and the time bound: what the joint did while robocal was held up
             is unknown, so a scheduling gap neither confirms a stop nor uses up the search's time.
-        max_suspects: Unconfirmed suspect events allowed before the search fails.
+        max_suspects: Unconfirmed suspect events allowed at one place before the search fails (a good reading more
+            than ``2·confirm_tol_rad`` from the last one's re-read starts the count again: on a busy host replies
+            come late all along the travel).
         gravity_nm: Gravity torque on the joint as a function of q (joint frame), or None (taken as 0).
     """
 
