@@ -53,7 +53,7 @@ from .harness import (
     _suppress,
     _wait_for_phase,
 )
-from .runqueue import RunQueueSampler
+from .runqueue import SIGNAL_STATES, RunQueueSampler
 
 OPENARM_ROBOT = "openarm"
 OPENARM_FAULTS = (*FAULTS, "lost-bus")
@@ -298,6 +298,9 @@ def _trial(
         # as for the other robots: the signal met Python's own start-up, before robocal's first line
         return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
     tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))  # a failure: all of it
+    state = SIGNAL_STATES.pop(run.proc.pid, "")
+    if failures and state:  # which thread blocked the signal, was it ignored or caught (a signal not acted on)
+        tail += " || " + state
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
 
 

@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .runqueue import SIGNAL_STATES, note_signal_state
+
 SRC = Path(__file__).resolve().parents[2] / "src"
 
 FAULTS = (
@@ -295,6 +297,9 @@ def _trial(
         # Python's default ended it and nothing was touched (the other checks passed): robocal was not reached
         return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
     tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))  # a failure: all of it
+    state = SIGNAL_STATES.pop(run.proc.pid, "")
+    if failures and state:  # which thread blocked the signal, was it ignored or caught (a signal not acted on)
+        tail += " || " + state
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
 
 
@@ -365,14 +370,17 @@ def _inject(proc: subprocess.Popen[str], sim: _Sim, fault: str, rng: random.Rand
     with _suppress():
         if fault == "sigint":
             os.kill(pid, signal.SIGINT)
+            note_signal_state(pid)
         elif fault == "double-sigint":
             os.kill(pid, signal.SIGINT)
             time.sleep(rng.uniform(0.02, 0.3))
             os.kill(pid, signal.SIGINT)
         elif fault == "sigterm":
             os.kill(pid, signal.SIGTERM)
+            note_signal_state(pid)
         elif fault == "sighup":
             os.kill(pid, signal.SIGHUP)
+            note_signal_state(pid)
         elif fault == "sigkill":
             os.kill(pid, signal.SIGKILL)
         elif fault == "cpu-stall":

@@ -61,3 +61,40 @@ def waited_between(times: list[float], waits_ns: list[int], t0: float, t1: float
     if j <= i:
         return 0.0
     return max(0, waits_ns[j] - waits_ns[i]) / 1e9
+
+
+SIGNAL_STATES: dict[int, str] = {}
+"""robocal's pid → its signal state (:func:`signal_state`) right after the harness sent it a signal, and 50 ms
+later: for the report of a trial whose signal was not acted on (which thread blocked it, was it ignored)."""
+
+
+def signal_state(pid: int) -> str:
+    """``/proc`` view of ``pid``'s signals: ignored/caught (process-wide), pending, and each thread's blocked mask.
+
+    Hex masks as the kernel prints them (bit ``n-1`` is signal ``n``: SIGINT 0x2, SIGHUP 0x1, SIGTERM 0x4000).
+    Empty where ``/proc`` has no such process.
+    """
+    import os
+
+    def fields(path: str, names: tuple[str, ...]) -> str:
+        try:
+            with open(path) as f:
+                rows = dict(line.split(":", 1) for line in f if ":" in line)
+        except OSError:
+            return ""
+        return " ".join(f"{n}={rows[n].strip().lstrip('0') or '0'}" for n in names if n in rows)
+
+    head = fields(f"/proc/{pid}/status", ("State", "ShdPnd", "SigIgn", "SigCgt"))
+    try:
+        tids = sorted(os.listdir(f"/proc/{pid}/task"), key=int)
+    except OSError:
+        return head
+    threads = [f"{tid}:{fields(f'/proc/{pid}/task/{tid}/status', ('SigPnd', 'SigBlk'))}" for tid in tids]
+    return f"{head} threads {' '.join(threads)}"
+
+
+def note_signal_state(pid: int) -> None:
+    """Keep :func:`signal_state` of ``pid`` now and 50 ms later in :data:`SIGNAL_STATES` (for a failed trial)."""
+    first = signal_state(pid)
+    time.sleep(0.05)
+    SIGNAL_STATES[pid] = f"signal state at +0 ms: {first}; at +50 ms: {signal_state(pid)}"

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import random
+import signal
 from pathlib import Path
 
 import pytest
@@ -322,3 +323,36 @@ def test_held_motors_outlast_a_long_reply_wait_and_a_starved_host_yet_stop_when_
     assert result.failures == (), f"exit {result.exit_code}: {'; '.join(result.failures)} [{result.stderr_tail}]"
     if fault == "sigkill":
         assert result.exit_code == -9
+
+
+def test_the_signal_state_names_a_thread_that_blocks_sigint() -> None:
+    """The report of a signal not acted on says which thread blocked it and whether it was caught or ignored."""
+    import subprocess
+    import sys
+    import time
+
+    from .runqueue import signal_state
+
+    code = (
+        "import signal, sys, time\n"
+        "signal.pthread_sigmask(signal.SIG_BLOCK, [signal.SIGINT])\n"
+        "signal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+        "print('ready', flush=True)\n"
+        "time.sleep(30)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline() == "ready\n"
+        proc.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + 10
+        while "ShdPnd=2" not in (state := signal_state(proc.pid)) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        proc.kill()
+        proc.wait()
+    # pending on the process (kill sends it to the process), its only thread blocking it
+    assert "ShdPnd=2 " in state and state.endswith(f"threads {proc.pid}:SigPnd=0 SigBlk=2")
+    ignored = int(state.split("SigIgn=")[1].split()[0], 16)
+    caught = int(state.split("SigCgt=")[1].split()[0], 16)
+    assert ignored & (1 << (signal.SIGTERM - 1)) and caught & (1 << (signal.SIGINT - 1))
+    assert signal_state(proc.pid) == ""  # gone
