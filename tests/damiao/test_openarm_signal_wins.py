@@ -58,6 +58,11 @@ def dump():
     with open(state_path, "w") as f:
         json.dump({n: {"enabled": m.enabled, "timeout": m.ram[9]} for n, m in arms[0].motors.items()}, f)
 atexit.register(dump)
+real_exit = os._exit
+def exit_now(code):  # an interrupted command ends by os._exit (no atexit): the state is read first
+    dump()
+    real_exit(code)
+os._exit = exit_now
 from robocal.cli.entry import run
 run()
 """
