@@ -33,7 +33,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .runqueue import SIGNAL_STATES, note_signal_state
+if __package__:
+    from .runqueue import SIGNAL_STATES, note_signal_state
+else:  # run as a script: the Lite's trial in its own network namespace (_lite_in_netns)
+    from runqueue import SIGNAL_STATES, note_signal_state  # type: ignore[no-redef]
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
