@@ -48,12 +48,13 @@ from .harness import (
     _before_robocal,
     _default_signals,
     _inject,
+    _report_tail,
     _Run,
     _Sim,
     _suppress,
     _wait_for_phase,
 )
-from .runqueue import SIGNAL_STATES, RunQueueSampler
+from .runqueue import RunQueueSampler
 
 OPENARM_ROBOT = "openarm"
 OPENARM_FAULTS = (*FAULTS, "lost-bus")
@@ -297,10 +298,7 @@ def _trial(
     if failures and _before_robocal(fault, code, run) and all("exit" in f for f in failures):
         # as for the other robots: the signal met Python's own start-up, before robocal's first line
         return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
-    tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))  # a failure: all of it
-    state = SIGNAL_STATES.pop(run.proc.pid, "")
-    if failures and state:  # which thread blocked the signal, was it ignored or caught (a signal not acted on)
-        tail += " || " + state
+    tail = _report_tail(run, failures)
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
 
 

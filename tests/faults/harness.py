@@ -29,6 +29,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -299,11 +300,19 @@ def _trial(
         # the signal came while the interpreter itself was starting, before robocal's first line (its handlers):
         # Python's default ended it and nothing was touched (the other checks passed): robocal was not reached
         return TrialResult(robot, fault, phase, False, code, (), "before robocal's first line")
-    tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))  # a failure: all of it
-    state = SIGNAL_STATES.pop(run.proc.pid, "")
-    if failures and state:  # which thread blocked the signal, was it ignored or caught (a signal not acted on)
-        tail += " || " + state
+    tail = _report_tail(run, failures)
     return TrialResult(robot, fault, phase, injected, code, failures, tail)
+
+
+def _report_tail(run: _Run, failures: Sequence[str]) -> str:
+    """robocal's standard error for the trial's report: the last 3 lines, all of it (and its signal state) if failed.
+
+    The signal state (:func:`runqueue.note_signal_state`) says which thread blocked a signal, whether it was ignored
+    or caught: for a signal that was not acted on.
+    """
+    tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))
+    state = SIGNAL_STATES.pop(run.proc.pid, "")
+    return f"{tail} || {state}" if failures and state else tail
 
 
 def _before_robocal(fault: str, code: int, run: _Run) -> bool:

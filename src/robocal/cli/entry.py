@@ -140,9 +140,9 @@ def _redeliver_swallowed(unraisable: object) -> bool:
     ``__del__``, a weakref callback, run by the garbage collector between any two lines, e.g. an abandoned
     python-can bus or serial port being closed) the exception cannot propagate: Python prints ``Exception ignored
     in …`` and goes on, the signal lost — the command ran to its end after a Ctrl-C. Here a short-lived thread
-    trips it again for the main thread a moment later (tripped from here, the handler would run inside this hook, swallowed
-    again), whose handler then runs at its next line, outside the finalizer; a finalizer that takes it again
-    brings it back here. Not printed: the interruption is reported once, where it ends the command.
+    trips it again for the main thread a moment later (tripped from here, the handler would run inside this hook,
+    swallowed again), whose handler then runs at its next line, outside the finalizer; a finalizer that takes it
+    again brings it back here. Not printed: the interruption is reported once, where it ends the command.
     """
     exc = getattr(unraisable, "exc_value", None)
     if not isinstance(exc, KeyboardInterrupt):
