@@ -30,6 +30,7 @@ import random
 import signal
 import socket
 import statistics
+import struct
 import subprocess
 import sys
 import tempfile
@@ -94,9 +95,9 @@ class _Relay:
     """A TCP relay robocal's socketcand client goes through; :meth:`cut` closes every connection and closes each new
     one at once (the bus gone) until :meth:`resume` (the next run on the same address); :meth:`close` ends it.
 
-    It also notes every CAN frame robocal sends (:attr:`sent`: the host's ``time.monotonic()`` at which the relay
-    read it, arbitration id, data): the wire's view, independent of robocal's own account and of when the
-    simulator got round to the frame.
+    It also notes every CAN frame robocal sends (:attr:`sent`: the host's ``time.monotonic()`` at which the frame
+    reached the relay's socket, from the kernel's stamp (:func:`_arrived`), arbitration id, data): the wire's view,
+    independent of robocal's own account and of when the relay or the simulator got round to the frame.
     """
 
     def __init__(self, host: str, port: int) -> None:
@@ -129,9 +130,14 @@ class _Relay:
     def _pump(src: socket.socket, dst: socket.socket, note: Any = None) -> None:
         text = ""
         try:
-            while data := src.recv(65536):
+            if note is not None:  # the kernel's arrival stamp, not when this thread got round to reading it
+                src.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            while True:
+                data, ancillary, _flags, _addr = src.recvmsg(65536, socket.CMSG_SPACE(16))
+                if not data:
+                    break
                 if note is not None:
-                    text = note(time.monotonic(), text + data.decode("ascii", "replace"))
+                    text = note(_arrived(ancillary), text + data.decode("ascii", "replace"))
                 dst.sendall(data)
         except OSError:
             pass
@@ -167,6 +173,26 @@ class _Relay:
         self.cut()
         with _suppress():
             self.sock.close()
+
+
+_SO_TIMESTAMPNS = 35
+"""Linux's ``SO_TIMESTAMPNS`` (= ``SCM_TIMESTAMPNS``; Python's socket module has no name for it)."""
+
+
+def _arrived(ancillary: list[tuple[int, int, bytes]]) -> float:
+    """When the bytes of one ``recvmsg`` reached the relay's socket, on the host's ``time.monotonic()`` clock.
+
+    The kernel stamps each arriving segment (``SO_TIMESTAMPNS``, wall clock); for TCP ``recvmsg`` reports the stamp
+    of the last segment it read, so several sends read at once carry the latest one (never earlier than the
+    truth). A relay thread the harness's other threads or a loaded machine kept from reading is then not counted as
+    robocal's lateness. Without a stamp: now.
+    """
+    mono, wall = time.monotonic(), time.time()
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(data) >= 16:
+            sec, nsec = struct.unpack("qq", data[:16])
+            return mono - max(0.0, wall - (sec + nsec * 1e-9))
+    return mono
 
 
 def _motors(state: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:

@@ -172,6 +172,32 @@ def test_a_disable_frame_late_only_by_robocal_s_run_queue_wait_is_the_machine_s_
         damiao_harness.LIMP_LOAD_LATE.clear()
 
 
+def test_the_relay_stamps_a_frame_when_it_arrived_not_when_it_was_read() -> None:
+    """A frame read 300 ms after it arrived (the relay's thread kept from running) is stamped at its arrival."""
+    import socket
+    import time
+
+    from .damiao_harness import _SO_TIMESTAMPNS, _arrived
+
+    server = socket.create_server(("127.0.0.1", 0))
+    client = socket.create_connection(server.getsockname())
+    conn, _ = server.accept()
+    try:
+        conn.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+        client.sendall(b"< send 8 8 FF FF FF FF FF FF FF FD >")
+        sent_at = time.monotonic()
+        time.sleep(0.3)
+        data, ancillary, _flags, _addr = conn.recvmsg(65536, socket.CMSG_SPACE(16))
+        read_at = time.monotonic()
+        assert data.endswith(b"FD >")
+        at = _arrived(ancillary)
+        assert abs(at - sent_at) < 0.05 and read_at - at > 0.25
+        assert _arrived([]) >= read_at  # no stamp: now
+    finally:
+        for s in (client, conn, server):
+            s.close()
+
+
 def test_the_run_queue_sampler_reads_a_live_process() -> None:
     import subprocess
     import sys
