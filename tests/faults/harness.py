@@ -70,10 +70,13 @@ def _default_signals() -> None:
     """In each child: SIGINT, SIGTERM, SIGHUP as a fresh terminal has them.
 
     A harness started in the background (``cmd &`` in a script) inherits SIGINT ignored, and so would robocal:
-    it keeps a signal its parent ignores (``nohup``), so every SIGINT trial would test nothing.
+    it keeps a signal its parent ignores (``nohup``), so every SIGINT trial would test nothing. The signal mask is
+    emptied too: a child inherits the mask of the thread that forked it, and a harness thread started with signals
+    blocked (as robocal's own helper threads are) would hand robocal a SIGINT that stays pending for good.
     """
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
 SIGNAL_FAULTS = ("sigint", "double-sigint", "sigterm", "sighup")

@@ -8,6 +8,7 @@ signal lands inside the import on any machine, however loaded.
 from __future__ import annotations
 
 import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -159,3 +160,27 @@ def test_a_signal_as_the_finished_command_returns_is_ignored(name: str, code: in
         env={"PYTHONPATH": str(SRC)},
     )
     assert (r.returncode, r.stdout, r.stderr) == (code, "the command's last line\n", "")
+
+
+def test_a_trial_s_robocal_starts_with_no_signal_blocked_whatever_thread_forks_it() -> None:
+    """A child inherits the forking thread's signal mask: the harness's children start with an empty one."""
+    import threading
+
+    from .harness import _default_signals
+
+    out: list[str] = []
+
+    def spawn() -> None:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        cmd = [sys.executable, "-c", "print(open('/proc/self/status').read())"]
+        out.append(subprocess.run(cmd, capture_output=True, text=True, preexec_fn=_default_signals).stdout)
+        plain = subprocess.run(cmd, capture_output=True, text=True).stdout
+        out.append(plain)
+
+    t = threading.Thread(target=spawn)
+    t.start()
+    t.join()
+    masks = [int(next(ln for ln in o.splitlines() if ln.startswith("SigBlk:")).split()[1], 16) for o in out]
+    sigint = 1 << (signal.SIGINT - 1)
+    assert masks[1] & sigint  # without it the child's SIGINT would stay pending for good
+    assert masks[0] == 0
