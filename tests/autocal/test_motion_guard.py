@@ -102,3 +102,54 @@ def test_what_could_not_be_restored_is_kept_and_named(tmp_path: Path, monkeypatc
     )
     kept = find_left_changed("/dev/ttyFAKE1")
     assert kept is not None and kept.registers == {"b": {"Homing_Offset": 7, "Lock": 1}} and kept.command == "test"
+
+
+def test_a_signal_held_off_while_a_fault_is_undone_ends_the_command_as_that_signal() -> None:
+    """The fault's exception stays the cause; the exit code is the signal's (issue 26: no signal is dropped)."""
+    calls: list[str] = []
+
+    def limp() -> list[str]:
+        os.kill(os.getpid(), signal.SIGTERM)  # kill while the motors are being made limp after the fault
+        calls.append("limp")
+        return []
+
+    guard = MotionGuard(limp=limp, restore=lambda snap: _Report())
+    with pytest.raises(SignalInterrupt) as info, guard:
+        guard.snapshot({"a": {"Homing_Offset": 5}})
+        raise DeviceError("/dev/x: no reply")
+    assert info.value.signum == signal.SIGTERM and info.value.exit_code == 143 and info.value.args == ()
+    assert isinstance(info.value.__cause__, DeviceError) and calls == ["limp"]
+
+
+def test_a_signal_held_off_by_an_explicit_restore_or_the_last_disarm_is_raised_as_the_guard_ends(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+
+    def restore(snap: Mapping[str, Mapping[str, int]]) -> _Report:
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C while a failed search's registers go back
+        return _Report()
+
+    guard = MotionGuard(limp=lambda: [], restore=restore)
+    with pytest.raises(SignalInterrupt) as info, guard:
+        guard.snapshot({"a": {"Lock": 1}})
+        assert guard.restore_now() is not None  # the run undoes its own changes, then leaves the block
+    assert info.value.signum == signal.SIGINT and info.value.exit_code == 130
+
+    store = SnapshotStore("/dev/ttyFAKE9", "test")
+    guard = MotionGuard(limp=lambda: [], store=store, disarm=lambda: os.kill(os.getpid(), signal.SIGHUP))
+    with pytest.raises(SignalInterrupt) as info, guard:
+        guard.snapshot({"a": {"Lock": 1}})
+    assert info.value.signum == signal.SIGHUP and not store.exists()  # the run had finished: nothing to keep
+
+
+def test_a_signal_finish_with_raised_is_not_raised_twice() -> None:
+    guard = MotionGuard(limp=lambda: [])
+
+    def write() -> str:
+        os.kill(os.getpid(), signal.SIGTERM)
+        return "written"
+
+    with pytest.raises(SignalInterrupt) as info, guard:
+        guard.finish_with(write)
+    assert info.value.signum == signal.SIGTERM and info.value.__cause__ is None and guard.deferred == [15]

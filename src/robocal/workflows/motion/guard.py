@@ -134,6 +134,8 @@ class MotionGuard:
         """Signals that came while the motors were being restored (they did not cut it short)."""
         self.limp_failed: tuple[str, ...] = ()
         """Motors the last limp could not confirm limp."""
+        self._answered = 0  # how many of the deferred signals were raised already (finish_with)
+        self._last_report: RestoreReport | None = None
         self._left = False  # a restore left registers changed: the kept snapshot stays
 
     # ---------------------------------------------------------------------------------------- signals
@@ -185,6 +187,7 @@ class MotionGuard:
             out = write()
         self.resolved()
         if len(self.deferred) > seen:
+            self._answered = len(self.deferred)
             raise SignalInterrupt(self.deferred[seen])
         return out
 
@@ -224,6 +227,7 @@ class MotionGuard:
             if self._snapshot is None or self._restore is None:
                 return None
             report = self._restore(self._snapshot)
+        self._last_report = report
         if report.not_restored or self.limp_failed:
             self._left = True
         else:
@@ -240,11 +244,34 @@ class MotionGuard:
                         self._disarm()
                 if not self._left:
                     self.resolved()
+                self._signal_wins(None, self._last_report)
                 return
             report = self.restore_now()
+            if not isinstance(exc, KeyboardInterrupt):
+                self._signal_wins(exc, report)
             self._reraise(exc, report)
         finally:
             self._uninstall()
+
+    def _signal_wins(self, cause: BaseException | None, report: RestoreReport | None) -> None:
+        """Raise the first signal held off while the motors were made limp and restored, if none was raised yet.
+
+        Nothing cuts a restore short, so a signal that comes meanwhile is only counted (:attr:`deferred`); it then
+        decides how the command ends: a fault's exception (``cause``) or a run that restored the motors itself
+        (:meth:`restore_now`, then a clean exit) ends as interrupted by that signal (exit ``128 + signum``), with the
+        same clause about what is restored and what is not, from ``cause``. Before, the signal was dropped: a
+        SIGTERM while a failed search was being undone ended with the search's exit code and no word of it.
+        """
+        held = self.deferred[self._answered :]
+        if not held:
+            return
+        self._answered = len(self.deferred)
+        interrupt = SignalInterrupt(int(held[0]))
+        try:
+            self._reraise(interrupt, report)
+        except SignalInterrupt as noted:
+            raise noted from cause
+        raise interrupt from cause
 
     def _reraise(self, exc: BaseException, report: RestoreReport | None) -> None:
         """Re-raise ``exc`` with one clause: what is restored, what is not (by name), what to do next."""
