@@ -19,7 +19,7 @@ from ...core.named import get_named
 from ...core.profile_auto import NOT_SEARCHED, AutoJoint
 from ...core.stop_search import Command, JointStops, StopSample
 from ...core.vendors import vendor_spec
-from ...errors import CalibError, SignalInterrupt, UsageError
+from ...errors import CalibError, UsageError
 
 __all__ = [
     "AutoCalAbortedError",
@@ -35,7 +35,6 @@ __all__ = [
     "joint_driver_class",
     "limp_all",
     "limp_on_error",
-    "signal_wins",
 ]
 
 ConfirmStart = Callable[[Sequence[str], Mapping[str, float]], bool]
@@ -224,23 +223,6 @@ def limp_all(drivers: Mapping[str, JointDriver] | Sequence[JointDriver]) -> list
             except Exception:
                 failed.append(d.name)
     return failed
-
-
-def signal_wins(exc: BaseException, *guards: Any) -> None:
-    """Raise the first signal a motion guard held off while it made the motors limp after ``exc`` (a fault).
-
-    A guard's restore after a fault counts the signals that come meanwhile (``MotionGuard.deferred``: nothing cuts
-    the limp short) and then re-raises the fault, so a SIGTERM while a search was failing on its own ended with
-    the fault's exit 3 and no word of the signal (Damiao soak, issue 26). The signal wins: it is raised as a
-    :class:`~robocal.errors.SignalInterrupt` (exit ``128 + signum``, ``interrupted by SIGTERM``) from ``exc``.
-    Nothing happens for an ``exc`` that is an interruption already, or when no guard held a signal off.
-    """
-    if isinstance(exc, KeyboardInterrupt):
-        return
-    for guard in guards:
-        deferred = getattr(guard, "deferred", None)
-        if deferred:
-            raise SignalInterrupt(int(deferred[0])) from exc
 
 
 @contextmanager

@@ -46,7 +46,6 @@ from .model import (
     MonotonicClock,
     joint_driver_class,
     limp_all,
-    signal_wins,
 )
 from .zero import rezeroed_result, store_zeros, zeros_written
 
@@ -369,7 +368,6 @@ def run_sweep_auto(
         else:
             opener = _LIVE_OPENERS[vendor.name]
     drivers, clock, close = opener(spec, specs, profile)
-    guard = zero_guard = None
     try:
         if r.write_zero:
             from .zero import can_store_zero
@@ -377,15 +375,14 @@ def run_sweep_auto(
             can_store_zero(drivers, [j.name for j in order if j.searched])
         # the one motion guard (motion_guard.py): SIGINT/SIGTERM/SIGHUP/SIGQUIT or a fault → every motor limp
         # (signals held off until it is done), the line says which motors did not answer the torque-off
-        with (guard := MotionGuard(limp=lambda: limp_all(drivers), what="motor state")):
+        with MotionGuard(limp=lambda: limp_all(drivers), what="motor state"):
             autocal = AutoCalRequest(profile.auto, limits, joints=[j.name for j in order], max_lag_rad=max_lag_rad,
                                      gravity=gravity, gravity_model=gravity_model, joint_gravity=joint_gravity)  # fmt: skip
             auto = run_autocal(drivers, autocal, view=view, clock=clock)
-    except BaseException as exc:
+    except BaseException:
         limp_all(drivers)
         with contextlib.suppress(Exception):
             close()
-        signal_wins(exc, guard)  # a signal held off while the guard made the motors limp after a fault: exit 128+n
         raise
     # the run is over: the joints hold their park angles; nothing is written before this point. Without
     # --write-zero nothing needs them any more: limp now, before the files (a signal during a file's fsync, which no
@@ -431,7 +428,7 @@ def run_sweep_auto(
         # holds it) and comes out after the file: "interrupted after writing ..." (issue 26 item 6, issue 31)
         with contextlib.ExitStack() as held:  # closed on any exception too: nothing stays held
             if r.write_zero and searched:
-                zero_guard = held.enter_context(MotionGuard(limp=lambda: limp_all(drivers), what="motor state"))
+                held.enter_context(MotionGuard(limp=lambda: limp_all(drivers), what="motor state"))
                 zeros = store_zeros(
                     drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=max_lag_rad,
                     before_store=lambda: held.enter_context(transaction()),
@@ -450,9 +447,6 @@ def run_sweep_auto(
                     write_sweep_files(result, urdf, rows, out_path, fmt, None, existing, profile)
             if zeros:
                 zeros_written(drivers, list(zeros))  # the state folder's record of them goes
-    except BaseException as exc:
-        signal_wins(exc, zero_guard)
-        raise
     finally:
         if not limped:
             limp_all(drivers)
