@@ -55,7 +55,7 @@ from .harness import (
     _suppress,
     _wait_for_phase,
 )
-from .runqueue import RunQueueSampler
+from .proc_state import RunQueueSampler
 
 OPENARM_ROBOT = "openarm"
 OPENARM_FAULTS = (*FAULTS, "lost-bus")
@@ -413,7 +413,7 @@ def limp_latency_failures(
     bound had robocal's part done; the simulator's later stamp is then the test rig's lateness (the simulator or
     the relay descheduled on a loaded machine), kept in :data:`LIMP_LATENCIES` and the soak's figures, not a
     failure. ``waited_s(t0, t1)``: how long robocal was runnable but not running between two instants
-    (:class:`tests.faults.runqueue.RunQueueSampler`); a frame later than the bound only by that wait is the
+    (:class:`tests.faults.proc_state.RunQueueSampler`); a frame later than the bound only by that wait is the
     machine's lateness (counted in :data:`LIMP_LOAD_LATE`), not robocal's.
     """
     on_wire = wire_latency(sent, after, signalled_at) if sent is not None else {}

@@ -35,9 +35,9 @@ from pathlib import Path
 from typing import Any
 
 if __package__:
-    from .runqueue import SIGNAL_STATES, note_signal_state
+    from .proc_state import SIGNAL_STATES, note_signal_state
 else:  # run as a script: the Lite's trial in its own network namespace (_lite_in_netns)
-    from runqueue import SIGNAL_STATES, note_signal_state  # type: ignore[no-redef]
+    from proc_state import SIGNAL_STATES, note_signal_state  # type: ignore[no-redef]
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -310,7 +310,7 @@ def _trial(
 def _report_tail(run: _Run, failures: Sequence[str]) -> str:
     """robocal's standard error for the trial's report: the last 3 lines, all of it (and its signal state) if failed.
 
-    The signal state (:func:`runqueue.note_signal_state`) says which thread blocked a signal, whether it was ignored
+    The signal state (:func:`proc_state.note_signal_state`) says which thread blocked a signal, whether it was ignored
     or caught: for a signal that was not acted on.
     """
     tail = " | ".join(ln.strip() for ln in (run.lines[-40:] if failures else run.lines[-3:]))

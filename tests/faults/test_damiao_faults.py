@@ -148,7 +148,7 @@ def test_a_disable_frame_late_only_by_robocal_s_run_queue_wait_is_the_machine_s_
     """Issue 26 item 4: robocal descheduled on a loaded machine cannot send; the oracle takes off the time the
     kernel kept it waiting for a CPU (/proc/PID/schedstat, sampled strictly inside the window: never overstated)."""
     from . import damiao_harness
-    from .runqueue import waited_between
+    from .proc_state import waited_between
 
     times, waits = [100.00, 100.05, 100.30, 100.60, 100.70], [0, 10_000_000, 260_000_000, 560_000_000, 560_000_000]
     assert waited_between(times, waits, 100.0, 100.653) == pytest.approx(0.56)
@@ -203,7 +203,7 @@ def test_the_run_queue_sampler_reads_a_live_process() -> None:
     import sys
     import time
 
-    from .runqueue import RunQueueSampler
+    from .proc_state import RunQueueSampler
 
     proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(0.5)"], text=True)
     sampler = RunQueueSampler(proc).start()
@@ -357,7 +357,7 @@ def test_the_signal_state_names_a_thread_that_blocks_sigint() -> None:
     import sys
     import time
 
-    from .runqueue import signal_state
+    from .proc_state import signal_state
 
     code = (
         "import signal, sys, time\n"

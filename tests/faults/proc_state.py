@@ -1,12 +1,17 @@
-"""How long a process was runnable but not running (Linux ``/proc/PID/schedstat``), for the limp-time oracle.
+"""What ``/proc`` says of a robocal process under test: its run-queue wait and its signal state.
 
-Issue 26 asks for every motor limp within 100 ms of a signal robocal can act on, and for timing that is correct
-when the process is descheduled for hundreds of milliseconds. On a loaded machine the kernel may keep robocal
-waiting on a run queue for longer than the bound: no code can send a frame while it is not scheduled. The harness
-therefore samples the run-queue wait of robocal's main thread (the second field of ``/proc/PID/schedstat``,
-nanoseconds spent runnable but waiting for a CPU) every few milliseconds; a disable frame late on the wire whose
-lateness is covered by that wait is the machine's, counted in the soak's figures, not robocal's failure. The window
-used is the samples strictly inside the interval, so the wait is never overstated.
+**Run-queue wait** (the limp-time oracle): issue 26 asks for every motor limp within 100 ms of a signal robocal can
+act on, and for timing that is correct when the process is descheduled for hundreds of milliseconds. On a loaded
+machine the kernel may keep robocal waiting on a run queue for longer than the bound: no code can send a frame
+while it is not scheduled. The harness therefore samples the run-queue wait of robocal's main thread (the second
+field of ``/proc/PID/schedstat``, nanoseconds spent runnable but waiting for a CPU) every few milliseconds; a
+disable frame late on the wire whose lateness is covered by that wait is the machine's, counted in the soak's
+figures, not robocal's failure. The window used is the samples strictly inside the interval, so the wait is never
+overstated.
+
+**Signal state** (a failed trial's report): which signals the process ignores, catches and has pending, and each
+thread's blocked mask (``/proc/PID/status``, ``/proc/PID/task/TID/status``), so a signal robocal did not act on
+says whether it was blocked, ignored or never delivered.
 """
 
 from __future__ import annotations
