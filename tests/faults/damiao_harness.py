@@ -185,7 +185,8 @@ def _arrived(ancillary: list[tuple[int, int, bytes]]) -> float:
     The kernel stamps each arriving segment (``SO_TIMESTAMPNS``, wall clock); for TCP ``recvmsg`` reports the stamp
     of the last segment it read, so several sends read at once carry the latest one (never earlier than the
     truth). A relay thread the harness's other threads or a loaded machine kept from reading is then not counted as
-    robocal's lateness. Without a stamp: now.
+    robocal's lateness. Without a stamp (the kernel turns its stamps on a moment after the first socket asks, so a
+    connection's first segments may have none): now, the relay's own reading time, as before.
     """
     mono, wall = time.monotonic(), time.time()
     for level, kind, data in ancillary:

@@ -184,6 +184,16 @@ def test_the_relay_stamps_a_frame_when_it_arrived_not_when_it_was_read() -> None
     conn, _ = server.accept()
     try:
         conn.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+        # the kernel switches its receive stamps on a moment after the first socket asks (a deferred work item):
+        # probe until a segment comes stamped
+        deadline = time.monotonic() + 5.0
+        while True:
+            client.sendall(b"?")
+            _data, probe, _flags, _addr = conn.recvmsg(64, socket.CMSG_SPACE(16))
+            if probe or time.monotonic() > deadline:
+                break
+            time.sleep(0.01)
+        assert probe, "the kernel never stamped a received segment"
         client.sendall(b"< send 8 8 FF FF FF FF FF FF FF FD >")
         sent_at = time.monotonic()
         time.sleep(0.3)
