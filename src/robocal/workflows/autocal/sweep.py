@@ -430,7 +430,8 @@ def run_sweep_auto(
             if r.write_zero and searched:
                 held.enter_context(MotionGuard(limp=lambda: limp_all(drivers), what="motor state"))
                 zeros = store_zeros(
-                    drivers, {n: auto[n].stops.offset_rad for n in searched}, profile.auto, max_lag_rad=max_lag_rad,
+                    drivers, {o.name: o.stops.offset_rad for o in auto.joints if o.ok}, profile.auto,
+                    max_lag_rad=max_lag_rad,
                     before_store=lambda: held.enter_context(transaction()),
                 )  # fmt: skip
                 result = rezeroed_result(

@@ -117,7 +117,10 @@ def store_zeros(
         whose zero was stored).
     """
     at: dict[str, float] = {}
-    for name, offset in offsets_rad.items():
+    # in the profile's order, whatever the caller's: the joints already moved load the next one (a shoulder's
+    # deflection at its zero depends on where the elbow is), so another order stores other zeros
+    for name in [n for n in section.joint_names if n in offsets_rad]:
+        offset = offsets_rad[name]
         aj = section.joint(name)
         assert aj is not None
         d = drivers[name]
