@@ -380,22 +380,20 @@ def _wait_for_phase(
     return alive()
 
 
+_ONE_SIGNAL = {"sigint": signal.SIGINT, "sigterm": signal.SIGTERM, "sighup": signal.SIGHUP}
+"""The faults that are one signal robocal can act on (its signal state is noted for the report)."""
+
+
 def _inject(proc: subprocess.Popen[str], sim: _Sim, fault: str, rng: random.Random) -> None:
     pid = proc.pid
     with _suppress():
-        if fault == "sigint":
-            os.kill(pid, signal.SIGINT)
+        if fault in _ONE_SIGNAL:
+            os.kill(pid, _ONE_SIGNAL[fault])
             note_signal_state(pid)
         elif fault == "double-sigint":
             os.kill(pid, signal.SIGINT)
             time.sleep(rng.uniform(0.02, 0.3))
             os.kill(pid, signal.SIGINT)
-        elif fault == "sigterm":
-            os.kill(pid, signal.SIGTERM)
-            note_signal_state(pid)
-        elif fault == "sighup":
-            os.kill(pid, signal.SIGHUP)
-            note_signal_state(pid)
         elif fault == "sigkill":
             os.kill(pid, signal.SIGKILL)
         elif fault == "cpu-stall":
