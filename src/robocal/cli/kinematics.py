@@ -372,21 +372,20 @@ def record(
     kind = kind.strip().lower()
     from ..workflows.kinematics.record_arm import ArmSource, check_session, open_reader
 
-    check_session(kind, out)  # before the port opens: a LeRobot arm goes limp then
-    reader, chain = open_reader(
-        ArmSource(
-            urdf=urdf,
-            base_link=base_link,
-            tip_link=tip_link,
-            lerobot_port=lerobot_port,
-            robot=robot,
-            robot_id=robot_id,
-            calibration_dir=calibration_dir,
-            calibration_file=file,
-            source=source,
-            joint_map=joint_map,
-        )
+    arm = ArmSource(
+        urdf=urdf,
+        base_link=base_link,
+        tip_link=tip_link,
+        lerobot_port=lerobot_port,
+        robot=robot,
+        robot_id=robot_id,
+        calibration_dir=calibration_dir,
+        calibration_file=file,
+        source=source,
+        joint_map=joint_map,
     )
+    check_session(kind, out, arm, plan)  # before the port opens: a LeRobot arm goes limp then
+    reader, chain = open_reader(arm)
     try:
         targets: FloatArray | None = None
         labels: tuple[str, ...] = ()

@@ -438,9 +438,10 @@ def export_urdf(
 ) -> None:
     """Write the exact per-joint q_urdf = sign·q + offset map of the DEGREES joints."""
     from ..core.lerobot import parse_compat
-    from ..workflows.lerobot import export_joint_map, write_joint_map
+    from ..workflows.lerobot import check_joint_map_out, export_joint_map, write_joint_map
 
     compat_mode = parse_compat(compat)
+    check_joint_map_out(out, file)
     signs = _common.parse_typed_assignments(sign, "--sign", int, "expected -1 or 1")
     offsets = _common.parse_typed_assignments(
         offset_deg, "--offset-deg", float, "expected a number of degrees"

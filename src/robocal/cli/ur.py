@@ -94,6 +94,9 @@ def correct(
     from ..workflows.ur import job as wf
 
     input_warnings: list[str] = []
+    for path, what in ((out, "--out"), (urdf_out, "--urdf-out")):
+        if path is not None:
+            wf.check_out_path(path, what, {"--dh": dh, "--deltas": deltas})
     params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
     replaced = out.is_file()
     result = wf.correct(
@@ -247,6 +250,7 @@ def plot(
     from ..workflows.ur import job as wf
 
     input_warnings: list[str] = []
+    wf.check_out_path(out, "--out", {"--dh": dh, "--deltas": deltas})
     params = wf.load_dh_input(dh, model, deltas, warnings=input_warnings)
     console.print(f"wrote {wf.plot(params, out)}")
     raise typer.Exit(print_warnings(input_warnings))

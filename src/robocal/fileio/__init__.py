@@ -28,7 +28,7 @@ one while reading a :class:`~robocal.errors.FileFormatError`.
 from __future__ import annotations
 
 from ._paths import BACKUP_GENERATIONS, backup_path, backup_paths
-from .preflight import OutputTarget, check_output_path, preflight_output
+from .preflight import OutputTarget, check_not_an_input, check_output_path, preflight_output
 from .read import MAX_DOCUMENT_BYTES, MAX_FILE_BYTES, MAX_URDF_BYTES, read_bytes, read_text
 from .write import (
     WriteResult,
@@ -52,6 +52,7 @@ __all__ = [
     "atomic_write_text",
     "backup_path",
     "backup_paths",
+    "check_not_an_input",
     "check_output_path",
     "files_written",
     "preflight_output",

@@ -10,13 +10,14 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import FileWriteError
 from ._paths import TMP_NAME_BYTES, TMP_SUFFIX, PathLike, encoded, name_max, parent_of, path_max, tmp_prefix
 
-__all__ = ["OutputTarget", "check_output_path", "preflight_output"]
+__all__ = ["OutputTarget", "check_not_an_input", "check_output_path", "preflight_output"]
 
 _MAX_LINKS = 40  # like the kernel's ELOOP limit
 
@@ -158,7 +159,12 @@ def preflight_output(
 
 
 def check_output_path(
-    path: PathLike, what: str = "output", *, size_hint: int = 0, create_dirs: bool = False
+    path: PathLike,
+    what: str = "output",
+    *,
+    size_hint: int = 0,
+    create_dirs: bool = False,
+    inputs: Mapping[str, PathLike | None] | None = None,
 ) -> Path:
     """Refuse, before any work is done, an output file that cannot be written (see :func:`preflight_output`).
 
@@ -167,15 +173,49 @@ def check_output_path(
         what: How the message names it (e.g. ``"--out"``).
         size_hint: Expected size of the new file, bytes (0 when unknown).
         create_dirs: Missing folders will be created by the writer.
+        inputs: The command's inputs by how the message names them (``{"the dataset": root, "--urdf": urdf}``;
+            ``None`` values are skipped): the output may be none of these files and lie in none of these folders
+            (see :func:`check_not_an_input`).
 
     Returns:
         The path as given.
 
     Raises:
         FileWriteError: The folder is missing or not writable, the path is a directory, a name is too long,
-            the disk is full... (a ``UsageError``: exit 2, nothing written).
+            the disk is full, the path is an input or inside an input folder... (a ``UsageError``: exit 2,
+            nothing written).
     """
+    if inputs:
+        check_not_an_input(path, what, inputs)
     return preflight_output(path, what, size_hint=size_hint, create_dirs=create_dirs).path
+
+
+def check_not_an_input(path: PathLike, what: str, inputs: Mapping[str, PathLike | None]) -> None:
+    """Refuse an output that would replace one of the command's inputs or write into an input folder.
+
+    Paths are compared after symbolic links are followed (a link to the input is the input). Writing over an
+    input keeps a ``.bak``, but the command would have read one file and left another: a report written over the
+    calibration file it checked, a picture inside the dataset it read (the dataset is then another dataset).
+
+    Args:
+        path: The output file.
+        what: How the message names it.
+        inputs: Input files and folders by how the message names them (``None`` values are skipped).
+
+    Raises:
+        FileWriteError: Naming the output and the input (a ``UsageError``: exit 2).
+    """
+    out = Path(os.path.realpath(path))
+    for name, given in inputs.items():
+        if given is None:
+            continue
+        real = Path(os.path.realpath(given))
+        if out == real:
+            raise FileWriteError(f"{what} {path}: is {name} ({given}); give the output its own path")
+        if real.is_dir() and real in out.parents:
+            raise FileWriteError(
+                f"{what} {path}: inside {name} ({given}); an output there changes the input: write it elsewhere"
+            )
 
 
 def reason(exc: OSError) -> str:

@@ -330,6 +330,14 @@ def load_profile(robot: str | os.PathLike[str]) -> RobotProfile:
     )
 
 
+def profile_file(robot: object) -> Path | None:
+    """The file ``--robot`` names when it is a profile file (what :func:`load_profile` would read), else None."""
+    if isinstance(robot, (str, os.PathLike)) and os.fspath(robot) not in builtin_profile_names():
+        path = Path(robot)
+        return path if path.is_file() else None
+    return None
+
+
 def recognise_profile(urdf: UrdfModel) -> RobotProfile | None:
     """The built-in profile whose joints are all in ``urdf`` (the one with most joints), or None.
 

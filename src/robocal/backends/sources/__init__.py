@@ -32,6 +32,7 @@ from .spec import (
     SourceSpec,
     check_replay_frame,
     parse_source,
+    recording_path,
 )
 
 __all__ = [
@@ -49,6 +50,7 @@ __all__ = [
     "check_replay_frame",
     "open_source",
     "parse_source",
+    "recording_path",
 ]
 
 

@@ -166,6 +166,13 @@ def parse_sim_options(
     return opts
 
 
+def recording_path(text: str | None) -> str | None:
+    """The file a ``replay:<file>`` source reads (an input no output may replace), else None."""
+    if text is None or not text.startswith("replay:"):
+        return None
+    return text[len("replay:") :] or None
+
+
 def parse_source(text: str) -> SourceSpec:
     """Parse a ``--source`` string.
 

@@ -307,7 +307,7 @@ def run_sweep_auto(
     from ..sweep.joint_specs import joints_from_urdf
     from ..sweep.output import check_outputs, output_format
 
-    out_path, report_path = check_outputs(out, report, fmt)
+    out_path, report_path = check_outputs(out, report, fmt, urdf=urdf_path, robot=robot)
     spec = _parse_auto_source(source) if source.startswith("sim:") else parse_source(source)
     urdf = read_urdf(urdf_path)
     gravity_model = gravity_model_if_any(urdf_path) if gravity is None else None

@@ -227,6 +227,7 @@ def run_health(request: HealthRequest) -> HealthOutcome:
         FileWriteError: The report or picture cannot be written.
     """
     from ...fileio import atomic_write_bytes, atomic_write_text, check_output_path
+    from ...formats.profiles import profile_file
 
     report_path = Path(request.report)
     if report_path.suffix.lower() != ".json":
@@ -234,8 +235,15 @@ def run_health(request: HealthRequest) -> HealthOutcome:
             f"--report {report_path}: expected a .json file (the picture goes beside it as .png)"
         )
     picture_path = report_path.with_suffix(".png")
-    check_output_path(report_path, "--report")
-    check_output_path(picture_path, "the report's picture")
+    inputs = {
+        "the dataset": request.root,
+        "--urdf": request.urdf,
+        "--leader-calibration": request.leader_calibration,
+        "--follower-calibration": request.follower_calibration,
+        "--robot": profile_file(request.robot),
+    }
+    check_output_path(report_path, "--report", inputs=inputs)
+    check_output_path(picture_path, "the report's picture", inputs=inputs)
     result, report = evaluate_health(request)
     picture = render_picture(result)
     atomic_write_text(report_path, json.dumps(report, indent=2) + "\n")

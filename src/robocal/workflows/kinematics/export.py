@@ -69,8 +69,12 @@ def check_export_paths(
     ur_yaml: str | os.PathLike[str] | None,
     joint_map: RobotCalibration | None,
     ur_hash: str | None = None,
+    inputs: Mapping[str, str | os.PathLike[str] | None] | None = None,
 ) -> ExportPaths:
     """Check the output options before anything is read or fitted.
+
+    ``inputs`` are the command's input files by option (``{"--urdf": urdf, "--data": data}``): no output may be
+    one of them.
 
     Raises:
         UsageError: An output in a missing folder, two outputs on one file, ``--joint-map-out`` without the
@@ -79,10 +83,10 @@ def check_export_paths(
     if ur_hash is not None and ur_yaml is None:
         raise UsageError("--ur-hash applies to --ur-yaml (the UR kinematics YAML the hash is written into)")
     paths = ExportPaths(
-        check_output_path(out, "--out") if out is not None else None,
-        check_output_path(report, "--report") if report is not None else None,
-        check_output_path(joint_map_out, "--joint-map-out") if joint_map_out is not None else None,
-        check_output_path(ur_yaml, "--ur-yaml") if ur_yaml is not None else None,
+        check_output_path(out, "--out", inputs=inputs) if out is not None else None,
+        check_output_path(report, "--report", inputs=inputs) if report is not None else None,
+        check_output_path(joint_map_out, "--joint-map-out", inputs=inputs) if joint_map_out is not None else None,
+        check_output_path(ur_yaml, "--ur-yaml", inputs=inputs) if ur_yaml is not None else None,
     )
     if paths.joint_map_out is not None and joint_map is None:
         raise UsageError("--joint-map-out needs the joint map the readings went through (--joint-map or --robot)")

@@ -232,7 +232,8 @@ def identify(request: IdentifyRequest) -> IdentifyResult:
     """
     r, o = request, request.outputs
     urdf, data, kind, frame, validate_data = r.urdf, r.data, r.kind, r.frame, r.validate_data
-    paths = check_export_paths(o.out, o.report, o.joint_map_out, o.ur_yaml, o.joint_map, o.ur_hash)
+    inputs = {"--urdf": urdf, "--data": data, "--validate-data": validate_data}
+    paths = check_export_paths(o.out, o.report, o.joint_map_out, o.ur_yaml, o.joint_map, o.ur_hash, inputs)
     doc = UrdfDocument.load(urdf)
     chain = chain_from_urdf(doc.model(), r.base_link, r.tip_link)
     if o.ur_yaml is not None:

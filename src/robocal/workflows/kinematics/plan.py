@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -173,8 +173,9 @@ def plan(request: PlanRequest) -> PlanResult:
     candidates, candidates_file, margin_rad, seed = r.candidates, r.candidates_file, r.margin_rad, r.seed
     prior_s = as_prior(r.prior)
     validation_poses = r.validation_poses
-    out_path = check_output_path(r.out, "--out")
-    val_path = validation_path(out_path) if validation_poses else None
+    inputs = {"--urdf": r.urdf, "--candidates-file": candidates_file}
+    out_path = check_output_path(r.out, "--out", inputs=inputs)
+    val_path = validation_path(out_path, inputs) if validation_poses else None
     chain = chain_from_urdf(UrdfDocument.load(r.urdf).model(), r.base_link, r.tip_link)
     model = ErrorModel(chain, T_tip_tool=tool_frame(r.tool_xyz_m))
     if kind != "points":
@@ -226,9 +227,10 @@ def plan(request: PlanRequest) -> PlanResult:
     )  # fmt: skip
 
 
-def validation_path(out_path: Path) -> Path:
-    """Where a plan's held-out poses go: ``poses.csv`` → ``poses_validation.csv`` (checked writable)."""
-    return check_output_path(out_path.with_name(f"{out_path.stem}_validation{out_path.suffix}"), "--out")
+def validation_path(out_path: Path, inputs: Mapping[str, str | os.PathLike[str] | None] | None = None) -> Path:
+    """Where a plan's held-out poses go: ``poses.csv`` → ``poses_validation.csv`` (checked writable, not an input)."""
+    path = out_path.with_name(f"{out_path.stem}_validation{out_path.suffix}")
+    return check_output_path(path, "--out", inputs=inputs)
 
 
 def _held_out(n_candidates: int, chosen: IntArray, n: int, seed: int) -> IntArray:

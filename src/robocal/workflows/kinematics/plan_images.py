@@ -167,7 +167,9 @@ def plan_images(request: ImagePlanRequest) -> ImagePlanResult:
         r.camera_on_tool, r.T_camera, r.T_target, r.candidates, r.candidates_file,
     )  # fmt: skip
     prior_s = as_prior(r.prior)
-    out_path = check_output_path(r.out, "--out")
+    out_path = check_output_path(
+        r.out, "--out", inputs={"--urdf": r.urdf, "--camera": r.camera, "--candidates-file": candidates_file}
+    )
     tgt = parse_target(r.target)
     cam = read_camera_info(r.camera)
     chain = chain_from_urdf(UrdfDocument.load(r.urdf).model(), r.base_link, r.tip_link)

@@ -39,17 +39,28 @@ SIM_PORT_OPTIONS = ("seed", "transport")
 """What ``--lerobot-port sim?…`` takes: the read-noise seed and ``transport=pty|inproc``."""
 
 
-def check_session(kind: str, out: str | os.PathLike[str]) -> Path:
+def check_session(
+    kind: str, out: str | os.PathLike[str], arm: ArmSource | None = None, plan: str | os.PathLike[str] | None = None
+) -> Path:
     """``--kind`` and ``--out`` of a session, checked before the arm is opened (a LeRobot arm goes limp then).
 
+    ``--out`` may be none of the session's input files (``arm``'s URDF, calibration file, joint map or replayed
+    recording, the ``plan``).
+
     Raises:
-        UsageError: An unknown kind, an output in a missing folder or on a directory.
+        UsageError: An unknown kind, an output in a missing folder, on a directory or on an input.
     """
     from ...core.kinematic_problem import ALL_KINDS, check_kind
     from ...fileio import check_output_path
 
     check_kind(kind, ALL_KINDS)
-    return check_output_path(out, "--out")
+    from ...backends.sources import recording_path
+
+    inputs = {"--plan": plan}
+    if arm is not None:
+        inputs |= {"--urdf": arm.urdf, "--file": arm.calibration_file, "--joint-map": arm.joint_map,
+                   "--source": recording_path(arm.source)}  # fmt: skip
+    return check_output_path(out, "--out", inputs=inputs)
 
 
 def lerobot_calibration_path(

@@ -90,7 +90,7 @@ def camera_calibrate(
         UsageError: Not a ChArUco board, fewer than 4 images with the board, images of different sizes.
         FileFormatError: An unreadable image.
     """
-    out_path = check_output_path(out, "--out")
+    out_path = check_output_path(out, "--out", inputs={f"image {i + 1}": p for i, p in enumerate(images)})
     target = parse_target(board, "--board")
     if target.kind != "charuco":
         raise UsageError(
@@ -259,7 +259,8 @@ def identify_images(
     r, o = request, request.outputs
     urdf, data, camera, camera_on_tool = r.urdf, r.data, r.camera, r.camera_on_tool
     refine_intrinsics = r.refine_intrinsics
-    paths = check_export_paths(o.out, o.report, o.joint_map_out, o.ur_yaml, o.joint_map, o.ur_hash)
+    inputs = {"--urdf": urdf, "--data": data, "--camera": camera}
+    paths = check_export_paths(o.out, o.report, o.joint_map_out, o.ur_yaml, o.joint_map, o.ur_hash, inputs)
     tgt = parse_target(r.target)
     cam = read_camera_info(camera)
     doc = UrdfDocument.load(urdf)

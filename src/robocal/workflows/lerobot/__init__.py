@@ -34,7 +34,7 @@ from .files import (
     read_calibration_file,
 )
 from .guard import LeftOver, find_left_over, restore_left_over
-from .joint_map import export_joint_map, write_joint_map
+from .joint_map import check_joint_map_out, export_joint_map, write_joint_map
 from .migrate import legacy_to_current, migrate_file
 from .show import read_positions, require_motors
 
@@ -54,6 +54,7 @@ __all__ = [
     "calibration_json",
     "check",
     "check_calibration_writable",
+    "check_joint_map_out",
     "clear_phase_bit4",
     "configure",
     "export_joint_map",

@@ -12,6 +12,7 @@ from ...core.lerobot import (
     RobotSpec,
 )
 from ...errors import InvalidCalibrationError, UsageError
+from ...fileio import check_output_path
 from ...formats import write_calibration
 from .arms import norm_modes
 
@@ -19,6 +20,15 @@ __all__ = [
     "export_joint_map",
     "write_joint_map",
 ]
+
+
+def check_joint_map_out(out: Path, calibration_file: Path | None) -> None:
+    """Refuse, before the calibration is read, an ``--out`` that cannot be written or is the ``--file`` it reads.
+
+    Raises:
+        FileWriteError: Naming the problem (a ``UsageError``: exit 2, nothing written).
+    """
+    check_output_path(out, "--out", inputs={"--file": calibration_file})
 
 
 def write_joint_map(out: Path, joint_map: RobotCalibration, ids: Mapping[str, int]) -> None:

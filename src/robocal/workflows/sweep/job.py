@@ -230,7 +230,9 @@ def run_sweep(
     source, topic, frame, fmt, method, max_samples = r.source, r.topic, r.frame, r.fmt, r.method, r.max_samples
     threshold_rad, span_tolerance_rad = r.threshold_rad, r.span_tolerance_rad
     # ---- validate everything before touching a device or a file (the request checked its numbers)
-    out_path, report_path = check_outputs(r.out, r.report, fmt)
+    out_path, report_path = check_outputs(
+        r.out, r.report, fmt, urdf=r.urdf_path, source=source, robot=r.robot, prior=r.prior
+    )
     spec = check_source_options(source, frame)
     if r.direction_check and spec.kind == "replay":
         raise UsageError("--direction-check needs a live or simulated source, not a replay")

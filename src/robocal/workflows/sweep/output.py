@@ -12,11 +12,12 @@ from collections.abc import Callable, Collection, Sequence
 from dataclasses import replace
 from pathlib import Path
 
-from ...backends.sources import JointSpec
+from ...backends.sources import JointSpec, recording_path
 from ...core.profile import RobotProfile
 from ...core.sweep_result import SweepResult
 from ...errors import CalibError, UsageError
 from ...fileio import check_output_path
+from ...formats.profiles import profile_file
 
 __all__ = [
     "CONFIRM_CODES",
@@ -35,23 +36,35 @@ OUTPUT_FORMATS = ("lite-yaml", "lite-json", "berkeley-offsets", "openarm-lerobot
 
 
 def check_outputs(
-    out: str | Path, report: str | Path | None, fmt: str | None
+    out: str | Path,
+    report: str | Path | None,
+    fmt: str | None,
+    *,
+    urdf: str | Path | None = None,
+    source: str | None = None,
+    robot: object = None,
+    prior: str | Path | None = None,
 ) -> tuple[Path, Path | None]:
     """Refuse, before the sweep starts, outputs the end of the sweep could not write (a real probe of each).
+
+    Neither output may be one of the sweep's inputs (the URDF, a ``replay:`` recording, a profile file; the report
+    not ``--prior`` either): ``--out`` is the one file a sweep updates in place.
 
     Returns:
         ``(out_path, report_path)``.
 
     Raises:
-        UsageError: ``fmt`` not in :data:`OUTPUT_FORMATS`, an output not writable, or ``--report`` is ``--out``.
+        UsageError: ``fmt`` not in :data:`OUTPUT_FORMATS`, an output not writable or an input, or ``--report`` is
+            ``--out``.
     """
     out_path = Path(out)
     if fmt is not None and fmt not in OUTPUT_FORMATS:
         raise UsageError(f"--format {fmt!r}: expected one of {', '.join(OUTPUT_FORMATS)}")
-    check_output_path(out_path, "--out")
+    inputs = {"--urdf": urdf, "--source": recording_path(source), "--robot": profile_file(robot)}
+    check_output_path(out_path, "--out", inputs=inputs)
     report_path = Path(report) if report is not None else None
     if report_path is not None:
-        check_output_path(report_path, "--report")
+        check_output_path(report_path, "--report", inputs={**inputs, "--prior": prior})
         if report_path.resolve() == out_path.resolve():
             raise UsageError(f"--report {report_path}: is the same file as --out")
     return out_path, report_path

@@ -8,6 +8,7 @@ against the DH model is :mod:`robocal.workflows.ur.verify`.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,9 +79,13 @@ class CorrectionResult:
         return deviation_from_nominal(self.kinematics)
 
 
-def check_out_path(path: str | os.PathLike[str], what: str = "--out") -> Path:
-    """Refuse an output path whose folder does not exist or that is a directory (exit 2, nothing written)."""
-    return check_output_path(path, what)
+def check_out_path(
+    path: str | os.PathLike[str],
+    what: str = "--out",
+    inputs: Mapping[str, str | os.PathLike[str] | None] | None = None,
+) -> Path:
+    """Refuse an output path whose folder does not exist, that is a directory or one of ``inputs`` (exit 2)."""
+    return check_output_path(path, what, inputs=inputs)
 
 
 def load_dh_input(
@@ -123,6 +128,7 @@ def _check_urdf_pair(
     if (urdf_in is None) != (urdf_out is None):
         raise UsageError("--urdf-in and --urdf-out must be given together")
     if urdf_in is not None and urdf_out is not None:
+        check_out_path(out, "--out", {"--urdf-in": urdf_in})
         check_out_path(urdf_out, "--urdf-out")
         if Path(urdf_out).resolve() == Path(out).resolve():
             raise UsageError(f"--urdf-out {urdf_out} is the same file as --out; give the URDF its own path")
