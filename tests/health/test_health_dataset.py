@@ -225,6 +225,29 @@ def test_degenerate_dataset_exits_2_with_one_error_line(
     assert not report.exists() and not report.with_suffix(".png").exists()
 
 
+def test_values_no_lerobot_arm_records_flag_the_joint_with_no_offset(
+    small: TeleopSession, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, a leader column scaled by 1e30 (a corrupted value, another unit) was ``unobservable`` with a "model
+    band" of 1.9e31° and exit 0: nothing flagged on numbers that are no reading of the joint."""
+    action, state = small.action_deg.copy(), small.state_deg.copy()
+    action[0, :, 0] *= 1e30  # (episode, frame, joint): shoulder_pan's leader
+    state[0, 7, 3] = 400.0  # one follower frame of wrist_flex beyond a turn
+    root = _write(TeleopSession(small.arm, small.fps, action, state, small.faults), tmp_path / "ds")
+    report = tmp_path / "h.json"
+    code, _, err = run(capsys, "dataset", "health", root, "--robot", "so101_follower", "--report", report)
+    assert code == 1
+    joints = json.loads(report.read_text())["joints"]
+    pan, wrist = joints["shoulder_pan"], joints["wrist_flex"]
+    assert (pan["status"], pan["offset_deg"], pan["ci_deg"]) == ("suspect", None, None)
+    assert pan["reasons"][0].startswith("action (the leader) reads ") and "60 frame(s) outside -360..360" in pan[
+        "reasons"][0]  # fmt: skip
+    assert (wrist["status"], wrist["offset_deg"]) == ("suspect", None)
+    assert wrist["reasons"][0].startswith("observation.state (the follower) reads 400 in frame 7 (episode 0), 1 frame")
+    assert {n for n, j in joints.items() if j["status"] == "suspect"} == {"shoulder_pan", "wrist_flex"}
+    assert "shoulder_pan: suspect: action (the leader) reads" in err
+
+
 def test_report_must_be_json(
     small: TeleopSession, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

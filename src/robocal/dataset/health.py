@@ -202,6 +202,29 @@ def _to_degrees(
     return deg, np.sort(ends * scale, axis=0)
 
 
+_UNIT_BOUNDS = {"degrees": (-360.0, 360.0), "range_m100_100": (-100.0, 100.0), "range_0_100": (0.0, 100.0)}
+"""What a LeRobot arm can record in each unit: degrees about the recorded middle stay within one turn of it; the
+range modes are clamped to their ends."""
+
+
+def _impossible(unit: str, action: FloatArray, state: FloatArray, episode: IntArray) -> str | None:
+    """A reason when one of the arms records a value its units cannot hold (a corrupted value, another unit)."""
+    if unit not in _UNIT_BOUNDS:
+        return None
+    lo, hi = _UNIT_BOUNDS[unit]
+    tol = 1e-3 * (hi - lo)
+    for feature, arm, v in (("action", "leader", action), ("observation.state", "follower", state)):
+        bad = np.flatnonzero((v < lo - tol) | (v > hi + tol))
+        if bad.size:
+            i = int(bad[0])
+            return (
+                f"{feature} (the {arm}) reads {v[i]:.6g} in frame {i} (episode {int(episode[i])}), {bad.size} "
+                f"frame(s) outside {lo:g}..{hi:g}, all a LeRobot arm records in {unit}: not a reading of this "
+                "joint (a corrupted value or another unit); no offset is estimated"
+            )
+    return None
+
+
 def _stop_readings(stop_deg: tuple[float, float] | None, units: str, upd: float) -> tuple[float, float]:
     """The readings a correct calibration gives at the stops, in the check's units (NaN: no stops)."""
     if stop_deg is None:
@@ -229,6 +252,7 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
     upd = [setup.units_per_deg.get(j, math.nan) for j in joints]
     stops: list[tuple[float, float] | None] = [setup.stop_deg.get(j) for j in joints]
     notes: list[list[str]] = [[] for _ in joints]  # flag the joint (suspect)
+    impossible = [_impossible(units[k], action[:, k], state[:, k], fr.episode) for k in range(len(joints))]
     info: list[list[str]] = [[] for _ in joints]  # said, not flagged
     if setup.leader is not None and setup.follower is not None:
         action, lead_ends = _to_degrees(setup.leader, joints, action)
@@ -273,7 +297,11 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
         episodes = episode_verdicts(data, h.band, cfg, h.end_bands, h.raw_caps)
         drift = drift_reason(episodes, h.band, cfg or HealthConfig(), u)
         extra = [*notes[k], *([drift] if drift else [])]
-        if extra:
+        bad = impossible[k]
+        if bad is not None:  # the numbers above are not of this joint: no offset from them
+            extra.insert(0, bad)
+            h = replace(h, status="suspect", offset=None, ci=None, reasons=(bad, *h.reasons, *extra[1:]))
+        elif extra:
             status = h.status if h.status == "offset" else "suspect"
             h = replace(h, status=status, reasons=(*h.reasons, *extra))
         if info[k]:
