@@ -107,6 +107,35 @@ def test_slip_located_to_its_episode(
     assert [len(e["jumps"]) for e in joint["episodes"]] == [0, 1, 0]
 
 
+@pytest.mark.slow
+def test_range_modes_clamp_like_lerobot_so_a_leader_offset_never_presses_the_follower(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """LeRobot clamps a range-mode value to the calibrated range on reading an arm and on making the goal. Before,
+    the simulator wrote a −17° leader offset as values down to −117 and drove the follower 17° into its stop, which no
+    LeRobot session does, and the check found the offset from that. Clamped, the follower's goal never passes its
+    stop: the offset is `unobservable` in range_m100_100 (in degrees the same session presses and is flagged)."""
+    fault = TeleopFaults(offset_joint="elbow_flex", offset_deg=-17.0, offset_arm="leader")
+    kw = {"episodes": 3, "episode_s": 8.0, "p_end": 1.0}
+    (ranged,) = generate_teleop_datasets(tmp_path / "range", "koch", [25], [fault], use_degrees=False, **kw)
+    (degrees,) = generate_teleop_datasets(tmp_path / "deg", "koch", [25], [fault], use_degrees=True, **kw)
+    table = pq.read_table(ranged / "data/chunk-000/file-000.parquet")
+    action = np.asarray(table.column("action").to_pylist())
+    state = np.asarray(table.column("observation.state").to_pylist())
+    k = TELEOP_ARMS["koch"].joints.index("elbow_flex")
+    assert action[:, k].min() == pytest.approx(-100.0, abs=1e-4) and np.abs(action).max() <= 100.0 + 1e-4
+    assert np.abs(state).max() <= 100.0 + 1e-4 and state[:, -1].min() >= 0.0  # gripper range_0_100
+    assert _truth(ranged)["joints"]["elbow_flex"]["pin_depth_deg"] == 0.0  # type: ignore[index]
+    assert _truth(degrees)["joints"]["elbow_flex"]["pin_depth_deg"] > 10.0  # type: ignore[index]
+    report = tmp_path / "h.json"
+    run(capsys, "dataset", "health", ranged, "--report", report)
+    assert json.loads(report.read_text())["joints"]["elbow_flex"]["status"] == "unobservable"
+    code, _, _ = run(capsys, "dataset", "health", degrees, "--report", report, "--use-degrees")
+    joint = json.loads(report.read_text())["joints"]["elbow_flex"]
+    lo, hi = joint["ci_deg"]  # offset = follower − leader = +17°
+    assert (code, joint["status"]) == (1, "offset") and lo - 0.5 <= 17.0 <= hi + 0.5, joint["ci_deg"]
+
+
 def _koch_calibration(path: Path, widen_deg: float = 0.0) -> None:
     arm = TELEOP_ARMS["koch"]
     cals = {}

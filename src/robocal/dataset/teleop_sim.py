@@ -64,7 +64,11 @@ def arm_gravity(arm: TeleopArm) -> GravityFn | None:
 
 
 def to_values(arm: TeleopArm, deg: FloatArray, use_degrees: bool) -> FloatArray:
-    """Degrees ``(..., J)`` → the dataset's values (degrees, or a range mode scaled on the profile's stops)."""
+    """Degrees ``(..., J)`` → the dataset's values (degrees, or a range mode scaled on the profile's stops).
+
+    A range mode's value is clamped to its ends, as LeRobot's normalisation does (a session simulated with these
+    modes already is: :func:`~robocal.backends.sim.teleop.simulate_sessions`).
+    """
     modes = arm.modes if use_degrees else arm.range_modes
     out = np.array(deg, dtype=np.float64)
     for j, mode in enumerate(modes):
@@ -72,9 +76,9 @@ def to_values(arm: TeleopArm, deg: FloatArray, use_degrees: bool) -> FloatArray:
         if not math.isfinite(lo):
             lo, hi = -180.0, 180.0
         if mode == "range_0_100":
-            out[..., j] = (deg[..., j] - lo) / (hi - lo) * 100.0
+            out[..., j] = np.clip((deg[..., j] - lo) / (hi - lo) * 100.0, 0.0, 100.0)
         elif mode == "range_m100_100":
-            out[..., j] = (deg[..., j] - 0.5 * (lo + hi)) / (0.5 * (hi - lo)) * 100.0
+            out[..., j] = np.clip((deg[..., j] - 0.5 * (lo + hi)) / (0.5 * (hi - lo)) * 100.0, -100.0, 100.0)
     return out
 
 
@@ -187,6 +191,7 @@ def generate_teleop_datasets(
         episodes=episodes,
         episode_s=episode_s,
         p_end=p_end,
+        modes=arm.modes if use_degrees else arm.range_modes,
     )
     base = Path(folder)
     base.mkdir(parents=True, exist_ok=True)

@@ -36,6 +36,7 @@ __all__ = [
     "TeleopFaults",
     "TeleopJointTruth",
     "TeleopSession",
+    "clamp_bounds_deg",
     "simulate_sessions",
 ]
 
@@ -299,6 +300,25 @@ def _held_deg(stop_nm: FloatArray, kp_nm_rad: FloatArray, frames: int) -> tuple[
     return out[0], out[1]
 
 
+def clamp_bounds_deg(arm: TeleopArm, modes: tuple[str, ...]) -> tuple[FloatArray, FloatArray]:
+    """Per joint, the readings (degrees, each arm's own frame) LeRobot clamps a value to in ``modes``.
+
+    A range mode clamps to the calibrated range (the profile's stops; a full-turn joint ±180°), degrees do not
+    (±inf).
+
+    Raises:
+        ValueError: ``modes`` is not one mode per joint.
+    """
+    if len(modes) != len(arm.joints):
+        raise ValueError(f"{len(modes)} modes for the {len(arm.joints)} joints of {arm.name}")
+    lo, hi = np.full(len(modes), -_INF), np.full(len(modes), _INF)
+    for j, mode in enumerate(modes):
+        if mode.startswith("range_"):
+            finite = math.isfinite(arm.stop_lo_deg[j])
+            lo[j], hi[j] = (arm.stop_lo_deg[j], arm.stop_hi_deg[j]) if finite else (-180.0, 180.0)
+    return lo, hi
+
+
 def simulate_sessions(
     arm: TeleopArm,
     seeds: list[int],
@@ -309,8 +329,15 @@ def simulate_sessions(
     episode_s: float = 15.0,
     fps: float = 30.0,
     p_end: float = 0.35,
+    modes: tuple[str, ...] | None = None,
 ) -> list[TeleopSession]:
     """Simulate one session per seed (all sessions integrated together, one lane per episode).
+
+    LeRobot clamps a value in a range mode (``range_m100_100``, ``range_0_100``) to the calibrated range, both when
+    it reads an arm and when it turns the action into the follower's goal. The calibrated range is the profile's
+    stops in each arm's own reading frame (a full-turn joint: ±180° about its middle), so in those modes the
+    leader's number, the follower's goal and the follower's reading never pass them: a leader-side offset then
+    never drives the follower into its stop. Degrees are not clamped.
 
     Args:
         arm: The pair.
@@ -322,6 +349,8 @@ def simulate_sessions(
         episode_s: Length of an episode.
         fps: Frames per second.
         p_end: Chance that an episode takes a joint to or near a range end.
+        modes: LeRobot's normalisation mode per joint of the dataset to be written (default ``arm.modes``, the
+            modes with ``use_degrees``).
 
     Returns:
         The sessions, in the order of ``seeds``.
@@ -354,6 +383,8 @@ def simulate_sessions(
     ef_all = np.repeat(np.stack(e_foll), episodes, axis=0)[:, None, :] + np.concatenate(slips)
     rng_all = np.random.default_rng(seeds[0] if seeds else 0)
     action = _quantise_deg(lead + el_all + rng_all.normal(0.0, 0.02, lead.shape))
+    clamp_lo, clamp_hi = clamp_bounds_deg(arm, arm.modes if modes is None else modes)
+    action = np.clip(action, clamp_lo, clamp_hi)  # the leader's number, and so the follower's goal
     # the follower's goal in its true frame: the leader's number minus the follower's own offset
     goal_rad = np.radians(action - ef_all)
     # each episode starts with the follower settled on its first goal (a second of holding, then cut)
@@ -370,7 +401,7 @@ def simulate_sessions(
         q0_rad=goal_rad[:, 0, :],
         stop_torque_out=stop_nm,
     )[:, settle:, :]
-    state = np.degrees(q_f) + ef_all
+    state = np.clip(np.degrees(q_f) + ef_all, clamp_lo, clamp_hi)
     span = np.degrees(2.0 * plant.stiction_nm / plant.kp_nm_rad)
     held_lo, held_hi = _held_deg(stop_nm[:, settle:, :], np.asarray(arm.kp_nm_rad), round(0.2 * fps))
     sessions = []
