@@ -21,7 +21,9 @@ offset-free sessions; and for every session the sag fit's 99 % interval is check
 offset. With calibration files (``HEALTH_FILES=0`` to skip): the offset-free, 5° and 17° sessions are checked
 again with the two arms' LeRobot calibrations the generator writes (:mod:`robocal.dataset.teleop_calibration`: an
 offset made by a range recorded short at one end), counting the offset joint flagged (``offset`` or ``suspect``)
-and named, and the offset-free sessions flagged.
+and named, and the offset-free sessions flagged. ``HEALTH_RANGE_SEEDS=N`` (default 0: skipped) adds N Koch
+sessions (seeds 30000…, every fourth offset-free, the others a 5° offset on a random joint with stops, arm and sign)
+written both in ``range_m100_100`` (LeRobot's clamps) and in degrees, flagged and named per arm and case.
 """
 
 from __future__ import annotations
@@ -316,6 +318,50 @@ def evaluate_sag(robot: str, n: int, folder: Path) -> None:
     print(f"offset-free sessions flagged: {_rate(*clean)}")
 
 
+def range_faults(seed: int) -> TeleopFaults:
+    """Session ``seed`` of the range-mode set: every fourth offset-free, the others a 5° offset (drawn)."""
+    arm = TELEOP_ARMS["koch"]
+    rng = np.random.default_rng(seed)
+    if seed % 4 == 0:
+        return TeleopFaults()
+    with_stops = [j for j, lo in zip(arm.joints[:5], arm.stop_lo_deg[:5], strict=True) if np.isfinite(lo)]
+    return TeleopFaults(
+        offset_joint=str(rng.choice(with_stops)),
+        offset_deg=5.0 * float(rng.choice([-1.0, 1.0])),
+        offset_arm=str(rng.choice(["leader", "follower"])),
+    )
+
+
+def evaluate_range_modes(n: int, folder: Path) -> None:
+    """Koch sessions in ``range_m100_100`` and in degrees: what LeRobot's clamp leaves the data able to show."""
+    seeds = list(range(30000, 30000 + n))
+    faults = [range_faults(s) for s in seeds]
+    for mode in ("range_m100_100", "degrees"):
+        t0 = time.perf_counter()
+        degrees = mode == "degrees"
+        roots = generate_teleop_datasets(folder / mode, "koch", seeds, faults, use_degrees=degrees)
+        reports = health_with_datatrove(roots, folder / mode / "reports", use_degrees=degrees, tasks=2, workers=2)
+        tally: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0, 0])
+        clean = [0, 0]
+        for root, rep_path, f in zip(roots, reports, faults, strict=True):
+            rep = json.loads(rep_path.read_text())
+            if f.offset_joint is None:
+                clean[0] += bool(rep["flagged"])
+                clean[1] += 1
+                continue
+            truth = json.loads(root.with_name(root.name + ".truth.json").read_text())["joints"][f.offset_joint]
+            t = tally[(f.offset_arm, contact_case(truth, truth["offset_deg"]))]
+            t[0] += rep["joints"][f.offset_joint]["status"] in ("offset", "suspect") and rep["flagged"] == [
+                f.offset_joint
+            ]
+            t[1] += 1
+            t[2] += rep["joints"][f.offset_joint]["status"] == "ok"
+        print(f"\n-- koch, 5° offsets recorded in {mode} ({len(seeds)} sessions, {time.perf_counter() - t0:.0f} s) --")
+        for (arm, case), (hit, total, ok) in sorted(tally.items()):
+            print(f"{arm:9s} {case:11s} flagged and named {_rate(hit, total):>14s}  ok (wrong) {ok}")
+        print(f"offset-free sessions flagged: {_rate(*clean)}")
+
+
 def main() -> None:
     n = int(os.environ.get("HEALTH_SEEDS", "200"))
     robots = [r for r in os.environ.get("HEALTH_ROBOTS", "so101,koch").split(",") if r]
@@ -326,6 +372,9 @@ def main() -> None:
             print_score(robot, evaluate(robot, list(range(n)), folder / robot))
             if robot == "so101" and n_sag > 0:  # the robot whose URDF has masses
                 evaluate_sag(robot, n_sag, folder / f"{robot}-sag")
+        n_range = int(os.environ.get("HEALTH_RANGE_SEEDS", "0"))
+        if n_range > 0:
+            evaluate_range_modes(n_range, folder / "koch-range")
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
