@@ -20,36 +20,32 @@ correctly but whose horn slipped later, have offsets the files cannot show.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
-import numpy as np
-
-from ..backends.sim.teleop import TeleopSession
+from ..backends.sim.teleop import SCATTER_DEG, TELEOP_ARMS, TeleopSession
+from ..core.arrays import FloatArray
 from ..core.lerobot.calibration import MotorCalibration
 from ..formats.lerobot import write_current
 
-__all__ = ["FULL_TURN", "calibration_pair", "write_calibration_pair"]
+__all__ = ["FULL_TURN", "SCATTER_DEG", "calibration_pair", "write_calibration_pair"]
 
-FULL_TURN: dict[str, tuple[str, ...]] = {"so101": ("wrist_roll",), "koch": ("shoulder_pan", "wrist_roll")}
+FULL_TURN: dict[str, tuple[str, ...]] = {name: arm.full_turn for name, arm in TELEOP_ARMS.items()}
 """LeRobot's full-turn motors per simulated pair (recorded ``0..4095``)."""
 
 _TICKS_PER_DEG = 4095 / 360
 """LeRobot's DEGREES scale (``resolution − 1`` ticks per turn)."""
 _MIDDLE = 2047
 """Where the middle of the range reads (LeRobot homes the middle pose to half a turn)."""
-SCATTER_DEG = 1.5
-"""The largest hand scatter of a recorded range end short of its stop, degrees."""
 
 
 def _arm_files(
-    session: TeleopSession, arm_offsets: dict[str, float], rng: np.random.Generator
+    session: TeleopSession, arm_offsets: dict[str, float], scatter_deg: FloatArray
 ) -> dict[str, MotorCalibration]:
     arm = session.arm
     out: dict[str, MotorCalibration] = {}
     for k, name in enumerate(arm.joints):
         lo, hi = arm.stop_lo_deg[k], arm.stop_hi_deg[k]
-        if name in FULL_TURN.get(arm.name, ()) or not math.isfinite(lo):
+        if not arm.recorded(k):
             out[name] = MotorCalibration(k + 1, 0, 0, 0, 4095)
             continue
         if arm.modes[k] != "degrees":  # the gripper: its values assume the profile's stops
@@ -58,7 +54,7 @@ def _arm_files(
             )
             continue
         e = arm_offsets.get(name, 0.0)
-        x = float(rng.uniform(0.0, SCATTER_DEG))
+        x = float(scatter_deg[k])
         s_lo = x + (2.0 * -e if e < 0 else 0.0)
         s_hi = x + (2.0 * e if e > 0 else 0.0)
         # present = middle + (true + e)·ticks/deg, the dataset's value (the simulated stops are symmetric about
@@ -69,14 +65,14 @@ def _arm_files(
     return out
 
 
-def calibration_pair(
-    session: TeleopSession, rng: np.random.Generator
-) -> tuple[dict[str, MotorCalibration], dict[str, MotorCalibration]]:
+def calibration_pair(session: TeleopSession) -> tuple[dict[str, MotorCalibration], dict[str, MotorCalibration]]:
     """The leader's and the follower's LeRobot calibrations that produce the session's injected offset.
+
+    The hand scatter is the session's (:meth:`~robocal.backends.sim.teleop.TeleopSession.scatter`): the follower's
+    file holds the position limits its simulated servo enforced.
 
     Args:
         session: A simulated session (its ``faults.offset_*`` say which arm and joint is off, and by how much).
-        rng: The hand scatter's random numbers.
 
     Returns:
         ``(leader, follower)``: motor → calibration (Feetech / Dynamixel alike: homing 0, drive mode 0).
@@ -86,7 +82,8 @@ def calibration_pair(
     foll: dict[str, float] = {}
     if f.offset_joint is not None:
         (lead if f.offset_arm == "leader" else foll)[f.offset_joint] = f.offset_deg
-    return _arm_files(session, lead, rng), _arm_files(session, foll, rng)
+    x_lead, x_foll = session.scatter()
+    return _arm_files(session, lead, x_lead), _arm_files(session, foll, x_foll)
 
 
 def write_calibration_pair(session: TeleopSession, root: str | Path) -> tuple[Path, Path]:
@@ -95,7 +92,7 @@ def write_calibration_pair(session: TeleopSession, root: str | Path) -> tuple[Pa
     The scatter is seeded from the session's seed, so a root's files are the same on every run.
     """
     r = Path(root)
-    leader, follower = calibration_pair(session, np.random.default_rng(90_000 + session.seed))
+    leader, follower = calibration_pair(session)
     paths = (r.with_name(r.name + ".leader.json"), r.with_name(r.name + ".follower.json"))
     write_current(paths[0], leader)
     write_current(paths[1], follower)

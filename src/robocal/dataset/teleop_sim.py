@@ -154,6 +154,7 @@ def generate_teleop_datasets(
     episode_s: float = 15.0,
     p_end: float = 0.35,
     calibration_files: bool = False,
+    goal_limits: bool = False,
 ) -> list[Path]:
     """Simulate and write one dataset per seed as ``folder/<robot>-<seed>`` (+ ``.truth.json``).
 
@@ -168,6 +169,8 @@ def generate_teleop_datasets(
         p_end: Chance per episode and joint of a visit to (or near) a range end.
         calibration_files: Also write the two arms' LeRobot calibrations that make the injected offset,
             ``ROOT.leader.json`` and ``ROOT.follower.json`` (:mod:`.teleop_calibration`; degrees only).
+        goal_limits: The follower's servo clamps its goal to its recorded range as a real SO-101's does
+            (:func:`~robocal.backends.sim.teleop.simulate_sessions`; the check does not model it yet).
 
     Returns:
         The dataset roots.
@@ -192,6 +195,7 @@ def generate_teleop_datasets(
         episode_s=episode_s,
         p_end=p_end,
         modes=arm.modes if use_degrees else arm.range_modes,
+        goal_limits=goal_limits,
     )
     base = Path(folder)
     base.mkdir(parents=True, exist_ok=True)

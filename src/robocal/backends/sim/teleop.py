@@ -31,12 +31,15 @@ from ..servo_ratings import RATINGS
 from .teleop_plant import GravityFn, PlantArrays, simulate_tracking
 
 __all__ = [
+    "SCATTER_DEG",
     "TELEOP_ARMS",
     "TeleopArm",
     "TeleopFaults",
     "TeleopJointTruth",
     "TeleopSession",
     "clamp_bounds_deg",
+    "goal_limits_deg",
+    "hand_scatter_deg",
     "simulate_sessions",
 ]
 
@@ -61,6 +64,10 @@ class TeleopArm:
             speed (STS3215 1.91 N·m / 4.7 rad/s; XL430 1.5 / 6.0; XL330-M288 0.52 / 10.8).
         modes: LeRobot normalisation mode per joint (with degrees).
         range_modes: Modes without ``use_degrees`` (LeRobot's default for Koch).
+        full_turn: Joints LeRobot records as a whole turn (``0..4095``: no range, no limits).
+        goal_limited: The follower's servo clamps its goal to the recorded range (Feetech STS3215 in position
+            mode: LeRobot writes ``range_min``/``range_max`` to ``Min/Max_Position_Limit``); a Dynamixel in
+            extended position mode (Koch) does not enforce them.
     """
 
     name: str
@@ -75,6 +82,12 @@ class TeleopArm:
     back_emf_nms_rad: tuple[float, ...]
     modes: tuple[str, ...]
     range_modes: tuple[str, ...]
+    full_turn: tuple[str, ...] = ()
+    goal_limited: bool = False
+
+    def recorded(self, j: int) -> bool:
+        """Joint ``j`` has a recorded range between stops (not a full turn, not stop-free)."""
+        return self.joints[j] not in self.full_turn and math.isfinite(self.stop_lo_deg[j])
 
     def plant(self) -> PlantArrays:
         """The follower's physics as arrays (printed-arm friction, 300 N·m/rad stops, 0.2° backlash)."""
@@ -133,6 +146,8 @@ TELEOP_ARMS: dict[str, TeleopArm] = {
         back_emf_nms_rad=(1.91 / 4.7,) * 6,
         modes=("degrees",) * 5 + ("range_0_100",),
         range_modes=("range_m100_100",) * 5 + ("range_0_100",),
+        full_turn=("wrist_roll",),
+        goal_limited=True,
     ),
     "koch": TeleopArm(
         name="koch",
@@ -147,10 +162,34 @@ TELEOP_ARMS: dict[str, TeleopArm] = {
         back_emf_nms_rad=(1.5 / 6.0, 1.5 / 6.0) + (0.52 / 10.8,) * 4,
         modes=("degrees",) * 5 + ("range_0_100",),
         range_modes=("range_m100_100",) * 5 + ("range_0_100",),
+        full_turn=("shoulder_pan", "wrist_roll"),
     ),
 }
 """The simulated pairs. SO-101 stops: ``so101_follower.yaml``; Koch: ``koch_follower.yaml`` (pan and wrist roll
-turn fully: no stops). Koch gravity amplitudes are assumptions (its URDF carries no masses)."""
+turn fully: no stops). Koch gravity amplitudes are assumptions (its URDF carries no masses). The SO-101's STS3215s
+clamp goals to ``Min/Max_Position_Limit`` (LeRobot's recorded range); the Koch's Dynamixels, in extended position
+mode, do not (``docs/lerobot.md``)."""
+
+SCATTER_DEG = 1.5
+"""The largest hand scatter of a recorded range end short of its stop, degrees."""
+
+
+def hand_scatter_deg(arm: TeleopArm, seed: int) -> tuple[FloatArray, FloatArray]:
+    """How far short of its stops each arm's recorded range ends, per joint (``(J,)`` leader, follower).
+
+    Uniform 0..:data:`SCATTER_DEG`, the same at both ends (so it adds no offset), drawn per session from its seed
+    (leader's joints first); 0 where nothing is recorded between stops and for range-mode joints (the gripper:
+    its values assume the profile's stops).
+    """
+    rng = np.random.default_rng(90_000 + seed)
+    out = []
+    for _arm in ("leader", "follower"):
+        x = np.zeros(len(arm.joints))
+        for j in range(len(arm.joints)):
+            if arm.recorded(j) and arm.modes[j] == "degrees":
+                x[j] = float(rng.uniform(0.0, SCATTER_DEG))
+        out.append(x)
+    return out[0], out[1]
 
 
 @dataclass(frozen=True)
@@ -202,6 +241,12 @@ class TeleopJointTruth:
         friction_span_deg: ``2·τ_stiction / kp``, degrees: how far apart friction lets a correct follower come to
             rest for one goal (either side of it). A stop that holds the follower by less than this leaves a
             residual a correct follower's friction could also leave: the offset is not in the data.
+        limited_lo_deg: How far the follower's servo held its goal back at its lower position limit (the
+            leader's number past the limit, kept 0.2 s; 0 where the servo enforces none). A follower held by its
+            limit stands there while its leader goes on, as one held by its stop does.
+        limited_hi_deg: Same, the upper limit.
+        scatter_deg: How far short of both stops the follower's recorded range ends (its limits' hand scatter): a
+            correct calibration's follower is held by up to this at its limits too.
     """
 
     offset_deg: float
@@ -212,6 +257,9 @@ class TeleopJointTruth:
     held_lo_deg: float = 0.0
     held_hi_deg: float = 0.0
     friction_span_deg: float = 0.0
+    limited_lo_deg: float = 0.0
+    limited_hi_deg: float = 0.0
+    scatter_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -226,6 +274,8 @@ class TeleopSession:
         faults: The injected faults.
         truth: Joint → truth.
         seed: Seed.
+        scatter_deg: ``(leader, follower)`` hand scatter of the recorded ranges per joint (:func:`hand_scatter_deg`;
+            None: the session's seed gives it).
     """
 
     arm: TeleopArm
@@ -235,6 +285,11 @@ class TeleopSession:
     faults: TeleopFaults
     truth: dict[str, TeleopJointTruth] = field(default_factory=dict)
     seed: int = 0
+    scatter_deg: tuple[FloatArray, FloatArray] | None = None
+
+    def scatter(self) -> tuple[FloatArray, FloatArray]:
+        """The hand scatter of both arms' recorded ranges, ``(J,)`` each."""
+        return self.scatter_deg if self.scatter_deg is not None else hand_scatter_deg(self.arm, self.seed)
 
 
 def _min_jerk(
@@ -289,15 +344,39 @@ def _quantise_deg(x: FloatArray) -> FloatArray:
     return out
 
 
-def _held_deg(stop_nm: FloatArray, kp_nm_rad: FloatArray, frames: int) -> tuple[FloatArray, FloatArray]:
-    """``(L, J)`` per end: the largest stop torque kept for ``frames`` frames running, as degrees of goal error."""
-    deg = np.degrees(stop_nm / kp_nm_rad)
+def _kept(x: FloatArray, frames: int) -> tuple[FloatArray, FloatArray]:
+    """``(L, T, J)`` signed amounts → ``(L, J)`` per sign: the largest kept for ``frames`` frames running."""
     out = []
-    for x in (np.maximum(deg, 0.0), np.maximum(-deg, 0.0)):  # lower stop pushes up (+), upper down (−)
-        k = max(1, min(frames, x.shape[1]))
-        win = np.lib.stride_tricks.sliding_window_view(x, k, axis=1)
+    for y in (np.maximum(x, 0.0), np.maximum(-x, 0.0)):
+        k = max(1, min(frames, y.shape[1]))
+        win = np.lib.stride_tricks.sliding_window_view(y, k, axis=1)
         out.append(win.min(axis=-1).max(axis=1))
     return out[0], out[1]
+
+
+def _held_deg(stop_nm: FloatArray, kp_nm_rad: FloatArray, frames: int) -> tuple[FloatArray, FloatArray]:
+    """``(L, J)`` per end: the largest stop torque kept for ``frames`` frames running, as degrees of goal error."""
+    return _kept(np.degrees(stop_nm / kp_nm_rad), frames)  # lower stop pushes up (+), upper down (−)
+
+
+def goal_limits_deg(
+    arm: TeleopArm, offset_deg: FloatArray, scatter_deg: FloatArray, modes: tuple[str, ...], *, enforced: bool = True
+) -> tuple[FloatArray, FloatArray]:
+    """The follower servo's position limits in its reading frame, per joint (±inf where none is enforced).
+
+    LeRobot writes the recorded range to ``Min/Max_Position_Limit``; a range recorded ``x`` short of both stops
+    (the hand) and ``2·|e|`` short at one end (what makes a degree-mode offset ``e``) reads
+    ``[lo + x + |e|, hi − x − |e|]``. A range-mode joint's range is the stops themselves.
+    """
+    lo, hi = np.full(len(arm.joints), -_INF), np.full(len(arm.joints), _INF)
+    if not (enforced and arm.goal_limited):
+        return lo, hi
+    for j in range(len(arm.joints)):
+        if not arm.recorded(j):
+            continue
+        inset = 0.0 if modes[j].startswith("range_") else scatter_deg[j] + abs(offset_deg[j])
+        lo[j], hi[j] = arm.stop_lo_deg[j] + inset, arm.stop_hi_deg[j] - inset
+    return lo, hi
 
 
 def clamp_bounds_deg(arm: TeleopArm, modes: tuple[str, ...]) -> tuple[FloatArray, FloatArray]:
@@ -330,6 +409,7 @@ def simulate_sessions(
     fps: float = 30.0,
     p_end: float = 0.35,
     modes: tuple[str, ...] | None = None,
+    goal_limits: bool = False,
 ) -> list[TeleopSession]:
     """Simulate one session per seed (all sessions integrated together, one lane per episode).
 
@@ -337,7 +417,12 @@ def simulate_sessions(
     it reads an arm and when it turns the action into the follower's goal. The calibrated range is the profile's
     stops in each arm's own reading frame (a full-turn joint: ±180° about its middle), so in those modes the
     leader's number, the follower's goal and the follower's reading never pass them: a leader-side offset then
-    never drives the follower into its stop. Degrees are not clamped.
+    never drives the follower into its stop. Degrees are not clamped by LeRobot, but a follower whose servo enforces
+    its position limits (``arm.goal_limited``: the SO-101's STS3215s) clamps the goal to the range LeRobot wrote
+    there (:func:`goal_limits_deg`: the hand scatter of :func:`hand_scatter_deg` and the follower's offset), so a
+    goal past its stop never reaches the motor: the follower stands at its limit while the leader goes on. That is
+    ``goal_limits``; off by default, because ``robocal dataset health`` does not model it yet (docs/health.md,
+    "Limits": an SO-101 follower's limits make a follower-side offset look the same at both ends).
 
     Args:
         arm: The pair.
@@ -351,6 +436,8 @@ def simulate_sessions(
         p_end: Chance that an episode takes a joint to or near a range end.
         modes: LeRobot's normalisation mode per joint of the dataset to be written (default ``arm.modes``, the
             modes with ``use_degrees``).
+        goal_limits: The follower's servo enforces its position limits where the real one does
+            (``arm.goal_limited``).
 
     Returns:
         The sessions, in the order of ``seeds``.
@@ -365,7 +452,8 @@ def simulate_sessions(
         return out
 
     leader_true: list[FloatArray] = []
-    e_lead, e_foll, slips = [], [], []
+    e_lead, e_foll, slips, limits, scatters = [], [], [], [], []
+    modes = arm.modes if modes is None else modes
     for seed, f in zip(seeds, faults, strict=True):
         rng = np.random.default_rng(seed)
         leader_true.append(_leader_paths(rng, arm, episodes, frames, fps, p_end))
@@ -378,15 +466,22 @@ def simulate_sessions(
         e_lead.append(el)
         e_foll.append(ef)
         slips.append(slip)
+        scatters.append(hand_scatter_deg(arm, seed))
+        limits.append(goal_limits_deg(arm, ef, scatters[-1][1], modes, enforced=goal_limits))
     lead = np.concatenate(leader_true)  # (S·E, T, J)
     el_all = np.repeat(np.stack(e_lead), episodes, axis=0)[:, None, :]
     ef_all = np.repeat(np.stack(e_foll), episodes, axis=0)[:, None, :] + np.concatenate(slips)
     rng_all = np.random.default_rng(seeds[0] if seeds else 0)
     action = _quantise_deg(lead + el_all + rng_all.normal(0.0, 0.02, lead.shape))
-    clamp_lo, clamp_hi = clamp_bounds_deg(arm, arm.modes if modes is None else modes)
+    clamp_lo, clamp_hi = clamp_bounds_deg(arm, modes)
     action = np.clip(action, clamp_lo, clamp_hi)  # the leader's number, and so the follower's goal
-    # the follower's goal in its true frame: the leader's number minus the follower's own offset
-    goal_rad = np.radians(action - ef_all)
+    # the follower's servo clamps the goal to its position limits (its own reading frame)
+    lim_lo = np.repeat(np.stack([lim[0] for lim in limits]), episodes, axis=0)[:, None, :]
+    lim_hi = np.repeat(np.stack([lim[1] for lim in limits]), episodes, axis=0)[:, None, :]
+    goal_reading = np.clip(action, lim_lo, lim_hi)
+    limited_lo, limited_hi = _kept(goal_reading - action, round(0.2 * fps))  # lower limit holds it up (+)
+    # the follower's goal in its true frame: the servo's goal minus the follower's own offset
+    goal_rad = np.radians(goal_reading - ef_all)
     # each episode starts with the follower settled on its first goal (a second of holding, then cut)
     settle = int(fps)
     padded = np.concatenate([np.repeat(goal_rad[:, :1, :], settle, axis=1), goal_rad], axis=1)
@@ -430,6 +525,9 @@ def simulate_sessions(
                 held_lo_deg=float(np.max(held_lo[sl, j])),
                 held_hi_deg=float(np.max(held_hi[sl, j])),
                 friction_span_deg=float(span[j]),
+                limited_lo_deg=float(np.max(limited_lo[sl, j])),
+                limited_hi_deg=float(np.max(limited_hi[sl, j])),
+                scatter_deg=float(scatters[s][1][j]) if goal_limits and arm.goal_limited else 0.0,
             )
-        sessions.append(TeleopSession(arm, fps, a, st, f, truth, seed))
+        sessions.append(TeleopSession(arm, fps, a, st, f, truth, seed, scatters[s]))
     return sessions
