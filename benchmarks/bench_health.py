@@ -24,8 +24,8 @@ offset made by a range recorded short at one end), counting the offset joint fla
 and named, and the offset-free sessions flagged. ``HEALTH_RANGE_SEEDS=N`` (default 0: skipped) adds N Koch
 sessions (seeds 30000…, every fourth offset-free, the others a 5° offset on a random joint with stops, arm and sign)
 written both in ``range_m100_100`` (LeRobot's clamps) and in degrees, flagged and named per arm and case.
-``HEALTH_GOAL_LIMITS=1`` simulates the followers' servos enforcing their position limits where the real ones do
-(the SO-101's STS3215s; the check does not model it yet: docs/health.md, "Limits").
+The followers' servos enforce their position limits where the real ones do (the SO-101's STS3215s;
+``HEALTH_GOAL_LIMITS=0``: every follower pressed into its stop, the simulator before 2026-11-29).
 """
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
     for chunk in range(0, len(seeds), 50):  # bounded memory: 50 sessions integrated at a time
         roots += generate_teleop_datasets(
             folder, robot, seeds[chunk : chunk + 50], faults[chunk : chunk + 50], calibration_files=True,
-            goal_limits=os.environ.get("HEALTH_GOAL_LIMITS", "0") == "1",
+            goal_limits=os.environ.get("HEALTH_GOAL_LIMITS", "1") == "1",
         )  # fmt: skip
     t_sim = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -126,7 +126,7 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
         "flip": [0, 0],
         "errors": 0,
         "sag_cover": defaultdict(lambda: [0, 0]),
-        "by_arm": defaultdict(lambda: [0, 0]),
+        "by_arm": defaultdict(lambda: [0, 0, 0]),
         "files": defaultdict(lambda: [0, 0, 0]),
     }
     if os.environ.get("HEALTH_FILES", "1") != "0":
@@ -158,12 +158,15 @@ def evaluate(robot: str, seeds: list[int], folder: Path) -> dict[str, Any]:
             s = score["offset"][key]
             s["n"] += 1
             s["named"] += j["status"] == "offset"
+            s["flagged_named"] += j["status"] in ("offset", "suspect") and flagged == [f.offset_joint]
+            s["wrong_sign"] += j["status"] == "offset" and j["offset_deg"] is not None and j["offset_deg"] * o < 0
             s["flagged"] += bool(flagged)
             s["ok_wrongly"] += j["status"] == "ok" and abs(o) >= 2.0
             s["others"] += any(n != f.offset_joint for n in flagged)
             arm_case = score["by_arm"][(abs(o), case, f.offset_arm)]
             arm_case[0] += j["status"] == "offset"
             arm_case[1] += 1
+            arm_case[2] += j["status"] in ("offset", "suspect") and flagged == [f.offset_joint]
             ci = j["ci_deg"]
             s["ci_n"] += ci is not None and j["status"] == "offset"
             s["ci_hit"] += ci is not None and j["status"] == "offset" and ci[0] - 1e-6 <= o <= ci[1] + 1e-6
@@ -234,24 +237,32 @@ def _score_with_files(robot: str, roots: list[Path], faults: list[TeleopFaults],
 
 def print_score(robot: str, score: dict[str, Any]) -> None:
     """The tables of one robot."""
-    print(f"\n-- {robot}: offsets (flagged 'offset' on the right joint; interval holds the truth) --")
     print(
-        f"{'offset':>7s} {'joint':14s} {'case':11s} {'named':>14s} {'CI holds':>12s} {'ok (wrong)':>10s} {'other joint':>11s}"
+        f"\n-- {robot}: offsets (named: 'offset' on the right joint, its interval holding the truth; flagged: "
+        "'offset' or 'suspect' on the right joint and no other) --"
     )
-    by_case: dict[tuple[float, str], list[int]] = defaultdict(lambda: [0, 0])
+    print(
+        f"{'offset':>7s} {'joint':14s} {'case':11s} {'named':>14s} {'CI holds':>12s} {'flagged':>14s} "
+        f"{'wrong sign':>10s} {'ok (wrong)':>10s} {'other joint':>11s}"
+    )
+    by_case: dict[tuple[float, str], list[int]] = defaultdict(lambda: [0, 0, 0, 0])
     for (size, joint, case), s in sorted(score["offset"].items()):
         print(
             f"{size:7.1f} {joint:14s} {case:11s} {_rate(s['named'], s['n']):>14s} "
-            f"{_rate(s['ci_hit'], s['ci_n']):>12s} {s['ok_wrongly']:>10d} {s['others']:>11d}"
+            f"{_rate(s['ci_hit'], s['ci_n']):>12s} {_rate(s['flagged_named'], s['n']):>14s} {s['wrong_sign']:>10d} "
+            f"{s['ok_wrongly']:>10d} {s['others']:>11d}"
         )
-        by_case[(size, case)][0] += s["named"]
-        by_case[(size, case)][1] += s["n"]
+        c = by_case[(size, case)]
+        c[0] += s["named"]
+        c[1] += s["n"]
+        c[2] += s["flagged_named"]
+        c[3] += s["wrong_sign"]
     print(f"\n-- {robot}: offsets, all joints --")
-    for (size, case), (hit, n) in sorted(by_case.items()):
-        print(f"{size:7.1f}° {case:11s} named {_rate(hit, n)}")
+    for (size, case), (hit, n, flag, wrong) in sorted(by_case.items()):
+        print(f"{size:7.1f}° {case:11s} named {_rate(hit, n):>14s}  flagged {_rate(flag, n):>14s}  wrong sign {wrong}")
     print(f"\n-- {robot}: offsets, by the arm whose calibration is off (the sag sees only the follower's) --")
-    for (size, case, arm), (hit, n) in sorted(score["by_arm"].items()):
-        print(f"{size:7.1f}° {case:11s} {arm:9s} named {_rate(hit, n)}")
+    for (size, case, arm), (hit, n, flag) in sorted(score["by_arm"].items()):
+        print(f"{size:7.1f}° {case:11s} {arm:9s} named {_rate(hit, n):>14s}  flagged {_rate(flag, n)}")
     print(f"\n-- {robot}: sag fit, its 99 % interval holds the follower's true offset --")
     for (name, what), (hit, n) in sorted(score["sag_cover"].items()):
         print(f"{name:14s} {what:11s} {_rate(hit, n)}")

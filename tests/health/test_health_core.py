@@ -75,7 +75,41 @@ def so101_sessions() -> list[TeleopSession]:
         TeleopFaults(flip_joint="wrist_flex"),
         TeleopFaults(clip_joint="shoulder_lift", clip_end="hi", clip_short_deg=6.0),
     ]
-    return simulate_sessions(arm, [11, 12, 13, 14, 15], faults, episodes=3, episode_s=10.0, p_end=1.0)
+    # followers pressed into their stops (no position limits enforced: the Koch's kind of servo)
+    return simulate_sessions(arm, [11, 12, 13, 14, 15], faults, episodes=3, episode_s=10.0, p_end=1.0, goal_limits=False)
+
+
+def _limited(session: TeleopSession, name: str) -> JointHealth:
+    arm = session.arm
+    e, t, j = session.action_deg.shape
+    k = arm.joints.index(name)
+    a, s = session.action_deg.reshape(-1, j)[:, k], session.state_deg.reshape(-1, j)[:, k]
+    data = JointData(name, a, s, np.repeat(np.arange(e), t), np.zeros_like(a), arm.stop_lo_deg[k],
+                     arm.stop_hi_deg[k], goal_limited=True)  # fmt: skip
+    return analyse_joint(data)
+
+
+@pytest.mark.parametrize("seed", [21, 22, 23, 24])
+def test_an_so101_follower_held_by_its_limits_is_read_as_limits(seed: int) -> None:
+    """The SO-101's STS3215s clamp the goal to LeRobot's recorded range. A correct pair is held up to the hand's
+    scatter at both ends: before, that read as two ends that disagree (17 / 48 offset-free benchmark sessions
+    flagged). A follower-side 17° offset holds both ends alike: its sign is not in the data, so no signed number
+    (before, one end's hold was reported as an offset of either sign)."""
+    arm = TELEOP_ARMS["so101"]
+    faults = [TeleopFaults(), TeleopFaults(offset_joint="elbow_flex", offset_deg=17.0 if seed % 2 else -17.0),
+              TeleopFaults(offset_joint="elbow_flex", offset_deg=-17.0, offset_arm="leader")]  # fmt: skip
+    free, follower, leader = simulate_sessions(arm, [seed] * 3, faults, episodes=3, episode_s=10.0, p_end=1.0)
+    for name in arm.joints[:4]:
+        assert _limited(free, name).status in ("ok", "unobservable"), name
+    t = follower.truth["elbow_flex"]
+    h = _limited(follower, "elbow_flex")
+    if min(t.limited_lo_deg, t.limited_hi_deg) > 10.0:  # both ends held
+        assert (h.status, h.offset, h.ci) == ("suspect", None, None)
+        assert any("sign not in the data" in r for r in h.reasons), h.reasons
+    assert h.status != "offset" and h.status != "ok"
+    t, h = leader.truth["elbow_flex"], _limited(leader, "elbow_flex")
+    if t.limited_hi_deg > 10.0:
+        assert (h.status, h.offset) == ("suspect", None) and any("held by its position limit" in r for r in h.reasons)
 
 
 def test_17_degree_offset_is_flagged_on_its_joint(so101_sessions: list[TeleopSession]) -> None:

@@ -11,7 +11,7 @@ The check itself is :func:`robocal.core.health.analyse_joint`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +65,8 @@ class HealthSetup:
         gravity: The arm's gravity model (URDF masses), or None (no sag model).
         leader: The leader's calibration (``action``), or None.
         follower: The follower's calibration (``observation.state``), or None.
+        goal_limited: Joint → the follower's servo clamps its goal to its position limits (LeRobot's recorded
+            range: Feetech STS in position mode; :attr:`robocal.core.health.JointData.goal_limited`).
     """
 
     units: dict[str, str]
@@ -74,6 +76,7 @@ class HealthSetup:
     gravity: GravityModel | None = None
     leader: ValueConvention | None = None
     follower: ValueConvention | None = None
+    goal_limited: dict[str, bool] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -287,12 +290,13 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
     for k, j in enumerate(joints):
         u = upd[k] if math.isfinite(upd[k]) else 1.0
         lo, hi = _stop_readings(stops[k], units[k], u)
+        limited = setup.goal_limited.get(j, False)
         if sag_deg is not None:
-            data = JointData(j, action[:, k], state[:, k], fr.episode, sag_deg[:, k] * u, lo, hi, u)
+            data = JointData(j, action[:, k], state[:, k], fr.episode, sag_deg[:, k] * u, lo, hi, u, goal_limited=limited)
         elif stops[k] is not None:  # no URDF masses: the sag's shape fitted from the data (narrows the band)
-            data = fitted_joint(j, action[:, k], state[:, k], fr.episode, pose_deg[:, k], lo, hi, u, cfg)
+            data = fitted_joint(j, action[:, k], state[:, k], fr.episode, pose_deg[:, k], lo, hi, u, cfg, limited)
         else:
-            data = JointData(j, action[:, k], state[:, k], fr.episode, np.zeros(len(action)), lo, hi, u)
+            data = JointData(j, action[:, k], state[:, k], fr.episode, np.zeros(len(action)), lo, hi, u, goal_limited=limited)
         h = _with_sag(analyse_joint(data, cfg), fit, k, u, cfg or HealthConfig())
         episodes = episode_verdicts(data, h.band, cfg, h.end_bands, h.raw_caps)
         drift = drift_reason(episodes, h.band, cfg or HealthConfig(), u)

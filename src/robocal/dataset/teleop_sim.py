@@ -154,7 +154,7 @@ def generate_teleop_datasets(
     episode_s: float = 15.0,
     p_end: float = 0.35,
     calibration_files: bool = False,
-    goal_limits: bool = False,
+    goal_limits: bool = True,
 ) -> list[Path]:
     """Simulate and write one dataset per seed as ``folder/<robot>-<seed>`` (+ ``.truth.json``).
 
@@ -170,7 +170,7 @@ def generate_teleop_datasets(
         calibration_files: Also write the two arms' LeRobot calibrations that make the injected offset,
             ``ROOT.leader.json`` and ``ROOT.follower.json`` (:mod:`.teleop_calibration`; degrees only).
         goal_limits: The follower's servo clamps its goal to its recorded range as a real SO-101's does
-            (:func:`~robocal.backends.sim.teleop.simulate_sessions`; the check does not model it yet).
+            (:func:`~robocal.backends.sim.teleop.simulate_sessions`).
 
     Returns:
         The dataset roots.

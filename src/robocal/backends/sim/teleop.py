@@ -28,6 +28,7 @@ import numpy as np
 
 from ...core.arrays import FloatArray
 from ..servo_ratings import RATINGS
+from .teleop_limits import SCATTER_DEG, clamp_bounds_deg, goal_limits_deg, hand_scatter_deg
 from .teleop_plant import GravityFn, PlantArrays, simulate_tracking
 
 __all__ = [
@@ -169,28 +170,6 @@ TELEOP_ARMS: dict[str, TeleopArm] = {
 turn fully: no stops). Koch gravity amplitudes are assumptions (its URDF carries no masses). The SO-101's STS3215s
 clamp goals to ``Min/Max_Position_Limit`` (LeRobot's recorded range); the Koch's Dynamixels, in extended position
 mode, do not (``docs/lerobot.md``)."""
-
-SCATTER_DEG = 1.5
-"""The largest hand scatter of a recorded range end short of its stop, degrees."""
-
-
-def hand_scatter_deg(arm: TeleopArm, seed: int) -> tuple[FloatArray, FloatArray]:
-    """How far short of its stops each arm's recorded range ends, per joint (``(J,)`` leader, follower).
-
-    Uniform 0..:data:`SCATTER_DEG`, the same at both ends (so it adds no offset), drawn per session from its seed
-    (leader's joints first); 0 where nothing is recorded between stops and for range-mode joints (the gripper:
-    its values assume the profile's stops).
-    """
-    rng = np.random.default_rng(90_000 + seed)
-    out = []
-    for _arm in ("leader", "follower"):
-        x = np.zeros(len(arm.joints))
-        for j in range(len(arm.joints)):
-            if arm.recorded(j) and arm.modes[j] == "degrees":
-                x[j] = float(rng.uniform(0.0, SCATTER_DEG))
-        out.append(x)
-    return out[0], out[1]
-
 
 @dataclass(frozen=True)
 class TeleopFaults:
@@ -359,45 +338,6 @@ def _held_deg(stop_nm: FloatArray, kp_nm_rad: FloatArray, frames: int) -> tuple[
     return _kept(np.degrees(stop_nm / kp_nm_rad), frames)  # lower stop pushes up (+), upper down (−)
 
 
-def goal_limits_deg(
-    arm: TeleopArm, offset_deg: FloatArray, scatter_deg: FloatArray, modes: tuple[str, ...], *, enforced: bool = True
-) -> tuple[FloatArray, FloatArray]:
-    """The follower servo's position limits in its reading frame, per joint (±inf where none is enforced).
-
-    LeRobot writes the recorded range to ``Min/Max_Position_Limit``; a range recorded ``x`` short of both stops
-    (the hand) and ``2·|e|`` short at one end (what makes a degree-mode offset ``e``) reads
-    ``[lo + x + |e|, hi − x − |e|]``. A range-mode joint's range is the stops themselves.
-    """
-    lo, hi = np.full(len(arm.joints), -_INF), np.full(len(arm.joints), _INF)
-    if not (enforced and arm.goal_limited):
-        return lo, hi
-    for j in range(len(arm.joints)):
-        if not arm.recorded(j):
-            continue
-        inset = 0.0 if modes[j].startswith("range_") else scatter_deg[j] + abs(offset_deg[j])
-        lo[j], hi[j] = arm.stop_lo_deg[j] + inset, arm.stop_hi_deg[j] - inset
-    return lo, hi
-
-
-def clamp_bounds_deg(arm: TeleopArm, modes: tuple[str, ...]) -> tuple[FloatArray, FloatArray]:
-    """Per joint, the readings (degrees, each arm's own frame) LeRobot clamps a value to in ``modes``.
-
-    A range mode clamps to the calibrated range (the profile's stops; a full-turn joint ±180°), degrees do not
-    (±inf).
-
-    Raises:
-        ValueError: ``modes`` is not one mode per joint.
-    """
-    if len(modes) != len(arm.joints):
-        raise ValueError(f"{len(modes)} modes for the {len(arm.joints)} joints of {arm.name}")
-    lo, hi = np.full(len(modes), -_INF), np.full(len(modes), _INF)
-    for j, mode in enumerate(modes):
-        if mode.startswith("range_"):
-            finite = math.isfinite(arm.stop_lo_deg[j])
-            lo[j], hi[j] = (arm.stop_lo_deg[j], arm.stop_hi_deg[j]) if finite else (-180.0, 180.0)
-    return lo, hi
-
-
 def simulate_sessions(
     arm: TeleopArm,
     seeds: list[int],
@@ -409,7 +349,7 @@ def simulate_sessions(
     fps: float = 30.0,
     p_end: float = 0.35,
     modes: tuple[str, ...] | None = None,
-    goal_limits: bool = False,
+    goal_limits: bool = True,
 ) -> list[TeleopSession]:
     """Simulate one session per seed (all sessions integrated together, one lane per episode).
 
@@ -420,9 +360,8 @@ def simulate_sessions(
     never drives the follower into its stop. Degrees are not clamped by LeRobot, but a follower whose servo enforces
     its position limits (``arm.goal_limited``: the SO-101's STS3215s) clamps the goal to the range LeRobot wrote
     there (:func:`goal_limits_deg`: the hand scatter of :func:`hand_scatter_deg` and the follower's offset), so a
-    goal past its stop never reaches the motor: the follower stands at its limit while the leader goes on. That is
-    ``goal_limits``; off by default, because ``robocal dataset health`` does not model it yet (docs/health.md,
-    "Limits": an SO-101 follower's limits make a follower-side offset look the same at both ends).
+    goal past its stop never reaches the motor: the follower stands at its limit while the leader goes on
+    (``goal_limits``, on by default; off: every follower pressed into its stop, the simulator before 2026-11-29).
 
     Args:
         arm: The pair.

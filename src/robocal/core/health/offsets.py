@@ -31,6 +31,7 @@ from ..arrays import FloatArray, IntArray
 from .ends import end_bands, end_raw_caps
 from .model import fitted_sag, model_band
 from .sag import last_direction
+from .verdict import EndEvidence, judge_ends
 
 __all__ = [
     "EndEvidence",
@@ -61,6 +62,9 @@ class HealthConfig:
         clip_frames: Bit-identical frames at an extreme (and 90 % of the frames there) that make a clipped value.
         end_margin_deg: Added to a range end's own band (:func:`end_bands`): the end's excess is the extreme of
             many frames, the band a spread of single frames.
+        limit_scatter_deg: How far inside its stops the hand may have recorded a range end: a follower whose servo
+            enforces its position limits (``JointData.goal_limited``) is held that far short of its leader at an end
+            by a correct calibration.
     """
 
     threshold_deg: float = 1.5
@@ -73,6 +77,7 @@ class HealthConfig:
     min_frames: int = 3
     clip_frames: int = 10
     end_margin_deg: float = 0.25
+    limit_scatter_deg: float = 1.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,6 +95,10 @@ class JointData:
         units_per_deg: Dataset units per degree (1 in degrees).
         sag_fitted: ``sag`` was fitted from these frames (no URDF masses): it is extrapolated at the range ends, so a
             pinned end must also stand out of the raw residual (:func:`end_raw_caps`).
+        goal_limited: The follower's servo clamps its goal to its position limits, where LeRobot wrote the recorded
+            range (an SO-101's STS3215s): at a range end it stands at its limit, not pressed into its stop. Its
+            limits read ``[lo + x + |e_F|, hi − x − |e_F|]`` in its own frame (``x`` the hand's scatter, ``e_F`` its
+            offset), so a held end shows ``x + |e_F| ± e_L``: how far the calibrations disagree, not the sign.
     """
 
     name: str
@@ -101,36 +110,7 @@ class JointData:
     stop_hi: float = math.nan
     units_per_deg: float = 1.0
     sag_fitted: bool = False
-
-
-@dataclass(frozen=True)
-class EndEvidence:
-    """What one range end shows.
-
-    Attributes:
-        end: ``lo`` or ``hi``.
-        kind: ``pinned``, ``together`` or ``clipped``.
-        follower: The follower's value at the end (``F``).
-        leader: The leader's furthest value while the follower was there (``A``).
-        lower: Lower bound on the offset from this end (``-inf``: none).
-        upper: Upper bound (``inf``: none).
-        frames: Frames at the end.
-        episodes: Episodes those frames belong to.
-        threshold: Smallest ``|F − A|`` a pinned end flags (``max(threshold_deg, band + ½°)``, this end's band).
-        excess: How far the leader went on past the follower, beyond the sag holding the follower off the stop
-            (pinned above this end's band).
-    """
-
-    end: str
-    kind: str
-    follower: float
-    leader: float
-    lower: float
-    upper: float
-    frames: int
-    episodes: tuple[int, ...]
-    threshold: float = 0.0
-    excess: float = math.nan
+    goal_limited: bool = False
 
 
 @dataclass(frozen=True)
@@ -193,6 +173,7 @@ def fitted_joint(
     stop_hi: float,
     units_per_deg: float = 1.0,
     cfg: HealthConfig | None = None,
+    goal_limited: bool = False,
 ) -> JointData:
     """A joint with stops but no URDF masses, its sag fitted from its own frames (the dataset check's Koch path).
 
@@ -204,7 +185,7 @@ def fitted_joint(
     u = units_per_deg
     way = last_direction(state, episode, 0.5 * c.near_deg * u)
     sag = fitted_sag(action, state, episode, pose_deg, c.slow_deg * u, 3.0 * u, way)
-    return JointData(name, action, state, episode, sag, stop_lo, stop_hi, u, sag_fitted=True)
+    return JointData(name, action, state, episode, sag, stop_lo, stop_hi, u, sag_fitted=True, goal_limited=goal_limited)
 
 
 def _lagged(d: JointData) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -327,47 +308,6 @@ def _end(
     return EndEvidence(name, "together", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps, thr, excess)
 
 
-def _verdict(
-    ends: list[EndEvidence], thr: float, ok_limit: float
-) -> tuple[str, float | None, tuple[float, float] | None, list[str]]:
-    usable = [e for e in ends if e.kind != "clipped"]
-    reasons: list[str] = []
-    if not usable:
-        return "unobservable", None, None, ["no range-end contact"]
-    lo = max(e.lower for e in usable)
-    hi = min(e.upper for e in usable)
-    pinned = [e for e in usable if e.kind == "pinned"]
-    est = None
-    pin_thr = thr
-    if pinned:
-        best = max(pinned, key=lambda e: abs(e.follower - e.leader))
-        est = best.follower - best.leader
-        pin_thr = best.threshold
-    if lo > hi + 1e-9:
-        reasons.append(f"range ends disagree (bounds {lo:.2f} > {hi:.2f})")
-        return "suspect", est, None, reasons
-    if est is not None and abs(est) >= pin_thr:
-        return "offset", est, (lo, hi), reasons
-    if lo >= thr or hi <= -thr:
-        est = lo if lo >= thr else hi
-        return "offset", est, (lo, hi), reasons
-    if math.isfinite(lo) and math.isfinite(hi) and -ok_limit <= lo and hi <= ok_limit:
-        return "ok", est if est is not None else 0.5 * (lo + hi), (lo, hi), reasons
-    if math.isfinite(lo) and math.isfinite(hi):
-        reasons.append("neither range end pressed the follower against its stop")
-    else:
-        reasons.append(f"no range-end contact that would show a {'negative' if math.isinf(lo) else 'positive'} offset")
-    for e in usable:
-        if e.kind == "together":  # what a visited end shows: the follower came there with its leader, not held
-            above = e.end == "hi"
-            reasons.append(
-                f"the {'upper' if above else 'lower'} end: the follower came to {e.follower:.2f} with its leader at "
-                f"{e.leader:.2f}, not held by its stop (a {'negative' if above else 'positive'} offset shows there "
-                "only as a follower held at its stop while the leader goes on)"
-            )
-    return "unobservable", est, None, reasons
-
-
 def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
     """Calibration health of one joint (see the module docstring).
 
@@ -418,7 +358,7 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
     for e in ends:
         sgn = 1.0 if e.end == "hi" else -1.0
         used[sgn * d.state >= sgn * e.follower - cfg.near_deg * upd] = 2.0
-    status, est, ci, reasons = _verdict(ends, thr, cfg.ok_limit_deg * upd)
+    status, est, ci, reasons, ends = judge_ends(d, ends, thr, cfg)
     for e in ends:
         if e.kind == "pinned" and status == "offset":
             reasons.append(
@@ -462,7 +402,7 @@ def episode_verdicts(
     for ep in np.unique(d.episode):
         mask = d.episode == ep
         ends = [e for e in (_end(d, 1.0, b_hi, cfg, mask, raw_caps[1]), _end(d, -1.0, b_lo, cfg, mask, raw_caps[0])) if e]
-        status, est, ci, _ = _verdict(ends, thr, cfg.ok_limit_deg * d.units_per_deg)
+        status, est, ci, _, _ = judge_ends(d, ends, thr, cfg)
         out.append({"episode": int(ep), "offset": est, "ci": ci, "status": status, "frames": int(mask.sum())})
     return out
 

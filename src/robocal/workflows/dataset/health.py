@@ -98,6 +98,18 @@ def _kp(joint: str, model: str | None) -> float:
     return feetech_kp_nm_rad(_FEETECH_LEROBOT_P, rating.stall_torque_nm)
 
 
+def _goal_limited(model: str | None) -> bool:
+    """The follower's servo clamps its goal to the range LeRobot wrote into its position limits.
+
+    Feetech STS/SCS servos do in position mode, the mode LeRobot runs them in; LeRobot runs the Dynamixels of
+    :data:`_DXL_FACTORY_P` in extended position mode, where the limits are not enforced. (A full-turn motor's
+    limits are the whole turn: the caller leaves those out.)
+    """
+    from ...backends.servo_ratings import RATINGS
+
+    return model in RATINGS and model not in _DXL_FACTORY_P
+
+
 def _gravity(request: HealthRequest, robot: str) -> tuple[GravityModel | None, str | None]:
     from ...formats.urdf_gravity import gravity_model_if_any
 
@@ -131,7 +143,8 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
     modes = preset_modes(robot, joints, request.use_degrees)
     auto = {j.name: j for j in profile.auto.joints} if profile.auto is not None else {}
     models = {j.name: j.model for j in profile.joints}
-    units, upd, stops, kp = {}, {}, {}, {}
+    full_turn = profile.lerobot.full_turn if profile.lerobot is not None else ()  # limits 0..4095: not enforced
+    units, upd, stops, kp, limited = {}, {}, {}, {}, {}
     for j in joints:
         a = auto.get(j)
         stop = (a.lower_deg, a.upper_deg) if a is not None and a.stops == "both" else None
@@ -147,6 +160,7 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
             else (math.nan if not span else (100.0 if mode == "range_0_100" else 200.0) / span)
         )
         kp[j] = _kp(j, models.get(j))
+        limited[j] = _goal_limited(models.get(j)) and j not in full_turn
     gravity, urdf = _gravity(request, robot)
     leader = follower = None
     if request.leader_calibration is not None and request.follower_calibration is not None:
@@ -165,7 +179,7 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
             family=family,
             what="--follower-calibration",
         )
-    return HealthSetup(units, upd, stops, kp, gravity, leader, follower), robot, urdf
+    return HealthSetup(units, upd, stops, kp, gravity, leader, follower, limited), robot, urdf
 
 
 def render_picture(result: DatasetHealth) -> bytes:
