@@ -321,8 +321,8 @@ def load_profile(robot: str | os.PathLike[str]) -> RobotProfile:
     names = builtin_profile_names()
     if text in names:
         return _builtin(text)
-    path = Path(text)
-    if path.is_file():
+    path = profile_file(text)
+    if path is not None:
         return _read_profile_file(path)
     raise UsageError(
         f"--robot {text!r}: not a built-in robot ({', '.join(names)}) and not a profile file; "

@@ -171,6 +171,7 @@ turn fully: no stops). Koch gravity amplitudes are assumptions (its URDF carries
 clamp goals to ``Min/Max_Position_Limit`` (LeRobot's recorded range); the Koch's Dynamixels, in extended position
 mode, do not (``docs/lerobot.md``)."""
 
+
 @dataclass(frozen=True)
 class TeleopFaults:
     """What is wrong in a session (all optional; angles in degrees).

@@ -50,12 +50,11 @@ def check_session(
     Raises:
         UsageError: An unknown kind, an output in a missing folder, on a directory or on an input.
     """
+    from ...backends.sources import recording_path
     from ...core.kinematic_problem import ALL_KINDS, check_kind
     from ...fileio import check_output_path
 
     check_kind(kind, ALL_KINDS)
-    from ...backends.sources import recording_path
-
     inputs = {"--plan": plan}
     if arm is not None:
         inputs |= {"--urdf": arm.urdf, "--file": arm.calibration_file, "--joint-map": arm.joint_map,
