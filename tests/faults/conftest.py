@@ -22,7 +22,11 @@ class _PauseAtImport:
             sys.meta_path.remove(self)
             with open(os.environ["ROBOCAL_TEST_PAUSE_MARKER"], "w") as fh:
                 fh.write(str(os.getpid()))
-            time.sleep(float(os.environ.get("ROBOCAL_TEST_PAUSE_S", "120")))  # a signal's handler runs here
+            # short sleeps, not one long one: a signal that lands after the marker but before a sleep has begun is
+            # handled at the next one (one long sleep held it for its whole length: a rare 120 s hang in CI)
+            deadline = time.monotonic() + float(os.environ.get("ROBOCAL_TEST_PAUSE_S", "120"))
+            while time.monotonic() < deadline:  # a signal's handler runs here
+                time.sleep(0.05)
         return None
 
 sys.meta_path.insert(0, _PauseAtImport())
