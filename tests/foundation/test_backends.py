@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import importlib
 import sys
 from typing import ClassVar
 
@@ -12,12 +13,16 @@ from robocal.errors import BackendNotAvailableError, UsageError
 def test_registry_loads_every_builtin_backend() -> None:
     assert {"robstride", "feetech", "dynamixel", "ur_primary", "damiao"} <= set(list_backends())
     for name, (module, attr) in BACKENDS.items():
-        cls = load_backend(name)
-        assert cls.__name__ == attr and cls.__module__.startswith(module)
+        found = load_backend(name)
+        assert found is getattr(importlib.import_module(module), attr)
+        if isinstance(found, type):  # a bus, client, driver or source class
+            assert found.__name__ == attr and found.__module__.startswith(module)
+    loop = load_backend("dynamixel.position_loop")  # a vendor's position-loop model (not a class)
+    assert loop.factory_gains("xl330-m288") == (400, 0, 0)  # ROBOTIS e-Manual: Position P 400, I 0, D 0
 
 
 def test_unknown_backend_lists_valid_names() -> None:
-    with pytest.raises(UsageError, match=r"unknown backend 'nope'; valid: damiao, damiao\.joint_driver, damiao\.source, dynamixel, dynamixel\.joint_driver, feetech"):
+    with pytest.raises(UsageError, match=r"unknown backend 'nope'; valid: damiao, damiao\.joint_driver, damiao\.source, dynamixel, dynamixel\.joint_driver, dynamixel\.position_loop, feetech"):
         load_backend("nope")
 
 

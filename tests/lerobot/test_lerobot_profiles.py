@@ -18,10 +18,15 @@ KOCH_MODES = ("range_m100_100",) * 5 + ("range_0_100",)
 
 
 def _motors(
-    models: tuple[str, ...], modes: tuple[str, ...], legacy: tuple[str, ...]
+    models: tuple[str, ...],
+    modes: tuple[str, ...],
+    legacy: tuple[str, ...],
+    *,
+    gains: dict[str, tuple[int, int, int]] | None = None,
+    run_modes: dict[str, int] | None = None,
 ) -> tuple[LeRobotMotor, ...]:
     return tuple(
-        LeRobotMotor(n, i, mo, md, lg)
+        LeRobotMotor(n, i, mo, md, lg, (run_modes or {}).get(n), (gains or {}).get(n))
         for i, (n, mo, md, lg) in enumerate(zip(ARM, models, modes, legacy, strict=True), 1)
     )
 
@@ -29,7 +34,9 @@ def _motors(
 # LeRobot 0.6.1: so_follower.py / so_leader.py (registered as so100_* and so101_*), koch_follower.py,
 # koch_leader.py (Motor(id, model, norm_mode) per motor; calibrate() writes Operating_Mode, forces the
 # full-turn motors to 0..4095 and sets the Koch leader's elbow_flex Drive_Mode to 1); legacy calib_mode of
-# the 2024 scheme: Feetech gripper LINEAR, everything else DEGREE.
+# the 2024 scheme: Feetech gripper LINEAR, everything else DEGREE. configure(): the SO followers' P/I/D 16/0/32
+# on every motor; the Koch follower's elbow_flex Position P/I/D 1500/0/600; both Koch arms run the gripper in
+# current-based position (5), the other motors in extended position (4).
 SO_LEGACY = ("DEGREE",) * 5 + ("LINEAR",)
 EXPECTED = {
     f"{gen}_{role}": RobotSpec(
@@ -38,7 +45,12 @@ EXPECTED = {
         f"{gen}_{role}",
         "robots" if role == "follower" else "teleoperators",
         "feetech",
-        _motors(("sts3215",) * 6, SO_MODES, SO_LEGACY),
+        _motors(
+            ("sts3215",) * 6,
+            SO_MODES,
+            SO_LEGACY,
+            gains=dict.fromkeys(ARM, (16, 0, 32)) if role == "follower" else None,
+        ),
         ("wrist_roll",),
         0,
     )
@@ -51,7 +63,13 @@ EXPECTED["koch_follower"] = RobotSpec(
     "koch_follower",
     "robots",
     "dynamixel",
-    _motors(("xl430-w250",) * 2 + ("xl330-m288",) * 4, KOCH_MODES, ("DEGREE",) * 6),
+    _motors(
+        ("xl430-w250",) * 2 + ("xl330-m288",) * 4,
+        KOCH_MODES,
+        ("DEGREE",) * 6,
+        gains={"elbow_flex": (1500, 0, 600)},
+        run_modes={"gripper": 5},
+    ),
     ("shoulder_pan", "wrist_roll"),
     4,
 )
@@ -61,7 +79,7 @@ EXPECTED["koch_leader"] = RobotSpec(
     "koch_leader",
     "teleoperators",
     "dynamixel",
-    _motors(("xl330-m077",) * 6, KOCH_MODES, ("DEGREE",) * 6),
+    _motors(("xl330-m077",) * 6, KOCH_MODES, ("DEGREE",) * 6, run_modes={"gripper": 5}),
     ("shoulder_pan", "wrist_roll"),
     4,
     ("elbow_flex",),
@@ -207,3 +225,42 @@ def test_dataset_presets_come_from_the_profiles(robot: str, family: str, arm_mod
 def test_dataset_unknown_robot_type_lists_the_profiles_prefixes() -> None:
     with pytest.raises(UsageError, match=r"unknown robot type; known: so\*, koch\*, lekiwi\*"):
         motor_family_for_robot("aloha")
+
+
+def _with_joint_keys(**keys: object) -> dict[str, object]:
+    doc = _doc()
+    joints = doc["joints"]
+    assert isinstance(joints, list)
+    joints[0] = {**joints[0], **keys}
+    return doc
+
+
+def test_a_motors_run_mode_and_gains() -> None:
+    spec = RobotSpec.from_profile(parse_profile(_with_joint_keys(position_gains=[16, 0, 32], operating_mode=3), "m"))
+    a, gripper = spec.motors
+    assert (a.position_gains, a.operating_mode, spec.run_mode(a)) == ((16, 0, 32), 3, 3)
+    assert (gripper.position_gains, gripper.operating_mode, spec.run_mode(gripper)) == (None, None, 0)
+
+
+@pytest.mark.parametrize(
+    ("keys", "message"),
+    [
+        ({"position_gains": [16, 0]}, r"joint 'a': position_gains \[16, 0\]; expected \[P, I, D\]"),
+        ({"position_gains": "16"}, r"joint 'a': position_gains '16'; expected \[P, I, D\]"),
+        ({"position_gains": [16, -1, 32]}, r"joint 'a': position_gains -1 is out of range; expected 0\.\.65535"),
+        ({"position_gains": [16, 0, 1.5]}, r"joint 'a': position_gains 1\.5 is not an integer"),
+        ({"operating_mode": 70000}, r"joint 'a': operating_mode 70000 is out of range"),
+        ({"operating_mode": True}, r"joint 'a': operating_mode is True; expected an integer"),
+    ],
+)
+def test_bad_gains_or_mode_are_named(keys: dict[str, object], message: str) -> None:
+    with pytest.raises(FileFormatError, match=message):
+        parse_profile(_with_joint_keys(**keys), "mine.yaml")
+
+
+def test_a_version_1_profile_with_gains_is_refused() -> None:
+    doc = _with_joint_keys(position_gains=[16, 0, 32])
+    del doc["lerobot"]
+    doc["version"] = 1
+    with pytest.raises(FileFormatError, match=r"joint 'a'.*position_gains"):
+        parse_profile(doc, "mine.yaml")

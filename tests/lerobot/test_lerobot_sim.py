@@ -322,6 +322,38 @@ def test_phase_bit4_cleared_like_lerobot_fixture() -> None:
             bus.close()
 
 
+def test_configure_writes_the_modes_and_gains_the_profile_declares() -> None:
+    """The run mode and gains are the profile's (``operating_mode``, ``position_gains``), not fixed per vendor."""
+    from dataclasses import replace
+
+    from robocal.workflows.lerobot import configure
+
+    spec = robot_spec("koch_follower")
+    motors = tuple(
+        replace(m, operating_mode=3, position_gains=(900, 0, 100)) if m.name == "wrist_flex" else m
+        for m in spec.motors
+    )
+    with SimArm(replace(spec, motors=motors)) as arm:
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            written = configure(bus, arm.spec)
+            modes = [arm.servo(n).get_reg("Operating_Mode") for n in arm.spec.motor_names]
+            assert modes == [4, 4, 4, 3, 4, 5]
+            gains = [arm.servo(n).get_reg("Position_P_Gain") for n in ("elbow_flex", "wrist_flex")]
+            assert gains == [1500, 900]
+            assert ("wrist_flex", "Position_D_Gain", 100) in written
+        finally:
+            bus.close()
+    so = robot_spec("so101_leader")  # a leader: LeRobot writes no gains on it
+    with SimArm(so) as arm:
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            assert not [w for w in configure(bus, arm.spec) if w[1] == "P_Coefficient"]
+            assert arm.servo("wrist_flex").get_reg("P_Coefficient") == 32  # the factory's
+        finally:
+            bus.close()
+
+
 def test_multi_turn_feedback_does_not_break_homing(tmp_path: Path) -> None:
     truth = dict(DEFAULT_TRUTH["so101_follower"])
     truth["shoulder_pan"] = JointTruth(4368, 3300, 5500)  # 4368 reads 4368 with Phase bit 4 set (#1296)

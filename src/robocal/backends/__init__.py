@@ -48,6 +48,8 @@ BACKENDS: dict[str, tuple[str, str]] = {
     "dynamixel.joint_driver": ("robocal.backends.dynamixel.joint_driver", "DynamixelJointDriver"),
     "damiao.joint_driver": ("robocal.backends.damiao.joint_driver", "DamiaoJointDriver"),
     "damiao.source": ("robocal.backends.sources.damiao", "DamiaoSource"),
+    "feetech.position_loop": ("robocal.backends.feetech.gains", "POSITION_LOOP"),
+    "dynamixel.position_loop": ("robocal.backends.dynamixel.gains", "POSITION_LOOP"),
 }
 """Backend name → (module, attribute). Extended by the ``robocal.backends`` entry points."""
 

@@ -7,11 +7,12 @@ Shared by the simulated firmware (:mod:`robocal.backends.sim.servo_firmware`) an
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from ..core.motor_models import find_motor_model
 
-__all__ = ["OVERLOAD_BIT", "PWM_FULL", "RATINGS", "RPM_UNIT", "MotorRating"]
+__all__ = ["OVERLOAD_BIT", "PWM_FULL", "RATINGS", "RPM_UNIT", "MotorRating", "PositionLoop"]
 
 PWM_FULL = 885
 """Dynamixel X ``Goal_PWM`` / ``PWM_Limit`` for 100 % duty."""
@@ -64,3 +65,17 @@ RATINGS: dict[str, MotorRating] = {
     "xm540-w270": MotorRating(_stall("xm540-w270"), 4.4, 0.00269, 2047),
 }
 """Bus model → rating (stall torques from :data:`robocal.core.motor_models.MOTOR_MODELS`, where their sources are)."""
+
+
+@dataclass(frozen=True)
+class PositionLoop:
+    """A vendor's position loop as robocal models it (one per vendor home, ``backends/<vendor>/gains.py``).
+
+    Attributes:
+        gains_nm_rad: ``(model, p, d, ticks_per_turn=4096) → (kp N·m/rad, kd N·m·s/rad)`` for the loop's P and D
+            gain registers.
+        factory_gains: ``model → (P, I, D)`` as the servo leaves the factory (KeyError: no table for the model).
+    """
+
+    gains_nm_rad: Callable[..., tuple[float, float]]
+    factory_gains: Callable[[str], tuple[int, int, int]]

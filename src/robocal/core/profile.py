@@ -67,6 +67,10 @@ class ProfileJoint:
         stop_deg: Joint angle of that stop, degrees (upstream writes them in degrees), or None.
         norm_mode: LeRobot arms: the motor's default ``MotorNormMode`` (one of :data:`NORM_MODES`), or None.
         legacy_mode: LeRobot arms: the 2024 legacy ``CalibrationMode`` (``DEGREE``/``LINEAR``), or None.
+        operating_mode: LeRobot arms: the ``Operating_Mode`` LeRobot's ``configure()`` runs this motor in, when it
+            is not the ``lerobot`` section's (the Koch gripper: current-based position, 5), or None.
+        position_gains: LeRobot followers: the position loop's ``(P, I, D)`` that ``configure()`` writes on this
+            motor, or None (the servo keeps its factory gains).
     """
 
     name: str
@@ -80,6 +84,8 @@ class ProfileJoint:
     reply_id: int | None = None
     norm_mode: str | None = None
     legacy_mode: str | None = None
+    operating_mode: int | None = None
+    position_gains: tuple[int, int, int] | None = None
 
     @property
     def stop_rad(self) -> float | None:

@@ -117,6 +117,12 @@ class VendorSpec:
             prompt says it), or "" where :attr:`sweep_auto` is False.
         sim_auto_robot: The simulated robot ``sweep --auto --source sim:NAME`` offers for its motors (``lite``,
             ``openarm``), or None.
+        position_gain_registers: Its position loop's ``(P, I, D)`` gain registers, or None.
+        position_loop: Name in ``robocal.backends.BACKENDS`` of its position loop's model
+            (:class:`robocal.backends.servo_ratings.PositionLoop`, in the vendor's home: the stiffness and damping of
+            a P and D gain, the factory gains per model), or None.
+        goal_limit_modes: The operating modes in which the servo clamps its goal to its position limits (Feetech
+            position mode 0, Dynamixel position mode 3; not extended or current-based position).
         power_on_half_turn: After a power cycle the reading restarts within ±π of the stored zero (Damiao: the
             multi-turn count is in RAM), so a joint whose travel crosses zero ± π reads a turn off (the sweep's
             ``wrap_in_travel`` with ``zero_sta`` 1).
@@ -145,6 +151,9 @@ class VendorSpec:
     host_loss: str = ""
     power_on_half_turn: bool = False
     sim_auto_robot: str | None = None
+    position_gain_registers: tuple[str, str, str] | None = None
+    position_loop: str | None = None
+    goal_limit_modes: tuple[int, ...] = ()
 
     @property
     def applies_drive_mode_in_software(self) -> bool:
@@ -178,6 +187,9 @@ FEETECH = VendorSpec(
     max_lag_deg=3.0,
     legacy_linear_gripper=True,
     joint_driver="feetech.joint_driver",
+    position_gain_registers=("P_Coefficient", "I_Coefficient", "D_Coefficient"),
+    position_loop="feetech.position_loop",
+    goal_limit_modes=(0,),
 )
 """Feetech STS/SCS servos (SO-100/SO-101): ``Present = (Actual − Homing_Offset) mod 4096``, offset in
 sign-magnitude (bit 11); drive mode in software; ``Lock`` guards the EEPROM; the P gain reaches the torque cap
@@ -200,6 +212,9 @@ DYNAMIXEL = VendorSpec(
     legacy_quarter_turn=True,
     torque_off_to_calibrate=True,
     joint_driver="dynamixel.joint_driver",
+    position_gain_registers=("Position_P_Gain", "Position_I_Gain", "Position_D_Gain"),
+    position_loop="dynamixel.position_loop",
+    goal_limit_modes=(3,),
 )
 """Dynamixel X servos (Koch): ``Present = (±Actual) + Homing_Offset`` (``−`` with ``Drive_Mode`` bit 0), two's
 complement; a hardware error latches until REBOOT; the current-based position gain reaches the cap within

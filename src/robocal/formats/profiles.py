@@ -72,7 +72,7 @@ _LEROBOT_KEYS = (
     "inverted",
     "robot_types",
 )
-_LEROBOT_JOINT_KEYS = ("norm_mode", "legacy_mode")
+_LEROBOT_JOINT_KEYS = ("norm_mode", "legacy_mode", "operating_mode", "position_gains")
 SUPPORTED_VERSIONS = (1, 2)
 """Schema versions this robocal reads; version 2 adds the ``lerobot`` and ``auto_calibration`` sections and the
 ``lerobot`` per-joint keys."""
@@ -126,7 +126,27 @@ def _joint(entry: Any, i: int, source: str, version: int) -> ProfileJoint:
         stop_deg=stop_deg,
         norm_mode=_choice(entry, "norm_mode", NORM_MODES, where),
         legacy_mode=_choice(entry, "legacy_mode", LEGACY_MODES, where),
+        operating_mode=None if entry.get("operating_mode") is None else _register_value(entry, "operating_mode", where),
+        position_gains=_position_gains(entry, where),
     )
+
+
+def _register_value(entry: Mapping[str, Any], key: str, where: str, limit: int = 65535) -> int:
+    value = parse_int(entry[key], where, key)
+    if not 0 <= value <= limit:
+        raise FileFormatError(f"{where}: {key} {value} is out of range; expected 0..{limit} (a register value)")
+    return value
+
+
+def _position_gains(entry: Mapping[str, Any], where: str) -> tuple[int, int, int] | None:
+    """A motor's ``position_gains: [P, I, D]`` (register values), or None."""
+    value = entry.get("position_gains")
+    if value is None:
+        return None
+    if not isinstance(value, list) or len(value) != 3:
+        raise FileFormatError(f"{where}: position_gains {value!r}; expected [P, I, D] (three register values)")
+    p, i, d = (_register_value({"position_gains": v}, "position_gains", where) for v in value)
+    return p, i, d
 
 
 def _name_list(section: Mapping[str, Any], key: str, where: str) -> tuple[str, ...]:

@@ -24,6 +24,7 @@ from ..sim.servo_firmware import ServoFirmware
 from ..sim.servo_kind import SimServoKind
 from ..sim.servo_packets import dynamixel_status, parse_dynamixel
 from ..sim.servo_thermal import ServoThermal
+from .gains import position_gains_nm_rad
 from .tables import DYNAMIXEL_MODELS
 
 __all__ = ["DYNAMIXEL_SIM", "DynamixelFirmware"]
@@ -57,12 +58,7 @@ class DynamixelFirmware(ServoFirmware):
         return -1.0 if self._reg("Drive_Mode") & 1 else 1.0
 
     def _position_gains(self) -> tuple[float, float]:
-        per_rad = self.res / math.tau
-        r = self.rating
-        amp = r.current_unit_a * r.kt_nm_a
-        kp = self._reg("Position_P_Gain") / 128 * amp * per_rad
-        kd = self._reg("Position_D_Gain") / 16 * amp * per_rad * 0.001
-        return kp, kd
+        return position_gains_nm_rad(self.servo.model, self._reg("Position_P_Gain"), self._reg("Position_D_Gain"), self.res)
 
     def _cap(self) -> float:
         r = self.rating

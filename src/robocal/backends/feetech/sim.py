@@ -23,6 +23,7 @@ from ..sim.servo_firmware import ServoFirmware
 from ..sim.servo_kind import SimServoKind
 from ..sim.servo_packets import feetech_status, parse_feetech
 from ..sim.servo_thermal import ServoThermal
+from .gains import position_gains_nm_rad
 from .tables import FEETECH_MODELS
 
 __all__ = ["FEETECH_SIM", "FeetechFirmware"]
@@ -56,10 +57,8 @@ class FeetechFirmware(ServoFirmware):
                 s.set_reg(name, value)
 
     def _position_gains(self) -> tuple[float, float]:
-        per_rad = self.res / math.tau
-        r = self.rating
         p, d = self._reg("P_Coefficient", 32), self._reg("D_Coefficient", 32)
-        return p / 1024 * r.stall_torque_nm * per_rad, d * 0.005 * r.stall_torque_nm
+        return position_gains_nm_rad(self.servo.model, p, d, self.res)
 
     def _cap(self) -> float:
         return self.rating.stall_torque_nm * min(1000, self._reg("Torque_Limit", 1000)) / 1000

@@ -14,7 +14,8 @@ calibrated range end short of the stop (LeRobot clamps a value to the calibratio
 convention (the action recorded with the opposite sign, huggingface/lerobot PR #4256).
 
 Arms (:data:`TELEOP_ARMS`): SO-101 (STS3215, ``P_Coefficient`` 16, ``D_Coefficient`` 32) and Koch (XL430 /
-XL330 at their factory gains, ``elbow_flex`` 1500 / 600, as LeRobot configures them). Stops are the robot
+XL330 at their factory gains, ``elbow_flex`` 1500 / 600, as LeRobot configures them: the follower profiles'
+``position_gains``), through each vendor's position-loop model (``backends/<vendor>/gains.py``). Stops are the robot
 profiles' ``auto_calibration`` angles. Gravity comes from the caller (the SO-101 URDF's masses) or, for Koch
 (whose URDF has no masses), from per-joint amplitudes assumed here.
 """
@@ -27,7 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core.arrays import FloatArray
-from ..servo_ratings import RATINGS
+from ..dynamixel.gains import POSITION_LOOP as DYNAMIXEL_LOOP
+from ..feetech.gains import POSITION_LOOP as FEETECH_LOOP
+from ..servo_ratings import RATINGS, PositionLoop
 from .teleop_limits import SCATTER_DEG, clamp_bounds_deg, goal_limits_deg, hand_scatter_deg
 from .teleop_plant import GravityFn, PlantArrays, simulate_tracking
 
@@ -114,23 +117,18 @@ class TeleopArm:
         )
 
 
-def _feetech_gains(p: int, d: int, model: str = "sts3215") -> tuple[float, float, float]:
-    stall = RATINGS[model].stall_torque_nm
-    return p / 1024 * stall * 4096 / math.tau, d * 0.005 * stall, stall
-
-
-def _dxl_gains(p: int, d: int, model: str) -> tuple[float, float, float]:
-    r = RATINGS[model]
-    amp = r.current_unit_a * r.kt_nm_a
-    per_rad = 4096 / math.tau
-    return p / 128 * amp * per_rad, d / 16 * amp * per_rad * 0.001, r.stall_torque_nm
+def _loop(loop: PositionLoop, model: str, gains: tuple[int, int, int] | None = None) -> tuple[float, float, float]:
+    """``(kp, kd, τ_stall)`` of a servo's position loop at ``gains`` (P, I, D), else at its factory gains."""
+    p, _, d = gains or loop.factory_gains(model)
+    kp, kd = loop.gains_nm_rad(model, p, d)
+    return kp, kd, RATINGS[model].stall_torque_nm
 
 
 _ARM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
-_SO = _feetech_gains(16, 32)
-_XL430 = _dxl_gains(640, 0, "xl430-w250")
-_XL330 = _dxl_gains(400, 0, "xl330-m288")
-_XL330_ELBOW = _dxl_gains(1500, 600, "xl330-m288")
+_SO = _loop(FEETECH_LOOP, "sts3215", (16, 0, 32))
+_XL430 = _loop(DYNAMIXEL_LOOP, "xl430-w250")
+_XL330 = _loop(DYNAMIXEL_LOOP, "xl330-m288")
+_XL330_ELBOW = _loop(DYNAMIXEL_LOOP, "xl330-m288", (1500, 0, 600))
 _KOCH = (_XL430, _XL430, _XL330_ELBOW, _XL330, _XL330, _XL330)
 
 TELEOP_ARMS: dict[str, TeleopArm] = {

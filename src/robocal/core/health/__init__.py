@@ -8,7 +8,7 @@ beside them. Importable with numpy alone (a control loop imports it); the monito
 from __future__ import annotations
 
 from .ends import end_bands, end_raw_caps
-from .model import feetech_kp_nm_rad, fitted_sag, model_band, sag_residual_deg, sag_slopes
+from .model import fitted_sag, model_band, sag_residual_deg, sag_slopes
 from .monitor import Monitor
 from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
 from .offsets import (
@@ -41,7 +41,6 @@ __all__ = [
     "end_bands",
     "end_raw_caps",
     "episode_verdicts",
-    "feetech_kp_nm_rad",
     "fit_sag_offsets",
     "fitted_joint",
     "fitted_sag",

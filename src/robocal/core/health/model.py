@@ -26,12 +26,7 @@ import numpy as np
 from ..arrays import FloatArray, IntArray
 from ..gravity import GravityModel, gravity_torques
 
-__all__ = ["feetech_kp_nm_rad", "fitted_sag", "model_band", "sag_residual_deg", "sag_slopes"]
-
-
-def feetech_kp_nm_rad(p_coefficient: int, stall_torque_nm: float, ticks_per_turn: int = 4096) -> float:
-    """Position stiffness of a Feetech STS servo: ``P/1024 · τ_stall`` per tick of error, in N·m/rad."""
-    return p_coefficient / 1024 * stall_torque_nm * ticks_per_turn / math.tau
+__all__ = ["fitted_sag", "model_band", "sag_residual_deg", "sag_slopes"]
 
 
 def sag_residual_deg(

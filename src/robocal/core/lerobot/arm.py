@@ -13,13 +13,19 @@ __all__ = ["LeRobotMotor", "RobotSpec"]
 
 @dataclass(frozen=True)
 class LeRobotMotor:
-    """One motor of a LeRobot arm: name, bus id, model, LeRobot norm mode and legacy calibration mode."""
+    """One motor of a LeRobot arm: name, bus id, model, LeRobot norm mode and legacy calibration mode.
+
+    ``operating_mode`` is the mode LeRobot runs it in when that is not the arm's (None: the arm's);
+    ``position_gains`` the ``(P, I, D)`` LeRobot's follower writes on it (None: the servo's factory gains).
+    """
 
     name: str
     motor_id: int
     model: str
     norm_mode: str
     legacy_mode: str = "DEGREE"
+    operating_mode: int | None = None
+    position_gains: tuple[int, int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -62,6 +68,10 @@ class RobotSpec:
         """Its vendor's homing rule (sign and encoding of ``Homing_Offset``)."""
         return self.vendor_spec.homing_rule()
 
+    def run_mode(self, motor: LeRobotMotor) -> int:
+        """The ``Operating_Mode`` LeRobot runs ``motor`` in (after ``configure()``)."""
+        return self.operating_mode if motor.operating_mode is None else motor.operating_mode
+
     @property
     def motor_names(self) -> tuple[str, ...]:
         """Motor names in bus order."""
@@ -83,7 +93,17 @@ class RobotSpec:
                 j.motor_id is None or j.model is None or j.norm_mode is None
             ):  # pragma: no cover - parser checks
                 raise UsageError(f"robot profile {profile.name}: joint {j.name} lacks id, model or norm_mode")
-            motors.append(LeRobotMotor(j.name, j.motor_id, j.model, j.norm_mode, j.legacy_mode or "DEGREE"))
+            motors.append(
+                LeRobotMotor(
+                    j.name,
+                    j.motor_id,
+                    j.model,
+                    j.norm_mode,
+                    j.legacy_mode or "DEGREE",
+                    j.operating_mode,
+                    j.position_gains,
+                )
+            )
         return cls(
             profile.name,
             lr.device_name,

@@ -17,27 +17,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ...core.health import feetech_kp_nm_rad
+from ...core.lerobot import RobotSpec
 from ...errors import UsageError
 
 if TYPE_CHECKING:
+    from ...backends.servo_ratings import PositionLoop
     from ...core.gravity import GravityModel
     from ...dataset.health import DatasetHealth, HealthSetup
 
-__all__ = ["HealthOutcome", "HealthRequest", "evaluate_health", "render_picture", "run_health"]
+__all__ = ["HealthOutcome", "HealthRequest", "evaluate_health", "follower_loop", "render_picture", "run_health"]
 
-_DXL_FACTORY_P = {
-    "xl430-w250": 640,
-    "xl330-m288": 400,
-    "xl330-m077": 400,
-    "xc430-w150": 640,
-    "xm430-w350": 800,
-}
-"""Factory ``Position_P_Gain`` of the Dynamixel models LeRobot's Koch uses (its ``configure()`` keeps them)."""
-_DXL_LEROBOT_P = {"elbow_flex": 1500}
-"""Joints whose gain LeRobot's Koch follower sets (``Position_P_Gain`` 1500 on ``elbow_flex``)."""
-_FEETECH_LEROBOT_P = 16
-"""LeRobot's SO follower: ``P_Coefficient`` 16."""
 _SHIPPED_URDF = {"so100": "so101_new_calib.urdf", "so101": "so101_new_calib.urdf", "koch": "koch.urdf"}
 
 
@@ -81,33 +70,31 @@ class HealthOutcome:
     picture_path: Path
 
 
-def _kp(joint: str, model: str | None) -> float:
-    """The follower's position stiffness as LeRobot configures it, N·m/rad.
+def follower_loop(spec: RobotSpec) -> tuple[dict[str, float], dict[str, bool]]:
+    """Per motor, the follower's position stiffness (N·m/rad) and whether its servo clamps its goal to its limits.
 
-    A Dynamixel model of :data:`_DXL_FACTORY_P` at its ``Position_P_Gain`` (LeRobot's where it sets one); any other
-    servo at Feetech's ``P_Coefficient`` 16.
+    The stiffness is the servo's position loop (its vendor's model, ``backends/<vendor>/gains.py``) at the gains
+    LeRobot writes (the profile's ``position_gains``), else at the servo's factory gains; ``inf`` (no sag) for a
+    model robocal has no rating or factory table for. A motor's goal is clamped to the position limits (LeRobot's
+    recorded range) when the mode LeRobot runs it in is one of its vendor's ``goal_limit_modes`` (Feetech position
+    mode; not the Dynamixels' extended or current-based position) and it is not a full-turn motor (limits
+    0..4095).
     """
-    from ...backends.servo_ratings import RATINGS
+    from ...backends import load_backend
 
-    rating = RATINGS.get(model or "")
-    if rating is None:
-        return math.inf
-    if model in _DXL_FACTORY_P:
-        p = _DXL_LEROBOT_P.get(joint, _DXL_FACTORY_P[model])
-        return p / 128 * rating.current_unit_a * rating.kt_nm_a * 4096 / math.tau
-    return feetech_kp_nm_rad(_FEETECH_LEROBOT_P, rating.stall_torque_nm)
-
-
-def _goal_limited(model: str | None) -> bool:
-    """The follower's servo clamps its goal to the range LeRobot wrote into its position limits.
-
-    Feetech STS/SCS servos do in position mode, the mode LeRobot runs them in; LeRobot runs the Dynamixels of
-    :data:`_DXL_FACTORY_P` in extended position mode, where the limits are not enforced. (A full-turn motor's
-    limits are the whole turn: the caller leaves those out.)
-    """
-    from ...backends.servo_ratings import RATINGS
-
-    return model in RATINGS and model not in _DXL_FACTORY_P
+    vendor = spec.vendor_spec
+    loop: PositionLoop | None = None if vendor.position_loop is None else load_backend(vendor.position_loop)
+    kp, limited = {}, {}
+    for m in spec.motors:
+        kp[m.name] = math.inf
+        if loop is not None:
+            try:
+                p, _, d = m.position_gains or loop.factory_gains(m.model)
+                kp[m.name] = loop.gains_nm_rad(m.model, p, d)[0]
+            except KeyError:  # no rating or factory table for the model: no sag
+                pass
+        limited[m.name] = spec.run_mode(m) in vendor.goal_limit_modes and m.name not in spec.full_turn
+    return kp, limited
 
 
 def _gravity(request: HealthRequest, robot: str) -> tuple[GravityModel | None, str | None]:
@@ -142,8 +129,7 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
     joints = list(layout.vector_feature("observation.state").joint_names)
     modes = preset_modes(robot, joints, request.use_degrees)
     auto = {j.name: j for j in profile.auto.joints} if profile.auto is not None else {}
-    models = {j.name: j.model for j in profile.joints}
-    full_turn = profile.lerobot.full_turn if profile.lerobot is not None else ()  # limits 0..4095: not enforced
+    loop_kp, loop_limited = follower_loop(RobotSpec.from_profile(profile)) if profile.lerobot is not None else ({}, {})
     units, upd, stops, kp, limited = {}, {}, {}, {}, {}
     for j in joints:
         a = auto.get(j)
@@ -159,8 +145,8 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
             if mode == "degrees"
             else (math.nan if not span else (100.0 if mode == "range_0_100" else 200.0) / span)
         )
-        kp[j] = _kp(j, models.get(j))
-        limited[j] = _goal_limited(models.get(j)) and j not in full_turn
+        kp[j] = loop_kp.get(j, math.inf)
+        limited[j] = loop_limited.get(j, False)
     gravity, urdf = _gravity(request, robot)
     leader = follower = None
     if request.leader_calibration is not None and request.follower_calibration is not None:

@@ -5,10 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 
 from ...backends.servo_bus import ServoBus
-from ...core.lerobot import (
-    MotorCalibration,
-    RobotSpec,
-)
+from ...core.lerobot import LeRobotMotor, MotorCalibration, RobotSpec
 from ...errors import InvalidCalibrationError, UsageError
 
 __all__ = [
@@ -102,6 +99,14 @@ def configure(
 _Put = Callable[[str, int, str, int], None]
 
 
+def _gain_presets(spec: RobotSpec, motor: LeRobotMotor) -> list[tuple[str, int]]:
+    """The position gains LeRobot writes on ``motor`` (its profile's ``position_gains``), as register writes."""
+    registers = spec.vendor_spec.position_gain_registers
+    if motor.position_gains is None or registers is None:
+        return []
+    return list(zip(registers, motor.position_gains, strict=True))
+
+
 def _feetech_presets(
     bus: ServoBus,
     spec: RobotSpec,
@@ -116,15 +121,10 @@ def _feetech_presets(
     for i in clear_phase_bit4(bus, spec):
         written.append((by_id[i], "Phase", bus.read("Phase", i)))
     for m in spec.motors:
-        presets = [("Maximum_Acceleration", 254), ("Acceleration", 254), ("Operating_Mode", 0)]
-        if follower:
-            presets += [("P_Coefficient", 16), ("I_Coefficient", 0), ("D_Coefficient", 32)]
-            if m.name == "gripper":
-                presets += [
-                    ("Max_Torque_Limit", 500),
-                    ("Protection_Current", 250),
-                    ("Overload_Torque", 25),
-                ]
+        presets = [("Maximum_Acceleration", 254), ("Acceleration", 254), ("Operating_Mode", spec.run_mode(m))]
+        presets += _gain_presets(spec, m)
+        if follower and m.name == "gripper":
+            presets += [("Max_Torque_Limit", 500), ("Protection_Current", 250), ("Overload_Torque", 25)]
         for reg, value in presets:
             put(m.name, m.motor_id, reg, value)
 
@@ -140,12 +140,11 @@ def _dynamixel_presets(
     """LeRobot's Koch arms (Dynamixel): operating modes, the follower's elbow gains, the leader's gripper trigger."""
     follower = spec.kind == "robots"
     for m in spec.motors:
-        put(m.name, m.motor_id, "Operating_Mode", 5 if m.name == "gripper" else 4)
-    if follower:
-        elbow = next(m for m in spec.motors if m.name == "elbow_flex")
-        for reg, value in (("Position_P_Gain", 1500), ("Position_I_Gain", 0), ("Position_D_Gain", 600)):
-            put(elbow.name, elbow.motor_id, reg, value)
-    elif calibration is not None:
+        put(m.name, m.motor_id, "Operating_Mode", spec.run_mode(m))
+    for m in spec.motors:
+        for reg, value in _gain_presets(spec, m):
+            put(m.name, m.motor_id, reg, value)
+    if not follower and calibration is not None:
         gripper = next(m for m in spec.motors if m.name == "gripper")
         if gripper.name not in calibration:
             raise InvalidCalibrationError("calibration has no entry for motor 'gripper'")
