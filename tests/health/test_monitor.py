@@ -241,3 +241,21 @@ def test_the_docstring_examples_hold() -> None:
 
     for module in (facade, core_monitor):
         assert doctest.testmod(module).failed == 0
+
+
+def test_numpy_arrays_configure_per_joint_values_as_in_the_docs() -> None:
+    """docs/health.md builds the config from ``np.radians([...])``; before, a numpy array was taken for one value
+    and ``monitor_config`` raised ``TypeError: only 0-dimensional arrays can be converted to Python scalars``."""
+    cfg = monitor_config(
+        ["a", "b"],
+        lower_rad=np.radians([-110.0, -10.0]),
+        upper_rad=np.radians([110.0, 115.0]),
+        max_speed_rad_s=np.array([6.0, 3.0]),
+        wraps=np.array([False, True]),
+        leader_paired=np.array([True, False]),
+    )
+    assert cfg.lower_rad == (math.radians(-110.0), math.radians(-10.0))
+    assert cfg.max_speed_rad_s == (6.0, 3.0)
+    assert (cfg.wraps, cfg.leader_paired) == ((False, True), (True, False))
+    with pytest.raises(UsageError, match=r"^monitor: upper_rad has 3 values for 2 joints$"):
+        monitor_config(["a", "b"], np.zeros(2) - 1.0, np.ones(3), 1.0)

@@ -9,6 +9,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ...errors import UsageError
 
 __all__ = [
@@ -71,7 +73,7 @@ class HealthFlag:
 
 def _per_joint(name: str, value: float | Sequence[float], n: int) -> tuple[float, ...]:
     """``value`` as ``n`` floats (a scalar repeated), checked finite."""
-    out = tuple(float(v) for v in value) if isinstance(value, Sequence) else (float(value),) * n
+    out = tuple(float(v) for v in value) if isinstance(value, Sequence | np.ndarray) else (float(value),) * n
     if len(out) != n:
         raise UsageError(f"monitor: {name} has {len(out)} values for {n} joints")
     return out
@@ -186,7 +188,7 @@ def monitor_config(
     n = len(names)
 
     def flags(name: str, value: bool | Sequence[bool]) -> tuple[bool, ...]:
-        out = tuple(bool(v) for v in value) if isinstance(value, Sequence) else (bool(value),) * n
+        out = tuple(bool(v) for v in value) if isinstance(value, Sequence | np.ndarray) else (bool(value),) * n
         if len(out) != n:
             raise UsageError(f"monitor: {name} has {len(out)} values for {n} joints")
         return out
