@@ -259,3 +259,32 @@ def test_numpy_arrays_configure_per_joint_values_as_in_the_docs() -> None:
     assert (cfg.wraps, cfg.leader_paired) == ((False, True), (True, False))
     with pytest.raises(UsageError, match=r"^monitor: upper_rad has 3 values for 2 joints$"):
         monitor_config(["a", "b"], np.zeros(2) - 1.0, np.ones(3), 1.0)
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        ({"q_rad": np.array([0.5])}, "monitor: q_rad has shape (1,); expected (2,), one value per joint (a, b)"),
+        ({"q_rad": 0.5}, "monitor: q_rad has shape (); expected (2,), one value per joint (a, b)"),
+        ({"q_rad": np.zeros(3)}, "monitor: q_rad has shape (3,); expected (2,), one value per joint (a, b)"),
+        ({"q_rad": np.zeros((2, 2))}, "monitor: q_rad has shape (2, 2); expected (2,), one value per joint (a, b)"),
+        ({"q_cmd_rad": 0.0}, "monitor: q_cmd_rad has shape (); expected (2,), one value per joint (a, b)"),
+        ({"q_leader_rad": np.zeros(1)}, "monitor: q_leader_rad has shape (1,); expected (2,), one value per joint (a, b)"),
+        ({"t_s": math.nan}, "monitor: time nan s is not a finite number"),
+        ({"t_s": math.inf}, "monitor: time inf s is not a finite number"),
+    ],
+)
+def test_readings_that_are_not_one_number_per_joint_and_times_that_are_not_finite_are_refused(
+    call: dict[str, object], message: str
+) -> None:
+    """Before, a (1,) reading or a scalar command was broadcast to every joint (no error, flags for every joint or
+    none), a (3,) reading raised numpy's "operands could not be broadcast", a (1,) leader an IndexError from the
+    pinned check; a NaN time was taken as a fresh start and an infinite one refused every later tick."""
+    m = _monitor(leader_paired=True)
+    _feed(m, [0.0, 0.0])
+    args: dict[str, object] = {"t_s": 1.0, "q_rad": np.zeros(2), "q_cmd_rad": None, "q_leader_rad": None}
+    args.update(call)
+    with pytest.raises(UsageError) as err:
+        m.update(**args)  # type: ignore[arg-type]
+    assert str(err.value) == message
+    assert m.update(1.0, [0.0, 0.0], q_cmd_rad=[0.0, 0.0], q_leader_rad=[0.0, math.nan]) == ()  # lists still do

@@ -69,6 +69,7 @@ class Monitor:
         self.config = config
         n = len(config.joint_names)
         self._n = n
+        self._shape = (n,)
         self._names = config.joint_names
         lo = np.array(config.lower_rad, dtype=np.float64)
         up = np.array(config.upper_rad, dtype=np.float64)
@@ -144,11 +145,20 @@ class Monitor:
             The flags this tick raised (empty on almost every tick); they are also appended to :attr:`history`.
 
         Raises:
-            UsageError: ``t_s`` did not advance past the previous tick's time.
+            UsageError: ``t_s`` is not finite or did not advance past the previous tick's time; an array that is
+                not one number per joint.
         """
+        if not math.isfinite(t_s):
+            raise UsageError(f"monitor: time {t_s} s is not a finite number")
         dt = t_s - self._t_prev
         if dt <= 0.0:
             raise UsageError(f"monitor: time {t_s} s is not after the previous tick's {self._t_prev} s")
+        if getattr(q_rad, "shape", None) != self._shape:
+            q_rad = self._readings("q_rad", q_rad)
+        if q_cmd_rad is not None and getattr(q_cmd_rad, "shape", None) != self._shape:
+            q_cmd_rad = self._readings("q_cmd_rad", q_cmd_rad)
+        if q_leader_rad is not None and getattr(q_leader_rad, "shape", None) != self._shape:
+            q_leader_rad = self._readings("q_leader_rad", q_leader_rad)
         self._t_prev = t_s
         self.ticks += 1
         if not abs(dt - self._dt_ref) <= _JITTER * self._dt_ref:  # first ticks, or the period changed
@@ -169,6 +179,19 @@ class Monitor:
                 flags = flags + self._record(pinned)
         np.add(q_rad, self._zero_dq, out=self._prev_pred)
         return flags
+
+    def _readings(self, what: str, values: object) -> FloatArray:
+        """``values`` (not an ``(N,)`` array already) as one float per joint, or a UsageError naming ``what``."""
+        try:
+            out = np.asarray(values, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise UsageError(f"monitor: {what} is not numbers ({type(values).__name__})") from None
+        if out.shape != self._shape:
+            raise UsageError(
+                f"monitor: {what} has shape {out.shape}; expected ({self._n},), one value per joint "
+                f"({', '.join(self._names)})"
+            )
+        return out
 
     def _new_period(self, dt: float) -> None:
         """The tick period changed (or this is the first tick): new bounds, no acceleration check for 2 ticks.
