@@ -262,6 +262,17 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         (root / "meta/info.json").write_text(json.dumps(info))
     elif kind == "one calibration":
         _write(small, root)
+    elif kind in ("null row", "null episode", "float episode"):
+        _write(small, root)
+        path = root / "data/chunk-000/file-000.parquet"
+        table = pq.read_table(path)
+        key = "observation.state" if kind == "null row" else "episode_index"
+        col = table.column(key).to_pylist()
+        col[3] = None
+        typ = table.schema.field(key).type
+        if kind == "float episode":
+            col, typ = [i + 0.5 for i in table.column(key).to_pylist()], pa.float64()
+        pq.write_table(table.set_column(table.schema.get_field_index(key), key, pa.array(col, typ)), path)
 
 
 @pytest.mark.parametrize(
@@ -273,6 +284,11 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         ("missing column", "missing column(s) action"),
         ("missing feature", "unknown feature 'observation.state'"),
         ("one calibration", "go together"),
+        # before: an IndexError (exit 70), the null row dropped from one column only
+        ("null row", "column 'observation.state' has null rows (frames with no value)"),
+        # before: numpy's "invalid value encountered in cast" warning on stderr and exit 0
+        ("null episode", "column 'episode_index' is int64 with null rows; expected an integer episode number"),
+        ("float episode", "column 'episode_index' is double; expected an integer episode number"),
     ],
 )
 def test_degenerate_dataset_exits_2_with_one_error_line(

@@ -130,6 +130,10 @@ def _vector(table: pa.Table, key: str, d: int, rel: str) -> FloatArray:
         raise FileFormatError(
             f"data file {rel}: column {key!r} is {arr.type}; expected fixed_size_list<float>[{d}]"
         )
+    if arr.null_count:
+        raise FileFormatError(
+            f"data file {rel}: column {key!r} has null rows (frames with no value); the check needs every frame"
+        )
     with np.errstate(invalid="ignore", over="ignore"):
         v = np.asarray(arr.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
     return v.reshape(-1, d)
@@ -168,7 +172,14 @@ def read_teleop_frames(root: str | Path) -> TeleopFrames:
                 t = pf.read_row_group(g, columns=["action", "observation.state", "episode_index"])
                 actions.append(_vector(t, "action", fa.size, rel))
                 states.append(_vector(t, "observation.state", fs.size, rel))
-                episodes.append(np.asarray(t.column("episode_index").to_numpy(), dtype=np.int64))
+                ep = t.column("episode_index")
+                if not pa.types.is_integer(ep.type) or ep.null_count:
+                    nulls = " with null rows" if ep.null_count else ""
+                    raise FileFormatError(
+                        f"data file {rel}: column 'episode_index' is {ep.type}{nulls}; expected an integer "
+                        "episode number in every row"
+                    )
+                episodes.append(np.asarray(ep.to_numpy(), dtype=np.int64))
         except (pa.ArrowException, OSError) as exc:
             raise FileFormatError(f"data file {rel}: cannot read Parquet ({exc})") from None
     if not actions or sum(len(a) for a in actions) < 2:
