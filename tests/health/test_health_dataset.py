@@ -262,6 +262,12 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         (root / "meta/info.json").write_text(json.dumps(info))
     elif kind == "one calibration":
         _write(small, root)
+    elif kind == "duplicate names":
+        _write(small, root)
+        info = json.loads((root / "meta/info.json").read_text())
+        for key in ("action", "observation.state"):
+            info["features"][key]["names"][1] = "shoulder_pan.pos"
+        (root / "meta/info.json").write_text(json.dumps(info))
     elif kind in ("null row", "null episode", "float episode"):
         _write(small, root)
         path = root / "data/chunk-000/file-000.parquet"
@@ -289,6 +295,8 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         # before: numpy's "invalid value encountered in cast" warning on stderr and exit 0
         ("null episode", "column 'episode_index' is int64 with null rows; expected an integer episode number"),
         ("float episode", "column 'episode_index' is double; expected an integer episode number"),
+        # before: exit 0 and a report keyed by name that kept one of the two shoulder_pan columns
+        ("duplicate names", "action and observation.state name shoulder_pan more than once"),
     ],
 )
 def test_degenerate_dataset_exits_2_with_one_error_line(

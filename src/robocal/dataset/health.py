@@ -11,6 +11,7 @@ The check itself is :func:`robocal.core.health.analyse_joint`.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -159,6 +160,12 @@ def read_teleop_frames(root: str | Path) -> TeleopFrames:
         raise JointMismatchError(
             f"{layout.root / 'meta/info.json'}: action names {', '.join(fa.joint_names)} but observation.state "
             f"names {', '.join(fs.joint_names)}; the check pairs them joint by joint"
+        )
+    dup = sorted(n for n, count in Counter(fa.joint_names).items() if count > 1)
+    if dup:
+        raise JointMismatchError(
+            f"{layout.root / 'meta/info.json'}: action and observation.state name {', '.join(dup)} more than "
+            "once; the check reports each joint by name"
         )
     actions, states, episodes = [], [], []
     for rel in layout.data_files:
