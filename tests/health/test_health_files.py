@@ -84,3 +84,34 @@ def test_a_full_turn_wrist_roll_offset_the_files_cannot_carry_is_unobservable_an
         "recorded as a full turn in the calibration files: its zero is the homing pose, which the files do not "
         "carry; only the follower held at a stop can show its offset",
     ]
+
+
+@pytest.mark.parametrize("bad", ["urdf", "no gripper"])
+def test_a_calibration_file_that_is_not_the_arms_lerobot_file_is_refused_naming_it(
+    bad: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, a URDF given as --follower-calibration was read as a joint map (radians, no recorded range) and
+    the check ran on that: exit 0; a LeRobot file without the gripper failed with "LeRobot calibration: no motor
+    named gripper", naming neither the file nor the option."""
+    (root,) = generate_teleop_datasets(tmp_path, "so101", [3], [TeleopFaults()], episodes=1, episode_s=1.0,
+                                       calibration_files=True)  # fmt: skip
+    leader = root.with_name(root.name + ".leader.json")
+    follower = tmp_path / ("f.urdf" if bad == "urdf" else "f.json")
+    if bad == "urdf":
+        follower.write_bytes((Path(__file__).parents[2] / "src/robocal/data/so101_new_calib.urdf").read_bytes())
+        needle = f"error: --follower-calibration {follower}: not a LeRobot calibration file;"
+    else:
+        data = json.loads(root.with_name(root.name + ".follower.json").read_text())
+        del data["gripper"]
+        follower.write_text(json.dumps(data))
+        needle = f"error: --follower-calibration {follower}: no motor named gripper (the dataset's joints: shoulder_pan"
+    before = follower.read_bytes()
+    report = tmp_path / "h.json"
+    code = main(["dataset", "health", str(root), "--report", str(report), "--leader-calibration", str(leader),
+                 "--follower-calibration", str(follower)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(needle), err
+    assert not report.exists() and not report.with_suffix(".png").exists()
+    assert follower.read_bytes() == before

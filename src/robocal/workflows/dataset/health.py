@@ -18,11 +18,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ...core.lerobot import RobotSpec
-from ...errors import UsageError
+from ...errors import FileFormatError, JointMismatchError, UsageError
 
 if TYPE_CHECKING:
     from ...backends.servo_ratings import PositionLoop
     from ...core.gravity import GravityModel
+    from ...dataset._convention import ValueConvention
     from ...dataset.health import DatasetHealth, HealthSetup
 
 __all__ = ["HealthOutcome", "HealthRequest", "evaluate_health", "follower_loop", "render_picture", "run_health"]
@@ -111,6 +112,28 @@ def _gravity(request: HealthRequest, robot: str) -> tuple[GravityModel | None, s
     return gravity_model_if_any(path), str(path)
 
 
+def _check_calibration(what: str, path: Path, conv: ValueConvention, joints: list[str]) -> None:
+    """A LeRobot calibration (current or legacy JSON) with a motor for every joint of the dataset.
+
+    Raises:
+        FileFormatError: Another format (a URDF or a joint map reads as a calibration, in no arm's ticks).
+        JointMismatchError: A joint of the dataset the file has no motor for.
+    """
+    from ...dataset.lerobot import LegacyConvention, LeRobotConvention
+
+    if not isinstance(conv, LeRobotConvention | LegacyConvention):
+        raise FileFormatError(
+            f"{what} {path}: not a LeRobot calibration file; the check reads each arm's LeRobot calibration JSON "
+            "(id, drive_mode, homing_offset, range_min, range_max per motor)"
+        )
+    names = set(conv.joint_names)
+    missing = [j for j in joints if j not in names]
+    if missing:
+        raise JointMismatchError(
+            f"{what} {path}: no motor named {', '.join(missing)} (the dataset's joints: {', '.join(joints)})"
+        )
+
+
 def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
     from ...dataset import read_layout
     from ...dataset.health import HealthSetup
@@ -165,6 +188,11 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
             family=family,
             what="--follower-calibration",
         )
+        for what, path, conv in (
+            ("--leader-calibration", request.leader_calibration, leader),
+            ("--follower-calibration", request.follower_calibration, follower),
+        ):
+            _check_calibration(what, path, conv, joints)
     return HealthSetup(units, upd, stops, kp, gravity, leader, follower, limited), robot, urdf
 
 
