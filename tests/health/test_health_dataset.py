@@ -262,6 +262,11 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         (root / "meta/info.json").write_text(json.dumps(info))
     elif kind == "one calibration":
         _write(small, root)
+    elif kind == "robot_type so100":
+        _write(small, root)
+        info = json.loads((root / "meta/info.json").read_text())
+        info["robot_type"] = "so100"  # LeRobot v2-era datasets, converted to v3, keep it
+        (root / "meta/info.json").write_text(json.dumps(info))
     elif kind == "duplicate names":
         _write(small, root)
         info = json.loads((root / "meta/info.json").read_text())
@@ -297,6 +302,9 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         ("float episode", "column 'episode_index' is double; expected an integer episode number"),
         # before: exit 0 and a report keyed by name that kept one of the two shoulder_pan columns
         ("duplicate names", "action and observation.state name shoulder_pan more than once"),
+        # before: "--robot 'so100': not a built-in robot ... and not a profile file", with no --robot given (and a
+        # robot_type naming a file on disk was read as a profile)
+        ("robot_type so100", "meta/info.json robot_type 'so100' is not a built-in robot (bhl_arms, "),
     ],
 )
 def test_degenerate_dataset_exits_2_with_one_error_line(
