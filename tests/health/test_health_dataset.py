@@ -260,7 +260,7 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         info = json.loads((root / "meta/info.json").read_text())
         del info["features"]["observation.state"]
         (root / "meta/info.json").write_text(json.dumps(info))
-    elif kind == "one calibration":
+    elif kind in ("one calibration", "robot bhl_arms"):
         _write(small, root)
     elif kind == "robot_type so100":
         _write(small, root)
@@ -304,7 +304,10 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         ("duplicate names", "action and observation.state name shoulder_pan more than once"),
         # before: "--robot 'so100': not a built-in robot ... and not a profile file", with no --robot given (and a
         # robot_type naming a file on disk was read as a profile)
-        ("robot_type so100", "meta/info.json robot_type 'so100' is not a built-in robot (bhl_arms, "),
+        ("robot_type so100", "meta/info.json robot_type 'so100' is not a built-in LeRobot arm (koch_follower, "),
+        # before: "--robot 'bhl_arms': unknown robot type; known: so*, koch*, lekiwi* (or pass --motor-family)", an
+        # option dataset health does not have; a profile file the same
+        ("robot bhl_arms", "--robot 'bhl_arms': dataset health needs a built-in LeRobot arm (koch_follower, koch_"),
     ],
 )
 def test_degenerate_dataset_exits_2_with_one_error_line(
@@ -314,6 +317,7 @@ def test_degenerate_dataset_exits_2_with_one_error_line(
     _bad_case(kind, small, root)
     report = tmp_path / "h.json"
     extra = ["--leader-calibration", tmp_path / "x.json"] if kind == "one calibration" else []
+    extra += ["--robot", "bhl_arms"] if kind == "robot bhl_arms" else []
     code, _, err = run(capsys, "dataset", "health", root, "--report", report, *extra)
     assert code == 2
     lines = [ln for ln in err.splitlines() if ln.strip()]

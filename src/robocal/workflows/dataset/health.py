@@ -138,7 +138,7 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
     from ...dataset import read_layout
     from ...dataset.health import HealthSetup
     from ...dataset.lerobot import load_convention, motor_family_for_robot, preset_modes
-    from ...formats.profiles import builtin_profile_names, load_profile
+    from ...formats.profiles import builtin_lerobot_profiles, load_profile
 
     if (request.leader_calibration is None) != (request.follower_calibration is None):
         raise UsageError("--leader-calibration and --follower-calibration go together (one per arm)")
@@ -148,12 +148,15 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
         raise UsageError(
             f"dataset {request.root}: meta/info.json names no robot_type; name the arm with --robot"
         )
-    if not request.robot and robot not in builtin_profile_names():  # never a file named by the dataset
+    arms = [p.name for p in builtin_lerobot_profiles()]
+    if not request.robot and robot not in arms:  # never a file named by the dataset
         raise UsageError(
-            f"dataset {request.root}: meta/info.json robot_type {robot!r} is not a built-in robot "
-            f"({', '.join(builtin_profile_names())}); name the arm with --robot"
+            f"dataset {request.root}: meta/info.json robot_type {robot!r} is not a built-in LeRobot arm "
+            f"({', '.join(arms)}); name the arm with --robot"
         )
     profile = load_profile(robot)
+    if robot not in arms:  # a profile file or another robot: the modes and motor family are a LeRobot arm's
+        raise UsageError(f"--robot {robot!r}: dataset health needs a built-in LeRobot arm ({', '.join(arms)})")
     joints = list(layout.vector_feature("observation.state").joint_names)
     modes = preset_modes(robot, joints, request.use_degrees)
     auto = {j.name: j for j in profile.auto.joints} if profile.auto is not None else {}
