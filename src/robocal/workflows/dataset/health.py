@@ -179,6 +179,11 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
         kp[j] = loop_kp.get(j, math.inf)
         limited[j] = loop_limited.get(j, False)
     gravity, urdf = _gravity(request, robot)
+    if request.urdf is not None and gravity is not None and not set(joints) & set(gravity.joint_names):
+        raise JointMismatchError(
+            f"--urdf {request.urdf}: none of the dataset's joints ({', '.join(joints)}) is a joint of it; the sag "
+            "model needs the arm's URDF"
+        )
     leader = follower = None
     if request.leader_calibration is not None and request.follower_calibration is not None:
         family = motor_family_for_robot(robot)
