@@ -267,6 +267,12 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         info = json.loads((root / "meta/info.json").read_text())
         info["robot_type"] = "so100"  # LeRobot v2-era datasets, converted to v3, keep it
         (root / "meta/info.json").write_text(json.dumps(info))
+    elif kind == "another arm's joints":
+        _write(small, root)
+        info = json.loads((root / "meta/info.json").read_text())
+        for key in ("action", "observation.state"):
+            info["features"][key]["names"] = [f"arm_{n}" for n in info["features"][key]["names"]]  # LeKiwi's
+        (root / "meta/info.json").write_text(json.dumps(info))
     elif kind == "duplicate names":
         _write(small, root)
         info = json.loads((root / "meta/info.json").read_text())
@@ -302,6 +308,9 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         ("float episode", "column 'episode_index' is double; expected an integer episode number"),
         # before: exit 0 and a report keyed by name that kept one of the two shoulder_pan columns
         ("duplicate names", "action and observation.state name shoulder_pan more than once"),
+        # before: exit 0, every joint "unobservable" for "no range-end contact" (the profile has no stops for them)
+        ("another arm's joints", "observation.state names arm_shoulder_pan, arm_shoulder_lift, arm_elbow_flex, "
+         "arm_wrist_flex, arm_wrist_roll, arm_gripper, none of them a joint of so101_follower (shoulder_pan, "),
         # before: "--robot 'so100': not a built-in robot ... and not a profile file", with no --robot given (and a
         # robot_type naming a file on disk was read as a profile)
         ("robot_type so100", "meta/info.json robot_type 'so100' is not a built-in LeRobot arm (koch_follower, "),

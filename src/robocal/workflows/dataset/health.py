@@ -158,6 +158,11 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
     if robot not in arms:  # a profile file or another robot: the modes and motor family are a LeRobot arm's
         raise UsageError(f"--robot {robot!r}: dataset health needs a built-in LeRobot arm ({', '.join(arms)})")
     joints = list(layout.vector_feature("observation.state").joint_names)
+    if not {j.name for j in profile.joints}.intersection(joints):
+        raise JointMismatchError(
+            f"dataset {request.root}: observation.state names {', '.join(joints)}, none of them a joint of {robot} "
+            f"({', '.join(j.name for j in profile.joints)}); name the dataset's arm with --robot"
+        )
     modes = preset_modes(robot, joints, request.use_degrees)
     auto = {j.name: j for j in profile.auto.joints} if profile.auto is not None else {}
     loop_kp, loop_limited = follower_loop(RobotSpec.from_profile(profile)) if profile.lerobot is not None else ({}, {})
