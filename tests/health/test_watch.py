@@ -275,3 +275,20 @@ def test_leader_options_without_a_leader_port_are_refused(capsys: pytest.Capture
     _, err = capsys.readouterr()
     assert rc == 2
     assert err == "error: --leader-robot, --leader-id and --leader-file go with --leader-port\n"
+
+
+@pytest.mark.parametrize("option", ["--file", "--leader-file"])
+def test_a_calibration_file_without_every_motor_is_named_in_the_error(
+    option: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: "calibration has no entry for motor(s) gripper", which of the two files not said."""
+    good = _calibration(tmp_path / "follower.json")
+    partial = tmp_path / "partial.json"
+    partial.write_text(json.dumps({k: v for k, v in json.loads(good.read_text()).items() if k != "gripper"}))
+    files = {"--file": good, "--leader-file": good, option: partial}
+    rc = main(["health", "watch", "--lerobot-port", "sim", "--robot", "so101_follower", "--file", str(files["--file"]),
+               "--leader-port", "sim", "--leader-robot", "so101_follower", "--leader-file", str(files["--leader-file"]),
+               "--seconds", "0.1"])  # fmt: skip
+    out, err = capsys.readouterr()
+    assert rc == 2 and out == ""
+    assert err == f"error: calibration {partial} has no entry for motor(s) gripper\n"

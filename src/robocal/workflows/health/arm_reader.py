@@ -88,7 +88,7 @@ def open_reader(
     spec = robot_spec(robot)
     path, _note = find_file(spec, robot_id, calibration_dir, calibration_file)
     cals = read_calibration_file(path)
-    require_motors(spec, cals)
+    require_motors(spec, cals, path)
     with open_arm(spec, port) as (bus, arm):
         if (
             arm is not None

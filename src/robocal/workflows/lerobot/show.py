@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator, Mapping, Sequence
 
 from ...backends.servo_bus import ServoBus
@@ -11,15 +12,18 @@ from ...errors import UsageError
 __all__ = ["read_positions", "require_motors"]
 
 
-def require_motors(spec: RobotSpec, cals: Mapping[str, MotorCalibration]) -> None:
-    """Refuse a calibration that lacks one of the arm's motors.
+def require_motors(
+    spec: RobotSpec, cals: Mapping[str, MotorCalibration], path: str | os.PathLike[str] | None = None
+) -> None:
+    """Refuse a calibration that lacks one of the arm's motors (``path``: its file, named in the message).
 
     Raises:
         UsageError: Naming every motor without an entry.
     """
     missing = [n for n in spec.motor_names if n not in cals]
     if missing:
-        raise UsageError(f"calibration has no entry for motor(s) {', '.join(missing)}")
+        where = "calibration" if path is None else f"calibration {os.fspath(path)}"
+        raise UsageError(f"{where} has no entry for motor(s) {', '.join(missing)}")
 
 
 def read_positions(
