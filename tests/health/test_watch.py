@@ -150,6 +150,10 @@ def test_watch_on_a_still_arm_prints_nothing_and_exits_0(
             "error: --seconds: expected a positive number, got 0.0",
         ),
         (["--lerobot-port", "sim", "--robot", "nosuch"], "error: unknown robot 'nosuch'; valid: "),
+        (  # before: the pause between readings overflowed time.sleep, exit 70
+            ["--lerobot-port", "sim", "--robot", "so101_follower", "--rate-hz", "1e-300"],
+            "error: --rate-hz: expected at least 0.001 (one reading in 1000 s), got 1e-300",
+        ),
     ],
 )
 def test_bad_options_are_one_error_line_and_exit_2(

@@ -24,6 +24,9 @@ from ...errors import FileFormatError, UsageError
 
 __all__ = ["WatchRequest", "WatchResult", "watch"]
 
+_MIN_RATE_HZ = 1e-3
+"""Fewest readings per second ``--rate-hz`` takes (a longer pause overflows ``time.sleep``: 1e-300 did)."""
+
 
 @dataclass(frozen=True)
 class WatchRequest:
@@ -94,6 +97,10 @@ class WatchRequest:
             v = getattr(self, name)
             if not (math.isfinite(v) and (v >= 0 if name == "margin_deg" else v > 0)):
                 raise UsageError(f"--{name.replace('_', '-')}: expected a positive number, got {v!r}")
+        if self.rate_hz < _MIN_RATE_HZ:  # the pause between readings must be one time.sleep can take
+            raise UsageError(
+                f"--rate-hz: expected at least {_MIN_RATE_HZ:g} (one reading in 1000 s), got {self.rate_hz!r}"
+            )
         if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
             raise UsageError(f"--seconds: expected a positive number, got {self.seconds!r}")
 
