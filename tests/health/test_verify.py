@@ -244,3 +244,28 @@ def test_a_leader_is_verified_by_hand_read_only_and_its_drifted_joint_named(
     assert "nothing was written (the arm was only read)" in out
     assert "warning: elbow_flex drifted more than 2° from" in err
     assert path.read_bytes() == before
+
+
+def test_sweep_verify_of_a_joint_the_file_stores_no_offset_for_is_refused_before_anything_moves(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: the joint was searched (moved to both stops) and left out of the drift table without a word; with
+    it alone, an empty table and exit 0: nothing flagged, nothing verified."""
+    from robocal.backends.sim.lite import LITE_JOINTS, lite_urdf_text
+
+    urdf = tmp_path / "lite.urdf"
+    urdf.write_text(lite_urdf_text())
+    out = tmp_path / "calibration.yaml"
+    out.write_text("".join(f"{j.name}:\n  id: {j.can_id}\n  direction: {j.direction}\n  homing_offset: 0.0\n"
+                           for j in LITE_JOINTS if j.name != "left_elbow_pitch"))  # fmt: skip
+    before = out.read_bytes()
+    rc = main(["sweep", "--auto", "--verify", "--urdf", str(urdf), "--source", "sim:lite?seed=3", "--out", str(out),
+               "--yes", "--joints", "left_elbow_pitch,right_shoulder_pitch"])  # fmt: skip
+    printed, err = capsys.readouterr()
+    assert rc == 2 and printed == ""
+    assert err == (
+        f"error: --verify: {out} stores no offset for left_elbow_pitch; calibrate those joints first or leave them "
+        "out of --joints\n"
+    )
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["calibration.yaml", "lite.urdf"]

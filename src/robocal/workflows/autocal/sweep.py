@@ -345,6 +345,14 @@ def run_sweep_auto(
         raise UsageError(
             f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
         )
+    if r.verify and existing is not None:
+        stored = set(existing.calibration.joint_names)
+        unstored = [j.name for j in order if j.searched and j.name not in stored]
+        if unstored:  # searched for nothing: no stored offset to compare the stops with
+            raise UsageError(
+                f"--verify: {out_path} stores no offset for {', '.join(unstored)}; calibrate those joints first or "
+                "leave them out of --joints"
+            )
     caps = JointCaps(order, vendor.host_loss)
     max_lag_rad = float(joint_driver_class(vendor.name).MAX_LAG_RAD)  # the vendor's driver says how far it leads
     if confirm_start is not None and not confirm_start(tuple(caps), caps):
