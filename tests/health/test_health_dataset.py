@@ -450,3 +450,26 @@ def test_many_datasets_through_datatrove(small: TeleopSession, tmp_path: Path) -
     assert [p.name for p in paths] == ["good.health.json", "bad.health.json"]
     assert set(reports[0]["joints"]) == set(TELEOP_ARMS["so101"].joints)
     assert "NaN or infinite" in reports[1]["error"]
+
+
+@pytest.mark.parametrize("link", ["h.png", "h.json"])
+def test_a_picture_that_is_the_report_through_a_link_is_refused(
+    link: str, small: TeleopSession, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, ``h.png`` a link to ``h.json``: the report was written, then the picture replaced it through the
+    link: exit 0, ``h.json`` a PNG and the JSON in ``h.json.bak`` (``h.json`` a link to ``h.png``: the JSON went
+    into ``h.png`` and the picture replaced it)."""
+    root = _write(small, tmp_path / "ds")
+    out = tmp_path / "out"
+    out.mkdir()
+    report = out / "h.json"
+    other = "h.json" if link == "h.png" else "h.png"
+    (out / other).write_text("{}\n")
+    (out / link).symlink_to(out / other)
+    code, _, err = run(capsys, "dataset", "health", root, "--report", report)
+    assert code == 2
+    assert err == (
+        f"error: the report's picture {out / 'h.png'}: is --report ({report}); give the output its own path\n"
+    )
+    assert sorted(p.name for p in out.iterdir()) == ["h.json", "h.png"]
+    assert (out / other).read_text() == "{}\n" and (out / link).is_symlink()

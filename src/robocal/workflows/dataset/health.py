@@ -289,7 +289,8 @@ def run_health(request: HealthRequest) -> HealthOutcome:
         "--robot": profile_file(request.robot),
     }
     check_output_path(report_path, "--report", inputs=inputs)
-    check_output_path(picture_path, "the report's picture", inputs=inputs)
+    # the picture through a link to the report would replace the report just written
+    check_output_path(picture_path, "the report's picture", inputs={**inputs, "--report": report_path})
     result, report = evaluate_health(request)
     picture = render_picture(result)
     atomic_write_text(report_path, json.dumps(report, indent=2) + "\n")
