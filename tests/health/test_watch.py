@@ -296,3 +296,21 @@ def test_a_calibration_file_without_every_motor_is_named_in_the_error(
     out, err = capsys.readouterr()
     assert rc == 2 and out == ""
     assert err == f"error: calibration {partial} has no entry for motor(s) gripper\n"
+
+
+def test_a_simulated_port_for_a_profile_file_names_the_arms_it_simulates(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: "no simulated truth for robot 'myarm'; pass truth=", an argument of the Python class, on the CLI."""
+    shipped = Path(__file__).parents[2] / "src/robocal/data/profiles/so101_follower.yaml"
+    profile = tmp_path / "myarm.yaml"
+    profile.write_text(re.sub(r"(?m)^name: .*$", "name: myarm", shipped.read_text()))
+    cal = _calibration(tmp_path / "follower.json")
+    rc = main(["health", "watch", "--lerobot-port", "sim", "--robot", str(profile), "--file", str(cal),
+               "--seconds", "0.1"])  # fmt: skip
+    out, err = capsys.readouterr()
+    assert rc == 2 and out == ""
+    assert err == (
+        "error: no simulated truth for robot 'myarm': the simulator has koch_follower, koch_leader, so100_follower, "
+        "so100_leader, so101_follower, so101_leader (from Python, pass truth=)\n"
+    )

@@ -167,7 +167,10 @@ class SimArm(StartsOnEnter):
         if not isinstance(robot, RobotSpec):
             raise UsageError(f"SimArm takes the arm's RobotSpec (robot_spec({robot!r})), not {type(robot).__name__}")
         if truth is None and robot.name not in DEFAULT_TRUTH:
-            raise UsageError(f"no simulated truth for robot {robot.name!r}; pass truth=")
+            raise UsageError(
+                f"no simulated truth for robot {robot.name!r}: the simulator has {', '.join(sorted(DEFAULT_TRUTH))} "
+                "(from Python, pass truth=)"
+            )
         self.spec: RobotSpec = robot
         self.truth: dict[str, JointTruth] = dict(truth if truth is not None else DEFAULT_TRUTH[robot.name])
         servos = []
