@@ -267,6 +267,12 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         info = json.loads((root / "meta/info.json").read_text())
         info["robot_type"] = "so100"  # LeRobot v2-era datasets, converted to v3, keep it
         (root / "meta/info.json").write_text(json.dumps(info))
+    elif kind == "root is a file":
+        root.write_text("not a dataset\n")
+    elif kind == "info.json a folder":
+        _write(small, root)
+        (root / "meta/info.json").unlink()
+        (root / "meta/info.json").mkdir()
     elif kind == "another arm's joints":
         _write(small, root)
         info = json.loads((root / "meta/info.json").read_text())
@@ -308,6 +314,9 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         ("float episode", "column 'episode_index' is double; expected an integer episode number"),
         # before: exit 0 and a report keyed by name that kept one of the two shoulder_pan columns
         ("duplicate names", "action and observation.state name shoulder_pan more than once"),
+        # before: "no such folder" and "missing meta/info.json" for paths that exist
+        ("root is a file", "ds: not a folder"),
+        ("info.json a folder", "ds: meta/info.json is not a file (is this a LeRobot v3 dataset?)"),
         # before: exit 0, every joint "unobservable" for "no range-end contact" (the profile has no stops for them)
         ("another arm's joints", "observation.state names arm_shoulder_pan, arm_shoulder_lift, arm_elbow_flex, "
          "arm_wrist_flex, arm_wrist_roll, arm_gripper, none of them a joint of so101_follower (shoulder_pan, "),

@@ -192,10 +192,11 @@ def read_layout(root: str | Path) -> DatasetLayout:
     """
     r = Path(root)
     if not r.is_dir():
-        raise UsageError(f"dataset {r}: no such folder")
+        raise UsageError(f"dataset {r}: {'not a folder' if r.exists() else 'no such folder'}")
     info_path = r / "meta" / "info.json"
     if not info_path.is_file():
-        raise FileFormatError(f"dataset {r}: missing meta/info.json (is this a LeRobot v3 dataset?)")
+        what = "meta/info.json is not a file" if info_path.exists() else "missing meta/info.json"
+        raise FileFormatError(f"dataset {r}: {what} (is this a LeRobot v3 dataset?)")
     info = load_json(read_text(info_path, "dataset info", limit=MAX_DOCUMENT_BYTES), str(info_path))
     if not isinstance(info, dict) or not isinstance(info.get("features"), dict):
         raise FileFormatError(f"{info_path}: expected an object with a 'features' object")
