@@ -269,3 +269,19 @@ def test_sweep_verify_of_a_joint_the_file_stores_no_offset_for_is_refused_before
     )
     assert out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["calibration.yaml", "lite.urdf"]
+
+
+@pytest.mark.parametrize(("robot", "folder"), [("so101_follower", "robots"), ("so101_leader", "teleoperators")])
+def test_a_folder_where_the_stored_calibration_should_be_is_named_as_a_folder(
+    robot: str, folder: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before: "no stored calibration at ... (calibrate first)", for a path that exists."""
+    kind = "so_follower" if robot.endswith("follower") else "so_leader"
+    path = tmp_path / folder / kind / "t.json"
+    path.mkdir(parents=True)
+    rc = main(["lerobot", "calibrate", "--robot", robot, "--port", "/nonexistent/tty", "--id", "t",
+               "--calibration-dir", str(tmp_path), "--auto", "--verify", "--yes"])  # fmt: skip
+    out, err = capsys.readouterr()
+    assert rc == 2 and out == ""
+    assert err == f"error: LeRobot calibration {path}: is a directory, expected a file\n"
+    assert path.is_dir() and list(path.iterdir()) == []

@@ -135,7 +135,7 @@ def check_stored(request: VerifyRequest) -> tuple[dict[str, MotorCalibration], l
         FileFormatError: A file that is not LeRobot's calibration JSON.
     """
     r = request
-    if not os.path.isfile(r.path):
+    if not os.path.exists(r.path):  # a folder there is the reader's "is a directory" error
         raise UsageError(f"no stored calibration at {os.fspath(r.path)} to verify (calibrate first)")
     stored = read_calibration_file(Path(r.path))
     order = list(select_joints(r.section, r.joints, movable_only=True))
@@ -270,7 +270,7 @@ def check_hand(
     """
     if not (math.isfinite(tolerance_deg) and tolerance_deg > 0):
         raise UsageError(f"--tolerance-deg: expected a positive number of degrees, got {tolerance_deg!r}")
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise UsageError(f"no stored calibration at {os.fspath(path)} to verify (calibrate first)")
     stored = read_calibration_file(Path(path))
     lacking = [n for n in spec.motor_names if n not in stored]
