@@ -345,10 +345,9 @@ def run_sweep_auto(
         raise UsageError(
             f"--auto: joints {', '.join(lacking)} of profile {profile.name} are not in URDF {urdf.source}"
         )
-    if r.verify and existing is not None:
-        stored = set(existing.calibration.joint_names)
-        unstored = [j.name for j in order if j.searched and j.name not in stored]
-        if unstored:  # searched for nothing: no stored offset to compare the stops with
+    if r.verify and existing is not None:  # a joint with no stored offset: nothing to compare its stops with
+        unstored = [j.name for j in order if j.searched and j.name not in set(existing.calibration.joint_names)]
+        if unstored:
             raise UsageError(
                 f"--verify: {out_path} stores no offset for {', '.join(unstored)}; calibrate those joints first or "
                 "leave them out of --joints"
