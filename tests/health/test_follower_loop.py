@@ -19,12 +19,12 @@ from robocal.workflows.dataset.health import follower_loop
 ARM = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
 
 
-def _loop(robot: str) -> tuple[dict[str, float], dict[str, bool]]:
+def _loop(robot: str) -> tuple[dict[str, float], dict[str, bool], dict[str, float]]:
     return follower_loop(RobotSpec.from_profile(load_profile(robot)))
 
 
 def test_so101_follower_is_stiff_as_lerobot_sets_it_and_clamped_to_its_limits() -> None:
-    kp, limited = _loop("so101_follower")
+    kp, limited, _ = _loop("so101_follower")
     # P_Coefficient 16 on a 1.91 N·m STS3215: 16/1024 · 1.91 N·m per tick · 4096/2π ticks per rad
     assert kp == pytest.approx(dict.fromkeys(ARM, 16 / 1024 * 1.91 * 4096 / math.tau), rel=1e-3)
     assert kp["elbow_flex"] == pytest.approx(19.455, abs=1e-3)
@@ -32,7 +32,7 @@ def test_so101_follower_is_stiff_as_lerobot_sets_it_and_clamped_to_its_limits() 
 
 
 def test_koch_follower_keeps_factory_gains_but_the_elbow_and_is_never_clamped() -> None:
-    kp, limited = _loop("koch_follower")
+    kp, limited, _ = _loop("koch_follower")
     # XL430 Position_P_Gain 640 (factory), XL330 400 (factory), the elbow 1500 (LeRobot): P/128 current units
     # per tick, 2.69 mA (XL430, 1.5 N·m / 1.4 A) or 1 mA (XL330, 0.52 N·m / 1.47 A) per unit
     assert kp["shoulder_lift"] == pytest.approx(640 / 128 * 0.00269 * 1.5 / 1.4 * 4096 / math.tau, rel=1e-3)
@@ -73,7 +73,7 @@ def test_gains_a_profile_declares_are_the_ones_modelled(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("arm", "robot"), [("so101", "so101_follower"), ("koch", "koch_follower")])
 def test_the_simulated_follower_has_the_stiffness_the_check_assumes(arm: str, robot: str) -> None:
-    kp, limited = _loop(robot)
+    kp, limited, _ = _loop(robot)
     sim = TELEOP_ARMS[arm]
     assert sim.kp_nm_rad == pytest.approx(tuple(kp[j] for j in sim.joints), rel=1e-12)
     assert sim.goal_limited == any(limited.values())

@@ -68,6 +68,7 @@ class HealthSetup:
         follower: The follower's calibration (``observation.state``), or None.
         goal_limited: Joint → the follower's servo clamps its goal to its position limits (LeRobot's recorded
             range: Feetech STS in position mode; :attr:`robocal.core.health.JointData.goal_limited`).
+        sag_limit_deg: Joint → the largest sag its servo can hold, ``τ_stall / kp`` in degrees (missing: not known).
     """
 
     units: dict[str, str]
@@ -78,6 +79,7 @@ class HealthSetup:
     leader: ValueConvention | None = None
     follower: ValueConvention | None = None
     goal_limited: dict[str, bool] = field(default_factory=dict)
+    sag_limit_deg: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -313,6 +315,7 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
             data = JointData(j, action[:, k], state[:, k], fr.episode, sag_deg[:, k] * u, lo, hi, u, goal_limited=limited)
         elif stops[k] is not None:  # no URDF masses: the sag's shape fitted from the data (narrows the band)
             data = fitted_joint(j, action[:, k], state[:, k], fr.episode, pose_deg[:, k], lo, hi, u, cfg, limited)
+            data = replace(data, sag_limit=setup.sag_limit_deg.get(j, math.inf) * u)
         else:
             data = JointData(j, action[:, k], state[:, k], fr.episode, np.zeros(len(action)), lo, hi, u, goal_limited=limited)
         h = _with_sag(analyse_joint(data, cfg), fit, k, u, cfg or HealthConfig())
@@ -461,6 +464,9 @@ def health_json(result: DatasetHealth) -> dict[str, Any]:
                 {"episode": jp.episode, "frame": jp.frame, "size": round(jp.size, 4)} for jp in h.jumps
             ],
             "sag": _sag_json(fit, k),
+            "rest_level": None
+            if h.rest is None
+            else {"level": _num(h.rest.level), "typical": _num(h.rest.typical), "poses": len(h.rest.bins)},
         }
     return {
         "dataset": str(result.root),

@@ -1,6 +1,7 @@
 """Calibration health, pure numpy (issue 30).
 
-The leader/follower model (``model``), the dataset check (``offsets``) and the sag-pattern fit (``sag``); the live monitor (``monitor``) sits
+The leader/follower model (``model``), the dataset check (``offsets``), the follower's rest level (``level``) and the
+sag-pattern fit (``sag``); the live monitor (``monitor``) sits
 beside them. Importable with numpy alone (a control loop imports it); the monitor's public path is
 :mod:`robocal.health`.
 """
@@ -8,6 +9,7 @@ beside them. Importable with numpy alone (a control loop imports it); the monito
 from __future__ import annotations
 
 from .ends import end_bands, end_raw_caps
+from .level import RestLevel, rest_level
 from .model import fitted_sag, model_band, sag_residual_deg, sag_slopes
 from .monitor import Monitor
 from .monitor_types import FLAG_KINDS, HealthFlag, MonitorConfig, monitor_config
@@ -34,6 +36,7 @@ __all__ = [
     "JumpEvent",
     "Monitor",
     "MonitorConfig",
+    "RestLevel",
     "SagFit",
     "SagFrames",
     "analyse_joint",
@@ -48,6 +51,7 @@ __all__ = [
     "loaded_joints",
     "model_band",
     "monitor_config",
+    "rest_level",
     "sag_residual_deg",
     "sag_slopes",
     "t_quantile",

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..arrays import FloatArray, IntArray
 from .ends import end_bands, end_raw_caps
+from .level import RestLevel, rest_level
 from .model import fitted_sag, model_band
 from .sag import last_direction
 from .verdict import EndEvidence, judge_ends
@@ -65,6 +66,8 @@ class HealthConfig:
         limit_scatter_deg: How far inside its stops the hand may have recorded a range end: a follower whose servo
             enforces its position limits (``JointData.goal_limited``) is held that far short of its leader at an end
             by a correct calibration.
+        level_deg: How far from its goal a correct follower may rest at every pose (:mod:`.level`), beyond its
+            modelled sag; the band is used where it is wider.
     """
 
     threshold_deg: float = 1.5
@@ -78,6 +81,7 @@ class HealthConfig:
     clip_frames: int = 10
     end_margin_deg: float = 0.25
     limit_scatter_deg: float = 1.5
+    level_deg: float = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,6 +103,8 @@ class JointData:
             range (an SO-101's STS3215s): at a range end it stands at its limit, not pressed into its stop. Its
             limits read ``[lo + x + |e_F|, hi − x − |e_F|]`` in its own frame (``x`` the hand's scatter, ``e_F`` its
             offset), so a held end shows ``x + |e_F| ± e_L``: how far the calibrations disagree, not the sign.
+        sag_limit: The largest sag the follower's servo can hold, ``τ_stall / kp`` in the values' units (``inf``:
+            not known): bounds what a fitted sag may explain of the rest level (:mod:`.level`).
     """
 
     name: str
@@ -111,6 +117,7 @@ class JointData:
     units_per_deg: float = 1.0
     sag_fitted: bool = False
     goal_limited: bool = False
+    sag_limit: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -161,6 +168,7 @@ class JointHealth:
     used: FloatArray = field(repr=False)
     end_bands: tuple[float, float] = (math.nan, math.nan)
     raw_caps: tuple[float, float] = (-math.inf, -math.inf)
+    rest: RestLevel | None = None
 
 
 def fitted_joint(
@@ -308,6 +316,41 @@ def _end(
     return EndEvidence(name, "together", sgn * f_ext, sgn * a_ext, lo, hi, len(idx), eps, thr, excess)
 
 
+def _rest_verdict(
+    d: JointData,
+    rest: RestLevel | None,
+    band: float,
+    cfg: HealthConfig,
+    verdict: tuple[str, float | None, tuple[float, float] | None],
+    reasons: list[str],
+) -> tuple[str, float | None, tuple[float, float] | None]:
+    """The verdict with the follower's rest level (:mod:`.level`): past what sag and dead band allow, an offset.
+
+    A modelled sag leaves ``max(level_deg, band)``; a fitted one (no URDF masses: its share of the level is not
+    known) also the largest sag the servo can hold (``sag_limit``), which widens the interval by as much. The
+    offset is ``−typical`` (follower minus leader); an offset the range ends already measured is kept.
+    """
+    status, est, ci = verdict
+    upd = d.units_per_deg
+    sag_share = d.sag_limit if d.sag_fitted else 0.0
+    allow = max(cfg.level_deg * upd, band) + sag_share
+    if rest is None or not abs(rest.level) > allow:
+        return status, est, ci
+    lo_pose, hi_pose = rest.bins[0][0], rest.bins[-1][0]
+    reasons.append(
+        f"the follower rests {rest.typical:+.2f} from the leader's number (at least {rest.level:+.2f} at every pose it "
+        f"rested in: {len(rest.bins)} "
+        f"poses from {lo_pose:.1f} to {hi_pose:.1f}, {rest.frames} slow frames), where a correct follower rests "
+        f"within {allow:.2f} of it (its sag and dead band): action and observation.state are not in one calibration "
+        "frame (a calibration that changed between them, or a column edited after the recording)"
+    )
+    if status == "offset":
+        return status, est, ci
+    off = -rest.typical
+    u = 0.5 * band + 0.5 * upd + sag_share
+    return "offset", off, (off - u, off + u)
+
+
 def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
     """Calibration health of one joint (see the module docstring).
 
@@ -348,6 +391,7 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
                 residual,
                 used,
             )
+    rest = rest_level(a_prev, d.state, np.zeros_like(d.sag) if d.sag_fitted else d.sag, slow, 3 * upd, 10 * upd)
     jumps = _jumps(d, same, cfg)
     everything = np.ones(d.action.shape, dtype=bool)
     b_lo, b_hi = end_bands(d, residual, slow, band, cfg)
@@ -372,6 +416,7 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
             )
             if status != "offset":
                 status = "suspect"
+    status, est, ci = _rest_verdict(d, rest, band, cfg, (status, est, ci), reasons)
     if jumps:
         reasons.append(
             "; ".join(f"step of {j.size:+.2f} in episode {j.episode} frame {j.frame}" for j in jumps)
@@ -379,7 +424,8 @@ def analyse_joint(d: JointData, cfg: HealthConfig | None = None) -> JointHealth:
         if status != "offset":
             status = "suspect"
     return JointHealth(
-        d.name, status, est, ci, tuple(reasons), tuple(ends), jumps, band, residual, used, (b_lo, b_hi), (c_lo, c_hi)
+        d.name, status, est, ci, tuple(reasons), tuple(ends), jumps, band, residual, used, (b_lo, b_hi), (c_lo, c_hi),
+        rest,
     )
 
 

@@ -81,7 +81,8 @@ def judge_ends(
         says.append(
             f"both ends held: the follower's recorded range is about {sum(e.excess for e in held):.2f} shorter than "
             f"its leader's reach (a follower-side offset of up to ±{0.5 * sum(e.excess for e in held):.2f}, its "
-            f"sign not in the data); their difference puts the leader's own offset at {lead:+.2f}"
+            f"sign not in the data); if the leader was taken to its stop at both ends, their difference puts the "
+            f"leader's own offset at {lead:+.2f} (a leader turned back short of a stop moves that figure)"
         )
     else:
         says.append(

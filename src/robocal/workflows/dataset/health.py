@@ -71,8 +71,10 @@ class HealthOutcome:
     picture_path: Path
 
 
-def follower_loop(spec: RobotSpec) -> tuple[dict[str, float], dict[str, bool]]:
-    """Per motor, the follower's position stiffness (N·m/rad) and whether its servo clamps its goal to its limits.
+def follower_loop(spec: RobotSpec) -> tuple[dict[str, float], dict[str, bool], dict[str, float]]:
+    """Per motor: the follower's position stiffness (N·m/rad), goal clamped to its limits, largest sag (degrees).
+
+    The largest sag is what its stall torque holds, ``τ_stall / kp``; missing where the stiffness is not known.
 
     The stiffness is the servo's position loop (its vendor's model, ``backends/<vendor>/gains.py``) at the gains
     LeRobot writes (the profile's ``position_gains``), else at the servo's factory gains; ``inf`` (no sag) for a
@@ -82,20 +84,22 @@ def follower_loop(spec: RobotSpec) -> tuple[dict[str, float], dict[str, bool]]:
     0..4095).
     """
     from ...backends import load_backend
+    from ...backends.servo_ratings import RATINGS
 
     vendor = spec.vendor_spec
     loop: PositionLoop | None = None if vendor.position_loop is None else load_backend(vendor.position_loop)
-    kp, limited = {}, {}
+    kp, limited, sag_limit = {}, {}, {}
     for m in spec.motors:
         kp[m.name] = math.inf
         if loop is not None:
             try:
                 p, _, d = m.position_gains or loop.factory_gains(m.model)
                 kp[m.name] = loop.gains_nm_rad(m.model, p, d)[0]
-            except KeyError:  # no rating or factory table for the model: no sag
-                pass
+                sag_limit[m.name] = math.degrees(RATINGS[m.model].stall_torque_nm / kp[m.name])
+            except (KeyError, ZeroDivisionError):  # no rating or factory table for the model, or no gain: no sag
+                kp[m.name] = math.inf
         limited[m.name] = spec.run_mode(m) in vendor.goal_limit_modes and m.name not in spec.full_turn
-    return kp, limited
+    return kp, limited, sag_limit
 
 
 def _gravity(request: HealthRequest, robot: str) -> tuple[GravityModel | None, str | None]:
@@ -165,7 +169,9 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
         )
     modes = preset_modes(robot, joints, request.use_degrees)
     auto = {j.name: j for j in profile.auto.joints} if profile.auto is not None else {}
-    loop_kp, loop_limited = follower_loop(RobotSpec.from_profile(profile)) if profile.lerobot is not None else ({}, {})
+    loop_kp, loop_limited, sag_limit = (
+        follower_loop(RobotSpec.from_profile(profile)) if profile.lerobot is not None else ({}, {}, {})
+    )
     units, upd, stops, kp, limited = {}, {}, {}, {}, {}
     for j in joints:
         a = auto.get(j)
@@ -211,7 +217,7 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
             ("--follower-calibration", request.follower_calibration, follower),
         ):
             _check_calibration(what, path, conv, joints)
-    return HealthSetup(units, upd, stops, kp, gravity, leader, follower, limited), robot, urdf
+    return HealthSetup(units, upd, stops, kp, gravity, leader, follower, limited, sag_limit), robot, urdf
 
 
 def render_picture(result: DatasetHealth) -> bytes:
