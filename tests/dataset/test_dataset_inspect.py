@@ -81,6 +81,34 @@ def test_inspect_counts_and_flags_nan(src: Path) -> None:
     assert [j.joint for j in rep.flagged] == ["elbow_flex"]
 
 
+def test_inspect_counts_a_null_row_as_not_finite_in_every_joint(src: Path) -> None:
+    """A frame with no value (a null row) was dropped by Arrow's flatten from that column only: the values and
+    the episode column no longer lined up and inspect died (exit 70). Now it is a non-finite frame of every joint."""
+    path = src / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(path)
+    rows = table.column("action").to_pylist()
+    rows[4] = None
+    i = table.schema.get_field_index("action")
+    pq.write_table(table.set_column(i, "action", pa.array(rows, table.schema.field(i).type)), path)
+    rep = inspect_dataset(src, features=["action"])
+    assert rep.frames == 107
+    assert {j.joint: j.non_finite for j in rep.joints} == dict.fromkeys(SO_ARM_JOINTS, 1)
+    assert all(np.isfinite(j.mean) for j in rep.joints)
+
+
+def test_inspect_refuses_an_episode_index_with_null_rows(src: Path) -> None:
+    from robocal.errors import FileFormatError
+
+    path = src / "data/chunk-000/file-000.parquet"
+    table = pq.read_table(path)
+    eps = table.column("episode_index").to_pylist()
+    eps[7] = None
+    i = table.schema.get_field_index("episode_index")
+    pq.write_table(table.set_column(i, "episode_index", pa.array(eps, pa.int64())), path)
+    with pytest.raises(FileFormatError, match=r"column 'episode_index' is int64 with null rows; expected an integer"):
+        inspect_dataset(src)
+
+
 def test_inspect_mixed_feature_with_calibration(lekiwi: Path) -> None:
     rep = inspect_dataset(lekiwi, calibration=lekiwi_conv(HOMING_A, RANGE_A))
     by_joint = {(j.feature, j.joint): j for j in rep.joints}

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -285,6 +286,15 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         for key in ("action", "observation.state"):
             info["features"][key]["names"][1] = "shoulder_pan.pos"
         (root / "meta/info.json").write_text(json.dumps(info))
+    elif kind == "fifo":
+        _write(small, root)
+        path = root / "data/chunk-000/file-000.parquet"
+        path.unlink()
+        os.mkfifo(path)
+    elif kind == "file copied":
+        _write(small, root)
+        path = root / "data/chunk-000/file-000.parquet"
+        path.with_name("file-001.parquet").write_bytes(path.read_bytes())
     elif kind in ("null row", "null episode", "float episode"):
         _write(small, root)
         path = root / "data/chunk-000/file-000.parquet"
@@ -312,6 +322,10 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         # before: numpy's "invalid value encountered in cast" warning on stderr and exit 0
         ("null episode", "column 'episode_index' is int64 with null rows; expected an integer episode number"),
         ("float episode", "column 'episode_index' is double; expected an integer episode number"),
+        # before: exit 1, a "step" on every joint where the copy starts the session again
+        ("file copied", "frame 0 of episode 0 is recorded 2 times ("),
+        # before: the reader waited for ever on the FIFO
+        ("fifo", "ds: data/chunk-000/file-000.parquet is not a regular file"),
         # before: exit 0 and a report keyed by name that kept one of the two shoulder_pan columns
         ("duplicate names", "action and observation.state name shoulder_pan more than once"),
         # before: "no such folder" and "missing meta/info.json" for paths that exist

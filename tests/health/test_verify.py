@@ -148,6 +148,29 @@ def test_cli_verify_prints_the_drift_table_and_exits_1_past_the_tolerance(
     assert path.read_bytes() == before
 
 
+@pytest.mark.slow
+def test_a_stored_offset_no_register_can_hold_is_refused_before_anything_moves(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The drift is taken modulo a turn: a stored homing_offset of 2147483647 (4095 modulo 4096) read "ok", exit 0,
+    though no STS3215 register (sign-magnitude, ±2047) can hold it: that file was never on this arm."""
+    base = ["lerobot", "calibrate", "--auto", "--robot", "so101_follower", "--port", "sim?seed=3&transport=inproc"]
+    base += ["--id", "t", "--yes", "--calibration-dir", str(tmp_path)]
+    assert main(base) == 0
+    (path,) = tmp_path.rglob("t.json")
+    cals = json.loads(path.read_text())
+    cals["elbow_flex"]["homing_offset"] = 2147483647
+    path.write_text(json.dumps(cals, indent=4))
+    before = path.read_bytes()
+    capsys.readouterr()
+    rc = main([*base, "--verify"])
+    out, err = capsys.readouterr()
+    assert rc == 2 and "DRIFTED" not in out and "ok" not in out.split()
+    assert err.count("error:") == 1 and "Traceback" not in err
+    assert "motor 'elbow_flex': Homing_Offset 2147483647 cannot be on the motor" in err and "nothing moved" in err
+    assert path.read_bytes() == before
+
+
 def test_offset_drift_is_the_direction_times_the_offset_change_modulo_a_turn() -> None:
     d = offset_drift("j", -1, 0.50 + 2 * math.pi, 0.465, 0.0, 1e-4, 2.0)
     assert d.drift_deg == pytest.approx(-math.degrees(0.035))

@@ -314,3 +314,19 @@ def test_a_simulated_port_for_a_profile_file_names_the_arms_it_simulates(
         "error: no simulated truth for robot 'myarm': the simulator has koch_follower, koch_leader, so100_follower, "
         "so100_leader, so101_follower, so101_leader (from Python, pass truth=)\n"
     )
+
+
+def test_seconds_ends_the_watch_at_a_slow_rate_without_waiting_a_whole_period(arm: SimArm, tmp_path: Path) -> None:
+    """``--seconds 1 --rate-hz 0.01`` slept 100 s (the loop paused a whole period before it looked at the time);
+    the pause now ends at the deadline."""
+    cal = _calibration(tmp_path / "follower.json")
+    clock = FakeClock()
+    pauses: list[float] = []
+
+    def sleep(dt: float) -> None:
+        pauses.append(dt)
+        clock.sleep(dt)
+
+    request = WatchRequest(lerobot_port=arm.port, robot="so101_follower", calibration_file=cal, seconds=1.0, rate_hz=0.01)
+    result = watch(request, lambda f: None, clock=clock, sleep=sleep)
+    assert result.ticks == 1 and pauses and max(pauses) < 1.01

@@ -42,7 +42,7 @@ class JointSummary:
         out_of_range: Values outside the calibrated range (0 when no range is known).
         range_lo: Lower end of the calibrated range used, or ``None``.
         range_hi: Upper end of the calibrated range used, or ``None``.
-        non_finite: NaN or infinite values (left out of min, max and mean; those are NaN without any
+        non_finite: NaN or infinite values, and null rows (left out of min, max and mean; those are NaN without any
             finite value).
     """
 
@@ -162,11 +162,16 @@ def inspect_dataset(
             for g in range(pf.metadata.num_row_groups):
                 table = pf.read_row_group(g, columns=cols)
                 frames += table.num_rows
-                eps = (
-                    np.asarray(table.column("episode_index").to_numpy(), dtype=np.int64)
-                    if "episode_index" in cols
-                    else np.zeros(table.num_rows, dtype=np.int64)
-                )
+                eps = np.zeros(table.num_rows, dtype=np.int64)
+                if "episode_index" in cols:
+                    ep = table.column("episode_index")
+                    if not pa.types.is_integer(ep.type) or ep.null_count:
+                        nulls = " with null rows" if ep.null_count else ""
+                        raise FileFormatError(
+                            f"data file {rel}: column 'episode_index' is {ep.type}{nulls}; expected an integer "
+                            "episode number in every row"
+                        )
+                    eps = np.asarray(ep.to_numpy(), dtype=np.int64)
                 same_ep = eps[1:] == eps[:-1]
                 for feat, lo, hi, turn in plans:
                     arr = table.column(feat.key).combine_chunks()
@@ -178,8 +183,10 @@ def inspect_dataset(
                     # a damaged file's values may not fit a float64 (or be inf / NaN): counted below as not
                     # finite, never a numpy warning
                     with np.errstate(invalid="ignore", over="ignore"):
-                        v = np.asarray(arr.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
-                    v = v.reshape(-1, d_of[feat.key])
+                        flat = np.asarray(arr.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
+                    # a null row (a frame with no value) has no values in the flattened column: NaN, not finite
+                    v = np.full((len(arr), d_of[feat.key]), np.nan)
+                    v[np.asarray(arr.is_valid())] = flat.reshape(-1, d_of[feat.key])
                     if v.shape[0] == 0:
                         continue
                     a = acc[feat.key]

@@ -214,4 +214,7 @@ def read_layout(root: str | Path) -> DatasetLayout:
     episode_files = tuple(
         sorted(p.relative_to(r).as_posix() for p in r.glob("meta/episodes/chunk-*/file-*.parquet"))
     )
+    odd = next((rel for rel in (*data_files, *episode_files) if not (r / rel).is_file()), None)
+    if odd is not None:  # a FIFO would block the reader for ever; a folder is no Parquet file
+        raise FileFormatError(f"dataset {r}: {odd} is not a regular file")
     return DatasetLayout(root=r, info=info, data_files=data_files, episode_files=episode_files)

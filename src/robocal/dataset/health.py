@@ -169,7 +169,7 @@ def read_teleop_frames(root: str | Path) -> TeleopFrames:
             f"{layout.root / 'meta/info.json'}: action and observation.state name {', '.join(dup)} more than "
             "once; the check reports each joint by name"
         )
-    actions, states, episodes = [], [], []
+    actions, states, episodes, frames = [], [], [], []
     for rel in layout.data_files:
         try:
             pf = pq.ParquetFile(layout.root / rel)
@@ -177,8 +177,9 @@ def read_teleop_frames(root: str | Path) -> TeleopFrames:
             missing = [c for c in ("action", "observation.state", "episode_index") if c not in names]
             if missing:
                 raise FileFormatError(f"data file {rel}: missing column(s) {', '.join(missing)}")
+            extra = ["frame_index"] if "frame_index" in names else []
             for g in range(pf.metadata.num_row_groups):
-                t = pf.read_row_group(g, columns=["action", "observation.state", "episode_index"])
+                t = pf.read_row_group(g, columns=["action", "observation.state", "episode_index", *extra])
                 actions.append(_vector(t, "action", fa.size, rel))
                 states.append(_vector(t, "observation.state", fs.size, rel))
                 ep = t.column("episode_index")
@@ -189,6 +190,12 @@ def read_teleop_frames(root: str | Path) -> TeleopFrames:
                         "episode number in every row"
                     )
                 episodes.append(np.asarray(ep.to_numpy(), dtype=np.int64))
+                index = np.full(t.num_rows, -1, dtype=np.int64)  # -1: no frame_index to compare
+                if extra:
+                    fi = t.column("frame_index")
+                    if pa.types.is_integer(fi.type) and not fi.null_count:
+                        index = np.asarray(fi.to_numpy(), dtype=np.int64)
+                frames.append(index)
         except (pa.ArrowException, OSError) as exc:
             raise FileFormatError(f"data file {rel}: cannot read Parquet ({exc})") from None
     if not actions or sum(len(a) for a in actions) < 2:
@@ -203,7 +210,31 @@ def read_teleop_frames(root: str | Path) -> TeleopFrames:
                 f"(first: joint {fa.joint_names[col]}, frame {row}); the check needs every frame"
             )
     order = np.argsort(episode, kind="stable")
+    _no_repeated_frames(layout.root, episode[order], np.concatenate(frames)[order])
     return TeleopFrames(layout.root, fa.joint_names, action[order], state[order], episode[order])
+
+
+def _no_repeated_frames(root: Path, episode: IntArray, frame: IntArray) -> None:
+    """A frame (episode, frame_index) recorded twice: a data file copied, or two recordings merged.
+
+    Its rows would be read as one session going back in time (steps on every joint). Frames without a
+    ``frame_index`` (-1) are not compared.
+
+    Raises:
+        FileFormatError: A repeated frame, the first one named.
+    """
+    known = frame >= 0
+    if not known.any():
+        return
+    pairs = np.stack([episode[known], frame[known]], axis=1)
+    unique, counts = np.unique(pairs, axis=0, return_counts=True)
+    if counts.max() > 1:
+        ep, fr = (int(x) for x in unique[int(np.argmax(counts > 1))])
+        raise FileFormatError(
+            f"dataset {root}: frame {fr} of episode {ep} is recorded {int(counts.max())} times "
+            f"({int((counts > 1).sum())} frame(s) repeated: a data file copied, or two recordings merged); "
+            "the check needs each frame once"
+        )
 
 
 def _to_degrees(

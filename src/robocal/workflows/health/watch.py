@@ -237,6 +237,8 @@ def _lerobot_stream(
             take = np.array([k for k in pairs if k >= 0], dtype=np.int64)
             put = np.array([i for i, k in enumerate(pairs) if k >= 0], dtype=np.int64)
             next_t = clock()
+            # --seconds ends the watch at the first reading past it: a long period's pause stops there
+            deadline = math.inf if req.seconds is None else next_t + req.seconds + 1e-3
             while True:
                 q = arm.read()
                 t = clock()
@@ -247,7 +249,7 @@ def _lerobot_stream(
                     lead_q[put] = ql[take]
                     yield t, np.concatenate([q, ql]), lead_q
                 next_t += period
-                pause = next_t - clock()
+                pause = min(next_t, deadline) - clock()
                 if pause > 0:
                     sleep(pause)
                 else:

@@ -26,7 +26,7 @@ from ...core.health.drift import JointDrift, range_drift
 from ...core.lerobot import MotorCalibration, RobotSpec
 from ...core.profile_auto import AutoJoint, AutoSection
 from ...core.wrap_range import RangeTracker
-from ...errors import UsageError
+from ...errors import CalibError, UsageError
 from ..autocal.job import AutoCalRequest, run_autocal, select_joints
 from ..autocal.model import AutoCalFailedError, AutoCalResult, AutoView, Clock, ConfirmStart, JointCaps
 from .auto import (
@@ -148,6 +148,39 @@ def check_stored(request: VerifyRequest) -> tuple[dict[str, MotorCalibration], l
     return stored, order, searched
 
 
+def _check_fits(
+    bus: ServoBus,
+    spec: RobotSpec,
+    stored: Mapping[str, MotorCalibration],
+    searched: Sequence[str],
+    path: str | os.PathLike[str],
+) -> None:
+    """Every stored value of a searched motor fits its register (no bus I/O): else it was never on this arm.
+
+    The drift is taken modulo a turn, so a stored ``homing_offset`` of 2147483647 (4095 modulo 4096) read "ok".
+
+    Raises:
+        UsageError: A value no register of the motor can hold (nothing moved).
+    """
+    ids = {m.name: m.motor_id for m in spec.motors}
+    for name in searched:
+        c = stored[name]
+        for register, value in (
+            ("Homing_Offset", c.homing_offset),
+            ("Min_Position_Limit", c.range_min),
+            ("Max_Position_Limit", c.range_max),
+        ):
+            if not bus.has_register(ids[name], register):
+                continue
+            try:
+                bus.check_write(register, ids[name], value)
+            except CalibError as exc:
+                raise UsageError(
+                    f"calibration {os.fspath(path)}: motor {name!r}: {register} {value} cannot be on the motor "
+                    f"({exc}); nothing moved"
+                ) from None
+
+
 def verify_calibration(
     bus: ServoBus,
     request: VerifyRequest,
@@ -180,6 +213,7 @@ def verify_calibration(
     r = request
     spec, section = r.spec, r.section
     stored, order, searched = check_stored(r)
+    _check_fits(bus, spec, stored, searched, r.path)
     caps = JointCaps(order, HOST_LOSS.get(spec.vendor, ""))
     if confirm_start is not None and not confirm_start(tuple(searched), caps):
         raise UsageError("not confirmed: nothing moved, nothing written")
