@@ -24,6 +24,9 @@ offset made by a range recorded short at one end), counting the offset joint fla
 and named, and the offset-free sessions flagged. ``HEALTH_RANGE_SEEDS=N`` (default 0: skipped) adds N Koch
 sessions (seeds 30000…, every fourth offset-free, the others a 5° offset on a random joint with stops, arm and sign)
 written both in ``range_m100_100`` (LeRobot's clamps) and in degrees, flagged and named per arm and case.
+``HEALTH_SHIFT_SEEDS=N`` (default 100 per robot, 0 skips) offset-free sessions with one joint's ``action`` or
+``observation.state`` shifted by 0, 2, 3, 5 or 17° after the recording (random sign, joint and column): named
+``offset`` with the shift in the interval (the rest level), and the unshifted ones flagged.
 The followers' servos enforce their position limits where the real ones do (the SO-101's STS3215s;
 ``HEALTH_GOAL_LIMITS=0``: every follower pressed into its stop, the simulator before 2026-11-29).
 """
@@ -41,6 +44,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults
 from robocal.dataset.teleop_sim import generate_teleop_datasets
@@ -336,6 +341,55 @@ def evaluate_sag(robot: str, n: int, folder: Path) -> None:
     print(f"offset-free sessions flagged: {_rate(*clean)}")
 
 
+_SHIFTS = (0.0, 2.0, 3.0, 5.0, 17.0)
+"""Sizes of the column shifts of :func:`evaluate_shift` (0: the session as recorded)."""
+
+
+def _shift_column(root: Path, column: str, joint: int, delta: float) -> None:
+    for f in (root / "data").rglob("*.parquet"):
+        t = pq.read_table(f)
+        x = np.asarray(t.column(column).to_pylist(), dtype=np.float32)
+        x[:, joint] += delta
+        i = t.schema.get_field_index(column)
+        pq.write_table(t.set_column(i, column, pa.array(x.tolist(), type=t.schema.field(column).type)), f)
+
+
+def evaluate_shift(robot: str, n: int, folder: Path) -> None:
+    """Offset-free sessions with one joint's ``action`` or ``observation.state`` shifted by a constant after the
+    recording (a naive injection, an edited column): what the rest level sees (``core/health/level.py``)."""
+    arm = TELEOP_ARMS[robot]
+    seeds = list(range(7000, 7000 + n))
+    t0 = time.perf_counter()
+    roots = generate_teleop_datasets(folder, robot, seeds, [TeleopFaults()] * n)
+    rng = np.random.default_rng(78)
+    cases = []
+    for k, root in enumerate(roots):
+        size = _SHIFTS[k % len(_SHIFTS)] * float(rng.choice([-1.0, 1.0]))
+        joint = int(rng.integers(0, len(arm.joints) - 1))  # not the gripper: its range mode clamps 0..100
+        column = str(rng.choice(["action", "observation.state"]))
+        if size:
+            _shift_column(root, column, joint, size)
+        cases.append((abs(size), arm.joints[joint], size if column == "observation.state" else -size))
+    reports = health_with_datatrove(roots, folder / "reports", use_degrees=True, tasks=2, workers=2)
+    print(f"\n-- {robot}: one column shifted after the recording, {n} sessions ({time.perf_counter() - t0:.0f} s) --")
+    tally: dict[tuple[float, str], list[int]] = defaultdict(lambda: [0, 0, 0, 0])
+    for rep_path, (size, joint, truth) in zip(reports, cases, strict=True):
+        rep = json.loads(rep_path.read_text())
+        j = rep["joints"][joint]
+        t = tally[(size, joint)]
+        t[1] += 1
+        if size == 0:
+            t[0] += bool(rep["flagged"])
+            continue
+        ci = j["ci_deg"]
+        t[0] += j["status"] == "offset" and ci is not None and ci[0] - 1e-6 <= truth <= ci[1] + 1e-6
+        t[2] += any(other != joint for other in rep["flagged"])
+        t[3] += j["status"] == "ok"
+    for (size, joint), (hit, total, other, ok) in sorted(tally.items()):
+        what = "flagged (false alarm)" if size == 0 else "named with the size in the interval"
+        print(f"{size:5.1f}° {joint:14s} {what:36s} {_rate(hit, total):>12s}  other joint {other}  ok {ok}")
+
+
 def range_faults(seed: int) -> TeleopFaults:
     """Session ``seed`` of the range-mode set: every fourth offset-free, the others a 5° offset (drawn)."""
     arm = TELEOP_ARMS["koch"]
@@ -390,6 +444,9 @@ def main() -> None:
             print_score(robot, evaluate(robot, list(range(n)), folder / robot))
             if robot == "so101" and n_sag > 0:  # the robot whose URDF has masses
                 evaluate_sag(robot, n_sag, folder / f"{robot}-sag")
+        n_shift = int(os.environ.get("HEALTH_SHIFT_SEEDS", "100"))
+        for robot in robots if n_shift > 0 else []:
+            evaluate_shift(robot, n_shift, folder / f"{robot}-shift")
         n_range = int(os.environ.get("HEALTH_RANGE_SEEDS", "0"))
         if n_range > 0:
             evaluate_range_modes(n_range, folder / "koch-range")

@@ -12,6 +12,7 @@ from dataset_testutil import (
     A,
     column,
     lekiwi_conv,
+    reads_null_list_rows,
 )
 
 from robocal.dataset import (
@@ -20,6 +21,7 @@ from robocal.dataset import (
     inspect_dataset,
 )
 from robocal.dataset.lerobot import LeRobotConvention, preset_modes
+from robocal.errors import FileFormatError
 from robocal.lerobot import MotorCalibration
 
 MODES = preset_modes("so101_follower", SO_ARM_JOINTS)
@@ -90,6 +92,10 @@ def test_inspect_counts_a_null_row_as_not_finite_in_every_joint(src: Path) -> No
     rows[4] = None
     i = table.schema.get_field_index("action")
     pq.write_table(table.set_column(i, "action", pa.array(rows, table.schema.field(i).type)), path)
+    if not reads_null_list_rows():  # pyarrow 25: the file cannot be read back at all
+        with pytest.raises(FileFormatError, match=r"cannot read Parquet \(Expected all lists to be of size=6"):
+            inspect_dataset(src, features=["action"])
+        return
     rep = inspect_dataset(src, features=["action"])
     assert rep.frames == 107
     assert {j.joint: j.non_finite for j in rep.joints} == dict.fromkeys(SO_ARM_JOINTS, 1)
@@ -97,8 +103,6 @@ def test_inspect_counts_a_null_row_as_not_finite_in_every_joint(src: Path) -> No
 
 
 def test_inspect_refuses_an_episode_index_with_null_rows(src: Path) -> None:
-    from robocal.errors import FileFormatError
-
     path = src / "data/chunk-000/file-000.parquet"
     table = pq.read_table(path)
     eps = table.column("episode_index").to_pylist()

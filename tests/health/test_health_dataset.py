@@ -23,6 +23,18 @@ from robocal.dataset.teleop_sim import generate_teleop_datasets, write_teleop_da
 from robocal.lerobot import MotorCalibration, write_calibration
 
 
+def reads_null_list_rows() -> bool:
+    """Whether this pyarrow reads back a null row of a fixed-size list column (pyarrow 25 refuses: "Expected all
+    lists to be of size=N"; robocal then says it cannot read the file, still one error line)."""
+    buf = pa.BufferOutputStream()
+    pq.write_table(pa.table({"a": pa.array([[0.0], None], pa.list_(pa.float32(), 1))}), buf)
+    try:
+        pq.read_table(pa.BufferReader(buf.getvalue()))
+    except pa.ArrowInvalid:
+        return False
+    return True
+
+
 def run(capsys: pytest.CaptureFixture[str], *args: object) -> tuple[int, str, str]:
     code = main([str(a) for a in args])
     out, err = capsys.readouterr()
@@ -318,7 +330,12 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         ("missing feature", "unknown feature 'observation.state'"),
         ("one calibration", "go together"),
         # before: an IndexError (exit 70), the null row dropped from one column only
-        ("null row", "column 'observation.state' has null rows (frames with no value)"),
+        (
+            "null row",
+            "column 'observation.state' has null rows (frames with no value)"
+            if reads_null_list_rows()
+            else "cannot read Parquet (Expected all lists to be of size=6",
+        ),
         # before: numpy's "invalid value encountered in cast" warning on stderr and exit 0
         ("null episode", "column 'episode_index' is int64 with null rows; expected an integer episode number"),
         ("float episode", "column 'episode_index' is double; expected an integer episode number"),
