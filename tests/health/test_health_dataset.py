@@ -513,3 +513,16 @@ def test_a_picture_that_is_the_report_through_a_link_is_refused(
     )
     assert sorted(p.name for p in out.iterdir()) == ["h.json", "h.png"]
     assert (out / other).read_text() == "{}\n" and (out / link).is_symlink()
+
+
+def test_a_urdf_without_masses_is_said_not_dropped_silently(
+    small: TeleopSession, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, ``--urdf koch.urdf`` (no masses) on an SO-101 dataset was not used and only the report's
+    ``"urdf": null`` said so (exit 0)."""
+    root = _write(small, tmp_path / "ds")
+    urdf = Path(__file__).parents[2] / "src/robocal/data/koch.urdf"
+    report = tmp_path / "h.json"
+    code, _, err = run(capsys, "dataset", "health", root, "--report", report, "--urdf", urdf)
+    assert code == 0 and json.loads(report.read_text())["model"]["urdf"] is None
+    assert f"warning: --urdf {urdf}: no link masses; the sag was fitted from the data instead" in err

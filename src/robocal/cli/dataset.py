@@ -214,6 +214,8 @@ def health(
         )
     out = _common.console if _common.console.is_terminal else Console(highlight=False, width=160)
     out.print(table)
+    if urdf is not None and outcome.report["model"]["urdf"] is None:  # said, not only in the report
+        _common.print_warning(f"--urdf {urdf}: no link masses; the sag was fitted from the data instead")
     flagged = [(n, j) for n, j in outcome.report["joints"].items() if j["status"] in ("offset", "suspect")]
     for name, j in flagged:
         _common.print_warning(f"{name}: {j['status']}: {'; '.join(j['reasons']) or 'offset past the threshold'}")
