@@ -383,8 +383,12 @@ def evaluate_shift(robot: str, n: int, folder: Path) -> None:
             continue
         ci = j["ci_deg"]
         t[0] += j["status"] == "offset" and ci is not None and ci[0] - 1e-6 <= truth <= ci[1] + 1e-6
-        t[2] += any(other != joint for other in rep["flagged"])
+        others = [other for other in rep["flagged"] if other != joint]
+        t[2] += bool(others)
         t[3] += j["status"] == "ok"
+        for other in others:
+            o = rep["joints"][other]
+            print(f"   {rep['dataset']}: {joint} {truth:+.0f}° shifted, {other} flagged {o['status']}: {'; '.join(o['reasons'])}")
     for (size, joint), (hit, total, other, ok) in sorted(tally.items()):
         what = "flagged (false alarm)" if size == 0 else "named with the size in the interval"
         print(f"{size:5.1f}° {joint:14s} {what:36s} {_rate(hit, total):>12s}  other joint {other}  ok {ok}")

@@ -68,6 +68,8 @@ class HealthConfig:
             by a correct calibration.
         level_deg: How far from its goal a correct follower may rest at every pose (:mod:`.level`), beyond its
             modelled sag; the band is used where it is wider.
+        sag_level_deg: The rest level a loaded joint may have for the sag-pattern fit to be used (a constant in its
+            residual would be read as offsets of other joints).
     """
 
     threshold_deg: float = 1.5
@@ -82,6 +84,7 @@ class HealthConfig:
     end_margin_deg: float = 0.25
     limit_scatter_deg: float = 1.5
     level_deg: float = 3.0
+    sag_level_deg: float = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -338,11 +341,10 @@ def _rest_verdict(
         return status, est, ci
     lo_pose, hi_pose = rest.bins[0][0], rest.bins[-1][0]
     reasons.append(
-        f"the follower rests {rest.typical:+.2f} from the leader's number (at least {rest.level:+.2f} at every pose it "
-        f"rested in: {len(rest.bins)} "
-        f"poses from {lo_pose:.1f} to {hi_pose:.1f}, {rest.frames} slow frames), where a correct follower rests "
-        f"within {allow:.2f} of it (its sag and dead band): action and observation.state are not in one calibration "
-        "frame (a calibration that changed between them, or a column edited after the recording)"
+        f"at rest the leader's number exceeds the follower's by {rest.typical:+.2f} (at least {rest.level:+.2f} at every "
+        f"pose: {len(rest.bins)} poses from {lo_pose:.1f} to {hi_pose:.1f}, {rest.frames} slow frames), where a correct "
+        f"follower rests within {allow:.2f} of its goal (its sag and dead band): action and observation.state are not "
+        "in one calibration frame (a calibration that changed between them, or a column edited after the recording)"
     )
     if status == "offset":
         return status, est, ci
