@@ -297,20 +297,21 @@ def _sag_fit(
 def _with_sag(h: JointHealth, fit: SagFit | None, col: int, upd: float, cfg: HealthConfig) -> JointHealth:
     """An ``unobservable`` joint whose sag pattern puts the follower's offset past the threshold → ``offset``.
 
-    The 99 % interval (Student t over the episodes) must lie beyond ``±threshold_deg``. The sag measures the
+    The ``cfg.sag_confidence`` interval (99.9 %, Student t over the episodes) must lie beyond ``±threshold_deg``.
+    The sag measures the
     follower's calibration against the gravity model's zero, not against the leader's: the reported offset
     assumes the leader's calibration is right (a leader's own offset leaves no trace in the sag).
     """
     if fit is None or col not in fit.joints or h.status != "unobservable":
         return h
     g = fit.joints.index(col)
-    lo, hi = fit.interval(g, 0.99)
+    lo, hi = fit.interval(g, cfg.sag_confidence)
     if not (lo >= cfg.threshold_deg or hi <= -cfg.threshold_deg):
         return h
     est = float(fit.estimate[g])
     why = (
         f"the follower's gravity sag follows another angle: its calibration is {est:+.1f}° "
-        f"[{lo:+.1f}, {hi:+.1f}] (99 %) from the gravity model's zero (no range-end contact; the leader's "
+        f"[{lo:+.1f}, {hi:+.1f}] ({100 * cfg.sag_confidence:g} %) from the gravity model's zero (no range-end contact; the leader's "
         "calibration assumed right)"
     )
     return replace(h, status="offset", offset=est * upd, ci=(lo * upd, hi * upd), reasons=(why,))

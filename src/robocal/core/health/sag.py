@@ -67,15 +67,34 @@ _T995 = {
 }
 
 
+_T9995 = {
+    1: 636.62,
+    2: 31.599,
+    3: 12.924,
+    4: 8.610,
+    5: 6.869,
+    6: 5.959,
+    7: 5.408,
+    8: 5.041,
+    9: 4.781,
+    10: 4.587,
+    12: 4.318,
+    15: 4.073,
+    20: 3.850,
+    30: 3.646,
+    60: 3.460,
+}
+
+
 def t_quantile(level: float, dof: int) -> float:
-    """Two-sided Student-t multiplier for ``level`` 0.95 or 0.99 (the tabled dof at or below ``dof``: conservative).
+    """Two-sided Student-t multiplier for ``level`` 0.95, 0.99 or 0.999 (the tabled dof at or below ``dof``).
 
     Raises:
         ValueError: Another level, or ``dof`` < 1.
     """
-    table = {0.95: _T975, 0.99: _T995}.get(level)
+    table = {0.95: _T975, 0.99: _T995, 0.999: _T9995}.get(level)
     if table is None or dof < 1:
-        raise ValueError(f"t_quantile: level {level} (0.95 or 0.99), dof {dof} (≥ 1)")
+        raise ValueError(f"t_quantile: level {level} (0.95, 0.99 or 0.999), dof {dof} (≥ 1)")
     return table[max(k for k in table if k <= dof)]
 
 
