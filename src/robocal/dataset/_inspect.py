@@ -20,6 +20,7 @@ from ..core.arrays import FloatArray
 from ..errors import FileFormatError
 from ._convention import ValueConvention
 from ._layout import is_position_entry, read_layout
+from .teleop_frames import episode_numbers
 
 __all__ = ["InspectReport", "JointSummary", "inspect_dataset"]
 
@@ -162,16 +163,11 @@ def inspect_dataset(
             for g in range(pf.metadata.num_row_groups):
                 table = pf.read_row_group(g, columns=cols)
                 frames += table.num_rows
-                eps = np.zeros(table.num_rows, dtype=np.int64)
-                if "episode_index" in cols:
-                    ep = table.column("episode_index")
-                    if not pa.types.is_integer(ep.type) or ep.null_count:
-                        nulls = " with null rows" if ep.null_count else ""
-                        raise FileFormatError(
-                            f"data file {rel}: column 'episode_index' is {ep.type}{nulls}; expected an integer "
-                            "episode number in every row"
-                        )
-                    eps = np.asarray(ep.to_numpy(), dtype=np.int64)
+                eps = (
+                    episode_numbers(table, rel)
+                    if "episode_index" in cols
+                    else np.zeros(table.num_rows, dtype=np.int64)
+                )
                 same_ep = eps[1:] == eps[:-1]
                 for feat, lo, hi, turn in plans:
                     arr = table.column(feat.key).combine_chunks()

@@ -18,7 +18,7 @@ from ..core.arrays import FloatArray, IntArray
 from ..errors import FileFormatError, JointMismatchError, UsageError
 from ._layout import read_layout
 
-__all__ = ["TeleopFrames", "read_teleop_frames"]
+__all__ = ["TeleopFrames", "episode_numbers", "read_teleop_frames"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +53,23 @@ def _vector(table: pa.Table, key: str, d: int, rel: str) -> FloatArray:
     with np.errstate(invalid="ignore", over="ignore"):
         v = np.asarray(arr.flatten().to_numpy(zero_copy_only=False), dtype=np.float64)
     return v.reshape(-1, d)
+
+
+def episode_numbers(table: pa.Table, rel: str) -> IntArray:
+    """The ``episode_index`` column of a data file's rows: an integer in every row.
+
+    Raises:
+        FileFormatError: Another type, or null rows (numpy would cast them with a warning, or truncate a float).
+    """
+    ep = table.column("episode_index")
+    if not pa.types.is_integer(ep.type) or ep.null_count:
+        nulls = " with null rows" if ep.null_count else ""
+        raise FileFormatError(
+            f"data file {rel}: column 'episode_index' is {ep.type}{nulls}; expected an integer episode number in "
+            "every row"
+        )
+    out: IntArray = np.asarray(ep.to_numpy(), dtype=np.int64)
+    return out
 
 
 def read_teleop_frames(root: str | Path) -> TeleopFrames:
@@ -95,14 +112,7 @@ def read_teleop_frames(root: str | Path) -> TeleopFrames:
                 t = pf.read_row_group(g, columns=["action", "observation.state", "episode_index", *extra])
                 actions.append(_vector(t, "action", fa.size, rel))
                 states.append(_vector(t, "observation.state", fs.size, rel))
-                ep = t.column("episode_index")
-                if not pa.types.is_integer(ep.type) or ep.null_count:
-                    nulls = " with null rows" if ep.null_count else ""
-                    raise FileFormatError(
-                        f"data file {rel}: column 'episode_index' is {ep.type}{nulls}; expected an integer "
-                        "episode number in every row"
-                    )
-                episodes.append(np.asarray(ep.to_numpy(), dtype=np.int64))
+                episodes.append(episode_numbers(t, rel))
                 index = np.full(t.num_rows, -1, dtype=np.int64)  # -1: no frame_index to compare
                 if extra:
                     fi = t.column("frame_index")
