@@ -131,14 +131,3 @@ def raw_values(root: Path, key: str) -> np.ndarray:
     files = sorted(root.glob("data/chunk-*/file-*.parquet"))
     return np.concatenate([column_of(pq.read_table(f), key) for f in files])
 
-
-def reads_null_list_rows() -> bool:
-    """Whether this pyarrow reads back a null row of a fixed-size list column (pyarrow 25 refuses: "Expected all
-    lists to be of size=N"; robocal then says it cannot read the file, still one error line)."""
-    buf = pa.BufferOutputStream()
-    pq.write_table(pa.table({"a": pa.array([[0.0], None], pa.list_(pa.float32(), 1))}), buf)
-    try:
-        pq.read_table(pa.BufferReader(buf.getvalue()))
-    except pa.ArrowInvalid:
-        return False
-    return True

@@ -12,8 +12,8 @@ from dataset_testutil import (
     A,
     column,
     lekiwi_conv,
-    reads_null_list_rows,
 )
+from tests.parquet import reads_null_list_rows
 
 from robocal.dataset import (
     SO_ARM_JOINTS,

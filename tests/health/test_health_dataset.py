@@ -16,23 +16,12 @@ import pyarrow.parquet as pq
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tests.parquet import reads_null_list_rows
 
 from robocal.backends.sim.teleop import TELEOP_ARMS, TeleopFaults, TeleopSession, simulate_sessions
 from robocal.cli.main import main
 from robocal.dataset.teleop_sim import generate_teleop_datasets, write_teleop_dataset
 from robocal.lerobot import MotorCalibration, write_calibration
-
-
-def reads_null_list_rows() -> bool:
-    """Whether this pyarrow reads back a null row of a fixed-size list column (pyarrow 25 refuses: "Expected all
-    lists to be of size=N"; robocal then says it cannot read the file, still one error line)."""
-    buf = pa.BufferOutputStream()
-    pq.write_table(pa.table({"a": pa.array([[0.0], None], pa.list_(pa.float32(), 1))}), buf)
-    try:
-        pq.read_table(pa.BufferReader(buf.getvalue()))
-    except pa.ArrowInvalid:
-        return False
-    return True
 
 
 def run(capsys: pytest.CaptureFixture[str], *args: object) -> tuple[int, str, str]:
