@@ -205,7 +205,6 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
     if setup.gravity is not None and sag_deg is not None:
         lead_deg = np.array(action / np.where(np.isfinite(upd), upd, 1.0), dtype=np.float64)
         fit = _sag_fit(setup.gravity, joints, pose_deg, lead_deg, sag_deg, fr.episode, kp, stops)
-    fit_all = fit
     out = []
     analysed: list[tuple[JointData, JointHealth]] = []
     for k, j in enumerate(joints):
@@ -220,12 +219,12 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
         else:
             data = JointData(j, action[:, k], state[:, k], fr.episode, np.zeros(len(action)), lo, hi, u, goal_limited=limited)
         analysed.append((data, analyse_joint(data, cfg)))
-    fit, unfit = _sag_fit_usable(fit, analysed, joints, cfg or HealthConfig())
+    unfit = _sag_fit_unusable(fit, analysed, joints, cfg or HealthConfig())
     for k, (data, h) in enumerate(analysed):
         u = data.units_per_deg
-        if unfit is not None and h.status == "unobservable" and k in (fit_all.joints if fit_all else ()):
+        if unfit is not None and fit is not None and h.status == "unobservable" and k in fit.joints:
             h = replace(h, reasons=(*h.reasons, unfit))
-        h = _with_sag(h, fit, k, u, cfg or HealthConfig())
+        h = _with_sag(h, fit if unfit is None else None, k, u, cfg or HealthConfig())
         episodes = episode_verdicts(data, h.band, cfg, h.end_bands, h.raw_caps)
         drift = drift_reason(episodes, h.band, cfg or HealthConfig(), u)
         extra = [*notes[k], *([drift] if drift else [])]
@@ -239,29 +238,28 @@ def dataset_health(root: str | Path, setup: HealthSetup, cfg: HealthConfig | Non
         if info[k]:
             h = replace(h, reasons=(*h.reasons, *info[k]))
         out.append((h, units[k], u if math.isfinite(upd[k]) else math.nan, episodes, extra))
-    return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state, fit)
+    used = fit if unfit is None else None
+    return DatasetHealth(fr.root, len(fr.episode), len(np.unique(fr.episode)), tuple(out), state, used)
 
 
-def _sag_fit_usable(
+def _sag_fit_unusable(
     fit: SagFit | None, analysed: list[tuple[JointData, JointHealth]], joints: tuple[str, ...], cfg: HealthConfig
-) -> tuple[SagFit | None, str | None]:
-    """The sag fit, or None with the reason when a loaded joint's rest level breaks its premise.
+) -> str | None:
+    """Why the sag fit may not be used (a loaded joint's rest level breaks its premise), or None.
 
     The fit reads offsets from how ``a(t−1) − s(t) − sag`` varies with pose; a joint whose follower rests away from
     its goal at every pose (a shifted column, :mod:`robocal.core.health.level`) puts a constant into that residual,
     which the fit explains as offsets on other joints (a 2° shoulder_lift shift read as elbow_flex −100°).
     """
-    if fit is None:
-        return None, None
-    for k in fit.joints:
+    for k in fit.joints if fit is not None else ():
         data, h = analysed[k]
         rest, u = h.rest, data.units_per_deg
         if rest is not None and abs(rest.level) > cfg.sag_level_deg * u:
-            return None, (
+            return (
                 f"the sag pattern was not used: at rest {joints[k]}'s leader number exceeds its follower's by "
                 f"{rest.level / u:+.2f}° at every pose (the sag fit needs that within ±{cfg.sag_level_deg:g}°)"
             )
-    return fit, None
+    return None
 
 
 def _sag_fit(
