@@ -172,6 +172,28 @@ def _disable_torque(bus: ServoBus, spec: RobotSpec) -> None:
         if bus.has_register(m.motor_id, "Lock"):
             bus.write("Lock", m.motor_id, 0)
 
+def calibration_writes(
+    bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]
+) -> list[tuple[str, str, int, int]]:
+    """(motor, register, id, value): the registers a calibration occupies on the motors of ``spec`` in ``cals``.
+
+    Drive_Mode where the vendor keeps it in the motor, Homing_Offset where the model has one, the two position
+    limits; nothing checked, no bus I/O.
+    """
+    plan: list[tuple[str, str, int, int]] = []
+    for m in spec.motors:
+        c = cals.get(m.name)
+        if c is None:
+            continue
+        if spec.vendor_spec.drive_mode_in_hardware:
+            plan.append((m.name, "Drive_Mode", m.motor_id, c.drive_mode))
+        if bus.has_register(m.motor_id, "Homing_Offset"):
+            plan.append((m.name, "Homing_Offset", m.motor_id, c.homing_offset))
+        plan.append((m.name, "Min_Position_Limit", m.motor_id, c.range_min))
+        plan.append((m.name, "Max_Position_Limit", m.motor_id, c.range_max))
+    return plan
+
+
 def _restore_plan(
     bus: ServoBus, spec: RobotSpec, cals: Mapping[str, MotorCalibration]
 ) -> list[tuple[str, str, int, int]]:
@@ -179,15 +201,7 @@ def _restore_plan(
     missing = [m.name for m in spec.motors if m.name not in cals]
     if missing:
         raise InvalidCalibrationError(f"calibration has no entry for motor(s) {', '.join(missing)}")
-    plan: list[tuple[str, str, int, int]] = []
-    for m in spec.motors:
-        c = cals[m.name]
-        if spec.vendor_spec.drive_mode_in_hardware:
-            plan.append((m.name, "Drive_Mode", m.motor_id, c.drive_mode))
-        if bus.has_register(m.motor_id, "Homing_Offset"):
-            plan.append((m.name, "Homing_Offset", m.motor_id, c.homing_offset))
-        plan.append((m.name, "Min_Position_Limit", m.motor_id, c.range_min))
-        plan.append((m.name, "Max_Position_Limit", m.motor_id, c.range_max))
+    plan = calibration_writes(bus, spec, cals)
     for name, register, motor_id, value in plan:  # every value must fit before anything is written
         try:
             bus.check_write(register, motor_id, value)

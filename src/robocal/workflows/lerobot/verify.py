@@ -39,6 +39,7 @@ from .auto import (
     snapshot_registers,
 )
 from .calibrate import Operator, RangeView
+from .eeprom import calibration_writes
 from .files import read_calibration_file
 from .guard import arm_guard, limp_arm
 
@@ -155,30 +156,21 @@ def _check_fits(
     searched: Sequence[str],
     path: str | os.PathLike[str],
 ) -> None:
-    """Every stored value of a searched motor fits its register (no bus I/O): else it was never on this arm.
+    """Every stored register value of a searched motor fits its register (no bus I/O): else it was never on this arm.
 
     The drift is taken modulo a turn, so a stored ``homing_offset`` of 2147483647 (4095 modulo 4096) read "ok".
 
     Raises:
         UsageError: A value no register of the motor can hold (nothing moved).
     """
-    ids = {m.name: m.motor_id for m in spec.motors}
-    for name in searched:
-        c = stored[name]
-        for register, value in (
-            ("Homing_Offset", c.homing_offset),
-            ("Min_Position_Limit", c.range_min),
-            ("Max_Position_Limit", c.range_max),
-        ):
-            if not bus.has_register(ids[name], register):
-                continue
-            try:
-                bus.check_write(register, ids[name], value)
-            except CalibError as exc:
-                raise UsageError(
-                    f"calibration {os.fspath(path)}: motor {name!r}: {register} {value} cannot be on the motor "
-                    f"({exc}); nothing moved"
-                ) from None
+    for name, register, motor_id, value in calibration_writes(bus, spec, {n: stored[n] for n in searched}):
+        try:
+            bus.check_write(register, motor_id, value)
+        except CalibError as exc:
+            raise UsageError(
+                f"calibration {os.fspath(path)}: motor {name!r}: {register} {value} cannot be on the motor "
+                f"({exc}); nothing moved"
+            ) from None
 
 
 def verify_calibration(
