@@ -128,7 +128,12 @@ def test_stop_search_drawn_live_then_with_the_report_codes(page: Any, tmp_path: 
             st = _auto_state(page)
             return st if st and st["finished"] else None
 
-        state = browserlib.wait_until(final, what="the finished auto state")
+        try:
+            state = browserlib.wait_until(final, what="the finished auto state")
+        except AssertionError as exc:  # say which side lost it: the server's state, its messages, the page's
+            raise AssertionError(
+                f"{exc}; server: {web.status()}; messages: {web.app.messages}; page: {_auto_state(page)}"
+            ) from None
         shown = {j["name"]: j for j in state["joints"]}
         for name in JOINTS:
             assert shown[name]["status"] == codes[name]

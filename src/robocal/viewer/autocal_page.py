@@ -142,6 +142,7 @@ class AutoSweepWebView:
         self._ticks_drawn: dict[str, tuple[str, float, float]] = {}
         self._state_el: Any = None
         self._state_sent = ""
+        self._send_lock = threading.Lock()
         self._build()
         app.add_hook(self._draw)
 
@@ -233,6 +234,7 @@ class AutoSweepWebView:
         )
         self.app.set_source_state("finished")
         self._publish(force=True)
+        self._send_state()  # the final state goes out now, whatever the page loop is doing
         with self._lock:
             raw = self._raw.copy()
         self.app.push(self._t_s, raw)  # one more page update: the final state reaches the page
@@ -258,6 +260,7 @@ class AutoSweepWebView:
             self.finished = True
         self.app.set_source_state("failed", text)
         self._publish(force=True)
+        self._send_state()
         with self._lock:
             raw = self._raw.copy()
         self.app.push(self._t_s, raw)
@@ -357,10 +360,15 @@ class AutoSweepWebView:
             h.points = np.asarray(segs, dtype=np.float32)
             h.colors = np.tile(line_rgb(status_rgb(status)), (len(stops), 2, 1))
             h.visible = True
-        html_now = self._state_html()
-        if html_now != self._state_sent and self._state_el is not None:
-            self._state_el.content = html_now
-            self._state_sent = html_now
+        self._send_state()
+
+    def _send_state(self) -> None:
+        """Send the page state if it changed (page thread and the run's end; the newest state is sent last)."""
+        with self._send_lock:
+            html_now = self._state_html()
+            if html_now != self._state_sent and self._state_el is not None:
+                self._state_el.content = html_now
+                self._state_sent = html_now
 
 
 def open_auto_sweep_page(
