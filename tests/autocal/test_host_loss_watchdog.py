@@ -104,6 +104,41 @@ def test_a_host_held_up_past_the_watchdog_is_a_device_fault_and_the_motor_alread
         assert motor.can_timeout == 0
 
 
+def test_a_reread_after_the_watchdog_tripped_is_a_fault_not_a_clear_and_enable() -> None:
+    """The search re-reads after a lost reply or an overload; a motor whose ``canTimeout`` tripped meanwhile (robocal
+    held up) stopped on its own and may have dropped. Before, the re-read's type-4 stop with fault clear and the
+    enable after it put it back in run mode as if it had held its command (only the search's 0.5 s reading-gap
+    bound caught it); now the re-read asks the motor first, and its reply (reset mode) ends the run."""
+    with lite_rig() as (bus, (motor,), clock):
+        drv = RobstrideJointDriver(bus, "j0", 1, 0.4, MAX_LAG_RAD, clock)
+        for k in range(20):
+            drv.execute(Command("drive", 0.01 * k, 0.0, 0.4))
+        clock.sleep(1.0)  # held up for 1 s: the motor stopped itself after 0.5 s
+        enables = motor.requests.get(3, 0)
+        with pytest.raises(RobstrideWatchdogError, match="left run mode on its own"):
+            drv.execute(Command("reread", 0.2, 0.0, 0.4))
+        assert motor.mode == 0 and len(motor.watchdog_trips) == 1
+        assert motor.requests.get(3, 0) == enables  # never enabled again (type 3)
+        assert motor.requests.get(4, 0) == 0  # and nothing cleared (type 4)
+        drv.limp()
+        assert motor.can_timeout == 0
+
+
+def test_a_reread_of_a_latched_overload_clears_it_and_drives_on() -> None:
+    with lite_rig() as (bus, (motor,), clock):
+        drv = RobstrideJointDriver(bus, "j0", 1, 0.4, MAX_LAG_RAD, clock)
+        for k in range(5):
+            drv.execute(Command("drive", 0.01 * k, 0.0, 0.4))
+        assert motor.plant is not None
+        motor.plant.latched = True  # the firmware's overload latch (fault bit 20, torque cut)
+        s = drv.execute(Command("drive", 0.05, 0.0, 0.4))
+        assert s.overload
+        s = drv.execute(Command("reread", 0.05, 0.0, 0.4))
+        assert s.ok and not s.overload and motor.mode == 2 and not motor.plant.latched
+        assert motor.requests.get(4, 0) == 1  # one stop with fault clear
+        drv.limp()
+
+
 def test_a_joint_holding_its_pose_is_kept_alive_while_another_is_searched() -> None:
     with lite_rig(2) as (bus, (held, searched), clock):
         hold = RobstrideJointDriver(bus, "j0", 1, 0.4, MAX_LAG_RAD, clock)

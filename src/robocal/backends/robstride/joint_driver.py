@@ -57,8 +57,8 @@ class RobstrideJointDriver(MitJointDriver):
     The search's commands as :class:`~robocal.backends.mit_joint_driver.MitJointDriver` maps them; ``limp``: MIT
     ``(0, 0, 0, 0, 0)`` then type 4 (stop), both also sent first without awaiting a reply (``torque_off_nowait``,
     the first frames of every ``limp_all``: a motor that stopped answering no longer holds another's stop back by
-    its reply waits); ``reread``: type 4 stop with fault clear, type 3 enable, the last
-    command again. The firmware's ``limit_torque`` (0x700B, a RAM parameter: type 18, never saved to flash) is set
+    its reply waits); ``reread``: the last command again (a motor found out of run mode is a tripped watchdog,
+    raised), type 4 stop with fault clear, type 3 enable, the last command again. The firmware's ``limit_torque`` (0x700B, a RAM parameter: type 18, never saved to flash) is set
     to ``1.05·cap`` when the motor is first enabled, so a rebound or a control-period delay can never push harder
     than the cap + 5 %; :meth:`limp` writes the value read before back (a power cycle restores it too). The cap,
     ``limit_torque`` and every feed-forward torque stay within the hard ceiling of the motor model's rating
@@ -121,6 +121,17 @@ class RobstrideJointDriver(MitJointDriver):
         return s
 
     def _clear_fault(self) -> bool:
+        """Clear an overload latch (type 4 with fault clear); a motor that left run mode meanwhile ends the run.
+
+        The motor is asked first, with its last command again (what it is under anyway): a re-read follows a lost
+        reply as well as an overload, and a motor whose ``canTimeout`` tripped meanwhile (robocal held up past it:
+        reset mode, limp, perhaps dropped) answers in reset mode, which :meth:`_sample` raises as the fault it is
+        (:class:`RobstrideWatchdogError`) instead of it being cleared, enabled and driven on.
+        """
+        try:
+            self._exchange(self._clamped(self._last))
+        except CalibTimeoutError:
+            return True
         with suppress(CalibTimeoutError):
             self.bus.stop(self.name, clear_faults=True)
         return False
