@@ -288,3 +288,35 @@ def test_readings_that_are_not_one_number_per_joint_and_times_that_are_not_finit
         m.update(**args)  # type: ignore[arg-type]
     assert str(err.value) == message
     assert m.update(1.0, [0.0, 0.0], q_cmd_rad=[0.0, 0.0], q_leader_rad=[0.0, math.nan]) == ()  # lists still do
+
+
+@pytest.mark.parametrize(
+    ("values", "kind"),
+    [
+        (np.array(["0.1", "0.2"]), "str"),
+        (np.array([b"0.1", b"0.2"]), "bytes"),
+        (["0.1", "0.2"], "str"),
+        (np.array([0.1 + 1j, 0.2]), "complex"),
+        ([0.1 + 1j, 0.2], "complex"),
+        (np.array(["0.1", 0.2], dtype=object), "str"),
+        (np.array(["2026-01-01", "2026-01-02"], dtype="datetime64[D]"), "datetime64"),
+    ],
+)
+@pytest.mark.parametrize("what", ["q_rad", "q_cmd_rad", "q_leader_rad"])
+def test_readings_of_strings_or_complex_numbers_are_refused_naming_the_argument(
+    values: object, kind: str, what: str
+) -> None:
+    """Before, a (2,) array of strings or complex numbers got past the shape check and numpy raised its own
+    ``UFuncTypeError`` (or a list of numeric strings was parsed as numbers); now the one UsageError, nothing
+    recorded, and the next tick is checked as if the bad call had not happened."""
+    m = _monitor(leader_paired=True)
+    _feed(m, [0.0, 0.0])
+    args: dict[str, object] = {"t_s": 1.0, "q_rad": np.zeros(2)}
+    args[what] = values
+    with pytest.raises(UsageError) as err:
+        m.update(**args)  # type: ignore[arg-type]
+    assert str(err.value) == f"monitor: {what} is not real numbers ({kind}); expected one float per joint (a, b)"
+    assert (m.ticks, len(m.history)) == (2, 0)
+    assert m.update(1.0, np.array([0.0, 0.0]), q_cmd_rad=np.zeros(2), q_leader_rad=np.zeros(2)) == ()
+    assert m.update(1.01, np.array([0.0, 0.0], dtype=np.float32)) == ()
+    assert m.update(1.02, np.array([0, 0])) == ()

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from numbers import Real
 
 import numpy as np
 
@@ -42,6 +43,9 @@ _NO_FLAGS: tuple[HealthFlag, ...] = ()
 _SPEED, _STOPS, _ACCEL = 0, 1, 2
 """Rows of the per-tick check arrays."""
 _TWO_PI = 2.0 * math.pi
+_REAL_KINDS = ("f", "i", "u", "b")
+"""numpy dtype kinds ``update`` takes as readings as they are (float, int, unsigned, bool)."""
+_KIND_NAMES = {"U": "str", "S": "bytes", "c": "complex", "M": "datetime64", "m": "timedelta64"}
 
 
 class Monitor:
@@ -146,18 +150,18 @@ class Monitor:
 
         Raises:
             UsageError: ``t_s`` is not finite or did not advance past the previous tick's time; an array that is
-                not one number per joint.
+                not one real number per joint (strings, bytes, complex numbers and dates are refused).
         """
         if not math.isfinite(t_s):
             raise UsageError(f"monitor: time {t_s} s is not a finite number")
         dt = t_s - self._t_prev
         if dt <= 0.0:
             raise UsageError(f"monitor: time {t_s} s is not after the previous tick's {self._t_prev} s")
-        if getattr(q_rad, "shape", None) != self._shape:
+        if not self._fits(q_rad):
             q_rad = self._readings("q_rad", q_rad)
-        if q_cmd_rad is not None and getattr(q_cmd_rad, "shape", None) != self._shape:
+        if q_cmd_rad is not None and not self._fits(q_cmd_rad):
             q_cmd_rad = self._readings("q_cmd_rad", q_cmd_rad)
-        if q_leader_rad is not None and getattr(q_leader_rad, "shape", None) != self._shape:
+        if q_leader_rad is not None and not self._fits(q_leader_rad):
             q_leader_rad = self._readings("q_leader_rad", q_leader_rad)
         self._t_prev = t_s
         self.ticks += 1
@@ -180,10 +184,34 @@ class Monitor:
         np.add(q_rad, self._zero_dq, out=self._prev_pred)
         return flags
 
+    def _fits(self, values: object) -> bool:
+        """``values`` is an ``(N,)`` numpy-style array of real numbers (taken as it is, without a copy)."""
+        return (
+            getattr(values, "shape", None) == self._shape
+            and getattr(getattr(values, "dtype", None), "kind", None) in _REAL_KINDS
+        )
+
     def _readings(self, what: str, values: object) -> FloatArray:
-        """``values`` (not an ``(N,)`` array already) as one float per joint, or a UsageError naming ``what``."""
+        """``values`` (not an ``(N,)`` real array already) as one float per joint, or a UsageError naming ``what``.
+
+        Strings (even of numbers), bytes, complex numbers and dates are refused, not parsed or cut to their real
+        part; ``None`` in a list is NaN (a joint not read), as numpy converts it.
+        """
         try:
-            out = np.asarray(values, dtype=np.float64)
+            raw = np.asarray(values)
+        except (TypeError, ValueError):
+            raise UsageError(f"monitor: {what} is not numbers ({type(values).__name__})") from None
+        kind = raw.dtype.kind
+        bad = _KIND_NAMES.get(kind, raw.dtype.name) if kind not in (*_REAL_KINDS, "O") else None
+        if kind == "O":
+            odd = next((v for v in raw.flat if v is not None and not isinstance(v, Real)), None)
+            bad = None if odd is None else type(odd).__name__
+        if bad is not None:
+            raise UsageError(
+                f"monitor: {what} is not real numbers ({bad}); expected one float per joint ({', '.join(self._names)})"
+            )
+        try:
+            out = raw.astype(np.float64)
         except (TypeError, ValueError):
             raise UsageError(f"monitor: {what} is not numbers ({type(values).__name__})") from None
         if out.shape != self._shape:
