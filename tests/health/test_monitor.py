@@ -320,3 +320,51 @@ def test_readings_of_strings_or_complex_numbers_are_refused_naming_the_argument(
     assert m.update(1.0, np.array([0.0, 0.0]), q_cmd_rad=np.zeros(2), q_leader_rad=np.zeros(2)) == ()
     assert m.update(1.01, np.array([0.0, 0.0], dtype=np.float32)) == ()
     assert m.update(1.02, np.array([0, 0])) == ()
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"wraps": "ab"}, "monitor: wraps is a string ('ab'); expected True/False or one per joint"),
+        ({"leader_paired": "no"}, "monitor: leader_paired is a string ('no'); expected True/False or one per joint"),
+        ({"wraps": b"\x01\x00"}, "monitor: wraps is a string (b'\\x01\\x00'); expected True/False or one per joint"),
+        ({"lower_rad": "12"}, "monitor: lower_rad is a string ('12'); expected a number or one per joint"),
+        ({"max_speed_rad_s": "3"}, "monitor: max_speed_rad_s is a string ('3'); expected a number or one per joint"),
+        ({"noise_rad": b"00"}, "monitor: noise_rad is a string (b'00'); expected a number or one per joint"),
+        ({"joint_names": "ab"}, "monitor: joint_names is a string ('ab'); expected one name per joint"),
+        ({"wraps": ["no", "no"]}, "monitor: wraps of joint a is 'no' (str); expected True/False"),
+        ({"leader_paired": [True, 2]}, "monitor: leader_paired of joint b is 2 (int); expected True/False"),
+        ({"max_accel_rad_s2": ["50", "50"]}, "monitor: max_accel_rad_s2 of joint a is '50' (str); expected a number"),
+        ({"upper_rad": np.array(["1", "1"])}, "monitor: upper_rad of joint a is '1' (str); expected a number"),
+        ({"upper_rad": [1.0, None]}, "monitor: upper_rad of joint b is None (NoneType); expected a number"),
+        ({"noise_rad": [0.0, 1j]}, "monitor: noise_rad of joint b is 1j (complex); expected a number"),
+        ({"max_speed_rad_s": None}, "monitor: max_speed_rad_s is None (NoneType); expected a number or one per joint"),
+        ({"lower_rad": np.zeros((2, 1))}, "monitor: lower_rad has shape (2, 1); expected (2,), one value per joint"),
+        ({"margin_rad": "0.1"}, "monitor: margin_rad is '0.1' (str); expected a number"),
+    ],
+)
+def test_strings_and_other_non_numbers_for_per_joint_values_are_refused_naming_the_field(
+    kw: dict[str, object], message: str
+) -> None:
+    """Before, a string was read one value per character: ``wraps="ab"`` made both joints wrap, ``lower_rad="12"``
+    gave stops (1.0, 2.0), ``max_speed_rad_s="3"`` a length error, ``wraps=["no", "no"]`` two True flags, and
+    ``joint_names="ab"`` two joints; elements that were not numbers raised Python's TypeError or ValueError."""
+    args: dict[str, object] = {
+        "joint_names": ["a", "b"],
+        "lower_rad": [-1.0, -1.0],
+        "upper_rad": [1.0, 1.0],
+        "max_speed_rad_s": 3.0,
+    }
+    args.update(kw)
+    with pytest.raises(UsageError) as err:
+        monitor_config(**args)  # type: ignore[arg-type]
+    assert str(err.value) == message
+
+
+def test_numpy_scalars_and_zero_dimensional_arrays_are_one_value_for_every_joint() -> None:
+    cfg = monitor_config(
+        ["a", "b"], [-1.0, -1.0], np.array([1.0, 2.0]), np.float32(3.0), noise_rad=np.array(0.01),
+        wraps=np.bool_(True), leader_paired=[1, np.bool_(False)], margin_rad=np.float64(0.1),
+    )
+    assert (cfg.max_speed_rad_s, cfg.noise_rad, cfg.upper_rad) == ((3.0, 3.0), (0.01, 0.01), (1.0, 2.0))
+    assert (cfg.wraps, cfg.leader_paired, cfg.margin_rad) == ((True, True), (True, False), 0.1)

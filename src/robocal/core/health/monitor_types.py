@@ -6,8 +6,10 @@ Pure Python and numpy; frozen dataclasses built once before a control loop start
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from numbers import Integral, Real
+from typing import Any
 
 import numpy as np
 
@@ -71,12 +73,59 @@ class HealthFlag:
         return f"{self.joint}: follower pinned {v:+.2f}° from its leader while the leader goes on"
 
 
-def _per_joint(name: str, value: float | Sequence[float], n: int) -> tuple[float, ...]:
-    """``value`` as ``n`` floats (a scalar repeated), checked finite."""
-    out = tuple(float(v) for v in value) if isinstance(value, Sequence | np.ndarray) else (float(value),) * n
-    if len(out) != n:
-        raise UsageError(f"monitor: {name} has {len(out)} values for {n} joints")
-    return out
+def _is_number(v: object) -> bool:
+    """``v`` is a real number (a Python or numpy int or float; not a string, complex number or None)."""
+    return isinstance(v, Real)
+
+
+def _is_flag(v: object) -> bool:
+    """``v`` is a flag: ``True``/``False`` (Python or numpy) or the integer 0 or 1."""
+    return isinstance(v, bool | np.bool_) or (isinstance(v, Integral) and v in (0, 1))
+
+
+def _per_joint(
+    name: str, value: object, names: tuple[str, ...], what: str, ok: Callable[[object], bool]
+) -> tuple[Any, ...]:
+    """``value`` as one item per joint (a sequence or 1-D array as it is, one value repeated), each ``ok``.
+
+    A string or bytes is refused, not read one value per character; so is an array of two or more dimensions.
+
+    Raises:
+        UsageError: A string, a length that is not the number of joints, or an item that is not ``what``.
+    """
+    n = len(names)
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if isinstance(value, str | bytes):
+        raise UsageError(f"monitor: {name} is a string ({value!r}); expected {what} or one per joint")
+    if isinstance(value, np.ndarray):
+        if value.ndim > 1:
+            raise UsageError(f"monitor: {name} has shape {value.shape}; expected ({n},), one value per joint")
+        value = value.tolist()
+    if not isinstance(value, Sequence):
+        if not ok(value):
+            raise UsageError(f"monitor: {name} is {value!r} ({type(value).__name__}); expected {what} or one per joint")
+        return (value,) * n
+    if len(value) != n:
+        raise UsageError(f"monitor: {name} has {len(value)} values for {n} joints")
+    for joint, v in zip(names, value, strict=True):
+        if not ok(v):
+            raise UsageError(f"monitor: {name} of joint {joint} is {v!r} ({type(v).__name__}); expected {what}")
+    return tuple(value)
+
+
+def _floats(name: str, value: object, names: tuple[str, ...]) -> tuple[float, ...]:
+    """``value`` as one float per joint (see :func:`_per_joint`)."""
+    return tuple(float(v) for v in _per_joint(name, value, names, "a number", _is_number))
+
+
+def _number(name: str, value: object) -> float:
+    """A single number ``value`` as a float; a string or anything else not a real number refused."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if not isinstance(value, Real):
+        raise UsageError(f"monitor: {name} is {value!r} ({type(value).__name__}); expected a number")
+    return float(value)
 
 
 @dataclass(frozen=True)
@@ -182,29 +231,25 @@ def monitor_config(
         step_holdoff_s: Quiet time after a step flag, s.
 
     Raises:
-        UsageError: Lengths that differ, a lower stop not below the upper one, non-finite or negative limits.
+        UsageError: Lengths that differ, a lower stop not below the upper one, non-finite or negative limits; a
+            string (or bytes) for a per-joint value (it is not read one value per character), a value that is not
+            a number, a flag that is not True/False.
     """
+    if isinstance(joint_names, str | bytes):
+        raise UsageError(f"monitor: joint_names is a string ({joint_names!r}); expected one name per joint")
     names = tuple(str(n) for n in joint_names)
-    n = len(names)
-
-    def flags(name: str, value: bool | Sequence[bool]) -> tuple[bool, ...]:
-        out = tuple(bool(v) for v in value) if isinstance(value, Sequence | np.ndarray) else (bool(value),) * n
-        if len(out) != n:
-            raise UsageError(f"monitor: {name} has {len(out)} values for {n} joints")
-        return out
-
     return MonitorConfig(
         names,
-        _per_joint("lower_rad", lower_rad, n),
-        _per_joint("upper_rad", upper_rad, n),
-        _per_joint("max_speed_rad_s", max_speed_rad_s, n),
-        _per_joint("max_accel_rad_s2", max_accel_rad_s2, n),
-        _per_joint("noise_rad", noise_rad, n),
-        flags("wraps", wraps),
-        flags("leader_paired", leader_paired),
-        margin_rad=float(margin_rad),
-        pin_residual_rad=float(pin_residual_rad),
-        pin_still_rad=float(pin_still_rad),
-        pin_time_s=float(pin_time_s),
-        step_holdoff_s=float(step_holdoff_s),
+        _floats("lower_rad", lower_rad, names),
+        _floats("upper_rad", upper_rad, names),
+        _floats("max_speed_rad_s", max_speed_rad_s, names),
+        _floats("max_accel_rad_s2", max_accel_rad_s2, names),
+        _floats("noise_rad", noise_rad, names),
+        tuple(bool(v) for v in _per_joint("wraps", wraps, names, "True/False", _is_flag)),
+        tuple(bool(v) for v in _per_joint("leader_paired", leader_paired, names, "True/False", _is_flag)),
+        margin_rad=_number("margin_rad", margin_rad),
+        pin_residual_rad=_number("pin_residual_rad", pin_residual_rad),
+        pin_still_rad=_number("pin_still_rad", pin_still_rad),
+        pin_time_s=_number("pin_time_s", pin_time_s),
+        step_holdoff_s=_number("step_holdoff_s", step_holdoff_s),
     )
