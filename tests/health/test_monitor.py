@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -368,3 +369,48 @@ def test_numpy_scalars_and_zero_dimensional_arrays_are_one_value_for_every_joint
     )
     assert (cfg.max_speed_rad_s, cfg.noise_rad, cfg.upper_rad) == ((3.0, 3.0), (0.01, 0.01), (1.0, 2.0))
     assert (cfg.wraps, cfg.leader_paired, cfg.margin_rad) == ((True, True), (True, False), 0.1)
+
+
+_TYPED_USAGE = '''
+from typing import Any
+
+import numpy as np
+
+from robocal.health import Monitor, monitor_config
+
+follower: Any
+leader: Any
+running = False
+cfg = monitor_config(
+    np.array(["a", "b"]),
+    lower_rad=np.radians([-110.0, -10.0]),
+    upper_rad=np.array([1.9, 2.0]),
+    max_speed_rad_s=np.full(2, 6.0),
+    max_accel_rad_s2=np.float32(50.0),
+    noise_rad=(0.003, 0.004),
+    wraps=np.array([False, True]),
+    leader_paired=np.bool_(True),
+    margin_rad=np.float64(0.03),
+)
+'''
+
+
+@pytest.mark.slow
+def test_numpy_arrays_for_per_joint_values_type_check_under_mypy_strict_as_in_the_docs(tmp_path: Path) -> None:
+    """monitor_config took numpy arrays at run time but was typed ``Sequence[float]`` / ``Sequence[bool]``: the
+    docs' ``np.radians([...])`` stops failed ``mypy --strict`` with ``incompatible type "ndarray..."``. The docs'
+    control-loop example (its robot objects declared) and the typed usage above now check clean."""
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "health.md").read_text(encoding="utf-8")
+    section = doc[doc.index("### In a control loop") :]
+    example = section[section.index("```python\n") + len("```python\n") : section.index("```\n", 10)]
+    (tmp_path / "usage.py").write_text(_TYPED_USAGE + example, encoding="utf-8")
+    src = Path(__file__).resolve().parents[2] / "src"
+    out = subprocess.run(
+        [sys.executable, "-m", "mypy", "--strict", "--no-error-summary", "--cache-dir", str(tmp_path / "cache"), "usage.py"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={**os.environ, "MYPYPATH": str(src)},
+    )
+    assert out.stdout.splitlines() == []
+    assert out.returncode == 0

@@ -9,18 +9,33 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from numbers import Integral, Real
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ...errors import UsageError
 
 __all__ = [
     "FLAG_KINDS",
     "HealthFlag",
+    "JointFlags",
+    "JointNames",
+    "JointValues",
     "MonitorConfig",
     "monitor_config",
 ]
+
+JointNames: TypeAlias = Sequence[str] | NDArray[np.str_]
+"""Joint names: a list or tuple of str, or a numpy array of them (not one str)."""
+
+JointValues: TypeAlias = (
+    float | np.floating[Any] | Sequence[float] | NDArray[np.floating[Any]] | NDArray[np.integer[Any]]
+)
+"""One number for every joint, or one per joint (a list, a tuple or a 1-D numpy array; not a str)."""
+
+JointFlags: TypeAlias = bool | np.bool_ | Sequence[bool] | NDArray[np.bool_]
+"""One flag for every joint, or one per joint (a list, a tuple or a 1-D numpy bool array; not a str)."""
 
 FLAG_KINDS = ("outside_stops", "step", "wrong_branch", "pinned")
 """What a :class:`HealthFlag` reports:
@@ -197,22 +212,22 @@ class MonitorConfig:
 
 
 def monitor_config(
-    joint_names: Sequence[str],
-    lower_rad: Sequence[float],
-    upper_rad: Sequence[float],
-    max_speed_rad_s: float | Sequence[float],
+    joint_names: JointNames,
+    lower_rad: JointValues,
+    upper_rad: JointValues,
+    max_speed_rad_s: JointValues,
     *,
-    max_accel_rad_s2: float | Sequence[float] = 50.0,
-    noise_rad: float | Sequence[float] = 2 * 2 * math.pi / 4096,
-    wraps: bool | Sequence[bool] = False,
-    leader_paired: bool | Sequence[bool] = False,
-    margin_rad: float = 2.0 * DEG,
-    pin_residual_rad: float = 5.0 * DEG,
-    pin_still_rad: float = 0.5 * DEG,
-    pin_time_s: float = 0.3,
-    step_holdoff_s: float = 0.5,
+    max_accel_rad_s2: JointValues = 50.0,
+    noise_rad: JointValues = 2 * 2 * math.pi / 4096,
+    wraps: JointFlags = False,
+    leader_paired: JointFlags = False,
+    margin_rad: float | np.floating[Any] = 2.0 * DEG,
+    pin_residual_rad: float | np.floating[Any] = 5.0 * DEG,
+    pin_still_rad: float | np.floating[Any] = 0.5 * DEG,
+    pin_time_s: float | np.floating[Any] = 0.3,
+    step_holdoff_s: float | np.floating[Any] = 0.5,
 ) -> MonitorConfig:
-    """A :class:`MonitorConfig` from per-joint sequences or one value for every joint.
+    """A :class:`MonitorConfig` from per-joint sequences or numpy arrays, or one value for every joint.
 
     Args:
         joint_names: Joint names, shape ``(N,)``.
