@@ -217,6 +217,12 @@ def _one_error(err: str, needle: str) -> None:
         ("bad_compat", "--compat 'fast': expected lerobot or exact"),
         ("missing_old", "no such file"),
         ("bad_workers", "--workers 0: expected a positive number"),
+        # before: an empty --robot fell back to meta/info.json's robot_type and the run went on (exit 0)
+        ("empty_robot", "--robot '' is empty: name the LeRobot robot type (so101_follower, koch_follower, ...)"),
+        ("blank_robot", "--robot ' ' is empty: name the LeRobot robot type (so101_follower, koch_follower, ...)"),
+        # before: an empty --modes / --old-modes was read as no override, silently
+        ("empty_modes", "--modes '': expected name=value pairs separated by commas"),
+        ("empty_old_modes", "--old-modes '': expected name=value pairs separated by commas"),
     ],
 )
 def test_bad_input_exit_2(
@@ -255,6 +261,10 @@ def test_bad_input_exit_2(
         old = tmp_path / "nope.json"
     elif case == "bad_workers":
         extra = ["--workers", "0"]
+    elif case in ("empty_robot", "blank_robot"):
+        extra = ["--robot", "" if case == "empty_robot" else " "]
+    elif case in ("empty_modes", "empty_old_modes"):
+        extra = ["--modes" if case == "empty_modes" else "--old-modes", ""]
     before = sorted(p.name for p in tmp_path.iterdir())
     code, _, err = run(capsys, "dataset", "recalibrate", src, dst, "--old", old, "--new", new, *extra)
     assert code == 2
@@ -290,6 +300,23 @@ def test_inspect(files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureF
     code, _, err = run(capsys, "dataset", "inspect", tmp_path)
     assert code == 2
     _one_error(err, "missing meta/info.json")
+
+
+@pytest.mark.parametrize(
+    ("option", "needle"),
+    [
+        (["--robot", ""], "--robot '' is empty: name the LeRobot robot type (so101_follower, koch_follower, ...), "
+         "or leave --robot out to use meta/info.json's robot_type"),
+        (["--modes", ""], "--modes '': expected name=value pairs separated by commas"),
+    ],
+)
+def test_inspect_refuses_an_empty_robot_or_modes(
+    files: dict[str, Path], capsys: pytest.CaptureFixture[str], option: list[str], needle: str
+) -> None:
+    """Before, ``--robot ""`` fell back to meta/info.json's robot_type and ``--modes ""`` to the preset (exit 0)."""
+    code, out, err = run(capsys, "dataset", "inspect", files["src"], "--calibration", files["a"], *option)
+    assert (code, out) == (2, "")
+    _one_error(err, needle)
 
 
 @pytest.mark.slow

@@ -262,7 +262,7 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         info = json.loads((root / "meta/info.json").read_text())
         del info["features"]["observation.state"]
         (root / "meta/info.json").write_text(json.dumps(info))
-    elif kind in ("one calibration", "robot bhl_arms", "urdf of another arm"):
+    elif kind in ("one calibration", "robot bhl_arms", "urdf of another arm", "robot empty"):
         _write(small, root)
     elif kind == "robot_type so100":
         _write(small, root)
@@ -346,6 +346,8 @@ def _bad_case(kind: str, small: TeleopSession, root: Path) -> None:
         # before: "--robot 'bhl_arms': unknown robot type; known: so*, koch*, lekiwi* (or pass --motor-family)", an
         # option dataset health does not have; a profile file the same
         ("robot bhl_arms", "--robot 'bhl_arms': dataset health needs a built-in LeRobot arm (koch_follower, koch_"),
+        # before: exit 0, the empty --robot replaced by meta/info.json's robot_type without a word
+        ("robot empty", "--robot '' is empty: name a built-in LeRobot arm (koch_follower, koch_leader, "),
         # before: exit 0, no sag subtracted on any joint (not even the fitted one), the report naming the URDF's masses
         ("urdf of another arm", "other.urdf: none of the dataset's joints (shoulder_pan, shoulder_lift, elbow_flex,"),
     ],
@@ -358,6 +360,7 @@ def test_degenerate_dataset_exits_2_with_one_error_line(
     report = tmp_path / "h.json"
     extra = ["--leader-calibration", tmp_path / "x.json"] if kind == "one calibration" else []
     extra += ["--robot", "bhl_arms"] if kind == "robot bhl_arms" else []
+    extra += ["--robot", ""] if kind == "robot empty" else []
     if kind == "urdf of another arm":  # the SO-101's URDF with every joint renamed: masses, no joint of the dataset
         urdf = tmp_path / "other.urdf"
         shipped = Path(__file__).parents[2] / "src/robocal/data/so101_new_calib.urdf"

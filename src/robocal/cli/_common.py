@@ -95,8 +95,12 @@ def parse_csv_list(value: str | None, what: str = "list") -> list[str] | None:
 
 
 def parse_assignments(value: str | None, what: str) -> dict[str, str]:
-    """Parse ``"a=x,b=y"`` into ``{"a": "x", "b": "y"}``."""
-    if not value:
+    """Parse ``"a=x,b=y"`` into ``{"a": "x", "b": "y"}``; ``None`` (the option not given) is ``{}``.
+
+    Raises:
+        UsageError: An empty value (``--modes ""`` is not "no override") or an item that is not ``name=value``.
+    """
+    if value is None:
         return {}
     out: dict[str, str] = {}
     for item in value.split(","):

@@ -144,6 +144,12 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
     from ...dataset.lerobot import load_convention, motor_family_for_robot, preset_modes
     from ...formats.profiles import builtin_lerobot_profiles, load_profile
 
+    arms = [p.name for p in builtin_lerobot_profiles()]
+    if request.robot is not None and not request.robot.strip():  # not "use info.json's", said so
+        raise UsageError(
+            f"--robot {request.robot!r} is empty: name a built-in LeRobot arm ({', '.join(arms)}), or leave "
+            "--robot out to use meta/info.json's robot_type"
+        )
     if (request.leader_calibration is None) != (request.follower_calibration is None):
         raise UsageError("--leader-calibration and --follower-calibration go together (one per arm)")
     layout = read_layout(request.root)
@@ -152,7 +158,6 @@ def _setup(request: HealthRequest) -> tuple[HealthSetup, str, str | None]:
         raise UsageError(
             f"dataset {request.root}: meta/info.json names no robot_type; name the arm with --robot"
         )
-    arms = [p.name for p in builtin_lerobot_profiles()]
     if not request.robot and robot not in arms:  # never a file named by the dataset
         raise UsageError(
             f"dataset {request.root}: meta/info.json robot_type {robot!r} is not a built-in LeRobot arm "

@@ -47,6 +47,13 @@ class DatasetOptions:
     compat: str = "lerobot"
     convention: str = "lerobot"
 
+    def __post_init__(self) -> None:
+        if self.robot is not None and not self.robot.strip():  # not "use info.json's", said so
+            raise UsageError(
+                f"--robot {self.robot!r} is empty: name the LeRobot robot type (so101_follower, koch_follower, "
+                "...), or leave --robot out to use meta/info.json's robot_type"
+            )
+
 
 def _check_modes(modes: Mapping[str, str], joints: Sequence[str], flag: str) -> None:
     unknown = [j for j in modes if j not in joints]
