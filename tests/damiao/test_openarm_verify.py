@@ -75,3 +75,28 @@ def test_bad_simulator_options_are_one_error_line(
     err = capsys.readouterr().err
     assert rc == 2 and err.count("error:") == 1 and message in err, err
     assert out.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ("hello: world\n", "not a calibration format robocal knows"),
+        ("joints:\n  openarm_right_joint5: {offset: 0.1}\n", "it looks like"),
+    ],
+)
+def test_verify_of_an_out_that_is_not_the_calibration_says_verify_reads_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, why: str
+) -> None:
+    """Before: "... move it away or choose another --out", advice for a file about to be written; --verify writes
+    nothing to --out, it reads the calibration to check there."""
+    out = tmp_path / "arm.json"
+    out.write_text(text)
+    rc = main(["sweep", "--auto", "--verify", "--robot", "openarm_follower_right", "--urdf", str(URDF), "--source",
+               "sim:openarm?seed=1", "--out", str(out), "--format", "openarm-lerobot", "--yes", "--joints", J5])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"error: --out {out}: exists but is not a openarm-lerobot calibration file ({why}"), err
+    assert err.endswith("); --verify reads the calibration to check from --out: name the file the calibration was "
+                        "written to (and its --format)\n"), err
+    assert "another --out" not in err and out.read_text() == text
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.json"]

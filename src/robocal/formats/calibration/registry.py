@@ -271,6 +271,7 @@ def read_existing_output(
     urdf: UrdfModel | None = None,
     joint_order: Sequence[str] | None = None,
     robot: str | os.PathLike[str] | RobotProfile | None = None,
+    advice: str | None = None,
 ) -> CalibrationFile | None:
     """The one rule for writing over an existing file: it must be a calibration of the format written.
 
@@ -287,6 +288,8 @@ def read_existing_output(
         urdf: URDF for reading the existing file (directions, ids).
         joint_order: Joint order for positional formats.
         robot: Robot profile for reading the existing file.
+        advice: What the refusal tells the user to do (default: move the file away or choose another
+            destination); a caller that only reads the file (``sweep --auto --verify``) says what it needs instead.
 
     Returns:
         The calibration the file holds (for the self-contained formats), else None.
@@ -302,11 +305,10 @@ def read_existing_output(
     if all(not ln.strip() or ln.lstrip().startswith("#") for ln in text.splitlines()):
         return None  # empty, or only comments: nothing to keep
 
+    todo = advice or f"move it away or choose another {'--out' if what == '--out' else 'destination'}"
+
     def refuse(why: str) -> FileFormatError:
-        return FileFormatError(
-            f"{what} {p}: exists but is not a {fmt} calibration file ({why}); move it away or choose another "
-            f"{'--out' if what == '--out' else 'destination'}"
-        )
+        return FileFormatError(f"{what} {p}: exists but is not a {fmt} calibration file ({why}); {todo}")
 
     try:
         found, _doc = _sniff(text, str(p))

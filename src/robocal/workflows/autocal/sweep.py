@@ -332,7 +332,7 @@ def run_sweep_auto(
         )
     if fmt is None:
         fmt = output_format(out_path, profile)
-    existing = existing_output(out_path, fmt, urdf, profile)
+    existing = existing_output(out_path, fmt, urdf, profile, verify=r.verify)
     if r.verify and r.write_zero:
         raise UsageError("--verify writes nothing: it does not go with --write-zero")
     if r.verify and existing is None:

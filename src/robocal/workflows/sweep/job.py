@@ -110,18 +110,33 @@ def _check_number(value: float, flag: str) -> float:
     return float(value)
 
 
+_VERIFY_ADVICE = (
+    "--verify reads the calibration to check from --out: name the file the calibration was written to (and its "
+    "--format)"
+)
+"""What a refusal of ``--out`` says under ``--verify`` (where it is read, never written)."""
+
+
 def existing_output(
-    out: Path, fmt: str, urdf: UrdfModel, profile: RobotProfile | None = None
+    out: Path, fmt: str, urdf: UrdfModel, profile: RobotProfile | None = None, *, verify: bool = False
 ) -> CalibrationFile | None:
     """The calibration already in ``--out`` (updated in place), or None for a missing or empty file.
 
     A file holding only comments counts as empty.
 
+    Args:
+        out: ``--out``.
+        fmt: The format written (or, with ``verify``, read).
+        urdf: The URDF (directions, ids).
+        profile: The robot profile in effect.
+        verify: ``--verify``: ``out`` is only read; a refusal says what to give instead of where else to write.
+
     Raises:
         FileFormatError: ``--out`` holds something else than a ``fmt`` calibration (it would be replaced;
             nothing is written).
     """
-    return read_existing_output(out, fmt, "--out", urdf=urdf, robot=profile)  # the rule convert applies too
+    advice = _VERIFY_ADVICE if verify else None
+    return read_existing_output(out, fmt, "--out", urdf=urdf, robot=profile, advice=advice)  # convert's rule too
 
 
 def _check_foreign_ids(out: Path, existing: CalibrationFile, joints: Sequence[JointSpec]) -> None:
