@@ -303,3 +303,31 @@ def test_live_table_on_a_terminal(
     assert _calibrate(tmp_path) == 0
     err = capsys.readouterr().err
     assert "range of motion (reading" in err and "shoulder_pan" in err and "reading 20:" not in err
+
+
+@pytest.mark.parametrize(("port", "transport"), [("sim", "pty"), ("sim", "inproc")])
+def test_a_simulated_arm_s_bus_errors_name_the_port_as_given_not_its_pty(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, port: str, transport: str
+) -> None:
+    """Before: "motor 'elbow_flex': Min_Position_Limit: /dev/pts/3: motor 3: value -3 does not fit ...", the
+    simulator's pseudo-terminal (or its inproc:// name), a path the user never gave and that is gone at exit."""
+    if transport == "inproc":  # the same arm behind the in-process port
+        original = SimArm.__init__
+
+        def inproc(self: SimArm, robot: object, **kw: object) -> None:
+            original(self, robot, **{**kw, "transport": "inproc"})  # type: ignore[arg-type]
+
+        monkeypatch.setattr(SimArm, "__init__", inproc)
+    cals = {n: {"id": k + 1, "drive_mode": 0, "homing_offset": 0, "range_min": 1000, "range_max": 3000}
+            for k, n in enumerate(SO101_JOINTS)}  # fmt: skip
+    cals["elbow_flex"]["range_min"] = -3  # a value no register holds (read, and refused by the bus)
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps(cals))
+    rc = main(["lerobot", "show", "--robot", "so101_follower", "--port", port, "--file", str(path)])
+    out, err = capsys.readouterr()
+    assert (rc, out) == (2, "")
+    assert err.splitlines()[-1] == (
+        "error: motor 'elbow_flex': Min_Position_Limit: sim: motor 3: value -3 does not fit register "
+        "'Min_Position_Limit'"
+    )
+    assert err.count("error:") == 1 and "/dev/" not in err and "inproc://" not in err

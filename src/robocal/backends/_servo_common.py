@@ -56,6 +56,8 @@ class SdkBusBase(ClosesOnExit):
 
     vendor = ""
     port: str
+    label: str
+    """How messages name the port: ``port``, or what the user gave for a simulated arm (``sim``)."""
     motors: Mapping[int, str]
     retries: int
     _big_endian = False
@@ -77,8 +79,12 @@ class SdkBusBase(ClosesOnExit):
         baudrate: int = 1_000_000,
         retries: int = 3,
         packet_timeout_ms: float | None = 100.0,
+        label: str | None = None,
     ) -> None:
         """Check the models, open ``port`` through the SDK and install the packet timeout.
+
+        ``label`` is how messages name the port (default ``port``): ``sim`` for a simulated arm, whose
+        pseudo-terminal or in-process name the user never gave.
 
         Raises:
             BackendNotAvailableError: The vendor SDK is not installed.
@@ -94,6 +100,7 @@ class SdkBusBase(ClosesOnExit):
                 f"known: {', '.join(self._models)}"
             )
         self.port = port
+        self.label = port if label is None else label
         self.motors = dict(motors)
         self.retries = retries
         self.watchdog_armed_s: dict[int, float] = {}
@@ -107,9 +114,9 @@ class SdkBusBase(ClosesOnExit):
         try:
             ok = self._port_handler.openPort() and self._port_handler.setBaudRate(baudrate)
         except Exception as exc:  # pyserial raises SerialException (an OSError) or ValueError
-            raise DeviceError(f"{port}: cannot open the serial port ({exc})") from None
+            raise DeviceError(f"{self.label}: cannot open the serial port ({exc})") from None
         if not ok:
-            raise DeviceError(f"{port}: cannot open the serial port at {baudrate} baud")
+            raise DeviceError(f"{self.label}: cannot open the serial port at {baudrate} baud")
         self._install_timeout(packet_timeout_ms)
         self._install_drain()
         if not port.startswith(inproc_serial.PREFIX):  # an in-process port never waits: its time is its own
@@ -127,7 +134,7 @@ class SdkBusBase(ClosesOnExit):
         """
         opener = inproc_serial.lookup(port)
         if opener is None:
-            raise DeviceError(f"{port}: no in-process port of that name (its simulator is not running)")
+            raise DeviceError(f"{self.label}: no in-process port of that name (its simulator is not running)")
         handler = self._port_handler
 
         def setup_port(cflag_baud: int) -> bool:
@@ -222,23 +229,23 @@ class SdkBusBase(ClosesOnExit):
     def _entry(self, motor_id: int, register: str) -> tuple[int, int]:
         if motor_id not in self.motors:
             raise UsageError(
-                f"{self.port}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
+                f"{self.label}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
             )
         table = self._models[self.motors[motor_id]].table
         if register not in table:
             raise UsageError(
-                f"{self.port}: motor {motor_id} ({self.motors[motor_id]}) has no register {register!r}"
+                f"{self.label}: motor {motor_id} ({self.motors[motor_id]}) has no register {register!r}"
             )
         return table[register]
 
     def _shared_entry(self, motor_ids: Sequence[int], register: str) -> tuple[int, int]:
         """The (address, size) of ``register``, which must be the same on every motor of a sync transfer."""
         if not motor_ids:
-            raise UsageError(f"{self.port}: sync transfer of {register!r} with no motor ids")
+            raise UsageError(f"{self.label}: sync transfer of {register!r} with no motor ids")
         entries = {self._entry(i, register) for i in motor_ids}
         if len(entries) != 1:
             raise UsageError(
-                f"{self.port}: register {register!r} differs between the models of {list(motor_ids)}"
+                f"{self.label}: register {register!r} differs between the models of {list(motor_ids)}"
             )
         return entries.pop()
 
@@ -247,7 +254,7 @@ class SdkBusBase(ClosesOnExit):
         data = self._encode(motor_id, register, value)
         if not 0 <= data < (1 << (8 * size)):
             raise UsageError(
-                f"{self.port}: motor {motor_id}: value {value} does not fit register {register!r}"
+                f"{self.label}: motor {motor_id}: value {value} does not fit register {register!r}"
             )
         return data
 
@@ -275,7 +282,7 @@ class SdkBusBase(ClosesOnExit):
                     value, result, error = fn()
             except (OSError, _TERMIOS_ERROR) as exc:  # SerialException, EIO, termios.error: the port went away
                 raise DeviceGoneError(
-                    f"{self.port}: {who}: {what} {register!r} failed: the device is gone or not answering ({exc})"
+                    f"{self.label}: {who}: {what} {register!r} failed: the device is gone or not answering ({exc})"
                 ) from None
             except (IndexError, KeyError, ValueError, TypeError, ZeroDivisionError) as exc:
                 # the SDK indexes into a status packet it did not check (e.g. a stray short reply
@@ -288,11 +295,11 @@ class SdkBusBase(ClosesOnExit):
                 break  # the motor answered with an error status: retrying will not help
         if result == COMM_SUCCESS:
             raise DeviceError(
-                f"{self.port}: {who}: {what} {register!r} failed: {self._ph.getRxPacketError(error)}"
+                f"{self.label}: {who}: {what} {register!r} failed: {self._ph.getRxPacketError(error)}"
             )
         text = self._ph.getTxRxResult(result)
         msg = (
-            f"{self.port}: {who}: {what} {register!r} failed after {self.retries + 1} tries: {text}{garbled}"
+            f"{self.label}: {who}: {what} {register!r} failed after {self.retries + 1} tries: {text}{garbled}"
         )
         if result == self._sdk.COMM_RX_TIMEOUT:
             raise CalibTimeoutError(msg)
@@ -305,7 +312,7 @@ class SdkBusBase(ClosesOnExit):
         """Ticks per turn of that motor's model."""
         if motor_id not in self.motors:
             raise UsageError(
-                f"{self.port}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
+                f"{self.label}: motor id {motor_id} is not on this bus (ids {sorted(self.motors)})"
             )
         return self._models[self.motors[motor_id]].resolution
 

@@ -378,7 +378,7 @@ def _open_lerobot(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> 
         arm = SimArm(spec).start()
         port = arm.port
     try:
-        bus = open_bus(spec, port)
+        bus = open_bus(spec, port, label=opts.lerobot_port)  # a simulated arm's pty named as given: sim
     except BaseException:
         if arm is not None:
             arm.stop()

@@ -126,7 +126,7 @@ def open_record_bus(
         cals = read_calibration_file(calibration)
     arm = SimArm(spec, seed=int(opts.get("seed", "0")), noise_ticks=1, transport=transport).start()
     try:
-        bus = open_sim_bus(spec, arm)
+        bus = open_sim_bus(spec, arm, port)
     except BaseException:
         arm.stop()
         raise

@@ -48,12 +48,20 @@ def robot_spec(robot: str | os.PathLike[str]) -> RobotSpec:
     return RobotSpec.from_profile(load_profile(text))
 
 def open_bus(
-    spec: RobotSpec, port: str, *, retries: int = 3, packet_timeout_ms: float | None = 100.0
+    spec: RobotSpec,
+    port: str,
+    *,
+    retries: int = 3,
+    packet_timeout_ms: float | None = 100.0,
+    label: str | None = None,
 ) -> ServoBus:
-    """Open the vendor-SDK bus of an arm on ``port`` (a serial port, a simulator's pty or ``inproc://`` port)."""
+    """Open the vendor-SDK bus of an arm on ``port`` (a serial port, a simulator's pty or ``inproc://`` port).
+
+    ``label``: how the bus's messages name the port (default ``port``; ``sim`` for a simulated arm).
+    """
     motors = {m.motor_id: m.model for m in spec.motors}
     bus: ServoBus = load_backend(spec.vendor_spec.backend)(
-        port, motors, retries=retries, packet_timeout_ms=packet_timeout_ms
+        port, motors, retries=retries, packet_timeout_ms=packet_timeout_ms, label=label
     )
     return bus
 
@@ -65,10 +73,14 @@ hundreds of ms (a loaded machine). A real port keeps :func:`open_bus`'s 100 ms; 
 (``inproc://``) answers within the call and keeps it too (its time is the simulated clock's)."""
 
 
-def open_sim_bus(spec: RobotSpec, arm: Any) -> ServoBus:
-    """:func:`open_bus` on a simulated arm of this process (a ``SimArm``), with :data:`SIM_PACKET_TIMEOUT_MS`."""
+def open_sim_bus(spec: RobotSpec, arm: Any, label: str = "sim") -> ServoBus:
+    """:func:`open_bus` on a simulated arm of this process (a ``SimArm``), with :data:`SIM_PACKET_TIMEOUT_MS`.
+
+    Its messages name the port ``label`` (the port as the user gave it, ``sim``), not the arm's pseudo-terminal or
+    in-process name, which the user never gave and which is gone when the command ends.
+    """
     pty = getattr(arm.bus, "transport", "pty") == "pty"
-    return open_bus(spec, arm.port, packet_timeout_ms=SIM_PACKET_TIMEOUT_MS if pty else 100.0)
+    return open_bus(spec, arm.port, packet_timeout_ms=SIM_PACKET_TIMEOUT_MS if pty else 100.0, label=label)
 
 
 def norm_modes(

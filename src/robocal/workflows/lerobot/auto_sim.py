@@ -192,7 +192,7 @@ def open_auto_arm(
         plants = attach_physics(
             arm, clock, scenarios=scenarios, search_torque_nm=push, seed=seed or 0, gravity=gravity
         )
-        bus = open_sim_bus(spec, arm)
+        bus = open_sim_bus(spec, arm, port)
         try:
             yield AutoArm(bus, clock, arm, plants)
         finally:
