@@ -301,7 +301,8 @@ def test_a_calibration_file_without_every_motor_is_named_in_the_error(
 def test_a_simulated_port_for_a_profile_file_names_the_arms_it_simulates(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Before: "no simulated truth for robot 'myarm'; pass truth=", an argument of the Python class, on the CLI."""
+    """Before: "no simulated truth for robot 'myarm'; pass truth=", an argument of the Python class, on the CLI;
+    then "... (from Python, pass truth=)"; now the flag, the arms the simulator has and what to give instead."""
     shipped = Path(__file__).parents[2] / "src/robocal/data/profiles/so101_follower.yaml"
     profile = tmp_path / "myarm.yaml"
     profile.write_text(re.sub(r"(?m)^name: .*$", "name: myarm", shipped.read_text()))
@@ -311,8 +312,9 @@ def test_a_simulated_port_for_a_profile_file_names_the_arms_it_simulates(
     out, err = capsys.readouterr()
     assert rc == 2 and out == ""
     assert err == (
-        "error: no simulated truth for robot 'myarm': the simulator has koch_follower, koch_leader, so100_follower, "
-        "so100_leader, so101_follower, so101_leader (from Python, pass truth=)\n"
+        "error: --lerobot-port 'sim': the simulator has the built-in arms only (koch_follower, koch_leader, "
+        "so100_follower, so100_leader, so101_follower, so101_leader); robot 'myarm' (a profile file) is not one of "
+        "them: give one of those to --robot, or the real arm's port\n"
     )
 
 

@@ -127,3 +127,26 @@ def test_bad_auto_options_exit_2_before_anything_moves(
 def test_leader_arm_has_no_auto_section(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert run(tmp_path, "--auto", "--yes", robot="so101_leader") == 2
     assert "so101_leader has no auto_calibration section" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("extra", "port"),
+    [(["--auto", "--yes"], "sim"), (["--auto", "--yes"], "sim?seed=3&transport=inproc"), ([], "sim")],
+)
+def test_a_profile_file_on_the_simulated_port_is_refused_naming_the_arms_it_simulates(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], port: str
+) -> None:
+    """Before: --auto said "unknown robot 'myarm'; valid: so101_follower, ...", although a profile file is a valid
+    --robot (on a real port it calibrates that arm); without --auto "no simulated truth ... (from Python, pass
+    truth=)". The simulator has the built-in arms only (their stops are its physics), so it says that."""
+    shipped = Path(__file__).parents[2] / "src/robocal/data/profiles/so101_follower.yaml"
+    profile = tmp_path / "myarm.yaml"
+    profile.write_text(shipped.read_text().replace("\nname: so101_follower\n", "\nname: myarm\n"))
+    assert run(tmp_path, *extra, robot=str(profile), port=port) == 2
+    out, err = capsys.readouterr()
+    assert (out, err) == ("", (
+        f"error: --port {port!r}: the simulator has the built-in arms only (koch_follower, koch_leader, "
+        "so100_follower, so100_leader, so101_follower, so101_leader); robot 'myarm' (a profile file) is not one "
+        "of them: give one of those to --robot, or the real arm's port\n"
+    ))
+    assert not (tmp_path / "robots").exists()

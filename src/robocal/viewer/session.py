@@ -374,7 +374,9 @@ def _open_lerobot(opts: ViewOptions, model: RobotModel, warnings: list[str]) -> 
     port = opts.lerobot_port
     if port == "sim":
         from ..backends.sim.lerobot_arms import SimArm
+        from ..workflows.lerobot.arms import check_simulated
 
+        check_simulated(spec, port, "--lerobot-port")
         arm = SimArm(spec).start()
         port = arm.port
     try:

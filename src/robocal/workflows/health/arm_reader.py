@@ -79,9 +79,17 @@ class ArmReader:
 
 @contextlib.contextmanager
 def open_reader(
-    robot: str, port: str, robot_id: str | None, calibration_dir: Path | None, calibration_file: Path | None
+    robot: str,
+    port: str,
+    robot_id: str | None,
+    calibration_dir: Path | None,
+    calibration_file: Path | None,
+    flag: str = "--lerobot-port",
 ) -> Iterator[ArmReader]:
-    """Open an arm for reading (``sim``: a simulated arm, given the calibration first; nothing else is written)."""
+    """Open an arm for reading (``sim``: a simulated arm, given the calibration first; nothing else is written).
+
+    ``flag``: the option that gave ``port`` (``--lerobot-port``, ``--leader-port``), for the messages.
+    """
     from ..lerobot import calibration_file as find_file
     from ..lerobot import open_arm, read_calibration_file, require_motors, restore, robot_spec
 
@@ -89,7 +97,7 @@ def open_reader(
     path, _note = find_file(spec, robot_id, calibration_dir, calibration_file)
     cals = read_calibration_file(path)
     require_motors(spec, cals, path)
-    with open_arm(spec, port) as (bus, arm):
+    with open_arm(spec, port, flag) as (bus, arm):
         if (
             arm is not None
         ):  # the simulated arm starts uncalibrated: give it this calibration (simulator only)

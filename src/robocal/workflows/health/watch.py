@@ -219,7 +219,12 @@ def _lerobot_stream(
         if req.leader_port is not None and req.leader_robot is not None:
             lead = stack.enter_context(
                 open_reader(
-                    req.leader_robot, req.leader_port, req.leader_id, req.calibration_dir, req.leader_file
+                    req.leader_robot,
+                    req.leader_port,
+                    req.leader_id,
+                    req.calibration_dir,
+                    req.leader_file,
+                    "--leader-port",
                 )
             )
         names, lower, upper = list(arm.names), list(arm.lower_rad), list(arm.upper_rad)

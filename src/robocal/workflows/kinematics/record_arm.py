@@ -114,6 +114,9 @@ def open_record_bus(
     from ...backends.sim.lerobot_arms import SimArm
     from ...backends.sources.spec import parse_sim_options
     from ..lerobot import restore
+    from ..lerobot.arms import check_simulated
+
+    check_simulated(spec, port, "--lerobot-port")
 
     opts = parse_sim_options(port, port.partition("?")[2], SIM_PORT_OPTIONS)
     transport = opts.get("transport", "pty")

@@ -16,6 +16,7 @@ from ...core.lerobot import (
 from ...errors import UsageError
 
 __all__ = [
+    "check_simulated",
     "norm_modes",
     "open_arm",
     "open_bus",
@@ -46,6 +47,25 @@ def robot_spec(robot: str | os.PathLike[str]) -> RobotSpec:
     if text not in names and not (text.endswith((".yaml", ".yml")) and Path(text).is_file()):
         raise UsageError(f"unknown robot {text!r}; valid: {', '.join(names)} (or a robot profile file)")
     return RobotSpec.from_profile(load_profile(text))
+
+def check_simulated(spec: RobotSpec, port: str, flag: str = "--port") -> None:
+    """Refuse a simulated port (``sim``, ``sim?...``) for an arm the simulator does not have.
+
+    The simulator's physics are the built-in arms' (their stops and middles, by name); a robot profile file names
+    another arm, which works on a real port only.
+
+    Raises:
+        UsageError: ``spec`` is not a built-in arm; the message names the ones the simulator has.
+    """
+    from ...backends.sim.lerobot_arms import DEFAULT_TRUTH
+
+    if spec.name not in DEFAULT_TRUTH:
+        raise UsageError(
+            f"{flag} {port!r}: the simulator has the built-in arms only ({', '.join(sorted(DEFAULT_TRUTH))}); "
+            f"robot {spec.name!r} (a profile file) is not one of them: give one of those to --robot, or the real "
+            "arm's port"
+        )
+
 
 def open_bus(
     spec: RobotSpec,
@@ -121,8 +141,10 @@ def norm_modes(
 
 
 @contextlib.contextmanager
-def open_arm(spec: RobotSpec, port: str) -> Iterator[tuple[ServoBus, Any]]:
+def open_arm(spec: RobotSpec, port: str, flag: str = "--port") -> Iterator[tuple[ServoBus, Any]]:
     """Open the arm's bus on ``port``; ``sim`` starts a simulated arm first and yields it too.
+
+    ``flag``: the option that gave ``port`` (for the message refusing ``sim`` for an arm the simulator lacks).
 
     Yields:
         ``(bus, sim_arm)``: the open bus and the :class:`~robocal.backends.sim.lerobot_arms.SimArm` (None on a
@@ -131,6 +153,7 @@ def open_arm(spec: RobotSpec, port: str) -> Iterator[tuple[ServoBus, Any]]:
     if port == "sim":
         from ...backends.sim.lerobot_arms import SimArm
 
+        check_simulated(spec, port, flag)
         with SimArm(spec) as arm:
             bus = open_sim_bus(spec, arm)
             try:

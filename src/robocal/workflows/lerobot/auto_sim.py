@@ -32,7 +32,7 @@ from ...errors import UsageError
 from ..autocal.job import joint_gravity_for
 from ..autocal.model import Clock, MonotonicClock
 from ..autocal.sim import SIM_FAULTS, fault_scenario
-from .arms import open_bus, open_sim_bus
+from .arms import check_simulated, open_bus, open_sim_bus
 
 ARM_OPTIONS = (*SIM_FAULTS, "gravity")
 """Per-joint options of a simulated LeRobot arm: the scenarios of ``sim:lite`` and ``gravity`` (the joint carries
@@ -78,11 +78,14 @@ def parse_sim_port(port: str, spec: RobotSpec) -> dict[str, str] | None:
     """The options of a ``sim`` / ``sim?...`` port (None for a real port).
 
     Raises:
-        UsageError: Malformed options, an unknown option or joint name.
+        UsageError: Malformed options, an unknown option or joint name, or an arm the simulator does not have (a
+            profile file).
     """
     if port != "sim" and not port.startswith("sim?"):
         return None
     from ...backends.sources.spec import parse_sim_options
+
+    check_simulated(spec, port)
 
     opts = parse_sim_options(
         port, port.partition("?")[2], ("seed", "transport", *ARM_OPTIONS), joined=ARM_OPTIONS
