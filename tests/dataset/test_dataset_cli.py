@@ -1,9 +1,13 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from dataset_testutil import (
     FEATURES,
@@ -223,6 +227,18 @@ def _one_error(err: str, needle: str) -> None:
         # before: an empty --modes / --old-modes was read as no override, silently
         ("empty_modes", "--modes '': expected name=value pairs separated by commas"),
         ("empty_old_modes", "--old-modes '': expected name=value pairs separated by commas"),
+        # before: numpy's "invalid value encountered in cast" on stderr, the null row's frame counted in some
+        # episode, exit 0 (a float column: truncated to the episode below); as dataset inspect / health say
+        (
+            "null_episode",
+            "data file data/chunk-000/file-000.parquet: column 'episode_index' is int64 with null rows; expected "
+            "an integer episode number in every row",
+        ),
+        (
+            "float_episode",
+            "data file data/chunk-000/file-000.parquet: column 'episode_index' is double; expected an integer "
+            "episode number in every row",
+        ),
     ],
 )
 def test_bad_input_exit_2(
@@ -250,8 +266,6 @@ def test_bad_input_exit_2(
     elif case == "no_modes":
         info = json.loads((src / "meta/info.json").read_text())
         src = tmp_path / "copy"
-        import shutil
-
         shutil.copytree(files["src"], src)
         info["robot_type"] = "mystery_arm"
         (src / "meta/info.json").write_text(json.dumps(info))
@@ -265,6 +279,19 @@ def test_bad_input_exit_2(
         extra = ["--robot", "" if case == "empty_robot" else " "]
     elif case in ("empty_modes", "empty_old_modes"):
         extra = ["--modes" if case == "empty_modes" else "--old-modes", ""]
+    elif case in ("null_episode", "float_episode"):
+        src = tmp_path / "copy"
+        shutil.copytree(files["src"], src)
+        path = src / "data/chunk-000/file-000.parquet"
+        table = pq.read_table(path)
+        eps: list[Any] = table.column("episode_index").to_pylist()
+        if case == "null_episode":
+            eps[7] = None
+        else:
+            eps = [e + 0.5 for e in eps]
+        i = table.schema.get_field_index("episode_index")
+        typ = pa.int64() if case == "null_episode" else pa.float64()
+        pq.write_table(table.set_column(i, "episode_index", pa.array(eps, typ)), path)
     before = sorted(p.name for p in tmp_path.iterdir())
     code, _, err = run(capsys, "dataset", "recalibrate", src, dst, "--old", old, "--new", new, *extra)
     assert code == 2

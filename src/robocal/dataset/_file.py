@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from ..errors import FileFormatError, InvalidCalibrationError
 from ._engine import FeaturePlan, NDArrayInt, recalibrate_table_with_counts
 from ._stats import StatAccumulator, episode_stats, merge_into
+from .teleop_frames import episode_numbers
 
 __all__ = ["FileResult", "recalibrate_file"]
 
@@ -112,7 +113,8 @@ def recalibrate_file(
         Frame count, out-of-range counts and per-episode statistics.
 
     Raises:
-        FileFormatError: The file cannot be read as Parquet or a column is malformed.
+        FileFormatError: The file cannot be read as Parquet or a column is malformed (an ``episode_index`` that
+            is not an integer in every row, as ``dataset inspect`` and ``health`` refuse it).
     """
     name = rel_path or str(src)
     result = FileResult(path=name)
@@ -127,6 +129,8 @@ def recalibrate_file(
         result.out_of_range[plan.key] = np.zeros(len(plan.joint_names), dtype=np.int64)
     has_episode = schema.get_field_index("episode_index") >= 0
     result.has_episode_index = has_episode
+    if has_episode:  # its type, before anything is written (the rows' nulls are checked batch by batch)
+        episode_numbers(schema.empty_table(), name)
     meta = pf.metadata
     sizes = [meta.row_group(g).num_rows for g in range(meta.num_row_groups)]
     try:
@@ -144,6 +148,8 @@ def recalibrate_file(
 
             for batch in _batches(sizes, batch_rows):
                 table = pf.read_row_groups(batch) if len(batch) > 1 else pf.read_row_group(batch[0])
+                # the check dataset inspect and health make: an integer in every row (not a NaN cast, a float cut)
+                episodes = episode_numbers(table, name) if has_episode else None
                 try:
                     new_table, counts, stored = recalibrate_table_with_counts(table, plans)
                 except (FileFormatError, InvalidCalibrationError) as exc:
@@ -157,8 +163,7 @@ def recalibrate_file(
                 result.frames += new_table.num_rows
                 for key, c in counts.items():
                     result.out_of_range[key] += c
-                if has_episode and new_table.num_rows:
-                    episodes = np.asarray(new_table.column("episode_index").to_numpy(), dtype=np.int64)
+                if episodes is not None and new_table.num_rows:
                     merge_into(result.episode_stats, episode_stats(episodes, stored, keep_edges=True))
                     # an episode may continue in the next batch or file: keep the frames of the file's
                     # first and of the latest episode only (exact quantiles when the parts are joined)
