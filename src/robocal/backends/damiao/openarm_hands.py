@@ -113,13 +113,15 @@ class OpenArmHands:
                 position = max(position, low)
             if high is not None:
                 position = min(position, high)
-            before = plant.link_rad
-            t0, _ = self._last.get(name, (now, before))
+            t0, placed = self._last.get(name, (now, plant.link_rad))
             dt = now - t0
-            # a hand pressing a joint into its stop holds it there, still: a speed would carry the link into the
+            # the hand's own speed, from its previous placement: not from where the limp link drifted meanwhile
+            # (gravity between two placements; that drift over a short dt gave the link a speed that carried it
+            # further by the next placement: the joint flew stop to stop when the reads came a few ms apart).
+            # A hand pressing a joint into its stop holds it there, still: a speed would carry the link into the
             # soft stop's spring (past the stop by an amount that depends on how late the simulator's next step is)
             at_stop = position != wanted
-            velocity = (position - before) / dt if 0 < dt < 0.5 and not at_stop else 0.0
+            velocity = (position - placed) / dt if 0 < dt < 0.5 and not at_stop else 0.0
             arm.motors[joint].set_position(position, velocity)
         self._last[name] = (now, position)
 

@@ -367,11 +367,10 @@ class LiteHands:
         now = time.monotonic()
         m = self.robot.motors[name]
         with self.robot.buses[self._bus_of[name]].lock:
-            before = m.q_rad
-            t0, _ = self._last.get(name, (now, before))
+            t0, placed = self._last.get(name, (now, m.q_rad))  # the hand's own speed, not a drift's
             m.set_position(position)
             dt = now - t0
-            m.v_rad_s = (m.q_rad - before) / dt if 0 < dt < 0.5 else 0.0
+            m.v_rad_s = (m.q_rad - placed) / dt if 0 < dt < 0.5 else 0.0
         self._last[name] = (now, m.q_rad)
 
 
