@@ -129,6 +129,18 @@ def test_leader_arm_has_no_auto_section(tmp_path: Path, capsys: pytest.CaptureFi
     assert "so101_leader has no auto_calibration section" in capsys.readouterr().err
 
 
+def test_a_follower_without_an_auto_section_is_not_called_a_leader(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the SO-100 follower drives itself, but no stop angles were measured for it: the message said leader arms
+    assert run(tmp_path, "--auto", "--yes", robot="so100_follower") == 2
+    err = capsys.readouterr().err
+    assert err.count("error:") == 1 and "so100_follower has no auto_calibration section" in err
+    assert "built-in arms that have it: koch_follower, so101_follower;" in err
+    assert "write the section into a profile file of your own" in err
+    assert not (tmp_path / "robots").exists()
+
+
 @pytest.mark.parametrize(
     ("extra", "port"),
     [(["--auto", "--yes"], "sim"), (["--auto", "--yes"], "sim?seed=3&transport=inproc"), ([], "sim")],

@@ -48,6 +48,7 @@ def robot_spec(robot: str | os.PathLike[str]) -> RobotSpec:
         raise UsageError(f"unknown robot {text!r}; valid: {', '.join(names)} (or a robot profile file)")
     return RobotSpec.from_profile(load_profile(text))
 
+
 def check_simulated(spec: RobotSpec, port: str, flag: str = "--port") -> None:
     """Refuse a simulated port (``sim``, ``sim?...``) for an arm the simulator does not have.
 

@@ -118,13 +118,16 @@ def auto_section(robot: str | os.PathLike[str]) -> AutoSection:
     Raises:
         UsageError: The profile has no such section (leader arms cannot drive themselves).
     """
-    from ...formats.profiles import load_profile
+    from ...formats.profiles import builtin_lerobot_profiles, load_profile
 
     profile = load_profile(robot)
     if profile.auto is None:
+        having = sorted(p.name for p in builtin_lerobot_profiles() if p.auto is not None)
         raise UsageError(
-            f"robot profile {profile.name} has no auto_calibration section: --auto needs one "
-            "(leader arms, whose gears are removed, cannot drive themselves)"
+            f"robot profile {profile.name} has no auto_calibration section: --auto needs one, with each joint's "
+            f"stop angles and search torque (built-in arms that have it: {', '.join(having)}; a leader arm, whose "
+            "gears are removed, cannot drive itself; for another follower, write the section into a profile file "
+            "of your own, see docs/auto_calibration.md)"
         )
     return profile.auto
 
