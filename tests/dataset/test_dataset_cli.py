@@ -239,6 +239,11 @@ def _one_error(err: str, needle: str) -> None:
             "data file data/chunk-000/file-000.parquet: column 'episode_index' is double; expected an integer "
             "episode number in every row",
         ),
+        # the same in meta/episodes (was an internal error, exit 70: int(None))
+        (
+            "null_meta_episode",
+            "episodes file meta/episodes/chunk-000/file-000.parquet: column 'episode_index' is int64 with null rows",
+        ),
     ],
 )
 def test_bad_input_exit_2(
@@ -292,6 +297,14 @@ def test_bad_input_exit_2(
         i = table.schema.get_field_index("episode_index")
         typ = pa.int64() if case == "null_episode" else pa.float64()
         pq.write_table(table.set_column(i, "episode_index", pa.array(eps, typ)), path)
+    elif case == "null_meta_episode":
+        src = tmp_path / "copy"
+        shutil.copytree(files["src"], src)
+        path = src / "meta/episodes/chunk-000/file-000.parquet"
+        table = pq.read_table(path)
+        i = table.schema.get_field_index("episode_index")
+        eps = [None, *table.column("episode_index").to_pylist()[1:]]
+        pq.write_table(table.set_column(i, "episode_index", pa.array(eps, pa.int64())), path)
     before = sorted(p.name for p in tmp_path.iterdir())
     code, _, err = run(capsys, "dataset", "recalibrate", src, dst, "--old", old, "--new", new, *extra)
     assert code == 2

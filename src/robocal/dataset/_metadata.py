@@ -20,6 +20,7 @@ from ..fileio import MAX_DOCUMENT_BYTES, read_text
 from ..formats._json import load_json
 from ._layout import DatasetLayout
 from ._stats import StatAccumulator, is_known_stat
+from .teleop_frames import episode_numbers
 
 __all__ = ["check_metadata", "rewrite_episode_stats", "write_dataset_stats"]
 
@@ -86,7 +87,7 @@ def rewrite_episode_stats(
                 table = pf.read_row_group(g)
                 if "episode_index" not in table.schema.names:
                     raise FileFormatError(f"episodes file {name}: no 'episode_index' column")
-                eps = [int(e) for e in table.column("episode_index").to_pylist()]
+                eps = episode_numbers(table, name, "episodes file").tolist()
                 for i, col_name in enumerate(table.schema.names):
                     parts = col_name.split("/")
                     if len(parts) != 3 or parts[0] != "stats" or parts[1] not in features:

@@ -55,8 +55,10 @@ def _vector(table: pa.Table, key: str, d: int, rel: str) -> FloatArray:
     return v.reshape(-1, d)
 
 
-def episode_numbers(table: pa.Table, rel: str) -> IntArray:
+def episode_numbers(table: pa.Table, rel: str, what: str = "data file") -> IntArray:
     """The ``episode_index`` column of a data file's rows: an integer in every row.
+
+    ``what`` names the file in the message (``"episodes file"`` for ``meta/episodes``).
 
     Raises:
         FileFormatError: Another type, or null rows (numpy would cast them with a warning, or truncate a float).
@@ -65,7 +67,7 @@ def episode_numbers(table: pa.Table, rel: str) -> IntArray:
     if not pa.types.is_integer(ep.type) or ep.null_count:
         nulls = " with null rows" if ep.null_count else ""
         raise FileFormatError(
-            f"data file {rel}: column 'episode_index' is {ep.type}{nulls}; expected an integer episode number in "
+            f"{what} {rel}: column 'episode_index' is {ep.type}{nulls}; expected an integer episode number in "
             "every row"
         )
     out: IntArray = np.asarray(ep.to_numpy(), dtype=np.int64)
