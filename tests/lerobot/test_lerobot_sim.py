@@ -354,6 +354,36 @@ def test_configure_writes_the_modes_and_gains_the_profile_declares() -> None:
             bus.close()
 
 
+def test_a_simulated_koch_powers_on_with_the_factory_position_gains() -> None:
+    """Read over the wire before anything is written, on the arm without physics (``lerobot --port sim``) and on the
+    one with (``--auto``'s): the e-Manual's RAM defaults (XL430-W250 P 640 D 4000, XL330-M288 P 400 D 0), not the
+    800 every simulated Dynamixel with physics used to power on with."""
+    from robocal.workflows.lerobot.auto import auto_section
+    from robocal.workflows.lerobot.auto_sim import open_auto_arm
+
+    spec = robot_spec("koch_follower")
+    models = {m.name: m.model for m in spec.motors}
+    factory = {"xl430-w250": (640, 4000), "xl330-m288": (400, 0)}
+    assert set(models.values()) == set(factory)  # both models are on the arm
+
+    def gains(bus: DynamixelBus) -> dict[str, tuple[int, int]]:
+        return {
+            m.name: (bus.read("Position_P_Gain", m.motor_id), bus.read("Position_D_Gain", m.motor_id))
+            for m in spec.motors
+        }
+
+    with SimArm(spec) as arm:
+        bus = open_bus(arm.spec, arm.port)
+        try:
+            assert isinstance(bus, DynamixelBus)
+            assert gains(bus) == {n: factory[models[n]] for n in models}
+        finally:
+            bus.close()
+    with open_auto_arm(spec, "sim?transport=inproc", auto_section("koch_follower")) as physics:
+        assert isinstance(physics.bus, DynamixelBus)
+        assert gains(physics.bus) == {n: factory[models[n]] for n in models}
+
+
 def test_multi_turn_feedback_does_not_break_homing(tmp_path: Path) -> None:
     truth = dict(DEFAULT_TRUTH["so101_follower"])
     truth["shoulder_pan"] = JointTruth(4368, 3300, 5500)  # 4368 reads 4368 with Phase bit 4 set (#1296)

@@ -173,6 +173,8 @@ def test_dynamixel_overload_shuts_torque_off_until_reboot() -> None:
     plant = JointPlant(params(), q0_rad=0.9)
     with rig("xl330-m288", plant, 0.9) as (_servo, clock, bus):
         assert isinstance(bus, DynamixelBus)
+        assert bus.read("Position_P_Gain", 1) == 400  # the XL330's factory gain
+        bus.write("Position_P_Gain", 1, 800)  # stiffer: the press into the stop saturates the output
         bus.write("Torque_Enable", 1, 1)  # position mode 3: full PWM
         bus.write("Goal_Position", 1, round(ZERO + 1.6 / TICK))
         wait(bus, clock, 0.9)

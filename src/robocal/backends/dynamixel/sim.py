@@ -49,7 +49,8 @@ class DynamixelFirmware(ServoFirmware):
         s.set_reg("Goal_Current", self.rating.current_limit)
         s.set_reg("PWM_Limit", PWM_FULL)
         s.set_reg("Goal_PWM", PWM_FULL)  # RAM: PWM_Limit at power-on
-        s.set_reg("Position_P_Gain", 800)
+        if not self._reg("Position_P_Gain"):  # a model without a factory table (its page was not read)
+            s.set_reg("Position_P_Gain", 800)
         s.set_reg("Moving_Threshold", 10)
         s.set_reg("Shutdown", 0x34)
 
