@@ -362,6 +362,36 @@ def test_strings_and_other_non_numbers_for_per_joint_values_are_refused_naming_t
     assert str(err.value) == message
 
 
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"wraps": "ab"}, "monitor: wraps is a string ('ab'); expected True/False or one per joint"),
+        ({"joint_names": "ab"}, "monitor: joint_names is a string ('ab'); expected one name per joint"),
+        ({"lower_rad": "12"}, "monitor: lower_rad is a string ('12'); expected a number or one per joint"),
+        ({"margin_rad": "0.1"}, "monitor: margin_rad is '0.1' (str); expected a number"),
+        ({"history": "5"}, "monitor: history is '5'; expected a whole number of flags"),
+    ],
+)
+def test_a_config_built_directly_is_checked_as_monitor_config_checks_it(kw: dict[str, object], message: str) -> None:
+    """``MonitorConfig(...)`` without :func:`monitor_config` used to check lengths only: ``wraps="ab"`` (two
+    characters for two joints) made a monitor whose wrap flags were the characters."""
+    base: dict[str, object] = {
+        "joint_names": ("a", "b"),
+        "lower_rad": (-1.0, -1.0),
+        "upper_rad": (1.0, 1.0),
+        "max_speed_rad_s": (3.0, 3.0),
+        "max_accel_rad_s2": (50.0, 50.0),
+        "noise_rad": (0.001, 0.001),
+        "wraps": (False, True),
+        "leader_paired": (False, False),
+    }
+    with pytest.raises(UsageError) as err:
+        MonitorConfig(**{**base, **kw})  # type: ignore[arg-type]
+    assert str(err.value) == message
+    direct = MonitorConfig(**{**base, "wraps": [0, np.bool_(True)], "lower_rad": np.array([-1, -1])})  # type: ignore[arg-type]
+    assert (direct.wraps, direct.lower_rad) == ((False, True), (-1.0, -1.0))  # tuples of bools and floats
+
+
 def test_numpy_scalars_and_zero_dimensional_arrays_are_one_value_for_every_joint() -> None:
     cfg = monitor_config(
         ["a", "b"], [-1.0, -1.0], np.array([1.0, 2.0]), np.float32(3.0), noise_rad=np.array(0.01),

@@ -181,20 +181,29 @@ class MonitorConfig:
     history: int = field(default=10_000)
 
     def __post_init__(self) -> None:
-        n = len(self.joint_names)
+        # built directly too (not only by monitor_config): the same checks of what each field holds, each field
+        # then a tuple of floats or bools (a string is never read one value per character)
+        if isinstance(self.joint_names, str | bytes):
+            raise UsageError(f"monitor: joint_names is a string ({self.joint_names!r}); expected one name per joint")
+        names = tuple(str(j) for j in self.joint_names)
+        object.__setattr__(self, "joint_names", names)
+        n = len(names)
         if n == 0:
             raise UsageError("monitor: no joints")
-        if len(set(self.joint_names)) != n:
+        if len(set(names)) != n:
             raise UsageError("monitor: a joint name is given twice")
         for name in ("lower_rad", "upper_rad", "max_speed_rad_s", "max_accel_rad_s2", "noise_rad"):
-            values = getattr(self, name)
-            if len(values) != n:
-                raise UsageError(f"monitor: {name} has {len(values)} values for {n} joints")
+            values = _floats(name, getattr(self, name), names)
+            object.__setattr__(self, name, values)
             if not all(math.isfinite(v) for v in values):
                 raise UsageError(f"monitor: {name} must be finite numbers")
         for name in ("wraps", "leader_paired"):
-            if len(getattr(self, name)) != n:
-                raise UsageError(f"monitor: {name} has {len(getattr(self, name))} values for {n} joints")
+            flags = tuple(bool(v) for v in _per_joint(name, getattr(self, name), names, "True/False", _is_flag))
+            object.__setattr__(self, name, flags)
+        for name in ("margin_rad", "pin_residual_rad", "pin_still_rad", "pin_time_s", "step_holdoff_s"):
+            object.__setattr__(self, name, _number(name, getattr(self, name)))
+        if not isinstance(self.history, Integral) or isinstance(self.history, bool):
+            raise UsageError(f"monitor: history is {self.history!r}; expected a whole number of flags")
         for j, lo, up in zip(self.joint_names, self.lower_rad, self.upper_rad, strict=True):
             if not lo < up:
                 raise UsageError(f"monitor: joint {j}: lower stop {lo} rad is not below upper stop {up} rad")
