@@ -339,9 +339,37 @@ class _CoercionWhenGiven:
     def coerce(self, value: Any, param: Any, ctx: Any) -> Any:
         if value is None:
             return () if param.multiple or param.nargs == -1 else None
+        if _is_empty_path(value, param):
+            raise UsageError(
+                f"{_param_label(param)}: an empty path (an unset shell variable?); give a file or folder name"
+            )
         if self._built is None:
             self._built = self._build()
         return self._built.coerce(value, param=param, ctx=ctx)
+
+
+def _takes_paths(param: Any) -> bool:
+    """The parameter's annotation is a path (``Path``, ``Path | None``, ``list[Path]``)."""
+    annotation = getattr(getattr(param, "type_descriptor", None), "annotation", None)
+    if annotation is None:
+        return False
+    if annotation is Path:
+        return True
+    return any(a is Path or getattr(a, "__args__", None) == (Path,) for a in getattr(annotation, "__args__", ()))
+
+
+def _is_empty_path(value: Any, param: Any) -> bool:
+    """``value`` (one or several given) holds an empty string for a path parameter, which typer reads as ``.``."""
+    values = value if isinstance(value, list | tuple) else (value,)
+    return any(isinstance(v, str) and not v.strip() for v in values) and _takes_paths(param)
+
+
+def _param_label(param: Any) -> str:
+    """How the user names the parameter: its longest option (``--urdf``) or its metavar (``SRC``)."""
+    opts = getattr(param, "opts", None) or []
+    if opts and str(opts[0]).startswith("-"):
+        return str(max(opts, key=len))
+    return str(getattr(param, "metavar", None) or getattr(param, "name", "") or "an argument").upper()
 
 
 def _coerce_when_given(param: Any) -> None:
