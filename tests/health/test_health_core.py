@@ -187,3 +187,23 @@ def test_a_slip_whose_reading_is_the_sessions_extreme_is_located(seed: int) -> N
     assert h.status == "suspect"
     assert [(j.episode, j.frame) for j in h.jumps] == [(0, t)]
     assert h.jumps[0].size == pytest.approx(-8.97, abs=0.02)
+
+
+def test_a_follower_reversing_out_of_its_top_speed_is_no_step() -> None:
+    """Seed 7029 of the benchmark's offset-free SO-101 sessions: the leader's wrist_roll is flicked faster than the
+    follower can turn (it runs at its top speed, 8.4° a frame, up to 84° behind), and the follower's reversal out
+    of that run missed the response fit by 3.4°, over the 3° floor: a "step" on a correct pair, the last false
+    alarm of the offset-free sessions (1 of 348). The frames right after a run at the top speed are no longer
+    judged by the fit; a slip anywhere else still is (the tests above)."""
+    from robocal.dataset.teleop_sim import arm_gravity
+
+    arm = TELEOP_ARMS["so101"]
+    (session,) = simulate_sessions(arm, [7029], [TeleopFaults()], gravity=arm_gravity(arm), modes=arm.modes)
+    k = arm.joints.index("wrist_roll")
+    a = session.action_deg[0, :, k]
+    s = session.state_deg[0, :, k]
+    assert np.abs(np.diff(s[140:150])).max() > 8.0 and abs(a[147] - s[147]) > 10.0  # the run at its top speed
+    h = _joint(session, "wrist_roll")
+    assert h.jumps == ()
+    assert h.status in ("ok", "unobservable")
+

@@ -224,7 +224,8 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
     error) and 40 % of the commanded speed, and moves the reading away from the goal is a step (friction lets a follower stick, then jump
     *towards* its goal). Frames at the follower's extremes (a stop holds it, the linear response does not apply)
     are left out of the fit, and judged only when the reading itself jumped away from its goal by more than the
-    threshold.
+    threshold. Frames within three of the follower running at its top speed (velocity-limited, not linear) are
+    not judged.
     """
     s, a = d.state, d.action
     n = s.size
@@ -266,7 +267,15 @@ def _jumps(d: JointData, same: FloatArray, cfg: HealthConfig) -> tuple[JumpEvent
     grows = np.abs(a[idx - 1] - s[idx]) > np.abs(a[idx - 2] - s[idx - 1]) + 0.5 * thr
     # the linear response fits fast moves less well: a step must also pass 40 % of the commanded speed
     speed = np.maximum(np.abs(a[idx - 1] - a[idx - 2]), np.abs(a[idx - 2] - a[idx - 3]))
-    for k in np.flatnonzero((np.abs(err) > np.maximum(thr, 0.4 * speed)) & grows):
+    # right after the follower ran at its top speed (a flick of the leader it could not keep up with) its servo
+    # is not in the linear regime the fit describes: its reversal out of that run is no step
+    v = np.abs(ds)
+    v_top = float(np.percentile(v[ok], 99.5))
+    fast = np.zeros(idx.size, dtype=bool)
+    if v_top > 2.0 * thr:
+        for lag in (1, 2, 3):
+            fast |= v[np.clip(idx - lag, 0, None)] >= 0.7 * v_top
+    for k in np.flatnonzero((np.abs(err) > np.maximum(thr, 0.4 * speed)) & grows & ~fast):
         t = int(idx[k])
         if t - last > 3:
             ep = int(d.episode[t])
