@@ -382,6 +382,8 @@ def test_a_simulated_koch_powers_on_with_the_factory_position_gains() -> None:
     with open_auto_arm(spec, "sim?transport=inproc", auto_section("koch_follower")) as physics:
         assert isinstance(physics.bus, DynamixelBus)
         assert gains(physics.bus) == {n: factory[models[n]] for n in models}
+        shutdown = {m.name: physics.bus.read("Shutdown", m.motor_id) for m in spec.motors}
+        assert shutdown == {n: {"xl430-w250": 52, "xl330-m288": 53}[models[n]] for n in models}  # was 52 on all
 
 
 def test_multi_turn_feedback_does_not_break_homing(tmp_path: Path) -> None:

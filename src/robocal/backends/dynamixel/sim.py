@@ -52,7 +52,8 @@ class DynamixelFirmware(ServoFirmware):
         if not self._reg("Position_P_Gain"):  # a model without a factory table (its page was not read)
             s.set_reg("Position_P_Gain", 800)
         s.set_reg("Moving_Threshold", 10)
-        s.set_reg("Shutdown", 0x34)
+        if not self._reg("Shutdown"):  # likewise (the factory's: 53 on the XL330s, 52 on the X430s)
+            s.set_reg("Shutdown", 0x34)
 
     @property
     def _sign(self) -> float:
