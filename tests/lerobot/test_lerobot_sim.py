@@ -485,7 +485,9 @@ def test_legacy_calibration_requires_torque_off() -> None:
 @pytest.mark.slow
 @settings(max_examples=40)
 @given(
-    offset=st.integers(-2047, 2047), actual=st.integers(0, 4095), dxl_offset=st.integers(-(2**31), 2**31 - 1)
+    offset=st.integers(-2047, 2047),
+    actual=st.integers(0, 4095),
+    dxl_offset=st.one_of(st.integers(-1_044_479, 1_044_479), st.integers(-(2**31), 2**31 - 1)),
 )
 def test_registers_round_trip_through_sdk(offset: int, actual: int, dxl_offset: int) -> None:
     with SimServoBus([SimServo(1, "sts3215", float(actual))]) as sim:
@@ -499,9 +501,14 @@ def test_registers_round_trip_through_sdk(offset: int, actual: int, dxl_offset: 
     with SimServoBus([SimServo(1, "xl330-m077", float(actual))]) as sim:
         dbus = DynamixelBus(sim.port, {1: "xl330-m077"})
         try:
-            dbus.write("Homing_Offset", 1, dxl_offset)
-            assert dbus.read("Homing_Offset", 1) == dxl_offset
-            assert dbus.sync_read("Homing_Offset", [1]) == {1: dxl_offset}
+            if abs(dxl_offset) <= 1_044_479:  # the e-Manual's range
+                dbus.write("Homing_Offset", 1, dxl_offset)
+                assert dbus.read("Homing_Offset", 1) == dxl_offset
+                assert dbus.sync_read("Homing_Offset", [1]) == {1: dxl_offset}
+            else:  # refused with the Data Range error, as the servo does
+                with pytest.raises(DeviceError, match="out of range"):
+                    dbus.write("Homing_Offset", 1, dxl_offset)
+                assert dbus.read("Homing_Offset", 1) == 0
         finally:
             dbus.close()
 

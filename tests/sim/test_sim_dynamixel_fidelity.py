@@ -120,3 +120,19 @@ def test_bulk_write_is_applied_by_each_servo_and_answered_by_none(sdk: tuple[Sim
         bytes.fromhex("FF FF FD 00 FE 10 00 93 01 20 00 02 00 A0 00 02 1F 00 01 00 50 B7 68"),
     )
     assert [kind for kind, _ in sim.packet_log] == ["rx", "rx", "tx", "rx", "tx"]  # no status for the bulk write
+
+
+def test_a_value_outside_a_registers_range_is_refused_with_a_data_range_error(
+    sdk: tuple[SimServoBus, Any, Any],
+) -> None:
+    """e-Manual ranges: Min/Max_Position_Limit 0-4095, Homing_Offset ±1 044 479; a write outside is answered with
+    the Data Range error (4) and not applied (before, any value the 4 bytes hold was taken: a LeRobot file with
+    range_max 70000 was written to a simulated Koch without complaint)."""
+    sim, ph, pk = sdk
+    assert pk.write4ByteTxRx(ph, 1, 48, 70000) == (dxl.COMM_SUCCESS, 4)
+    assert pk.write4ByteTxRx(ph, 1, 52, 0xFFFFFFFD) == (dxl.COMM_SUCCESS, 4)  # -3
+    assert pk.write4ByteTxRx(ph, 2, 20, 1_044_480) == (dxl.COMM_SUCCESS, 4)
+    assert (_read(ph, pk, 1, 48, 4), _read(ph, pk, 1, 52, 4), _read(ph, pk, 2, 20, 4)) == (4095, 0, 0)
+    assert pk.write4ByteTxRx(ph, 1, 48, 4000) == (dxl.COMM_SUCCESS, 0)
+    assert pk.write4ByteTxRx(ph, 2, 20, (1 << 32) - 1_044_479) == (dxl.COMM_SUCCESS, 0)  # the lowest it takes
+    assert (sim.servos[1].get_reg("Max_Position_Limit"), sim.servos[2].get_reg("Homing_Offset")) == (4000, -1_044_479)

@@ -158,6 +158,12 @@ DYNAMIXEL_SIM = SimServoKind(
         "Bus_Watchdog",
     ),
     clamps_goal=False,
+    value_ranges={  # e-Manual (X series): a write outside is refused with a Data Range error
+        "Min_Position_Limit": (0, 4095),
+        "Max_Position_Limit": (0, 4095),
+        "Homing_Offset": (-1_044_479, 1_044_479),
+    },
+    range_error=4,
     single_turn_mode=3,
     address_bytes=2,
     parse=parse_dynamixel,

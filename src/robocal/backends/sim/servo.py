@@ -323,6 +323,8 @@ class SimServoBus(StartsOnEnter):
             lock_addr = servo.table[lock][0]
             if self.enforce_lock and addr < torque_addr and servo.regs[lock_addr]:
                 return 0x08
+        if servo.out_of_range(addr, data) is not None:
+            return servo.kind.range_error  # e.g. Max_Position_Limit 70000 (Dynamixel: Data Range error)
         data = servo.apply_set_middle(addr, data)  # Feetech Torque_Enable 128: Homing_Offset so Present reads 2048
         fw = servo.firmware
         if fw is not None:

@@ -47,6 +47,9 @@ class SimServoKind:
             instruction not listed needs ``full_reply_level``.
         full_reply_level: The ``status_level`` value at which every instruction is answered.
         set_middle: The ``Torque_Enable`` value that makes the present position read half a turn (None: none).
+        value_ranges: Register → the (lowest, highest) value it takes; a write outside is refused with
+            ``range_error`` (none refused where empty).
+        range_error: Status error byte of such a write (Dynamixel: Data Range error, 4).
     """
 
     vendor: str
@@ -69,3 +72,5 @@ class SimServoKind:
     reply_levels: Mapping[int, int] = field(default_factory=dict)
     full_reply_level: int = 0
     set_middle: int | None = None
+    value_ranges: Mapping[str, tuple[int, int]] = field(default_factory=dict)
+    range_error: int = 0

@@ -161,6 +161,19 @@ class SimServo:
             return decode_twos_complement(raw, size)
         return raw
 
+    def out_of_range(self, addr: int, data: bytes) -> str | None:
+        """The first register the write of ``data`` at ``addr`` would set outside its range (None: none)."""
+        for name, (lo, hi) in self.kind.value_ranges.items():
+            if name not in self.table:
+                continue
+            a, size = self.table[name]
+            if addr <= a and a + size <= addr + len(data):
+                raw = int.from_bytes(data[a - addr : a - addr + size], "big" if self.big_endian else "little")
+                value = decode_twos_complement(raw, size) if name in self.kind.twos_complement else raw
+                if not lo <= value <= hi:
+                    return name
+        return None
+
     @property
     def bus_id(self) -> int:
         """The id the servo answers to now (its ``ID`` register)."""
