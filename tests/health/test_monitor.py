@@ -208,6 +208,20 @@ def test_history_keeps_the_newest_flags_up_to_its_size() -> None:
     assert set(m.counts) == set(FLAG_KINDS)
 
 
+def _refusal(kw: dict[str, object]) -> str:
+    """The UsageError message of ``monitor_config`` for two joints with ``kw`` changed."""
+    args: dict[str, object] = {
+        "joint_names": ["a", "b"],
+        "lower_rad": [-1.0, -1.0],
+        "upper_rad": [1.0, 1.0],
+        "max_speed_rad_s": 3.0,
+    }
+    args.update(kw)
+    with pytest.raises(UsageError) as err:
+        monitor_config(**args)  # type: ignore[arg-type]
+    return str(err.value)
+
+
 @pytest.mark.parametrize(
     ("kw", "message"),
     [
@@ -222,16 +236,7 @@ def test_history_keeps_the_newest_flags_up_to_its_size() -> None:
     ],
 )
 def test_bad_configurations_are_refused_naming_the_field(kw: dict[str, object], message: str) -> None:
-    args: dict[str, object] = {
-        "joint_names": ["a", "b"],
-        "lower_rad": [-1.0, -1.0],
-        "upper_rad": [1.0, 1.0],
-        "max_speed_rad_s": 3.0,
-    }
-    args.update(kw)
-    with pytest.raises(UsageError) as err:
-        monitor_config(**args)  # type: ignore[arg-type]
-    assert str(err.value) == message
+    assert _refusal(kw) == message
 
 
 def test_the_docstring_examples_hold() -> None:
@@ -350,16 +355,7 @@ def test_strings_and_other_non_numbers_for_per_joint_values_are_refused_naming_t
     """Before, a string was read one value per character: ``wraps="ab"`` made both joints wrap, ``lower_rad="12"``
     gave stops (1.0, 2.0), ``max_speed_rad_s="3"`` a length error, ``wraps=["no", "no"]`` two True flags, and
     ``joint_names="ab"`` two joints; elements that were not numbers raised Python's TypeError or ValueError."""
-    args: dict[str, object] = {
-        "joint_names": ["a", "b"],
-        "lower_rad": [-1.0, -1.0],
-        "upper_rad": [1.0, 1.0],
-        "max_speed_rad_s": 3.0,
-    }
-    args.update(kw)
-    with pytest.raises(UsageError) as err:
-        monitor_config(**args)  # type: ignore[arg-type]
-    assert str(err.value) == message
+    assert _refusal(kw) == message
 
 
 @pytest.mark.parametrize(
