@@ -88,15 +88,20 @@ def client_python(name: str) -> tuple[Path | None, str]:
     digest = hashlib.sha256("\n".join(env.requirements).encode()).hexdigest()[:10]
     folder = cache_root() / f"client-{name}-py{ver}-{digest}"
     python = folder / "bin" / "python"
-    if (folder / ".ready").exists():
+    if _usable(folder):
         return python, f"reused {folder}"
     folder.parent.mkdir(parents=True, exist_ok=True)
     # built in place (console scripts name their interpreter by its absolute path), one builder at a time
     with open(folder.with_name(folder.name + ".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        if (folder / ".ready").exists():
+        if _usable(folder):
             return python, f"reused {folder}"
         return _build(folder, env)
+
+
+def _usable(folder: Path) -> bool:
+    """Built, and its interpreter still there (an environment made from a Python that is gone is rebuilt)."""
+    return (folder / ".ready").exists() and (folder / "bin" / "python").exists()  # exists() follows the link
 
 
 def _build(folder: Path, env: ClientEnv) -> tuple[Path | None, str]:
@@ -114,9 +119,11 @@ def _build(folder: Path, env: ClientEnv) -> tuple[Path | None, str]:
         "--disable-pip-version-check",
     ]
     try:
-        subprocess.run(
-            [sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, capture_output=True
-        )
+        # from the base interpreter, not the test run's virtual environment: that one lives in the project's
+        # clone, and a cached environment made from it broke when a CI clone was deleted (its python a dangling link)
+        base = Path(sys.base_prefix, "bin", f"python{sys.version_info[0]}.{sys.version_info[1]}")
+        base = base if base.exists() else Path(sys.executable)  # (sys._base_executable is the venv's on 3.10)
+        subprocess.run([base, "-m", "venv", "--without-pip", str(folder)], check=True, capture_output=True)
         subprocess.run([*pip, *env.requirements], check=True, capture_output=True, text=True, timeout=900)
         check = "; ".join(f"import {m}" for m in env.imports)
         subprocess.run([str(python), "-c", check], check=True, capture_output=True, text=True)
